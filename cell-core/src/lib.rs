@@ -1,0 +1,26 @@
+//! # cell-core — what one RC² cell runs
+//!
+//! RC² (Vidal, Lille 1992) is an n × n grid of small processors. Cell (x, y) owns the whole
+//! voxel column {(x, y, z)} and stores it as **dexels**: short sorted z ranges (§3.4).
+//! This crate is exactly the code one cell runs, with no `std` and no allocation: every store
+//! has its capacity in its type (heapless), every overflow is a counted event, and every
+//! integer in the loading phase is exact (see [`voxelize`] for the bit budget).
+//!
+//! * [`units`] — integer types named for their meaning (column index, depth, facet id …).
+//! * [`facet`] — the facet packets the host injects and the cells pass on (§3.9).
+//! * [`voxelize`] — the pipeline cell and the row cell of the loading wave (§3.5–3.9).
+//! * [`dexel`] — the per-cell dexel store (§3.4).
+//! * [`normal`] — the 16-bit octahedral normal code stored with each dexel.
+//! * [`cell`] — one cell: its store and counters.
+//! * [`beam`] — light beams and their split (§4.3).
+#![no_std]
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod beam;
+pub mod cell;
+pub mod dexel;
+pub mod facet;
+pub mod normal;
+pub mod units;
+pub mod voxelize;
