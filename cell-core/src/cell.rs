@@ -1,1 +1,46 @@
-//! placeholder
+//! One cell of the grid: its position, its dexel store and its counters.
+//!
+//! The cell is a deterministic state machine driven by explicit calls (sans-IO): the host
+//! simulator and a firmware main loop call the same step functions.
+
+use crate::dexel::DexelStore;
+use crate::units::Coord;
+
+/// Dexel capacity a host build uses unless told otherwise.
+pub const DEFAULT_DEXELS: usize = 32;
+
+/// Per-cell counters of the loading phase.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LoadCounters {
+    /// Facet packets received from the west (or from the pipeline).
+    pub packets: u32,
+    /// Packets for which the cell computed a span (inside the facet's box).
+    pub spans_computed: u32,
+    /// Voxels a facet wanted that an earlier facet already held.
+    pub voxels_shared: u32,
+}
+
+/// One RC² cell with room for `D` dexels.
+#[derive(Clone, Debug, Default)]
+pub struct Cell<const D: usize> {
+    /// Column index.
+    pub x: Coord,
+    /// Row index.
+    pub y: Coord,
+    /// The column's voxels.
+    pub store: DexelStore<D>,
+    /// Loading counters.
+    pub counters: LoadCounters,
+}
+
+impl<const D: usize> Cell<D> {
+    /// An empty cell at (x, y).
+    pub const fn new(x: Coord, y: Coord) -> Self {
+        Cell {
+            x,
+            y,
+            store: DexelStore::new(),
+            counters: LoadCounters { packets: 0, spans_computed: 0, voxels_shared: 0 },
+        }
+    }
+}

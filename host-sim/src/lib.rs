@@ -1,0 +1,20 @@
+//! # host-sim — the std host of the RC² machine
+//!
+//! Builds an n × n grid of [`cell_core`] cells, loads scenes into it, and reports.
+//!
+//! * [`scene`] — OBJ meshes (via `tobj`) and built-in scenes.
+//! * [`precompute`] — fit, lattice quantisation and exact facet packets (§3.9 host side).
+//! * [`grid`] — the grid and the cycle-stepped loading wave.
+//! * [`load`] — the `voxelize` job and its statistics.
+//! * [`binvox`] — the `.binvox` voxel file format.
+//! * [`meshops`] — mesh utilities (subdivision for benchmarks).
+//! * [`cli`] — the command line.
+#![forbid(unsafe_code)]
+
+pub mod binvox;
+pub mod cli;
+pub mod grid;
+pub mod load;
+pub mod meshops;
+pub mod precompute;
+pub mod scene;

@@ -1,0 +1,451 @@
+//! Host precompute ("géométrie/précalcul", §3.9): fit the mesh into the grid, quantise its
+//! vertices to a lattice, and compute each facet's exact integer packet.
+//!
+//! * **Fit**: uniform scale; the mesh's bounding box (of the vertices faces use) is centred in
+//!   the grid and its largest side spans `n − 2·MARGIN_VOXELS` voxels, so a one-voxel shell of
+//!   empty space surrounds the mesh on its longest axis.
+//! * **Lattice**: vertex coordinates are rounded to `1/Q` voxel (`Q = 16`); lattice coordinate
+//!   `X = Q·x_vox + Q/2` where `x_vox` is the voxel-centre coordinate, so `0 ..= Q·n` spans the
+//!   grid from its low faces to its high faces.
+//! * **Coefficients**: plane normal from an exact `i128` cross product, band half-width `Kσ`
+//!   per thickness mode, contour edges in the base plane most orthogonal to the normal (§3.6
+//!   "Simplification"), optionally pushed out by the voxel's half-extent (`conservative`).
+//!   Everything is checked to fit the cell's `i64`/`i32` fields.
+//!
+//! Polygons are kept when planar (exactly, after quantisation) and convex; otherwise a convex
+//! polygon is split into a triangle fan, a non-convex one is ear-clipped (both counted), and a
+//! self-intersecting one is rejected with a message naming the face.
+
+use anyhow::{bail, Result};
+use cell_core::dexel::FacetTag;
+use cell_core::facet::{FacetBox, PipeEdge, PipelinePacket, MAX_EDGES};
+use cell_core::normal::NormalCode;
+use cell_core::units::MAX_N;
+
+use crate::scene::Mesh;
+
+/// Lattice steps per voxel.
+pub const Q: i64 = 16;
+/// Empty voxels kept between the mesh's bounding box and the grid faces on its longest axis.
+pub const MARGIN_VOXELS: f64 = 1.0;
+
+/// Plane thickness (§3.5, §3.8).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Thickness {
+    /// σ = ½: the thinnest hole-free plane; stops 6-connected rays only.
+    Naive,
+    /// The thesis's σ = max σ_ij, σ_ij = ½(1 + min/max) (§3.8): chosen from experiments.
+    Thesis,
+    /// Kσ = (|a|+|b|+|c|)/2: the standard arithmetic plane, provably free of 26-tunnels.
+    Standard,
+}
+
+/// Contour of a facet (§3.6, §3.8).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Contour {
+    /// The thesis's projected contour: the voxel centre's projection lies in the facet's.
+    Projected,
+    /// Edges pushed out by the voxel's half-extent: every voxel whose square touches the
+    /// projected facet is kept; closes gaps between facets and holes in thin facets.
+    Conservative,
+}
+
+/// Loading-phase configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LoadConfig {
+    /// Grid side (n × n cells, depth n).
+    pub n: u32,
+    /// Plane thickness mode.
+    pub thickness: Thickness,
+    /// Contour mode.
+    pub contour: Contour,
+}
+
+impl LoadConfig {
+    /// Validate the grid size against the cell's bit budget.
+    pub fn validate(&self) -> Result<()> {
+        if self.n < 4 {
+            bail!("--n {} is too small: the grid needs at least 4 cells per side", self.n);
+        }
+        if self.n > MAX_N {
+            bail!("--n {} exceeds the largest grid a cell supports ({MAX_N}, bounded by the i64 bit budget and u16 depths)", self.n);
+        }
+        Ok(())
+    }
+}
+
+/// World ↔ grid mapping chosen by the fit.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Fit {
+    /// World position of the grid's low corner (lattice coordinate 0).
+    pub origin: [f64; 3],
+    /// World size of one voxel.
+    pub voxel: f64,
+}
+
+impl Fit {
+    /// Lattice coordinates of a world point (rounded to nearest).
+    pub fn to_lattice(&self, p: [f64; 3]) -> [i64; 3] {
+        [0, 1, 2].map(|i| ((p[i] - self.origin[i]) / self.voxel * Q as f64).round() as i64)
+    }
+
+    /// World coordinates of a lattice point.
+    pub fn to_world(&self, l: [i64; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|i| self.origin[i] + l[i] as f64 / Q as f64 * self.voxel)
+    }
+}
+
+/// Why a face produced no packet.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Skip {
+    /// Zero area after quantisation.
+    Degenerate,
+    /// No column of the grid can hold a voxel of it.
+    OutsideGrid,
+}
+
+/// The result of the precompute.
+#[derive(Clone, Debug, Default)]
+pub struct Prepared {
+    /// Packets in stream order; packet i has facet id i.
+    pub packets: Vec<PipelinePacket>,
+    /// The lattice polygon of each packet (for oracles and reports).
+    pub polygons: Vec<Vec<[i64; 3]>>,
+    /// Source face index of each packet.
+    pub source_face: Vec<u32>,
+    /// World ↔ grid mapping.
+    pub fit: Option<Fit>,
+    /// Faces in the input.
+    pub faces_in: usize,
+    /// Faces skipped as degenerate (zero area after quantisation).
+    pub skipped_degenerate: usize,
+    /// Faces skipped as outside the grid.
+    pub skipped_outside: usize,
+    /// Polygons split into triangles (non-planar after quantisation, or too many edges).
+    pub polygons_split: usize,
+}
+
+/// Fit the mesh's used vertices into an n-grid.
+pub fn fit(mesh: &Mesh, n: u32) -> Result<Fit> {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    let mut used = 0usize;
+    for (fi, f) in mesh.faces.iter().enumerate() {
+        for &v in &f.verts {
+            let p = mesh.positions[v as usize];
+            if !p.iter().all(|c| c.is_finite()) {
+                bail!("{}: face {} uses vertex {} with a non-finite coordinate {:?}", mesh.name, fi + 1, v + 1, p);
+            }
+            for i in 0..3 {
+                lo[i] = lo[i].min(p[i]);
+                hi[i] = hi[i].max(p[i]);
+            }
+            used += 1;
+        }
+    }
+    if used == 0 {
+        bail!("{}: the mesh has no faces: nothing to voxelize", mesh.name);
+    }
+    let extent = (0..3).map(|i| hi[i] - lo[i]).fold(0.0, f64::max);
+    if !(extent > 0.0) || !extent.is_finite() {
+        bail!("{}: all vertices coincide (or the extent overflows): nothing to voxelize", mesh.name);
+    }
+    let voxel = extent / (n as f64 - 2.0 * MARGIN_VOXELS);
+    if !(voxel > 0.0) || !voxel.is_finite() {
+        bail!("{}: cannot fit the mesh (extent {extent:e}) into the grid", mesh.name);
+    }
+    let origin = [0, 1, 2].map(|i| (lo[i] + hi[i]) / 2.0 - n as f64 / 2.0 * voxel);
+    Ok(Fit { origin, voxel })
+}
+
+fn cross(a: [i128; 3], b: [i128; 3]) -> [i128; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+fn sub(a: [i64; 3], b: [i64; 3]) -> [i128; 3] {
+    [0, 1, 2].map(|i| a[i] as i128 - b[i] as i128)
+}
+
+fn dot(a: [i128; 3], b: [i128; 3]) -> i128 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Normal of a lattice polygon from its first non-collinear vertex triple (zero if none).
+pub fn polygon_normal(p: &[[i64; 3]]) -> [i128; 3] {
+    for k in 2..p.len() {
+        let n = cross(sub(p[1], p[0]), sub(p[k], p[0]));
+        if n != [0; 3] {
+            return n;
+        }
+    }
+    [0; 3]
+}
+
+/// Dominant axis of a normal (largest |component|, ties prefer z, then y, then x), and the two
+/// projection axes in increasing order.
+pub fn projection_axes(n: [i128; 3]) -> (usize, usize, usize) {
+    let m = [n[0].abs(), n[1].abs(), n[2].abs()];
+    if m[2] >= m[0] && m[2] >= m[1] {
+        (2, 0, 1)
+    } else if m[1] >= m[0] {
+        (1, 0, 2)
+    } else {
+        (0, 1, 2)
+    }
+}
+
+/// Band half-width `⌊Kσ⌋` (in the units of `E = a·x + b·y + c·z + d`) for voxel-unit
+/// coefficients `abc = q·(A, B, C)`. `E` is an integer, so `|E| ≤ Kσ ⇔ |E| ≤ ⌊Kσ⌋` exactly.
+pub fn band_half_width(abc: [i128; 3], th: Thickness) -> i128 {
+    let m = abc.map(|v| v.abs());
+    let k = m[0].max(m[1]).max(m[2]);
+    match th {
+        Thickness::Naive => k / 2,
+        Thickness::Standard => (m[0] + m[1] + m[2]) / 2,
+        Thickness::Thesis => [(0, 1), (0, 2), (1, 2)]
+            .iter()
+            .map(|&(i, j)| {
+                let (mx, mn) = (m[i].max(m[j]), m[i].min(m[j]));
+                if mx == 0 {
+                    k / 2
+                } else {
+                    (k * (mx + mn)) / (2 * mx)
+                }
+            })
+            .max()
+            .unwrap_or(0),
+    }
+}
+
+fn fits_i64(v: i128, what: &str) -> Result<i64> {
+    i64::try_from(v).map_err(|_| anyhow::anyhow!("{what} = {v} exceeds the cell's i64 bit budget"))
+}
+
+fn fits_i32(v: i128, what: &str) -> Result<i32> {
+    i32::try_from(v).map_err(|_| anyhow::anyhow!("{what} = {v} exceeds the cell's i32 bit budget"))
+}
+
+/// Whether a polygon is convex in its projection (collinear runs allowed), given its normal.
+fn convex_in_projection(p: &[[i64; 3]], axes: (usize, usize, usize)) -> bool {
+    let (_, u, v) = axes;
+    let k = p.len();
+    let mut sign = 0i128;
+    for i in 0..k {
+        let (a, b, c) = (p[i], p[(i + 1) % k], p[(i + 2) % k]);
+        let cr = (b[u] - a[u]) as i128 * (c[v] - b[v]) as i128 - (b[v] - a[v]) as i128 * (c[u] - b[u]) as i128;
+        if cr != 0 {
+            if sign != 0 && cr.signum() != sign {
+                return false;
+            }
+            sign = cr.signum();
+        }
+    }
+    true
+}
+
+/// Build the packet of one planar convex lattice polygon (`Ok(Err(skip))`: skipped, with the reason).
+pub fn facet_packet(
+    poly: &[[i64; 3]],
+    tag: FacetTag,
+    cfg: &LoadConfig,
+) -> Result<std::result::Result<PipelinePacket, Skip>> {
+    let n = polygon_normal(poly);
+    if n == [0; 3] || poly.len() > MAX_EDGES {
+        return Ok(Err(Skip::Degenerate));
+    }
+    let q = Q as i128;
+    let h = q / 2;
+    let abc = n.map(|v| v * q);
+    let ks = band_half_width(abc, cfg.thickness);
+    // E at voxel (0,0,0): N · (centre − P0) with centre = (h, h, h).
+    let p0 = poly[0];
+    let d = n[0] * (h - p0[0] as i128) + n[1] * (h - p0[1] as i128) + n[2] * (h - p0[2] as i128);
+    let axes = projection_axes(n);
+    let (dom, ua, va) = axes;
+    // Orientation: sign of the projected (shoelace) area, so that the interior is ≥ 0.
+    let area2: i128 = (0..poly.len())
+        .map(|i| {
+            let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+            a[ua] as i128 * b[va] as i128 - b[ua] as i128 * a[va] as i128
+        })
+        .sum();
+    let s = area2.signum();
+    if s == 0 {
+        return Ok(Err(Skip::Degenerate));
+    }
+    let conservative = cfg.contour == Contour::Conservative;
+    let mut edges = heapless::Vec::<PipeEdge, MAX_EDGES>::new();
+    for i in 0..poly.len() {
+        let (pi, pj) = (poly[i], poly[(i + 1) % poly.len()]);
+        let du = (pj[ua] - pi[ua]) as i128;
+        let dv = (pj[va] - pi[va]) as i128;
+        if du == 0 && dv == 0 {
+            continue; // repeated vertex in projection: no constraint
+        }
+        // F(M) = du·(Mv − Vi) − dv·(Mu − Ui), M = q·idx + h.
+        let mut coef = [0i128; 3];
+        coef[ua] = -s * dv * q;
+        coef[va] = s * du * q;
+        let mut g0 = s * (du * (h - pi[va] as i128) - dv * (h - pi[ua] as i128));
+        if conservative {
+            g0 += h * (du.abs() + dv.abs());
+        }
+        let e = PipeEdge {
+            a: fits_i32(coef[0], "edge coefficient a_i")?,
+            b: fits_i32(coef[1], "edge coefficient b_i")?,
+            c: fits_i32(coef[2], "edge coefficient c_i")?,
+            g: fits_i64(g0, "edge value g_i")?,
+        };
+        // Cannot fail: at most poly.len() <= MAX_EDGES edges.
+        let _ = edges.push(e);
+    }
+    // Box: on the projected axes, the vertex range (pushed out by ½ voxel in conservative mode:
+    // with the pushed-out edges this is conservative rasterisation, edges ∩ box, which trims
+    // the spikes at acute corners); on the dominant axis, the vertex range pushed out by the
+    // farthest a kept centre can be (≤ 1.5 voxel for the band, + 1 for the conservative spill),
+    // so it never cuts a voxel (the brute-force tests check it).
+    let reach = |axis: usize| -> i128 {
+        match (axis == dom, conservative) {
+            (true, true) => 5 * h,
+            (true, false) => 3 * h,
+            (false, true) => h,
+            (false, false) => 0,
+        }
+    };
+    let nn = cfg.n as i128;
+    let range = |axis: usize| -> Option<(u16, u16)> {
+        let lo = poly.iter().map(|p| p[axis]).min()? as i128 - reach(axis);
+        let hi = poly.iter().map(|p| p[axis]).max()? as i128 + reach(axis);
+        // Voxel i has centre q·i + h: q·i + h ∈ [lo, hi].
+        let i_lo = (lo - h + q - 1).div_euclid(q).max(0);
+        let i_hi = (hi - h).div_euclid(q).min(nn - 1);
+        (i_lo <= i_hi).then(|| (i_lo as u16, i_hi as u16))
+    };
+    let (Some((x_min, x_max)), Some((y_min, y_max)), Some((z_min, z_max))) = (range(0), range(1), range(2)) else {
+        return Ok(Err(Skip::OutsideGrid));
+    };
+    Ok(Ok(PipelinePacket {
+        tag,
+        bbox: FacetBox { x_min, x_max, y_min, y_max, z_min, z_max },
+        a: fits_i64(abc[0], "plane coefficient a")?,
+        b: fits_i64(abc[1], "plane coefficient b")?,
+        c: fits_i64(abc[2], "plane coefficient c")?,
+        t: fits_i64(ks - d, "plane value T")?,
+        u: fits_i64(-ks - d, "plane value U")?,
+        edges,
+    }))
+}
+
+fn dedup_cyclic(mut p: Vec<[i64; 3]>) -> Vec<[i64; 3]> {
+    p.dedup();
+    while p.len() > 1 && p.first() == p.last() {
+        p.pop();
+    }
+    p
+}
+
+/// Split a lattice polygon into what the cells accept: planar convex polygons of at most
+/// `MAX_EDGES` vertices. A planar convex polygon is kept whole; a convex one that quantisation
+/// made non-planar (or that has too many vertices) becomes a triangle fan; a non-convex simple
+/// polygon is ear-clipped in its projection. Returns the pieces and whether it was split.
+pub fn planar_pieces(p: Vec<[i64; 3]>) -> std::result::Result<(Vec<Vec<[i64; 3]>>, bool), &'static str> {
+    let p = dedup_cyclic(p);
+    if p.len() <= 3 {
+        return Ok((vec![p], false));
+    }
+    let n = polygon_normal(&p);
+    if n == [0; 3] {
+        return Ok((vec![p], false)); // degenerate: skipped by the caller
+    }
+    let planar = p.iter().all(|&v| dot(n, sub(v, p[0])) == 0);
+    let axes = projection_axes(n);
+    if convex_in_projection(&p, axes) {
+        if planar && p.len() <= MAX_EDGES {
+            return Ok((vec![p], false));
+        }
+        return Ok(((1..p.len() - 1).map(|k| vec![p[0], p[k], p[k + 1]]).collect(), true));
+    }
+    ear_clip(&p, axes).map(|t| (t, true))
+}
+
+/// Ear clipping in the projection on the dominant plane (exact integer orientation tests).
+fn ear_clip(p: &[[i64; 3]], (_, u, v): (usize, usize, usize)) -> std::result::Result<Vec<Vec<[i64; 3]>>, &'static str> {
+    let orient = |a: [i64; 3], b: [i64; 3], c: [i64; 3]| -> i128 {
+        (b[u] - a[u]) as i128 * (c[v] - a[v]) as i128 - (b[v] - a[v]) as i128 * (c[u] - a[u]) as i128
+    };
+    let area2: i128 = (0..p.len()).map(|i| orient([0; 3], p[i], p[(i + 1) % p.len()])).sum();
+    let s = area2.signum();
+    if s == 0 {
+        return Err("self-overlapping polygon (zero projected area)");
+    }
+    let mut idx: Vec<usize> = (0..p.len()).collect();
+    let mut tris = Vec::new();
+    while idx.len() > 3 {
+        let k = idx.len();
+        let ear = (0..k).find(|&i| {
+            let (a, b, c) = (p[idx[(i + k - 1) % k]], p[idx[i]], p[idx[(i + 1) % k]]);
+            if orient(a, b, c) * s <= 0 {
+                return false; // reflex or flat corner
+            }
+            // No other vertex inside or on the candidate ear.
+            idx.iter().all(|&j| {
+                let q = p[j];
+                q == a || q == b || q == c || !(orient(a, b, q) * s >= 0 && orient(b, c, q) * s >= 0 && orient(c, a, q) * s >= 0)
+            })
+        });
+        let Some(i) = ear else {
+            return Err("self-intersecting polygon: cannot be triangulated");
+        };
+        tris.push(vec![p[idx[(i + k - 1) % k]], p[idx[i]], p[idx[(i + 1) % k]]]);
+        idx.remove(i);
+    }
+    tris.push(idx.iter().map(|&i| p[i]).collect());
+    Ok(tris)
+}
+
+/// Run the precompute for a whole mesh.
+pub fn prepare(mesh: &Mesh, cfg: &LoadConfig) -> Result<Prepared> {
+    cfg.validate()?;
+    let fit = fit(mesh, cfg.n)?;
+    let mut out = Prepared { fit: Some(fit), faces_in: mesh.faces.len(), ..Default::default() };
+    for (fi, face) in mesh.faces.iter().enumerate() {
+        let lat: Vec<[i64; 3]> = face.verts.iter().map(|&v| fit.to_lattice(mesh.positions[v as usize])).collect();
+        let (pieces, split) = planar_pieces(lat)
+            .map_err(|why| anyhow::anyhow!("{}: face {} ({} vertices): {why}", mesh.name, fi + 1, face.verts.len()))?;
+        out.polygons_split += split as usize;
+        for piece in pieces {
+            let nrm = polygon_normal(&piece);
+            let tag = FacetTag {
+                facet: out.packets.len() as u32,
+                material: face.material,
+                normal: NormalCode::encode(nrm.map(|v| v as f32)),
+            };
+            match facet_packet(&piece, tag, cfg)? {
+                Ok(pkt) => {
+                    out.packets.push(pkt);
+                    out.polygons.push(piece);
+                    out.source_face.push(fi as u32);
+                }
+                Err(Skip::Degenerate) => out.skipped_degenerate += 1,
+                Err(Skip::OutsideGrid) => out.skipped_outside += 1,
+            }
+        }
+    }
+    if out.packets.len() > u32::MAX as usize {
+        bail!("too many facets");
+    }
+    let total = out.packets.len() + out.skipped_degenerate;
+    if total > 8 && out.skipped_degenerate * 2 > total {
+        eprintln!(
+            "warning: {}: {} of {} facets collapsed to zero area after fitting to the grid; \
+             a few far-away vertices may dominate the mesh's bounding box",
+            mesh.name, out.skipped_degenerate, total
+        );
+    }
+    if out.packets.is_empty() {
+        bail!("{}: every facet is degenerate after quantisation: nothing to voxelize", mesh.name);
+    }
+    Ok(out)
+}

@@ -1,0 +1,218 @@
+//! Scenes: OBJ meshes (through `tobj`) and the built-in scenes.
+//!
+//! A [`Mesh`] keeps the polygons as the file gives them (no triangulation here: the host
+//! precompute keeps planar convex polygons and splits the rest) with world coordinates in
+//! `f64` and one material per face.
+
+use anyhow::{bail, Context, Result};
+use std::io::BufReader;
+use std::path::Path;
+
+/// A surface material (Phong/Blinn parameters, from the MTL file or defaults).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Material {
+    /// Name in the MTL file.
+    pub name: String,
+    /// Ambient reflectance `Ka`.
+    pub ka: [f32; 3],
+    /// Diffuse reflectance `Kd`.
+    pub kd: [f32; 3],
+    /// Specular reflectance `Ks`.
+    pub ks: [f32; 3],
+    /// Specular exponent `Ns`.
+    pub ns: f32,
+    /// Emitted radiance `Ke` (light sources).
+    pub ke: [f32; 3],
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Material { name: "default".into(), ka: [0.1; 3], kd: [0.7; 3], ks: [0.0; 3], ns: 1.0, ke: [0.0; 3] }
+    }
+}
+
+/// One polygon: vertex indices into [`Mesh::positions`] and a material index.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Face {
+    /// Indices of the polygon's vertices, in order.
+    pub verts: Vec<u32>,
+    /// Index into [`Mesh::materials`].
+    pub material: u16,
+}
+
+/// A polygon mesh in world coordinates.
+#[derive(Clone, Debug, Default)]
+pub struct Mesh {
+    /// Scene name (built-in name or file stem).
+    pub name: String,
+    /// Vertex positions (world units).
+    pub positions: Vec<[f64; 3]>,
+    /// Polygons.
+    pub faces: Vec<Face>,
+    /// Materials; index 0 exists always (the default material when the file has none).
+    pub materials: Vec<Material>,
+}
+
+/// Built-in scenes: name, one-line description.
+pub const BUILTINS: &[(&str, &str)] = &[
+    ("cornell", "the Cornell box (published geometry: 5 walls, ceiling light, two blocks)"),
+    ("facet", "a single triangle in general position"),
+    ("teapot", "Utah teapot, 6 320 triangles (open surface)"),
+    ("cow", "cow, 5 804 triangles (closed)"),
+    ("fandisk", "fandisk CAD part, 12 946 triangles (closed)"),
+    ("suzanne", "Blender's Suzanne, 500 polygons (open)"),
+];
+
+const CORNELL_OBJ: &str = include_str!("../scenes/cornell.obj");
+const CORNELL_MTL: &str = include_str!("../scenes/cornell.mtl");
+const FACET_OBJ: &str = "# rc2 built-in: one triangle in general position\n\
+v 0.10 0.20 0.30\nv 0.90 0.35 0.60\nv 0.40 0.85 0.15\nf 1 2 3\n";
+
+fn builtin_source(name: &str) -> Option<(&'static str, Option<&'static str>)> {
+    Some(match name {
+        "cornell" => (CORNELL_OBJ, Some(CORNELL_MTL)),
+        "facet" => (FACET_OBJ, None),
+        "teapot" => (include_str!("../scenes/teapot.obj"), None),
+        "cow" => (include_str!("../scenes/cow.obj"), None),
+        "fandisk" => (include_str!("../scenes/fandisk.obj"), None),
+        "suzanne" => (include_str!("../scenes/suzanne.obj"), None),
+        _ => return None,
+    })
+}
+
+/// Load a scene: a built-in name (see [`BUILTINS`]) or a path to an `.obj` file.
+pub fn load(scene: &str) -> Result<Mesh> {
+    if let Some((obj, mtl)) = builtin_source(scene) {
+        return parse_obj(scene, obj, |_| match mtl {
+            Some(m) => tobj::load_mtl_buf(&mut BufReader::new(m.as_bytes())),
+            None => Err(tobj::LoadError::OpenFileFailed),
+        });
+    }
+    let path = Path::new(scene);
+    if !path.exists() {
+        let names: Vec<_> = BUILTINS.iter().map(|b| b.0).collect();
+        bail!("scene '{scene}' is neither a file nor a built-in scene (built-ins: {})", names.join(", "));
+    }
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let text = String::from_utf8(bytes)
+        .map_err(|e| anyhow::anyhow!("{}: not a text OBJ file (invalid UTF-8 at byte {})", path.display(), e.utf8_error().valid_up_to()))?;
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    parse_obj(&name, &text, |mtl| tobj::load_mtl(dir.join(mtl)))
+}
+
+fn convert_material(m: &tobj::Material) -> Material {
+    let d = Material::default();
+    let f = |v: Option<[f64; 3]>, dv: [f32; 3]| v.map(|c| c.map(|x| x as f32)).unwrap_or(dv);
+    let ke = m
+        .unknown_param
+        .get("Ke")
+        .and_then(|s| {
+            let v: Vec<f32> = s.split_whitespace().filter_map(|t| t.parse().ok()).collect();
+            (v.len() == 3).then(|| [v[0], v[1], v[2]])
+        })
+        .or(m.emissive.map(|c| c.map(|x| x as f32)))
+        .unwrap_or(d.ke);
+    Material {
+        name: m.name.clone(),
+        ka: f(m.ambient, d.ka),
+        kd: f(m.diffuse, d.kd),
+        ks: f(m.specular, d.ks),
+        ns: m.shininess.map(|s| s as f32).unwrap_or(d.ns),
+        ke,
+    }
+}
+
+/// Parse OBJ text. `mtl_loader` resolves `mtllib` references.
+pub fn parse_obj<ML>(name: &str, text: &str, mtl_loader: ML) -> Result<Mesh>
+where
+    ML: Fn(&Path) -> tobj::MTLLoadResult,
+{
+    let opts = tobj::LoadOptions {
+        triangulate: false,
+        single_index: false,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    let (models, mats) = tobj::load_obj_buf(&mut BufReader::new(text.as_bytes()), &opts, mtl_loader)
+        .map_err(|e| anyhow::anyhow!("{name}: malformed OBJ ({e})"))?;
+    let mut materials = vec![Material::default()];
+    match mats {
+        Ok(ms) => materials.extend(ms.iter().map(convert_material)),
+        Err(e) => {
+            if text.lines().any(|l| l.trim_start().starts_with("mtllib")) {
+                eprintln!("warning: {name}: material library not loaded ({e}); using the default material");
+            }
+        }
+    }
+    if materials.len() > u16::MAX as usize {
+        bail!("{name}: {} materials, at most {} supported", materials.len(), u16::MAX);
+    }
+    let mut mesh = Mesh { name: name.to_string(), materials, ..Default::default() };
+    for model in &models {
+        let m = &model.mesh;
+        if m.positions.len() % 3 != 0 {
+            bail!("{name}: malformed vertex data in object '{}'", model.name);
+        }
+        let base = mesh.positions.len();
+        if base + m.positions.len() / 3 > u32::MAX as usize {
+            bail!("{name}: too many vertices");
+        }
+        mesh.positions.extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+        let material = m.material_id.map(|i| i + 1).unwrap_or(0);
+        let material = if material < mesh.materials.len() { material as u16 } else { 0 };
+        let nverts = m.positions.len() / 3;
+        let mut push = |idx: &[u32]| -> Result<()> {
+            if let Some(&bad) = idx.iter().find(|&&i| i as usize >= nverts) {
+                bail!("{name}: face refers to vertex {} but object '{}' has {} vertices", bad + 1, model.name, nverts);
+            }
+            mesh.faces.push(Face { verts: idx.iter().map(|&i| (i as usize + base) as u32).collect(), material });
+            Ok(())
+        };
+        if m.face_arities.is_empty() {
+            if m.indices.len() % 3 != 0 {
+                bail!("{name}: malformed face data in object '{}'", model.name);
+            }
+            for tri in m.indices.chunks_exact(3) {
+                push(tri)?;
+            }
+        } else {
+            let mut at = 0usize;
+            for &k in &m.face_arities {
+                let k = k as usize;
+                let Some(idx) = m.indices.get(at..at + k) else {
+                    bail!("{name}: malformed face data in object '{}'", model.name);
+                };
+                push(idx)?;
+                at += k;
+            }
+        }
+    }
+    Ok(mesh)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn builtins_load() {
+        for (name, _) in BUILTINS {
+            let m = load(name).unwrap();
+            assert!(!m.faces.is_empty(), "{name}");
+        }
+        let c = load("cornell").unwrap();
+        // 5 walls + light + 2 blocks × 5 faces.
+        assert_eq!(c.faces.len(), 16);
+        assert!(c.materials.iter().any(|m| m.name == "red" && m.kd[0] > m.kd[1]));
+    }
+
+    #[test]
+    fn bad_index_is_an_error_not_a_panic() {
+        let r = parse_obj("t", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n", |_| Err(tobj::LoadError::OpenFileFailed));
+        assert!(r.is_err());
+        let r = parse_obj("t", "v 0 0 0\nf 1 2 x\n", |_| Err(tobj::LoadError::OpenFileFailed));
+        assert!(r.is_err());
+    }
+}

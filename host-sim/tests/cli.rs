@@ -1,0 +1,130 @@
+//! Bad input through the real binary: a clear one-line error, a non-zero exit, never a panic.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn host_sim(args: &[&str]) -> (i32, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_host-sim")).args(args).output().expect("run host-sim");
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(!stderr.contains("panicked"), "panic on {args:?}:\n{stderr}");
+    (out.status.code().unwrap_or(-1), stderr)
+}
+
+fn tmp(name: &str, contents: &[u8]) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rc2-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(name);
+    std::fs::write(&p, contents).unwrap();
+    p
+}
+
+fn voxelize_file(name: &str, contents: &[u8]) -> (i32, String) {
+    let p = tmp(name, contents);
+    let out = p.with_extension("binvox");
+    host_sim(&["voxelize", p.to_str().unwrap(), "--n", "32", "--quiet", "--out", out.to_str().unwrap()])
+}
+
+/// Voxelize OBJ text into an n-grid and return the exit code, stderr and the stats JSON.
+fn voxelize_with_stats(name: &str, obj: &[u8], n: &str) -> (i32, String, serde_json::Value) {
+    let p = tmp(name, obj);
+    let stats = p.with_extension("json");
+    let out = p.with_extension("binvox");
+    let (code, err) = host_sim(&[
+        "voxelize", p.to_str().unwrap(), "--n", n, "--quiet",
+        "--out", out.to_str().unwrap(), "--stats", stats.to_str().unwrap(),
+    ]);
+    let s = std::fs::read_to_string(stats).ok().and_then(|t| serde_json::from_str(&t).ok());
+    (code, err, s.unwrap_or_default())
+}
+
+#[test]
+fn malformed_and_empty_obj() {
+    let cases: &[(&str, &[u8], &str)] = &[
+        ("bad-index.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n", "vertex"),
+        ("junk.obj", &[0xff, 0xfe, 0x00, 0x12, 0x80, 0x81], "not a text OBJ"),
+        ("garbage-number.obj", b"v 0 0 zero\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "malformed OBJ"),
+        ("empty.obj", b"# nothing here\n", "no faces"),
+        ("point.obj", b"v 1 1 1\nv 1 1 1\nv 1 1 1\nf 1 2 3\n", "coincide"),
+        ("nan.obj", b"v 0 0 0\nv 1 0 NaN\nv 0 1 0\nf 1 2 3\n", "non-finite"),
+        ("inf.obj", b"v 0 0 0\nv 1 0 inf\nv 0 1 0\nf 1 2 3\n", "non-finite"),
+        ("bowtie.obj", b"v 0 0 0\nv 1 1 0\nv 1 0 0\nv 0 1 0\nf 1 2 3 4\n", "face 1"),
+    ];
+    for (name, text, expect) in cases {
+        let (code, err) = voxelize_file(name, text);
+        assert_ne!(code, 0, "{name} should fail");
+        assert!(err.contains(expect), "{name}: expected '{expect}' in: {err}");
+        assert!(err.lines().any(|l| l.starts_with("error: ")), "{name}: {err}");
+    }
+}
+
+#[test]
+fn degenerate_facets_are_counted_skips() {
+    // One good triangle, one zero-area triangle (collinear), one repeated vertex.
+    let obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\nf 1 1 2\n";
+    let (code, err, s) = voxelize_with_stats("degenerate.obj", obj, "16");
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(s["facets"], 1);
+    assert_eq!(s["facets_skipped"], 2);
+    assert!(s["voxels"].as_u64().unwrap() > 0);
+}
+
+#[test]
+fn non_planar_and_non_convex_polygons_are_split_and_counted() {
+    // A skewed quad (non-planar) and an L-shaped hexagon (non-convex, planar).
+    let obj = b"v 0 0 0\nv 1 0 0\nv 1 1 0.3\nv 0 1 0\n\
+v 0 0 2\nv 2 0 2\nv 2 1 2\nv 1 1 2\nv 1 2 2\nv 0 2 2\nf 1 2 3 4\nf 5 6 7 8 9 10\n";
+    let (code, err, s) = voxelize_with_stats("polys.obj", obj, "32");
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(s["polygons_split"], 2);
+    assert_eq!(s["facets"], 2 + 4);
+}
+
+#[test]
+fn far_vertex_warns_and_bad_arguments_fail() {
+    let mut obj = String::from("v 1e30 1e30 1e30\n");
+    for i in 0..20 {
+        obj += &format!("v {i} 0 0\nv {i} 1 0\nv {i} 0 1\n");
+    }
+    obj += "f 1 2 3\n";
+    for i in 0..20 {
+        obj += &format!("f {} {} {}\n", 2 + 3 * i, 3 + 3 * i, 4 + 3 * i);
+    }
+    let (code, err) = voxelize_file("far.obj", obj.as_bytes());
+    // Every small facet collapses: nothing useful can be produced.
+    assert_ne!(code, 0, "{err}");
+    assert!(err.contains("collapsed") || err.contains("degenerate"), "{err}");
+
+    for args in [
+        &["voxelize", "cornell", "--n", "0"][..],
+        &["voxelize", "cornell", "--n", "3"],
+        &["voxelize", "cornell", "--n", "100000"],
+        &["voxelize", "cornell", "--dexel-capacity", "7"],
+        &["voxelize", "no-such-scene"],
+        &["voxelize", "cornell", "--sigma", "thick"],
+    ] {
+        let (code, err) = host_sim(args);
+        assert_ne!(code, 0, "{args:?} should fail");
+        assert!(!err.is_empty());
+    }
+}
+
+#[test]
+fn dexel_overflow_is_an_error_naming_the_cell() {
+    let dir = std::env::temp_dir().join(format!("rc2-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("ovf.binvox");
+    let (code, err) =
+        host_sim(&["voxelize", "teapot", "--n", "64", "--dexel-capacity", "8", "--quiet", "--out", out.to_str().unwrap()]);
+    assert_ne!(code, 0);
+    assert!(err.contains("dexel store overflow") && err.contains("cell (") && err.contains("--dexel-capacity"), "{err}");
+    assert!(!out.exists(), "no output file after a loss");
+}
+
+#[test]
+fn help_explains_every_option() {
+    let out = Command::new(env!("CARGO_BIN_EXE_host-sim")).args(["voxelize", "--help"]).output().unwrap();
+    let help = String::from_utf8_lossy(&out.stdout);
+    for opt in ["--n", "--sigma", "--contour", "--engine", "--dexel-capacity", "--out", "--stats", "--quiet"] {
+        assert!(help.contains(opt), "{opt} missing from --help");
+    }
+}

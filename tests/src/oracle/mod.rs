@@ -1,0 +1,15 @@
+//! Independent test oracles for the voxelizer (SPEC §2, §7).
+//!
+//! Pure `std`, exact `i128` integer arithmetic, no dependency on `cell-core` or `host-sim`:
+//! these modules restate the project's definitions directly so that the cell wave and the host
+//! voxelizer can be judged against them.
+//!
+//! * [`brute`] — which voxels belong to a facet (thickness band + contour), by brute force.
+//! * [`tunnels`] — k-tunnels: adjacent free voxel pairs on opposite sides of a surface.
+//! * [`inside`] — strict inside/outside of voxel centres for a closed mesh, by column parity.
+//! * [`flood`] — flood fill from outside the grid and leaks into the mesh's interior.
+
+pub mod brute;
+pub mod flood;
+pub mod inside;
+pub mod tunnels;
