@@ -1,1 +1,1094 @@
-//! placeholder
+//! §4.3.1–4.3.4 — light beams and their exact split.
+//!
+//! **Invariant: every ray lands in exactly one sub-beam.** [`Beam::split`] partitions the rays
+//! of a beam into at most 3 × 3 = 9 non-empty sub-beams, and each ray's sub-beam is the voxel
+//! that the ray occupies at the next layer by the rounding rule below ([`trace_ray_voxel`] is
+//! the per-ray oracle). Hence ray counts are conserved: `beam.ray_count()` equals the sum of
+//! its sub-beams' counts.
+//!
+//! # Geometry (SPEC §3 "Rays, beams and the split")
+//!
+//! * A [`Direction`] is a principal axis w with a sign s. Its transverse axes — the *u-axis*
+//!   and *v-axis* — are the other two axes in increasing order: ±z → (x, y), ±y → (x, z),
+//!   ±x → (y, z).
+//! * A [`Source`] S has a position on a lattice of [`SOURCE_FRAC_BITS`] = g = 4 fraction bits
+//!   (1/16 voxel, the loading lattice of SPEC §2); an integer source is the thesis's case.
+//!   Its voxel is the one whose centre is nearest (round half up, `⌊p + ½⌋` per axis).
+//! * [`Layer`] k = 0, 1, 2, … is the voxel slab w = w₀ + s·k, where w₀ is the source voxel's
+//!   principal coordinate (layer 0 holds the source voxel).
+//! * [`FarDistance`] D ≥ every layer used (the thesis uses D = n − 1), a positive integer.
+//! * A **ray** is a far-plane offset (u, v), |u|, |v| ≤ D, on the lattice of step 2^−f: a
+//!   [`FarOffset<F>`] = `fixed::FixedI32<F>`, f = `F::U32` fraction bits (f = 0 is the thesis).
+//!   At layer k it occupies the voxel whose transverse coordinates are
+//!   `⌊x_s + u·k/D + ½⌋` and `⌊y_s + v·k/D + ½⌋` (x_s, y_s: the source's transverse coordinates).
+//!   Only the source's *transverse* fraction enters: the principal distance of layer k is k.
+//! * A [`Beam`] is a rectangle of rays `[u_min, u_max] × [v_min, v_max]` plus source id,
+//!   direction and layer. It does not carry its voxel: the cell that holds it knows its own
+//!   transverse position ([`Transverse`]) and passes it to [`Beam::split`]. A *consistent*
+//!   beam is one whose rays all occupy that voxel ([`Beam::occupies`]); by monotonicity of the
+//!   rounding in u it suffices that its two corners do.
+//!
+//! # The split (§4.3.1.2, §4.3.3, §4.3.4.2)
+//!
+//! From layer k to k + 1 a ray's transverse coordinate x changes by −1, 0 or +1 (its slope is
+//! at most 1). It moves to x − 1 iff u < U1 and to x + 1 iff u ≥ U2, with
+//!
+//! ```text
+//!   U1 = (x − x_s − ½)·D/(k + 1)        U2 = (x − x_s + ½)·D/(k + 1)
+//! ```
+//!
+//! (same for v with V1, V2): `⌊x_s + u(k+1)/D + ½⌋ ≥ x + 1 ⇔ u ≥ U2` and `≤ x − 1 ⇔ u < U1`.
+//! For a source at the origin these are the thesis's Y_med = (y + ½)(n − 1)/(x + 1)
+//! (§4.3.1.2), and its Y1, Y2 (§4.3.3) and U1, U2, V1, V2 (§4.3.4.2) with D = n − 1.
+//!
+//! U1, U2 are rationals. Writing u = a/2^f (a = `to_bits()`), x_s = b/2^g, m = k + 1 and
+//! c₁,₂ = 2^(g+1)·(x − x_s) ∓ 2^g, the test u < U1 is decided exactly by
+//!
+//! ```text
+//!   a · m·2^(g+1)  <  c₁ · D·2^f          (all in i64, no division, no rounding)
+//! ```
+//!
+//! and the lattice ray where a sub-beam starts is the exact ceiling ⌈c·D·2^f / (m·2^(g+1))⌉ —
+//! the "fixed-point Y_med": the smallest lattice value ≥ U, one integer division, computed
+//! only when a beam actually straddles a plane (most splits do not: two comparisons per axis
+//! decide that). [`split_planes`] returns U1, U2, V1, V2 as exact [`Ratio`]s.
+//!
+//! **Difference from the thesis.** The thesis writes Y_med = [(y + ½)(n − 1)/(x + 1)] (integer
+//! part) and splits into (Y_min, Y_med), (Y_med, Y_max) without saying which side owns Y_med.
+//! Truncating Y_med misroutes the ray ⌊Y_med⌋ whenever Y_med is not an integer; here the
+//! threshold is exact: a ray exactly on U2 goes to x + 1 (round half up) and one exactly on U1
+//! stays (tests check both).
+//!
+//! # Bit budget
+//!
+//! Every cell comparison is `i64`, proven overflow-free for **any** `FixedI32` limits, any
+//! `i32` cell position and any source position, given the two conditions that
+//! [`FarDistance::new`] checks:
+//!
+//! * `D·2^f ≤ 2³¹ − 1` — ±D must be a `FixedI32<F>`;
+//! * `D ≤ MAX_FAR = 2^(31−g) − 1 = 2²⁷ − 1` — then `|a·m·2^(g+1)| ≤ 2³¹·(2²⁷ − 1)·2⁵ < 2⁶³`, and
+//!   with c clamped to ±2^(g+1)(D + 1) (which changes no comparison: a plane beyond ±(D + 1)·D/m
+//!   is beyond every ray) `|c·D·2^f| ≤ 2³²·(2³¹ − 1) < 2⁶³`. Checked by `const` assertions.
+//!
+//! | f  | largest D ([`FarDistance::MAX`]) |
+//! |----|----------------------------------|
+//! | 0–4 | 134 217 727 (2²⁷ − 1)           |
+//! | 8  | 8 388 607                        |
+//! | 12 | 524 287                          |
+//! | 16 | 32 767                           |
+//! | 20 | 2 047                            |
+//! | 24 | 127                              |
+//! | 30 | 1                                |
+//!
+//! f = 31 and 32 admit no D. The per-ray oracle [`trace_ray_voxel`] uses `i128` and different
+//! formulas, so that it shares no arithmetic with the split.
+//!
+//! # Why f is a type parameter
+//!
+//! The limits are `fixed::FixedI32<F>` with `F` a `typenum` unsigned (`frac::U0`, `frac::U8`,
+//! …), so f is part of the beam's type: every representable limit *is* a lattice ray (no
+//! run-time lattice check, no f byte to carry or validate in each message), beams of different
+//! f cannot be mixed, a limit costs 4 bytes whatever f, and the firmware compiles exactly one f.
+//! The host sweeps f by monomorphising once per value, e.g. with [`with_frac_bits!`](crate::with_frac_bits)
+//! (`with_frac_bits!(f, F => run::<F>(…))` for f ∈ {0..=8, 10, 12, 16, 20, 24}).
+//!
+//! # The six initial beams (§4.2.3, §4.3.4.2)
+//!
+//! [`Beam::initial`] emits, for one direction, the full square [−D, D]² at layer 0 (the source
+//! voxel); [`Beam::initial_six`] emits all six in [`Direction::ALL`] order (x and y first, then
+//! z, as the thesis found faster, §4.4.3). The six pyramids overlap on their boundaries: a ray
+//! with |u| = D or |v| = D lies on an edge of the source cube and belongs to two faces (three at
+//! the corners |u| = |v| = D); both beams carry it through the same voxels (rounding commutes
+//! with integer shifts). With N = D·2^f, a source emits 6·(2N + 1)² lattice rays
+//! ([`FarDistance::rays_per_face`]) for 24N² + 2 distinct directions
+//! ([`FarDistance::distinct_directions`]): 12 edges × (2N − 1) rays counted twice and
+//! 8 corners counted three times. Conservation is therefore per beam (rays in = rays of the
+//! sub-beams), and a source's emitted total is `6·rays_per_face`.
+//!
+//! # Sub-beam order
+//!
+//! [`Beam::split`] emits sub-beams in [`SplitOrder::ROW_MAJOR`] order (du = −1, 0, 1 outer,
+//! dv = −1, 0, 1 inner). [`Beam::split_with`] takes any [`SplitOrder`] (a validated permutation
+//! of the nine offsets), e.g. [`SplitOrder::AXIS_NEIGHBOURS_FIRST`] for a scheduling policy.
+//!
+//! # Sizes
+//!
+//! `size_of::<Beam<F>>()` = 24 bytes for every f (four `FixedI32` limits, a `u32` layer, a
+//! `u16` source id, a `u8` direction); a [`SubBeam`] is 28; a full [`SubBeams`] is 256 on
+//! thumbv7em (264 on a 64-bit host).
+//!
+//! # Example
+//!
+//! ```
+//! use cell_core::beam::{frac::U2, Beam, Direction, FarDistance, Source, SourceId, Transverse};
+//!
+//! let source = Source::at_voxel(SourceId(0), [4, 4, 4]).unwrap();
+//! let far = FarDistance::<U2>::new(7).unwrap();
+//! let beam = Beam::initial(&source, Direction::PosZ, far);
+//! let at = Direction::PosZ.transverse_of(source.voxel());
+//! assert_eq!(at, Transverse { u: 4, v: 4 });
+//! let subs = beam.split(&source, far, at).unwrap();
+//! assert_eq!(subs.len(), 9);
+//! assert_eq!(subs.iter().map(|s| s.beam.ray_count()).sum::<u64>(), beam.ray_count());
+//! ```
+
+use core::cmp::Ordering;
+use core::fmt::Debug;
+use core::hash::Hash;
+use core::marker::PhantomData;
+
+use fixed::types::extra::{LeEqU32, U4};
+use fixed::FixedI32;
+use heapless::Vec;
+
+/// The `typenum` fraction-bit types (`U0`, `U1`, … `U32`) that select f.
+pub use fixed::types::extra as frac;
+
+/// Fraction bits f of a far-plane lattice: any `typenum` unsigned ≤ 32 (`frac::U0` …).
+/// (The extra bounds, which every `typenum` unsigned meets, let generic code derive traits.)
+pub trait FracBits: LeEqU32 + Copy + Debug + Default + Eq + Hash + Send + Sync + 'static {}
+impl<T> FracBits for T where T: LeEqU32 + Copy + Debug + Default + Eq + Hash + Send + Sync + 'static {}
+
+/// g: fraction bits of a source position (lattice step 1/16 voxel).
+pub const SOURCE_FRAC_BITS: u32 = 4;
+
+/// A source coordinate, in voxel units on the 2^−g lattice.
+pub type SourceCoord = FixedI32<U4>;
+
+/// A ray's far-plane offset u or v (voxel units at distance D) on the 2^−f lattice.
+pub type FarOffset<F> = FixedI32<F>;
+
+/// Largest far distance the `i64` budget allows for any f: 2^(31−g) − 1.
+pub const MAX_FAR: u32 = (1u32 << (31 - SOURCE_FRAC_BITS)) - 1;
+
+const G: u32 = SOURCE_FRAC_BITS;
+
+// Bit budget (see module doc): left side a·m·2^(g+1) with |a| ≤ 2^31, m ≤ MAX_FAR …
+const _: () = assert!((1i128 << 31) * (MAX_FAR as i128) * (1i128 << (G + 1)) <= i64::MAX as i128);
+// … right side c·D·2^f with |c| ≤ 2^(g+1)·(MAX_FAR + 1) and D·2^f ≤ i32::MAX …
+const _: () =
+    assert!((1i128 << (G + 1)) * (MAX_FAR as i128 + 1) * (i32::MAX as i128) <= i64::MAX as i128);
+// … and the unclamped c = 2·(x·2^g − b) ± 2^g for any i32 x and b.
+const _: () = assert!(
+    2 * ((i32::MAX as i128 + 1) * (1i128 << G) + (i32::MAX as i128 + 1)) + (1i128 << G)
+        <= i64::MAX as i128
+);
+// The type of the source coordinates must match g.
+const _: () = assert!(SourceCoord::FRAC_NBITS == SOURCE_FRAC_BITS);
+
+// ---------------------------------------------------------------------------------------------
+// Names
+// ---------------------------------------------------------------------------------------------
+
+/// A coordinate axis of the voxel space.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u8)]
+pub enum Axis {
+    /// x (columns of the grid).
+    X = 0,
+    /// y (rows of the grid).
+    Y = 1,
+    /// z (depth inside a column).
+    Z = 2,
+}
+
+impl Axis {
+    /// 0, 1, 2 for x, y, z.
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// One of the six propagation directions (§4.3.4.2, Fig 4.22).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u8)]
+pub enum Direction {
+    /// +x: transverse (u, v) = (y, z).
+    PosX = 0,
+    /// −x: transverse (u, v) = (y, z).
+    NegX = 1,
+    /// +y: transverse (u, v) = (x, z).
+    PosY = 2,
+    /// −y: transverse (u, v) = (x, z).
+    NegY = 3,
+    /// +z: transverse (u, v) = (x, y).
+    PosZ = 4,
+    /// −z: transverse (u, v) = (x, y).
+    NegZ = 5,
+}
+
+impl Direction {
+    /// All six, x and y first, then z (the thesis's faster emission order, §4.4.3).
+    pub const ALL: [Direction; 6] = [
+        Direction::PosX,
+        Direction::NegX,
+        Direction::PosY,
+        Direction::NegY,
+        Direction::PosZ,
+        Direction::NegZ,
+    ];
+
+    /// The wire index 0..=5 (the thesis's "D : direction de propagation (0 à 5)").
+    pub const fn index(self) -> u8 {
+        self as u8
+    }
+
+    /// Inverse of [`Direction::index`]; `None` for 6..=255.
+    pub const fn from_index(i: u8) -> Option<Direction> {
+        match i {
+            0 => Some(Direction::PosX),
+            1 => Some(Direction::NegX),
+            2 => Some(Direction::PosY),
+            3 => Some(Direction::NegY),
+            4 => Some(Direction::PosZ),
+            5 => Some(Direction::NegZ),
+            _ => None,
+        }
+    }
+
+    /// The principal axis w.
+    pub const fn principal(self) -> Axis {
+        match self {
+            Direction::PosX | Direction::NegX => Axis::X,
+            Direction::PosY | Direction::NegY => Axis::Y,
+            Direction::PosZ | Direction::NegZ => Axis::Z,
+        }
+    }
+
+    /// The sign s of the direction: +1 or −1.
+    pub const fn sign(self) -> i8 {
+        match self {
+            Direction::PosX | Direction::PosY | Direction::PosZ => 1,
+            Direction::NegX | Direction::NegY | Direction::NegZ => -1,
+        }
+    }
+
+    /// The transverse axes (u-axis, v-axis): the other two axes in increasing order.
+    pub const fn transverse(self) -> (Axis, Axis) {
+        match self.principal() {
+            Axis::X => (Axis::Y, Axis::Z),
+            Axis::Y => (Axis::X, Axis::Z),
+            Axis::Z => (Axis::X, Axis::Y),
+        }
+    }
+
+    /// The transverse coordinates of a 3D voxel (e.g. the source voxel, where the initial beam
+    /// starts).
+    pub const fn transverse_of(self, voxel: [i32; 3]) -> Transverse {
+        let (a, b) = self.transverse();
+        Transverse {
+            u: voxel[a.index()],
+            v: voxel[b.index()],
+        }
+    }
+
+    /// The 3D voxel of (layer, transverse position) for a beam of `source`.
+    pub fn voxel(self, source: &Source, layer: Layer, at: Transverse) -> [i64; 3] {
+        let (a, b) = self.transverse();
+        let w = self.principal().index();
+        let mut p = [0i64; 3];
+        p[w] = source.voxel()[w] as i64 + self.sign() as i64 * layer.0 as i64;
+        p[a.index()] = at.u as i64;
+        p[b.index()] = at.v as i64;
+        p
+    }
+
+    /// The 3D step (dx, dy, dz) to the voxel of a sub-beam with this transverse offset: one
+    /// layer along s·w, plus (du, dv) on the transverse axes.
+    pub const fn displacement(self, offset: Offset) -> [i8; 3] {
+        let (a, b) = self.transverse();
+        let mut d = [0i8; 3];
+        d[self.principal().index()] = self.sign();
+        d[a.index()] = offset.du;
+        d[b.index()] = offset.dv;
+        d
+    }
+}
+
+/// Identifier of a light source, as numbered by the host.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct SourceId(pub u16);
+
+/// A point light source: its id and its position (voxel units, 2^−g lattice).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Source {
+    /// The id every beam of this source carries.
+    pub id: SourceId,
+    /// (x, y, z) in voxel units; voxel (i, j, k) has its centre at the integer point.
+    pub pos: [SourceCoord; 3],
+}
+
+impl Source {
+    /// A source at an arbitrary lattice position.
+    pub const fn new(id: SourceId, pos: [SourceCoord; 3]) -> Source {
+        Source { id, pos }
+    }
+
+    /// A source at the centre of voxel `v` (the thesis's case); `None` if a coordinate does not
+    /// fit a [`SourceCoord`] (|v| ≥ 2²⁷).
+    pub fn at_voxel(id: SourceId, v: [i32; 3]) -> Option<Source> {
+        let mut pos = [SourceCoord::ZERO; 3];
+        for (p, &c) in pos.iter_mut().zip(v.iter()) {
+            *p = SourceCoord::checked_from_num(c)?;
+        }
+        Some(Source { id, pos })
+    }
+
+    /// The source voxel: nearest centre, round half up (⌊p + ½⌋ per axis).
+    pub fn voxel(&self) -> [i32; 3] {
+        let half = 1i64 << (G - 1);
+        // |raw| ≤ 2^31 so the result is within ±2^27 + 1: it fits i32.
+        self.pos.map(|p| ((p.to_bits() as i64 + half) >> G) as i32)
+    }
+}
+
+/// Layer k: the slab w = w₀ + s·k at principal distance k from the source voxel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
+pub struct Layer(pub u32);
+
+/// The far distance D (≥ every layer used), validated against the bit budget for f = `F::U32`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct FarDistance<F: FracBits> {
+    d: u32,
+    _frac: PhantomData<F>,
+}
+
+impl<F: FracBits> FarDistance<F> {
+    /// The largest D for this f: min(2²⁷ − 1, ⌊(2³¹ − 1)/2^f⌋) (0 when f ≥ 31: none exists).
+    pub const MAX: u32 = {
+        let by_offset = (i32::MAX as i64) >> F::U32;
+        if by_offset < MAX_FAR as i64 {
+            by_offset as u32
+        } else {
+            MAX_FAR
+        }
+    };
+
+    /// D, if 1 ≤ D ≤ [`FarDistance::MAX`].
+    pub const fn new(d: u32) -> Option<Self> {
+        if d >= 1 && d <= Self::MAX {
+            Some(FarDistance {
+                d,
+                _frac: PhantomData,
+            })
+        } else {
+            None
+        }
+    }
+
+    /// D as an integer.
+    pub const fn get(self) -> u32 {
+        self.d
+    }
+
+    /// D as a far offset (the largest ray offset).
+    pub const fn offset(self) -> FarOffset<F> {
+        FarOffset::<F>::from_bits(self.scaled() as i32)
+    }
+
+    /// N = D·2^f: the largest ray offset in lattice steps (≤ `i32::MAX` by construction).
+    pub const fn scaled(self) -> i64 {
+        (self.d as i64) << F::U32
+    }
+
+    /// Lattice rays in one face's initial beam: (2N + 1)² (fits `u64`: 2N + 1 < 2³²).
+    pub const fn rays_per_face(self) -> u64 {
+        let side = 2 * self.scaled() as u64 + 1;
+        side * side
+    }
+
+    /// Distinct ray directions over the six faces: 24N² + 2 (see the module doc).
+    pub const fn distinct_directions(self) -> u128 {
+        let n = self.scaled() as u128;
+        24 * n * n + 2
+    }
+}
+
+/// A voxel's transverse coordinates: its index along the direction's u-axis and v-axis (for a
+/// ±z beam, the cell's (x, y)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub struct Transverse {
+    /// Voxel index along the u-axis.
+    pub u: i32,
+    /// Voxel index along the v-axis.
+    pub v: i32,
+}
+
+impl Transverse {
+    /// The neighbour at `offset` (wrapping at the `i32` ends, which no grid reaches).
+    pub const fn offset(self, offset: Offset) -> Transverse {
+        Transverse {
+            u: self.u.wrapping_add(offset.du as i32),
+            v: self.v.wrapping_add(offset.dv as i32),
+        }
+    }
+}
+
+/// A sub-beam's transverse move (du, dv) ∈ {−1, 0, 1}².
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
+pub struct Offset {
+    /// Move along the u-axis.
+    pub du: i8,
+    /// Move along the v-axis.
+    pub dv: i8,
+}
+
+impl Offset {
+    /// (du, dv) if both are in {−1, 0, 1}.
+    pub const fn new(du: i8, dv: i8) -> Option<Offset> {
+        if du >= -1 && du <= 1 && dv >= -1 && dv <= 1 {
+            Some(Offset { du, dv })
+        } else {
+            None
+        }
+    }
+
+    const fn slot(self) -> Option<(usize, usize)> {
+        match Offset::new(self.du, self.dv) {
+            Some(o) => Some(((o.du + 1) as usize, (o.dv + 1) as usize)),
+            None => None,
+        }
+    }
+}
+
+const fn off(du: i8, dv: i8) -> Offset {
+    Offset { du, dv }
+}
+
+/// The order in which [`Beam::split_with`] emits sub-beams: a permutation of the nine offsets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct SplitOrder([Offset; 9]);
+
+impl SplitOrder {
+    /// du = −1, 0, 1 (outer) × dv = −1, 0, 1 (inner). The default.
+    pub const ROW_MAJOR: SplitOrder = SplitOrder([
+        off(-1, -1),
+        off(-1, 0),
+        off(-1, 1),
+        off(0, -1),
+        off(0, 0),
+        off(0, 1),
+        off(1, -1),
+        off(1, 0),
+        off(1, 1),
+    ]);
+
+    /// The four axis neighbours, then the four diagonals, then (0, 0) (for a ±z beam: the
+    /// x/y neighbour cells first, the beam that stays in this column last).
+    pub const AXIS_NEIGHBOURS_FIRST: SplitOrder = SplitOrder([
+        off(-1, 0),
+        off(1, 0),
+        off(0, -1),
+        off(0, 1),
+        off(-1, -1),
+        off(-1, 1),
+        off(1, -1),
+        off(1, 1),
+        off(0, 0),
+    ]);
+
+    /// An order, if `order` holds each of the nine offsets exactly once.
+    pub const fn new(order: [Offset; 9]) -> Option<SplitOrder> {
+        let mut seen = [[false; 3]; 3];
+        let mut i = 0;
+        while i < 9 {
+            match order[i].slot() {
+                Some((a, b)) => {
+                    if seen[a][b] {
+                        return None;
+                    }
+                    seen[a][b] = true;
+                }
+                None => return None,
+            }
+            i += 1;
+        }
+        Some(SplitOrder(order))
+    }
+
+    /// The nine offsets in emission order.
+    pub const fn offsets(&self) -> &[Offset; 9] {
+        &self.0
+    }
+}
+
+impl Default for SplitOrder {
+    fn default() -> Self {
+        SplitOrder::ROW_MAJOR
+    }
+}
+
+/// Why a beam could not be built or split.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum BeamError {
+    /// A range with `lo > hi`.
+    EmptyRange,
+    /// A limit outside [−D, D].
+    OutsideFarSquare,
+    /// A layer beyond D.
+    LayerBeyondFar,
+    /// Split asked at layer k ≥ D: layer k + 1 would exceed the far distance.
+    AtFarPlane,
+    /// The beam belongs to another source than the one given.
+    WrongSource,
+}
+
+// ---------------------------------------------------------------------------------------------
+// Beams
+// ---------------------------------------------------------------------------------------------
+
+/// A non-empty closed interval of lattice rays `lo ..= hi` along one transverse axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct RayRange<F: FracBits> {
+    lo: FarOffset<F>,
+    hi: FarOffset<F>,
+}
+
+impl<F: FracBits> RayRange<F> {
+    /// `lo ..= hi`, if `lo ≤ hi`.
+    pub fn new(lo: FarOffset<F>, hi: FarOffset<F>) -> Option<Self> {
+        (lo <= hi).then_some(RayRange { lo, hi })
+    }
+
+    /// `[−D, D]`: every ray of a face.
+    pub const fn full(far: FarDistance<F>) -> Self {
+        let n = far.scaled() as i32;
+        RayRange {
+            lo: FarOffset::<F>::from_bits(-n),
+            hi: FarOffset::<F>::from_bits(n),
+        }
+    }
+
+    /// Smallest ray (the thesis's U_min).
+    pub const fn lo(self) -> FarOffset<F> {
+        self.lo
+    }
+
+    /// Largest ray (the thesis's U_max).
+    pub const fn hi(self) -> FarOffset<F> {
+        self.hi
+    }
+
+    /// Number of lattice rays, ≥ 1 (≤ 2³², fits `u64`).
+    pub const fn len(self) -> u64 {
+        (self.hi.to_bits() as i64 - self.lo.to_bits() as i64 + 1) as u64
+    }
+
+    /// Never empty (an invariant of every constructor).
+    pub const fn is_empty(self) -> bool {
+        false
+    }
+
+    /// Whether the ray `x` lies in the range.
+    pub fn contains(self, x: FarOffset<F>) -> bool {
+        self.lo <= x && x <= self.hi
+    }
+
+    fn within(self, far: FarDistance<F>) -> bool {
+        let n = far.scaled();
+        -n <= self.lo.to_bits() as i64 && self.hi.to_bits() as i64 <= n
+    }
+}
+
+/// A 3D beam (§4.3.4.1): the rays `u × v` of one source and direction at one layer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Beam<F: FracBits> {
+    u: RayRange<F>,
+    v: RayRange<F>,
+    layer: Layer,
+    source: SourceId,
+    dir: Direction,
+}
+
+/// One output of a split: the sub-beam (at layer k + 1) and its transverse move.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct SubBeam<F: FracBits> {
+    /// Where it goes: the voxel at `at.offset(offset)` in layer k + 1.
+    pub offset: Offset,
+    /// Its rays, at layer k + 1.
+    pub beam: Beam<F>,
+}
+
+/// The sub-beams of one split: at most nine, none empty.
+pub type SubBeams<F> = Vec<SubBeam<F>, 9>;
+
+impl<F: FracBits> Beam<F> {
+    /// The initial beam of `source` toward `dir`: all rays [−D, D]² at layer 0.
+    pub fn initial(source: &Source, dir: Direction, far: FarDistance<F>) -> Self {
+        let full = RayRange::full(far);
+        Beam {
+            u: full,
+            v: full,
+            layer: Layer(0),
+            source: source.id,
+            dir,
+        }
+    }
+
+    /// The six initial beams of `source`, in [`Direction::ALL`] order (see the module doc for
+    /// how they overlap on the cube's edges).
+    pub fn initial_six(source: &Source, far: FarDistance<F>) -> [Self; 6] {
+        Direction::ALL.map(|d| Beam::initial(source, d, far))
+    }
+
+    /// A beam from its parts (e.g. decoded from a message), if its ranges lie in [−D, D] and
+    /// its layer is ≤ D. Whether it is consistent with a voxel is [`Beam::occupies`].
+    pub fn new(
+        source: SourceId,
+        dir: Direction,
+        layer: Layer,
+        u: RayRange<F>,
+        v: RayRange<F>,
+        far: FarDistance<F>,
+    ) -> Result<Self, BeamError> {
+        if !u.within(far) || !v.within(far) {
+            return Err(BeamError::OutsideFarSquare);
+        }
+        if layer.0 > far.get() {
+            return Err(BeamError::LayerBeyondFar);
+        }
+        Ok(Beam {
+            u,
+            v,
+            layer,
+            source,
+            dir,
+        })
+    }
+
+    /// Rays along the u-axis: [u_min, u_max].
+    pub const fn u(&self) -> RayRange<F> {
+        self.u
+    }
+
+    /// Rays along the v-axis: [v_min, v_max].
+    pub const fn v(&self) -> RayRange<F> {
+        self.v
+    }
+
+    /// The layer the beam is at.
+    pub const fn layer(&self) -> Layer {
+        self.layer
+    }
+
+    /// Its source.
+    pub const fn source(&self) -> SourceId {
+        self.source
+    }
+
+    /// Its direction.
+    pub const fn direction(&self) -> Direction {
+        self.dir
+    }
+
+    /// Number of lattice rays in the beam, ≥ 1 (≤ (2³² − 1)², fits `u64`).
+    pub const fn ray_count(&self) -> u64 {
+        self.u.len() * self.v.len()
+    }
+
+    /// Whether the ray (u, v) is in the beam.
+    pub fn contains(&self, u: FarOffset<F>, v: FarOffset<F>) -> bool {
+        self.u.contains(u) && self.v.contains(v)
+    }
+
+    /// Whether every ray of the beam occupies voxel `at` at the beam's layer (by monotonicity,
+    /// checked on the two corners with [`trace_ray_voxel`]).
+    pub fn occupies(&self, source: &Source, far: FarDistance<F>, at: Transverse) -> bool {
+        let k = self.layer;
+        let want = (at.u as i64, at.v as i64);
+        trace_ray_voxel(source, self.dir, self.u.lo, self.v.lo, far, k) == want
+            && trace_ray_voxel(source, self.dir, self.u.hi, self.v.hi, far, k) == want
+    }
+
+    /// The voxel of the beam's (u_min, v_min) ray at the beam's layer — the beam's voxel when it
+    /// is consistent. `None` if it does not fit `i32` (rays beyond the far square only).
+    pub fn voxel(&self, source: &Source, far: FarDistance<F>) -> Option<Transverse> {
+        let (a, b) = trace_ray_voxel(source, self.dir, self.u.lo, self.v.lo, far, self.layer);
+        Some(Transverse {
+            u: i32::try_from(a).ok()?,
+            v: i32::try_from(b).ok()?,
+        })
+    }
+
+    /// Split the beam held by the cell at transverse position `at` into its sub-beams at layer
+    /// k + 1, in [`SplitOrder::ROW_MAJOR`] order. See [`Beam::split_with`].
+    pub fn split(
+        &self,
+        source: &Source,
+        far: FarDistance<F>,
+        at: Transverse,
+    ) -> Result<SubBeams<F>, BeamError> {
+        self.split_with(source, far, at, &SplitOrder::ROW_MAJOR)
+    }
+
+    /// Split the beam held at `at` (§4.3.4.2): every ray goes to the one sub-beam whose voxel
+    /// `at.offset(offset)` it occupies at layer k + 1; empty sub-beams are not emitted; the
+    /// sub-beams come in `order`.
+    ///
+    /// If the beam is not consistent with `at` (see [`Beam::occupies`]) the result is still a
+    /// partition of its rays by the planes of `at`, but not the rays' true voxels.
+    ///
+    /// Errors: [`BeamError::WrongSource`] if `source.id` is not the beam's,
+    /// [`BeamError::AtFarPlane`] if k ≥ D, [`BeamError::OutsideFarSquare`] if a limit is
+    /// outside [−D, D] (a beam made for a larger D).
+    pub fn split_with(
+        &self,
+        source: &Source,
+        far: FarDistance<F>,
+        at: Transverse,
+        order: &SplitOrder,
+    ) -> Result<SubBeams<F>, BeamError> {
+        if self.source != source.id {
+            return Err(BeamError::WrongSource);
+        }
+        if self.layer.0 >= far.get() {
+            return Err(BeamError::AtFarPlane);
+        }
+        if !self.u.within(far) || !self.v.within(far) {
+            return Err(BeamError::OutsideFarSquare);
+        }
+        let (ua, va) = self.dir.transverse();
+        // m = k + 1 ≤ D ≤ MAX_FAR.
+        let m = self.layer.0 as i64 + 1;
+        let cu = split_axis(self.u, source.pos[ua.index()], at.u, far, m);
+        let cv = split_axis(self.v, source.pos[va.index()], at.v, far, m);
+        let next = Layer(self.layer.0 + 1);
+        let mut out = SubBeams::new();
+        for &offset in order.offsets() {
+            let Some((i, j)) = offset.slot() else {
+                continue;
+            };
+            if let (Some(u), Some(v)) = (cu[i], cv[j]) {
+                let beam = Beam {
+                    u,
+                    v,
+                    layer: next,
+                    source: self.source,
+                    dir: self.dir,
+                };
+                // At most nine distinct offsets (a SplitOrder is a permutation): never full.
+                let _ = out.push(SubBeam { offset, beam });
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// ⌈n / q⌉ for q > 0 and |n| < 2⁶³.
+const fn ceil_div(n: i64, q: i64) -> i64 {
+    -((-n).div_euclid(q))
+}
+
+/// The rays of `range` that go to x − 1, x, x + 1 (indices 0, 1, 2) at layer m = k + 1, for the
+/// cell at transverse coordinate `x` and source coordinate `src`. See the module doc for the
+/// budget: every product below is < 2⁶³ in magnitude.
+fn split_axis<F: FracBits>(
+    range: RayRange<F>,
+    src: SourceCoord,
+    x: i32,
+    far: FarDistance<F>,
+    m: i64,
+) -> [Option<RayRange<F>>; 3] {
+    let q = m << (G + 1); // m·2^(g+1) < 2^32
+    let limit = (far.get() as i64 + 1) << (G + 1); // planes beyond ±(D+1)·D/m
+    let r = 2 * (((x as i64) << G) - src.to_bits() as i64); // 2^(g+1)·(x − x_s), |r| < 2^37
+    let c1 = (r - (1 << G)).clamp(-limit, limit);
+    let c2 = (r + (1 << G)).clamp(-limit, limit);
+    let n = far.scaled(); // D·2^f ≤ i32::MAX
+    let n1 = c1 * n; // u < U1  ⇔  a·q < n1
+    let n2 = c2 * n; // u ≥ U2  ⇔  a·q ≥ n2
+    let class = |a: i64| -> usize {
+        let aq = a * q;
+        if aq < n1 {
+            0
+        } else if aq >= n2 {
+            2
+        } else {
+            1
+        }
+    };
+    let lo = range.lo.to_bits() as i64;
+    let hi = range.hi.to_bits() as i64;
+    let mut out = [None; 3];
+    let (cl, ch) = (class(lo), class(hi));
+    if cl == ch {
+        out[cl] = Some(range);
+        return out;
+    }
+    // The beam straddles a plane: the first lattice rays at or above U1 and U2.
+    let t1 = ceil_div(n1, q);
+    let t2 = ceil_div(n2, q);
+    let piece = |a: i64, b: i64| -> Option<RayRange<F>> {
+        let (a, b) = (a.max(lo), b.min(hi));
+        // Both within [lo, hi] ⊂ i32.
+        (a <= b).then(|| RayRange {
+            lo: FarOffset::<F>::from_bits(a as i32),
+            hi: FarOffset::<F>::from_bits(b as i32),
+        })
+    };
+    out[0] = piece(lo, t1 - 1);
+    out[1] = piece(t1, t2 - 1);
+    out[2] = piece(t2, hi);
+    out
+}
+
+// ---------------------------------------------------------------------------------------------
+// Oracles and exact planes
+// ---------------------------------------------------------------------------------------------
+
+/// The transverse voxel `(⌊x_s + u·k/D + ½⌋, ⌊y_s + v·k/D + ½⌋)` of ray (u, v) at layer k,
+/// computed directly in `i128` (independently of the split). Exact for every input with
+/// |u|, |v| ≤ D; saturates at the `i64` ends otherwise (rays that do not exist).
+pub fn trace_ray_voxel<F: FracBits>(
+    source: &Source,
+    dir: Direction,
+    u: FarOffset<F>,
+    v: FarOffset<F>,
+    far: FarDistance<F>,
+    k: Layer,
+) -> (i64, i64) {
+    let (ua, va) = dir.transverse();
+    let f = F::U32;
+    let d = far.get();
+    (
+        trace_axis(source.pos[ua.index()].to_bits(), u.to_bits(), f, d, k.0),
+        trace_axis(source.pos[va.index()].to_bits(), v.to_bits(), f, d, k.0),
+    )
+}
+
+/// ⌊b/2^g + (a/2^f)·k/D + ½⌋ over the common denominator 2^(f+g+1)·D (all < 2¹⁰⁰).
+fn trace_axis(b: i32, a: i32, f: u32, d: u32, k: u32) -> i64 {
+    let d = d as i128;
+    let pf = 1i128 << f;
+    let den = (pf << (G + 1)) * d;
+    let num = (b as i128) * (pf << 1) * d
+        + (a as i128) * (k as i128) * (1i128 << (G + 1))
+        + (pf << G) * d;
+    num.div_euclid(den)
+        .clamp(i64::MIN as i128, i64::MAX as i128) as i64
+}
+
+/// An exact rational `num / den`, `den > 0`, compared by cross-multiplication.
+#[derive(Clone, Copy, Debug)]
+pub struct Ratio {
+    num: i64,
+    den: i64,
+}
+
+impl Ratio {
+    /// `num / den`, if `den > 0`.
+    pub const fn new(num: i64, den: i64) -> Option<Ratio> {
+        if den > 0 {
+            Some(Ratio { num, den })
+        } else {
+            None
+        }
+    }
+
+    /// The numerator.
+    pub const fn num(self) -> i64 {
+        self.num
+    }
+
+    /// The (positive) denominator.
+    pub const fn den(self) -> i64 {
+        self.den
+    }
+
+    /// The smallest lattice ray ≥ this value, in lattice steps (`to_bits` units) of 2^−f:
+    /// the exact "fixed-point Y_med".
+    pub fn lattice_ceil<F: FracBits>(self) -> i128 {
+        let n = (self.num as i128) << F::U32;
+        -((-n).div_euclid(self.den as i128))
+    }
+}
+
+impl PartialEq for Ratio {
+    fn eq(&self, other: &Self) -> bool {
+        self.cmp(other) == Ordering::Equal
+    }
+}
+
+impl Eq for Ratio {}
+
+impl PartialOrd for Ratio {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Ratio {
+    fn cmp(&self, other: &Self) -> Ordering {
+        // |num·den| < 2^126: no overflow.
+        (self.num as i128 * other.den as i128).cmp(&(other.num as i128 * self.den as i128))
+    }
+}
+
+/// The four split planes of a cell (in far-plane units): a ray goes to u − 1 iff u < `u1`,
+/// to u + 1 iff u ≥ `u2`; the same for v.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SplitPlanes {
+    /// U1 = (x − x_s − ½)·D/(k + 1).
+    pub u1: Ratio,
+    /// U2 = (x − x_s + ½)·D/(k + 1) (the thesis's Y_med).
+    pub u2: Ratio,
+    /// V1 = (y − y_s − ½)·D/(k + 1).
+    pub v1: Ratio,
+    /// V2 = (y − y_s + ½)·D/(k + 1).
+    pub v2: Ratio,
+}
+
+/// The exact planes U1, U2, V1, V2 for splitting a beam of `source` toward `dir` held at `at`,
+/// layer `layer`, into layer + 1. `None` if a numerator does not fit `i64` (only for `at`
+/// implausibly far from the source: |x − x_s|·D ≳ 2⁵⁸).
+pub fn split_planes<F: FracBits>(
+    source: &Source,
+    dir: Direction,
+    far: FarDistance<F>,
+    layer: Layer,
+    at: Transverse,
+) -> Option<SplitPlanes> {
+    let (ua, va) = dir.transverse();
+    let den = (layer.0 as i64 + 1) << (G + 1);
+    let d = far.get() as i64;
+    let plane = |src: SourceCoord, x: i32, sign: i64| -> Option<Ratio> {
+        let c = 2 * (((x as i64) << G) - src.to_bits() as i64) + sign * (1 << G);
+        Ratio::new(c.checked_mul(d)?, den)
+    };
+    Some(SplitPlanes {
+        u1: plane(source.pos[ua.index()], at.u, -1)?,
+        u2: plane(source.pos[ua.index()], at.u, 1)?,
+        v1: plane(source.pos[va.index()], at.v, -1)?,
+        v2: plane(source.pos[va.index()], at.v, 1)?,
+    })
+}
+
+/// Run `$body` with the type alias `$F` bound to the `typenum` type for the run-time fraction
+/// bits `$f`: `Some(body)` for f ∈ {0, 1, …, 8, 10, 12, 16, 20, 24}, `None` otherwise. Each
+/// listed f monomorphises `$body` once.
+///
+/// ```
+/// use cell_core::beam::{FarDistance, FracBits};
+/// fn max_far<F: FracBits>() -> u32 { FarDistance::<F>::MAX }
+/// assert_eq!(cell_core::with_frac_bits!(16u32, F => max_far::<F>()), Some(32_767));
+/// assert_eq!(cell_core::with_frac_bits!(9u32, F => max_far::<F>()), None);
+/// ```
+#[macro_export]
+macro_rules! with_frac_bits {
+    ($f:expr, $F:ident => $body:expr) => {{
+        match $f {
+            0 => {
+                type $F = $crate::beam::frac::U0;
+                Some($body)
+            }
+            1 => {
+                type $F = $crate::beam::frac::U1;
+                Some($body)
+            }
+            2 => {
+                type $F = $crate::beam::frac::U2;
+                Some($body)
+            }
+            3 => {
+                type $F = $crate::beam::frac::U3;
+                Some($body)
+            }
+            4 => {
+                type $F = $crate::beam::frac::U4;
+                Some($body)
+            }
+            5 => {
+                type $F = $crate::beam::frac::U5;
+                Some($body)
+            }
+            6 => {
+                type $F = $crate::beam::frac::U6;
+                Some($body)
+            }
+            7 => {
+                type $F = $crate::beam::frac::U7;
+                Some($body)
+            }
+            8 => {
+                type $F = $crate::beam::frac::U8;
+                Some($body)
+            }
+            10 => {
+                type $F = $crate::beam::frac::U10;
+                Some($body)
+            }
+            12 => {
+                type $F = $crate::beam::frac::U12;
+                Some($body)
+            }
+            16 => {
+                type $F = $crate::beam::frac::U16;
+                Some($body)
+            }
+            20 => {
+                type $F = $crate::beam::frac::U20;
+                Some($body)
+            }
+            24 => {
+                type $F = $crate::beam::frac::U24;
+                Some($body)
+            }
+            _ => None,
+        }
+    }};
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fixed::types::extra::{U0, U8};
+
+    #[test]
+    fn budget_table() {
+        assert_eq!(FarDistance::<U0>::MAX, MAX_FAR);
+        assert_eq!(FarDistance::<frac::U4>::MAX, MAX_FAR);
+        assert_eq!(FarDistance::<frac::U5>::MAX, 67_108_863);
+        assert_eq!(FarDistance::<U8>::MAX, 8_388_607);
+        assert_eq!(FarDistance::<frac::U12>::MAX, 524_287);
+        assert_eq!(FarDistance::<frac::U16>::MAX, 32_767);
+        assert_eq!(FarDistance::<frac::U20>::MAX, 2_047);
+        assert_eq!(FarDistance::<frac::U24>::MAX, 127);
+        assert_eq!(FarDistance::<frac::U30>::MAX, 1);
+        assert_eq!(FarDistance::<frac::U31>::MAX, 0);
+        assert_eq!(FarDistance::<frac::U32>::MAX, 0);
+        assert!(FarDistance::<frac::U31>::new(1).is_none());
+        assert!(FarDistance::<U8>::new(0).is_none());
+        assert!(FarDistance::<U8>::new(8_388_608).is_none());
+        assert_eq!(
+            FarDistance::<U8>::new(8_388_607)
+                .unwrap()
+                .offset()
+                .to_bits(),
+            i32::MAX - 255
+        );
+    }
+
+    #[test]
+    fn ceil_div_matches_definition() {
+        for n in -50i64..=50 {
+            for q in 1i64..=7 {
+                let c = ceil_div(n, q);
+                assert!(c * q >= n && (c - 1) * q < n, "{n}/{q}");
+            }
+        }
+    }
+
+    #[test]
+    fn split_axis_single_class_is_identity() {
+        let far = FarDistance::<U0>::new(8).unwrap();
+        let r = RayRange::<U0>::new(FarOffset::from_num(0), FarOffset::from_num(0)).unwrap();
+        let out = split_axis(r, SourceCoord::ZERO, 0, far, 1);
+        assert_eq!(out, [None, Some(r), None]);
+    }
+
+    #[test]
+    fn sizes() {
+        assert_eq!(core::mem::size_of::<Beam<U8>>(), 24);
+        assert_eq!(core::mem::size_of::<Beam<U0>>(), 24);
+    }
+}

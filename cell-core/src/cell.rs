@@ -7,7 +7,7 @@ use crate::dexel::DexelStore;
 use crate::units::Coord;
 
 /// Dexel capacity a host build uses unless told otherwise.
-pub const DEFAULT_DEXELS: usize = 32;
+pub const DEFAULT_DEXELS: usize = 64;
 
 /// Per-cell counters of the loading phase.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

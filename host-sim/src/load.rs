@@ -142,6 +142,16 @@ pub struct VoxelizeStats {
     pub load_seconds: f64,
     /// Whole job wall time (without writing files).
     pub wall_seconds: f64,
+    /// Peak resident memory of the process so far (Linux `VmHWM`), in MiB.
+    pub peak_rss_mib: Option<f64>,
+}
+
+/// Peak resident set size of this process in MiB (Linux only).
+pub fn peak_rss_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
 }
 
 /// Result of a voxelization.
@@ -223,6 +233,7 @@ pub fn voxelize<const D: usize>(
         precompute_seconds: (t1 - t0).as_secs_f64(),
         load_seconds: (t2 - t1).as_secs_f64(),
         wall_seconds: (t2 - t0).as_secs_f64(),
+        peak_rss_mib: peak_rss_mib(),
     };
     Ok(Voxelized { grid, prepared, stats })
 }
