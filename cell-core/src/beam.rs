@@ -584,6 +584,13 @@ impl<F: FracBits> RayRange<F> {
         self.lo <= x && x <= self.hi
     }
 
+    /// The union of two touching ranges (`self.hi + 1 == other.lo` or the reverse), if they
+    /// touch.
+    pub fn joined(self, other: RayRange<F>) -> Option<RayRange<F>> {
+        let (a, b) = if self.lo <= other.lo { (self, other) } else { (other, self) };
+        (a.hi.to_bits() as i64 + 1 == b.lo.to_bits() as i64).then_some(RayRange { lo: a.lo, hi: b.hi })
+    }
+
     fn within(self, far: FarDistance<F>) -> bool {
         let n = far.scaled();
         -n <= self.lo.to_bits() as i64 && self.hi.to_bits() as i64 <= n
@@ -684,6 +691,24 @@ impl<F: FracBits> Beam<F> {
     /// Number of lattice rays in the beam, ≥ 1 (≤ (2³² − 1)², fits `u64`).
     pub const fn ray_count(&self) -> u64 {
         self.u.len() * self.v.len()
+    }
+
+    /// The union of two beams of the same source, direction and layer whose ray rectangles
+    /// share a whole side (equal u range and touching v ranges, or the reverse); `None`
+    /// otherwise. When both beams are in the same voxel the merge is exact: a ray's voxel at
+    /// every later layer depends only on (u, v) and the layer, not on the beam it came in.
+    pub fn merged(&self, other: &Beam<F>) -> Option<Beam<F>> {
+        if self.source != other.source || self.dir != other.dir || self.layer != other.layer {
+            return None;
+        }
+        let (u, v) = if self.u == other.u {
+            (self.u, self.v.joined(other.v)?)
+        } else if self.v == other.v {
+            (self.u.joined(other.u)?, self.v)
+        } else {
+            return None;
+        };
+        Some(Beam { u, v, ..*self })
     }
 
     /// Whether the ray (u, v) is in the beam.

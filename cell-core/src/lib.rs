@@ -13,6 +13,7 @@
 //! * [`normal`] — the 16-bit octahedral normal code stored with each dexel.
 //! * [`cell`] — one cell: its store and counters.
 //! * [`beam`] — light beams and their split (§4.3).
+//! * [`light`] — the lighting phase: FIFO, ports, back-pressure, lit voxels, quiescence (§4.4).
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -21,6 +22,7 @@ pub mod beam;
 pub mod cell;
 pub mod dexel;
 pub mod facet;
+pub mod light;
 pub mod normal;
 pub mod units;
 pub mod voxelize;

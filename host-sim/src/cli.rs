@@ -29,6 +29,14 @@ pub struct Cli {
 pub enum Command {
     /// Voxelize a scene with the RC² loading wave (§3) and write a .binvox file.
     Voxelize(VoxelizeArgs),
+    /// Diffuse light from the scene's sources by beam subdivision (§4) and report what is lit.
+    Light(LightArgs),
+    /// The thesis's experiment (§4.4.3): empty scene, one source at the centre, T for each N and
+    /// FIFO size, as CSV and a PNG plot beside the thesis's published values.
+    DiffusionTable(TableArgs),
+    /// Lit state of surface voxels against exact f64 visibility, for several n and f: the
+    /// run time against error of the lighting phase (CSV).
+    LightAccuracy(AccuracyArgs),
     /// List the built-in scenes.
     Scenes,
     /// Subdivide a mesh (1 → 4 midpoint splits) to about TARGET triangles and write an OBJ.
@@ -70,6 +78,162 @@ pub struct VoxelizeArgs {
     pub quiet: bool,
 }
 
+/// Scheduling policy of the lighting phase.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum PolicyArg {
+    /// The thesis's: take the FIFO head; if it cannot go, put it back at the tail (§4.4.1).
+    Thesis,
+    /// Ours: among beams that can go now, the one at the smallest layer (longest remaining
+    /// path) first; no head-of-line blocking.
+    Wavefront,
+}
+
+impl From<PolicyArg> for cell_core::light::Policy {
+    fn from(p: PolicyArg) -> Self {
+        match p {
+            PolicyArg::Thesis => cell_core::light::Policy::Thesis,
+            PolicyArg::Wavefront => cell_core::light::Policy::Wavefront,
+        }
+    }
+}
+
+/// Loading options shared by the jobs that voxelize first.
+#[derive(Args, Debug, Clone)]
+pub struct LoadArgs {
+    /// An .obj file, or a built-in scene name (see `host-sim scenes`).
+    #[arg(default_value = "cornell")]
+    pub scene: String,
+    /// Grid side: n × n cells, each owning a column of n voxels.
+    #[arg(long, default_value_t = 64)]
+    pub n: u32,
+    /// Plane thickness (see `voxelize --help`).
+    #[arg(long, value_enum, default_value_t = Thickness::Standard)]
+    pub sigma: Thickness,
+    /// Facet contour (see `voxelize --help`).
+    #[arg(long, value_enum, default_value_t = Contour::Conservative)]
+    pub contour: Contour,
+}
+
+/// Options of `light`.
+#[derive(Args, Debug)]
+pub struct LightArgs {
+    /// Scene and loading options.
+    #[command(flatten)]
+    pub load: LoadArgs,
+    /// A point light at grid-normalised coordinates X,Y,Z in 0..1 (repeatable, up to 32;
+    /// replaces the scene's own lights). Sources are diffused one after another.
+    #[arg(long = "light", value_parser = parse_triple)]
+    pub lights: Vec<[f64; 3]>,
+    /// FIFO size FA of every cell (1 ..= 64).
+    #[arg(long, default_value_t = 16)]
+    pub fa: usize,
+    /// Fraction bits f of the far-plane ray offsets (0 = the thesis's integer rays; up to 24,
+    /// bounded by D·2^f < 2^31).
+    #[arg(long, default_value_t = 0)]
+    pub frac_bits: u32,
+    /// Which beam a cell processes first.
+    #[arg(long, value_enum, default_value_t = PolicyArg::Wavefront)]
+    pub policy: PolicyArg,
+    /// Merge an arriving beam into a waiting beam of the same voxel when their ray rectangles
+    /// share a side (exact; fewer beams to process): on, off, or auto (on for wavefront, off
+    /// for the thesis policy).
+    #[arg(long, value_enum, default_value_t = MergeArg::Auto)]
+    pub merge: MergeArg,
+    /// Write statistics as JSON to this file.
+    #[arg(long)]
+    pub stats: Option<PathBuf>,
+    /// Write every lit voxel as CSV `x,y,z,source_mask` (binvox indexing).
+    #[arg(long)]
+    pub lit_out: Option<PathBuf>,
+    /// Do not draw progress bars.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Options of `diffusion-table`.
+#[derive(Args, Debug)]
+pub struct TableArgs {
+    /// Grid sizes N.
+    #[arg(long, value_delimiter = ',', default_value = "16,32,64,128")]
+    pub n: Vec<u32>,
+    /// FIFO sizes FA.
+    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16,32,64")]
+    pub fa: Vec<usize>,
+    /// Policies to run.
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "thesis,wavefront")]
+    pub policy: Vec<PolicyArg>,
+    /// Beam merging (see `light --help`).
+    #[arg(long, value_enum, default_value_t = MergeArg::Auto)]
+    pub merge: MergeArg,
+    /// Fraction bits f.
+    #[arg(long, default_value_t = 0)]
+    pub frac_bits: u32,
+    /// Output CSV.
+    #[arg(long, default_value = "diffusion-table.csv")]
+    pub out: PathBuf,
+    /// Output PNG plot.
+    #[arg(long, default_value = "diffusion-table.png")]
+    pub plot: PathBuf,
+    /// Do not draw progress bars.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Beam merging switch.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum MergeArg {
+    /// On for the wavefront policy, off for the thesis's.
+    Auto,
+    /// Always merge.
+    On,
+    /// Never merge.
+    Off,
+}
+
+impl MergeArg {
+    fn resolve(self, p: PolicyArg) -> bool {
+        match self {
+            MergeArg::Auto => p == PolicyArg::Wavefront,
+            MergeArg::On => true,
+            MergeArg::Off => false,
+        }
+    }
+}
+
+fn parse_triple(s: &str) -> std::result::Result<[f64; 3], String> {
+    let v: Vec<f64> = s.split(',').map(|t| t.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().map_err(|e| format!("'{s}': {e}"))?;
+    match v[..] {
+        [x, y, z] => Ok([x, y, z]),
+        _ => Err(format!("'{s}': expected X,Y,Z")),
+    }
+}
+
+/// Options of `light-accuracy`.
+#[derive(Args, Debug)]
+pub struct AccuracyArgs {
+    /// An .obj file, or a built-in scene name.
+    #[arg(default_value = "cornell")]
+    pub scene: String,
+    /// Grid sizes.
+    #[arg(long, value_delimiter = ',', default_value = "64,128,256")]
+    pub n: Vec<u32>,
+    /// Fraction bits f to compare.
+    #[arg(long, value_delimiter = ',', default_value = "0,2,4,8")]
+    pub frac_bits: Vec<u32>,
+    /// FIFO size.
+    #[arg(long, default_value_t = 16)]
+    pub fa: usize,
+    /// Scheduling policy.
+    #[arg(long, value_enum, default_value_t = PolicyArg::Wavefront)]
+    pub policy: PolicyArg,
+    /// A light at grid-normalised X,Y,Z (repeatable; default: the scene's own).
+    #[arg(long = "light", value_parser = parse_triple)]
+    pub lights: Vec<[f64; 3]>,
+    /// Output CSV.
+    #[arg(long, default_value = "light-accuracy.csv")]
+    pub out: PathBuf,
+}
+
 /// Options of `subdivide`.
 #[derive(Args, Debug)]
 pub struct SubdivideArgs {
@@ -93,6 +257,11 @@ pub fn run(cli: Cli) -> Result<()> {
             64 => run_voxelize::<64>(&a),
             _ => run_voxelize::<128>(&a),
         },
+        Command::Light(a) => cell_core::with_frac_bits!(a.frac_bits, F => run_light::<F>(&a))
+            .unwrap_or_else(|| Err(anyhow::anyhow!("--frac-bits {} is not supported (0..=8, 10, 12, 16, 20, 24)", a.frac_bits))),
+        Command::DiffusionTable(a) => cell_core::with_frac_bits!(a.frac_bits, F => run_table::<F>(&a))
+            .unwrap_or_else(|| Err(anyhow::anyhow!("--frac-bits {} is not supported (0..=8, 10, 12, 16, 20, 24)", a.frac_bits))),
+        Command::LightAccuracy(a) => run_accuracy(&a),
         Command::Scenes => {
             for (name, what) in scene::BUILTINS {
                 println!("{name:10} {what}");
@@ -173,5 +342,135 @@ fn run_voxelize<const D: usize>(a: &VoxelizeArgs) -> Result<()> {
     let f = File::create(&out).with_context(|| format!("cannot create {}", out.display()))?;
     vox.write(BufWriter::new(f))?;
     eprintln!("  wrote {}", out.display());
+    Ok(())
+}
+
+fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
+    use crate::lightjob::{load_scene, resolve_lights, run_diffusion, write_lit_csv};
+    let l = &a.load;
+    let cfg = LoadConfig { n: l.n, thickness: l.sigma, contour: l.contour };
+    cfg.validate()?;
+    let mesh = scene::load(&l.scene)?;
+    let loaded = load_scene(&mesh, &cfg)?;
+    let lights = resolve_lights(&mesh, &loaded, &a.lights)?;
+    let lcfg = crate::diffuse::LightConfig { fa: a.fa, policy: a.policy.into(), merge: a.merge.resolve(a.policy), record_visits: false };
+    let pb = progress_bar(a.quiet, "light");
+    let (lighting, stats) = run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, |s, c| {
+        pb.set_message(format!("light {}", s + 1));
+        pb.set_length(c.max(1));
+        pb.set_position(c);
+    })?;
+    pb.finish_and_clear();
+    if let Some(p) = &a.stats {
+        write_json(p, &stats)?;
+    }
+    if let Some(p) = &a.lit_out {
+        let f = File::create(p).with_context(|| format!("cannot create {}", p.display()))?;
+        write_lit_csv(&lighting, BufWriter::new(f))?;
+    }
+    eprintln!(
+        "{}: n = {}, {} facets, {} light(s), FA = {}, f = {}, policy {}, merge {}",
+        stats.scene, stats.n, stats.facets, stats.sources.len(), stats.fa, stats.frac_bits, stats.policy, stats.merge
+    );
+    for s in &stats.sources {
+        eprintln!(
+            "  light {} at {:?}: T = {} cycles, LB = {} (T/LB {:.2}), {} beams, {} messages, peak FIFO {}",
+            s.source + 1,
+            s.position,
+            s.counts.cycles,
+            s.counts.lower_bound,
+            s.counts.cycles as f64 / s.counts.lower_bound.max(1) as f64,
+            s.counts.beams_processed,
+            s.counts.messages,
+            s.counts.peak_fifo
+        );
+    }
+    eprintln!(
+        "  lit voxels {}  rays emitted {} = absorbed {} + exited {}  wall {:.3} s",
+        stats.lit_voxels, stats.totals.rays_emitted, stats.totals.rays_absorbed, stats.totals.rays_exited, stats.wall_seconds
+    );
+    if stats.lit_overflows > 0 {
+        anyhow::bail!("{} lit marks did not fit a cell's lit store ({} runs per column)", stats.lit_overflows, crate::diffuse::LIT_CAP);
+    }
+    Ok(())
+}
+
+fn run_table<F: cell_core::beam::FracBits>(a: &TableArgs) -> Result<()> {
+    use crate::lightjob::{load_scene, resolve_lights, run_diffusion};
+    use std::io::Write;
+    let mut rows = Vec::new();
+    let mut csv = BufWriter::new(File::create(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?);
+    writeln!(csv, "n,fa,policy,frac_bits,cycles,lower_bound,t_over_lb,lb_distance,lb_cell_load,beams_processed,messages,peak_fifo,blocked_cell_cycles,wall_seconds")?;
+    let mesh = scene::load("empty")?;
+    let pb = progress_bar(a.quiet, "table");
+    pb.set_length((a.n.len() * a.fa.len() * a.policy.len()) as u64);
+    for &n in &a.n {
+        let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
+        let loaded = load_scene(&mesh, &cfg)?;
+        // The thesis's source at the centre: voxel (n/2, n/2, n/2).
+        let c = (n / 2) as f64;
+        let lights = resolve_lights(&mesh, &loaded, &[])?.iter().map(|_| [c, c, c]).collect::<Vec<_>>();
+        for &policy in &a.policy {
+            for &fa in &a.fa {
+                let lcfg = crate::diffuse::LightConfig { fa, policy: policy.into(), merge: a.merge.resolve(policy), record_visits: false };
+                let (_, s) = run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, |_, _| {})?;
+                let r = &s.sources[0];
+                writeln!(
+                    csv,
+                    "{n},{fa},{},{},{},{},{:.4},{},{},{},{},{},{},{:.4}",
+                    s.policy, s.frac_bits, r.counts.cycles, r.counts.lower_bound, s.t_over_lb, r.counts.lb_distance, r.counts.lb_cell_load,
+                    r.counts.beams_processed, r.counts.messages, r.counts.peak_fifo, r.counts.blocked_cell_cycles, s.wall_seconds
+                )?;
+                rows.push(crate::plot::DiffusionRow { n, fa: fa as u32, policy: s.policy.clone(), cycles: r.counts.cycles, lower_bound: r.counts.lower_bound });
+                pb.inc(1);
+            }
+        }
+    }
+    pb.finish_and_clear();
+    csv.flush()?;
+    crate::plot::plot_diffusion(&rows, &a.plot)?;
+    eprintln!("| N | FA | policy | T | LB | T/LB |");
+    eprintln!("|---|---|---|---|---|---|");
+    for r in &rows {
+        eprintln!("| {} | {} | {} | {} | {} | {:.2} |", r.n, r.fa, r.policy, r.cycles, r.lower_bound, r.cycles as f64 / r.lower_bound.max(1) as f64);
+    }
+    eprintln!("wrote {} and {}", a.out.display(), a.plot.display());
+    Ok(())
+}
+
+fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
+    use crate::lightjob::{accuracy, load_scene, resolve_lights, run_diffusion};
+    use std::io::Write;
+    let mesh = scene::load(&a.scene)?;
+    let mut csv = BufWriter::new(File::create(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?);
+    writeln!(csv, "scene,n,frac_bits,surface_voxels,lit_discrete,lit_continuous,false_lit,false_dark,disagreement_pct,cycles,lower_bound,beams_processed,wall_seconds")?;
+    eprintln!("| n | f | surface voxels | false lit | false dark | disagreement % | cycles | beams | wall s |");
+    eprintln!("|---|---|---|---|---|---|---|---|---|");
+    for &n in &a.n {
+        let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
+        let loaded = load_scene(&mesh, &cfg)?;
+        let lights = resolve_lights(&mesh, &loaded, &a.lights)?;
+        for &f in &a.frac_bits {
+            let lcfg = crate::diffuse::LightConfig { fa: a.fa, policy: a.policy.into(), merge: MergeArg::Auto.resolve(a.policy), record_visits: false };
+            let row = cell_core::with_frac_bits!(f, F => {
+                run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, |_, _| {})
+                    .and_then(|(l, s)| Ok((accuracy(&mesh, &loaded, &lights, &l)?, s)))
+            })
+            .unwrap_or_else(|| Err(anyhow::anyhow!("--frac-bits {f} is not supported")))?;
+            let (acc, s) = row;
+            writeln!(
+                csv,
+                "{},{n},{f},{},{},{},{},{},{:.4},{},{},{},{:.4}",
+                mesh.name, acc.surface_voxels, acc.lit_discrete, acc.lit_continuous, acc.false_lit, acc.false_dark,
+                acc.disagreement_pct, s.totals.cycles, s.totals.lower_bound, s.totals.beams_processed, s.wall_seconds
+            )?;
+            eprintln!(
+                "| {n} | {f} | {} | {} | {} | {:.2} | {} | {} | {:.2} |",
+                acc.surface_voxels, acc.false_lit, acc.false_dark, acc.disagreement_pct, s.totals.cycles, s.totals.beams_processed, s.wall_seconds
+            );
+        }
+    }
+    csv.flush()?;
+    eprintln!("wrote {}", a.out.display());
     Ok(())
 }

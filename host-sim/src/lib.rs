@@ -13,8 +13,12 @@
 
 pub mod binvox;
 pub mod cli;
+pub mod diffuse;
 pub mod grid;
+pub mod lightjob;
 pub mod load;
 pub mod meshops;
+pub mod plot;
 pub mod precompute;
+pub mod reference;
 pub mod scene;

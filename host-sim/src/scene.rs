@@ -40,6 +40,16 @@ pub struct Face {
     pub material: u16,
 }
 
+/// A point light a scene carries.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SceneLight {
+    /// At a world position; moved along −y to the first empty voxel if it falls in an occupied
+    /// one (a ceiling light sits on the ceiling's voxels).
+    World([f64; 3]),
+    /// At grid-normalised coordinates (0..1 on each axis).
+    Grid([f64; 3]),
+}
+
 /// A polygon mesh in world coordinates.
 #[derive(Clone, Debug, Default)]
 pub struct Mesh {
@@ -51,11 +61,14 @@ pub struct Mesh {
     pub faces: Vec<Face>,
     /// Materials; index 0 exists always (the default material when the file has none).
     pub materials: Vec<Material>,
+    /// The scene's own lights (built-ins); `--light` replaces them.
+    pub lights: Vec<SceneLight>,
 }
 
 /// Built-in scenes: name, one-line description.
 pub const BUILTINS: &[(&str, &str)] = &[
     ("cornell", "the Cornell box (published geometry: 5 walls, ceiling light, two blocks)"),
+    ("empty", "nothing: an empty grid with one light at the centre (the thesis's diffusion experiment)"),
     ("facet", "a single triangle in general position"),
     ("teapot", "Utah teapot, 6 320 triangles (open surface)"),
     ("cow", "cow, 5 804 triangles (closed)"),
@@ -82,11 +95,26 @@ fn builtin_source(name: &str) -> Option<(&'static str, Option<&'static str>)> {
 
 /// Load a scene: a built-in name (see [`BUILTINS`]) or a path to an `.obj` file.
 pub fn load(scene: &str) -> Result<Mesh> {
+    if scene == "empty" {
+        return Ok(Mesh {
+            name: "empty".into(),
+            materials: vec![Material::default()],
+            lights: vec![SceneLight::Grid([0.5; 3])],
+            ..Default::default()
+        });
+    }
     if let Some((obj, mtl)) = builtin_source(scene) {
-        return parse_obj(scene, obj, |_| match mtl {
+        let mut mesh = parse_obj(scene, obj, |_| match mtl {
             Some(m) => tobj::load_mtl_buf(&mut BufReader::new(m.as_bytes())),
             None => Err(tobj::LoadError::OpenFileFailed),
-        });
+        })?;
+        mesh.lights = match scene {
+            // The centre of the published light quad (213..343 × 227..332 at y = 548.8).
+            "cornell" => vec![SceneLight::World([278.0, 548.8, 279.5])],
+            "facet" => vec![SceneLight::Grid([0.5, 0.5, 0.05])],
+            _ => vec![SceneLight::Grid([0.5, 0.95, 0.05])],
+        };
+        return Ok(mesh);
     }
     let path = Path::new(scene);
     if !path.exists() {
@@ -200,7 +228,8 @@ mod tests {
     fn builtins_load() {
         for (name, _) in BUILTINS {
             let m = load(name).unwrap();
-            assert!(!m.faces.is_empty(), "{name}");
+            assert_eq!(m.faces.is_empty(), *name == "empty", "{name}");
+            assert!(!m.lights.is_empty(), "{name} carries a light");
         }
         let c = load("cornell").unwrap();
         // 5 walls + light + 2 blocks × 5 faces.

@@ -12,4 +12,5 @@
 pub mod brute;
 pub mod flood;
 pub mod inside;
+pub mod rays;
 pub mod tunnels;

@@ -1,0 +1,660 @@
+//! §4.4 — the lighting phase in one cell: FIFO, output ports, back-pressure, lit voxels.
+//!
+//! A cell owns one input FIFO (the thesis's "FA") fed by its 8 neighbours and by itself, one
+//! output buffer per neighbour direction, and the lit state of its column. Each cycle it may
+//! process **one** beam (§4.4.1):
+//!
+//! * the beam's voxel is occupied → the voxel is lit by the beam's source and the beam stops
+//!   (its rays are *absorbed*);
+//! * otherwise the beam is split ([`crate::beam`]); sub-beams whose voxel leaves the grid are
+//!   dropped (their rays *exit*), the others go to the cell itself (±z beams staying in the
+//!   column: into its own FIFO) or to the output buffer toward the neighbour that owns them.
+//!
+//! **No loss** (§4.4.2): a beam is processed only when every destination can take its
+//! sub-beams now — room in each output buffer concerned, and room in the cell's own FIFO for
+//! self-destined ones (after the processed beam has left it). Otherwise the beam waits and the
+//! cell is *blocked* for the cycle. Nothing is ever dropped for lack of space.
+//!
+//! **No deadlock** (argued here, tested by the host): a ray's transverse coordinates move
+//! monotonically away from the source's (rounding ⌊S + u·k/D + ½⌋ is monotone in k with the
+//! sign of u), and its principal coordinate strictly does; so every beam that changes cell moves
+//! to a cell strictly farther from the source column in `|x − x_s| + |y − y_s|`. The "waits for"
+//! relation between cells is therefore acyclic, and a cell's own FIFO always has room for the
+//! one self-destined sub-beam of a split (the processed beam frees its slot). Boundary cells
+//! never wait. Hence every beam is eventually processed.
+//!
+//! **Quiescence** (§4.4.4): [`Activity`] counts beams in flight (in FIFOs, output buffers and
+//! not yet emitted by a source); it is shared state, guarded by `critical-section` (on an MCU
+//! the FIFO producer side runs in a link interrupt). It is exact: it is incremented before a
+//! beam becomes visible and decremented when one is consumed, so it reads 0 iff no beam exists.
+
+use core::cell::Cell as CoreCell;
+
+use critical_section::Mutex;
+use heapless::{Deque, Vec};
+
+use crate::beam::{Beam, BeamError, FarDistance, FracBits, Source, SplitOrder, Transverse};
+use crate::dexel::DexelStore;
+use crate::units::{Coord, Depth};
+
+/// One bit per light source (sources are diffused one after another; at most 32).
+pub type SourceMask = u32;
+
+/// Most sources a scene may have (bits of [`SourceMask`]).
+pub const MAX_SOURCES: usize = 32;
+
+/// A beam in a message: the beam and the depth of its voxel in the receiving column.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct BeamMsg<F: FracBits> {
+    /// The rays.
+    pub beam: Beam<F>,
+    /// The z of the beam's voxel (needed for ±x and ±y beams; for ±z beams it is implied by
+    /// the layer but carried all the same).
+    pub z: Depth,
+}
+
+/// The 8 neighbour links, counter-clockwise from east (y grows to the north).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u8)]
+pub enum Port {
+    /// (+1, 0)
+    E = 0,
+    /// (+1, +1)
+    NE = 1,
+    /// (0, +1)
+    N = 2,
+    /// (−1, +1)
+    NW = 3,
+    /// (−1, 0)
+    W = 4,
+    /// (−1, −1)
+    SW = 5,
+    /// (0, −1)
+    S = 6,
+    /// (+1, −1)
+    SE = 7,
+}
+
+impl Port {
+    /// All eight, in index order.
+    pub const ALL: [Port; 8] = [Port::E, Port::NE, Port::N, Port::NW, Port::W, Port::SW, Port::S, Port::SE];
+
+    /// The cell step (dx, dy) of this link.
+    pub const fn delta(self) -> (i8, i8) {
+        match self {
+            Port::E => (1, 0),
+            Port::NE => (1, 1),
+            Port::N => (0, 1),
+            Port::NW => (-1, 1),
+            Port::W => (-1, 0),
+            Port::SW => (-1, -1),
+            Port::S => (0, -1),
+            Port::SE => (1, -1),
+        }
+    }
+
+    /// The link for a step (dx, dy); `None` for (0, 0) or a step longer than one cell.
+    pub const fn from_delta(dx: i8, dy: i8) -> Option<Port> {
+        Some(match (dx, dy) {
+            (1, 0) => Port::E,
+            (1, 1) => Port::NE,
+            (0, 1) => Port::N,
+            (-1, 1) => Port::NW,
+            (-1, 0) => Port::W,
+            (-1, -1) => Port::SW,
+            (0, -1) => Port::S,
+            (1, -1) => Port::SE,
+            _ => return None,
+        })
+    }
+
+    /// Index 0..8.
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// Which beam a cell processes when its FIFO holds several (a documented, measured choice).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Policy {
+    /// The thesis (§4.4.1): take the FIFO's head; if its sub-beams cannot all be sent, put it
+    /// back at the tail ("remettre le faisceau dans FA") and wait for the next cycle.
+    Thesis,
+    /// Wavefront: among the beams whose sub-beams can all be sent now, take the one at the
+    /// smallest layer (the longest remaining path), FIFO order among equals. A beam that cannot
+    /// go does not block the ones behind it (no head-of-line blocking).
+    Wavefront,
+}
+
+/// Lit voxels of one column, as runs of consecutive voxels with the same source mask.
+///
+/// Invariant: runs sorted, disjoint, non-empty, non-zero masks, and two touching runs never
+/// have equal masks (they would be merged). Capacity `L`; a mark that does not fit is counted.
+#[derive(Clone, Debug, Default)]
+pub struct LitRuns<const L: usize> {
+    runs: Vec<LitRun, L>,
+    overflows: u32,
+}
+
+/// A run of lit voxels `lo ..= hi`, lit by the sources in `mask`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct LitRun {
+    /// First z.
+    pub lo: Depth,
+    /// Last z.
+    pub hi: Depth,
+    /// Sources that lit these voxels.
+    pub mask: SourceMask,
+}
+
+impl<const L: usize> LitRuns<L> {
+    /// No voxel lit.
+    pub const fn new() -> Self {
+        LitRuns { runs: Vec::new(), overflows: 0 }
+    }
+
+    /// The runs, sorted by depth.
+    pub fn runs(&self) -> &[LitRun] {
+        &self.runs
+    }
+
+    /// Marks that did not fit.
+    pub fn overflows(&self) -> u32 {
+        self.overflows
+    }
+
+    /// Sources that lit voxel `z` (0 if none).
+    pub fn mask_at(&self, z: Depth) -> SourceMask {
+        let i = self.runs.partition_point(|r| r.hi < z);
+        match self.runs.get(i) {
+            Some(r) if r.lo <= z => r.mask,
+            _ => 0,
+        }
+    }
+
+    /// Record that the sources in `bits` lit voxel `z`. Returns `false` (and counts an
+    /// overflow) when the runs would exceed the capacity; the state is then unchanged.
+    pub fn mark(&mut self, z: Depth, bits: SourceMask) -> bool {
+        let i = self.runs.partition_point(|r| r.hi < z);
+        let old = match self.runs.get(i) {
+            Some(r) if r.lo <= z => Some(*r),
+            _ => None,
+        };
+        let mask = old.map_or(0, |r| r.mask);
+        if mask | bits == mask {
+            return true;
+        }
+        // The pieces replacing `old` (or inserted at i): below z, z itself, above z.
+        let mut pieces: Vec<LitRun, 3> = Vec::new();
+        if let Some(r) = old {
+            if r.lo < z {
+                let _ = pieces.push(LitRun { lo: r.lo, hi: z - 1, mask });
+            }
+        }
+        let _ = pieces.push(LitRun { lo: z, hi: z, mask: mask | bits });
+        if let Some(r) = old {
+            if r.hi > z {
+                let _ = pieces.push(LitRun { lo: z + 1, hi: r.hi, mask });
+            }
+        }
+        // Merge the new voxel run with touching neighbours of equal mask.
+        let new_mask = mask | bits;
+        let prev = if i > 0 { self.runs.get(i - 1).copied() } else { None };
+        let next_idx = if old.is_some() { i + 1 } else { i };
+        let next = self.runs.get(next_idx).copied();
+        let merge_prev = pieces[0].lo == z && prev.is_some_and(|p| p.hi as u32 + 1 == z as u32 && p.mask == new_mask);
+        let last = pieces.len() - 1;
+        let merge_next =
+            pieces[last].hi == z && next.is_some_and(|n| z as u32 + 1 == n.lo as u32 && n.mask == new_mask);
+        let removed = old.is_some() as usize + merge_prev as usize + merge_next as usize;
+        if self.runs.len() - removed + pieces.len() > L {
+            self.overflows += 1;
+            return false;
+        }
+        let mut lo_idx = i;
+        if merge_prev {
+            lo_idx -= 1;
+            let p = prev.unwrap_or(pieces[0]);
+            pieces[0].lo = p.lo;
+        }
+        if merge_next {
+            let n = next.unwrap_or(pieces[last]);
+            pieces[last].hi = n.hi;
+        }
+        for _ in 0..removed {
+            self.runs.remove(lo_idx);
+        }
+        for (k, p) in pieces.iter().enumerate() {
+            // Cannot fail: capacity checked above.
+            let _ = self.runs.insert(lo_idx + k, *p);
+        }
+        true
+    }
+}
+
+/// Beams in flight in the whole machine: the global activity detector (§4.4.4).
+pub struct Activity {
+    count: Mutex<CoreCell<u64>>,
+}
+
+impl Default for Activity {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Activity {
+    /// Nothing in flight.
+    pub const fn new() -> Self {
+        Activity { count: Mutex::new(CoreCell::new(0)) }
+    }
+
+    /// `n` beams appeared (before they become visible to any cell).
+    pub fn add(&self, n: u64) {
+        critical_section::with(|cs| {
+            let c = self.count.borrow(cs);
+            c.set(c.get() + n);
+        });
+    }
+
+    /// One beam was consumed.
+    pub fn consume(&self) {
+        critical_section::with(|cs| {
+            let c = self.count.borrow(cs);
+            c.set(c.get().saturating_sub(1));
+        });
+    }
+
+    /// Beams in flight.
+    pub fn get(&self) -> u64 {
+        critical_section::with(|cs| self.count.borrow(cs).get())
+    }
+
+    /// No beam anywhere: the diffusion of the current source is over.
+    pub fn is_quiescent(&self) -> bool {
+        self.get() == 0
+    }
+}
+
+/// Per-cell counters of the lighting phase.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LightCounters {
+    /// Beams processed (one per cycle at most).
+    pub processed: u64,
+    /// Cycles with beams waiting but none processable (the thesis's "bloqué").
+    pub blocked_cycles: u64,
+    /// Largest FIFO occupancy seen.
+    pub peak_fifo: u16,
+    /// Largest layer of a processed beam.
+    pub max_layer: u32,
+    /// Rays absorbed in this column.
+    pub rays_absorbed: u64,
+    /// Rays whose sub-beam left the grid from this cell.
+    pub rays_exited: u64,
+    /// Sub-beams sent to neighbours.
+    pub sent: u64,
+    /// Lit marks lost to a full [`LitRuns`].
+    pub lit_overflows: u32,
+    /// Beams merged into a waiting beam on arrival.
+    pub merged: u64,
+}
+
+/// What the machine around a cell looks like during one source's diffusion.
+#[derive(Clone, Copy, Debug)]
+pub struct LightEnv<'a, F: FracBits> {
+    /// The source being diffused.
+    pub source: &'a Source,
+    /// Far distance D.
+    pub far: FarDistance<F>,
+    /// Grid side.
+    pub n: u32,
+    /// Voxels per column.
+    pub depth: u32,
+    /// Scheduling policy.
+    pub policy: Policy,
+    /// Sub-beam emission order.
+    pub order: &'a SplitOrder,
+    /// The FIFO limit in use (≤ the compile-time capacity; for FIFO-size sweeps).
+    pub fa: usize,
+    /// Bit of the current source in [`SourceMask`].
+    pub source_bit: SourceMask,
+    /// Merge arriving beams into waiting beams of the same voxel when exact.
+    pub merge: bool,
+}
+
+/// What a cell did in one cycle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Step {
+    /// Nothing to do.
+    Idle,
+    /// Processed one beam.
+    Processed,
+    /// Had beams, could process none (all destinations busy).
+    Blocked,
+}
+
+/// Where a processed beam's rays go.
+enum Fate<F: FracBits> {
+    Absorbed(u64),
+    Split { subs: heapless::Vec<(Target, BeamMsg<F>), 9>, exited: u64 },
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Target {
+    SelfFifo,
+    Out(Port),
+}
+
+/// The lighting state of one cell: FIFO capacity `FA`, `OB` messages per output buffer,
+/// `L` lit runs.
+#[derive(Clone, Debug)]
+pub struct LightCell<F: FracBits, const FA: usize, const OB: usize, const L: usize> {
+    /// Column index.
+    pub x: Coord,
+    /// Row index.
+    pub y: Coord,
+    /// The input FIFO ("FA").
+    pub fifo: Vec<BeamMsg<F>, FA>,
+    /// One output buffer per neighbour link.
+    pub out: [Deque<BeamMsg<F>, OB>; 8],
+    /// Lit voxels of the column.
+    pub lit: LitRuns<L>,
+    /// Counters.
+    pub counters: LightCounters,
+    /// Depth of the voxel of the last beam processed (for tracing and coverage checks).
+    pub last_z: Depth,
+}
+
+impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F, FA, OB, L> {
+    const FA_FITS_THE_TRIED_MASK: () = assert!(FA <= 64, "the wavefront policy tracks tried FIFO slots in a u64");
+
+    /// An idle cell at (x, y).
+    pub fn new(x: Coord, y: Coord) -> Self {
+        #[allow(clippy::let_unit_value)]
+        let () = Self::FA_FITS_THE_TRIED_MASK;
+        LightCell {
+            x,
+            y,
+            fifo: Vec::new(),
+            out: core::array::from_fn(|_| Deque::new()),
+            lit: LitRuns::new(),
+            counters: LightCounters::default(),
+            last_z: 0,
+        }
+    }
+
+    /// Whether the cell holds any beam (FIFO or output buffers).
+    pub fn busy(&self) -> bool {
+        !self.fifo.is_empty() || self.out.iter().any(|q| !q.is_empty())
+    }
+
+    /// Whether the FIFO can take one more beam under limit `fa` (the credit a link checks).
+    pub fn can_accept(&self, fa: usize) -> bool {
+        self.fifo.len() < fa.min(FA)
+    }
+
+    /// Deliver a beam into the FIFO (a link, or the source emitter). The caller checked
+    /// [`LightCell::can_accept`]; a full FIFO returns the beam back. With `merge`, a beam that
+    /// shares a whole side with a waiting beam of the same voxel joins it instead of taking a
+    /// slot (exact, see [`Beam::merged`]; one beam fewer in flight).
+    pub fn accept(&mut self, msg: BeamMsg<F>, merge: bool, activity: &Activity) -> Result<(), BeamMsg<F>> {
+        if merge {
+            let mut m = msg;
+            let mut joined = false;
+            // Keep joining while the grown rectangle meets another waiting beam.
+            while let Some((i, b)) =
+                self.fifo.iter().enumerate().find_map(|(i, e)| (e.z == m.z).then(|| e.beam.merged(&m.beam)).flatten().map(|b| (i, b)))
+            {
+                self.fifo.remove(i);
+                if joined {
+                    // Two waiting beams became one.
+                    activity.consume();
+                }
+                m = BeamMsg { beam: b, z: m.z };
+                joined = true;
+                self.counters.merged += 1;
+            }
+            if joined {
+                activity.consume();
+                // Cannot fail: a slot was freed by the removal.
+                let _ = self.fifo.push(m);
+                return Ok(());
+            }
+        }
+        self.fifo.push(msg)?;
+        self.counters.peak_fifo = self.counters.peak_fifo.max(self.fifo.len() as u16);
+        Ok(())
+    }
+
+    /// Decide a beam's fate without changing anything.
+    fn fate<const D: usize>(&self, m: &BeamMsg<F>, store: &DexelStore<D>, env: &LightEnv<'_, F>) -> Fate<F> {
+        let b = &m.beam;
+        if store.occupied(m.z).is_some() {
+            return Fate::Absorbed(b.ray_count());
+        }
+        let dir = b.direction();
+        let pos = [self.x as i64, self.y as i64, m.z as i64];
+        let (ua, va) = dir.transverse();
+        let at = Transverse { u: pos[ua.index()] as i32, v: pos[va.index()] as i32 };
+        let mut subs = heapless::Vec::new();
+        let mut exited = 0;
+        match b.split_with(env.source, env.far, at, env.order) {
+            Ok(parts) => {
+                for sb in parts {
+                    let d = dir.displacement(sb.offset);
+                    let to = [pos[0] + d[0] as i64, pos[1] + d[1] as i64, pos[2] + d[2] as i64];
+                    let inside = to[0] >= 0
+                        && to[1] >= 0
+                        && to[2] >= 0
+                        && to[0] < env.n as i64
+                        && to[1] < env.n as i64
+                        && to[2] < env.depth as i64;
+                    if !inside {
+                        exited += sb.beam.ray_count();
+                        continue;
+                    }
+                    let target = match Port::from_delta(d[0], d[1]) {
+                        Some(p) => Target::Out(p),
+                        None => Target::SelfFifo,
+                    };
+                    let _ = subs.push((target, BeamMsg { beam: sb.beam, z: to[2] as Depth }));
+                }
+            }
+            // At the far plane (k = D) or for a beam that is not this source's: the next
+            // layer is outside every grid the far distance was chosen for; the rays leave.
+            Err(BeamError::AtFarPlane) | Err(_) => exited += b.ray_count(),
+        }
+        Fate::Split { subs, exited }
+    }
+
+    /// Whether every sub-beam of `fate` fits now (the no-loss rule), given that the processed
+    /// beam leaves the FIFO first.
+    fn fits(&self, fate: &Fate<F>, fa: usize) -> bool {
+        let Fate::Split { subs, .. } = fate else { return true };
+        let mut need = [0usize; 9];
+        for (t, _) in subs {
+            match t {
+                Target::Out(p) => need[p.index()] += 1,
+                Target::SelfFifo => need[8] += 1,
+            }
+        }
+        (0..8).all(|p| self.out[p].len() + need[p] <= OB)
+            && self.fifo.len() - 1 + need[8] <= fa.min(FA)
+    }
+
+    /// One compute cycle (§4.4.1): pick a beam by `env.policy`, process it if the no-loss rule
+    /// allows, else wait. `activity` counts beams in flight machine-wide.
+    pub fn step<const D: usize>(&mut self, store: &DexelStore<D>, env: &LightEnv<'_, F>, activity: &Activity) -> Step {
+        if self.fifo.is_empty() {
+            return Step::Idle;
+        }
+        let chosen = match env.policy {
+            Policy::Thesis => {
+                let fate = self.fate(&self.fifo[0], store, env);
+                if self.fits(&fate, env.fa) {
+                    Some((0, fate))
+                } else {
+                    // Put it back at the tail.
+                    let head = self.fifo.remove(0);
+                    let _ = self.fifo.push(head);
+                    None
+                }
+            }
+            Policy::Wavefront => {
+                // Candidates by (layer, position); the first that fits goes.
+                let mut best: Option<(usize, Fate<F>)> = None;
+                let mut tried = 0u64; // FIFO positions already tried (FA ≤ 64, asserted)
+                for _ in 0..self.fifo.len() {
+                    let mut pick: Option<usize> = None;
+                    for (i, m) in self.fifo.iter().enumerate() {
+                        if tried >> i & 1 == 1 {
+                            continue;
+                        }
+                        if pick.is_none_or(|p| m.beam.layer().0 < self.fifo[p].beam.layer().0) {
+                            pick = Some(i);
+                        }
+                    }
+                    let Some(i) = pick else { break };
+                    tried |= 1 << i;
+                    let fate = self.fate(&self.fifo[i], store, env);
+                    if self.fits(&fate, env.fa) {
+                        best = Some((i, fate));
+                        break;
+                    }
+                }
+                best
+            }
+        };
+        let Some((i, fate)) = chosen else {
+            self.counters.blocked_cycles += 1;
+            return Step::Blocked;
+        };
+        let m = self.fifo.remove(i);
+        self.last_z = m.z;
+        self.counters.processed += 1;
+        self.counters.max_layer = self.counters.max_layer.max(m.beam.layer().0);
+        match fate {
+            Fate::Absorbed(rays) => {
+                self.counters.rays_absorbed += rays;
+                if !self.lit.mark(m.z, env.source_bit) {
+                    self.counters.lit_overflows += 1;
+                }
+            }
+            Fate::Split { subs, exited } => {
+                self.counters.rays_exited += exited;
+                activity.add(subs.len() as u64);
+                for (t, sub) in subs {
+                    // Cannot fail: `fits` checked every destination.
+                    match t {
+                        Target::SelfFifo => {
+                            let _ = self.accept(sub, env.merge, activity);
+                        }
+                        Target::Out(p) => {
+                            let q = &mut self.out[p.index()];
+                            // Same neighbour voxel, side by side: join the waiting message.
+                            let joined = env.merge
+                                && q.iter_mut().any(|w| {
+                                    let j = (w.z == sub.z).then(|| w.beam.merged(&sub.beam)).flatten();
+                                    if let Some(b) = j {
+                                        w.beam = b;
+                                    }
+                                    j.is_some()
+                                });
+                            if joined {
+                                activity.consume();
+                                self.counters.merged += 1;
+                            } else {
+                                let _ = q.push_back(sub);
+                                self.counters.sent += 1;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        activity.consume();
+        Step::Processed
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use proptest::prelude::*;
+
+    fn check<const L: usize>(r: &LitRuns<L>) {
+        for w in r.runs().windows(2) {
+            assert!(w[0].hi < w[1].lo);
+            assert!(!(w[0].hi + 1 == w[1].lo && w[0].mask == w[1].mask), "unmerged {:?}", w);
+        }
+        assert!(r.runs().iter().all(|x| x.lo <= x.hi && x.mask != 0));
+    }
+
+    #[test]
+    fn lit_runs_split_and_merge() {
+        let mut r = LitRuns::<8>::new();
+        for z in 10..=20 {
+            assert!(r.mark(z, 1));
+        }
+        assert_eq!(r.runs(), &[LitRun { lo: 10, hi: 20, mask: 1 }]);
+        assert!(r.mark(15, 2));
+        assert_eq!(r.runs().len(), 3);
+        assert_eq!((r.mask_at(14), r.mask_at(15), r.mask_at(16), r.mask_at(9)), (1, 3, 1, 0));
+        assert!(r.mark(14, 2) && r.mark(16, 2));
+        assert_eq!(r.runs(), &[
+            LitRun { lo: 10, hi: 13, mask: 1 },
+            LitRun { lo: 14, hi: 16, mask: 3 },
+            LitRun { lo: 17, hi: 20, mask: 1 }
+        ]);
+        check(&r);
+    }
+
+    #[test]
+    fn lit_runs_overflow_is_counted_and_harmless() {
+        let mut r = LitRuns::<2>::new();
+        assert!(r.mark(1, 1) && r.mark(5, 1));
+        assert!(!r.mark(9, 1));
+        assert_eq!(r.overflows(), 1);
+        assert_eq!(r.mask_at(9), 0);
+        assert!(r.mark(2, 1), "merging needs no new run");
+    }
+
+    proptest! {
+        #[test]
+        fn lit_runs_match_a_per_voxel_array(marks in proptest::collection::vec((0u16..40, 0u32..4), 0..60)) {
+            let mut r = LitRuns::<64>::new();
+            let mut want = [0u32; 40];
+            for (z, s) in marks {
+                prop_assert!(r.mark(z, 1 << s));
+                want[z as usize] |= 1 << s;
+                check(&r);
+            }
+            for z in 0..40u16 {
+                prop_assert_eq!(r.mask_at(z), want[z as usize]);
+            }
+        }
+    }
+
+    #[test]
+    fn activity_counts_exactly() {
+        let a = Activity::new();
+        assert!(a.is_quiescent());
+        a.add(6);
+        for _ in 0..5 {
+            a.consume();
+        }
+        assert!(!a.is_quiescent());
+        a.consume();
+        assert!(a.is_quiescent());
+    }
+
+    #[test]
+    fn ports_round_trip() {
+        for p in Port::ALL {
+            let (dx, dy) = p.delta();
+            assert_eq!(Port::from_delta(dx, dy), Some(p));
+        }
+        assert_eq!(Port::from_delta(0, 0), None);
+    }
+}

@@ -1,0 +1,849 @@
+//! Continuous ground truth: exact `f64` visibility against the world-space triangles.
+//!
+//! The discrete machine answers visibility from dexels on a lattice; this module answers the
+//! same questions in continuous `f64` space so the discrete lighting's error can be measured.
+//!
+//! * The triangles are kept as given (world units), each tagged with a facet id.
+//! * A parry3d-f64 [`Bvh`] over the triangles' bounding boxes does the culling only. Every
+//!   leaf box is loosened by [`Reference::margin`] (10⁻⁶ of the scene's scale), so the box tests'
+//!   own rounding can never hide a triangle: every answer comes from the exact per-triangle test.
+//! * The per-triangle test is the watertight ray–triangle test of Woop, Benthin and Wald
+//!   (JCGT 2013) in plain `f64`, without epsilons: a ray crossing a shared edge of two
+//!   triangles hits at least one of them (no leaks through a closed mesh), edges and vertices
+//!   count as inside, and a ray parallel to a triangle's plane (coplanar grazing included)
+//!   does not hit it.
+//!
+//! Conventions:
+//! * [`Reference::visible`] tests the open segment `from → to`: a hit at parameter `t`
+//!   (`p = from + t·(to − from)`) blocks iff `1e-9 < t < 1 − 1e-9` ([`SEGMENT_END_TOL`]), so a
+//!   surface point on a triangle does not shadow itself at either end, with no offset of the
+//!   start point.
+//! * [`Reference::first_hit`] accepts hits with `0 < t < max_t` (`t` in units of `dir`, which
+//!   need not be normalised).
+//! * Facets listed in `ignore` are transparent to both queries (all hits along the ray are
+//!   visited, not only the first).
+//! * Non-finite query input (NaN or ±∞ coordinates) is not an error: `visible` answers `false`
+//!   and `first_hit` answers `None`. A zero-length segment is visible; a zero direction hits
+//!   nothing.
+
+use anyhow::{bail, Result};
+use parry3d_f64::bounding_volume::Aabb;
+use parry3d_f64::math::Vector;
+use parry3d_f64::partitioning::{Bvh, BvhBuildStrategy};
+use parry3d_f64::query::Ray;
+
+/// Hits within this parameter distance of either end of a [`Reference::visible`] segment
+/// (relative: the segment runs over `t ∈ [0, 1]`) do not block.
+pub const SEGMENT_END_TOL: f64 = 1e-9;
+
+/// A triangle is skipped as zero-area when `|e1 × e2| ≤ DEGENERATE_SIN · |e1| · |e2|`, i.e.
+/// when the sine of its angle at the first vertex is at most 10⁻¹² (an exact zero included).
+pub const DEGENERATE_SIN: f64 = 1e-12;
+
+type V3 = [f64; 3];
+
+#[inline(always)]
+fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+#[inline(always)]
+fn cross(a: V3, b: V3) -> V3 {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+#[inline(always)]
+fn dot(a: V3, b: V3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+#[inline(always)]
+fn finite(a: V3) -> bool {
+    a.iter().all(|x| x.is_finite())
+}
+#[inline(always)]
+fn vec(a: V3) -> Vector {
+    Vector::new(a[0], a[1], a[2])
+}
+
+/// One kept (non-degenerate) triangle.
+#[derive(Clone, Copy, Debug)]
+struct Tri {
+    v: [V3; 3],
+    /// Unit geometric normal, `(v1 − v0) × (v2 − v0)` normalised.
+    normal: V3,
+    facet: u32,
+}
+
+/// A ray prepared for the watertight test (shear constants and axis permutation).
+#[derive(Clone, Copy, Debug)]
+struct ShearRay {
+    o: V3,
+    kx: usize,
+    ky: usize,
+    kz: usize,
+    sx: f64,
+    sy: f64,
+    sz: f64,
+}
+
+impl ShearRay {
+    /// `None` for a zero direction (no hit possible).
+    fn new(o: V3, d: V3) -> Option<ShearRay> {
+        let a = [d[0].abs(), d[1].abs(), d[2].abs()];
+        let kz = if a[0] >= a[1] && a[0] >= a[2] {
+            0
+        } else if a[1] >= a[2] {
+            1
+        } else {
+            2
+        };
+        if d[kz] == 0.0 {
+            return None;
+        }
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        // Keep the triangle winding: a negative major axis flips the handedness.
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        Some(ShearRay { o, kx, ky, kz, sx: d[kx] / d[kz], sy: d[ky] / d[kz], sz: 1.0 / d[kz] })
+    }
+
+    /// Watertight ray–triangle test: the ray parameter of the hit, or `None`.
+    /// Edges and vertices count as inside; a ray parallel to the plane misses.
+    #[inline]
+    fn hit(&self, tri: &Tri) -> Option<f64> {
+        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
+        let a = sub(tri.v[0], self.o);
+        let b = sub(tri.v[1], self.o);
+        let c = sub(tri.v[2], self.o);
+        let ax = a[kx] - self.sx * a[kz];
+        let ay = a[ky] - self.sy * a[kz];
+        let bx = b[kx] - self.sx * b[kz];
+        let by = b[ky] - self.sy * b[kz];
+        let cx = c[kx] - self.sx * c[kz];
+        let cy = c[ky] - self.sy * c[kz];
+        let u = cx * by - cy * bx;
+        let v = ax * cy - ay * cx;
+        let w = bx * ay - by * ax;
+        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            return None;
+        }
+        let det = u + v + w;
+        if det == 0.0 || !det.is_finite() {
+            return None;
+        }
+        let t = (u * (self.sz * a[kz]) + v * (self.sz * b[kz]) + w * (self.sz * c[kz])) / det;
+        t.is_finite().then_some(t)
+    }
+}
+
+/// World-space triangles with a BVH (parry3d-f64 [`Bvh`]), each tagged with a facet id.
+#[derive(Clone)]
+pub struct Reference {
+    tris: Vec<Tri>,
+    bvh: Bvh,
+    margin: f64,
+    skipped: usize,
+}
+
+impl std::fmt::Debug for Reference {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Reference")
+            .field("triangles", &self.tris.len())
+            .field("skipped", &self.skipped)
+            .field("margin", &self.margin)
+            .finish()
+    }
+}
+
+impl Reference {
+    /// Build from world-space triangles and one facet id per triangle.
+    ///
+    /// Errors: the two lengths differ, a coordinate is NaN or infinite, there are more than
+    /// `u32::MAX` triangles, or no triangle is left after skipping the zero-area ones (see
+    /// [`DEGENERATE_SIN`]; an empty input included). Zero-area triangles are skipped and
+    /// counted ([`Reference::skipped`]); every kept triangle keeps its own facet id.
+    pub fn new(triangles: Vec<[[f64; 3]; 3]>, facet_of_triangle: Vec<u32>) -> Result<Reference> {
+        if triangles.len() != facet_of_triangle.len() {
+            bail!("reference: {} triangles but {} facet ids", triangles.len(), facet_of_triangle.len());
+        }
+        if triangles.len() > u32::MAX as usize {
+            bail!("reference: too many triangles ({})", triangles.len());
+        }
+        let mut tris = Vec::with_capacity(triangles.len());
+        let mut skipped = 0;
+        let mut scale: f64 = 0.0;
+        for (i, (v, &facet)) in triangles.iter().zip(&facet_of_triangle).enumerate() {
+            if !v.iter().all(|p| finite(*p)) {
+                bail!("reference: triangle {i} (facet {facet}) has a non-finite coordinate: {v:?}");
+            }
+            let e1 = sub(v[1], v[0]);
+            let e2 = sub(v[2], v[0]);
+            let n = cross(e1, e2);
+            let n2 = dot(n, n);
+            let lim = DEGENERATE_SIN * DEGENERATE_SIN * dot(e1, e1) * dot(e2, e2);
+            if !(n2.is_finite() && n2 > lim) {
+                skipped += 1;
+                continue;
+            }
+            let inv = 1.0 / n2.sqrt();
+            for p in v {
+                for x in p {
+                    scale = scale.max(x.abs());
+                }
+            }
+            tris.push(Tri { v: *v, normal: [n[0] * inv, n[1] * inv, n[2] * inv], facet });
+        }
+        if tris.is_empty() {
+            bail!(
+                "reference: no triangle with a non-zero area ({} given, {} zero-area)",
+                triangles.len(),
+                skipped
+            );
+        }
+        // Loosen every leaf box so that the box tests' rounding can never cull a real hit.
+        let margin = 1e-6 * scale.max(f64::MIN_POSITIVE);
+        let aabbs: Vec<Aabb> = tris
+            .iter()
+            .map(|t| {
+                let mut lo = t.v[0];
+                let mut hi = t.v[0];
+                for p in &t.v[1..] {
+                    for k in 0..3 {
+                        lo[k] = lo[k].min(p[k]);
+                        hi[k] = hi[k].max(p[k]);
+                    }
+                }
+                let lo = lo.map(|x| x - margin);
+                let hi = hi.map(|x| x + margin);
+                Aabb::new(vec(lo), vec(hi))
+            })
+            .collect();
+        let bvh = Bvh::from_leaves(BvhBuildStrategy::Binned, &aabbs);
+        Ok(Reference { tris, bvh, margin, skipped })
+    }
+
+    /// Number of triangles kept (zero-area ones excluded).
+    pub fn triangle_count(&self) -> usize {
+        self.tris.len()
+    }
+
+    /// Number of zero-area triangles skipped by [`Reference::new`].
+    pub fn skipped(&self) -> usize {
+        self.skipped
+    }
+
+    /// How much every leaf box of the BVH is loosened (world units).
+    pub fn margin(&self) -> f64 {
+        self.margin
+    }
+
+    /// Whether the open segment from `from` to `to` is free of every triangle except those whose
+    /// facet id is in `ignore` (exact `f64` ray–triangle tests, no epsilon offsets of the start
+    /// point; hits at parameter `t ∈ (0, 1)` count, except within [`SEGMENT_END_TOL`] of either
+    /// end). Non-finite input answers `false`; a zero-length segment is visible.
+    pub fn visible(&self, from: [f64; 3], to: [f64; 3], ignore: &[u32]) -> bool {
+        if !finite(from) || !finite(to) {
+            return false;
+        }
+        let d = sub(to, from);
+        if !finite(d) {
+            return false;
+        }
+        let Some(sr) = ShearRay::new(from, d) else {
+            return true; // from == to: the open segment is empty
+        };
+        let ray = Ray::new(vec(from), vec(d));
+        let lo = SEGMENT_END_TOL;
+        let hi = 1.0 - SEGMENT_END_TOL;
+        for leaf in self.bvh.leaves(|node| node.cast_ray(&ray, 1.0) <= 1.0) {
+            let tri = &self.tris[leaf as usize];
+            if ignore.contains(&tri.facet) {
+                continue;
+            }
+            if let Some(t) = sr.hit(tri) {
+                if t > lo && t < hi {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
+    /// First hit along the ray `origin + t·dir` with `0 < t < max_t`, ignoring the facets in
+    /// `ignore`: `(t, facet id, unit normal facing the ray origin)`. `t` is in units of `dir`
+    /// (which need not be normalised). Non-finite input, a zero `dir` or `max_t ≤ 0` give `None`.
+    pub fn first_hit(
+        &self,
+        origin: [f64; 3],
+        dir: [f64; 3],
+        max_t: f64,
+        ignore: &[u32],
+    ) -> Option<(f64, u32, [f64; 3])> {
+        if !finite(origin) || !finite(dir) || max_t.is_nan() || max_t <= 0.0 {
+            return None;
+        }
+        let sr = ShearRay::new(origin, dir)?;
+        let ray = Ray::new(vec(origin), vec(dir));
+        // Best-first traversal: nodes whose entry parameter is not below the best hit so far
+        // are pruned; a leaf's value is accepted only when strictly below the best so far.
+        let (leaf, t) = self.bvh.cast_ray(&ray, max_t, |leaf, best| {
+            let tri = &self.tris[leaf as usize];
+            if ignore.contains(&tri.facet) {
+                return None;
+            }
+            let t = sr.hit(tri)?;
+            (t > 0.0 && t < best).then_some(t)
+        })?;
+        let tri = &self.tris[leaf as usize];
+        let n = tri.normal;
+        let n = if dot(n, dir) > 0.0 { [-n[0], -n[1], -n[2]] } else { n };
+        Some((t, tri.facet, n))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// SplitMix64: a small deterministic generator for the tests.
+    struct Rng(u64);
+    impl Rng {
+        fn u64(&mut self) -> u64 {
+            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^ (z >> 31)
+        }
+        fn f(&mut self) -> f64 {
+            (self.u64() >> 11) as f64 / (1u64 << 53) as f64
+        }
+        fn range(&mut self, lo: f64, hi: f64) -> f64 {
+            lo + (hi - lo) * self.f()
+        }
+        fn point(&mut self, lo: f64, hi: f64) -> V3 {
+            [self.range(lo, hi), self.range(lo, hi), self.range(lo, hi)]
+        }
+        fn below(&mut self, n: u64) -> u64 {
+            self.u64() % n
+        }
+    }
+
+    /// Independent oracle: Möller–Trumbore over every triangle, no BVH.
+    /// Returns (t, u, v, det/(|e1||e2||d|)) for a hit with inclusive barycentrics.
+    fn mt(o: V3, d: V3, tri: &[V3; 3]) -> Option<(f64, f64, f64, f64)> {
+        let e1 = sub(tri[1], tri[0]);
+        let e2 = sub(tri[2], tri[0]);
+        let p = cross(d, e2);
+        let det = dot(e1, p);
+        if det == 0.0 {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let s = sub(o, tri[0]);
+        let u = dot(s, p) * inv;
+        let q = cross(s, e1);
+        let v = dot(d, q) * inv;
+        if u < 0.0 || v < 0.0 || u + v > 1.0 {
+            return None;
+        }
+        let t = dot(e2, q) * inv;
+        let scale = (dot(e1, e1) * dot(e2, e2) * dot(d, d)).sqrt();
+        Some((t, u, v, det.abs() / scale))
+    }
+
+    /// Whether the oracle's answer for this triangle is too close to a decision boundary
+    /// (an edge of the triangle, an end of the accepted `t` range, a grazing ray crossing the
+    /// plane) for two different exact-`f64` tests to be required to agree on it.
+    fn near_boundary(o: V3, d: V3, tri: &[V3; 3], lo: f64, hi: f64) -> bool {
+        const EPS: f64 = 1e-7; // barycentric / angular band
+        const EPS_T: f64 = 1e-12; // band around the ends of the t range
+        let e1 = sub(tri[1], tri[0]);
+        let e2 = sub(tri[2], tri[0]);
+        let p = cross(d, e2);
+        let det = dot(e1, p);
+        let scale = (dot(e1, e1) * dot(e2, e2) * dot(d, d)).sqrt();
+        if det.abs() <= EPS * scale {
+            // Nearly parallel: ambiguous only if the ray reaches (or nearly reaches) the plane
+            // within the accepted range.
+            let n = cross(e1, e2);
+            let nl = dot(n, n).sqrt();
+            let size = dot(e1, e1).sqrt().max(dot(e2, e2).sqrt());
+            let dist = |t: f64| dot(sub([o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]], tri[0]), n) / nl;
+            let (s0, s1) = (dist(lo), dist(hi));
+            return s0 * s1 <= 0.0 || s0.abs().min(s1.abs()) <= EPS * size;
+        }
+        let inv = 1.0 / det;
+        let s = sub(o, tri[0]);
+        let u = dot(s, p) * inv;
+        let q = cross(s, e1);
+        let v = dot(d, q) * inv;
+        let t = dot(e2, q) * inv;
+        let inside_loose = u >= -EPS && v >= -EPS && u + v <= 1.0 + EPS;
+        let inside_tight = u >= EPS && v >= EPS && u + v <= 1.0 - EPS;
+        let in_range = t >= lo - EPS_T && t <= hi + EPS_T;
+        let t_near = (t - lo).abs() <= EPS_T || (t - hi).abs() <= EPS_T;
+        (inside_loose && !inside_tight && in_range) || (inside_loose && t_near)
+    }
+
+    fn brute_visible(tris: &[[V3; 3]], facets: &[u32], from: V3, to: V3, ignore: &[u32]) -> bool {
+        let d = sub(to, from);
+        !tris.iter().zip(facets).any(|(tri, f)| {
+            !ignore.contains(f)
+                && mt(from, d, tri).is_some_and(|(t, ..)| t > SEGMENT_END_TOL && t < 1.0 - SEGMENT_END_TOL)
+        })
+    }
+
+    fn brute_first(
+        tris: &[[V3; 3]],
+        facets: &[u32],
+        o: V3,
+        d: V3,
+        max_t: f64,
+        ignore: &[u32],
+    ) -> Option<(f64, usize)> {
+        let mut best: Option<(f64, usize)> = None;
+        for (i, (tri, f)) in tris.iter().zip(facets).enumerate() {
+            if ignore.contains(f) {
+                continue;
+            }
+            if let Some((t, ..)) = mt(o, d, tri) {
+                let better = match best {
+                    None => true,
+                    Some((bt, _)) => t < bt,
+                };
+                if t > 0.0 && t < max_t && better {
+                    best = Some((t, i));
+                }
+            }
+        }
+        best
+    }
+
+    fn ambiguous(tris: &[[V3; 3]], facets: &[u32], o: V3, d: V3, lo: f64, hi: f64, ignore: &[u32]) -> bool {
+        tris.iter().zip(facets).any(|(tri, f)| !ignore.contains(f) && near_boundary(o, d, tri, lo, hi))
+    }
+
+    fn unit_normal(tri: &[V3; 3]) -> V3 {
+        let n = cross(sub(tri[1], tri[0]), sub(tri[2], tri[0]));
+        let l = dot(n, n).sqrt();
+        n.map(|x| x / l)
+    }
+
+    /// Compare `visible` and `first_hit` with the brute force on `n` random queries.
+    /// Returns (blocked count, hit count, ambiguous `visible` cases skipped, ambiguous
+    /// `first_hit` cases skipped).
+    fn compare(
+        tris: &[[V3; 3]],
+        facets: &[u32],
+        n: usize,
+        rng: &mut Rng,
+        mut gen: impl FnMut(&mut Rng) -> (V3, V3),
+    ) -> (usize, usize, usize, usize) {
+        let r = Reference::new(tris.to_vec(), facets.to_vec()).unwrap();
+        assert_eq!(r.triangle_count(), tris.len());
+        let max_facet = facets.iter().copied().max().unwrap() as u64;
+        let (mut blocked, mut hits, mut skip_vis, mut skip_first) = (0, 0, 0, 0);
+        for q in 0..n {
+            let (a, b) = gen(rng);
+            let ignore: Vec<u32> = match q % 3 {
+                0 => vec![],
+                1 => vec![rng.below(max_facet + 1) as u32],
+                _ => (0..3).map(|_| rng.below(max_facet + 1) as u32).collect(),
+            };
+            let d = sub(b, a);
+            // visible
+            if ambiguous(tris, facets, a, d, SEGMENT_END_TOL, 1.0 - SEGMENT_END_TOL, &ignore) {
+                skip_vis += 1;
+            } else {
+                let want = brute_visible(tris, facets, a, b, &ignore);
+                assert_eq!(r.visible(a, b, &ignore), want, "visible({a:?}, {b:?}, {ignore:?})");
+                assert_eq!(r.visible(b, a, &ignore), want, "visible reversed ({b:?}, {a:?}, {ignore:?})");
+                blocked += usize::from(!want);
+            }
+            // first_hit along the same ray, past the segment end (max_t = 3)
+            let max_t = 3.0;
+            if ambiguous(tris, facets, a, d, 0.0, max_t, &ignore) {
+                skip_first += 1;
+                continue;
+            }
+            let want = brute_first(tris, facets, a, d, max_t, &ignore);
+            let got = r.first_hit(a, d, max_t, &ignore);
+            match (want, got) {
+                (None, None) => {}
+                (Some((wt, wi)), Some((gt, gf, gn))) => {
+                    hits += 1;
+                    assert!(
+                        (wt - gt).abs() <= 1e-9 * wt.max(1.0),
+                        "t: brute {wt} vs {gt} for {a:?} + t·{d:?}"
+                    );
+                    // Two triangles at (nearly) the same t: either facet is right.
+                    let same_t: Vec<u32> = tris
+                        .iter()
+                        .zip(facets)
+                        .filter(|(tri, f)| {
+                            !ignore.contains(f) && mt(a, d, tri).is_some_and(|(t, ..)| (t - wt).abs() <= 1e-9)
+                        })
+                        .map(|(_, f)| *f)
+                        .collect();
+                    assert!(same_t.contains(&gf), "facet {gf} not among {same_t:?} (brute {})", facets[wi]);
+                    if same_t.len() == 1 {
+                        let mut n = unit_normal(&tris[wi]);
+                        if dot(n, d) > 0.0 {
+                            n = n.map(|x| -x);
+                        }
+                        for k in 0..3 {
+                            assert!((n[k] - gn[k]).abs() < 1e-12, "normal {gn:?} vs {n:?}");
+                        }
+                    }
+                    assert!(dot(gn, d) <= 0.0, "normal must face the ray origin");
+                    assert!((dot(gn, gn) - 1.0).abs() < 1e-12);
+                }
+                (w, g) => panic!("first_hit({a:?}, {d:?}, {max_t}, {ignore:?}): brute {w:?}, got {g:?}"),
+            }
+        }
+        eprintln!(
+            "{n} queries: {blocked} blocked, {hits} first hits, {skip_vis} + {skip_first} ambiguous skipped"
+        );
+        (blocked, hits, skip_vis, skip_first)
+    }
+
+    fn random_soup(rng: &mut Rng, n: usize, size: f64) -> (Vec<[V3; 3]>, Vec<u32>) {
+        let mut tris = Vec::new();
+        let mut facets = Vec::new();
+        for i in 0..n {
+            let c = rng.point(0.0, 1.0);
+            let mut t = [[0.0; 3]; 3];
+            for p in &mut t {
+                *p = [
+                    c[0] + rng.range(-size, size),
+                    c[1] + rng.range(-size, size),
+                    c[2] + rng.range(-size, size),
+                ];
+            }
+            tris.push(t);
+            facets.push((i / 2) as u32); // two triangles per facet
+        }
+        (tris, facets)
+    }
+
+    /// Axis-aligned box [lo, hi]³ as 12 triangles, facet = face index 0..6 (+ `base`),
+    /// outward winding.
+    fn boxed(lo: V3, hi: V3, base: u32) -> (Vec<[V3; 3]>, Vec<u32>) {
+        let c = |i: usize| {
+            [
+                if i & 1 != 0 { hi[0] } else { lo[0] },
+                if i & 2 != 0 { hi[1] } else { lo[1] },
+                if i & 4 != 0 { hi[2] } else { lo[2] },
+            ]
+        };
+        // quads (outward, counter-clockwise seen from outside)
+        let quads = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
+        let mut tris = Vec::new();
+        let mut facets = Vec::new();
+        for (f, q) in quads.iter().enumerate() {
+            tris.push([c(q[0]), c(q[1]), c(q[2])]);
+            tris.push([c(q[0]), c(q[2]), c(q[3])]);
+            facets.extend([base + f as u32; 2]);
+        }
+        (tris, facets)
+    }
+
+    #[test]
+    fn oracle_self_check() {
+        // The brute force itself: a known hit, a known miss, and a parallel ray.
+        let tri = [[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]];
+        let (t, u, v, _) = mt([0.2, 0.2, 0.0], [0.0, 0.0, 2.0], &tri).unwrap();
+        assert_eq!((t, u, v), (0.5, 0.2, 0.2));
+        assert!(mt([0.8, 0.8, 0.0], [0.0, 0.0, 1.0], &tri).is_none());
+        assert!(mt([0.2, 0.2, 0.0], [1.0, 0.0, 0.0], &tri).is_none());
+    }
+
+    #[test]
+    fn random_soup_matches_brute_force() {
+        let mut rng = Rng(1);
+        let (tris, facets) = random_soup(&mut rng, 300, 0.15);
+        let (blocked, hits, skip_vis, skip_first) =
+            compare(&tris, &facets, 4000, &mut rng, |r| (r.point(-0.2, 1.2), r.point(-0.2, 1.2)));
+        // The comparison must actually exercise both outcomes.
+        assert!(blocked > 1000 && blocked < 3500, "blocked {blocked}");
+        assert!(hits > 1000, "hits {hits}");
+        assert!(skip_vis + skip_first < 40, "skipped {skip_vis} + {skip_first}");
+    }
+
+    #[test]
+    fn closed_box_with_obstacles_matches_brute_force() {
+        // A closed room (facets 0..6) with two boxes inside (facets 10..16, 20..26).
+        let (mut tris, mut facets) = boxed([0.0; 3], [1.0; 3], 0);
+        for (lo, hi, base) in
+            [([0.2, 0.0, 0.2], [0.45, 0.6, 0.45], 10), ([0.55, 0.0, 0.5], [0.8, 0.3, 0.75], 20)]
+        {
+            let (t, f) = boxed(lo, hi, base);
+            tris.extend(t);
+            facets.extend(f);
+        }
+        let mut rng = Rng(2);
+        // Endpoints anywhere in and around the room (some outside), and points on the walls.
+        let (blocked, hits, skip_vis, skip_first) = compare(&tris, &facets, 6000, &mut rng, |r| {
+            let mut p = r.point(-0.3, 1.3);
+            let mut q = r.point(0.01, 0.99);
+            if r.below(3) == 0 {
+                // put q exactly on a wall: the wall must not shadow its own point
+                let k = r.below(3) as usize;
+                q[k] = if r.below(2) == 0 { 0.0 } else { 1.0 };
+            }
+            if r.below(2) == 0 {
+                std::mem::swap(&mut p, &mut q);
+            }
+            (p, q)
+        });
+        assert!(blocked > 1500, "blocked {blocked}");
+        assert!(hits > 3000, "hits {hits}");
+        assert!(skip_vis < 20, "skipped {skip_vis}");
+        // first_hit from a point on a wall meets that wall at t ≈ 0: ambiguous by design (the
+        // caller ignores its own facet); about 1/6 of the queries start on a wall.
+        assert!(skip_first < 1200, "skipped {skip_first}");
+    }
+
+    #[test]
+    fn closed_box_is_watertight() {
+        // Every ray from inside a closed box hits it, also when aimed exactly at edges,
+        // the face diagonals (shared by two triangles) and the corners.
+        let (tris, facets) = boxed([-1.0, -2.0, 0.5], [3.0, 1.0, 2.5], 0);
+        let r = Reference::new(tris, facets).unwrap();
+        let lo = [-1.0, -2.0, 0.5];
+        let hi = [3.0, 1.0, 2.5];
+        let mut rng = Rng(3);
+        let mut n = 0;
+        for _ in 0..2000 {
+            let o = [rng.range(lo[0], hi[0]), rng.range(lo[1], hi[1]), rng.range(lo[2], hi[2])];
+            // target on an edge, a face diagonal, or a corner
+            let s = rng.f();
+            let mut p = [0.0; 3];
+            for k in 0..3 {
+                p[k] = if rng.below(2) == 0 { lo[k] } else { hi[k] };
+            }
+            match rng.below(3) {
+                0 => {
+                    let k = rng.below(3) as usize; // along an edge
+                    p[k] = lo[k] + s * (hi[k] - lo[k]);
+                }
+                1 => {
+                    // along a face diagonal: two coordinates move together
+                    let k = rng.below(3) as usize;
+                    let j = (k + 1) % 3;
+                    p[k] = lo[k] + s * (hi[k] - lo[k]);
+                    p[j] = lo[j] + s * (hi[j] - lo[j]);
+                }
+                _ => {}
+            }
+            let d = sub(p, o);
+            let (t, f, nrm) = r.first_hit(o, d, 10.0, &[]).unwrap_or_else(|| panic!("leak: {o:?} → {p:?}"));
+            assert!((t - 1.0).abs() < 1e-9, "t = {t} for {o:?} → {p:?} (facet {f})");
+            assert!(dot(nrm, d) < 0.0);
+            // and past the target, with the hit face ignored, still something (another face
+            // through the same edge, or the ray leaves the box there)
+            assert!(!r.visible(o, [o[0] + 2.0 * d[0], o[1] + 2.0 * d[1], o[2] + 2.0 * d[2]], &[]));
+            n += 1;
+        }
+        assert_eq!(n, 2000);
+    }
+
+    #[test]
+    fn axis_aligned_grid_matches_brute_force() {
+        // Flat (zero-thickness) boxes in the BVH and axis-parallel rays (zero direction
+        // components): the culling must not lose these.
+        let mut tris = Vec::new();
+        let mut facets = Vec::new();
+        for z in 0..8 {
+            for x in 0..8 {
+                for y in 0..8 {
+                    if (x + y + z) % 3 == 0 {
+                        continue;
+                    }
+                    let (x, y, zf) = (x as f64, y as f64, z as f64);
+                    tris.push([[x, y, zf], [x + 1.0, y, zf], [x, y + 1.0, zf]]);
+                    facets.push(tris.len() as u32 - 1);
+                }
+            }
+        }
+        let mut rng = Rng(4);
+        let (blocked, hits, skip_vis, skip_first) = compare(&tris, &facets, 3000, &mut rng, |r| {
+            let a = r.point(-0.5, 8.5);
+            let mut b = a;
+            let k = r.below(3) as usize;
+            b[k] = r.range(-0.5, 8.5);
+            (a, b)
+        });
+        assert!(blocked > 300, "blocked {blocked}");
+        assert!(hits > 300, "hits {hits}");
+        assert!(skip_vis + skip_first < 20, "skipped {skip_vis} + {skip_first}");
+    }
+
+    #[test]
+    fn larger_mesh_matches_brute_force() {
+        let mut rng = Rng(5);
+        let (tris, facets) = random_soup(&mut rng, 3000, 0.04);
+        let (blocked, hits, _, _) =
+            compare(&tris, &facets, 1500, &mut rng, |r| (r.point(0.0, 1.0), r.point(0.0, 1.0)));
+        assert!(blocked > 300 && hits > 300, "blocked {blocked} hits {hits}");
+    }
+
+    #[test]
+    fn far_away_origin() {
+        // A query origin far from the scene (1e5 × its size) still finds hits.
+        let (tris, facets) = boxed([0.0; 3], [1.0; 3], 0);
+        let r = Reference::new(tris, facets).unwrap();
+        let o = [0.37, 0.61, -1.0e5];
+        let (t, f, n) = r.first_hit(o, [0.0, 0.0, 1.0], f64::INFINITY, &[]).unwrap();
+        assert_eq!((t, f, n), (1.0e5, 4, [0.0, 0.0, -1.0]));
+        assert!(!r.visible(o, [0.4, 0.6, 0.5], &[]));
+        assert!(r.visible(o, [0.4, 0.6, 0.5], &[4]));
+        assert!(!r.visible(o, [0.4, 0.6, 2.0], &[4]));
+        assert!(r.visible(o, [0.4, 0.6, 2.0], &[4, 5]));
+    }
+
+    #[test]
+    fn ignore_really_ignores() {
+        let tri = [[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]];
+        let other = [[5.0, 5.0, 5.0], [6.0, 5.0, 5.0], [5.0, 6.0, 5.0]];
+        let r = Reference::new(vec![other, tri], vec![3, 7]).unwrap();
+        let (a, b) = ([0.2, 0.2, 0.0], [0.2, 0.2, 2.0]);
+        assert!(!brute_visible(&[other, tri], &[3, 7], a, b, &[]));
+        assert!(!r.visible(a, b, &[]));
+        assert!(!r.visible(b, a, &[]));
+        assert!(!r.visible(a, b, &[3]));
+        assert!(r.visible(a, b, &[7]));
+        assert!(r.visible(a, b, &[3, 7]));
+        // first_hit: the triangle at t = 0.5, normal facing the origin; nothing once ignored.
+        assert_eq!(r.first_hit(a, [0.0, 0.0, 2.0], 10.0, &[]), Some((0.5, 7, [0.0, 0.0, -1.0])));
+        assert_eq!(r.first_hit(b, [0.0, 0.0, -1.0], 10.0, &[]), Some((1.0, 7, [0.0, 0.0, 1.0])));
+        assert_eq!(r.first_hit(a, [0.0, 0.0, 2.0], 10.0, &[7]), None);
+        // max_t is exclusive
+        assert_eq!(r.first_hit(a, [0.0, 0.0, 2.0], 0.5, &[]), None);
+        // Two stacked facets: ignoring the near one finds the far one.
+        let far = [[0.0, 0.0, 1.5], [1.0, 0.0, 1.5], [0.0, 1.0, 1.5]];
+        let r = Reference::new(vec![tri, far], vec![7, 8]).unwrap();
+        assert_eq!(r.first_hit(a, [0.0, 0.0, 1.0], 10.0, &[7]).map(|h| (h.0, h.1)), Some((1.5, 8)));
+        assert!(!r.visible(a, b, &[7]));
+        assert!(!r.visible(a, b, &[8]));
+        assert!(r.visible(a, b, &[8, 7]));
+    }
+
+    #[test]
+    fn segment_end_points_on_surfaces() {
+        // Points lying exactly on a triangle (the usual lighting query: surface point → light)
+        // are not shadowed by that triangle, at either end; a point just past it is.
+        let tri = [[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]];
+        let r = Reference::new(vec![tri], vec![0]).unwrap();
+        let on = [0.25, 0.25, 1.0];
+        assert!(r.visible(on, [0.3, 0.1, 3.0], &[]));
+        assert!(r.visible([0.3, 0.1, -3.0], on, &[]));
+        assert!(!r.visible([0.25, 0.25, 1.0 + 1e-6], [0.25, 0.25, 0.0], &[]));
+        // a zero-length segment is visible; coplanar grazing does not block
+        assert!(r.visible(on, on, &[]));
+        assert!(r.visible([-1.0, 0.25, 1.0], [2.0, 0.25, 1.0], &[]));
+        // an edge counts as the triangle
+        assert!(!r.visible([0.5, 0.5, 0.0], [0.5, 0.5, 2.0], &[]));
+        assert!(r.visible([0.5 + 1e-9, 0.5, 0.0], [0.5 + 1e-9, 0.5, 2.0], &[]));
+    }
+
+    #[test]
+    fn degenerate_and_nan_input_are_errors() {
+        let good = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let point = [[1.0, 2.0, 3.0]; 3];
+        let line = [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [2.0, 2.0, 2.0]];
+        let line2 = [[0.0, 0.0, 0.0], [0.1, 0.2, 0.3], [0.2, 0.4, 0.6]];
+        let nan = [[0.0, f64::NAN, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let inf = [[0.0, 0.0, 0.0], [f64::INFINITY, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        // all degenerate / empty / NaN / ∞ / mismatched lengths: errors
+        assert!(Reference::new(vec![point, line, line2], vec![0, 1, 2]).is_err());
+        assert!(Reference::new(vec![], vec![]).is_err());
+        assert!(Reference::new(vec![good, nan], vec![0, 1]).is_err());
+        assert!(Reference::new(vec![inf, good], vec![0, 1]).is_err());
+        assert!(Reference::new(vec![good], vec![0, 1]).is_err());
+        let e = Reference::new(vec![good, nan], vec![0, 1]).unwrap_err().to_string();
+        assert!(e.contains("triangle 1"), "{e}");
+        // degenerate triangles among good ones are skipped; facet ids stay with their triangles
+        let far = [[0.0, 0.0, 2.0], [1.0, 0.0, 2.0], [0.0, 1.0, 2.0]];
+        let r = Reference::new(vec![point, good, line, far, line2], vec![10, 11, 12, 13, 14]).unwrap();
+        assert_eq!((r.triangle_count(), r.skipped()), (2, 3));
+        let hit = r.first_hit([0.2, 0.2, -1.0], [0.0, 0.0, 1.0], 10.0, &[]).unwrap();
+        assert_eq!((hit.0, hit.1), (1.0, 11));
+        let hit = r.first_hit([0.2, 0.2, -1.0], [0.0, 0.0, 1.0], 10.0, &[11]).unwrap();
+        assert_eq!((hit.0, hit.1), (3.0, 13));
+        // NaN / ∞ queries do not panic
+        assert!(!r.visible([f64::NAN, 0.0, 0.0], [0.0; 3], &[]));
+        assert!(!r.visible([0.0; 3], [0.0, f64::INFINITY, 0.0], &[]));
+        assert!(!r.visible([-1e308, 0.0, 0.0], [1e308, 0.0, 0.0], &[])); // overflowing direction
+        assert_eq!(r.first_hit([0.2, 0.2, -1.0], [0.0, 0.0, f64::NAN], 10.0, &[]), None);
+        assert_eq!(r.first_hit([0.2, 0.2, -1.0], [0.0, 0.0, 1.0], f64::NAN, &[]), None);
+        assert_eq!(r.first_hit([0.2, 0.2, -1.0], [0.0; 3], 10.0, &[]), None);
+        assert_eq!(r.first_hit([0.2, 0.2, -1.0], [0.0, 0.0, 1.0], -1.0, &[]), None);
+    }
+
+    fn scene_triangles(name: &str) -> (Vec<[V3; 3]>, Vec<u32>) {
+        let mesh = crate::meshops::triangulated(&crate::scene::load(name).unwrap());
+        let mut tris = Vec::new();
+        let mut facets = Vec::new();
+        for (i, f) in mesh.faces.iter().enumerate() {
+            tris.push([0, 1, 2].map(|k| mesh.positions[f.verts[k] as usize]));
+            facets.push(i as u32);
+        }
+        (tris, facets)
+    }
+
+    /// Timing (run in release): `cargo test --release -p host-sim --lib reference::tests::timing -- --ignored --nocapture`.
+    #[test]
+    #[ignore]
+    fn timing() {
+        for (name, queries) in [("cornell", 1_000_000usize), ("fandisk", 100_000)] {
+            let (tris, facets) = scene_triangles(name);
+            let t0 = std::time::Instant::now();
+            let r = Reference::new(tris.clone(), facets.clone()).unwrap();
+            let build = t0.elapsed();
+            let mut lo = [f64::INFINITY; 3];
+            let mut hi = [f64::NEG_INFINITY; 3];
+            for t in &tris {
+                for p in t {
+                    for k in 0..3 {
+                        lo[k] = lo[k].min(p[k]);
+                        hi[k] = hi[k].max(p[k]);
+                    }
+                }
+            }
+            let mut rng = Rng(9);
+            let pts: Vec<(V3, V3)> = (0..queries)
+                .map(|_| {
+                    let p = |r: &mut Rng| [0, 1, 2].map(|k| r.range(lo[k], hi[k]));
+                    (p(&mut rng), p(&mut rng))
+                })
+                .collect();
+            let t0 = std::time::Instant::now();
+            let vis = pts.iter().filter(|(a, b)| r.visible(*a, *b, &[])).count();
+            let dt = t0.elapsed().as_secs_f64();
+            let t1 = std::time::Instant::now();
+            let hits = pts
+                .iter()
+                .filter(|(a, b)| r.first_hit(*a, sub(*b, *a), f64::INFINITY, &[]).is_some())
+                .count();
+            let dt1 = t1.elapsed().as_secs_f64();
+            // brute force on a sample, for scale
+            let sample = queries.min(20_000);
+            let t2 = std::time::Instant::now();
+            let bvis =
+                pts[..sample].iter().filter(|(a, b)| brute_visible(&tris, &facets, *a, *b, &[])).count();
+            let dt2 = t2.elapsed().as_secs_f64();
+            println!(
+                "{name}: {} triangles, build {:.1} ms; visible: {queries} queries in {dt:.3} s = {:.2} M/s ({vis} visible); \
+                 first_hit: {:.3} s = {:.2} M/s ({hits} hits); brute-force visible: {:.3} M/s ({bvis}/{sample} visible)",
+                r.triangle_count(),
+                build.as_secs_f64() * 1e3,
+                queries as f64 / dt / 1e6,
+                dt1,
+                queries as f64 / dt1 / 1e6,
+                sample as f64 / dt2 / 1e6,
+            );
+        }
+    }
+}

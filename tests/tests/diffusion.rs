@@ -1,0 +1,203 @@
+//! Light diffusion by beam subdivision (thesis ch. 4, SPEC §3), against the independent
+//! per-ray oracle `rc2_tests::oracle::rays` (every ray of the lattice traced on its own):
+//! the lit voxels, their source masks and the ray counts must be identical, for any scene,
+//! sources, fraction bits f, FIFO size FA, policy and merging. Also: coverage of the empty
+//! scene, conservation, termination on adversarial sources, and the cycle counts we claim.
+
+use cell_core::beam::{FracBits, Source, SourceCoord, SourceId};
+use cell_core::dexel::FacetTag;
+use cell_core::light::Policy;
+use host_sim::diffuse::{diffuse, LightConfig, Lighting};
+use host_sim::grid::Grid;
+use host_sim::precompute::{facet_packet, Contour, LoadConfig, Thickness, Q};
+use proptest::prelude::*;
+use rc2_tests::oracle::rays::trace_all;
+use std::collections::BTreeMap;
+
+type G = Grid<64>;
+
+fn grid_with(n: u32, tris: &[[[i64; 3]; 3]]) -> G {
+    let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
+    let packets: Vec<_> = tris
+        .iter()
+        .filter_map(|t| facet_packet(t, FacetTag::default(), &cfg).unwrap().ok())
+        .collect();
+    let mut g = G::new(n, n);
+    g.load_wave(&packets, |_| {});
+    g
+}
+
+fn sources(src16: &[[i64; 3]]) -> Vec<Source> {
+    src16
+        .iter()
+        .enumerate()
+        .map(|(i, p)| Source::new(SourceId(i as u16), p.map(|c| SourceCoord::from_bits(c as i32))))
+        .collect()
+}
+
+fn light<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) -> Lighting<F> {
+    diffuse::<F, 64>(g, &sources(src16), &cfg, |_, _| {}).expect("diffusion terminates without loss")
+}
+
+/// Beam diffusion == per-ray tracing: lit voxels, masks, and every ray count.
+fn check_against_rays<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) -> Result<(), TestCaseError> {
+    let n = g.n as i64;
+    let l = light::<F>(g, src16, cfg);
+    let occupied = |x: i64, y: i64, z: i64| g.cell(x as u32, y as u32).store.occupied(z as u16).is_some();
+    let want = trace_all(n, &occupied, src16, n - 1, F::U32);
+    let got: BTreeMap<[i64; 3], u64> = l.lit_voxels().map(|(v, m)| (v.map(|c| c as i64), m as u64)).collect();
+    prop_assert_eq!(&got, &want.lit, "lit sets differ (f = {}, {:?})", F::U32, cfg);
+    let emitted: u128 = l.reports.iter().map(|r| r.counts.rays_emitted).sum();
+    let absorbed: u128 = l.reports.iter().map(|r| r.counts.rays_absorbed).sum();
+    let exited: u128 = l.reports.iter().map(|r| r.counts.rays_exited).sum();
+    prop_assert_eq!((emitted, absorbed, exited), (want.rays_emitted, want.rays_absorbed, want.rays_exited));
+    for r in &l.reports {
+        prop_assert_eq!(r.counts.rays_emitted, r.counts.rays_absorbed + r.counts.rays_exited, "conservation");
+        prop_assert!(r.counts.cycles >= r.counts.lower_bound, "T ≥ LB");
+    }
+    Ok(())
+}
+
+fn config() -> impl Strategy<Value = LightConfig> {
+    (
+        prop::sample::select(vec![1usize, 2, 3, 5, 16, 64]),
+        prop::sample::select(vec![Policy::Thesis, Policy::Wavefront]),
+        any::<bool>(),
+    )
+        .prop_map(|(fa, policy, merge)| LightConfig { fa, policy, merge, record_visits: false })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(96))]
+
+    #[test]
+    fn random_scenes_match_per_ray_tracing(
+        n in 5u32..=11,
+        raw_tris in prop::collection::vec(prop::array::uniform3(prop::array::uniform3(0i64..=1000)), 0..4),
+        raw_src in prop::collection::vec([0i64..=1000, 0..=1000, 0..=1000], 1..4),
+        f in prop::sample::select(vec![0u32, 2, 4, 8]),
+        cfg in config(),
+    ) {
+        let m = Q * n as i64;
+        let tris: Vec<[[i64; 3]; 3]> = raw_tris.iter().map(|t| t.map(|p| p.map(|c| c * m / 1000))).collect();
+        let src16: Vec<[i64; 3]> = raw_src.iter().map(|p| p.map(|c| c * 16 * (n as i64 - 1) / 1000)).collect();
+        let g = grid_with(n, &tris);
+        cell_core::with_frac_bits!(f, F => check_against_rays::<F>(&g, &src16, cfg)).unwrap()?;
+    }
+}
+
+/// Sources on faces, edges and corners of the grid, and inside an object; beams that leave at
+/// once; a closed box around the source. Each must terminate, conserve rays and match the oracle.
+#[test]
+fn adversarial_sources() {
+    let n = 10u32;
+    let m = Q * n as i64;
+    let top = 16 * (n as i64 - 1);
+    // A closed cube of 12 triangles around the centre, and a floor.
+    let (a, b) = (3 * Q, 7 * Q);
+    let c = |x, y, z| [x, y, z];
+    let cube = [
+        [c(a, a, a), c(b, a, a), c(b, b, a)], [c(a, a, a), c(b, b, a), c(a, b, a)],
+        [c(a, a, b), c(b, b, b), c(b, a, b)], [c(a, a, b), c(a, b, b), c(b, b, b)],
+        [c(a, a, a), c(a, b, a), c(a, b, b)], [c(a, a, a), c(a, b, b), c(a, a, b)],
+        [c(b, a, a), c(b, b, b), c(b, b, a)], [c(b, a, a), c(b, a, b), c(b, b, b)],
+        [c(a, a, a), c(b, a, b), c(b, a, a)], [c(a, a, a), c(a, a, b), c(b, a, b)],
+        [c(a, b, a), c(b, b, a), c(b, b, b)], [c(a, b, a), c(b, b, b), c(a, b, b)],
+    ];
+    let floor = [[c(0, 0, 8), c(m, 0, 8), c(m, m, 8)], [c(0, 0, 8), c(m, m, 8), c(0, m, 8)]];
+    let scenes: Vec<(&str, Vec<[[i64; 3]; 3]>)> = vec![("empty", vec![]), ("cube", cube.to_vec()), ("floor", floor.to_vec())];
+    let positions = [
+        [0, 0, 0], [top, top, top], [0, top, 0], [top, 0, top / 2], [top / 2, 0, 0], // corners, edges, faces
+        [80, 80, 80],                                                              // inside the cube's surface or interior
+        [88, 88, 88], [top / 2 + 8, top / 2 + 3, 5],                                // fractional
+    ];
+    for (name, tris) in &scenes {
+        let g = grid_with(n, tris);
+        for p in positions {
+            for policy in [Policy::Thesis, Policy::Wavefront] {
+                let cfg = LightConfig { fa: 2, policy, merge: policy == Policy::Wavefront, record_visits: false };
+                check_against_rays::<cell_core::beam::frac::U2>(&g, &[p], cfg).unwrap_or_else(|e| panic!("{name} {p:?}: {e}"));
+            }
+        }
+    }
+}
+
+/// Multi-source: each voxel's mask is the union over sources, and equals lighting each source
+/// alone.
+#[test]
+fn multi_source_masks_are_unions() {
+    let n = 12u32;
+    let m = Q * n as i64;
+    let tris = [[[0, m / 3, 0], [m, m / 3, m], [m, m / 3, 0]], [[0, m / 3, 0], [0, m / 3, m], [m, m / 3, m]], [[m / 4, m / 2, m / 4], [m / 2, m / 2, m / 2], [m / 4, m / 2, m / 2]]];
+    let g = grid_with(n, &tris);
+    let srcs = [[16, 170, 16], [160, 150, 100], [90, 40, 90]];
+    let cfg = LightConfig { fa: 8, policy: Policy::Wavefront, merge: true, record_visits: false };
+    let all = light::<cell_core::beam::frac::U0>(&g, &srcs, cfg);
+    let mut union: BTreeMap<[u32; 3], u32> = BTreeMap::new();
+    for (i, s) in srcs.iter().enumerate() {
+        for (v, mask) in light::<cell_core::beam::frac::U0>(&g, &[*s], cfg).lit_voxels() {
+            assert_eq!(mask, 1);
+            *union.entry(v).or_default() |= 1 << i;
+        }
+    }
+    let got: BTreeMap<[u32; 3], u32> = all.lit_voxels().collect();
+    assert!(got.values().any(|&m| m.count_ones() > 1), "some voxel is lit by two sources");
+    assert_eq!(got, union);
+}
+
+/// Coverage (§4.1.4): in the empty scene a beam is processed in every voxel, for any source
+/// position (integer or fractional) and every f.
+#[test]
+fn empty_scene_every_voxel_is_reached() {
+    let n = 9u32;
+    let top = 16 * (n as i64 - 1);
+    let positions = [[0, 0, 0], [top, 5, 77], [64, 64, 64], [67, 23, 111], [top, top, top]];
+    for f in [0u32, 1, 2, 3, 4, 6, 8, 12, 16] {
+        for p in positions {
+            let g = grid_with(n, &[]);
+            let cfg = LightConfig { fa: 4, policy: Policy::Wavefront, merge: f % 2 == 0, record_visits: true };
+            let l = cell_core::with_frac_bits!(f, F => {
+                let l = light::<F>(&g, &[p], cfg);
+                (l.visited.clone().unwrap(), l.reports[0].counts.rays_emitted, l.reports[0].counts.rays_exited)
+            })
+            .unwrap();
+            let missed = l.0.iter().filter(|v| !**v).count();
+            assert_eq!(missed, 0, "f = {f}, source {p:?}: {missed} voxels never reached");
+            assert_eq!(l.1, l.2, "empty scene: every ray exits");
+        }
+    }
+}
+
+/// The thesis's experiment: with the thesis policy and FA = 1, T grows like N² (×4 when N
+/// doubles, within slack); our wavefront policy with merging reaches T/LB ≤ 1.5 at N = 64 with
+/// FA = 16, and lights exactly the same voxels as the thesis policy on the Cornell box.
+#[test]
+fn thesis_shape_and_our_policy() {
+    let t = |n: u32, fa: usize, policy: Policy, merge: bool| {
+        let g = grid_with(n, &[]);
+        let c = 16 * (n as i64 / 2);
+        let l = light::<cell_core::beam::frac::U0>(&g, &[[c, c, c]], LightConfig { fa, policy, merge, record_visits: false });
+        (l.reports[0].counts.cycles, l.reports[0].counts.lower_bound)
+    };
+    let (t16, _) = t(16, 1, Policy::Thesis, false);
+    let (t32, _) = t(32, 1, Policy::Thesis, false);
+    let ratio = t32 as f64 / t16 as f64;
+    assert!(ratio > 3.0, "FA = 1: T(32)/T(16) = {ratio:.2}, expected about 4 (N²)");
+    let (t64, lb64) = t(64, 16, Policy::Wavefront, true);
+    assert!(t64 as f64 <= 1.5 * lb64 as f64, "wavefront+merge N=64 FA=16: T = {t64}, LB = {lb64}");
+    let (t64_thesis, _) = t(64, 16, Policy::Thesis, false);
+    assert!(t64 * 3 < t64_thesis, "ours {t64} vs thesis policy {t64_thesis}");
+
+    let mesh = host_sim::scene::load("cornell").unwrap();
+    let cfg = LoadConfig { n: 32, thickness: Thickness::Standard, contour: Contour::Conservative };
+    let loaded = host_sim::lightjob::load_scene(&mesh, &cfg).unwrap();
+    let lights = host_sim::lightjob::resolve_lights(&mesh, &loaded, &[]).unwrap();
+    let lit = |policy, merge| {
+        let lcfg = LightConfig { fa: 4, policy, merge, record_visits: false };
+        let (l, _) = host_sim::lightjob::run_diffusion::<cell_core::beam::frac::U2>(&mesh, &loaded, &lights, &lcfg, |_, _| {}).unwrap();
+        l.lit_voxels().collect::<Vec<_>>()
+    };
+    let a = lit(Policy::Thesis, false);
+    assert!(a.len() > 1000);
+    assert_eq!(a, lit(Policy::Wavefront, true));
+}
