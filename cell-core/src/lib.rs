@@ -14,6 +14,7 @@
 //! * [`cell`] — one cell: its store and counters.
 //! * [`beam`] — light beams and their split (§4.3).
 //! * [`light`] — the lighting phase: FIFO, ports, back-pressure, lit voxels, quiescence (§4.4).
+//! * [`shade`] — Phong/Blinn shading of the visible voxel with `micromath` (§1.1, §5.2).
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -24,5 +25,6 @@ pub mod dexel;
 pub mod facet;
 pub mod light;
 pub mod normal;
+pub mod shade;
 pub mod units;
 pub mod voxelize;

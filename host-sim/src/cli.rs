@@ -27,6 +27,9 @@ pub struct Cli {
 /// Subcommands.
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// The main job: load, light and shade a scene on the RC² grid and write a PNG (the built-in
+    /// Cornell box by default); `--reference` also ray-casts it in f64 and compares.
+    Render(RenderArgs),
     /// Voxelize a scene with the RC² loading wave (§3) and write a .binvox file.
     Voxelize(VoxelizeArgs),
     /// Diffuse light from the scene's sources by beam subdivision (§4) and report what is lit.
@@ -37,6 +40,9 @@ pub enum Command {
     /// Lit state of surface voxels against exact f64 visibility, for several n and f: the
     /// run time against error of the lighting phase (CSV).
     LightAccuracy(AccuracyArgs),
+    /// Run time against error: render a scene under a sweep of speed/accuracy knobs, compare each
+    /// with the f64 reference, write a CSV and a Pareto plot (error against machine cycles).
+    Bench(BenchArgs),
     /// List the built-in scenes.
     Scenes,
     /// Subdivide a mesh (1 → 4 midpoint splits) to about TARGET triangles and write an OBJ.
@@ -104,7 +110,7 @@ pub struct LoadArgs {
     #[arg(default_value = "cornell")]
     pub scene: String,
     /// Grid side: n × n cells, each owning a column of n voxels.
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = 128)]
     pub n: u32,
     /// Plane thickness (see `voxelize --help`).
     #[arg(long, value_enum, default_value_t = Thickness::Standard)]
@@ -120,6 +126,23 @@ pub struct LightArgs {
     /// Scene and loading options.
     #[command(flatten)]
     pub load: LoadArgs,
+    /// Lighting options.
+    #[command(flatten)]
+    pub light: LightOpts,
+    /// Write statistics as JSON to this file.
+    #[arg(long)]
+    pub stats: Option<PathBuf>,
+    /// Write every lit voxel as CSV `x,y,z,source_mask` (binvox indexing).
+    #[arg(long)]
+    pub lit_out: Option<PathBuf>,
+    /// Do not draw progress bars.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Lighting options shared by `light` and `render`.
+#[derive(Args, Debug, Clone)]
+pub struct LightOpts {
     /// A point light at grid-normalised coordinates X,Y,Z in 0..1 (repeatable, up to 32;
     /// replaces the scene's own lights). Sources are diffused one after another.
     #[arg(long = "light", value_parser = parse_triple)]
@@ -128,8 +151,8 @@ pub struct LightArgs {
     #[arg(long, default_value_t = 16)]
     pub fa: usize,
     /// Fraction bits f of the far-plane ray offsets (0 = the thesis's integer rays; up to 24,
-    /// bounded by D·2^f < 2^31).
-    #[arg(long, default_value_t = 0)]
+    /// bounded by D·2^f < 2^31). More bits: more rays, fewer missed voxels, more beams.
+    #[arg(long, default_value_t = DEFAULT_FRAC_BITS)]
     pub frac_bits: u32,
     /// Which beam a cell processes first.
     #[arg(long, value_enum, default_value_t = PolicyArg::Wavefront)]
@@ -139,12 +162,56 @@ pub struct LightArgs {
     /// for the thesis policy).
     #[arg(long, value_enum, default_value_t = MergeArg::Auto)]
     pub merge: MergeArg,
+}
+
+impl LightOpts {
+    fn config(&self) -> crate::diffuse::LightConfig {
+        crate::diffuse::LightConfig { fa: self.fa, policy: self.policy.into(), merge: self.merge.resolve(self.policy), record_visits: false }
+    }
+}
+
+/// Normal used for shading.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum NormalArg {
+    /// The facet's normal stored with each dexel (16-bit octahedral code, §5.2.1).
+    Facet,
+    /// The voxel face the view ray crossed; no normal stored (§5.2.2).
+    Face,
+}
+
+/// Options of `render`.
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// An .obj file, or a built-in scene name (see `host-sim scenes`).
+    #[arg(default_value = "cornell")]
+    pub scene: String,
+    /// Grid side: n × n cells (and pixels), each owning a column of n voxels.
+    #[arg(long, default_value_t = 128)]
+    pub n: u32,
+    /// Plane thickness (see `voxelize --help`). The default, the thinnest surface, gives the best
+    /// image per cycle (`host-sim bench`, BENCHMARKS.md); `standard` is the tunnel-free one.
+    #[arg(long, value_enum, default_value_t = Thickness::Naive)]
+    pub sigma: Thickness,
+    /// Facet contour (see `voxelize --help`). Default: the thesis's projected contour (measured
+    /// best image per cycle); `conservative` is the watertight one.
+    #[arg(long, value_enum, default_value_t = Contour::Projected)]
+    pub contour: Contour,
+    /// Lighting options.
+    #[command(flatten)]
+    pub light: LightOpts,
+    /// Normal used for shading.
+    #[arg(long, value_enum, default_value_t = NormalArg::Facet)]
+    pub normals: NormalArg,
+    /// Output PNG.
+    #[arg(long, default_value = "render.png")]
+    pub out: PathBuf,
+    /// Also ray-cast the scene in f64 (same camera, resolution and shading) and compare: writes
+    /// F.reference.png and F.diff.png beside F, and adds the comparison to the stats.
+    #[arg(long)]
+    pub reference: bool,
     /// Write statistics as JSON to this file.
     #[arg(long)]
     pub stats: Option<PathBuf>,
-    /// Write every lit voxel as CSV `x,y,z,source_mask` (binvox indexing).
-    #[arg(long)]
-    pub lit_out: Option<PathBuf>,
     /// Do not draw progress bars.
     #[arg(long)]
     pub quiet: bool,
@@ -234,6 +301,29 @@ pub struct AccuracyArgs {
     pub out: PathBuf,
 }
 
+/// Options of `bench`.
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Scenes (.obj files or built-in names), comma-separated; errors are averaged over them.
+    #[arg(value_delimiter = ',', default_value = "cornell,teapot-floor,cow-floor")]
+    pub scene: Vec<String>,
+    /// Grid sizes.
+    #[arg(long, value_delimiter = ',', default_value = "64")]
+    pub n: Vec<u32>,
+    /// Fraction bits swept.
+    #[arg(long, value_delimiter = ',', default_value = "0,2,4")]
+    pub frac_bits: Vec<u32>,
+    /// Output CSV.
+    #[arg(long, default_value = "bench.csv")]
+    pub out: PathBuf,
+    /// Output Pareto plot (one per n: `<stem>-n<N>.png` when several).
+    #[arg(long, default_value = "bench.png")]
+    pub plot: PathBuf,
+    /// Do not print progress lines.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
 /// Options of `subdivide`.
 #[derive(Args, Debug)]
 pub struct SubdivideArgs {
@@ -247,6 +337,9 @@ pub struct SubdivideArgs {
     pub out: PathBuf,
 }
 
+/// Fraction bits the lighting jobs use unless told otherwise.
+pub const DEFAULT_FRAC_BITS: u32 = 0;
+
 /// Run a parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
@@ -257,11 +350,17 @@ pub fn run(cli: Cli) -> Result<()> {
             64 => run_voxelize::<64>(&a),
             _ => run_voxelize::<128>(&a),
         },
-        Command::Light(a) => cell_core::with_frac_bits!(a.frac_bits, F => run_light::<F>(&a))
-            .unwrap_or_else(|| Err(anyhow::anyhow!("--frac-bits {} is not supported (0..=8, 10, 12, 16, 20, 24)", a.frac_bits))),
+        Command::Render(a) => cell_core::with_frac_bits!(a.light.frac_bits, F => run_render::<F>(&a))
+            .unwrap_or_else(|| Err(unsupported_f(a.light.frac_bits))),
+        Command::Light(a) => cell_core::with_frac_bits!(a.light.frac_bits, F => run_light::<F>(&a))
+            .unwrap_or_else(|| Err(unsupported_f(a.light.frac_bits))),
         Command::DiffusionTable(a) => cell_core::with_frac_bits!(a.frac_bits, F => run_table::<F>(&a))
-            .unwrap_or_else(|| Err(anyhow::anyhow!("--frac-bits {} is not supported (0..=8, 10, 12, 16, 20, 24)", a.frac_bits))),
+            .unwrap_or_else(|| Err(unsupported_f(a.frac_bits))),
         Command::LightAccuracy(a) => run_accuracy(&a),
+        Command::Bench(a) => {
+            let meshes = a.scene.iter().map(|s| scene::load(s)).collect::<Result<Vec<_>>>()?;
+            crate::bench::run_bench(&meshes, &a.n, &a.frac_bits, &a.out, &a.plot, a.quiet)
+        }
         Command::Scenes => {
             for (name, what) in scene::BUILTINS {
                 println!("{name:10} {what}");
@@ -277,6 +376,10 @@ pub fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
     }
+}
+
+fn unsupported_f(f: u32) -> anyhow::Error {
+    anyhow::anyhow!("--frac-bits {f} is not supported (0..=8, 10, 12, 16, 20, 24)")
 }
 
 fn parse_capacity(s: &str) -> std::result::Result<usize, String> {
@@ -352,8 +455,8 @@ fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
     cfg.validate()?;
     let mesh = scene::load(&l.scene)?;
     let loaded = load_scene(&mesh, &cfg)?;
-    let lights = resolve_lights(&mesh, &loaded, &a.lights)?;
-    let lcfg = crate::diffuse::LightConfig { fa: a.fa, policy: a.policy.into(), merge: a.merge.resolve(a.policy), record_visits: false };
+    let lights = resolve_lights(&mesh, &loaded, &a.light.lights)?;
+    let lcfg = a.light.config();
     let pb = progress_bar(a.quiet, "light");
     let (lighting, stats) = run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, |s, c| {
         pb.set_message(format!("light {}", s + 1));
@@ -472,5 +575,85 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     }
     csv.flush()?;
     eprintln!("wrote {}", a.out.display());
+    Ok(())
+}
+
+fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
+    use crate::lightjob::{load_scene, resolve_lights};
+    use crate::render::{reference_image, render, write_png, RenderConfig};
+    let cfg = LoadConfig { n: a.n, thickness: a.sigma, contour: a.contour };
+    cfg.validate()?;
+    let mesh = scene::load(&a.scene)?;
+    let t0 = std::time::Instant::now();
+    let pb = progress_bar(a.quiet, "load");
+    pb.set_length(1);
+    let loaded = load_scene(&mesh, &cfg)?;
+    pb.finish_and_clear();
+    let load_seconds = t0.elapsed().as_secs_f64();
+    let lights = resolve_lights(&mesh, &loaded, &a.light.lights)?;
+    let rcfg = RenderConfig {
+        light: a.light.config(),
+        normals: match a.normals {
+            NormalArg::Facet => cell_core::shade::NormalMode::Facet,
+            NormalArg::Face => cell_core::shade::NormalMode::Face,
+        },
+    };
+    let t1 = std::time::Instant::now();
+    let reference = if a.reference {
+        if mesh.faces.is_empty() {
+            anyhow::bail!("--reference needs a scene with geometry ('{}' has none)", mesh.name);
+        }
+        Some(reference_image(&mesh, &loaded, &lights)?)
+    } else {
+        None
+    };
+    let reference_seconds = t1.elapsed().as_secs_f64();
+    let pb = progress_bar(a.quiet, "light 1");
+    let r = render::<F>(&mesh, &loaded, &lights, &rcfg, reference.as_ref(), load_seconds, reference_seconds, |s, c| {
+        pb.set_message(format!("light {}", s + 1));
+        pb.set_length(c.max(1));
+        pb.set_position(c);
+    })?;
+    pb.finish_and_clear();
+    write_png(&a.out, r.image.n, &r.image.rgb)?;
+    let mut written = vec![a.out.display().to_string()];
+    if let Some(reference) = &reference {
+        let stem = a.out.with_extension("");
+        let (rp, dp) = (stem.with_extension("reference.png"), stem.with_extension("diff.png"));
+        write_png(&rp, reference.n, &reference.rgb)?;
+        let diff = crate::refrender::difference_image(&r.image.rgb, &r.image.covered, reference);
+        write_png(&dp, reference.n, &diff)?;
+        written.push(rp.display().to_string());
+        written.push(dp.display().to_string());
+    }
+    if let Some(p) = &a.stats {
+        write_json(p, &r.stats)?;
+    }
+    let s = &r.stats;
+    let t = &s.light.totals;
+    eprintln!(
+        "{}: n = {}, {} facets, {} light(s), f = {}, FA = {}, {} policy{}, {} normals",
+        s.light.scene, s.light.n, s.light.facets, s.light.sources.len(), s.light.frac_bits, s.light.fa, s.light.policy,
+        if s.light.merge { " + merge" } else { "" }, s.normals
+    );
+    eprintln!(
+        "  cycles: load {}  light {} (T/LB {:.2}, {} beams)  shade {}",
+        s.light.load_cycles, t.cycles, s.light.t_over_lb, t.beams_processed, s.shade_cycles
+    );
+    eprintln!(
+        "  pixels: {} covered, {} lit   bytes/cell {} (dexels {} + light {})   shading vs f64: max {} mean {:.3} levels",
+        s.covered_pixels, s.lit_pixels, s.bytes_per_cell, s.bytes_per_cell_load, s.light.bytes_light_cell,
+        s.shading_max_err_levels, s.shading_mean_err_levels
+    );
+    if let Some(c) = &s.reference {
+        eprintln!(
+            "  reference: shadow disagreement {:.2} %, coverage disagreement {:.2} %, PSNR {:.2} dB",
+            c.shadow_disagreement_pct, c.coverage_disagreement_pct, c.psnr_db
+        );
+    }
+    eprintln!(
+        "  wall {:.2} s (load {:.2}, light {:.2}, shade {:.2}, reference {:.2})   wrote {}",
+        s.wall_seconds, s.load_seconds, s.light_seconds, s.shade_seconds, s.reference_seconds, written.join(", ")
+    );
     Ok(())
 }

@@ -11,6 +11,7 @@
 //! * [`cli`] — the command line.
 #![forbid(unsafe_code)]
 
+pub mod bench;
 pub mod binvox;
 pub mod cli;
 pub mod diffuse;
@@ -18,7 +19,11 @@ pub mod grid;
 pub mod lightjob;
 pub mod load;
 pub mod meshops;
+pub mod office;
 pub mod plot;
 pub mod precompute;
+pub mod render;
+pub mod rng;
 pub mod reference;
+pub mod refrender;
 pub mod scene;

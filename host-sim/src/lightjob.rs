@@ -64,6 +64,9 @@ pub fn normalised_to_voxel(t: [f64; 3], n: u32) -> [f64; 3] {
     t.map(|c| (c * n as f64 - 0.5).clamp(0.0, n as f64 - 1.0))
 }
 
+/// Where a scene without lights (an OBJ file) gets its light: above, in front, a little left.
+pub const DEFAULT_LIGHT: [f64; 3] = [0.3, 0.95, 0.1];
+
 /// Light positions in voxel units: `--light` values (normalised, validated) if any, else the
 /// scene's own lights.
 pub fn resolve_lights(mesh: &Mesh, scene: &LoadedScene, cli: &[[f64; 3]]) -> Result<Vec<[f64; 3]>> {
@@ -80,11 +83,18 @@ pub fn resolve_lights(mesh: &Mesh, scene: &LoadedScene, cli: &[[f64; 3]]) -> Res
             })
             .collect();
     }
-    if mesh.lights.is_empty() {
-        bail!("scene '{}' has no lights: give one or more with --light X,Y,Z (grid-normalised 0..1)", mesh.name);
-    }
+    let default_light = [SceneLight::Grid(DEFAULT_LIGHT)];
+    let scene_lights: &[SceneLight] = if mesh.lights.is_empty() {
+        eprintln!(
+            "note: scene '{}' has no lights; using one at grid-normalised {:?} (give your own with --light X,Y,Z)",
+            mesh.name, DEFAULT_LIGHT
+        );
+        &default_light
+    } else {
+        &mesh.lights
+    };
     let mut out = Vec::new();
-    for l in &mesh.lights {
+    for l in scene_lights {
         let p = match *l {
             SceneLight::Grid(t) => normalised_to_voxel(t, n),
             SceneLight::World(w) => {

@@ -305,28 +305,10 @@ impl Reference {
 mod tests {
     use super::*;
 
-    /// SplitMix64: a small deterministic generator for the tests.
-    struct Rng(u64);
-    impl Rng {
-        fn u64(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
-        }
-        fn f(&mut self) -> f64 {
-            (self.u64() >> 11) as f64 / (1u64 << 53) as f64
-        }
-        fn range(&mut self, lo: f64, hi: f64) -> f64 {
-            lo + (hi - lo) * self.f()
-        }
-        fn point(&mut self, lo: f64, hi: f64) -> V3 {
-            [self.range(lo, hi), self.range(lo, hi), self.range(lo, hi)]
-        }
-        fn below(&mut self, n: u64) -> u64 {
-            self.u64() % n
-        }
+    use crate::rng::Rng;
+
+    fn point(rng: &mut Rng, lo: f64, hi: f64) -> V3 {
+        [rng.range(lo, hi), rng.range(lo, hi), rng.range(lo, hi)]
     }
 
     /// Independent oracle: Möller–Trumbore over every triangle, no BVH.
@@ -512,7 +494,7 @@ mod tests {
         let mut tris = Vec::new();
         let mut facets = Vec::new();
         for i in 0..n {
-            let c = rng.point(0.0, 1.0);
+            let c = point(rng, 0.0, 1.0);
             let mut t = [[0.0; 3]; 3];
             for p in &mut t {
                 *p = [
@@ -564,7 +546,7 @@ mod tests {
         let mut rng = Rng(1);
         let (tris, facets) = random_soup(&mut rng, 300, 0.15);
         let (blocked, hits, skip_vis, skip_first) =
-            compare(&tris, &facets, 4000, &mut rng, |r| (r.point(-0.2, 1.2), r.point(-0.2, 1.2)));
+            compare(&tris, &facets, 4000, &mut rng, |r| (point(r, -0.2, 1.2), point(r, -0.2, 1.2)));
         // The comparison must actually exercise both outcomes.
         assert!(blocked > 1000 && blocked < 3500, "blocked {blocked}");
         assert!(hits > 1000, "hits {hits}");
@@ -585,8 +567,8 @@ mod tests {
         let mut rng = Rng(2);
         // Endpoints anywhere in and around the room (some outside), and points on the walls.
         let (blocked, hits, skip_vis, skip_first) = compare(&tris, &facets, 6000, &mut rng, |r| {
-            let mut p = r.point(-0.3, 1.3);
-            let mut q = r.point(0.01, 0.99);
+            let mut p = point(r, -0.3, 1.3);
+            let mut q = point(r, 0.01, 0.99);
             if r.below(3) == 0 {
                 // put q exactly on a wall: the wall must not shadow its own point
                 let k = r.below(3) as usize;
@@ -669,7 +651,7 @@ mod tests {
         }
         let mut rng = Rng(4);
         let (blocked, hits, skip_vis, skip_first) = compare(&tris, &facets, 3000, &mut rng, |r| {
-            let a = r.point(-0.5, 8.5);
+            let a = point(r, -0.5, 8.5);
             let mut b = a;
             let k = r.below(3) as usize;
             b[k] = r.range(-0.5, 8.5);
@@ -685,7 +667,7 @@ mod tests {
         let mut rng = Rng(5);
         let (tris, facets) = random_soup(&mut rng, 3000, 0.04);
         let (blocked, hits, _, _) =
-            compare(&tris, &facets, 1500, &mut rng, |r| (r.point(0.0, 1.0), r.point(0.0, 1.0)));
+            compare(&tris, &facets, 1500, &mut rng, |r| (point(r, 0.0, 1.0), point(r, 0.0, 1.0)));
         assert!(blocked > 300 && hits > 300, "blocked {blocked} hits {hits}");
     }
 

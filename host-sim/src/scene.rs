@@ -74,6 +74,11 @@ pub const BUILTINS: &[(&str, &str)] = &[
     ("cow", "cow, 5 804 triangles (closed)"),
     ("fandisk", "fandisk CAD part, 12 946 triangles (closed)"),
     ("suzanne", "Blender's Suzanne, 500 polygons (open)"),
+    ("teapot-floor", "the teapot on a floor (the plane behind it, facing the camera), lit from the front"),
+    ("cow-floor", "the cow on a floor (the plane behind it, facing the camera), lit from the front"),
+    ("bureau1", "procedural office (thesis's Bureau1): desk, CRT, chair, bookshelf; 8 038 facets, 1 light"),
+    ("bureau2", "procedural office for three (thesis's Bureau2): desks, meeting table, shelves; 17 289 facets, 2 lights"),
+    ("classe", "procedural classroom (thesis's Classe): 20 desks, 40 chairs, blackboard; 38 603 facets, 26 lights"),
 ];
 
 const CORNELL_OBJ: &str = include_str!("../scenes/cornell.obj");
@@ -102,6 +107,15 @@ pub fn load(scene: &str) -> Result<Mesh> {
             lights: vec![SceneLight::Grid([0.5; 3])],
             ..Default::default()
         });
+    }
+    if matches!(scene, "bureau1" | "bureau2" | "classe") {
+        return crate::office::generate(scene);
+    }
+    if let Some(base) = scene.strip_suffix("-floor").filter(|b| matches!(*b, "teapot" | "cow")) {
+        let mut mesh = load(base)?;
+        add_floor(&mut mesh);
+        mesh.name = scene.to_string();
+        return Ok(mesh);
     }
     if let Some((obj, mtl)) = builtin_source(scene) {
         let mut mesh = parse_obj(scene, obj, |_| match mtl {
@@ -149,6 +163,35 @@ fn convert_material(m: &tobj::Material) -> Material {
         ns: m.shininess.map(|s| s as f32).unwrap_or(d.ns),
         ke,
     }
+}
+
+/// Put a floor under a mesh as the camera sees it: the view looks along +z, so the floor is the
+/// plane z = max z of the mesh (the camera looks down at it and the mesh rests on it), a square
+/// twice the mesh's footprint, grey, facing the camera; the light hangs in front of it, up and
+/// to the left (grid-normalised (0.25, 0.8, 0.1)), so the mesh casts a visible shadow.
+pub fn add_floor(mesh: &mut Mesh) {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for p in &mesh.positions {
+        for i in 0..3 {
+            lo[i] = lo[i].min(p[i]);
+            hi[i] = hi[i].max(p[i]);
+        }
+    }
+    if !lo[0].is_finite() {
+        return;
+    }
+    let c = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0];
+    let r = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    let z = hi[2];
+    let base = mesh.positions.len() as u32;
+    // Wound so that its normal points toward the camera (−z).
+    for (dx, dy) in [(-1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (1.0, -1.0)] {
+        mesh.positions.push([c[0] + dx * r, c[1] + dy * r, z]);
+    }
+    mesh.materials.push(Material { name: "floor".into(), kd: [0.6, 0.6, 0.55], ..Material::default() });
+    let material = (mesh.materials.len() - 1) as u16;
+    mesh.faces.push(Face { verts: vec![base, base + 1, base + 2, base + 3], material });
+    mesh.lights = vec![SceneLight::Grid([0.25, 0.8, 0.1])];
 }
 
 /// Parse OBJ text. `mtl_loader` resolves `mtllib` references.

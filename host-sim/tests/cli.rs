@@ -128,3 +128,72 @@ fn help_explains_every_option() {
         assert!(help.contains(opt), "{opt} missing from --help");
     }
 }
+
+#[test]
+fn light_writes_lit_csv_and_stats() {
+    let dir = std::env::temp_dir().join(format!("rc2-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (csv, stats) = (dir.join("lit.csv"), dir.join("light.json"));
+    let (code, err) = host_sim(&[
+        "light", "cornell", "--n", "24", "--fa", "4", "--frac-bits", "2", "--quiet",
+        "--lit-out", csv.to_str().unwrap(), "--stats", stats.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    for key in [
+        "cycles", "lower_bound", "beams_processed", "messages", "rays_emitted", "rays_absorbed", "rays_exited",
+        "lit_voxels", "peak_fifo", "blocked_cell_cycles", "wall_seconds",
+    ] {
+        assert!(s.get(key).is_some(), "stats lack {key}");
+    }
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("x,y,z,source_mask"));
+    let rows: Vec<Vec<u32>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    assert_eq!(rows.len() as u64, s["lit_voxels"].as_u64().unwrap());
+    assert!(rows.iter().all(|r| r.len() == 4 && r[3] == 1 && r[..3].iter().all(|&c| c < 24)));
+    assert_eq!(
+        s["rays_emitted"].as_u64().unwrap(),
+        s["rays_absorbed"].as_u64().unwrap() + s["rays_exited"].as_u64().unwrap()
+    );
+}
+
+#[test]
+fn light_rejects_bad_arguments() {
+    for (args, expect) in [
+        (&["light", "empty", "--n", "16", "--fa", "0"][..], "--fa"),
+        (&["light", "empty", "--n", "16", "--fa", "65"], "--fa"),
+        (&["light", "empty", "--n", "16", "--light", "1.5,0.5,0.5"], "outside the grid"),
+        (&["light", "empty", "--n", "16", "--light", "0.5,0.5"], "X,Y,Z"),
+        (&["light", "empty", "--n", "16", "--frac-bits", "9"], "frac-bits"),
+        (&["light", "empty", "--n", "2"], "too small"),
+    ] {
+        let (code, err) = host_sim(args);
+        assert_ne!(code, 0, "{args:?} should fail");
+        assert!(err.contains(expect), "{args:?}: expected '{expect}' in {err}");
+    }
+}
+
+#[test]
+fn render_handles_materials_and_lights() {
+    let dir = std::env::temp_dir().join(format!("rc2-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // A missing MTL and a texture reference: a warning, the default material, an image.
+    let obj = b"mtllib nowhere.mtl\nusemtl wood\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\n";
+    let p = tmp("textured.obj", obj);
+    let out = dir.join("textured.png");
+    let (code, err) = host_sim(&["render", p.to_str().unwrap(), "--n", "16", "--quiet", "--out", out.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("material library not loaded"), "{err}");
+    assert!(err.contains("has no lights"), "a scene without lights gets the documented default: {err}");
+    assert!(std::fs::read(&out).unwrap().starts_with(b"\x89PNG"));
+    // Lights outside the grid and the reference of an empty scene are errors.
+    for (args, expect) in [
+        (&["render", "cornell", "--n", "16", "--light", "0.5,-0.1,0.5", "--out", "/dev/null"][..], "outside the grid"),
+        (&["render", "empty", "--n", "16", "--reference", "--out", "/dev/null"], "needs a scene with geometry"),
+    ] {
+        let (code, err) = host_sim(args);
+        assert_ne!(code, 0, "{args:?}");
+        assert!(err.contains(expect), "{args:?}: {err}");
+    }
+}

@@ -1,0 +1,193 @@
+//! `host-sim bench`: run time against error (issue 4). Sweeps the knobs that trade speed for
+//! accuracy — fraction bits f, thickness, contour, normals, FIFO size, policy — renders each
+//! configuration, compares it with the f64 reference (ray-cast once per scene and n), and keeps
+//! machine cycles, wall time, bytes per cell, shadow disagreement and PSNR. The Pareto front is
+//! error against machine cycles.
+
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use cell_core::light::Policy;
+use cell_core::shade::NormalMode;
+
+use crate::diffuse::LightConfig;
+use crate::lightjob::{load_scene, policy_name, resolve_lights};
+use crate::plot::{pareto_front, plot_pareto, ParetoPoint};
+use crate::precompute::{Contour, LoadConfig, Thickness};
+use crate::render::{reference_image, render, RenderConfig};
+use crate::scene::Mesh;
+
+/// One point of the sweep.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Knobs {
+    /// Fraction bits.
+    pub f: u32,
+    /// Plane thickness.
+    pub thickness: Thickness,
+    /// Facet contour.
+    pub contour: Contour,
+    /// Normal mode.
+    pub normals: NormalMode,
+    /// FIFO size.
+    pub fa: usize,
+    /// Scheduling policy (merging follows it: on for wavefront).
+    pub policy: Policy,
+}
+
+impl Knobs {
+    /// The configuration `render` runs with no options.
+    pub const DEFAULT: Knobs = Knobs {
+        f: crate::cli::DEFAULT_FRAC_BITS,
+        thickness: Thickness::Naive,
+        contour: Contour::Projected,
+        normals: NormalMode::Facet,
+        fa: 16,
+        policy: Policy::Wavefront,
+    };
+
+    /// The knobs that differ from the default, as a short label.
+    pub fn label(&self) -> String {
+        let d = Knobs::DEFAULT;
+        let mut parts = vec![format!("f={}", self.f)];
+        if self.thickness != d.thickness {
+            parts.push(format!("{:?}", self.thickness).to_lowercase());
+        }
+        if self.contour != d.contour {
+            parts.push(format!("{:?}", self.contour).to_lowercase());
+        }
+        if self.normals != d.normals {
+            parts.push("face normals".into());
+        }
+        if self.fa != d.fa {
+            parts.push(format!("FA={}", self.fa));
+        }
+        if self.policy != d.policy {
+            parts.push(format!("{} policy", policy_name(self.policy)));
+        }
+        parts.join(", ")
+    }
+}
+
+/// The sweep: every (f, thickness, contour) combination at the default normals, FIFO and
+/// policy, then each remaining knob varied alone around the default.
+pub fn sweep(fs: &[u32]) -> Vec<Knobs> {
+    let d = Knobs::DEFAULT;
+    let mut v = Vec::new();
+    for &f in fs {
+        for thickness in [Thickness::Naive, Thickness::Thesis, Thickness::Standard] {
+            for contour in [Contour::Projected, Contour::Conservative] {
+                v.push(Knobs { f, thickness, contour, ..d });
+            }
+        }
+    }
+    v.push(Knobs { normals: NormalMode::Face, ..d });
+    for fa in [4, 64] {
+        v.push(Knobs { fa, ..d });
+    }
+    v.push(Knobs { policy: Policy::Thesis, ..d });
+    v.dedup();
+    v
+}
+
+/// Run the sweep on several scenes at each n; write the CSV (one row per scene and
+/// configuration, plus an `all` row per configuration: error and cycles averaged over the scenes,
+/// bytes the largest) and one Pareto plot per n over the averaged rows
+/// (`<plot stem>-n<N>.png`, or the plot path itself for a single n).
+pub fn run_bench(meshes: &[Mesh], ns: &[u32], fs: &[u32], csv_path: &Path, plot_path: &Path, quiet: bool) -> Result<()> {
+    let mut csv = std::io::BufWriter::new(std::fs::File::create(csv_path).with_context(|| format!("cannot create {}", csv_path.display()))?);
+    writeln!(
+        csv,
+        "scene,n,f,thickness,contour,normals,fa,policy,is_default,load_cycles,light_cycles,shade_cycles,cycles,t_over_lb,beams,bytes_per_cell,wall_seconds,shadow_disagreement_pct,coverage_disagreement_pct,psnr_db,pareto"
+    )?;
+    let knobs = sweep(fs);
+    let names: Vec<&str> = meshes.iter().map(|m| m.name.as_str()).collect();
+    for &n in ns {
+        // Per configuration: (cycles, error, bytes, psnr, coverage, wall) summed over scenes.
+        let mut agg = vec![(0f64, 0f64, 0usize, 0f64, 0f64, 0f64); knobs.len()];
+        for mesh in meshes {
+            let mut reference = None;
+            for (ki, k) in knobs.iter().enumerate() {
+                let cfg = LoadConfig { n, thickness: k.thickness, contour: k.contour };
+                let t0 = Instant::now();
+                let loaded = load_scene(mesh, &cfg)?;
+                let load_seconds = t0.elapsed().as_secs_f64();
+                let lights = resolve_lights(mesh, &loaded, &[])?;
+                if reference.is_none() {
+                    reference = Some(reference_image(mesh, &loaded, &lights)?);
+                }
+                let rcfg = RenderConfig {
+                    light: LightConfig { fa: k.fa, policy: k.policy, merge: k.policy == Policy::Wavefront, record_visits: false },
+                    normals: k.normals,
+                };
+                let r = cell_core::with_frac_bits!(k.f, F => render::<F>(mesh, &loaded, &lights, &rcfg, reference.as_ref(), load_seconds, 0.0, |_, _| {}))
+                    .unwrap_or_else(|| Err(anyhow::anyhow!("--frac-bits {} is not supported", k.f)))?;
+                let st = r.stats;
+                let c = st.reference.expect("compared with the reference");
+                let cycles = st.light.load_cycles + st.light.totals.cycles + st.shade_cycles;
+                // A cell compiled for this FIFO size (the host compiles FA_CAP, limits at run time).
+                let bytes = st.bytes_per_cell - (crate::diffuse::FA_CAP - k.fa) * st.light.bytes_beam_message;
+                if !quiet {
+                    eprintln!(
+                        "{:>13} n = {n} {:36} cycles {:>8}  shadow {:6.2} %  PSNR {:6.2} dB  wall {:.2} s",
+                        mesh.name, k.label(), cycles, c.shadow_disagreement_pct, c.psnr_db, st.wall_seconds
+                    );
+                }
+                writeln!(
+                    csv,
+                    "{},{n},{},{:?},{:?},{:?},{},{},{},{},{},{},{},{:.4},{},{},{:.4},{:.4},{:.4},{:.4},",
+                    mesh.name, k.f, k.thickness, k.contour, k.normals, k.fa, policy_name(k.policy), *k == Knobs::DEFAULT,
+                    st.light.load_cycles, st.light.totals.cycles, st.shade_cycles, cycles, st.light.t_over_lb,
+                    st.light.totals.beams_processed, bytes, st.wall_seconds,
+                    c.shadow_disagreement_pct, c.coverage_disagreement_pct, c.psnr_db
+                )?;
+                let a = &mut agg[ki];
+                a.0 += cycles as f64;
+                a.1 += c.shadow_disagreement_pct;
+                a.2 = a.2.max(bytes);
+                a.3 += c.psnr_db;
+                a.4 += c.coverage_disagreement_pct;
+                a.5 += st.wall_seconds;
+            }
+        }
+        let m = meshes.len().max(1) as f64;
+        let points: Vec<ParetoPoint> = knobs
+            .iter()
+            .zip(&agg)
+            .map(|(k, a)| ParetoPoint { label: k.label(), cycles: a.0 / m, error: a.1 / m, bytes: a.2 as f64, is_default: *k == Knobs::DEFAULT })
+            .collect();
+        let front = pareto_front(&points);
+        for (i, (k, a)) in knobs.iter().zip(&agg).enumerate() {
+            writeln!(
+                csv,
+                "all,{n},{},{:?},{:?},{:?},{},{},{},,,,{:.1},,,{},{:.4},{:.4},{:.4},{:.4},{}",
+                k.f, k.thickness, k.contour, k.normals, k.fa, policy_name(k.policy), *k == Knobs::DEFAULT,
+                a.0 / m, a.2, a.5, a.1 / m, a.4 / m, a.3 / m, front.contains(&i)
+            )?;
+        }
+        let path = if ns.len() == 1 {
+            plot_path.to_path_buf()
+        } else {
+            let stem = plot_path.with_extension("");
+            stem.with_file_name(format!("{}-n{n}.png", stem.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()))
+        };
+        let title = format!("{}, n = {n}: shadow error against machine cycles (mean over scenes)", names.join(" + "));
+        plot_pareto(&points, &title, &path)?;
+        if !quiet {
+            let on = points.iter().position(|p| p.is_default).is_some_and(|i| front.contains(&i));
+            eprintln!("n = {n}: default configuration on the Pareto front: {on}; plot {}", path.display());
+            eprintln!("| knobs | mean cycles | mean shadow disagreement % | mean PSNR dB | bytes/cell | Pareto |");
+            eprintln!("|---|---|---|---|---|---|");
+            for (i, (p, a)) in points.iter().zip(&agg).enumerate() {
+                eprintln!(
+                    "| {}{} | {:.0} | {:.2} | {:.2} | {} | {} |",
+                    if p.is_default { "**default** " } else { "" }, p.label, p.cycles, p.error, a.3 / m, p.bytes,
+                    if front.contains(&i) { "yes" } else { "" }
+                );
+            }
+        }
+    }
+    csv.flush()?;
+    Ok(())
+}

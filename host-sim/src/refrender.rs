@@ -1,0 +1,987 @@
+//! Continuous ground-truth renderer: the image the discrete machine's images are compared with.
+//!
+//! Every ray query goes to [`Reference`] (exact `f64` ray–triangle tests); shading is the
+//! machine's Phong/Blinn formula evaluated in `f64` with `std` math ([`shade_f64`]).
+//!
+//! Camera and image (fixed): orthographic along +z. The image is `n × n`; pixel `(x, y)`
+//! (`x` right, `y` **up**, stored at index `y·n + x`) is the world ray with origin
+//! `fit.origin + ((x + 0.5)·voxel, (y + 0.5)·voxel, −voxel)`, direction `(0, 0, +1)` and
+//! `max_t = (n + 2)·voxel`. A pixel is *covered* when that ray hits a triangle.
+//!
+//! Units: a world point `P` is `p_vox = (P − origin)/voxel − 0.5` in voxel units (voxel
+//! `(i, j, k)` has its centre at `p_vox = (i, j, k)`); light positions are given in voxel units.
+//!
+//! Shadows: light `s` lights a covered pixel iff the surface faces it (N·L > 0: no attached
+//! shadow) and `reference.visible(P, L_s, ignore = [hit facet])`
+//! (the open segment from the hit point to the light crosses no other facet). This is pure
+//! visibility: a light behind the hit surface can count as lit (its shading contribution is
+//! zero through `N·L ≤ 0`). Emitters (`max(ke) > 0`) get their lit mask the same way.
+
+use anyhow::{bail, Context, Result};
+
+use crate::precompute::Fit;
+use crate::reference::Reference;
+use crate::scene::{Material, Mesh};
+
+/// A point light for the reference renderer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RefLight {
+    /// Position in voxel units (voxel `(i, j, k)`'s centre is `(i, j, k)`).
+    pub pos: [f64; 3],
+    /// Colour (linear; 1.0 = full).
+    pub color: [f64; 3],
+}
+
+/// A reference image (index `y·n + x`, `y` up).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RefImage {
+    /// Side of the image.
+    pub n: u32,
+    /// Gamma-encoded colour (2.2); `(0, 0, 0)` where uncovered.
+    pub rgb: Vec<[u8; 3]>,
+    /// Whether the pixel's ray hits a triangle.
+    pub covered: Vec<bool>,
+    /// Bit `s` set iff the hit surface faces light `s` and sees it (0 where uncovered).
+    pub lit: Vec<u32>,
+    /// Number of lights.
+    pub lights: u32,
+    /// Face index of the hit, `u32::MAX` where uncovered.
+    pub facet: Vec<u32>,
+}
+
+impl RefImage {
+    /// Index of pixel `(x, y)` (`y` up).
+    pub fn index(&self, x: u32, y: u32) -> usize {
+        y as usize * self.n as usize + x as usize
+    }
+
+    /// The colour rows top to bottom (image row `r` is `y = n − 1 − r`), e.g. for a PNG writer.
+    pub fn rows_top_down(&self) -> Vec<[u8; 3]> {
+        let n = self.n as usize;
+        (0..n)
+            .rev()
+            .flat_map(|y| self.rgb[y * n..(y + 1) * n].iter().copied())
+            .collect()
+    }
+}
+
+type V3 = [f64; 3];
+
+fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn dot(a: V3, b: V3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+/// `None` for a zero (or non-finite-length) vector.
+fn normalize(a: V3) -> Option<V3> {
+    let l = dot(a, a).sqrt();
+    (l > 0.0 && l.is_finite()).then(|| a.map(|x| x / l))
+}
+
+/// Gamma 2.2 encoding of a linear value: `round(255 · clamp(c, 0, 1)^(1/2.2))`.
+pub fn encode_gamma(c: f64) -> u8 {
+    // NaN → 0 (clamp keeps NaN; map it explicitly).
+    let c = if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) };
+    (255.0 * c.powf(1.0 / 2.2)).round() as u8
+}
+
+/// The linear (unclamped, un-encoded) colour of the shading formula; see [`shade_f64`].
+pub fn shade_linear_f64(
+    p_vox: [f64; 3],
+    n: [f64; 3],
+    m: &Material,
+    lights: &[RefLight],
+    lit_mask: u32,
+    ambient: [f64; 3],
+) -> [f64; 3] {
+    let ke = m.ke.map(f64::from);
+    let kmax = ke[0].max(ke[1]).max(ke[2]);
+    if kmax > 0.0 {
+        return ke.map(|x| x / kmax);
+    }
+    let ka = m.ka.map(f64::from);
+    let kd = m.kd.map(f64::from);
+    let ks = m.ks.map(f64::from);
+    let ns = f64::from(m.ns);
+    let v: V3 = [0.0, 0.0, -1.0];
+    let mut c = [0, 1, 2].map(|i| ka[i] * ambient[i]);
+    for (s, light) in lights.iter().enumerate() {
+        if s >= 32 || lit_mask & (1u32 << s) == 0 {
+            continue;
+        }
+        let Some(ld) = normalize(sub(light.pos, p_vox)) else {
+            continue;
+        };
+        let ndl = dot(n, ld);
+        if ndl > 0.0 {
+            for i in 0..3 {
+                c[i] += kd[i] * light.color[i] * ndl;
+            }
+            let nh = match normalize([ld[0] + v[0], ld[1] + v[1], ld[2] + v[2]]) {
+                Some(h) => dot(n, h).max(0.0),
+                None => 0.0,
+            };
+            let spec = nh.powf(ns);
+            for i in 0..3 {
+                c[i] += ks[i] * light.color[i] * spec;
+            }
+        }
+    }
+    c
+}
+
+/// The shading formula for one point (`f64`), shared with the tests of the discrete shader.
+///
+/// `p_vox`: the point in voxel units; `n`: unit normal facing the viewer; `lit_mask`: bit `s`
+/// set iff light `s` is visible from the point (lights beyond 32 are never lit).
+/// ```text
+/// V = (0, 0, −1)
+/// if max(ke) > 0: c = ke / max(ke)
+/// else: c = ka ⊙ ambient
+///       for each lit light s: Ld = normalize(L_s − p); ndl = N·Ld
+///           if ndl > 0: c += kd ⊙ color_s · ndl
+///                       H = normalize(Ld + V); c += ks ⊙ color_s · max(0, N·H)^ns
+/// out = round(255 · clamp(c, 0, 1)^(1/2.2))
+/// ```
+/// A light exactly at the point contributes nothing; `Ld + V = 0` gives `N·H = 0`.
+pub fn shade_f64(
+    p_vox: [f64; 3],
+    n: [f64; 3],
+    m: &Material,
+    lights: &[RefLight],
+    lit_mask: u32,
+    ambient: [f64; 3],
+) -> [u8; 3] {
+    shade_linear_f64(p_vox, n, m, lights, lit_mask, ambient).map(encode_gamma)
+}
+
+/// A triangle's three vertices in world units.
+pub type WorldTriangle = [[f64; 3]; 3];
+
+/// Fan-triangulate the mesh's faces: world triangles and their face index (the facet id).
+/// Faces with fewer than 3 vertices give no triangle. Errors on a vertex or material index out
+/// of range.
+pub fn mesh_triangles(mesh: &Mesh) -> Result<(Vec<WorldTriangle>, Vec<u32>)> {
+    let mut tris = Vec::new();
+    let mut facets = Vec::new();
+    for (fi, f) in mesh.faces.iter().enumerate() {
+        if f.material as usize >= mesh.materials.len() {
+            bail!(
+                "{}: face {} uses material {} but the mesh has {} materials",
+                mesh.name,
+                fi,
+                f.material,
+                mesh.materials.len()
+            );
+        }
+        let mut pts = Vec::with_capacity(f.verts.len());
+        for &v in &f.verts {
+            let Some(p) = mesh.positions.get(v as usize) else {
+                bail!(
+                    "{}: face {} uses vertex {} but the mesh has {} vertices",
+                    mesh.name,
+                    fi,
+                    v,
+                    mesh.positions.len()
+                );
+            };
+            pts.push(*p);
+        }
+        for k in 1..pts.len().saturating_sub(1) {
+            tris.push([pts[0], pts[k], pts[k + 1]]);
+            facets.push(fi as u32);
+        }
+    }
+    Ok((tris, facets))
+}
+
+/// Render the reference image of `mesh` (see the module doc for camera and shading).
+///
+/// Errors: `n = 0`, more than 32 lights, a non-finite or non-positive voxel size, a face with a
+/// vertex or material index out of range, or no non-degenerate triangle at all.
+pub fn render_reference(
+    mesh: &Mesh,
+    fit: &Fit,
+    n: u32,
+    lights: &[RefLight],
+    ambient: [f64; 3],
+) -> Result<RefImage> {
+    if n == 0 {
+        bail!("refrender: n must be positive");
+    }
+    if lights.len() > 32 {
+        bail!(
+            "refrender: at most 32 lights (lit masks are u32), got {}",
+            lights.len()
+        );
+    }
+    let fit_ok =
+        fit.voxel > 0.0 && fit.voxel.is_finite() && fit.origin.iter().all(|x| x.is_finite());
+    if !fit_ok {
+        bail!("refrender: invalid fit {fit:?}");
+    }
+    let (tris, facets) = mesh_triangles(mesh)?;
+    let reference =
+        Reference::new(tris, facets).with_context(|| format!("refrender: scene {}", mesh.name))?;
+    let (o, vx) = (fit.origin, fit.voxel);
+    let to_world = |p: V3| [0, 1, 2].map(|i| o[i] + (p[i] + 0.5) * vx);
+    let lights_world: Vec<V3> = lights.iter().map(|l| to_world(l.pos)).collect();
+    let npix = n as usize * n as usize;
+    let mut img = RefImage {
+        n,
+        rgb: vec![[0; 3]; npix],
+        covered: vec![false; npix],
+        lit: vec![0; npix],
+        lights: lights.len() as u32,
+        facet: vec![u32::MAX; npix],
+    };
+    let max_t = (n as f64 + 2.0) * vx;
+    let dir = [0.0, 0.0, 1.0];
+    for y in 0..n {
+        for x in 0..n {
+            let origin = [
+                o[0] + (x as f64 + 0.5) * vx,
+                o[1] + (y as f64 + 0.5) * vx,
+                o[2] - vx,
+            ];
+            let Some((t, facet, normal)) = reference.first_hit(origin, dir, max_t, &[]) else {
+                continue;
+            };
+            let p = [origin[0], origin[1], origin[2] + t];
+            let mut mask = 0u32;
+            for (s, lw) in lights_world.iter().enumerate() {
+                // Lit: the surface faces the light (no attached shadow) and sees it.
+                let to_light = [lw[0] - p[0], lw[1] - p[1], lw[2] - p[2]];
+                let faces = normal[0] * to_light[0] + normal[1] * to_light[1] + normal[2] * to_light[2] > 0.0;
+                if faces && reference.visible(p, *lw, &[facet]) {
+                    mask |= 1 << s;
+                }
+            }
+            let p_vox = [0, 1, 2].map(|i| (p[i] - o[i]) / vx - 0.5);
+            let m = &mesh.materials[mesh.faces[facet as usize].material as usize];
+            let i = y as usize * n as usize + x as usize;
+            img.rgb[i] = shade_f64(p_vox, normal, m, lights, mask, ambient);
+            img.covered[i] = true;
+            img.lit[i] = mask;
+            img.facet[i] = facet;
+        }
+    }
+    Ok(img)
+}
+
+/// Comparison of a discrete image with the reference.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Comparison {
+    /// (pixel, light) pairs, over pixels covered in both images, whose lit state differs: % of
+    /// those pairs (0 if none). Lit = the surface faces the light and sees it.
+    pub shadow_disagreement_pct: f64,
+    /// Pixels covered in exactly one image, % of the pixels covered in either (0 if none).
+    pub coverage_disagreement_pct: f64,
+    /// PSNR over all n² pixels and the 3 channels, MAX = 255; `f64::INFINITY` if identical.
+    pub psnr_db: f64,
+    /// Largest per-channel absolute difference over all pixels.
+    pub max_abs_diff: u8,
+}
+
+fn check_len(what: &str, len: usize, npix: usize) {
+    assert_eq!(
+        len, npix,
+        "refrender: {what} has {len} pixels, the reference has {npix}"
+    );
+}
+
+/// Compare a discrete image (same layout as [`RefImage`]) with the reference.
+///
+/// Panics if a slice's length is not `reference.n²`.
+pub fn compare(rgb: &[[u8; 3]], covered: &[bool], lit: &[u32], reference: &RefImage) -> Comparison {
+    let npix = reference.n as usize * reference.n as usize;
+    check_len("rgb", rgb.len(), npix);
+    check_len("covered", covered.len(), npix);
+    check_len("lit", lit.len(), npix);
+    let (mut both, mut shadow_diff, mut either, mut one) = (0u64, 0u64, 0u64, 0u64);
+    let mut sq = 0u64;
+    let mut max_abs = 0u8;
+    for i in 0..npix {
+        let (a, b) = (covered[i], reference.covered[i]);
+        if a && b {
+            both += 1;
+            shadow_diff += u64::from((lit[i] ^ reference.lit[i]).count_ones());
+        }
+        if a || b {
+            either += 1;
+        }
+        if a != b {
+            one += 1;
+        }
+        for (&a, &b) in rgb[i].iter().zip(&reference.rgb[i]) {
+            let d = a.abs_diff(b);
+            max_abs = max_abs.max(d);
+            sq += u64::from(d) * u64::from(d);
+        }
+    }
+    let pct = |num: u64, den: u64| {
+        if den == 0 {
+            0.0
+        } else {
+            100.0 * num as f64 / den as f64
+        }
+    };
+    let psnr_db = if sq == 0 {
+        f64::INFINITY
+    } else {
+        let mse = sq as f64 / (3 * npix) as f64;
+        10.0 * (255.0f64 * 255.0 / mse).log10()
+    };
+    Comparison {
+        shadow_disagreement_pct: pct(shadow_diff, both * u64::from(reference.lights.max(1))),
+        coverage_disagreement_pct: pct(one, either),
+        psnr_db,
+        max_abs_diff: max_abs,
+    }
+}
+
+/// Difference image (same layout): per pixel `min(255, 4·|a − b|)` per channel; pixels covered
+/// in exactly one of the two images are magenta `(255, 0, 255)`.
+///
+/// Panics if a slice's length is not `reference.n²`.
+pub fn difference_image(rgb: &[[u8; 3]], covered: &[bool], reference: &RefImage) -> Vec<[u8; 3]> {
+    let npix = reference.n as usize * reference.n as usize;
+    check_len("rgb", rgb.len(), npix);
+    check_len("covered", covered.len(), npix);
+    (0..npix)
+        .map(|i| {
+            if covered[i] != reference.covered[i] {
+                [255, 0, 255]
+            } else {
+                [0, 1, 2].map(|c| {
+                    (u32::from(rgb[i][c].abs_diff(reference.rgb[i][c])) * 4).min(255) as u8
+                })
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Face;
+
+    fn mat(ka: [f32; 3], kd: [f32; 3], ks: [f32; 3], ns: f32, ke: [f32; 3]) -> Material {
+        Material {
+            name: "m".into(),
+            ka,
+            kd,
+            ks,
+            ns,
+            ke,
+        }
+    }
+
+    /// Test fit: a non-trivial origin and voxel size.
+    const FIT: Fit = Fit {
+        origin: [10.0, -20.0, 5.0],
+        voxel: 2.5,
+    };
+
+    /// World point of a voxel-unit point under `FIT`.
+    fn w(p: V3) -> V3 {
+        [0, 1, 2].map(|i| FIT.origin[i] + (p[i] + 0.5) * FIT.voxel)
+    }
+
+    /// Independent gamma encoding for the tests.
+    fn gamma(c: f64) -> u8 {
+        let c = c.clamp(0.0, 1.0);
+        (c.powf(1.0 / 2.2) * 255.0 + 0.5).floor() as u8
+    }
+
+    /// 2-D point-in-triangle, strict (sign of the three edge functions; either winding).
+    fn in_tri(p: [f64; 2], t: &[[f64; 2]; 3]) -> bool {
+        let e = |a: [f64; 2], b: [f64; 2]| {
+            (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])
+        };
+        let (d0, d1, d2) = (e(t[0], t[1]), e(t[1], t[2]), e(t[2], t[0]));
+        (d0 > 0.0 && d1 > 0.0 && d2 > 0.0) || (d0 < 0.0 && d1 < 0.0 && d2 < 0.0)
+    }
+
+    const PLANE_Z: f64 = 40.0; // voxel units
+    const PLANE_LO: f64 = 4.3;
+    const PLANE_HI: f64 = 59.7;
+    const OCC_Z: f64 = 22.5;
+    const OCC: [[f64; 2]; 3] = [[34.0, 30.0], [44.0, 33.0], [38.0, 44.0]];
+    const LIGHT: RefLight = RefLight {
+        pos: [32.0, 32.0, 5.0],
+        color: [0.9, 0.8, 0.7],
+    };
+    const AMB: [f64; 3] = [0.2, 0.3, 0.25];
+    const N: u32 = 64;
+
+    fn plane_mesh(with_occluder: bool) -> Mesh {
+        let (lo, hi, z) = (PLANE_LO, PLANE_HI, PLANE_Z);
+        let mut positions = vec![
+            w([lo, lo, z]),
+            w([hi, lo, z]),
+            w([hi, hi, z]),
+            w([lo, hi, z]),
+        ];
+        let mut faces = vec![Face {
+            verts: vec![0, 1, 2, 3],
+            material: 0,
+        }];
+        if with_occluder {
+            for v in OCC {
+                positions.push(w([v[0], v[1], OCC_Z]));
+            }
+            faces.push(Face {
+                verts: vec![4, 5, 6],
+                material: 1,
+            });
+        }
+        Mesh {
+            name: "plane".into(),
+            positions,
+            faces,
+            materials: vec![
+                mat([0.3, 0.2, 0.1], [0.6, 0.7, 0.4], [0.0; 3], 1.0, [0.0; 3]),
+                mat([0.1; 3], [0.5; 3], [0.0; 3], 1.0, [0.0; 3]),
+            ],
+            lights: vec![],
+        }
+    }
+
+    /// Closed-form Lambert value on the plane at pixel (x, y): N = (0, 0, −1).
+    fn lambert(x: f64, y: f64, m: &Material, light: &RefLight) -> [u8; 3] {
+        let d = [light.pos[0] - x, light.pos[1] - y, light.pos[2] - PLANE_Z];
+        let cos = (PLANE_Z - light.pos[2]) / (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        assert!(cos > 0.0);
+        [0, 1, 2].map(|i| gamma(m.ka[i] as f64 * AMB[i] + m.kd[i] as f64 * light.color[i] * cos))
+    }
+
+    #[test]
+    fn plane_under_point_light_is_lambert() {
+        let mesh = plane_mesh(false);
+        // A far light, and one only 2.5 voxels in front of the plane (there the colour varies
+        // steeply, so a half-voxel error in the light's or the point's position shows).
+        let near = RefLight {
+            pos: [20.3, 40.7, PLANE_Z - 2.5],
+            color: [0.8, 0.9, 1.0],
+        };
+        for light in [LIGHT, near] {
+            let img = render_reference(&mesh, &FIT, N, &[light], AMB).unwrap();
+            let mut covered = 0;
+            for y in 0..N {
+                for x in 0..N {
+                    let i = img.index(x, y);
+                    let (xf, yf) = (x as f64, y as f64);
+                    let inside = xf > PLANE_LO && xf < PLANE_HI && yf > PLANE_LO && yf < PLANE_HI;
+                    assert_eq!(img.covered[i], inside, "pixel ({x}, {y})");
+                    if !inside {
+                        assert_eq!(
+                            (img.rgb[i], img.lit[i], img.facet[i]),
+                            ([0; 3], 0, u32::MAX)
+                        );
+                        continue;
+                    }
+                    covered += 1;
+                    assert_eq!(img.facet[i], 0);
+                    assert_eq!(img.lit[i], 1, "pixel ({x}, {y}) must be lit");
+                    let want = lambert(xf, yf, &mesh.materials[0], &light);
+                    for c in 0..3 {
+                        assert!(
+                            img.rgb[i][c].abs_diff(want[c]) <= 1,
+                            "pixel ({x}, {y}): {:?} vs {want:?}",
+                            img.rgb[i]
+                        );
+                    }
+                }
+            }
+            assert_eq!(covered, 55 * 55);
+            // Not a constant image: right under the light is brighter than a far corner.
+            let c = img.rgb[img.index(light.pos[0].round() as u32, light.pos[1].round() as u32)];
+            let k = img.rgb[img.index(58, 5)];
+            assert!(c[0] > k[0] + 10, "{c:?} {k:?}");
+        }
+    }
+
+    #[test]
+    fn occluder_casts_the_predicted_shadow() {
+        let mesh = plane_mesh(true);
+        // Light 0: the general case. Light 1: a quarter voxel *behind* the occluder's plane (it
+        // lights the whole plane). Light 2: a quarter voxel in front of the occluder, above its
+        // interior (the occluder hides it from the whole plane). Lights 1 and 2 make a position
+        // error of half a voxel (light or hit point) flip whole regions.
+        let (cx, cy) = (38.5, 35.5);
+        assert!(in_tri([cx, cy], &OCC));
+        let lights = [
+            LIGHT,
+            RefLight {
+                pos: [cx, cy, OCC_Z + 0.25],
+                color: [0.3, 0.2, 0.1],
+            },
+            RefLight {
+                pos: [cx, cy, OCC_Z - 0.25],
+                color: [0.5; 3],
+            },
+        ];
+        let img = render_reference(&mesh, &FIT, N, &lights, AMB).unwrap();
+        // Analytic prediction for a plane point (x, y): does the segment to light l cross the
+        // occluder (plane z = OCC_Z)? And does the camera ray at (x, y) hit the occluder first?
+        let shadowed = |l: V3, x: f64, y: f64| {
+            let t = (OCC_Z - PLANE_Z) / (l[2] - PLANE_Z);
+            t > 0.0 && t < 1.0 && in_tri([x + t * (l[0] - x), y + t * (l[1] - y)], &OCC)
+        };
+        let on_occ = |x: f64, y: f64| in_tri([x, y], &OCC);
+        let stable = |f: &dyn Fn(f64, f64) -> bool, x: f64, y: f64| {
+            let v = f(x, y);
+            (-1..=1).all(|dx| (-1..=1).all(|dy| f(x + dx as f64, y + dy as f64) == v))
+        };
+        let m = &mesh.materials[0];
+        let (mut checked_shadow, mut checked_lit, mut checked_occ, mut band) = (0, 0, 0, 0);
+        for y in 0..N {
+            for x in 0..N {
+                let (xf, yf) = (x as f64, y as f64);
+                let i = img.index(x, y);
+                if !(xf > PLANE_LO && xf < PLANE_HI && yf > PLANE_LO && yf < PLANE_HI) {
+                    continue;
+                }
+                if !stable(&on_occ, xf, yf) {
+                    band += 1;
+                    continue;
+                }
+                if on_occ(xf, yf) {
+                    assert_eq!(img.facet[i], 1, "pixel ({x}, {y}) sees the occluder");
+                    // Nothing lies between the occluder and any light, but light 1 sits behind
+                    // the occluder's plane: the occluder faces away from it (attached shadow).
+                    assert_eq!(img.lit[i], 0b101, "occluder pixel ({x}, {y})");
+                    checked_occ += 1;
+                    continue;
+                }
+                assert_eq!(img.facet[i], 0, "pixel ({x}, {y}) sees the plane");
+                let mut want_mask = 0u32;
+                let mut in_band = false;
+                for (s, l) in lights.iter().enumerate() {
+                    let f = |x: f64, y: f64| shadowed(l.pos, x, y);
+                    in_band |= !stable(&f, xf, yf);
+                    if !f(xf, yf) {
+                        want_mask |= 1 << s;
+                    }
+                }
+                if in_band {
+                    band += 1;
+                    continue;
+                }
+                assert_eq!(img.lit[i], want_mask, "pixel ({x}, {y})");
+                if want_mask & 1 == 0 {
+                    checked_shadow += 1;
+                } else {
+                    checked_lit += 1;
+                }
+                // Colour: ambient plus Lambert from the lit lights (closed form).
+                let want = [0, 1, 2].map(|c| {
+                    let mut v = m.ka[c] as f64 * AMB[c];
+                    for (s, l) in lights.iter().enumerate() {
+                        if want_mask & (1 << s) != 0 {
+                            let d = [l.pos[0] - xf, l.pos[1] - yf, l.pos[2] - PLANE_Z];
+                            let cos = (PLANE_Z - l.pos[2])
+                                / (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                            v += m.kd[c] as f64 * l.color[c] * cos;
+                        }
+                    }
+                    gamma(v)
+                });
+                for c in 0..3 {
+                    assert!(
+                        img.rgb[i][c].abs_diff(want[c]) <= 1,
+                        "pixel ({x}, {y}): {:?} vs {want:?}",
+                        img.rgb[i]
+                    );
+                }
+            }
+        }
+        // The checks had something to check.
+        assert!(checked_shadow > 100, "{checked_shadow} shadow pixels");
+        assert!(checked_occ > 15, "{checked_occ} occluder pixels");
+        assert!(checked_lit > 2500, "{checked_lit} lit pixels");
+        assert!(band < 400, "{band} boundary pixels");
+    }
+
+    /// An icosphere of radius `r` about `c` (world), subdivided `levels` times.
+    fn icosphere(c: V3, r: f64, levels: u32) -> Mesh {
+        let t = (1.0 + 5f64.sqrt()) / 2.0;
+        #[rustfmt::skip]
+        let mut v: Vec<V3> = vec![
+            [-1.0, t, 0.0], [1.0, t, 0.0], [-1.0, -t, 0.0], [1.0, -t, 0.0],
+            [0.0, -1.0, t], [0.0, 1.0, t], [0.0, -1.0, -t], [0.0, 1.0, -t],
+            [t, 0.0, -1.0], [t, 0.0, 1.0], [-t, 0.0, -1.0], [-t, 0.0, 1.0],
+        ];
+        #[rustfmt::skip]
+        let mut f: Vec<[usize; 3]> = vec![
+            [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11],
+            [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8],
+            [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9],
+            [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+        ];
+        let unit = |p: V3| {
+            let l = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+            p.map(|x| x / l)
+        };
+        for p in v.iter_mut() {
+            *p = unit(*p);
+        }
+        for _ in 0..levels {
+            let mut cache = std::collections::HashMap::new();
+            let mut mid = |a: usize, b: usize, v: &mut Vec<V3>| {
+                *cache.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                    v.push(unit([0, 1, 2].map(|i| (v[a][i] + v[b][i]) / 2.0)));
+                    v.len() - 1
+                })
+            };
+            let mut nf = Vec::new();
+            for [a, b, cc] in f {
+                let ab = mid(a, b, &mut v);
+                let bc = mid(b, cc, &mut v);
+                let ca = mid(cc, a, &mut v);
+                nf.extend([[a, ab, ca], [b, bc, ab], [cc, ca, bc], [ab, bc, ca]]);
+            }
+            f = nf;
+        }
+        Mesh {
+            name: "icosphere".into(),
+            positions: v
+                .iter()
+                .map(|p| [0, 1, 2].map(|i| c[i] + r * p[i]))
+                .collect(),
+            faces: f
+                .iter()
+                .map(|t| Face {
+                    verts: t.iter().map(|&k| k as u32).collect(),
+                    material: 0,
+                })
+                .collect(),
+            materials: vec![Material::default()],
+            lights: vec![],
+        }
+    }
+
+    #[test]
+    fn icosphere_covers_its_disc() {
+        let (cx, cy, cz, r) = (32.0, 31.0, 30.0, 20.0); // voxel units
+        let mesh = icosphere(w([cx, cy, cz]), r * FIT.voxel, 3);
+        assert_eq!(mesh.faces.len(), 1280);
+        let light = RefLight {
+            pos: [cx - 10.0, cy + 20.0, cz - 40.0],
+            color: [1.0; 3],
+        };
+        let img = render_reference(&mesh, &FIT, N, &[light], [0.1; 3]).unwrap();
+        let mut count = 0usize;
+        for y in 0..N {
+            for x in 0..N {
+                let i = img.index(x, y);
+                let d = ((x as f64 - cx).powi(2) + (y as f64 - cy).powi(2)).sqrt();
+                if d < r - 1.0 {
+                    assert!(img.covered[i], "({x}, {y}) at {d} must be covered");
+                    // The front hemisphere faces the camera: the hit is on its near half.
+                    assert!(img.facet[i] < 1280);
+                } else if d > r + 1.0 {
+                    assert!(!img.covered[i], "({x}, {y}) at {d} must not be covered");
+                }
+                count += img.covered[i] as usize;
+            }
+        }
+        let disc = std::f64::consts::PI * r * r;
+        assert!(
+            (count as f64 - disc).abs() < 0.02 * disc,
+            "{count} covered vs disc {disc:.1}"
+        );
+        // Shading varies across the sphere (normals follow the facets) and the lit side is
+        // brighter than the far side.
+        let toward = img.rgb[img.index(26, 41)];
+        let away = img.rgb[img.index(40, 22)];
+        assert!(toward[1] > away[1] + 20, "{toward:?} vs {away:?}");
+    }
+
+    #[test]
+    fn rendering_is_deterministic() {
+        let mesh = crate::scene::load("cornell").unwrap();
+        let n = 48;
+        let fit = crate::precompute::fit(&mesh, n).unwrap();
+        let lights = [
+            cornell_light(&fit),
+            RefLight {
+                pos: [10.0, 10.0, 5.0],
+                color: [0.3, 0.2, 0.1],
+            },
+        ];
+        let a = render_reference(&mesh, &fit, n, &lights, [0.2; 3]).unwrap();
+        let b = render_reference(&mesh, &fit, n, &lights, [0.2; 3]).unwrap();
+        assert_eq!(a, b);
+        let c = compare(&b.rgb, &b.covered, &b.lit, &a);
+        assert_eq!(
+            (
+                c.shadow_disagreement_pct,
+                c.coverage_disagreement_pct,
+                c.psnr_db,
+                c.max_abs_diff
+            ),
+            (0.0, 0.0, f64::INFINITY, 0)
+        );
+        // The box's back wall fills the view except the one-voxel margin.
+        let covered = a.covered.iter().filter(|&&c| c).count();
+        assert!(
+            covered >= ((n - 2) * (n - 2)) as usize * 95 / 100,
+            "{covered}"
+        );
+        // Both lit and shadowed pixels (the blocks shadow the floor).
+        assert!(a.lit.iter().zip(&a.covered).any(|(&l, &c)| c && l & 1 == 0));
+        assert!(a.lit.iter().any(|&l| l & 1 == 1));
+    }
+
+    fn cornell_light(fit: &Fit) -> RefLight {
+        let wpos = [278.0, 548.8, 279.5];
+        let mut pos = [0, 1, 2].map(|i| (wpos[i] - fit.origin[i]) / fit.voxel - 0.5);
+        pos[1] -= 2.0;
+        RefLight {
+            pos,
+            color: [1.0; 3],
+        }
+    }
+
+    #[test]
+    fn compare_hand_made_pair() {
+        let reference = RefImage {
+            n: 2,
+            rgb: vec![[10, 10, 10], [20, 20, 20], [30, 30, 30], [0, 0, 0]],
+            covered: vec![true, true, true, false],
+            lit: vec![1, 1, 0, 0],
+            lights: 2,
+            facet: vec![0, 0, 1, u32::MAX],
+        };
+        let rgb = [[10, 10, 10], [20, 20, 26], [0, 0, 0], [4, 0, 0]];
+        let covered = [true, true, false, true];
+        let lit = [1, 3, 0, 1];
+        let c = compare(&rgb, &covered, &lit, &reference);
+        // covered in both: pixels 0, 1, two lights: 4 (pixel, light) pairs; one bit differs
+        // (pixel 1, light 1) → 25 %.
+        assert_eq!(c.shadow_disagreement_pct, 25.0);
+        // covered in exactly one: 2, 3; in either: all 4 → 50 %.
+        assert_eq!(c.coverage_disagreement_pct, 50.0);
+        // squared error 6² + 3·30² + 4² = 2752 over 12 samples; PSNR = 10·log10(65025·12/2752).
+        assert!((c.psnr_db - 24.525_8).abs() < 1e-3, "{}", c.psnr_db);
+        assert_eq!(c.max_abs_diff, 30);
+        // identical inputs
+        let c = compare(
+            &reference.rgb,
+            &reference.covered,
+            &reference.lit,
+            &reference,
+        );
+        assert_eq!(
+            (
+                c.shadow_disagreement_pct,
+                c.coverage_disagreement_pct,
+                c.psnr_db,
+                c.max_abs_diff
+            ),
+            (0.0, 0.0, f64::INFINITY, 0)
+        );
+        // nothing covered anywhere: 0 %, not NaN
+        let empty = RefImage {
+            n: 1,
+            rgb: vec![[0; 3]],
+            covered: vec![false],
+            lit: vec![0],
+            lights: 1,
+            facet: vec![u32::MAX],
+        };
+        let c = compare(&[[1, 0, 0]], &[false], &[0], &empty);
+        assert_eq!(
+            (
+                c.shadow_disagreement_pct,
+                c.coverage_disagreement_pct,
+                c.max_abs_diff
+            ),
+            (0.0, 0.0, 1)
+        );
+        assert!((c.psnr_db - 10.0 * (65025.0f64 * 3.0).log10()).abs() < 1e-9);
+        // difference image
+        let d = difference_image(&rgb, &covered, &reference);
+        assert_eq!(d, vec![[0, 0, 0], [0, 0, 24], [255, 0, 255], [255, 0, 255]]);
+        let d = difference_image(
+            &[[200, 0, 70], [0; 3], [30, 30, 30], [0; 3]],
+            &[true, true, true, false],
+            &reference,
+        );
+        assert_eq!(d, vec![[255, 40, 240], [80, 80, 80], [0, 0, 0], [0, 0, 0]]);
+    }
+
+    #[test]
+    fn emitters_show_their_own_colour() {
+        // An emitter quad in front of a diffuse plane, no lights and zero ambient.
+        let mut mesh = plane_mesh(false);
+        let base = mesh.positions.len() as u32;
+        for p in [
+            [10.5, 10.5, 20.0],
+            [20.5, 10.5, 20.0],
+            [20.5, 30.5, 20.0],
+            [10.5, 30.5, 20.0],
+        ] {
+            mesh.positions.push(w(p));
+        }
+        mesh.faces.push(Face {
+            verts: (base..base + 4).collect(),
+            material: 2,
+        });
+        mesh.materials
+            .push(mat([1.0; 3], [0.8; 3], [0.5; 3], 8.0, [17.0, 8.5, 0.0]));
+        let want = [255, gamma(0.5), 0];
+        assert_eq!(want, [255, 186, 0]);
+        for (lights, amb) in [(&[][..], [0.0; 3]), (&[LIGHT][..], AMB)] {
+            let img = render_reference(&mesh, &FIT, N, lights, amb).unwrap();
+            let mut seen = 0;
+            for y in 0..N {
+                for x in 0..N {
+                    let i = img.index(x, y);
+                    let inside = (11..=20).contains(&x) && (11..=30).contains(&y);
+                    assert_eq!(img.facet[i] == 1, inside, "({x}, {y})");
+                    if inside {
+                        assert_eq!(img.rgb[i], want);
+                        seen += 1;
+                    } else if img.covered[i] && lights.is_empty() {
+                        assert_eq!(img.rgb[i], [0; 3], "unlit diffuse plane is black");
+                    }
+                }
+            }
+            assert_eq!(seen, 200);
+        }
+    }
+
+    #[test]
+    fn shade_f64_closed_forms() {
+        let m = mat(
+            [0.2, 0.4, 0.6],
+            [0.5, 0.3, 0.1],
+            [0.25, 0.5, 0.125],
+            10.0,
+            [0.0; 3],
+        );
+        let nrm = [0.0, 0.0, -1.0];
+        let amb = [0.1, 0.2, 0.3];
+        // Light straight in front: N·L = 1, N·H = 1.
+        let l = [RefLight {
+            pos: [0.0, 0.0, -10.0],
+            color: [1.0, 0.5, 0.25],
+        }];
+        let lin = shade_linear_f64([0.0; 3], nrm, &m, &l, 1, amb);
+        let want = [0, 1, 2]
+            .map(|i| m.ka[i] as f64 * amb[i] + (m.kd[i] as f64 + m.ks[i] as f64) * l[0].color[i]);
+        for i in 0..3 {
+            assert!((lin[i] - want[i]).abs() < 1e-12);
+        }
+        // Light at 45°: N·L = cos 45°, H halfway between L and V: N·H = cos 22.5°.
+        let l = [RefLight {
+            pos: [5.0, 3.0, -7.0],
+            color: [1.0, 0.5, 0.25],
+        }];
+        let p = [1.0, 3.0, -3.0];
+        let lin = shade_linear_f64(p, nrm, &m, &l, 1, amb);
+        let (c45, c22) = (
+            std::f64::consts::FRAC_1_SQRT_2,
+            (std::f64::consts::PI / 8.0).cos(),
+        );
+        let want = [0, 1, 2].map(|i| {
+            m.ka[i] as f64 * amb[i]
+                + l[0].color[i] * (m.kd[i] as f64 * c45 + m.ks[i] as f64 * c22.powi(10))
+        });
+        for i in 0..3 {
+            assert!((lin[i] - want[i]).abs() < 1e-12, "{lin:?} vs {want:?}");
+        }
+        assert_eq!(shade_f64(p, nrm, &m, &l, 1, amb), want.map(gamma));
+        // Not lit / behind the surface: ambient only.
+        let ambient_only = [0, 1, 2].map(|i| gamma(m.ka[i] as f64 * amb[i]));
+        assert_eq!(shade_f64(p, nrm, &m, &l, 0, amb), ambient_only);
+        let behind = [RefLight {
+            pos: [1.0, 3.0, 2.0],
+            color: [1.0; 3],
+        }];
+        assert_eq!(shade_f64(p, nrm, &m, &behind, 1, amb), ambient_only);
+        // Light at the point itself: no contribution, no NaN.
+        let at = [RefLight {
+            pos: p,
+            color: [1.0; 3],
+        }];
+        assert_eq!(shade_f64(p, nrm, &m, &at, 1, amb), ambient_only);
+        // Clamping and gamma.
+        let bright = [RefLight {
+            pos: [0.0, 0.0, -10.0],
+            color: [9.0; 3],
+        }];
+        assert_eq!(shade_f64([0.0; 3], nrm, &m, &bright, 1, amb), [255; 3]);
+        assert_eq!(encode_gamma(0.0), 0);
+        assert_eq!(encode_gamma(-1.0), 0);
+        assert_eq!(encode_gamma(f64::NAN), 0);
+        assert_eq!(encode_gamma(0.5), 186);
+        // Emitter: ke / max(ke), lights ignored.
+        let e = mat([1.0; 3], [1.0; 3], [1.0; 3], 1.0, [4.0, 2.0, 1.0]);
+        assert_eq!(
+            shade_f64([0.0; 3], nrm, &e, &bright, 1, amb),
+            [255, gamma(0.5), gamma(0.25)]
+        );
+    }
+
+    #[test]
+    fn bad_input_is_an_error() {
+        let mesh = plane_mesh(false);
+        assert!(render_reference(&mesh, &FIT, 0, &[], AMB).is_err());
+        assert!(render_reference(&mesh, &FIT, 8, &[LIGHT; 33], AMB).is_err());
+        assert!(render_reference(
+            &mesh,
+            &Fit {
+                origin: [0.0; 3],
+                voxel: 0.0
+            },
+            8,
+            &[],
+            AMB
+        )
+        .is_err());
+        let mut bad = mesh.clone();
+        bad.faces[0].material = 5;
+        assert!(render_reference(&bad, &FIT, 8, &[], AMB).is_err());
+        let mut bad = mesh.clone();
+        bad.faces[0].verts[1] = 99;
+        assert!(render_reference(&bad, &FIT, 8, &[], AMB).is_err());
+        assert!(render_reference(&Mesh::default(), &FIT, 8, &[], AMB).is_err());
+    }
+
+    #[test]
+    fn rows_top_down_flips_y() {
+        let img = RefImage {
+            n: 2,
+            rgb: vec![[1; 3], [2; 3], [3; 3], [4; 3]],
+            covered: vec![true; 4],
+            lit: vec![0; 4],
+            lights: 1,
+            facet: vec![0; 4],
+        };
+        assert_eq!(img.rows_top_down(), vec![[3; 3], [4; 3], [1; 3], [2; 3]]);
+    }
+
+    /// Timing (release): `cargo test --release -p host-sim --lib refrender::tests::cornell_timing -- --ignored --nocapture`.
+    #[test]
+    #[ignore]
+    fn cornell_timing() {
+        let mesh = crate::scene::load("cornell").unwrap();
+        let n = 512;
+        let fit = crate::precompute::fit(&mesh, n).unwrap();
+        let light = cornell_light(&fit);
+        let t0 = std::time::Instant::now();
+        let img = render_reference(&mesh, &fit, n, &[light], [0.1; 3]).unwrap();
+        let dt = t0.elapsed().as_secs_f64();
+        let covered = img.covered.iter().filter(|&&c| c).count();
+        let lit = img.lit.iter().filter(|&&l| l != 0).count();
+        println!(
+            "cornell n = {n}: {dt:.3} s, {covered} covered, {lit} lit, light at {:?} (voxel units)",
+            light.pos
+        );
+    }
+}

@@ -1,0 +1,241 @@
+//! The main job (issue 4): load, light, shade — the whole RC² pipeline — and write a PNG.
+//!
+//! Every cell shades the first occupied voxel of its column (near end z = 0, orthographic view
+//! along +z, image y up, +x to the left as a camera looking along +z sees it) with
+//! `cell_core::shade`. Lights are white, each of intensity
+//! 1/√(number of lights), ambient 0.2. With `--reference` the same scene is ray-cast in f64
+//! (`refrender`) with the same camera, resolution and shading formula, and compared.
+
+use std::io::BufWriter;
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use cell_core::beam::FracBits;
+use cell_core::shade::{shade, shading_normal, Material as CellMaterial, NormalMode, PointLight, ShadeParams};
+
+use crate::diffuse::LightConfig;
+use crate::lightjob::{run_diffusion, LightStats, LoadedScene};
+use crate::scene::{Material, Mesh};
+
+/// Ambient intensity Ia.
+pub const AMBIENT: f32 = 0.2;
+
+/// The discrete image: what the cells show.
+pub struct Image {
+    /// Side.
+    pub n: u32,
+    /// Pixels, index y·n + x, y up.
+    pub rgb: Vec<[u8; 3]>,
+    /// Whether the column holds a voxel.
+    pub covered: Vec<bool>,
+    /// Lights that lit the shown voxel (a beam reached it and the surface faces the light).
+    pub lit: Vec<u32>,
+    /// Largest |cell − f64| over channels and covered pixels, in 8-bit levels.
+    pub shading_max_err_levels: u8,
+    /// Mean of that over channels and covered pixels.
+    pub shading_mean_err_levels: f64,
+}
+
+/// The cell's view of a scene material.
+pub fn cell_material(m: &Material) -> CellMaterial {
+    CellMaterial { ka: m.ka, kd: m.kd, ks: m.ks, ns: m.ns, ke: m.ke }
+}
+
+/// Lights as the cells see them (voxel units, white, 1/√L each).
+pub fn point_lights(positions: &[[f64; 3]]) -> Vec<PointLight> {
+    let e = 1.0 / (positions.len().max(1) as f32).sqrt();
+    positions.iter().map(|p| PointLight { pos: p.map(|c| c as f32), color: [e; 3] }).collect()
+}
+
+/// Shade every cell's visible voxel.
+pub fn shade_grid<F: FracBits>(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    lights: &[PointLight],
+    lighting: &crate::diffuse::Lighting<F>,
+    mode: NormalMode,
+) -> Image {
+    let n = scene.grid.n;
+    let params = ShadeParams { ambient: [AMBIENT; 3], normal_mode: mode };
+    let mats: Vec<CellMaterial> = mesh.materials.iter().map(cell_material).collect();
+    let ref_lights = ref_lights(lights);
+    let mut img = Image {
+        n,
+        rgb: vec![[0; 3]; (n * n) as usize],
+        covered: vec![false; (n * n) as usize],
+        lit: vec![0; (n * n) as usize],
+        shading_max_err_levels: 0,
+        shading_mean_err_levels: 0.0,
+    };
+    let (mut err_sum, mut err_count) = (0u64, 0u64);
+    for (i, c) in scene.grid.cells.iter().enumerate() {
+        let Some(d) = c.store.dexels().first() else { continue };
+        let z = d.span.lo;
+        let p = [c.x as f32, c.y as f32, z as f32];
+        let nrm = shading_normal(d, mode);
+        let m = mats.get(d.material as usize).copied().unwrap_or_default();
+        // Lit: a beam of the light reached the voxel and the surface faces the light (the same
+        // effective shadow state the reference reports).
+        let reached = lighting.mask(c.x as u32, c.y as u32, z);
+        let lit = (0..lights.len().min(32)).fold(0u32, |acc, s| {
+            let l = lights[s].pos;
+            let faces = nrm[0] * (l[0] - p[0]) + nrm[1] * (l[1] - p[1]) + nrm[2] * (l[2] - p[2]) > 0.0;
+            acc | (((reached >> s & 1 == 1) && faces) as u32) << s
+        });
+        let rgb = shade(p, nrm, &m, lights, lit, &params);
+        // The same inputs through the f64 formula: the error of the cell's arithmetic alone.
+        let exact = crate::refrender::shade_f64(
+            p.map(|v| v as f64),
+            nrm.map(|v| v as f64),
+            &mesh.materials[(d.material as usize).min(mesh.materials.len() - 1)],
+            &ref_lights,
+            lit,
+            [AMBIENT as f64; 3],
+        );
+        for k in 0..3 {
+            let e = rgb[k].abs_diff(exact[k]);
+            img.shading_max_err_levels = img.shading_max_err_levels.max(e);
+            err_sum += e as u64;
+            err_count += 1;
+        }
+        img.rgb[i] = rgb;
+        img.covered[i] = true;
+        img.lit[i] = lit;
+    }
+    img.shading_mean_err_levels = err_sum as f64 / err_count.max(1) as f64;
+    img
+}
+
+/// Write an n × n RGB image (index y·n + x, y up) as PNG, top row first, seen from the camera:
+/// looking along +z with y up, +x points to the viewer's left (so the Cornell box shows its red
+/// wall on the left, as in the published pictures).
+pub fn write_png(path: &Path, n: u32, rgb: &[[u8; 3]]) -> Result<()> {
+    let f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let mut enc = png::Encoder::new(BufWriter::new(f), n, n);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut w = enc.write_header()?;
+    let mut data = Vec::with_capacity((n * n * 3) as usize);
+    for y in (0..n).rev() {
+        for x in (0..n).rev() {
+            data.extend_from_slice(&rgb[(y * n + x) as usize]);
+        }
+    }
+    w.write_image_data(&data)?;
+    Ok(())
+}
+
+/// Everything `render --stats` reports.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RenderStats {
+    /// The lighting run (load and light counters, bytes per cell).
+    pub light: LightStats,
+    /// Normal mode used for shading.
+    pub normals: String,
+    /// Shading step: one light per cell per cycle, all cells in parallel.
+    pub shade_cycles: u64,
+    /// Pixels showing a voxel.
+    pub covered_pixels: u64,
+    /// Covered pixels lit by at least one light.
+    pub lit_pixels: u64,
+    /// `size_of` a loading cell (dexel store with its compile-time capacity + inbound packet).
+    pub bytes_per_cell_load: usize,
+    /// Loading + lighting state of one cell.
+    pub bytes_per_cell: usize,
+    /// Cell shading against the same formula in f64, same inputs (8-bit levels).
+    pub shading_max_err_levels: u8,
+    /// Mean of that.
+    pub shading_mean_err_levels: f64,
+    /// Comparison with the continuous reference (with `--reference`).
+    pub reference: Option<crate::refrender::Comparison>,
+    /// Wall time: load, light, shade, reference.
+    pub load_seconds: f64,
+    /// Lighting wall time.
+    pub light_seconds: f64,
+    /// Shading wall time.
+    pub shade_seconds: f64,
+    /// Reference rendering wall time.
+    pub reference_seconds: f64,
+    /// All of it.
+    pub wall_seconds: f64,
+    /// Peak resident memory (MiB).
+    pub peak_rss_mib: Option<f64>,
+}
+
+/// Render options.
+#[derive(Clone, Copy, Debug)]
+pub struct RenderConfig {
+    /// Lighting.
+    pub light: LightConfig,
+    /// Normals.
+    pub normals: NormalMode,
+}
+
+/// The lights as the reference renderer takes them.
+pub fn ref_lights(lights: &[PointLight]) -> Vec<crate::refrender::RefLight> {
+    lights
+        .iter()
+        .map(|l| crate::refrender::RefLight { pos: l.pos.map(|c| c as f64), color: l.color.map(|c| c as f64) })
+        .collect()
+}
+
+/// Ray-cast the f64 reference of a loaded scene with the same camera, resolution and lights.
+pub fn reference_image(mesh: &Mesh, scene: &LoadedScene, light_positions: &[[f64; 3]]) -> Result<crate::refrender::RefImage> {
+    let rl = ref_lights(&point_lights(light_positions));
+    crate::refrender::render_reference(mesh, &scene.fit, scene.grid.n, &rl, [AMBIENT as f64; 3])
+}
+
+/// Outputs of a render.
+pub struct Rendered {
+    /// The machine's image.
+    pub image: Image,
+    /// Statistics.
+    pub stats: RenderStats,
+}
+
+/// Light and shade a loaded scene; compare with `reference` when given (the time to make it is
+/// `reference_seconds`).
+#[allow(clippy::too_many_arguments)]
+pub fn render<F: FracBits>(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    light_positions: &[[f64; 3]],
+    cfg: &RenderConfig,
+    reference: Option<&crate::refrender::RefImage>,
+    load_seconds: f64,
+    reference_seconds: f64,
+    progress: impl FnMut(usize, u64),
+) -> Result<Rendered> {
+    let t0 = Instant::now();
+    let (lighting, lstats) = run_diffusion::<F>(mesh, scene, light_positions, &cfg.light, progress)?;
+    let t1 = Instant::now();
+    let lights = point_lights(light_positions);
+    let image = shade_grid(mesh, scene, &lights, &lighting, cfg.normals);
+    let t2 = Instant::now();
+    let cmp = reference.map(|r| crate::refrender::compare(&image.rgb, &image.covered, &image.lit, r));
+    let load_cell = std::mem::size_of::<cell_core::cell::Cell<{ cell_core::cell::DEFAULT_DEXELS }>>()
+        + std::mem::size_of::<cell_core::facet::RowPacket>();
+    let stats = RenderStats {
+        normals: match cfg.normals {
+            NormalMode::Facet => "facet".into(),
+            NormalMode::Face => "face".into(),
+        },
+        shade_cycles: light_positions.len().max(1) as u64,
+        covered_pixels: image.covered.iter().filter(|&&c| c).count() as u64,
+        lit_pixels: image.lit.iter().filter(|&&l| l != 0).count() as u64,
+        bytes_per_cell_load: load_cell,
+        bytes_per_cell: load_cell + lstats.bytes_light_cell,
+        shading_max_err_levels: image.shading_max_err_levels,
+        shading_mean_err_levels: image.shading_mean_err_levels,
+        reference: cmp,
+        load_seconds,
+        light_seconds: (t1 - t0).as_secs_f64(),
+        shade_seconds: (t2 - t1).as_secs_f64(),
+        reference_seconds,
+        wall_seconds: load_seconds + (t2 - t0).as_secs_f64() + reference_seconds,
+        peak_rss_mib: crate::load::peak_rss_mib(),
+        light: lstats,
+    };
+    Ok(Rendered { image, stats })
+}
