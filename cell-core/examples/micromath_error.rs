@@ -6,6 +6,7 @@
 //! random materials with Ns up to 200), three implementations of the same Phong/Blinn formula:
 //! exact f64 (libm), raw `micromath` (invsqrt, powf for the specular and the gamma), and the
 //! cell's (`cell_core::shade::shade`: micromath invsqrt + Newton, integer power, gamma table).
+#![allow(clippy::needless_range_loop, clippy::type_complexity)]
 
 use cell_core::shade::{shade, Material, NormalMode, PointLight, ShadeParams};
 use micromath::F32Ext;

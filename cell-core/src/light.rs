@@ -333,7 +333,8 @@ pub enum Step {
     Blocked,
 }
 
-/// Where a processed beam's rays go.
+/// Where a processed beam's rays go (lives on the stack for one step; no heap to box into).
+#[allow(clippy::large_enum_variant)]
 enum Fate<F: FracBits> {
     Absorbed(u64),
     Split { subs: heapless::Vec<(Target, BeamMsg<F>), 9>, exited: u64 },

@@ -63,8 +63,8 @@ impl<const D: usize> Grid<D> {
         let mut rep = LoadReport::default();
         let mut pipes: Vec<PipelinePacket> = packets.to_vec();
         // Packets in flight: (pipeline row, packet index) and (x, y, row-packet slot).
-        let (mut pipe_now, mut pipe_next): (Vec<(u32, u32)>, Vec<(u32, u32)>) = (Vec::new(), Vec::new());
-        let (mut row_now, mut row_next): (Vec<(u32, u32, u32)>, Vec<(u32, u32, u32)>) = (Vec::new(), Vec::new());
+        let (mut pipe_now, mut pipe_next) = (Vec::<(u32, u32)>::new(), Vec::<(u32, u32)>::new());
+        let (mut row_now, mut row_next) = (Vec::<(u32, u32, u32)>::new(), Vec::<(u32, u32, u32)>::new());
         let mut slab: Vec<RowPacket> = Vec::new();
         let mut free: Vec<u32> = Vec::new();
         let mut injected = 0usize;

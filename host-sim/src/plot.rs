@@ -1125,7 +1125,7 @@ pub fn pareto_front(points: &[ParetoPoint]) -> Vec<usize> {
 /// the default configuration as a large red mark, dominated points as grey dots.
 pub fn plot_pareto(points: &[ParetoPoint], title: &str, path: &Path) -> Result<()> {
     ensure_font()?;
-    if points.is_empty() || points.iter().any(|p| !(p.cycles > 0.0) || !p.error.is_finite()) {
+    if points.is_empty() || points.iter().any(|p| p.cycles.is_nan() || p.cycles <= 0.0 || !p.error.is_finite()) {
         return Err(anyhow!("nothing to plot (or a point with no cycles / a non-finite error)"));
     }
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {

@@ -149,11 +149,11 @@ pub fn fit(mesh: &Mesh, n: u32) -> Result<Fit> {
         bail!("{}: the mesh has no faces: nothing to voxelize", mesh.name);
     }
     let extent = (0..3).map(|i| hi[i] - lo[i]).fold(0.0, f64::max);
-    if !(extent > 0.0) || !extent.is_finite() {
+    if extent.is_nan() || extent <= 0.0 || !extent.is_finite() {
         bail!("{}: all vertices coincide (or the extent overflows): nothing to voxelize", mesh.name);
     }
     let voxel = extent / (n as f64 - 2.0 * MARGIN_VOXELS);
-    if !(voxel > 0.0) || !voxel.is_finite() {
+    if voxel.is_nan() || voxel <= 0.0 || !voxel.is_finite() {
         bail!("{}: cannot fit the mesh (extent {extent:e}) into the grid", mesh.name);
     }
     let origin = [0, 1, 2].map(|i| (lo[i] + hi[i]) / 2.0 - n as f64 / 2.0 * voxel);
@@ -245,12 +245,11 @@ fn convex_in_projection(p: &[[i64; 3]], axes: (usize, usize, usize)) -> bool {
     true
 }
 
+/// A facet's packet, or why it has none.
+pub type PacketOrSkip = std::result::Result<PipelinePacket, Skip>;
+
 /// Build the packet of one planar convex lattice polygon (`Ok(Err(skip))`: skipped, with the reason).
-pub fn facet_packet(
-    poly: &[[i64; 3]],
-    tag: FacetTag,
-    cfg: &LoadConfig,
-) -> Result<std::result::Result<PipelinePacket, Skip>> {
+pub fn facet_packet(poly: &[[i64; 3]], tag: FacetTag, cfg: &LoadConfig) -> Result<PacketOrSkip> {
     let n = polygon_normal(poly);
     if n == [0; 3] || poly.len() > MAX_EDGES {
         return Ok(Err(Skip::Degenerate));
@@ -321,7 +320,7 @@ pub fn facet_packet(
         // Voxel i has centre q·i + h: q·i + h ∈ [lo, hi].
         let i_lo = (lo - h + q - 1).div_euclid(q).max(0);
         let i_hi = (hi - h).div_euclid(q).min(nn - 1);
-        (i_lo <= i_hi).then(|| (i_lo as u16, i_hi as u16))
+        (i_lo <= i_hi).then_some((i_lo as u16, i_hi as u16))
     };
     let (Some((x_min, x_max)), Some((y_min, y_max)), Some((z_min, z_max))) = (range(0), range(1), range(2)) else {
         return Ok(Err(Skip::OutsideGrid));
@@ -346,11 +345,14 @@ fn dedup_cyclic(mut p: Vec<[i64; 3]>) -> Vec<[i64; 3]> {
     p
 }
 
+/// Planar convex pieces of a polygon, and whether it was split.
+pub type Pieces = (Vec<Vec<[i64; 3]>>, bool);
+
 /// Split a lattice polygon into what the cells accept: planar convex polygons of at most
 /// `MAX_EDGES` vertices. A planar convex polygon is kept whole; a convex one that quantisation
 /// made non-planar (or that has too many vertices) becomes a triangle fan; a non-convex simple
 /// polygon is ear-clipped in its projection. Returns the pieces and whether it was split.
-pub fn planar_pieces(p: Vec<[i64; 3]>) -> std::result::Result<(Vec<Vec<[i64; 3]>>, bool), &'static str> {
+pub fn planar_pieces(p: Vec<[i64; 3]>) -> std::result::Result<Pieces, &'static str> {
     let p = dedup_cyclic(p);
     if p.len() <= 3 {
         return Ok((vec![p], false));

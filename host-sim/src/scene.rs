@@ -204,7 +204,6 @@ where
         single_index: false,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let (models, mats) = tobj::load_obj_buf(&mut BufReader::new(text.as_bytes()), &opts, mtl_loader)
         .map_err(|e| anyhow::anyhow!("{name}: malformed OBJ ({e})"))?;

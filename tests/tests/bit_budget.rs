@@ -17,7 +17,10 @@ fn floor_div(n: i128, d: i128) -> i128 {
 
 #[test]
 fn extreme_facets_at_max_n() {
-    assert!(cfg!(debug_assertions), "run with overflow checks (the test profile keeps them on)");
+    #[allow(clippy::assertions_on_constants)]
+    {
+        assert!(cfg!(debug_assertions), "run with overflow checks (the test profile keeps them on)");
+    }
     let n = MAX_N;
     let m = Q * n as i64;
     let facets: Vec<Vec<[i64; 3]>> = vec![
