@@ -105,6 +105,12 @@ fn main() {
     println!("shading error against libm over {trials} random inputs (8-bit levels, gamma 2.2 output):");
     println!("| implementation | max | mean |");
     println!("|---|---|---|");
-    println!("| raw micromath (invsqrt, powf specular, powf gamma) | {raw_max} | {:.3} |", raw_sum as f64 / count as f64);
-    println!("| cell (invsqrt + 3 Newton steps, integer power, gamma table) | {cell_max} | {:.4} |", cell_sum as f64 / count as f64);
+    println!(
+        "| raw micromath (invsqrt, powf specular, powf gamma) | {raw_max} | {:.3} |",
+        raw_sum as f64 / count as f64
+    );
+    println!(
+        "| cell (invsqrt + 3 Newton steps, integer power, gamma table) | {cell_max} | {:.4} |",
+        cell_sum as f64 / count as f64
+    );
 }

@@ -166,13 +166,10 @@ const G: u32 = SOURCE_FRAC_BITS;
 // Bit budget (see module doc): left side a·m·2^(g+1) with |a| ≤ 2^31, m ≤ MAX_FAR …
 const _: () = assert!((1i128 << 31) * (MAX_FAR as i128) * (1i128 << (G + 1)) <= i64::MAX as i128);
 // … right side c·D·2^f with |c| ≤ 2^(g+1)·(MAX_FAR + 1) and D·2^f ≤ i32::MAX …
-const _: () =
-    assert!((1i128 << (G + 1)) * (MAX_FAR as i128 + 1) * (i32::MAX as i128) <= i64::MAX as i128);
+const _: () = assert!((1i128 << (G + 1)) * (MAX_FAR as i128 + 1) * (i32::MAX as i128) <= i64::MAX as i128);
 // … and the unclamped c = 2·(x·2^g − b) ± 2^g for any i32 x and b.
-const _: () = assert!(
-    2 * ((i32::MAX as i128 + 1) * (1i128 << G) + (i32::MAX as i128 + 1)) + (1i128 << G)
-        <= i64::MAX as i128
-);
+const _: () =
+    assert!(2 * ((i32::MAX as i128 + 1) * (1i128 << G) + (i32::MAX as i128 + 1)) + (1i128 << G) <= i64::MAX as i128);
 // The type of the source coordinates must match g.
 const _: () = assert!(SourceCoord::FRAC_NBITS == SOURCE_FRAC_BITS);
 
@@ -219,14 +216,8 @@ pub enum Direction {
 
 impl Direction {
     /// All six, x and y first, then z (the thesis's faster emission order, §4.4.3).
-    pub const ALL: [Direction; 6] = [
-        Direction::PosX,
-        Direction::NegX,
-        Direction::PosY,
-        Direction::NegY,
-        Direction::PosZ,
-        Direction::NegZ,
-    ];
+    pub const ALL: [Direction; 6] =
+        [Direction::PosX, Direction::NegX, Direction::PosY, Direction::NegY, Direction::PosZ, Direction::NegZ];
 
     /// The wire index 0..=5 (the thesis's "D : direction de propagation (0 à 5)").
     pub const fn index(self) -> u8 {
@@ -276,10 +267,7 @@ impl Direction {
     /// starts).
     pub const fn transverse_of(self, voxel: [i32; 3]) -> Transverse {
         let (a, b) = self.transverse();
-        Transverse {
-            u: voxel[a.index()],
-            v: voxel[b.index()],
-        }
+        Transverse { u: voxel[a.index()], v: voxel[b.index()] }
     }
 
     /// The 3D voxel of (layer, transverse position) for a beam of `source`.
@@ -367,10 +355,7 @@ impl<F: FracBits> FarDistance<F> {
     /// D, if 1 ≤ D ≤ [`FarDistance::MAX`].
     pub const fn new(d: u32) -> Option<Self> {
         if d >= 1 && d <= Self::MAX {
-            Some(FarDistance {
-                d,
-                _frac: PhantomData,
-            })
+            Some(FarDistance { d, _frac: PhantomData })
         } else {
             None
         }
@@ -417,10 +402,7 @@ pub struct Transverse {
 impl Transverse {
     /// The neighbour at `offset` (wrapping at the `i32` ends, which no grid reaches).
     pub const fn offset(self, offset: Offset) -> Transverse {
-        Transverse {
-            u: self.u.wrapping_add(offset.du as i32),
-            v: self.v.wrapping_add(offset.dv as i32),
-        }
+        Transverse { u: self.u.wrapping_add(offset.du as i32), v: self.v.wrapping_add(offset.dv as i32) }
     }
 }
 
@@ -553,10 +535,7 @@ impl<F: FracBits> RayRange<F> {
     /// `[−D, D]`: every ray of a face.
     pub const fn full(far: FarDistance<F>) -> Self {
         let n = far.scaled() as i32;
-        RayRange {
-            lo: FarOffset::<F>::from_bits(-n),
-            hi: FarOffset::<F>::from_bits(n),
-        }
+        RayRange { lo: FarOffset::<F>::from_bits(-n), hi: FarOffset::<F>::from_bits(n) }
     }
 
     /// Smallest ray (the thesis's U_min).
@@ -623,13 +602,7 @@ impl<F: FracBits> Beam<F> {
     /// The initial beam of `source` toward `dir`: all rays [−D, D]² at layer 0.
     pub fn initial(source: &Source, dir: Direction, far: FarDistance<F>) -> Self {
         let full = RayRange::full(far);
-        Beam {
-            u: full,
-            v: full,
-            layer: Layer(0),
-            source: source.id,
-            dir,
-        }
+        Beam { u: full, v: full, layer: Layer(0), source: source.id, dir }
     }
 
     /// The six initial beams of `source`, in [`Direction::ALL`] order (see the module doc for
@@ -654,13 +627,7 @@ impl<F: FracBits> Beam<F> {
         if layer.0 > far.get() {
             return Err(BeamError::LayerBeyondFar);
         }
-        Ok(Beam {
-            u,
-            v,
-            layer,
-            source,
-            dir,
-        })
+        Ok(Beam { u, v, layer, source, dir })
     }
 
     /// Rays along the u-axis: [u_min, u_max].
@@ -729,20 +696,12 @@ impl<F: FracBits> Beam<F> {
     /// is consistent. `None` if it does not fit `i32` (rays beyond the far square only).
     pub fn voxel(&self, source: &Source, far: FarDistance<F>) -> Option<Transverse> {
         let (a, b) = trace_ray_voxel(source, self.dir, self.u.lo, self.v.lo, far, self.layer);
-        Some(Transverse {
-            u: i32::try_from(a).ok()?,
-            v: i32::try_from(b).ok()?,
-        })
+        Some(Transverse { u: i32::try_from(a).ok()?, v: i32::try_from(b).ok()? })
     }
 
     /// Split the beam held by the cell at transverse position `at` into its sub-beams at layer
     /// k + 1, in [`SplitOrder::ROW_MAJOR`] order. See [`Beam::split_with`].
-    pub fn split(
-        &self,
-        source: &Source,
-        far: FarDistance<F>,
-        at: Transverse,
-    ) -> Result<SubBeams<F>, BeamError> {
+    pub fn split(&self, source: &Source, far: FarDistance<F>, at: Transverse) -> Result<SubBeams<F>, BeamError> {
         self.split_with(source, far, at, &SplitOrder::ROW_MAJOR)
     }
 
@@ -784,13 +743,7 @@ impl<F: FracBits> Beam<F> {
                 continue;
             };
             if let (Some(u), Some(v)) = (cu[i], cv[j]) {
-                let beam = Beam {
-                    u,
-                    v,
-                    layer: next,
-                    source: self.source,
-                    dir: self.dir,
-                };
+                let beam = Beam { u, v, layer: next, source: self.source, dir: self.dir };
                 // At most nine distinct offsets (a SplitOrder is a permutation): never full.
                 let _ = out.push(SubBeam { offset, beam });
             }
@@ -846,10 +799,7 @@ fn split_axis<F: FracBits>(
     let piece = |a: i64, b: i64| -> Option<RayRange<F>> {
         let (a, b) = (a.max(lo), b.min(hi));
         // Both within [lo, hi] ⊂ i32.
-        (a <= b).then(|| RayRange {
-            lo: FarOffset::<F>::from_bits(a as i32),
-            hi: FarOffset::<F>::from_bits(b as i32),
-        })
+        (a <= b).then(|| RayRange { lo: FarOffset::<F>::from_bits(a as i32), hi: FarOffset::<F>::from_bits(b as i32) })
     };
     out[0] = piece(lo, t1 - 1);
     out[1] = piece(t1, t2 - 1);
@@ -886,11 +836,8 @@ fn trace_axis(b: i32, a: i32, f: u32, d: u32, k: u32) -> i64 {
     let d = d as i128;
     let pf = 1i128 << f;
     let den = (pf << (G + 1)) * d;
-    let num = (b as i128) * (pf << 1) * d
-        + (a as i128) * (k as i128) * (1i128 << (G + 1))
-        + (pf << G) * d;
-    num.div_euclid(den)
-        .clamp(i64::MIN as i128, i64::MAX as i128) as i64
+    let num = (b as i128) * (pf << 1) * d + (a as i128) * (k as i128) * (1i128 << (G + 1)) + (pf << G) * d;
+    num.div_euclid(den).clamp(i64::MIN as i128, i64::MAX as i128) as i64
 }
 
 /// An exact rational `num / den`, `den > 0`, compared by cross-multiplication.
@@ -1084,13 +1031,7 @@ mod tests {
         assert!(FarDistance::<frac::U31>::new(1).is_none());
         assert!(FarDistance::<U8>::new(0).is_none());
         assert!(FarDistance::<U8>::new(8_388_608).is_none());
-        assert_eq!(
-            FarDistance::<U8>::new(8_388_607)
-                .unwrap()
-                .offset()
-                .to_bits(),
-            i32::MAX - 255
-        );
+        assert_eq!(FarDistance::<U8>::new(8_388_607).unwrap().offset().to_bits(), i32::MAX - 255);
     }
 
     #[test]

@@ -403,8 +403,11 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             let mut m = msg;
             let mut joined = false;
             // Keep joining while the grown rectangle meets another waiting beam.
-            while let Some((i, b)) =
-                self.fifo.iter().enumerate().find_map(|(i, e)| (e.z == m.z).then(|| e.beam.merged(&m.beam)).flatten().map(|b| (i, b)))
+            while let Some((i, b)) = self
+                .fifo
+                .iter()
+                .enumerate()
+                .find_map(|(i, e)| (e.z == m.z).then(|| e.beam.merged(&m.beam)).flatten().map(|b| (i, b)))
             {
                 self.fifo.remove(i);
                 if joined {
@@ -479,8 +482,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 Target::SelfFifo => need[8] += 1,
             }
         }
-        (0..8).all(|p| self.out[p].len() + need[p] <= OB)
-            && self.fifo.len() - 1 + need[8] <= fa.min(FA)
+        (0..8).all(|p| self.out[p].len() + need[p] <= OB) && self.fifo.len() - 1 + need[8] <= fa.min(FA)
     }
 
     /// One compute cycle (§4.4.1): pick a beam by `env.policy`, process it if the no-loss rule
@@ -603,11 +605,14 @@ mod tests {
         assert_eq!(r.runs().len(), 3);
         assert_eq!((r.mask_at(14), r.mask_at(15), r.mask_at(16), r.mask_at(9)), (1, 3, 1, 0));
         assert!(r.mark(14, 2) && r.mark(16, 2));
-        assert_eq!(r.runs(), &[
-            LitRun { lo: 10, hi: 13, mask: 1 },
-            LitRun { lo: 14, hi: 16, mask: 3 },
-            LitRun { lo: 17, hi: 20, mask: 1 }
-        ]);
+        assert_eq!(
+            r.runs(),
+            &[
+                LitRun { lo: 10, hi: 13, mask: 1 },
+                LitRun { lo: 14, hi: 16, mask: 3 },
+                LitRun { lo: 17, hi: 20, mask: 1 }
+            ]
+        );
         check(&r);
     }
 

@@ -13,9 +13,8 @@ use std::collections::HashSet;
 
 use cell_core::beam::frac::{U0, U1, U12, U16, U2, U20, U24, U3, U30, U4, U8};
 use cell_core::beam::{
-    split_planes, trace_ray_voxel, Beam, BeamError, Direction, FarDistance, FarOffset, FracBits,
-    Layer, Offset, Ratio, RayRange, Source, SourceCoord, SourceId, SplitOrder, SubBeam, Transverse,
-    SOURCE_FRAC_BITS,
+    split_planes, trace_ray_voxel, Beam, BeamError, Direction, FarDistance, FarOffset, FracBits, Layer, Offset, Ratio,
+    RayRange, Source, SourceCoord, SourceId, SplitOrder, SubBeam, Transverse, SOURCE_FRAC_BITS,
 };
 use proptest::prelude::*;
 
@@ -72,8 +71,7 @@ fn trace_oracle_matches_brute_force_rounding() {
                     for k in 0..=d {
                         for a in -n..=n {
                             let b = (a * 3) % (n + 1); // some v too
-                            let got =
-                                trace_ray_voxel(&s, dir, off::<F>(a), off::<F>(b), far, Layer(k));
+                            let got = trace_ray_voxel(&s, dir, off::<F>(a), off::<F>(b), far, Layer(k));
                             let bu = s.pos[ua.index()].to_bits() as i64;
                             let bv = s.pos[va.index()].to_bits() as i64;
                             assert_eq!(got.0, spec_voxel(bu, a, f, d as i64, k as i64));
@@ -107,22 +105,14 @@ fn check_split_every_ray<F: FracBits>(
             let (ru, rv) = (FarOffset::<F>::from_bits(a), FarOffset::<F>::from_bits(b));
             let here = trace_ray_voxel(s, beam.direction(), ru, rv, far, k);
             assert_eq!(here, (at.u as i64, at.v as i64), "beam not consistent");
-            let owners: Vec<&SubBeam<F>> =
-                subs.iter().filter(|sb| sb.beam.contains(ru, rv)).collect();
-            assert_eq!(
-                owners.len(),
-                1,
-                "ray ({a}, {b}) in {} sub-beams",
-                owners.len()
-            );
+            let owners: Vec<&SubBeam<F>> = subs.iter().filter(|sb| sb.beam.contains(ru, rv)).collect();
+            assert_eq!(owners.len(), 1, "ray ({a}, {b}) in {} sub-beams", owners.len());
             let next = trace_ray_voxel(s, beam.direction(), ru, rv, far, Layer(k.0 + 1));
             let to = at.offset(owners[0].offset);
             assert_eq!(next, (to.u as i64, to.v as i64), "ray ({a}, {b}) misrouted");
         }
     }
-    subs.iter()
-        .map(|sb| (sb.beam, at.offset(sb.offset)))
-        .collect()
+    subs.iter().map(|sb| (sb.beam, at.offset(sb.offset))).collect()
 }
 
 /// Structural partition checks that need no ray enumeration: children inside the parent,
@@ -146,10 +136,8 @@ fn check_structure<F: FracBits>(beam: &Beam<F>, subs: &[SubBeam<F>]) {
     }
     for (i, p) in subs.iter().enumerate() {
         for q in &subs[i + 1..] {
-            let u_overlap =
-                p.beam.u().lo() <= q.beam.u().hi() && q.beam.u().lo() <= p.beam.u().hi();
-            let v_overlap =
-                p.beam.v().lo() <= q.beam.v().hi() && q.beam.v().lo() <= p.beam.v().hi();
+            let u_overlap = p.beam.u().lo() <= q.beam.u().hi() && q.beam.u().lo() <= p.beam.u().hi();
+            let v_overlap = p.beam.v().lo() <= q.beam.v().hi() && q.beam.v().lo() <= p.beam.v().hi();
             assert!(!(u_overlap && v_overlap), "sub-beams overlap");
             // Order along each axis follows the offsets (monotone rounding).
             if p.offset.du < q.offset.du {
@@ -174,11 +162,7 @@ fn exhaustive<F: FracBits>() {
                 let mut layer = vec![(initial, dir.transverse_of(s.voxel()))];
                 for k in 0..=d {
                     let total: u64 = layer.iter().map(|(b, _)| b.ray_count()).sum();
-                    assert_eq!(
-                        total,
-                        far.rays_per_face(),
-                        "layer {k} does not cover the face"
-                    );
+                    assert_eq!(total, far.rays_per_face(), "layer {k} does not cover the face");
                     for (b, at) in &layer {
                         assert_eq!(b.layer(), Layer(k));
                         assert!(b.occupies(&s, far, *at));
@@ -244,18 +228,8 @@ fn initial_beams_overlap_exactly_on_the_cube_edges() {
                         emitted += 1;
                         let voxels: Vec<[i64; 3]> = (0..=d)
                             .map(|k| {
-                                let t = trace_ray_voxel(
-                                    &s,
-                                    dir,
-                                    off::<F>(a),
-                                    off::<F>(b),
-                                    far,
-                                    Layer(k),
-                                );
-                                let at = Transverse {
-                                    u: t.0 as i32,
-                                    v: t.1 as i32,
-                                };
+                                let t = trace_ray_voxel(&s, dir, off::<F>(a), off::<F>(b), far, Layer(k));
+                                let at = Transverse { u: t.0 as i32, v: t.1 as i32 };
                                 dir.voxel(&s, Layer(k), at)
                             })
                             .collect();
@@ -289,11 +263,9 @@ fn thesis_2d_y_med_is_u2() {
             for y in 0..=x as i32 {
                 let at = Transverse { u: y, v: 0 };
                 let p = split_planes(&s, Direction::PosX, far, Layer(x), at).unwrap();
-                let y_med =
-                    Ratio::new((2 * y as i64 + 1) * (n as i64 - 1), 2 * (x as i64 + 1)).unwrap();
+                let y_med = Ratio::new((2 * y as i64 + 1) * (n as i64 - 1), 2 * (x as i64 + 1)).unwrap();
                 assert_eq!(p.u2, y_med, "n={n} x={x} y={y}");
-                let y1 =
-                    Ratio::new((2 * y as i64 - 1) * (n as i64 - 1), 2 * (x as i64 + 1)).unwrap();
+                let y1 = Ratio::new((2 * y as i64 - 1) * (n as i64 - 1), 2 * (x as i64 + 1)).unwrap();
                 assert_eq!(p.u1, y1);
                 assert!(p.u1 < p.u2);
             }
@@ -323,16 +295,9 @@ fn thesis_truncated_y_med_would_misroute_exact_threshold_does_not() {
     let far = FarDistance::<U0>::new(7).unwrap();
     let beam = Beam::initial(&s, Direction::PosX, far);
     let subs = beam.split(&s, far, Transverse { u: 0, v: 0 }).unwrap();
-    let owner = |u: i32| {
-        subs.iter()
-            .find(|sb| sb.beam.contains(off(u as i64), off(0)))
-            .unwrap()
-    };
+    let owner = |u: i32| subs.iter().find(|sb| sb.beam.contains(off(u as i64), off(0))).unwrap();
     // Ray 3 at layer 1 is at 3/7 < ½: it stays. The truncated threshold would send it up.
-    assert_eq!(
-        trace_ray_voxel(&s, Direction::PosX, off::<U0>(3), off(0), far, Layer(1)).0,
-        0
-    );
+    assert_eq!(trace_ray_voxel(&s, Direction::PosX, off::<U0>(3), off(0), far, Layer(1)).0, 0);
     assert_eq!(owner(3).offset.du, 0);
     assert_eq!(owner(4).offset.du, 1);
     let p = split_planes(&s, Direction::PosX, far, Layer(0), Transverse::default()).unwrap();
@@ -347,12 +312,7 @@ fn rays_exactly_on_a_plane() {
     let far = FarDistance::<U0>::new(4).unwrap();
     let beam = Beam::initial(&s, Direction::PosZ, far);
     let subs = beam.split(&s, far, Transverse::default()).unwrap();
-    let find = |u: i64, v: i64| {
-        subs.iter()
-            .find(|sb| sb.beam.contains(off(u), off(v)))
-            .unwrap()
-            .offset
-    };
+    let find = |u: i64, v: i64| subs.iter().find(|sb| sb.beam.contains(off(u), off(v))).unwrap().offset;
     assert_eq!(find(2, 0), Offset { du: 1, dv: 0 });
     assert_eq!(find(1, 0), Offset { du: 0, dv: 0 });
     assert_eq!(find(-2, 0), Offset { du: 0, dv: 0 });
@@ -370,16 +330,11 @@ fn orders_errors_and_names() {
     let at = Direction::NegY.transverse_of(s.voxel());
     assert_eq!(at, Transverse { u: 2, v: 4 });
     let a = beam.split(&s, far, at).unwrap();
-    let b = beam
-        .split_with(&s, far, at, &SplitOrder::AXIS_NEIGHBOURS_FIRST)
-        .unwrap();
+    let b = beam.split_with(&s, far, at, &SplitOrder::AXIS_NEIGHBOURS_FIRST).unwrap();
     let order_a: Vec<Offset> = a.iter().map(|x| x.offset).collect();
     let order_b: Vec<Offset> = b.iter().map(|x| x.offset).collect();
     assert_eq!(order_a, SplitOrder::ROW_MAJOR.offsets().to_vec());
-    assert_eq!(
-        order_b,
-        SplitOrder::AXIS_NEIGHBOURS_FIRST.offsets().to_vec()
-    );
+    assert_eq!(order_b, SplitOrder::AXIS_NEIGHBOURS_FIRST.offsets().to_vec());
     for sb in &b {
         assert!(a.contains(sb));
     }
@@ -398,20 +353,11 @@ fn orders_errors_and_names() {
     assert_eq!(beam.split(&s, small, at), Err(BeamError::OutsideFarSquare));
     let r = RayRange::new(off::<U2>(-4), off(4)).unwrap();
     assert!(RayRange::new(off::<U2>(4), off(3)).is_none());
-    assert_eq!(
-        Beam::new(SID, Direction::PosX, Layer(7), r, r, far),
-        Err(BeamError::LayerBeyondFar)
-    );
+    assert_eq!(Beam::new(SID, Direction::PosX, Layer(7), r, r, far), Err(BeamError::LayerBeyondFar));
     let wide = RayRange::new(off::<U2>(-25), off(0)).unwrap();
-    assert_eq!(
-        Beam::new(SID, Direction::PosX, Layer(1), wide, r, far),
-        Err(BeamError::OutsideFarSquare)
-    );
+    assert_eq!(Beam::new(SID, Direction::PosX, Layer(1), wide, r, far), Err(BeamError::OutsideFarSquare));
     let b6 = Beam::new(SID, Direction::PosX, Layer(6), r, r, far).unwrap();
-    assert_eq!(
-        b6.split(&s, far, Transverse::default()),
-        Err(BeamError::AtFarPlane)
-    );
+    assert_eq!(b6.split(&s, far, Transverse::default()), Err(BeamError::AtFarPlane));
     // Names.
     for (i, d) in Direction::ALL.into_iter().enumerate() {
         assert_eq!(d.index() as usize, i);
@@ -423,14 +369,8 @@ fn orders_errors_and_names() {
         assert_eq!((step[u.index()], step[v.index()]), (1, -1));
     }
     assert_eq!(Direction::from_index(6), None);
-    assert_eq!(
-        Direction::PosZ.voxel(&s, Layer(3), Transverse { u: 9, v: 8 }),
-        [9, 8, 7]
-    );
-    assert_eq!(
-        Direction::NegX.voxel(&s, Layer(3), Transverse { u: 9, v: 8 }),
-        [-1, 9, 8]
-    );
+    assert_eq!(Direction::PosZ.voxel(&s, Layer(3), Transverse { u: 9, v: 8 }), [9, 8, 7]);
+    assert_eq!(Direction::NegX.voxel(&s, Layer(3), Transverse { u: 9, v: 8 }), [-1, 9, 8]);
     // Source voxel rounding: half up.
     assert_eq!(src([8, -8, 7]).voxel(), [1, 0, 0]);
     assert_eq!(src([-9, 24, -24]).voxel(), [-1, 2, -1]);
@@ -543,10 +483,7 @@ fn random_consistent_split<F: FracBits>(c: &Case) -> Result<(), TestCaseError> {
     };
     let s = src(c.src);
     let dir = Direction::from_index(c.dir).unwrap();
-    let ray = [
-        c.ray[0].rem_euclid(2 * n + 1) - n,
-        c.ray[1].rem_euclid(2 * n + 1) - n,
-    ];
+    let ray = [c.ray[0].rem_euclid(2 * n + 1) - n, c.ray[1].rem_euclid(2 * n + 1) - n];
     let t = trace_ray_voxel(&s, dir, off::<F>(ray[0]), off::<F>(ray[1]), far, Layer(k));
     let (Ok(tu), Ok(tv)) = (i32::try_from(t.0), i32::try_from(t.1)) else {
         return Ok(()); // a source at ±2^27 with a far ray: the voxel is off any i32 grid
@@ -637,13 +574,7 @@ fn random_consistent_split<F: FracBits>(c: &Case) -> Result<(), TestCaseError> {
             prop_assert_eq!(owners.len(), 1);
             let next = trace_ray_voxel(&s, dir, ru, rv, far, Layer(k + 1));
             let to = at.offset(owners[0].offset);
-            prop_assert_eq!(
-                next,
-                (to.u as i64, to.v as i64),
-                "ray ({}, {}) misrouted",
-                a,
-                b
-            );
+            prop_assert_eq!(next, (to.u as i64, to.v as i64), "ray ({}, {}) misrouted", a, b);
         }
     }
     // A ray exactly on a plane: on U2 goes +1, on U1 stays (when the plane is a lattice ray).
@@ -655,10 +586,7 @@ fn random_consistent_split<F: FracBits>(c: &Case) -> Result<(), TestCaseError> {
             if on_lattice && lo <= t && t <= hi {
                 let mut r = [ranges[0].0, ranges[1].0];
                 r[ax] = t;
-                let sb = subs
-                    .iter()
-                    .find(|sb| sb.beam.contains(off(r[0]), off(r[1])))
-                    .unwrap();
+                let sb = subs.iter().find(|sb| sb.beam.contains(off(r[0]), off(r[1]))).unwrap();
                 let got = if ax == 0 { sb.offset.du } else { sb.offset.dv };
                 prop_assert_eq!(got, want);
             }
@@ -669,11 +597,7 @@ fn random_consistent_split<F: FracBits>(c: &Case) -> Result<(), TestCaseError> {
 
 /// Arbitrary, possibly inconsistent inputs at the extremes of every type: never panics
 /// (overflow checks are on in tests) and always partitions.
-fn arbitrary_split<F: FracBits>(
-    c: &Case,
-    at: [i32; 2],
-    order: &[usize],
-) -> Result<(), TestCaseError> {
+fn arbitrary_split<F: FracBits>(c: &Case, at: [i32; 2], order: &[usize]) -> Result<(), TestCaseError> {
     let d = pick_d(FarDistance::<F>::MAX, c.d_pick);
     let far = FarDistance::<F>::new(d).unwrap();
     let n = far.scaled();
@@ -688,9 +612,7 @@ fn arbitrary_split<F: FracBits>(
     let all = *SplitOrder::ROW_MAJOR.offsets();
     let order = SplitOrder::new(core::array::from_fn(|i| all[order[i]])).unwrap();
     let s = src(c.src);
-    let subs = beam
-        .split_with(&s, far, Transverse { u: at[0], v: at[1] }, &order)
-        .unwrap();
+    let subs = beam.split_with(&s, far, Transverse { u: at[0], v: at[1] }, &order).unwrap();
     check_structure(&beam, &subs);
     let _ = beam.voxel(&s, far);
     let _ = beam.occupies(&s, far, Transverse { u: at[0], v: at[1] });

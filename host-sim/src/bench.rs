@@ -95,8 +95,17 @@ pub fn sweep(fs: &[u32]) -> Vec<Knobs> {
 /// configuration, plus an `all` row per configuration: error and cycles averaged over the scenes,
 /// bytes the largest) and one Pareto plot per n over the averaged rows
 /// (`<plot stem>-n<N>.png`, or the plot path itself for a single n).
-pub fn run_bench(meshes: &[Mesh], ns: &[u32], fs: &[u32], csv_path: &Path, plot_path: &Path, quiet: bool) -> Result<()> {
-    let mut csv = std::io::BufWriter::new(std::fs::File::create(csv_path).with_context(|| format!("cannot create {}", csv_path.display()))?);
+pub fn run_bench(
+    meshes: &[Mesh],
+    ns: &[u32],
+    fs: &[u32],
+    csv_path: &Path,
+    plot_path: &Path,
+    quiet: bool,
+) -> Result<()> {
+    let mut csv = std::io::BufWriter::new(
+        std::fs::File::create(csv_path).with_context(|| format!("cannot create {}", csv_path.display()))?,
+    );
     writeln!(
         csv,
         "scene,n,f,thickness,contour,normals,fa,policy,is_default,load_cycles,light_cycles,shade_cycles,cycles,t_over_lb,beams,bytes_per_cell,wall_seconds,shadow_disagreement_pct,coverage_disagreement_pct,psnr_db,pareto"
@@ -118,7 +127,12 @@ pub fn run_bench(meshes: &[Mesh], ns: &[u32], fs: &[u32], csv_path: &Path, plot_
                     reference = Some(reference_image(mesh, &loaded, &lights)?);
                 }
                 let rcfg = RenderConfig {
-                    light: LightConfig { fa: k.fa, policy: k.policy, merge: k.policy == Policy::Wavefront, record_visits: false },
+                    light: LightConfig {
+                        fa: k.fa,
+                        policy: k.policy,
+                        merge: k.policy == Policy::Wavefront,
+                        record_visits: false,
+                    },
                     normals: k.normals,
                 };
                 let r = cell_core::with_frac_bits!(k.f, F => render::<F>(mesh, &loaded, &lights, &rcfg, reference.as_ref(), load_seconds, 0.0, |_, _| {}))
@@ -131,16 +145,36 @@ pub fn run_bench(meshes: &[Mesh], ns: &[u32], fs: &[u32], csv_path: &Path, plot_
                 if !quiet {
                     eprintln!(
                         "{:>13} n = {n} {:36} cycles {:>8}  shadow {:6.2} %  PSNR {:6.2} dB  wall {:.2} s",
-                        mesh.name, k.label(), cycles, c.shadow_disagreement_pct, c.psnr_db, st.wall_seconds
+                        mesh.name,
+                        k.label(),
+                        cycles,
+                        c.shadow_disagreement_pct,
+                        c.psnr_db,
+                        st.wall_seconds
                     );
                 }
                 writeln!(
                     csv,
                     "{},{n},{},{:?},{:?},{:?},{},{},{},{},{},{},{},{:.4},{},{},{:.4},{:.4},{:.4},{:.4},",
-                    mesh.name, k.f, k.thickness, k.contour, k.normals, k.fa, policy_name(k.policy), *k == Knobs::DEFAULT,
-                    st.light.load_cycles, st.light.totals.cycles, st.shade_cycles, cycles, st.light.t_over_lb,
-                    st.light.totals.beams_processed, bytes, st.wall_seconds,
-                    c.shadow_disagreement_pct, c.coverage_disagreement_pct, c.psnr_db
+                    mesh.name,
+                    k.f,
+                    k.thickness,
+                    k.contour,
+                    k.normals,
+                    k.fa,
+                    policy_name(k.policy),
+                    *k == Knobs::DEFAULT,
+                    st.light.load_cycles,
+                    st.light.totals.cycles,
+                    st.shade_cycles,
+                    cycles,
+                    st.light.t_over_lb,
+                    st.light.totals.beams_processed,
+                    bytes,
+                    st.wall_seconds,
+                    c.shadow_disagreement_pct,
+                    c.coverage_disagreement_pct,
+                    c.psnr_db
                 )?;
                 let a = &mut agg[ki];
                 a.0 += cycles as f64;
@@ -155,22 +189,43 @@ pub fn run_bench(meshes: &[Mesh], ns: &[u32], fs: &[u32], csv_path: &Path, plot_
         let points: Vec<ParetoPoint> = knobs
             .iter()
             .zip(&agg)
-            .map(|(k, a)| ParetoPoint { label: k.label(), cycles: a.0 / m, error: a.1 / m, bytes: a.2 as f64, is_default: *k == Knobs::DEFAULT })
+            .map(|(k, a)| ParetoPoint {
+                label: k.label(),
+                cycles: a.0 / m,
+                error: a.1 / m,
+                bytes: a.2 as f64,
+                is_default: *k == Knobs::DEFAULT,
+            })
             .collect();
         let front = pareto_front(&points);
         for (i, (k, a)) in knobs.iter().zip(&agg).enumerate() {
             writeln!(
                 csv,
                 "all,{n},{},{:?},{:?},{:?},{},{},{},,,,{:.1},,,{},{:.4},{:.4},{:.4},{:.4},{}",
-                k.f, k.thickness, k.contour, k.normals, k.fa, policy_name(k.policy), *k == Knobs::DEFAULT,
-                a.0 / m, a.2, a.5, a.1 / m, a.4 / m, a.3 / m, front.contains(&i)
+                k.f,
+                k.thickness,
+                k.contour,
+                k.normals,
+                k.fa,
+                policy_name(k.policy),
+                *k == Knobs::DEFAULT,
+                a.0 / m,
+                a.2,
+                a.5,
+                a.1 / m,
+                a.4 / m,
+                a.3 / m,
+                front.contains(&i)
             )?;
         }
         let path = if ns.len() == 1 {
             plot_path.to_path_buf()
         } else {
             let stem = plot_path.with_extension("");
-            stem.with_file_name(format!("{}-n{n}.png", stem.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()))
+            stem.with_file_name(format!(
+                "{}-n{n}.png",
+                stem.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
+            ))
         };
         let title = format!("{}, n = {n}: shadow error against machine cycles (mean over scenes)", names.join(" + "));
         plot_pareto(&points, &title, &path)?;
@@ -182,7 +237,12 @@ pub fn run_bench(meshes: &[Mesh], ns: &[u32], fs: &[u32], csv_path: &Path, plot_
             for (i, (p, a)) in points.iter().zip(&agg).enumerate() {
                 eprintln!(
                     "| {}{} | {:.0} | {:.2} | {:.2} | {} | {} |",
-                    if p.is_default { "**default** " } else { "" }, p.label, p.cycles, p.error, a.3 / m, p.bytes,
+                    if p.is_default { "**default** " } else { "" },
+                    p.label,
+                    p.cycles,
+                    p.error,
+                    a.3 / m,
+                    p.bytes,
                     if front.contains(&i) { "yes" } else { "" }
                 );
             }

@@ -125,7 +125,8 @@ impl Voxels {
                     dim = Some(v[0]);
                 }
                 Some("translate") => {
-                    let v: Vec<f64> = it.map(|s| s.parse()).collect::<Result<_, _>>().context("binvox: bad translate")?;
+                    let v: Vec<f64> =
+                        it.map(|s| s.parse()).collect::<Result<_, _>>().context("binvox: bad translate")?;
                     translate = v.try_into().map_err(|_| anyhow::anyhow!("binvox: bad translate"))?;
                 }
                 Some("scale") => scale = it.next().context("binvox: bad scale")?.parse()?,

@@ -52,20 +52,9 @@ pub enum Command {
 /// Options of `voxelize`.
 #[derive(Args, Debug)]
 pub struct VoxelizeArgs {
-    /// An .obj file, or a built-in scene name (see `host-sim scenes`).
-    #[arg(default_value = "cornell")]
-    pub scene: String,
-    /// Grid side: n × n cells, each owning a column of n voxels (4 ..= 65536).
-    #[arg(long, default_value_t = 128)]
-    pub n: u32,
-    /// Plane thickness: naive (σ = ½, stops 6-connected rays), thesis (§3.8's σ), standard
-    /// (|a|+|b|+|c|, provably free of 26-tunnels).
-    #[arg(long, value_enum, default_value_t = Thickness::Standard)]
-    pub sigma: Thickness,
-    /// Facet contour: projected (the thesis's) or conservative (closes gaps between facets and
-    /// holes in thin facets).
-    #[arg(long, value_enum, default_value_t = Contour::Conservative)]
-    pub contour: Contour,
+    /// Scene and loading options.
+    #[command(flatten)]
+    pub load: LoadArgs,
     /// wave: the RC² loading wave stepped cycle by cycle; direct: the same integer formulas
     /// evaluated directly on the host (reference, no cycles).
     #[arg(long, value_enum, default_value_t = Engine::Wave)]
@@ -103,19 +92,21 @@ impl From<PolicyArg> for cell_core::light::Policy {
     }
 }
 
-/// Loading options shared by the jobs that voxelize first.
+/// Loading options shared by the jobs that voxelize first (`voxelize`, `light`).
 #[derive(Args, Debug, Clone)]
 pub struct LoadArgs {
     /// An .obj file, or a built-in scene name (see `host-sim scenes`).
     #[arg(default_value = "cornell")]
     pub scene: String,
-    /// Grid side: n × n cells, each owning a column of n voxels.
+    /// Grid side: n × n cells, each owning a column of n voxels (4 ..= 65536).
     #[arg(long, default_value_t = 128)]
     pub n: u32,
-    /// Plane thickness (see `voxelize --help`).
+    /// Plane thickness: naive (σ = ½, stops 6-connected rays), thesis (§3.8's σ), standard
+    /// (|a|+|b|+|c|, provably free of 26-tunnels).
     #[arg(long, value_enum, default_value_t = Thickness::Standard)]
     pub sigma: Thickness,
-    /// Facet contour (see `voxelize --help`).
+    /// Facet contour: projected (the thesis's) or conservative (closes gaps between facets and
+    /// holes in thin facets).
     #[arg(long, value_enum, default_value_t = Contour::Conservative)]
     pub contour: Contour,
 }
@@ -166,7 +157,12 @@ pub struct LightOpts {
 
 impl LightOpts {
     fn config(&self) -> crate::diffuse::LightConfig {
-        crate::diffuse::LightConfig { fa: self.fa, policy: self.policy.into(), merge: self.merge.resolve(self.policy), record_visits: false }
+        crate::diffuse::LightConfig {
+            fa: self.fa,
+            policy: self.policy.into(),
+            merge: self.merge.resolve(self.policy),
+            record_visits: false,
+        }
     }
 }
 
@@ -188,7 +184,7 @@ pub struct RenderArgs {
     /// Grid side: n × n cells (and pixels), each owning a column of n voxels.
     #[arg(long, default_value_t = 128)]
     pub n: u32,
-    /// Plane thickness (see `voxelize --help`). The default, the thinnest surface, gives the best
+    /// Plane thickness (naive, thesis, standard; see `voxelize --help`). The default, the thinnest surface, gives the best
     /// image per cycle (`host-sim bench`, BENCHMARKS.md); `standard` is the tunnel-free one.
     #[arg(long, value_enum, default_value_t = Thickness::Naive)]
     pub sigma: Thickness,
@@ -268,7 +264,11 @@ impl MergeArg {
 }
 
 fn parse_triple(s: &str) -> std::result::Result<[f64; 3], String> {
-    let v: Vec<f64> = s.split(',').map(|t| t.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().map_err(|e| format!("'{s}': {e}"))?;
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|e| format!("'{s}': {e}"))?;
     match v[..] {
         [x, y, z] => Ok([x, y, z]),
         _ => Err(format!("'{s}': expected X,Y,Z")),
@@ -372,7 +372,13 @@ pub fn run(cli: Cli) -> Result<()> {
             let sub = crate::meshops::subdivide_to(&mesh, a.target);
             let f = File::create(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
             crate::meshops::write_obj(&sub, BufWriter::new(f))?;
-            eprintln!("{}: {} → {} triangles, written to {}", mesh.name, mesh.faces.len(), sub.faces.len(), a.out.display());
+            eprintln!(
+                "{}: {} → {} triangles, written to {}",
+                mesh.name,
+                mesh.faces.len(),
+                sub.faces.len(),
+                a.out.display()
+            );
             Ok(())
         }
     }
@@ -421,14 +427,20 @@ fn print_summary(s: &VoxelizeStats) {
     );
     eprintln!(
         "  load cycles {}  bytes/cell static {} peak {}  wall {:.3} s (precompute {:.3} s, load {:.3} s)",
-        s.load_cycles, s.bytes_per_cell_static, s.bytes_per_cell_peak, s.wall_seconds, s.precompute_seconds, s.load_seconds
+        s.load_cycles,
+        s.bytes_per_cell_static,
+        s.bytes_per_cell_peak,
+        s.wall_seconds,
+        s.precompute_seconds,
+        s.load_seconds
     );
 }
 
 fn run_voxelize<const D: usize>(a: &VoxelizeArgs) -> Result<()> {
-    let cfg = LoadConfig { n: a.n, thickness: a.sigma, contour: a.contour };
+    let l = &a.load;
+    let cfg = LoadConfig { n: l.n, thickness: l.sigma, contour: l.contour };
     cfg.validate()?;
-    let mesh = scene::load(&a.scene)?;
+    let mesh = scene::load(&l.scene)?;
     let pb = progress_bar(a.quiet, "load");
     let v = voxelize::<D>(&mesh, &cfg, a.engine, |pos, len| {
         pb.set_length(len.max(pos));
@@ -473,7 +485,14 @@ fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
     }
     eprintln!(
         "{}: n = {}, {} facets, {} light(s), FA = {}, f = {}, policy {}, merge {}",
-        stats.scene, stats.n, stats.facets, stats.sources.len(), stats.fa, stats.frac_bits, stats.policy, stats.merge
+        stats.scene,
+        stats.n,
+        stats.facets,
+        stats.sources.len(),
+        stats.fa,
+        stats.frac_bits,
+        stats.policy,
+        stats.merge
     );
     for s in &stats.sources {
         eprintln!(
@@ -490,10 +509,18 @@ fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
     }
     eprintln!(
         "  lit voxels {}  rays emitted {} = absorbed {} + exited {}  wall {:.3} s",
-        stats.lit_voxels, stats.totals.rays_emitted, stats.totals.rays_absorbed, stats.totals.rays_exited, stats.wall_seconds
+        stats.lit_voxels,
+        stats.totals.rays_emitted,
+        stats.totals.rays_absorbed,
+        stats.totals.rays_exited,
+        stats.wall_seconds
     );
     if stats.lit_overflows > 0 {
-        anyhow::bail!("{} lit marks did not fit a cell's lit store ({} runs per column)", stats.lit_overflows, crate::diffuse::LIT_CAP);
+        anyhow::bail!(
+            "{} lit marks did not fit a cell's lit store ({} runs per column)",
+            stats.lit_overflows,
+            crate::diffuse::LIT_CAP
+        );
     }
     Ok(())
 }
@@ -515,16 +542,37 @@ fn run_table<F: cell_core::beam::FracBits>(a: &TableArgs) -> Result<()> {
         let lights = resolve_lights(&mesh, &loaded, &[])?.iter().map(|_| [c, c, c]).collect::<Vec<_>>();
         for &policy in &a.policy {
             for &fa in &a.fa {
-                let lcfg = crate::diffuse::LightConfig { fa, policy: policy.into(), merge: a.merge.resolve(policy), record_visits: false };
+                let lcfg = crate::diffuse::LightConfig {
+                    fa,
+                    policy: policy.into(),
+                    merge: a.merge.resolve(policy),
+                    record_visits: false,
+                };
                 let (_, s) = run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, |_, _| {})?;
                 let r = &s.sources[0];
                 writeln!(
                     csv,
                     "{n},{fa},{},{},{},{},{:.4},{},{},{},{},{},{},{:.4}",
-                    s.policy, s.frac_bits, r.counts.cycles, r.counts.lower_bound, s.t_over_lb, r.counts.lb_distance, r.counts.lb_cell_load,
-                    r.counts.beams_processed, r.counts.messages, r.counts.peak_fifo, r.counts.blocked_cell_cycles, s.wall_seconds
+                    s.policy,
+                    s.frac_bits,
+                    r.counts.cycles,
+                    r.counts.lower_bound,
+                    s.t_over_lb,
+                    r.counts.lb_distance,
+                    r.counts.lb_cell_load,
+                    r.counts.beams_processed,
+                    r.counts.messages,
+                    r.counts.peak_fifo,
+                    r.counts.blocked_cell_cycles,
+                    s.wall_seconds
                 )?;
-                rows.push(crate::plot::DiffusionRow { n, fa: fa as u32, policy: s.policy.clone(), cycles: r.counts.cycles, lower_bound: r.counts.lower_bound });
+                rows.push(crate::plot::DiffusionRow {
+                    n,
+                    fa: fa as u32,
+                    policy: s.policy.clone(),
+                    cycles: r.counts.cycles,
+                    lower_bound: r.counts.lower_bound,
+                });
                 pb.inc(1);
             }
         }
@@ -535,7 +583,15 @@ fn run_table<F: cell_core::beam::FracBits>(a: &TableArgs) -> Result<()> {
     eprintln!("| N | FA | policy | T | LB | T/LB |");
     eprintln!("|---|---|---|---|---|---|");
     for r in &rows {
-        eprintln!("| {} | {} | {} | {} | {} | {:.2} |", r.n, r.fa, r.policy, r.cycles, r.lower_bound, r.cycles as f64 / r.lower_bound.max(1) as f64);
+        eprintln!(
+            "| {} | {} | {} | {} | {} | {:.2} |",
+            r.n,
+            r.fa,
+            r.policy,
+            r.cycles,
+            r.lower_bound,
+            r.cycles as f64 / r.lower_bound.max(1) as f64
+        );
     }
     eprintln!("wrote {} and {}", a.out.display(), a.plot.display());
     Ok(())
@@ -554,7 +610,12 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
         let loaded = load_scene(&mesh, &cfg)?;
         let lights = resolve_lights(&mesh, &loaded, &a.lights)?;
         for &f in &a.frac_bits {
-            let lcfg = crate::diffuse::LightConfig { fa: a.fa, policy: a.policy.into(), merge: MergeArg::Auto.resolve(a.policy), record_visits: false };
+            let lcfg = crate::diffuse::LightConfig {
+                fa: a.fa,
+                policy: a.policy.into(),
+                merge: MergeArg::Auto.resolve(a.policy),
+                record_visits: false,
+            };
             let row = cell_core::with_frac_bits!(f, F => {
                 run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, |_, _| {})
                     .and_then(|(l, s)| Ok((accuracy(&mesh, &loaded, &lights, &l)?, s)))
@@ -564,12 +625,27 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
             writeln!(
                 csv,
                 "{},{n},{f},{},{},{},{},{},{:.4},{},{},{},{:.4}",
-                mesh.name, acc.surface_voxels, acc.lit_discrete, acc.lit_continuous, acc.false_lit, acc.false_dark,
-                acc.disagreement_pct, s.totals.cycles, s.totals.lower_bound, s.totals.beams_processed, s.wall_seconds
+                mesh.name,
+                acc.surface_voxels,
+                acc.lit_discrete,
+                acc.lit_continuous,
+                acc.false_lit,
+                acc.false_dark,
+                acc.disagreement_pct,
+                s.totals.cycles,
+                s.totals.lower_bound,
+                s.totals.beams_processed,
+                s.wall_seconds
             )?;
             eprintln!(
                 "| {n} | {f} | {} | {} | {} | {:.2} | {} | {} | {:.2} |",
-                acc.surface_voxels, acc.false_lit, acc.false_dark, acc.disagreement_pct, s.totals.cycles, s.totals.beams_processed, s.wall_seconds
+                acc.surface_voxels,
+                acc.false_lit,
+                acc.false_dark,
+                acc.disagreement_pct,
+                s.totals.cycles,
+                s.totals.beams_processed,
+                s.wall_seconds
             );
         }
     }
@@ -609,11 +685,12 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     };
     let reference_seconds = t1.elapsed().as_secs_f64();
     let pb = progress_bar(a.quiet, "light 1");
-    let r = render::<F>(&mesh, &loaded, &lights, &rcfg, reference.as_ref(), load_seconds, reference_seconds, |s, c| {
-        pb.set_message(format!("light {}", s + 1));
-        pb.set_length(c.max(1));
-        pb.set_position(c);
-    })?;
+    let r =
+        render::<F>(&mesh, &loaded, &lights, &rcfg, reference.as_ref(), load_seconds, reference_seconds, |s, c| {
+            pb.set_message(format!("light {}", s + 1));
+            pb.set_length(c.max(1));
+            pb.set_position(c);
+        })?;
     pb.finish_and_clear();
     write_png(&a.out, r.image.n, &r.image.rgb)?;
     let mut written = vec![a.out.display().to_string()];
@@ -633,8 +710,15 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     let t = &s.light.totals;
     eprintln!(
         "{}: n = {}, {} facets, {} light(s), f = {}, FA = {}, {} policy{}, {} normals",
-        s.light.scene, s.light.n, s.light.facets, s.light.sources.len(), s.light.frac_bits, s.light.fa, s.light.policy,
-        if s.light.merge { " + merge" } else { "" }, s.normals
+        s.light.scene,
+        s.light.n,
+        s.light.facets,
+        s.light.sources.len(),
+        s.light.frac_bits,
+        s.light.fa,
+        s.light.policy,
+        if s.light.merge { " + merge" } else { "" },
+        s.normals
     );
     eprintln!(
         "  cycles: load {}  light {} (T/LB {:.2}, {} beams)  shade {}",
@@ -653,7 +737,12 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     }
     eprintln!(
         "  wall {:.2} s (load {:.2}, light {:.2}, shade {:.2}, reference {:.2})   wrote {}",
-        s.wall_seconds, s.load_seconds, s.light_seconds, s.shade_seconds, s.reference_seconds, written.join(", ")
+        s.wall_seconds,
+        s.load_seconds,
+        s.light_seconds,
+        s.shade_seconds,
+        s.reference_seconds,
+        written.join(", ")
     );
     Ok(())
 }

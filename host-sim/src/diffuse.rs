@@ -135,7 +135,10 @@ impl<F: FracBits> Lighting<F> {
     /// Every lit voxel with its mask, in (y, x, z) order.
     pub fn lit_voxels(&self) -> impl Iterator<Item = ([u32; 3], SourceMask)> + '_ {
         self.cells.iter().flat_map(|c| {
-            c.lit.runs().iter().flat_map(move |r| (r.lo..=r.hi).map(move |z| ([c.x as u32, c.y as u32, z as u32], r.mask)))
+            c.lit
+                .runs()
+                .iter()
+                .flat_map(move |r| (r.lo..=r.hi).map(move |z| ([c.x as u32, c.y as u32, z as u32], r.mask)))
         })
     }
 
@@ -335,7 +338,13 @@ fn diffuse_one<F: FracBits, const D: usize>(
                 .take(8)
                 .map(|&i| {
                     let c = &cells[i as usize];
-                    format!("({}, {}) fifo {} out {:?}", c.x, c.y, c.fifo.len(), c.out.iter().map(|q| q.len()).collect::<Vec<_>>())
+                    format!(
+                        "({}, {}) fifo {} out {:?}",
+                        c.x,
+                        c.y,
+                        c.fifo.len(),
+                        c.out.iter().map(|q| q.len()).collect::<Vec<_>>()
+                    )
                 })
                 .collect();
             bail!(

@@ -36,7 +36,13 @@ pub fn load_scene(mesh: &Mesh, cfg: &LoadConfig) -> Result<LoadedScene> {
     cfg.validate()?;
     if mesh.faces.is_empty() {
         let fit = Fit { origin: [0.0; 3], voxel: 1.0 / cfg.n as f64 };
-        return Ok(LoadedScene { grid: Grid::new(cfg.n, cfg.n), fit, facets: 0, load_cycles: 0, source_face: Vec::new() });
+        return Ok(LoadedScene {
+            grid: Grid::new(cfg.n, cfg.n),
+            fit,
+            facets: 0,
+            load_cycles: 0,
+            source_face: Vec::new(),
+        });
     }
     let v = voxelize::<DEFAULT_DEXELS>(mesh, cfg, crate::load::Engine::Wave, |_, _| {})?;
     v.check_overflow()?;
@@ -277,7 +283,12 @@ pub fn accuracy<F: FracBits>(
     let g = &scene.grid;
     let n = g.n;
     let occ = |x: i64, y: i64, z: i64| -> bool {
-        x >= 0 && y >= 0 && z >= 0 && x < n as i64 && y < n as i64 && z < n as i64
+        x >= 0
+            && y >= 0
+            && z >= 0
+            && x < n as i64
+            && y < n as i64
+            && z < n as i64
             && g.cell(x as u32, y as u32).store.occupied(z as u16).is_some()
     };
     let world_lights: Vec<[f64; 3]> = lights.iter().map(|l| voxel_to_world(&scene.fit, *l)).collect();
@@ -290,7 +301,9 @@ pub fn accuracy<F: FracBits>(
                 let empty: Vec<[f64; 3]> = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
                     .iter()
                     .filter(|&&(dx, dy, dz)| !occ(x + dx, y + dy, zz + dz))
-                    .map(|&(dx, dy, dz)| voxel_to_world(&scene.fit, [(x + dx) as f64, (y + dy) as f64, (zz + dz) as f64]))
+                    .map(|&(dx, dy, dz)| {
+                        voxel_to_world(&scene.fit, [(x + dx) as f64, (y + dy) as f64, (zz + dz) as f64])
+                    })
                     .collect();
                 if empty.is_empty() {
                     continue;

@@ -195,25 +195,13 @@ impl Data {
             }
             ns.insert(r.n);
         }
-        let t = sums
-            .into_iter()
-            .map(|(k, (s, c))| (k, s / f64::from(c)))
-            .collect();
-        Ok(Self {
-            policies,
-            t,
-            lb,
-            ns,
-        })
+        let t = sums.into_iter().map(|(k, (s, c))| (k, s / f64::from(c))).collect();
+        Ok(Self { policies, t, lb, ns })
     }
 
     /// (FA, T) of one policy at one N, by FA.
     fn sweep(&self, p: usize, n: u32) -> Vec<(f64, f64)> {
-        self.t
-            .iter()
-            .filter(|((q, _, m), _)| *q == p && *m == n)
-            .map(|(&(_, fa, _), &t)| (f64::from(fa), t))
-            .collect()
+        self.t.iter().filter(|((q, _, m), _)| *q == p && *m == n).map(|(&(_, fa, _), &t)| (f64::from(fa), t)).collect()
     }
 }
 
@@ -288,27 +276,16 @@ fn lines_against_n(d: &Data) -> Vec<Line> {
                     .map(|(&(_, _, n), &t)| (f64::from(n), t))
                     .collect();
             if !points.is_empty() {
-                out.push(Line {
-                    label: format!("{name}, FA = {fa}"),
-                    look: look(si, p),
-                    points,
-                });
+                out.push(Line { label: format!("{name}, FA = {fa}"), look: look(si, p), points });
             }
         }
     }
     if let Some(what) = largest_label {
         for (p, name) in d.policies.iter().enumerate() {
-            let points: Vec<(f64, f64)> = largest
-                .iter()
-                .filter(|((q, _), _)| *q == p)
-                .map(|(&(_, n), &(_, t))| (f64::from(n), t))
-                .collect();
+            let points: Vec<(f64, f64)> =
+                largest.iter().filter(|((q, _), _)| *q == p).map(|(&(_, n), &(_, t))| (f64::from(n), t)).collect();
             if !points.is_empty() {
-                out.push(Line {
-                    label: format!("{name}, {what}"),
-                    look: look(fixed.len(), p),
-                    points,
-                });
+                out.push(Line { label: format!("{name}, {what}"), look: look(fixed.len(), p), points });
             }
         }
     }
@@ -329,35 +306,20 @@ where
     let pts = points.iter().copied();
     match mark {
         Mark::Dot => {
-            chart
-                .draw_series(pts.map(|p| Circle::new(p, 4, colour.filled())))
-                .map_err(plot_err)?;
+            chart.draw_series(pts.map(|p| Circle::new(p, 4, colour.filled()))).map_err(plot_err)?;
         }
         Mark::Triangle => {
-            chart
-                .draw_series(pts.map(|p| TriangleMarker::new(p, 6, colour.filled())))
-                .map_err(plot_err)?;
+            chart.draw_series(pts.map(|p| TriangleMarker::new(p, 6, colour.filled()))).map_err(plot_err)?;
         }
         Mark::Ring => {
-            chart
-                .draw_series(pts.map(|p| Circle::new(p, 5, colour.stroke_width(2))))
-                .map_err(plot_err)?;
+            chart.draw_series(pts.map(|p| Circle::new(p, 5, colour.stroke_width(2)))).map_err(plot_err)?;
         }
         Mark::Target => {
-            chart
-                .draw_series(
-                    pts.clone()
-                        .map(|p| Circle::new(p, 6, colour.stroke_width(1))),
-                )
-                .map_err(plot_err)?;
-            chart
-                .draw_series(pts.map(|p| Circle::new(p, 2, colour.filled())))
-                .map_err(plot_err)?;
+            chart.draw_series(pts.clone().map(|p| Circle::new(p, 6, colour.stroke_width(1)))).map_err(plot_err)?;
+            chart.draw_series(pts.map(|p| Circle::new(p, 2, colour.filled()))).map_err(plot_err)?;
         }
         Mark::Cross => {
-            chart
-                .draw_series(pts.map(|p| Cross::new(p, 4, colour.stroke_width(2))))
-                .map_err(plot_err)?;
+            chart.draw_series(pts.map(|p| Cross::new(p, 4, colour.stroke_width(2)))).map_err(plot_err)?;
         }
     }
     Ok(())
@@ -395,20 +357,11 @@ where
     let style = look.colour.stroke_width(look.width);
     match look.dashed {
         Some(false) => {
-            chart
-                .draw_series(LineSeries::new(points.iter().copied(), style))
-                .map_err(plot_err)?;
+            chart.draw_series(LineSeries::new(points.iter().copied(), style)).map_err(plot_err)?;
         }
         Some(true) => {
             let (dash, gap) = if look.width <= 1 { (8, 5) } else { (7, 4) };
-            chart
-                .draw_series(DashedLineSeries::new(
-                    points.iter().copied(),
-                    dash,
-                    gap,
-                    style,
-                ))
-                .map_err(plot_err)?;
+            chart.draw_series(DashedLineSeries::new(points.iter().copied(), dash, gap, style)).map_err(plot_err)?;
         }
         None => {}
     }
@@ -478,11 +431,8 @@ fn draw_legend<DB: DrawingBackend>(
     let (cols, rows, col_w) = legend_layout(area, entries, width)?;
     let used_w = (cols as i32 * col_w - LEGEND_COL_GAP).min(width);
     let box_h = 2 * LEGEND_PAD + rows as i32 * LEGEND_ROW;
-    area.draw(&Rectangle::new(
-        [(x0 - LEGEND_PAD, 0), (x0 + used_w + LEGEND_PAD, box_h - 1)],
-        BLACK.mix(0.35),
-    ))
-    .map_err(plot_err)?;
+    area.draw(&Rectangle::new([(x0 - LEGEND_PAD, 0), (x0 + used_w + LEGEND_PAD, box_h - 1)], BLACK.mix(0.35)))
+        .map_err(plot_err)?;
     let font = (FONT, LEGEND_FONT).into_font().color(&BLACK);
     for (i, (label, look)) in entries.iter().enumerate() {
         let (col, row) = ((i / rows) as i32, (i % rows) as i32);
@@ -492,24 +442,15 @@ fn draw_legend<DB: DrawingBackend>(
         let style = look.colour.stroke_width(look.width);
         match look.dashed {
             Some(false) => area.draw(&PathElement::new(vec![(sx0, cy), (sx1, cy)], style)),
-            Some(true) => area.draw(&DashedPathElement::new(
-                vec![(sx0, cy), (sx1, cy)],
-                6,
-                3,
-                style,
-            )),
+            Some(true) => area.draw(&DashedPathElement::new(vec![(sx0, cy), (sx1, cy)], 6, 3, style)),
             None => Ok(()),
         }
         .map_err(plot_err)?;
         if let Some(m) = look.mark {
             draw_mark_px(area, ((sx0 + sx1) / 2, cy), m, look.colour)?;
         }
-        area.draw(&Text::new(
-            label.clone(),
-            (sx1 + LEGEND_GAP, cy),
-            font.pos(Pos::new(HPos::Left, VPos::Center)),
-        ))
-        .map_err(plot_err)?;
+        area.draw(&Text::new(label.clone(), (sx1 + LEGEND_GAP, cy), font.pos(Pos::new(HPos::Left, VPos::Center))))
+            .map_err(plot_err)?;
     }
     Ok(())
 }
@@ -578,10 +519,7 @@ fn decade_ticks(r: &std::ops::Range<f64>) -> (Vec<f64>, Vec<f64>) {
 
 /// Ticks of the N axis over `r`: powers of two, or `ns` when fewer than two powers fall in.
 fn n_ticks(r: &std::ops::Range<f64>, ns: &BTreeSet<u32>) -> Vec<f64> {
-    let mut t: Vec<f64> = (0..32)
-        .map(|k| f64::from(1u32 << k))
-        .filter(|v| r.contains(v))
-        .collect();
+    let mut t: Vec<f64> = (0..32).map(|k| f64::from(1u32 << k)).filter(|v| r.contains(v)).collect();
     if t.len() < 2 {
         t.extend(ns.iter().map(|&n| f64::from(n)).filter(|v| r.contains(v)));
         t.sort_by(f64::total_cmp);
@@ -607,8 +545,7 @@ pub fn plot_diffusion(rows: &[DiffusionRow], path: &Path) -> Result<()> {
     let data = Data::new(rows)?;
     ensure_font()?;
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent)
-            .with_context(|| format!("creating {}", parent.display()))?;
+        std::fs::create_dir_all(parent).with_context(|| format!("creating {}", parent.display()))?;
     }
     let root = BitMapBackend::new(path, PLOT_SIZE).into_drawing_area();
     root.fill(&WHITE).map_err(plot_err)?;
@@ -616,19 +553,13 @@ pub fn plot_diffusion(rows: &[DiffusionRow], path: &Path) -> Result<()> {
     let legend_h = draw_against_n(&left, &data, None)?.max(draw_against_fa(&right, &data, None)?);
     draw_against_n(&left, &data, Some(legend_h))?;
     draw_against_fa(&right, &data, Some(legend_h))?;
-    root.present()
-        .map_err(plot_err)
-        .with_context(|| format!("writing {}", path.display()))?;
+    root.present().map_err(plot_err).with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }
 
 /// Left panel: T against N, log–log.
 /// With `legend_h = None` only measures: returns the legend strip's needed height.
-fn draw_against_n<DB: DrawingBackend>(
-    area: &DrawingArea<DB, Shift>,
-    d: &Data,
-    legend_h: Option<u32>,
-) -> Result<u32> {
+fn draw_against_n<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, d: &Data, legend_h: Option<u32>) -> Result<u32> {
     let ours = lines_against_n(d);
     let (n_min, n_max) = match (d.ns.first(), d.ns.last()) {
         (Some(&a), Some(&b)) => (f64::from(a), f64::from(b)),
@@ -637,11 +568,8 @@ fn draw_against_n<DB: DrawingBackend>(
     let xr = log_range(n_min, n_max, 1.15);
     let in_x = |n: u32| xr.contains(&f64::from(n));
 
-    let thesis_fa1: Vec<(f64, f64)> = THESIS_T
-        .iter()
-        .filter(|&&(n, fa, _)| fa == 1 && in_x(n))
-        .map(|&(n, _, t)| (f64::from(n), t as f64))
-        .collect();
+    let thesis_fa1: Vec<(f64, f64)> =
+        THESIS_T.iter().filter(|&&(n, fa, _)| fa == 1 && in_x(n)).map(|&(n, _, t)| (f64::from(n), t as f64)).collect();
     // Crosses on the FA = 1 line only at our Ns (or at powers of two), not at all 78 Ns.
     let thesis_fa1_marks: Vec<(f64, f64)> = thesis_fa1
         .iter()
@@ -665,73 +593,30 @@ fn draw_against_n<DB: DrawingBackend>(
             *e = (fa, t);
         }
     }
-    let thesis_max: Vec<(u32, u32, f64)> = sweep_max
-        .iter()
-        .filter(|(n, _)| counts[n] > 1 && in_x(**n))
-        .map(|(&n, &(fa, t))| (n, fa, t as f64))
-        .collect();
-    let thesis_max_pts: Vec<(f64, f64)> = thesis_max
-        .iter()
-        .map(|&(n, _, t)| (f64::from(n), t))
-        .collect();
+    let thesis_max: Vec<(u32, u32, f64)> =
+        sweep_max.iter().filter(|(n, _)| counts[n] > 1 && in_x(**n)).map(|(&n, &(fa, t))| (n, fa, t as f64)).collect();
+    let thesis_max_pts: Vec<(f64, f64)> = thesis_max.iter().map(|&(n, _, t)| (f64::from(n), t)).collect();
     let thesis_unb: Vec<(f64, f64)> = THESIS_T_UNBOUNDED
         .iter()
         .filter(|&&(n, _, t)| n > 0 && t > 0 && in_x(n))
         .map(|&(n, _, t)| (f64::from(n), t as f64))
         .collect();
     let ideal = vec![(xr.start, xr.start), (xr.end, xr.end)];
-    let lb: Vec<(f64, f64)> =
-        d.lb.iter()
-            .map(|(&n, &b)| (f64::from(n), b as f64))
-            .collect();
+    let lb: Vec<(f64, f64)> = d.lb.iter().map(|(&n, &b)| (f64::from(n), b as f64)).collect();
 
-    let fa1_look = Look {
-        colour: THESIS_DARK,
-        width: 2,
-        dashed: Some(true),
-        mark: Some(Mark::Cross),
-    };
-    let max_look = Look {
-        colour: THESIS_MID,
-        width: 2,
-        dashed: Some(true),
-        mark: Some(Mark::Cross),
-    };
-    let unb_look = Look {
-        colour: THESIS_LIGHT,
-        width: 2,
-        dashed: Some(true),
-        mark: None,
-    };
-    let lb_look = Look {
-        colour: LB_COLOUR,
-        width: 2,
-        dashed: Some(true),
-        mark: Some(Mark::Ring),
-    };
-    let ideal_look = Look {
-        colour: BLACK,
-        width: 1,
-        dashed: Some(true),
-        mark: None,
-    };
+    let fa1_look = Look { colour: THESIS_DARK, width: 2, dashed: Some(true), mark: Some(Mark::Cross) };
+    let max_look = Look { colour: THESIS_MID, width: 2, dashed: Some(true), mark: Some(Mark::Cross) };
+    let unb_look = Look { colour: THESIS_LIGHT, width: 2, dashed: Some(true), mark: None };
+    let lb_look = Look { colour: LB_COLOUR, width: 2, dashed: Some(true), mark: Some(Mark::Ring) };
+    let ideal_look = Look { colour: BLACK, width: 1, dashed: Some(true), mark: None };
 
-    let mut entries: Vec<(String, Look)> = ours
-        .iter()
-        .map(|l| (format!("ours: {}", l.label), l.look))
-        .collect();
+    let mut entries: Vec<(String, Look)> = ours.iter().map(|l| (format!("ours: {}", l.label), l.look)).collect();
     if !thesis_fa1.is_empty() {
         entries.push(("thesis §4.4.3, FA = 1".into(), fa1_look));
     }
     if !thesis_max.is_empty() {
-        let fas: Vec<String> = thesis_max
-            .iter()
-            .map(|&(_, fa, _)| fa.to_string())
-            .collect();
-        entries.push((
-            format!("thesis, largest FA tabled (FA = {})", fas.join(", ")),
-            max_look,
-        ));
+        let fas: Vec<String> = thesis_max.iter().map(|&(_, fa, _)| fa.to_string()).collect();
+        entries.push((format!("thesis, largest FA tabled (FA = {})", fas.join(", ")), max_look));
     }
     if !thesis_unb.is_empty() {
         entries.push(("thesis, FIFOs large enough (~ N log N)".into(), unb_look));
@@ -765,9 +650,7 @@ fn draw_against_n<DB: DrawingBackend>(
         .y_label_area_size(Y_LABEL_AREA)
         .build_cartesian_2d(
             xr.clone().log_scale().with_key_points(x_ticks),
-            yr.log_scale()
-                .with_key_points(y_bold)
-                .with_light_points(y_light),
+            yr.log_scale().with_key_points(y_bold).with_light_points(y_light),
         )
         .map_err(plot_err)?;
     chart
@@ -787,14 +670,7 @@ fn draw_against_n<DB: DrawingBackend>(
     draw_line(&mut chart, &ideal, ideal_look)?;
     draw_line(&mut chart, &thesis_unb, unb_look)?;
     draw_line(&mut chart, &lb, lb_look)?;
-    draw_line(
-        &mut chart,
-        &thesis_fa1,
-        Look {
-            mark: None,
-            ..fa1_look
-        },
-    )?;
+    draw_line(&mut chart, &thesis_fa1, Look { mark: None, ..fa1_look })?;
     draw_marks(&mut chart, &thesis_fa1_marks, Mark::Cross, THESIS_DARK)?;
     draw_line(&mut chart, &thesis_max_pts, max_look)?;
     for l in &ours {
@@ -805,21 +681,14 @@ fn draw_against_n<DB: DrawingBackend>(
 
 /// Right panel: T against FA for each N (linear FA, log T).
 /// With `legend_h = None` only measures: returns the legend strip's needed height.
-fn draw_against_fa<DB: DrawingBackend>(
-    area: &DrawingArea<DB, Shift>,
-    d: &Data,
-    legend_h: Option<u32>,
-) -> Result<u32> {
+fn draw_against_fa<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, d: &Data, legend_h: Option<u32>) -> Result<u32> {
     // The Ns drawn: ours; with no data, the thesis's FA sweeps.
     let ns: Vec<u32> = if d.ns.is_empty() {
         let mut c: BTreeMap<u32, usize> = BTreeMap::new();
         for &(n, _, _) in THESIS_T {
             *c.entry(n).or_default() += 1;
         }
-        c.into_iter()
-            .filter(|&(_, k)| k > 1)
-            .map(|(n, _)| n)
-            .collect()
+        c.into_iter().filter(|&(_, k)| k > 1).map(|(n, _)| n).collect()
     } else {
         d.ns.iter().copied().collect()
     };
@@ -830,24 +699,12 @@ fn draw_against_fa<DB: DrawingBackend>(
         for (p, name) in d.policies.iter().enumerate() {
             let points = d.sweep(p, n);
             if !points.is_empty() {
-                let look = Look {
-                    colour,
-                    width: 2,
-                    dashed: Some(false),
-                    mark: Some(policy_mark(p)),
-                };
-                lines.push(Line {
-                    label: format!("{name}, N = {n}"),
-                    look,
-                    points,
-                });
+                let look = Look { colour, width: 2, dashed: Some(false), mark: Some(policy_mark(p)) };
+                lines.push(Line { label: format!("{name}, N = {n}"), look, points });
             }
         }
-        let pts: Vec<(f64, f64)> = THESIS_T
-            .iter()
-            .filter(|&&(m, _, _)| m == n)
-            .map(|&(_, fa, t)| (f64::from(fa), t as f64))
-            .collect();
+        let pts: Vec<(f64, f64)> =
+            THESIS_T.iter().filter(|&&(m, _, _)| m == n).map(|&(_, fa, t)| (f64::from(fa), t as f64)).collect();
         thesis.push((colour, pts));
     }
 
@@ -857,33 +714,15 @@ fn draw_against_fa<DB: DrawingBackend>(
         .enumerate()
         .map(|(i, n)| {
             let colour = PALETTE[i % PALETTE.len()];
-            (
-                format!("N = {n}"),
-                Look {
-                    colour,
-                    width: 3,
-                    dashed: Some(false),
-                    mark: None,
-                },
-            )
+            (format!("N = {n}"), Look { colour, width: 3, dashed: Some(false), mark: None })
         })
         .collect();
     for (p, name) in d.policies.iter().enumerate() {
-        let look = Look {
-            colour: BLACK,
-            width: 2,
-            dashed: Some(false),
-            mark: Some(policy_mark(p)),
-        };
+        let look = Look { colour: BLACK, width: 2, dashed: Some(false), mark: Some(policy_mark(p)) };
         entries.push((format!("ours: {name}"), look));
     }
     if thesis.iter().any(|(_, p)| !p.is_empty()) {
-        let look = Look {
-            colour: BLACK,
-            width: 2,
-            dashed: None,
-            mark: Some(Mark::Cross),
-        };
+        let look = Look { colour: BLACK, width: 2, dashed: None, mark: Some(Mark::Cross) };
         entries.push(("thesis §4.4.3 (colour = N)".into(), look));
     }
     let chart_area = match split_for_legend(area, &entries, legend_h)? {
@@ -892,18 +731,11 @@ fn draw_against_fa<DB: DrawingBackend>(
     };
 
     let all = || {
-        lines
-            .iter()
-            .flat_map(|l| l.points.iter().copied())
-            .chain(thesis.iter().flat_map(|(_, p)| p.iter().copied()))
+        lines.iter().flat_map(|l| l.points.iter().copied()).chain(thesis.iter().flat_map(|(_, p)| p.iter().copied()))
     };
     let fa_max = all().map(|p| p.0).fold(2.0f64, f64::max);
     let (y_min, y_max) = all().fold((f64::INFINITY, 0f64), |(a, b), p| (a.min(p.1), b.max(p.1)));
-    let (y_min, y_max) = if y_min.is_finite() {
-        (y_min, y_max)
-    } else {
-        (10.0, 1000.0)
-    };
+    let (y_min, y_max) = if y_min.is_finite() { (y_min, y_max) } else { (10.0, 1000.0) };
     let yr = log_range(y_min, y_max, 1.25);
     let (y_bold, y_light) = decade_ticks(&yr);
     let xr = 0.0..(fa_max * 1.04 + 0.5);
@@ -913,12 +745,7 @@ fn draw_against_fa<DB: DrawingBackend>(
         .margin(PANEL_MARGIN)
         .x_label_area_size(50)
         .y_label_area_size(Y_LABEL_AREA)
-        .build_cartesian_2d(
-            xr,
-            yr.log_scale()
-                .with_key_points(y_bold)
-                .with_light_points(y_light),
-        )
+        .build_cartesian_2d(xr, yr.log_scale().with_key_points(y_bold).with_light_points(y_light))
         .map_err(plot_err)?;
     chart
         .configure_mesh()
@@ -1010,13 +837,7 @@ mod tests {
     #[test]
     fn plot_single_row() {
         let path = out_dir("single").join("single.png");
-        let row = DiffusionRow {
-            n: 48,
-            fa: 4,
-            policy: "p".into(),
-            cycles: 900,
-            lower_bound: 0,
-        };
+        let row = DiffusionRow { n: 48, fa: 4, policy: "p".into(), cycles: 900, lower_bound: 0 };
         plot_diffusion(&[row], &path).unwrap();
         check_png(&path);
     }
@@ -1024,13 +845,7 @@ mod tests {
     #[test]
     fn plot_rejects_zero_cycles() {
         let path = out_dir("zero").join("zero.png");
-        let row = DiffusionRow {
-            n: 16,
-            fa: 1,
-            policy: "p".into(),
-            cycles: 0,
-            lower_bound: 0,
-        };
+        let row = DiffusionRow { n: 16, fa: 1, policy: "p".into(), cycles: 0, lower_bound: 0 };
         assert!(plot_diffusion(&[row], &path).is_err());
     }
 
@@ -1038,12 +853,7 @@ mod tests {
     fn thesis_tables_are_sorted_unique_and_hold_the_spec_values() {
         for table in [THESIS_T, THESIS_T_UNBOUNDED] {
             for w in table.windows(2) {
-                assert!(
-                    (w[0].0, w[0].1) < (w[1].0, w[1].1),
-                    "{:?} then {:?}",
-                    w[0],
-                    w[1]
-                );
+                assert!((w[0].0, w[0].1) < (w[1].0, w[1].1), "{:?} then {:?}", w[0], w[1]);
             }
         }
         // SPEC.md §3's table.
@@ -1069,13 +879,7 @@ mod tests {
 
     #[test]
     fn log_axes_always_have_labelled_ticks() {
-        for (lo, hi) in [
-            (200.0, 900.0),
-            (16.0, 128.0),
-            (48.0, 48.0),
-            (1.0, 1.0),
-            (7.0, 9.0),
-        ] {
+        for (lo, hi) in [(200.0, 900.0), (16.0, 128.0), (48.0, 48.0), (1.0, 1.0), (7.0, 9.0)] {
             let r = log_range(lo, hi, 1.2);
             assert!(r.start <= lo && r.end >= hi);
             assert!(!decade_ticks(&r).0.is_empty(), "{lo}..{hi} → {r:?}");
@@ -1160,9 +964,17 @@ pub fn plot_pareto(points: &[ParetoPoint], title: &str, path: &Path) -> Result<(
         .map_err(plot_err)?;
     for (i, p) in points.iter().enumerate() {
         let on_front = front.contains(&i);
-        let colour = if p.is_default { RED } else if on_front { BLUE } else { RGBColor(120, 120, 120) };
+        let colour = if p.is_default {
+            RED
+        } else if on_front {
+            BLUE
+        } else {
+            RGBColor(120, 120, 120)
+        };
         let size = if p.is_default { 9 } else { 5 };
-        chart.draw_series(std::iter::once(Circle::new((p.cycles, p.error), size, colour.filled()))).map_err(plot_err)?;
+        chart
+            .draw_series(std::iter::once(Circle::new((p.cycles, p.error), size, colour.filled())))
+            .map_err(plot_err)?;
         if !on_front && !p.is_default {
             continue; // dominated points: a grey dot, the CSV has their knobs
         }
@@ -1172,7 +984,11 @@ pub fn plot_pareto(points: &[ParetoPoint], title: &str, path: &Path) -> Result<(
             format!("{} ({} B/cell)", p.label, p.bytes)
         };
         chart
-            .draw_series(std::iter::once(Text::new(label, (p.cycles * 1.03, p.error), (FONT, 12).into_font().color(&colour))))
+            .draw_series(std::iter::once(Text::new(
+                label,
+                (p.cycles * 1.03, p.error),
+                (FONT, 12).into_font().color(&colour),
+            )))
             .map_err(plot_err)?;
     }
     root.present().map_err(plot_err)?;

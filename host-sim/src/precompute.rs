@@ -394,7 +394,10 @@ fn ear_clip(p: &[[i64; 3]], (_, u, v): (usize, usize, usize)) -> std::result::Re
             // No other vertex inside or on the candidate ear.
             idx.iter().all(|&j| {
                 let q = p[j];
-                q == a || q == b || q == c || !(orient(a, b, q) * s >= 0 && orient(b, c, q) * s >= 0 && orient(c, a, q) * s >= 0)
+                q == a
+                    || q == b
+                    || q == c
+                    || !(orient(a, b, q) * s >= 0 && orient(b, c, q) * s >= 0 && orient(c, a, q) * s >= 0)
             })
         });
         let Some(i) = ear else {

@@ -194,11 +194,7 @@ impl Reference {
             tris.push(Tri { v: *v, normal: [n[0] * inv, n[1] * inv, n[2] * inv], facet });
         }
         if tris.is_empty() {
-            bail!(
-                "reference: no triangle with a non-zero area ({} given, {} zero-area)",
-                triangles.len(),
-                skipped
-            );
+            bail!("reference: no triangle with a non-zero area ({} given, {} zero-area)", triangles.len(), skipped);
         }
         // Loosen every leaf box so that the box tests' rounding can never cull a real hit.
         let margin = 1e-6 * scale.max(f64::MIN_POSITIVE);
@@ -376,14 +372,7 @@ mod tests {
         })
     }
 
-    fn brute_first(
-        tris: &[[V3; 3]],
-        facets: &[u32],
-        o: V3,
-        d: V3,
-        max_t: f64,
-        ignore: &[u32],
-    ) -> Option<(f64, usize)> {
+    fn brute_first(tris: &[[V3; 3]], facets: &[u32], o: V3, d: V3, max_t: f64, ignore: &[u32]) -> Option<(f64, usize)> {
         let mut best: Option<(f64, usize)> = None;
         for (i, (tri, f)) in tris.iter().zip(facets).enumerate() {
             if ignore.contains(f) {
@@ -455,10 +444,7 @@ mod tests {
                 (None, None) => {}
                 (Some((wt, wi)), Some((gt, gf, gn))) => {
                     hits += 1;
-                    assert!(
-                        (wt - gt).abs() <= 1e-9 * wt.max(1.0),
-                        "t: brute {wt} vs {gt} for {a:?} + t·{d:?}"
-                    );
+                    assert!((wt - gt).abs() <= 1e-9 * wt.max(1.0), "t: brute {wt} vs {gt} for {a:?} + t·{d:?}");
                     // Two triangles at (nearly) the same t: either facet is right.
                     let same_t: Vec<u32> = tris
                         .iter()
@@ -484,9 +470,7 @@ mod tests {
                 (w, g) => panic!("first_hit({a:?}, {d:?}, {max_t}, {ignore:?}): brute {w:?}, got {g:?}"),
             }
         }
-        eprintln!(
-            "{n} queries: {blocked} blocked, {hits} first hits, {skip_vis} + {skip_first} ambiguous skipped"
-        );
+        eprintln!("{n} queries: {blocked} blocked, {hits} first hits, {skip_vis} + {skip_first} ambiguous skipped");
         (blocked, hits, skip_vis, skip_first)
     }
 
@@ -497,11 +481,7 @@ mod tests {
             let c = point(rng, 0.0, 1.0);
             let mut t = [[0.0; 3]; 3];
             for p in &mut t {
-                *p = [
-                    c[0] + rng.range(-size, size),
-                    c[1] + rng.range(-size, size),
-                    c[2] + rng.range(-size, size),
-                ];
+                *p = [c[0] + rng.range(-size, size), c[1] + rng.range(-size, size), c[2] + rng.range(-size, size)];
             }
             tris.push(t);
             facets.push((i / 2) as u32); // two triangles per facet
@@ -557,9 +537,7 @@ mod tests {
     fn closed_box_with_obstacles_matches_brute_force() {
         // A closed room (facets 0..6) with two boxes inside (facets 10..16, 20..26).
         let (mut tris, mut facets) = boxed([0.0; 3], [1.0; 3], 0);
-        for (lo, hi, base) in
-            [([0.2, 0.0, 0.2], [0.45, 0.6, 0.45], 10), ([0.55, 0.0, 0.5], [0.8, 0.3, 0.75], 20)]
-        {
+        for (lo, hi, base) in [([0.2, 0.0, 0.2], [0.45, 0.6, 0.45], 10), ([0.55, 0.0, 0.5], [0.8, 0.3, 0.75], 20)] {
             let (t, f) = boxed(lo, hi, base);
             tris.extend(t);
             facets.extend(f);
@@ -805,16 +783,12 @@ mod tests {
             let vis = pts.iter().filter(|(a, b)| r.visible(*a, *b, &[])).count();
             let dt = t0.elapsed().as_secs_f64();
             let t1 = std::time::Instant::now();
-            let hits = pts
-                .iter()
-                .filter(|(a, b)| r.first_hit(*a, sub(*b, *a), f64::INFINITY, &[]).is_some())
-                .count();
+            let hits = pts.iter().filter(|(a, b)| r.first_hit(*a, sub(*b, *a), f64::INFINITY, &[]).is_some()).count();
             let dt1 = t1.elapsed().as_secs_f64();
             // brute force on a sample, for scale
             let sample = queries.min(20_000);
             let t2 = std::time::Instant::now();
-            let bvis =
-                pts[..sample].iter().filter(|(a, b)| brute_visible(&tris, &facets, *a, *b, &[])).count();
+            let bvis = pts[..sample].iter().filter(|(a, b)| brute_visible(&tris, &facets, *a, *b, &[])).count();
             let dt2 = t2.elapsed().as_secs_f64();
             println!(
                 "{name}: {} triangles, build {:.1} ms; visible: {queries} queries in {dt:.3} s = {:.2} M/s ({vis} visible); \

@@ -58,10 +58,7 @@ impl RefImage {
     /// The colour rows top to bottom (image row `r` is `y = n − 1 − r`), e.g. for a PNG writer.
     pub fn rows_top_down(&self) -> Vec<[u8; 3]> {
         let n = self.n as usize;
-        (0..n)
-            .rev()
-            .flat_map(|y| self.rgb[y * n..(y + 1) * n].iter().copied())
-            .collect()
+        (0..n).rev().flat_map(|y| self.rgb[y * n..(y + 1) * n].iter().copied()).collect()
     }
 }
 
@@ -200,30 +197,19 @@ pub fn mesh_triangles(mesh: &Mesh) -> Result<(Vec<WorldTriangle>, Vec<u32>)> {
 ///
 /// Errors: `n = 0`, more than 32 lights, a non-finite or non-positive voxel size, a face with a
 /// vertex or material index out of range, or no non-degenerate triangle at all.
-pub fn render_reference(
-    mesh: &Mesh,
-    fit: &Fit,
-    n: u32,
-    lights: &[RefLight],
-    ambient: [f64; 3],
-) -> Result<RefImage> {
+pub fn render_reference(mesh: &Mesh, fit: &Fit, n: u32, lights: &[RefLight], ambient: [f64; 3]) -> Result<RefImage> {
     if n == 0 {
         bail!("refrender: n must be positive");
     }
     if lights.len() > 32 {
-        bail!(
-            "refrender: at most 32 lights (lit masks are u32), got {}",
-            lights.len()
-        );
+        bail!("refrender: at most 32 lights (lit masks are u32), got {}", lights.len());
     }
-    let fit_ok =
-        fit.voxel > 0.0 && fit.voxel.is_finite() && fit.origin.iter().all(|x| x.is_finite());
+    let fit_ok = fit.voxel > 0.0 && fit.voxel.is_finite() && fit.origin.iter().all(|x| x.is_finite());
     if !fit_ok {
         bail!("refrender: invalid fit {fit:?}");
     }
     let (tris, facets) = mesh_triangles(mesh)?;
-    let reference =
-        Reference::new(tris, facets).with_context(|| format!("refrender: scene {}", mesh.name))?;
+    let reference = Reference::new(tris, facets).with_context(|| format!("refrender: scene {}", mesh.name))?;
     let (o, vx) = (fit.origin, fit.voxel);
     let to_world = |p: V3| [0, 1, 2].map(|i| o[i] + (p[i] + 0.5) * vx);
     let lights_world: Vec<V3> = lights.iter().map(|l| to_world(l.pos)).collect();
@@ -240,11 +226,7 @@ pub fn render_reference(
     let dir = [0.0, 0.0, 1.0];
     for y in 0..n {
         for x in 0..n {
-            let origin = [
-                o[0] + (x as f64 + 0.5) * vx,
-                o[1] + (y as f64 + 0.5) * vx,
-                o[2] - vx,
-            ];
+            let origin = [o[0] + (x as f64 + 0.5) * vx, o[1] + (y as f64 + 0.5) * vx, o[2] - vx];
             let Some((t, facet, normal)) = reference.first_hit(origin, dir, max_t, &[]) else {
                 continue;
             };
@@ -285,10 +267,7 @@ pub struct Comparison {
 }
 
 fn check_len(what: &str, len: usize, npix: usize) {
-    assert_eq!(
-        len, npix,
-        "refrender: {what} has {len} pixels, the reference has {npix}"
-    );
+    assert_eq!(len, npix, "refrender: {what} has {len} pixels, the reference has {npix}");
 }
 
 /// Compare a discrete image (same layout as [`RefImage`]) with the reference.
@@ -354,9 +333,7 @@ pub fn difference_image(rgb: &[[u8; 3]], covered: &[bool], reference: &RefImage)
             if covered[i] != reference.covered[i] {
                 [255, 0, 255]
             } else {
-                [0, 1, 2].map(|c| {
-                    (u32::from(rgb[i][c].abs_diff(reference.rgb[i][c])) * 4).min(255) as u8
-                })
+                [0, 1, 2].map(|c| (u32::from(rgb[i][c].abs_diff(reference.rgb[i][c])) * 4).min(255) as u8)
             }
         })
         .collect()
@@ -368,21 +345,11 @@ mod tests {
     use crate::scene::Face;
 
     fn mat(ka: [f32; 3], kd: [f32; 3], ks: [f32; 3], ns: f32, ke: [f32; 3]) -> Material {
-        Material {
-            name: "m".into(),
-            ka,
-            kd,
-            ks,
-            ns,
-            ke,
-        }
+        Material { name: "m".into(), ka, kd, ks, ns, ke }
     }
 
     /// Test fit: a non-trivial origin and voxel size.
-    const FIT: Fit = Fit {
-        origin: [10.0, -20.0, 5.0],
-        voxel: 2.5,
-    };
+    const FIT: Fit = Fit { origin: [10.0, -20.0, 5.0], voxel: 2.5 };
 
     /// World point of a voxel-unit point under `FIT`.
     fn w(p: V3) -> V3 {
@@ -397,9 +364,7 @@ mod tests {
 
     /// 2-D point-in-triangle, strict (sign of the three edge functions; either winding).
     fn in_tri(p: [f64; 2], t: &[[f64; 2]; 3]) -> bool {
-        let e = |a: [f64; 2], b: [f64; 2]| {
-            (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])
-        };
+        let e = |a: [f64; 2], b: [f64; 2]| (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]);
         let (d0, d1, d2) = (e(t[0], t[1]), e(t[1], t[2]), e(t[2], t[0]));
         (d0 > 0.0 && d1 > 0.0 && d2 > 0.0) || (d0 < 0.0 && d1 < 0.0 && d2 < 0.0)
     }
@@ -409,33 +374,19 @@ mod tests {
     const PLANE_HI: f64 = 59.7;
     const OCC_Z: f64 = 22.5;
     const OCC: [[f64; 2]; 3] = [[34.0, 30.0], [44.0, 33.0], [38.0, 44.0]];
-    const LIGHT: RefLight = RefLight {
-        pos: [32.0, 32.0, 5.0],
-        color: [0.9, 0.8, 0.7],
-    };
+    const LIGHT: RefLight = RefLight { pos: [32.0, 32.0, 5.0], color: [0.9, 0.8, 0.7] };
     const AMB: [f64; 3] = [0.2, 0.3, 0.25];
     const N: u32 = 64;
 
     fn plane_mesh(with_occluder: bool) -> Mesh {
         let (lo, hi, z) = (PLANE_LO, PLANE_HI, PLANE_Z);
-        let mut positions = vec![
-            w([lo, lo, z]),
-            w([hi, lo, z]),
-            w([hi, hi, z]),
-            w([lo, hi, z]),
-        ];
-        let mut faces = vec![Face {
-            verts: vec![0, 1, 2, 3],
-            material: 0,
-        }];
+        let mut positions = vec![w([lo, lo, z]), w([hi, lo, z]), w([hi, hi, z]), w([lo, hi, z])];
+        let mut faces = vec![Face { verts: vec![0, 1, 2, 3], material: 0 }];
         if with_occluder {
             for v in OCC {
                 positions.push(w([v[0], v[1], OCC_Z]));
             }
-            faces.push(Face {
-                verts: vec![4, 5, 6],
-                material: 1,
-            });
+            faces.push(Face { verts: vec![4, 5, 6], material: 1 });
         }
         Mesh {
             name: "plane".into(),
@@ -462,10 +413,7 @@ mod tests {
         let mesh = plane_mesh(false);
         // A far light, and one only 2.5 voxels in front of the plane (there the colour varies
         // steeply, so a half-voxel error in the light's or the point's position shows).
-        let near = RefLight {
-            pos: [20.3, 40.7, PLANE_Z - 2.5],
-            color: [0.8, 0.9, 1.0],
-        };
+        let near = RefLight { pos: [20.3, 40.7, PLANE_Z - 2.5], color: [0.8, 0.9, 1.0] };
         for light in [LIGHT, near] {
             let img = render_reference(&mesh, &FIT, N, &[light], AMB).unwrap();
             let mut covered = 0;
@@ -476,10 +424,7 @@ mod tests {
                     let inside = xf > PLANE_LO && xf < PLANE_HI && yf > PLANE_LO && yf < PLANE_HI;
                     assert_eq!(img.covered[i], inside, "pixel ({x}, {y})");
                     if !inside {
-                        assert_eq!(
-                            (img.rgb[i], img.lit[i], img.facet[i]),
-                            ([0; 3], 0, u32::MAX)
-                        );
+                        assert_eq!((img.rgb[i], img.lit[i], img.facet[i]), ([0; 3], 0, u32::MAX));
                         continue;
                     }
                     covered += 1;
@@ -487,11 +432,7 @@ mod tests {
                     assert_eq!(img.lit[i], 1, "pixel ({x}, {y}) must be lit");
                     let want = lambert(xf, yf, &mesh.materials[0], &light);
                     for c in 0..3 {
-                        assert!(
-                            img.rgb[i][c].abs_diff(want[c]) <= 1,
-                            "pixel ({x}, {y}): {:?} vs {want:?}",
-                            img.rgb[i]
-                        );
+                        assert!(img.rgb[i][c].abs_diff(want[c]) <= 1, "pixel ({x}, {y}): {:?} vs {want:?}", img.rgb[i]);
                     }
                 }
             }
@@ -514,14 +455,8 @@ mod tests {
         assert!(in_tri([cx, cy], &OCC));
         let lights = [
             LIGHT,
-            RefLight {
-                pos: [cx, cy, OCC_Z + 0.25],
-                color: [0.3, 0.2, 0.1],
-            },
-            RefLight {
-                pos: [cx, cy, OCC_Z - 0.25],
-                color: [0.5; 3],
-            },
+            RefLight { pos: [cx, cy, OCC_Z + 0.25], color: [0.3, 0.2, 0.1] },
+            RefLight { pos: [cx, cy, OCC_Z - 0.25], color: [0.5; 3] },
         ];
         let img = render_reference(&mesh, &FIT, N, &lights, AMB).unwrap();
         // Analytic prediction for a plane point (x, y): does the segment to light l cross the
@@ -582,19 +517,14 @@ mod tests {
                     for (s, l) in lights.iter().enumerate() {
                         if want_mask & (1 << s) != 0 {
                             let d = [l.pos[0] - xf, l.pos[1] - yf, l.pos[2] - PLANE_Z];
-                            let cos = (PLANE_Z - l.pos[2])
-                                / (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                            let cos = (PLANE_Z - l.pos[2]) / (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
                             v += m.kd[c] as f64 * l.color[c] * cos;
                         }
                     }
                     gamma(v)
                 });
                 for c in 0..3 {
-                    assert!(
-                        img.rgb[i][c].abs_diff(want[c]) <= 1,
-                        "pixel ({x}, {y}): {:?} vs {want:?}",
-                        img.rgb[i]
-                    );
+                    assert!(img.rgb[i][c].abs_diff(want[c]) <= 1, "pixel ({x}, {y}): {:?} vs {want:?}", img.rgb[i]);
                 }
             }
         }
@@ -647,17 +577,8 @@ mod tests {
         }
         Mesh {
             name: "icosphere".into(),
-            positions: v
-                .iter()
-                .map(|p| [0, 1, 2].map(|i| c[i] + r * p[i]))
-                .collect(),
-            faces: f
-                .iter()
-                .map(|t| Face {
-                    verts: t.iter().map(|&k| k as u32).collect(),
-                    material: 0,
-                })
-                .collect(),
+            positions: v.iter().map(|p| [0, 1, 2].map(|i| c[i] + r * p[i])).collect(),
+            faces: f.iter().map(|t| Face { verts: t.iter().map(|&k| k as u32).collect(), material: 0 }).collect(),
             materials: vec![Material::default()],
             lights: vec![],
         }
@@ -668,10 +589,7 @@ mod tests {
         let (cx, cy, cz, r) = (32.0, 31.0, 30.0, 20.0); // voxel units
         let mesh = icosphere(w([cx, cy, cz]), r * FIT.voxel, 3);
         assert_eq!(mesh.faces.len(), 1280);
-        let light = RefLight {
-            pos: [cx - 10.0, cy + 20.0, cz - 40.0],
-            color: [1.0; 3],
-        };
+        let light = RefLight { pos: [cx - 10.0, cy + 20.0, cz - 40.0], color: [1.0; 3] };
         let img = render_reference(&mesh, &FIT, N, &[light], [0.1; 3]).unwrap();
         let mut count = 0usize;
         for y in 0..N {
@@ -689,10 +607,7 @@ mod tests {
             }
         }
         let disc = std::f64::consts::PI * r * r;
-        assert!(
-            (count as f64 - disc).abs() < 0.02 * disc,
-            "{count} covered vs disc {disc:.1}"
-        );
+        assert!((count as f64 - disc).abs() < 0.02 * disc, "{count} covered vs disc {disc:.1}");
         // Shading varies across the sphere (normals follow the facets) and the lit side is
         // brighter than the far side.
         let toward = img.rgb[img.index(26, 41)];
@@ -705,32 +620,18 @@ mod tests {
         let mesh = crate::scene::load("cornell").unwrap();
         let n = 48;
         let fit = crate::precompute::fit(&mesh, n).unwrap();
-        let lights = [
-            cornell_light(&fit),
-            RefLight {
-                pos: [10.0, 10.0, 5.0],
-                color: [0.3, 0.2, 0.1],
-            },
-        ];
+        let lights = [cornell_light(&fit), RefLight { pos: [10.0, 10.0, 5.0], color: [0.3, 0.2, 0.1] }];
         let a = render_reference(&mesh, &fit, n, &lights, [0.2; 3]).unwrap();
         let b = render_reference(&mesh, &fit, n, &lights, [0.2; 3]).unwrap();
         assert_eq!(a, b);
         let c = compare(&b.rgb, &b.covered, &b.lit, &a);
         assert_eq!(
-            (
-                c.shadow_disagreement_pct,
-                c.coverage_disagreement_pct,
-                c.psnr_db,
-                c.max_abs_diff
-            ),
+            (c.shadow_disagreement_pct, c.coverage_disagreement_pct, c.psnr_db, c.max_abs_diff),
             (0.0, 0.0, f64::INFINITY, 0)
         );
         // The box's back wall fills the view except the one-voxel margin.
         let covered = a.covered.iter().filter(|&&c| c).count();
-        assert!(
-            covered >= ((n - 2) * (n - 2)) as usize * 95 / 100,
-            "{covered}"
-        );
+        assert!(covered >= ((n - 2) * (n - 2)) as usize * 95 / 100, "{covered}");
         // Both lit and shadowed pixels (the blocks shadow the floor).
         assert!(a.lit.iter().zip(&a.covered).any(|(&l, &c)| c && l & 1 == 0));
         assert!(a.lit.iter().any(|&l| l & 1 == 1));
@@ -740,10 +641,7 @@ mod tests {
         let wpos = [278.0, 548.8, 279.5];
         let mut pos = [0, 1, 2].map(|i| (wpos[i] - fit.origin[i]) / fit.voxel - 0.5);
         pos[1] -= 2.0;
-        RefLight {
-            pos,
-            color: [1.0; 3],
-        }
+        RefLight { pos, color: [1.0; 3] }
     }
 
     #[test]
@@ -769,48 +667,21 @@ mod tests {
         assert!((c.psnr_db - 24.525_8).abs() < 1e-3, "{}", c.psnr_db);
         assert_eq!(c.max_abs_diff, 30);
         // identical inputs
-        let c = compare(
-            &reference.rgb,
-            &reference.covered,
-            &reference.lit,
-            &reference,
-        );
+        let c = compare(&reference.rgb, &reference.covered, &reference.lit, &reference);
         assert_eq!(
-            (
-                c.shadow_disagreement_pct,
-                c.coverage_disagreement_pct,
-                c.psnr_db,
-                c.max_abs_diff
-            ),
+            (c.shadow_disagreement_pct, c.coverage_disagreement_pct, c.psnr_db, c.max_abs_diff),
             (0.0, 0.0, f64::INFINITY, 0)
         );
         // nothing covered anywhere: 0 %, not NaN
-        let empty = RefImage {
-            n: 1,
-            rgb: vec![[0; 3]],
-            covered: vec![false],
-            lit: vec![0],
-            lights: 1,
-            facet: vec![u32::MAX],
-        };
+        let empty =
+            RefImage { n: 1, rgb: vec![[0; 3]], covered: vec![false], lit: vec![0], lights: 1, facet: vec![u32::MAX] };
         let c = compare(&[[1, 0, 0]], &[false], &[0], &empty);
-        assert_eq!(
-            (
-                c.shadow_disagreement_pct,
-                c.coverage_disagreement_pct,
-                c.max_abs_diff
-            ),
-            (0.0, 0.0, 1)
-        );
+        assert_eq!((c.shadow_disagreement_pct, c.coverage_disagreement_pct, c.max_abs_diff), (0.0, 0.0, 1));
         assert!((c.psnr_db - 10.0 * (65025.0f64 * 3.0).log10()).abs() < 1e-9);
         // difference image
         let d = difference_image(&rgb, &covered, &reference);
         assert_eq!(d, vec![[0, 0, 0], [0, 0, 24], [255, 0, 255], [255, 0, 255]]);
-        let d = difference_image(
-            &[[200, 0, 70], [0; 3], [30, 30, 30], [0; 3]],
-            &[true, true, true, false],
-            &reference,
-        );
+        let d = difference_image(&[[200, 0, 70], [0; 3], [30, 30, 30], [0; 3]], &[true, true, true, false], &reference);
         assert_eq!(d, vec![[255, 40, 240], [80, 80, 80], [0, 0, 0], [0, 0, 0]]);
     }
 
@@ -819,20 +690,11 @@ mod tests {
         // An emitter quad in front of a diffuse plane, no lights and zero ambient.
         let mut mesh = plane_mesh(false);
         let base = mesh.positions.len() as u32;
-        for p in [
-            [10.5, 10.5, 20.0],
-            [20.5, 10.5, 20.0],
-            [20.5, 30.5, 20.0],
-            [10.5, 30.5, 20.0],
-        ] {
+        for p in [[10.5, 10.5, 20.0], [20.5, 10.5, 20.0], [20.5, 30.5, 20.0], [10.5, 30.5, 20.0]] {
             mesh.positions.push(w(p));
         }
-        mesh.faces.push(Face {
-            verts: (base..base + 4).collect(),
-            material: 2,
-        });
-        mesh.materials
-            .push(mat([1.0; 3], [0.8; 3], [0.5; 3], 8.0, [17.0, 8.5, 0.0]));
+        mesh.faces.push(Face { verts: (base..base + 4).collect(), material: 2 });
+        mesh.materials.push(mat([1.0; 3], [0.8; 3], [0.5; 3], 8.0, [17.0, 8.5, 0.0]));
         let want = [255, gamma(0.5), 0];
         assert_eq!(want, [255, 186, 0]);
         for (lights, amb) in [(&[][..], [0.0; 3]), (&[LIGHT][..], AMB)] {
@@ -857,41 +719,23 @@ mod tests {
 
     #[test]
     fn shade_f64_closed_forms() {
-        let m = mat(
-            [0.2, 0.4, 0.6],
-            [0.5, 0.3, 0.1],
-            [0.25, 0.5, 0.125],
-            10.0,
-            [0.0; 3],
-        );
+        let m = mat([0.2, 0.4, 0.6], [0.5, 0.3, 0.1], [0.25, 0.5, 0.125], 10.0, [0.0; 3]);
         let nrm = [0.0, 0.0, -1.0];
         let amb = [0.1, 0.2, 0.3];
         // Light straight in front: N·L = 1, N·H = 1.
-        let l = [RefLight {
-            pos: [0.0, 0.0, -10.0],
-            color: [1.0, 0.5, 0.25],
-        }];
+        let l = [RefLight { pos: [0.0, 0.0, -10.0], color: [1.0, 0.5, 0.25] }];
         let lin = shade_linear_f64([0.0; 3], nrm, &m, &l, 1, amb);
-        let want = [0, 1, 2]
-            .map(|i| m.ka[i] as f64 * amb[i] + (m.kd[i] as f64 + m.ks[i] as f64) * l[0].color[i]);
+        let want = [0, 1, 2].map(|i| m.ka[i] as f64 * amb[i] + (m.kd[i] as f64 + m.ks[i] as f64) * l[0].color[i]);
         for i in 0..3 {
             assert!((lin[i] - want[i]).abs() < 1e-12);
         }
         // Light at 45°: N·L = cos 45°, H halfway between L and V: N·H = cos 22.5°.
-        let l = [RefLight {
-            pos: [5.0, 3.0, -7.0],
-            color: [1.0, 0.5, 0.25],
-        }];
+        let l = [RefLight { pos: [5.0, 3.0, -7.0], color: [1.0, 0.5, 0.25] }];
         let p = [1.0, 3.0, -3.0];
         let lin = shade_linear_f64(p, nrm, &m, &l, 1, amb);
-        let (c45, c22) = (
-            std::f64::consts::FRAC_1_SQRT_2,
-            (std::f64::consts::PI / 8.0).cos(),
-        );
-        let want = [0, 1, 2].map(|i| {
-            m.ka[i] as f64 * amb[i]
-                + l[0].color[i] * (m.kd[i] as f64 * c45 + m.ks[i] as f64 * c22.powi(10))
-        });
+        let (c45, c22) = (std::f64::consts::FRAC_1_SQRT_2, (std::f64::consts::PI / 8.0).cos());
+        let want = [0, 1, 2]
+            .map(|i| m.ka[i] as f64 * amb[i] + l[0].color[i] * (m.kd[i] as f64 * c45 + m.ks[i] as f64 * c22.powi(10)));
         for i in 0..3 {
             assert!((lin[i] - want[i]).abs() < 1e-12, "{lin:?} vs {want:?}");
         }
@@ -899,22 +743,13 @@ mod tests {
         // Not lit / behind the surface: ambient only.
         let ambient_only = [0, 1, 2].map(|i| gamma(m.ka[i] as f64 * amb[i]));
         assert_eq!(shade_f64(p, nrm, &m, &l, 0, amb), ambient_only);
-        let behind = [RefLight {
-            pos: [1.0, 3.0, 2.0],
-            color: [1.0; 3],
-        }];
+        let behind = [RefLight { pos: [1.0, 3.0, 2.0], color: [1.0; 3] }];
         assert_eq!(shade_f64(p, nrm, &m, &behind, 1, amb), ambient_only);
         // Light at the point itself: no contribution, no NaN.
-        let at = [RefLight {
-            pos: p,
-            color: [1.0; 3],
-        }];
+        let at = [RefLight { pos: p, color: [1.0; 3] }];
         assert_eq!(shade_f64(p, nrm, &m, &at, 1, amb), ambient_only);
         // Clamping and gamma.
-        let bright = [RefLight {
-            pos: [0.0, 0.0, -10.0],
-            color: [9.0; 3],
-        }];
+        let bright = [RefLight { pos: [0.0, 0.0, -10.0], color: [9.0; 3] }];
         assert_eq!(shade_f64([0.0; 3], nrm, &m, &bright, 1, amb), [255; 3]);
         assert_eq!(encode_gamma(0.0), 0);
         assert_eq!(encode_gamma(-1.0), 0);
@@ -922,10 +757,7 @@ mod tests {
         assert_eq!(encode_gamma(0.5), 186);
         // Emitter: ke / max(ke), lights ignored.
         let e = mat([1.0; 3], [1.0; 3], [1.0; 3], 1.0, [4.0, 2.0, 1.0]);
-        assert_eq!(
-            shade_f64([0.0; 3], nrm, &e, &bright, 1, amb),
-            [255, gamma(0.5), gamma(0.25)]
-        );
+        assert_eq!(shade_f64([0.0; 3], nrm, &e, &bright, 1, amb), [255, gamma(0.5), gamma(0.25)]);
     }
 
     #[test]
@@ -933,17 +765,7 @@ mod tests {
         let mesh = plane_mesh(false);
         assert!(render_reference(&mesh, &FIT, 0, &[], AMB).is_err());
         assert!(render_reference(&mesh, &FIT, 8, &[LIGHT; 33], AMB).is_err());
-        assert!(render_reference(
-            &mesh,
-            &Fit {
-                origin: [0.0; 3],
-                voxel: 0.0
-            },
-            8,
-            &[],
-            AMB
-        )
-        .is_err());
+        assert!(render_reference(&mesh, &Fit { origin: [0.0; 3], voxel: 0.0 }, 8, &[], AMB).is_err());
         let mut bad = mesh.clone();
         bad.faces[0].material = 5;
         assert!(render_reference(&bad, &FIT, 8, &[], AMB).is_err());
@@ -979,9 +801,6 @@ mod tests {
         let dt = t0.elapsed().as_secs_f64();
         let covered = img.covered.iter().filter(|&&c| c).count();
         let lit = img.lit.iter().filter(|&&l| l != 0).count();
-        println!(
-            "cornell n = {n}: {dt:.3} s, {covered} covered, {lit} lit, light at {:?} (voxel units)",
-            light.pos
-        );
+        println!("cornell n = {n}: {dt:.3} s, {covered} covered, {lit} lit, light at {:?} (voxel units)", light.pos);
     }
 }

@@ -181,7 +181,11 @@ pub fn ref_lights(lights: &[PointLight]) -> Vec<crate::refrender::RefLight> {
 }
 
 /// Ray-cast the f64 reference of a loaded scene with the same camera, resolution and lights.
-pub fn reference_image(mesh: &Mesh, scene: &LoadedScene, light_positions: &[[f64; 3]]) -> Result<crate::refrender::RefImage> {
+pub fn reference_image(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    light_positions: &[[f64; 3]],
+) -> Result<crate::refrender::RefImage> {
     let rl = ref_lights(&point_lights(light_positions));
     crate::refrender::render_reference(mesh, &scene.fit, scene.grid.n, &rl, [AMBIENT as f64; 3])
 }

@@ -77,7 +77,10 @@ pub const BUILTINS: &[(&str, &str)] = &[
     ("teapot-floor", "the teapot on a floor (the plane behind it, facing the camera), lit from the front"),
     ("cow-floor", "the cow on a floor (the plane behind it, facing the camera), lit from the front"),
     ("bureau1", "procedural office (thesis's Bureau1): desk, CRT, chair, bookshelf; 8 038 facets, 1 light"),
-    ("bureau2", "procedural office for three (thesis's Bureau2): desks, meeting table, shelves; 17 289 facets, 2 lights"),
+    (
+        "bureau2",
+        "procedural office for three (thesis's Bureau2): desks, meeting table, shelves; 17 289 facets, 2 lights",
+    ),
     ("classe", "procedural classroom (thesis's Classe): 20 desks, 40 chairs, blackboard; 38 603 facets, 26 lights"),
 ];
 
@@ -136,8 +139,13 @@ pub fn load(scene: &str) -> Result<Mesh> {
         bail!("scene '{scene}' is neither a file nor a built-in scene (built-ins: {})", names.join(", "));
     }
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let text = String::from_utf8(bytes)
-        .map_err(|e| anyhow::anyhow!("{}: not a text OBJ file (invalid UTF-8 at byte {})", path.display(), e.utf8_error().valid_up_to()))?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: not a text OBJ file (invalid UTF-8 at byte {})",
+            path.display(),
+            e.utf8_error().valid_up_to()
+        )
+    })?;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     parse_obj(&name, &text, |mtl| tobj::load_mtl(dir.join(mtl)))
@@ -199,12 +207,7 @@ pub fn parse_obj<ML>(name: &str, text: &str, mtl_loader: ML) -> Result<Mesh>
 where
     ML: Fn(&Path) -> tobj::MTLLoadResult,
 {
-    let opts = tobj::LoadOptions {
-        triangulate: false,
-        single_index: false,
-        ignore_points: true,
-        ignore_lines: true,
-    };
+    let opts = tobj::LoadOptions { triangulate: false, single_index: false, ignore_points: true, ignore_lines: true };
     let (models, mats) = tobj::load_obj_buf(&mut BufReader::new(text.as_bytes()), &opts, mtl_loader)
         .map_err(|e| anyhow::anyhow!("{name}: malformed OBJ ({e})"))?;
     let mut materials = vec![Material::default()];

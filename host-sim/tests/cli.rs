@@ -30,8 +30,15 @@ fn voxelize_with_stats(name: &str, obj: &[u8], n: &str) -> (i32, String, serde_j
     let stats = p.with_extension("json");
     let out = p.with_extension("binvox");
     let (code, err) = host_sim(&[
-        "voxelize", p.to_str().unwrap(), "--n", n, "--quiet",
-        "--out", out.to_str().unwrap(), "--stats", stats.to_str().unwrap(),
+        "voxelize",
+        p.to_str().unwrap(),
+        "--n",
+        n,
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+        "--stats",
+        stats.to_str().unwrap(),
     ]);
     let s = std::fs::read_to_string(stats).ok().and_then(|t| serde_json::from_str(&t).ok());
     (code, err, s.unwrap_or_default())
@@ -113,10 +120,22 @@ fn dexel_overflow_is_an_error_naming_the_cell() {
     let dir = std::env::temp_dir().join(format!("rc2-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("ovf.binvox");
-    let (code, err) =
-        host_sim(&["voxelize", "teapot", "--n", "64", "--dexel-capacity", "8", "--quiet", "--out", out.to_str().unwrap()]);
+    let (code, err) = host_sim(&[
+        "voxelize",
+        "teapot",
+        "--n",
+        "64",
+        "--dexel-capacity",
+        "8",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     assert_ne!(code, 0);
-    assert!(err.contains("dexel store overflow") && err.contains("cell (") && err.contains("--dexel-capacity"), "{err}");
+    assert!(
+        err.contains("dexel store overflow") && err.contains("cell (") && err.contains("--dexel-capacity"),
+        "{err}"
+    );
     assert!(!out.exists(), "no output file after a loss");
 }
 
@@ -135,14 +154,34 @@ fn light_writes_lit_csv_and_stats() {
     std::fs::create_dir_all(&dir).unwrap();
     let (csv, stats) = (dir.join("lit.csv"), dir.join("light.json"));
     let (code, err) = host_sim(&[
-        "light", "cornell", "--n", "24", "--fa", "4", "--frac-bits", "2", "--quiet",
-        "--lit-out", csv.to_str().unwrap(), "--stats", stats.to_str().unwrap(),
+        "light",
+        "cornell",
+        "--n",
+        "24",
+        "--fa",
+        "4",
+        "--frac-bits",
+        "2",
+        "--quiet",
+        "--lit-out",
+        csv.to_str().unwrap(),
+        "--stats",
+        stats.to_str().unwrap(),
     ]);
     assert_eq!(code, 0, "{err}");
     let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
     for key in [
-        "cycles", "lower_bound", "beams_processed", "messages", "rays_emitted", "rays_absorbed", "rays_exited",
-        "lit_voxels", "peak_fifo", "blocked_cell_cycles", "wall_seconds",
+        "cycles",
+        "lower_bound",
+        "beams_processed",
+        "messages",
+        "rays_emitted",
+        "rays_absorbed",
+        "rays_exited",
+        "lit_voxels",
+        "peak_fifo",
+        "blocked_cell_cycles",
+        "wall_seconds",
     ] {
         assert!(s.get(key).is_some(), "stats lack {key}");
     }
@@ -182,7 +221,8 @@ fn render_handles_materials_and_lights() {
     let obj = b"mtllib nowhere.mtl\nusemtl wood\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\n";
     let p = tmp("textured.obj", obj);
     let out = dir.join("textured.png");
-    let (code, err) = host_sim(&["render", p.to_str().unwrap(), "--n", "16", "--quiet", "--out", out.to_str().unwrap()]);
+    let (code, err) =
+        host_sim(&["render", p.to_str().unwrap(), "--n", "16", "--quiet", "--out", out.to_str().unwrap()]);
     assert_eq!(code, 0, "{err}");
     assert!(err.contains("material library not loaded"), "{err}");
     assert!(err.contains("has no lights"), "a scene without lights gets the documented default: {err}");

@@ -59,7 +59,11 @@ fn extreme_facets_at_max_n() {
                         // i128 span of the band alone, then the cell's span must lie inside it.
                         if c != 0 && x >= pkt.bbox.x_min {
                             let (t, u) = (t0 - plane, u0 - plane);
-                            let (lo, hi) = if c > 0 { (-floor_div(-u, c), floor_div(t, c)) } else { (-floor_div(-t, c), floor_div(u, c)) };
+                            let (lo, hi) = if c > 0 {
+                                (-floor_div(-u, c), floor_div(t, c))
+                            } else {
+                                (-floor_div(-t, c), floor_div(u, c))
+                            };
                             if let Some(s) = row_span(&r, n) {
                                 assert!(lo <= s.lo as i128 && s.hi as i128 <= hi);
                                 spans_seen += 1;

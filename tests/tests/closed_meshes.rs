@@ -19,11 +19,8 @@ fn leak_count(name: &str, n: u32, thickness: Thickness, contour: Contour) -> usi
     // Every triangle of the mesh (also those too small to hold a voxel centre, which the
     // precompute rightly skips), quantised as the cells see them.
     let fit = prep.fit.unwrap();
-    let tris: Vec<[[i64; 3]; 3]> = mesh
-        .faces
-        .iter()
-        .map(|f| [0, 1, 2].map(|k| fit.to_lattice(mesh.positions[f.verts[k] as usize])))
-        .collect();
+    let tris: Vec<[[i64; 3]; 3]> =
+        mesh.faces.iter().map(|f| [0, 1, 2].map(|k| fit.to_lattice(mesh.positions[f.verts[k] as usize]))).collect();
     let inside = InsideOracle::new(&tris, Q, n as i64);
     let vox = grid.to_voxels([0.0; 3], 1.0);
     let occupied = |x: i64, y: i64, z: i64| vox.get(x as u32, y as u32, z as u32);

@@ -18,10 +18,8 @@ type G = Grid<64>;
 
 fn grid_with(n: u32, tris: &[[[i64; 3]; 3]]) -> G {
     let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
-    let packets: Vec<_> = tris
-        .iter()
-        .filter_map(|t| facet_packet(t, FacetTag::default(), &cfg).unwrap().ok())
-        .collect();
+    let packets: Vec<_> =
+        tris.iter().filter_map(|t| facet_packet(t, FacetTag::default(), &cfg).unwrap().ok()).collect();
     let mut g = G::new(n, n);
     g.load_wave(&packets, |_| {});
     g
@@ -97,26 +95,39 @@ fn adversarial_sources() {
     let (a, b) = (3 * Q, 7 * Q);
     let c = |x, y, z| [x, y, z];
     let cube = [
-        [c(a, a, a), c(b, a, a), c(b, b, a)], [c(a, a, a), c(b, b, a), c(a, b, a)],
-        [c(a, a, b), c(b, b, b), c(b, a, b)], [c(a, a, b), c(a, b, b), c(b, b, b)],
-        [c(a, a, a), c(a, b, a), c(a, b, b)], [c(a, a, a), c(a, b, b), c(a, a, b)],
-        [c(b, a, a), c(b, b, b), c(b, b, a)], [c(b, a, a), c(b, a, b), c(b, b, b)],
-        [c(a, a, a), c(b, a, b), c(b, a, a)], [c(a, a, a), c(a, a, b), c(b, a, b)],
-        [c(a, b, a), c(b, b, a), c(b, b, b)], [c(a, b, a), c(b, b, b), c(a, b, b)],
+        [c(a, a, a), c(b, a, a), c(b, b, a)],
+        [c(a, a, a), c(b, b, a), c(a, b, a)],
+        [c(a, a, b), c(b, b, b), c(b, a, b)],
+        [c(a, a, b), c(a, b, b), c(b, b, b)],
+        [c(a, a, a), c(a, b, a), c(a, b, b)],
+        [c(a, a, a), c(a, b, b), c(a, a, b)],
+        [c(b, a, a), c(b, b, b), c(b, b, a)],
+        [c(b, a, a), c(b, a, b), c(b, b, b)],
+        [c(a, a, a), c(b, a, b), c(b, a, a)],
+        [c(a, a, a), c(a, a, b), c(b, a, b)],
+        [c(a, b, a), c(b, b, a), c(b, b, b)],
+        [c(a, b, a), c(b, b, b), c(a, b, b)],
     ];
     let floor = [[c(0, 0, 8), c(m, 0, 8), c(m, m, 8)], [c(0, 0, 8), c(m, m, 8), c(0, m, 8)]];
-    let scenes: Vec<(&str, Vec<[[i64; 3]; 3]>)> = vec![("empty", vec![]), ("cube", cube.to_vec()), ("floor", floor.to_vec())];
+    let scenes: Vec<(&str, Vec<[[i64; 3]; 3]>)> =
+        vec![("empty", vec![]), ("cube", cube.to_vec()), ("floor", floor.to_vec())];
     let positions = [
-        [0, 0, 0], [top, top, top], [0, top, 0], [top, 0, top / 2], [top / 2, 0, 0], // corners, edges, faces
-        [80, 80, 80],                                                              // inside the cube's surface or interior
-        [88, 88, 88], [top / 2 + 8, top / 2 + 3, 5],                                // fractional
+        [0, 0, 0],
+        [top, top, top],
+        [0, top, 0],
+        [top, 0, top / 2],
+        [top / 2, 0, 0], // corners, edges, faces
+        [80, 80, 80],    // inside the cube's surface or interior
+        [88, 88, 88],
+        [top / 2 + 8, top / 2 + 3, 5], // fractional
     ];
     for (name, tris) in &scenes {
         let g = grid_with(n, tris);
         for p in positions {
             for policy in [Policy::Thesis, Policy::Wavefront] {
                 let cfg = LightConfig { fa: 2, policy, merge: policy == Policy::Wavefront, record_visits: false };
-                check_against_rays::<cell_core::beam::frac::U2>(&g, &[p], cfg).unwrap_or_else(|e| panic!("{name} {p:?}: {e}"));
+                check_against_rays::<cell_core::beam::frac::U2>(&g, &[p], cfg)
+                    .unwrap_or_else(|e| panic!("{name} {p:?}: {e}"));
             }
         }
     }
@@ -128,7 +139,11 @@ fn adversarial_sources() {
 fn multi_source_masks_are_unions() {
     let n = 12u32;
     let m = Q * n as i64;
-    let tris = [[[0, m / 3, 0], [m, m / 3, m], [m, m / 3, 0]], [[0, m / 3, 0], [0, m / 3, m], [m, m / 3, m]], [[m / 4, m / 2, m / 4], [m / 2, m / 2, m / 2], [m / 4, m / 2, m / 2]]];
+    let tris = [
+        [[0, m / 3, 0], [m, m / 3, m], [m, m / 3, 0]],
+        [[0, m / 3, 0], [0, m / 3, m], [m, m / 3, m]],
+        [[m / 4, m / 2, m / 4], [m / 2, m / 2, m / 2], [m / 4, m / 2, m / 2]],
+    ];
     let g = grid_with(n, &tris);
     let srcs = [[16, 170, 16], [160, 150, 100], [90, 40, 90]];
     let cfg = LightConfig { fa: 8, policy: Policy::Wavefront, merge: true, record_visits: false };
@@ -176,7 +191,11 @@ fn thesis_shape_and_our_policy() {
     let t = |n: u32, fa: usize, policy: Policy, merge: bool| {
         let g = grid_with(n, &[]);
         let c = 16 * (n as i64 / 2);
-        let l = light::<cell_core::beam::frac::U0>(&g, &[[c, c, c]], LightConfig { fa, policy, merge, record_visits: false });
+        let l = light::<cell_core::beam::frac::U0>(
+            &g,
+            &[[c, c, c]],
+            LightConfig { fa, policy, merge, record_visits: false },
+        );
         (l.reports[0].counts.cycles, l.reports[0].counts.lower_bound)
     };
     let (t16, _) = t(16, 1, Policy::Thesis, false);
@@ -194,7 +213,9 @@ fn thesis_shape_and_our_policy() {
     let lights = host_sim::lightjob::resolve_lights(&mesh, &loaded, &[]).unwrap();
     let lit = |policy, merge| {
         let lcfg = LightConfig { fa: 4, policy, merge, record_visits: false };
-        let (l, _) = host_sim::lightjob::run_diffusion::<cell_core::beam::frac::U2>(&mesh, &loaded, &lights, &lcfg, |_, _| {}).unwrap();
+        let (l, _) =
+            host_sim::lightjob::run_diffusion::<cell_core::beam::frac::U2>(&mesh, &loaded, &lights, &lcfg, |_, _| {})
+                .unwrap();
         l.lit_voxels().collect::<Vec<_>>()
     };
     let a = lit(Policy::Thesis, false);

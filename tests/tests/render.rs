@@ -54,10 +54,25 @@ fn render_once(scene: &str, n: u32) -> (host_sim::render::Image, host_sim::rende
     let lights = host_sim::lightjob::resolve_lights(&mesh, &loaded, &[]).unwrap();
     let reference = host_sim::render::reference_image(&mesh, &loaded, &lights).unwrap();
     let rcfg = host_sim::render::RenderConfig {
-        light: host_sim::diffuse::LightConfig { fa: 16, policy: cell_core::light::Policy::Wavefront, merge: true, record_visits: false },
+        light: host_sim::diffuse::LightConfig {
+            fa: 16,
+            policy: cell_core::light::Policy::Wavefront,
+            merge: true,
+            record_visits: false,
+        },
         normals: NormalMode::Facet,
     };
-    let r = host_sim::render::render::<cell_core::beam::frac::U0>(&mesh, &loaded, &lights, &rcfg, Some(&reference), 0.0, 0.0, |_, _| {}).unwrap();
+    let r = host_sim::render::render::<cell_core::beam::frac::U0>(
+        &mesh,
+        &loaded,
+        &lights,
+        &rcfg,
+        Some(&reference),
+        0.0,
+        0.0,
+        |_, _| {},
+    )
+    .unwrap();
     (r.image, r.stats)
 }
 

@@ -103,11 +103,7 @@ fn sub3(a: [i128; 3], b: [i128; 3]) -> [i128; 3] {
 }
 
 fn cross3(a: [i128; 3], b: [i128; 3]) -> [i128; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
 fn widen(p: [i64; 3]) -> [i128; 3] {
@@ -204,11 +200,7 @@ impl Facet {
                 Contour::Projected => 0,
                 Contour::Conservative => (q / 2) * (du.abs() + dv.abs()),
             };
-            edges.push(HalfPlane {
-                a: -s * dv,
-                b: s * du,
-                c: s * (dv * pi[u] - du * pi[v]) + slack,
-            });
+            edges.push(HalfPlane { a: -s * dv, b: s * du, c: s * (dv * pi[u] - du * pi[v]) + slack });
         }
         if ct == Contour::Conservative {
             let h = q / 2;
@@ -235,11 +227,7 @@ impl Facet {
     /// Lattice coordinates of the centre of voxel `vox`.
     pub fn centre(&self, vox: [i64; 3]) -> [i128; 3] {
         let q = self.q;
-        [
-            q * vox[0] as i128 + q / 2,
-            q * vox[1] as i128 + q / 2,
-            q * vox[2] as i128 + q / 2,
-        ]
+        [q * vox[0] as i128 + q / 2, q * vox[1] as i128 + q / 2, q * vox[2] as i128 + q / 2]
     }
 
     /// `E(M) = N·(M − P0)` at the centre of `vox` (with the gcd-reduced normal).
@@ -279,8 +267,7 @@ impl Facet {
     /// reach far beyond the facet's own bounding box near acute vertices.
     pub fn reach_box(&self) -> Option<([i64; 3], [i64; 3])> {
         let (d, u, v) = self.axes;
-        let hs: Vec<HalfPlane> =
-            self.edges.iter().copied().filter(|h| h.a != 0 || h.b != 0).collect();
+        let hs: Vec<HalfPlane> = self.edges.iter().copied().filter(|h| h.a != 0 || h.b != 0).collect();
         // Vertices of the region {a·u + b·v + c ≥ 0 for all h}: feasible pairwise intersections.
         let (mut umin, mut umax, mut vmin, mut vmax) = (i128::MAX, i128::MIN, i128::MAX, i128::MIN);
         for i in 0..hs.len() {
@@ -329,9 +316,7 @@ impl Facet {
             (floor_div(-(bmax + emax), -nd), ceil_div(-(bmin - emax), -nd))
         };
         let q = self.q;
-        let to_vox = |lo: i128, hi: i128| -> (i128, i128) {
-            (ceil_div(lo - q / 2, q), floor_div(hi - q / 2, q))
-        };
+        let to_vox = |lo: i128, hi: i128| -> (i128, i128) { (ceil_div(lo - q / 2, q), floor_div(hi - q / 2, q)) };
         let mut lo = [0i64; 3];
         let mut hi = [0i64; 3];
         for (axis, (l, h)) in [(u, (umin, umax)), (v, (vmin, vmax)), (d, (dlo, dhi))] {
@@ -477,13 +462,11 @@ pub(crate) mod tests {
         for th in Thickness::ALL {
             let proj = facet_voxels(&sq, Q, th, Contour::Projected, lo, hi);
             // Centres 24, 40, 56, 72 lie in [16, 80]: x, y ∈ 1..=4, z = 5 only.
-            let want: Vec<[i64; 3]> =
-                (1..=4).flat_map(|x| (1..=4).map(move |y| [x, y, 5])).collect();
+            let want: Vec<[i64; 3]> = (1..=4).flat_map(|x| (1..=4).map(move |y| [x, y, 5])).collect();
             assert_eq!(proj, want, "{th:?}");
             // Conservative: edges pushed out by q/2 → centres in [8, 88]: x, y ∈ 0..=5.
             let cons = facet_voxels(&sq, Q, th, Contour::Conservative, lo, hi);
-            let want: Vec<[i64; 3]> =
-                (0..=5).flat_map(|x| (0..=5).map(move |y| [x, y, 5])).collect();
+            let want: Vec<[i64; 3]> = (0..=5).flat_map(|x| (0..=5).map(move |y| [x, y, 5])).collect();
             assert_eq!(cons, want, "{th:?}");
         }
         // Exactly half-way between centres 88 and 104: the closed band keeps both layers.
@@ -580,9 +563,9 @@ pub(crate) mod tests {
         let cases: [&[[i64; 3]]; 5] = [
             &[],
             &[[0, 0, 0], [16, 0, 0]],
-            &[[0, 0, 0], [16, 16, 16], [32, 32, 32]],                // collinear
-            &[[5, 5, 5], [5, 5, 5], [5, 5, 5]],                      // a point
-            &[[0, 0, 0], [16, 0, 0], [32, 0, 0], [48, 0, 0]],        // collinear quad
+            &[[0, 0, 0], [16, 16, 16], [32, 32, 32]],         // collinear
+            &[[5, 5, 5], [5, 5, 5], [5, 5, 5]],               // a point
+            &[[0, 0, 0], [16, 0, 0], [32, 0, 0], [48, 0, 0]], // collinear quad
         ];
         for poly in cases {
             for th in Thickness::ALL {
@@ -646,9 +629,7 @@ pub(crate) mod tests {
             for th in Thickness::ALL {
                 let qv = facet_voxels(&quad, Q, th, Contour::Projected, lo, hi);
                 let mut u: BTreeSet<[i64; 3]> =
-                    facet_voxels(&[quad[0], quad[1], quad[2]], Q, th, Contour::Projected, lo, hi)
-                        .into_iter()
-                        .collect();
+                    facet_voxels(&[quad[0], quad[1], quad[2]], Q, th, Contour::Projected, lo, hi).into_iter().collect();
                 u.extend(facet_voxels(&[quad[0], quad[2], quad[3]], Q, th, Contour::Projected, lo, hi));
                 assert_eq!(qv, u.into_iter().collect::<Vec<_>>());
             }
@@ -662,9 +643,7 @@ pub(crate) mod tests {
         for _ in 0..60 {
             let t = random_triangle(&mut rng, 6 * Q);
             let (lo, hi) = cube(-4, 10);
-            let set = |th, ct| -> BTreeSet<[i64; 3]> {
-                facet_voxels(&t, Q, th, ct, lo, hi).into_iter().collect()
-            };
+            let set = |th, ct| -> BTreeSet<[i64; 3]> { facet_voxels(&t, Q, th, ct, lo, hi).into_iter().collect() };
             for ct in Contour::ALL {
                 let naive = set(Thickness::Naive, ct);
                 assert!(naive.is_subset(&set(Thickness::Thesis, ct)));

@@ -20,11 +20,7 @@ use crate::oracle::tunnels::half_neighbourhood;
 ///
 /// # Panics
 /// If `connectivity` is not 6, 18 or 26.
-pub fn outside_reach(
-    n: i64,
-    occupied: &dyn Fn(i64, i64, i64) -> bool,
-    connectivity: u8,
-) -> Vec<bool> {
+pub fn outside_reach(n: i64, occupied: &dyn Fn(i64, i64, i64) -> bool, connectivity: u8) -> Vec<bool> {
     let half = half_neighbourhood(connectivity);
     if n <= 0 {
         return Vec::new();
@@ -39,8 +35,7 @@ pub fn outside_reach(
             }
         }
     }
-    let deltas: Vec<[i64; 3]> =
-        half.iter().flat_map(|d| [*d, [-d[0], -d[1], -d[2]]]).collect();
+    let deltas: Vec<[i64; 3]> = half.iter().flat_map(|d| [*d, [-d[0], -d[1], -d[2]]]).collect();
     let mut reached = vec![false; total];
     let mut stack: Vec<usize> = Vec::new();
     for z in 0..n {
@@ -102,11 +97,7 @@ pub fn leaks_with(
 
 /// 26-leaks: voxels reached from outside by [`outside_reach_26`] whose centre is strictly
 /// inside the mesh (`inside.inside(..) == Some(true)`), sorted `[x, y, z]`.
-pub fn leaks(
-    n: i64,
-    occupied: &dyn Fn(i64, i64, i64) -> bool,
-    inside: &InsideOracle,
-) -> Vec<[i64; 3]> {
+pub fn leaks(n: i64, occupied: &dyn Fn(i64, i64, i64) -> bool, inside: &InsideOracle) -> Vec<[i64; 3]> {
     leaks_with(n, occupied, inside, 26)
 }
 
@@ -207,12 +198,7 @@ mod tests {
         for k in 0..10 {
             let mut p = || [rng.range(8, 300), rng.range(8, 300), rng.range(8, 300)];
             let v = [p(), p(), p(), p()];
-            let tet = vec![
-                [v[0], v[1], v[2]],
-                [v[0], v[3], v[1]],
-                [v[1], v[3], v[2]],
-                [v[2], v[3], v[0]],
-            ];
+            let tet = vec![[v[0], v[1], v[2]], [v[0], v[3], v[1]], [v[1], v[3], v[2]], [v[2], v[3], v[0]]];
             meshes.push((format!("tetrahedron {k} {v:?}"), tet, 20));
         }
         for (name, mesh, n) in &meshes {

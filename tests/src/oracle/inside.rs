@@ -82,25 +82,15 @@ impl Tri {
         if area2 < 0 {
             std::mem::swap(&mut b, &mut c);
         }
-        let (u, v) = (
-            [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
-            [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
-        );
-        let n = [
-            u[1] * v[2] - u[2] * v[1],
-            u[2] * v[0] - u[0] * v[2],
-            u[0] * v[1] - u[1] * v[0],
-        ];
+        let (u, v) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
+        let n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
         debug_assert!(n[2] > 0);
         Some(Tri { a, b, c, n })
     }
 
     /// The crossing height at column point `(px, py)` if the column crosses this triangle.
     fn crossing(&self, px: i128, py: i128) -> Option<Rat> {
-        if !(edge_ok(self.a, self.b, px, py)
-            && edge_ok(self.b, self.c, px, py)
-            && edge_ok(self.c, self.a, px, py))
-        {
+        if !(edge_ok(self.a, self.b, px, py) && edge_ok(self.b, self.c, px, py) && edge_ok(self.c, self.a, px, py)) {
             return None;
         }
         let n = self.n;
@@ -111,12 +101,7 @@ impl Tri {
     fn xy_bbox(&self) -> (i128, i128, i128, i128) {
         let xs = [self.a[0], self.b[0], self.c[0]];
         let ys = [self.a[1], self.b[1], self.c[1]];
-        (
-            *xs.iter().min().unwrap(),
-            *xs.iter().max().unwrap(),
-            *ys.iter().min().unwrap(),
-            *ys.iter().max().unwrap(),
-        )
+        (*xs.iter().min().unwrap(), *xs.iter().max().unwrap(), *ys.iter().min().unwrap(), *ys.iter().max().unwrap())
     }
 }
 
@@ -144,9 +129,8 @@ impl InsideOracle {
         for t in &tris {
             let (x0, x1, y0, y1) = t.xy_bbox();
             // Columns whose centre q·i + q/2 lies in [lo, hi].
-            let to_idx = |lo: i128, hi: i128| {
-                (ceil_div(lo - q / 2, q).max(0), floor_div(hi - q / 2, q).min(n as i128 - 1))
-            };
+            let to_idx =
+                |lo: i128, hi: i128| (ceil_div(lo - q / 2, q).max(0), floor_div(hi - q / 2, q).min(n as i128 - 1));
             let (ix0, ix1) = to_idx(x0, x1);
             let (iy0, iy1) = to_idx(y0, y1);
             for iy in iy0..=iy1 {
@@ -300,17 +284,11 @@ pub(crate) mod tests {
             let (a, b, c) = (w(t[0]), w(t[1]), w(t[2]));
             let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
             let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-            let n = [
-                u[1] * v[2] - u[2] * v[1],
-                u[2] * v[0] - u[0] * v[2],
-                u[0] * v[1] - u[1] * v[0],
-            ];
+            let n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
             if n == [0, 0, 0] {
                 continue;
             }
-            let f = |p: [i128; 3], s: i128| -> i128 {
-                (0..3).map(|i| n[i] * (p[i] - s * a[i])).sum()
-            };
+            let f = |p: [i128; 3], s: i128| -> i128 { (0..3).map(|i| n[i] * (p[i] - s * a[i])).sum() };
             let fc = f(centroid3, m); // scaled by m
             let fp = f(p, 1);
             let fp = if fc > 0 { -fp } else { fp }; // now < 0 means the centroid's side
@@ -410,11 +388,7 @@ pub(crate) mod tests {
         for sx in [-1, 1] {
             for sy in [-1, 1] {
                 for sz in [-1, 1] {
-                    out.push([
-                        [c[0] + sx * r, c[1], c[2]],
-                        [c[0], c[1] + sy * r, c[2]],
-                        [c[0], c[1], c[2] + sz * r],
-                    ]);
+                    out.push([[c[0] + sx * r, c[1], c[2]], [c[0], c[1] + sy * r, c[2]], [c[0], c[1], c[2] + sz * r]]);
                 }
             }
         }
@@ -456,13 +430,7 @@ pub(crate) mod tests {
         let mut rng = Rng(0x7e7a_7e7a);
         for _ in 0..40 {
             // Vertices on the half-voxel sublattice: many columns through edges and vertices.
-            let mut p = || {
-                [
-                    rng.range(0, 14) * (Q / 2),
-                    rng.range(0, 14) * (Q / 2),
-                    rng.range(0, 14) * (Q / 2),
-                ]
-            };
+            let mut p = || [rng.range(0, 14) * (Q / 2), rng.range(0, 14) * (Q / 2), rng.range(0, 14) * (Q / 2)];
             let v = [p(), p(), p(), p()];
             // Skip flat tetrahedra (the analytic classifier needs a solid).
             let d = |i: usize| [0, 1, 2].map(|k| (v[i][k] - v[0][k]) as i128);
@@ -472,12 +440,7 @@ pub(crate) mod tests {
             if vol == 0 {
                 continue;
             }
-            let mesh = vec![
-                [v[0], v[1], v[2]],
-                [v[0], v[3], v[1]],
-                [v[1], v[3], v[2]],
-                [v[2], v[3], v[0]],
-            ];
+            let mesh = vec![[v[0], v[1], v[2]], [v[0], v[3], v[1]], [v[1], v[3], v[2]], [v[2], v[3], v[0]]];
             let o = InsideOracle::new(&mesh, Q, 7);
             assert!(o.odd_columns().is_empty(), "{v:?}");
             check_against(&o, &|p| convex_classify(&mesh, p), 7);
@@ -596,8 +559,7 @@ pub(crate) mod tests {
             for y in 0..n {
                 for x in 0..n {
                     let p = centre([x, y, z]);
-                    let d = ((0..3).map(|i| ((p[i] - c[i] as i128) as f64).powi(2)).sum::<f64>())
-                        .sqrt();
+                    let d = ((0..3).map(|i| ((p[i] - c[i] as i128) as f64).powi(2)).sum::<f64>()).sqrt();
                     if d < r - margin {
                         assert_eq!(o.inside(x, y, z), Some(true));
                         checked += 1;

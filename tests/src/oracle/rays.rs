@@ -121,16 +121,7 @@ pub fn transverse(src_c: i64, a: i64, d: i64, f: u32, k: i64) -> i64 {
 /// # Panics
 /// If `dir >= 6`, `d < 1` or `f > 12`.
 #[allow(clippy::too_many_arguments)] // the ray's full coordinates, as the definition states them
-pub fn ray_voxel(
-    n: i64,
-    src: [i64; 3],
-    dir: usize,
-    a: i64,
-    b: i64,
-    d: i64,
-    f: u32,
-    k: i64,
-) -> [i64; 3] {
+pub fn ray_voxel(n: i64, src: [i64; 3], dir: usize, a: i64, b: i64, d: i64, f: u32, k: i64) -> [i64; 3] {
     let _ = n;
     let (w, s, ua, va) = dir_axes(dir);
     let mut out = [0i64; 3];
@@ -183,21 +174,18 @@ impl<'a> Occ<'a> {
     const MAX_CACHED: i64 = 1 << 24;
 
     fn new(n: i64, f: &'a dyn Fn(i64, i64, i64) -> bool) -> Self {
-        let table = (n > 0
-            && n.checked_mul(n)
-                .and_then(|m| m.checked_mul(n))
-                .is_some_and(|t| t <= Self::MAX_CACHED))
-        .then(|| {
-            let mut t = vec![false; (n * n * n) as usize];
-            for z in 0..n {
-                for y in 0..n {
-                    for x in 0..n {
-                        t[(x + n * (y + n * z)) as usize] = f(x, y, z);
+        let table = (n > 0 && n.checked_mul(n).and_then(|m| m.checked_mul(n)).is_some_and(|t| t <= Self::MAX_CACHED))
+            .then(|| {
+                let mut t = vec![false; (n * n * n) as usize];
+                for z in 0..n {
+                    for y in 0..n {
+                        for x in 0..n {
+                            t[(x + n * (y + n * z)) as usize] = f(x, y, z);
+                        }
                     }
                 }
-            }
-            t
-        });
+                t
+            });
         Occ { n, table, f }
     }
 
@@ -254,19 +242,9 @@ fn offset_classes(n: i64, src_c: i64, d: i64, f: u32, kmax: i64) -> Vec<(Vec<i64
 ///
 /// # Panics
 /// If there are more than 64 sources, `d < 1` or `f > 12`.
-pub fn trace_all(
-    n: i64,
-    occupied: &dyn Fn(i64, i64, i64) -> bool,
-    sources: &[[i64; 3]],
-    d: i64,
-    f: u32,
-) -> RayOutcome {
+pub fn trace_all(n: i64, occupied: &dyn Fn(i64, i64, i64) -> bool, sources: &[[i64; 3]], d: i64, f: u32) -> RayOutcome {
     check_params(d, f);
-    assert!(
-        sources.len() <= 64,
-        "at most 64 sources (mask bits), got {}",
-        sources.len()
-    );
+    assert!(sources.len() <= 64, "at most 64 sources (mask bits), got {}", sources.len());
     let occ = Occ::new(n, occupied);
     let mut out = RayOutcome::default();
     let side = 2 * (d as u128) * (1u128 << f) + 1;
@@ -330,11 +308,7 @@ pub fn trace_all_naive(
     f: u32,
 ) -> RayOutcome {
     check_params(d, f);
-    assert!(
-        sources.len() <= 64,
-        "at most 64 sources (mask bits), got {}",
-        sources.len()
-    );
+    assert!(sources.len() <= 64, "at most 64 sources (mask bits), got {}", sources.len());
     let m = d << f;
     let mut out = RayOutcome::default();
     for (i, &src) in sources.iter().enumerate() {
@@ -427,9 +401,7 @@ mod tests {
     }
 
     fn lcg(seed: &mut u64) -> u64 {
-        *seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
+        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         *seed >> 33
     }
 
@@ -491,13 +463,9 @@ mod tests {
 
     #[test]
     fn incremental_classes_match_direct_formula() {
-        for &(n, src_c, d, f) in &[
-            (16, 120, 15, 4),
-            (16, 7, 15, 2),
-            (9, 16 * 4 + 3, 8, 3),
-            (5, -5, 7, 1),
-            (4, 80, 3, 0),
-        ] {
+        for &(n, src_c, d, f) in
+            &[(16, 120, 15, 4), (16, 7, 15, 2), (9, 16 * 4 + 3, 8, 3), (5, -5, 7, 1), (4, 80, 3, 0)]
+        {
             let kmax = d.min(n);
             let classes = offset_classes(n, src_c, d, f, kmax);
             let total: u128 = classes.iter().map(|c| c.1).sum();
@@ -531,10 +499,7 @@ mod tests {
             assert_eq!(rays_per_source(d, f), want);
         }
         // f = 0, D = 1: 6 · 3² = 54.
-        assert_eq!(
-            trace_all(3, &|_, _, _| false, &[[16; 3]], 1, 0).rays_exited,
-            54
-        );
+        assert_eq!(trace_all(3, &|_, _, _| false, &[[16; 3]], 1, 0).rays_exited, 54);
     }
 
     #[test]
@@ -550,10 +515,7 @@ mod tests {
                     [8 * n - 5, 3, 16 * n - 9],
                     [16 * (n / 3) + 7, 16 * (n / 2) - 8, 16 * (n / 4) + 1],
                 ] {
-                    assert!(
-                        in_grid(n, source_voxel(src)),
-                        "test source {src:?} outside {n}³"
-                    );
+                    assert!(in_grid(n, source_voxel(src)), "test source {src:?} outside {n}³");
                     let miss = unreached(n, src, d, f);
                     assert!(
                         miss.is_empty(),
@@ -583,14 +545,7 @@ mod tests {
     fn neighbour_of_source_is_lit() {
         let n = 16;
         let src = [p16(8); 3];
-        for nb in [
-            [9, 8, 8],
-            [7, 8, 8],
-            [8, 9, 8],
-            [8, 8, 7],
-            [9, 9, 8],
-            [7, 9, 9],
-        ] {
+        for nb in [[9, 8, 8], [7, 8, 8], [8, 9, 8], [8, 8, 7], [9, 9, 8], [7, 9, 9]] {
             let o = trace_all(n, &|x, y, z| [x, y, z] == nb, &[src], 15, 2);
             assert_eq!(o.lit.len(), 1, "{nb:?}");
             assert_eq!(o.lit.get(&nb), Some(&1));
@@ -607,10 +562,7 @@ mod tests {
             let wall = |_: i64, _: i64, z: i64| z == 10;
             let o = trace_all(n, &wall, &[src], 15, f);
             check_conservation(&o);
-            assert!(
-                o.lit.keys().all(|p| p[2] == 10),
-                "lit behind or before the wall"
-            );
+            assert!(o.lit.keys().all(|p| p[2] == 10), "lit behind or before the wall");
             assert!(o.lit.contains_key(&[8, 8, 10]));
             // Put an occupied voxel behind the wall: it stays dark.
             let wall2 = |x: i64, y: i64, z: i64| z == 10 || [x, y, z] == [8, 8, 12];
@@ -636,14 +588,7 @@ mod tests {
         assert_eq!(o.rays_exited, 0, "a ray escaped a closed box");
         assert!(o.lit.keys().all(|&[x, y, z]| shell(x, y, z)));
         // Every face-centre voxel of the box is lit.
-        for p in [
-            [2, 5, 5],
-            [9, 5, 5],
-            [5, 2, 5],
-            [5, 9, 5],
-            [5, 5, 2],
-            [5, 5, 9],
-        ] {
+        for p in [[2, 5, 5], [9, 5, 5], [5, 2, 5], [5, 9, 5], [5, 5, 2], [5, 5, 9]] {
             assert!(o.lit.contains_key(&p), "{p:?}");
         }
     }
@@ -666,40 +611,24 @@ mod tests {
         let mut seed = 12345u64;
         for case in 0..40 {
             let n = 2 + (lcg(&mut seed) % 7) as i64;
-            let d = if case % 3 == 0 {
-                n - 1
-            } else {
-                1 + (lcg(&mut seed) % 8) as i64
-            }
-            .max(1);
+            let d = if case % 3 == 0 { n - 1 } else { 1 + (lcg(&mut seed) % 8) as i64 }.max(1);
             let f = (lcg(&mut seed) % 3) as u32;
             let density = lcg(&mut seed) % 40;
-            let occ: Vec<bool> = (0..n * n * n)
-                .map(|_| lcg(&mut seed) % 100 < density)
-                .collect();
+            let occ: Vec<bool> = (0..n * n * n).map(|_| lcg(&mut seed) % 100 < density).collect();
             let occupied = |x: i64, y: i64, z: i64| occ[(x + n * (y + n * z)) as usize];
             let nsrc = 1 + (lcg(&mut seed) % 3) as usize;
-            let sources: Vec<[i64; 3]> = (0..nsrc)
-                .map(|_| [0; 3].map(|_| (lcg(&mut seed) % (16 * n as u64 + 8)) as i64 - 8))
-                .collect();
+            let sources: Vec<[i64; 3]> =
+                (0..nsrc).map(|_| [0; 3].map(|_| (lcg(&mut seed) % (16 * n as u64 + 8)) as i64 - 8)).collect();
             let fast = trace_all(n, &occupied, &sources, d, f);
             let naive = trace_all_naive(n, &occupied, &sources, d, f);
-            assert_eq!(
-                fast, naive,
-                "case {case}: n={n} d={d} f={f} sources={sources:?}"
-            );
+            assert_eq!(fast, naive, "case {case}: n={n} d={d} f={f} sources={sources:?}");
             check_conservation(&fast);
             assert_eq!(fast.rays_emitted, nsrc as u128 * rays_per_source(d, f));
             assert!(fast.lit.keys().all(|&[x, y, z]| occupied(x, y, z)));
             // Masks: each source alone lights exactly the voxels carrying its bit.
             for (i, &s) in sources.iter().enumerate() {
                 let one = trace_all(n, &occupied, &[s], d, f);
-                let with_bit: Vec<_> = fast
-                    .lit
-                    .iter()
-                    .filter(|(_, &m)| m & (1 << i) != 0)
-                    .map(|(p, _)| *p)
-                    .collect();
+                let with_bit: Vec<_> = fast.lit.iter().filter(|(_, &m)| m & (1 << i) != 0).map(|(p, _)| *p).collect();
                 assert_eq!(one.lit.keys().copied().collect::<Vec<_>>(), with_bit);
             }
         }
@@ -721,28 +650,14 @@ mod tests {
         // D = 3 in an 8³ grid from voxel (1, 1, 1): layer 3 (x = 4) is lit, layer 4 (x = 5) is not.
         let src = [p16(1); 3];
         let at = |q: [i64; 3]| move |x: i64, y: i64, z: i64| [x, y, z] == q;
-        assert!(trace_all(8, &at([4, 1, 1]), &[src], 3, 1)
-            .lit
-            .contains_key(&[4, 1, 1]));
+        assert!(trace_all(8, &at([4, 1, 1]), &[src], 3, 1).lit.contains_key(&[4, 1, 1]));
         let o = trace_all(8, &at([5, 1, 1]), &[src], 3, 1);
         assert!(o.lit.is_empty());
         assert_eq!(o.rays_exited, o.rays_emitted);
-        assert_eq!(
-            trace_ray(8, &at([5, 1, 1]), src, 0, 0, 0, 3, 1),
-            Fate::Exited { k: 4 }
-        );
-        assert_eq!(
-            trace_ray(8, &at([4, 1, 1]), src, 0, 0, 0, 3, 1),
-            Fate::Absorbed {
-                voxel: [4, 1, 1],
-                k: 3
-            }
-        );
+        assert_eq!(trace_ray(8, &at([5, 1, 1]), src, 0, 0, 0, 3, 1), Fate::Exited { k: 4 });
+        assert_eq!(trace_ray(8, &at([4, 1, 1]), src, 0, 0, 0, 3, 1), Fate::Absorbed { voxel: [4, 1, 1], k: 3 });
         // Leaving the grid: from voxel 6 along +x the ray is out at layer 2 (x = 8).
-        assert_eq!(
-            trace_ray(8, &|_, _, _| false, [p16(6); 3], 0, 0, 0, 7, 0),
-            Fate::Exited { k: 2 }
-        );
+        assert_eq!(trace_ray(8, &|_, _, _| false, [p16(6); 3], 0, 0, 0, 7, 0), Fate::Exited { k: 2 });
     }
 
     #[test]

@@ -63,11 +63,7 @@ pub fn find_tunnels(
     if (0..3).any(|i| lo[i] > hi[i]) {
         return Vec::new();
     }
-    let dim = [
-        (hi[0] - lo[0] + 1) as usize,
-        (hi[1] - lo[1] + 1) as usize,
-        (hi[2] - lo[2] + 1) as usize,
-    ];
+    let dim = [(hi[0] - lo[0] + 1) as usize, (hi[1] - lo[1] + 1) as usize, (hi[2] - lo[2] + 1) as usize];
     let idx = |p: [i64; 3]| -> usize {
         (p[0] - lo[0]) as usize + dim[0] * ((p[1] - lo[1]) as usize + dim[1] * (p[2] - lo[2]) as usize)
     };
@@ -130,9 +126,7 @@ pub fn plane_side(n: [i64; 3], p0: [i64; 3], q: i64) -> impl Fn([i64; 3]) -> i12
     let n = n.map(|c| c as i128);
     let p0 = p0.map(|c| c as i128);
     let q = q as i128;
-    move |v: [i64; 3]| {
-        (0..3).map(|i| n[i] * (q * v[i] as i128 + q / 2 - p0[i])).sum()
-    }
+    move |v: [i64; 3]| (0..3).map(|i| n[i] * (q * v[i] as i128 + q / 2 - p0[i])).sum()
 }
 
 #[cfg(test)]
