@@ -43,6 +43,9 @@ pub enum Command {
     /// Run time against error: render a scene under a sweep of speed/accuracy knobs, compare each
     /// with the f64 reference, write a CSV and a Pareto plot (error against machine cycles).
     Bench(BenchArgs),
+    /// RAM of one cell for a scene: static sizes by part, what the scene uses (peak dexels,
+    /// FIFO, lit runs, with the cell that needs most), and whether it fits `memory.x`.
+    Audit(AuditArgs),
     /// List the built-in scenes.
     Scenes,
     /// Subdivide a mesh (1 → 4 midpoint splits) to about TARGET triangles and write an OBJ.
@@ -324,6 +327,20 @@ pub struct BenchArgs {
     pub quiet: bool,
 }
 
+/// Options of `audit`.
+#[derive(Args, Debug)]
+pub struct AuditArgs {
+    /// Scene and loading options.
+    #[command(flatten)]
+    pub load: LoadArgs,
+    /// FIFO size used for the lighting run.
+    #[arg(long, default_value_t = 16)]
+    pub fa: usize,
+    /// Write the audit as JSON to this file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
 /// Options of `subdivide`.
 #[derive(Args, Debug)]
 pub struct SubdivideArgs {
@@ -360,6 +377,24 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Bench(a) => {
             let meshes = a.scene.iter().map(|s| scene::load(s)).collect::<Result<Vec<_>>>()?;
             crate::bench::run_bench(&meshes, &a.n, &a.frac_bits, &a.out, &a.plot, a.quiet)
+        }
+        Command::Audit(a) => {
+            let l = &a.load;
+            let cfg = LoadConfig { n: l.n, thickness: l.sigma, contour: l.contour };
+            cfg.validate()?;
+            let mesh = scene::load(&l.scene)?;
+            let lcfg = crate::diffuse::LightConfig {
+                fa: a.fa,
+                policy: cell_core::light::Policy::Wavefront,
+                merge: true,
+                record_visits: false,
+            };
+            let audit = crate::audit::audit(&mesh, &cfg, &lcfg)?;
+            crate::audit::print(&audit);
+            if let Some(p) = &a.json {
+                crate::audit::write_json(&audit, p)?;
+            }
+            Ok(())
         }
         Command::Scenes => {
             for (name, what) in scene::BUILTINS {

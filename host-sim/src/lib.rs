@@ -11,6 +11,7 @@
 //! * [`cli`] — the command line.
 #![forbid(unsafe_code)]
 
+pub mod audit;
 pub mod bench;
 pub mod binvox;
 pub mod cli;

@@ -237,3 +237,23 @@ fn render_handles_materials_and_lights() {
         assert!(err.contains(expect), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn audit_reports_sizes_and_the_budget() {
+    let dir = std::env::temp_dir().join(format!("rc2-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("audit.json");
+    let (code, err) = host_sim(&["audit", "cornell", "--n", "32", "--json", json.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let a: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let get = |k: &str| a[k].as_u64().unwrap_or_else(|| panic!("{k} missing"));
+    assert_eq!(get("budget_ram"), 64 * 1024);
+    assert_eq!(a["fits_budget"], true);
+    assert!(get("used_dexels") >= 1 && get("used_dexels") <= get("capacity_dexels"));
+    assert!(get("needed_total") < get("static_total"));
+    assert_eq!(
+        get("static_total"),
+        get("static_cell") + get("bytes_row_packet") + get("static_light_cell"),
+        "the static total is the sum of its parts"
+    );
+}

@@ -1,0 +1,212 @@
+//! `host-sim audit`: what one cell costs in RAM for a scene, against the per-cell budget in
+//! `memory.x` (issue 5). Static sizes are `size_of` of the cell's types with the host's
+//! compile-time capacities; used sizes come from a real load + light run (peak dexels, peak FIFO,
+//! peak lit runs over all cells, with the cell that needs the most); "needed" is a cell compiled
+//! with exactly the capacities the scene used.
+
+use std::mem::size_of;
+
+use anyhow::{Context, Result};
+use cell_core::beam::frac::U0;
+use cell_core::cell::{Cell, DEFAULT_DEXELS};
+use cell_core::dexel::{Dexel, DexelStore};
+use cell_core::facet::{PipelinePacket, RowPacket};
+use cell_core::light::{BeamMsg, LitRun, LitRuns};
+
+use crate::diffuse::{LightConfig, FA_CAP, LIT_CAP, OB_CAP};
+use crate::lightjob::{load_scene, resolve_lights, run_diffusion};
+use crate::precompute::LoadConfig;
+use crate::scene::Mesh;
+
+/// The per-cell RAM budget: the RAM `LENGTH` of the top-level `memory.x`.
+pub const MEMORY_X: &str = include_str!("../../memory.x");
+
+/// Bytes of the `RAM` region in a linker memory script (`LENGTH = 64K`, `0x10000`, `65536`).
+pub fn ram_budget(memory_x: &str) -> Option<usize> {
+    let line = memory_x.lines().find(|l| l.trim_start().starts_with("RAM"))?;
+    let len = line.split("LENGTH").nth(1)?.trim_start().trim_start_matches('=').trim();
+    let len = len.trim_end_matches(|c: char| c == ',' || c.is_whitespace());
+    let (num, mul) = match len.chars().last()? {
+        'K' | 'k' => (&len[..len.len() - 1], 1024),
+        'M' | 'm' => (&len[..len.len() - 1], 1024 * 1024),
+        _ => (len, 1),
+    };
+    let v =
+        if let Some(hex) = num.strip_prefix("0x") { usize::from_str_radix(hex, 16).ok()? } else { num.parse().ok()? };
+    Some(v * mul)
+}
+
+/// Sizes and usage of one cell for a scene.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Audit {
+    /// Scene name.
+    pub scene: String,
+    /// Grid side.
+    pub n: u32,
+    /// `size_of` a dexel, a beam message, a row packet, a pipeline packet, a lit run.
+    pub bytes_dexel: usize,
+    /// See `bytes_dexel`.
+    pub bytes_beam_message: usize,
+    /// See `bytes_dexel`.
+    pub bytes_row_packet: usize,
+    /// See `bytes_dexel`.
+    pub bytes_pipeline_packet: usize,
+    /// See `bytes_dexel`.
+    pub bytes_lit_run: usize,
+    /// Static: the dexel store with the host's capacity.
+    pub static_dexel_store: usize,
+    /// Static: the whole loading cell (store, coordinates, counters).
+    pub static_cell: usize,
+    /// Static: the FIFO (host capacity).
+    pub static_fifo: usize,
+    /// Static: the 8 output buffers.
+    pub static_output_buffers: usize,
+    /// Static: the lit runs.
+    pub static_lit_runs: usize,
+    /// Static: the whole lighting state of a cell.
+    pub static_light_cell: usize,
+    /// Static total: loading cell + one inbound row-packet register + lighting state.
+    pub static_total: usize,
+    /// Capacities compiled into the host.
+    pub capacity_dexels: usize,
+    /// See `capacity_dexels`.
+    pub capacity_fifo: usize,
+    /// See `capacity_dexels`.
+    pub capacity_lit_runs: usize,
+    /// Peak dexels in one cell, and that cell.
+    pub used_dexels: usize,
+    /// The cell with the most dexels.
+    pub used_dexels_cell: [u32; 2],
+    /// Peak FIFO occupancy in one cell, and that cell.
+    pub used_fifo: usize,
+    /// The cell with the fullest FIFO.
+    pub used_fifo_cell: [u32; 2],
+    /// Peak lit runs in one cell, and that cell.
+    pub used_lit_runs: usize,
+    /// The cell with the most lit runs.
+    pub used_lit_runs_cell: [u32; 2],
+    /// A cell compiled with exactly the used capacities (code excluded).
+    pub needed_total: usize,
+    /// The per-cell RAM budget of `memory.x`.
+    pub budget_ram: Option<usize>,
+    /// Whether `needed_total` fits the budget.
+    pub fits_budget: Option<bool>,
+}
+
+/// Load and light a scene with the default lighting settings and measure its cells.
+pub fn audit(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig) -> Result<Audit> {
+    let loaded = load_scene(mesh, cfg)?;
+    let lights = resolve_lights(mesh, &loaded, &[])?;
+    let (lighting, _) = run_diffusion::<U0>(mesh, &loaded, &lights, light, |_, _| {})?;
+    let (mut dexels, mut dexels_cell) = (0usize, [0u32; 2]);
+    for c in &loaded.grid.cells {
+        if c.store.dexels().len() > dexels {
+            dexels = c.store.dexels().len();
+            dexels_cell = [c.x as u32, c.y as u32];
+        }
+    }
+    let (mut fifo, mut fifo_cell, mut runs, mut runs_cell) = (0usize, [0u32; 2], 0usize, [0u32; 2]);
+    for c in &lighting.cells {
+        if c.counters.peak_fifo as usize > fifo {
+            fifo = c.counters.peak_fifo as usize;
+            fifo_cell = [c.x as u32, c.y as u32];
+        }
+        if c.lit.runs().len() > runs {
+            runs = c.lit.runs().len();
+            runs_cell = [c.x as u32, c.y as u32];
+        }
+    }
+    type Light = crate::diffuse::HostLightCell<U0>;
+    let (b_dexel, b_msg, b_run) = (size_of::<Dexel>(), size_of::<BeamMsg<U0>>(), size_of::<LitRun>());
+    let static_fifo = size_of::<heapless::Vec<BeamMsg<U0>, FA_CAP>>();
+    let static_out = size_of::<[heapless::Deque<BeamMsg<U0>, OB_CAP>; 8]>();
+    let static_lit = size_of::<LitRuns<LIT_CAP>>();
+    let static_cell = size_of::<Cell<DEFAULT_DEXELS>>();
+    let static_light = size_of::<Light>();
+    let static_total = static_cell + size_of::<RowPacket>() + static_light;
+    // The same cell with every capacity cut to what the scene used.
+    let needed_total =
+        static_total - (DEFAULT_DEXELS - dexels) * b_dexel - (FA_CAP - fifo) * b_msg - (LIT_CAP - runs) * b_run;
+    let budget = ram_budget(MEMORY_X);
+    Ok(Audit {
+        scene: mesh.name.clone(),
+        n: cfg.n,
+        bytes_dexel: b_dexel,
+        bytes_beam_message: b_msg,
+        bytes_row_packet: size_of::<RowPacket>(),
+        bytes_pipeline_packet: size_of::<PipelinePacket>(),
+        bytes_lit_run: b_run,
+        static_dexel_store: size_of::<DexelStore<DEFAULT_DEXELS>>(),
+        static_cell,
+        static_fifo,
+        static_output_buffers: static_out,
+        static_lit_runs: static_lit,
+        static_light_cell: static_light,
+        static_total,
+        capacity_dexels: DEFAULT_DEXELS,
+        capacity_fifo: FA_CAP,
+        capacity_lit_runs: LIT_CAP,
+        used_dexels: dexels,
+        used_dexels_cell: dexels_cell,
+        used_fifo: fifo,
+        used_fifo_cell: fifo_cell,
+        used_lit_runs: runs,
+        used_lit_runs_cell: runs_cell,
+        needed_total,
+        budget_ram: budget,
+        fits_budget: budget.map(|b| needed_total <= b),
+    })
+}
+
+/// The one-screen report.
+pub fn print(a: &Audit) {
+    println!("{} at n = {}: RAM of one cell (code excluded)", a.scene, a.n);
+    println!("| part | static (host capacities) | used by this scene |");
+    println!("|---|---|---|");
+    println!(
+        "| dexel store | {} B ({} × {} B) | {} dexels, cell {:?} |",
+        a.static_dexel_store, a.capacity_dexels, a.bytes_dexel, a.used_dexels, a.used_dexels_cell
+    );
+    println!(
+        "| FIFO | {} B ({} × {} B) | peak {} beams, cell {:?} |",
+        a.static_fifo, a.capacity_fifo, a.bytes_beam_message, a.used_fifo, a.used_fifo_cell
+    );
+    println!("| output buffers | {} B (8 × 3 × {} B) | |", a.static_output_buffers, a.bytes_beam_message);
+    println!(
+        "| lit runs | {} B ({} × {} B) | {} runs, cell {:?} |",
+        a.static_lit_runs, a.capacity_lit_runs, a.bytes_lit_run, a.used_lit_runs, a.used_lit_runs_cell
+    );
+    println!("| inbound row packet | {} B | |", a.bytes_row_packet);
+    println!("| **total** | {} B | {} B with exactly the capacities used |", a.static_total, a.needed_total);
+    println!(
+        "messages in memory: row packet {} B, pipeline packet {} B, beam {} B",
+        a.bytes_row_packet, a.bytes_pipeline_packet, a.bytes_beam_message
+    );
+    match (a.budget_ram, a.fits_budget) {
+        (Some(b), Some(fit)) => println!(
+            "memory.x RAM budget {} B: {} (anchors: MasPar PE 16 KB; thesis §4.3.2: 16 KB per cell is too much)",
+            b,
+            if fit { "fits" } else { "DOES NOT FIT" }
+        ),
+        _ => println!("memory.x: no RAM length found"),
+    }
+}
+
+/// Write the audit as JSON.
+pub fn write_json(a: &Audit, path: &std::path::Path) -> Result<()> {
+    let f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    serde_json::to_writer_pretty(std::io::BufWriter::new(f), a)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_the_ram_length_of_memory_x() {
+        assert_eq!(ram_budget(MEMORY_X), Some(64 * 1024));
+        assert_eq!(ram_budget("MEMORY {\n RAM : ORIGIN = 0x20000000, LENGTH = 0x8000\n}"), Some(0x8000));
+        assert_eq!(ram_budget("MEMORY { FLASH : ORIGIN = 0, LENGTH = 1M }"), None);
+    }
+}
