@@ -398,7 +398,7 @@ pub fn run(cli: Cli) -> Result<()> {
         }
         Command::Scenes => {
             for (name, what) in scene::BUILTINS {
-                println!("{name:10} {what}");
+                println!("{name:13} {what}");
             }
             Ok(())
         }
