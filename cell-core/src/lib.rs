@@ -15,6 +15,7 @@
 //! * [`beam`] — light beams and their split (§4.3).
 //! * [`light`] — the lighting phase: FIFO, ports, back-pressure, lit voxels, quiescence (§4.4).
 //! * [`link`] — the bytes a link carries: framed messages with a CRC; the `embedded-hal` link seam.
+//! * [`trace`] — cell traces (what a cell received, as frames) and their replay through the real cell.
 //! * [`shade`] — Phong/Blinn shading of the visible voxel with `micromath` (§1.1, §5.2).
 #![no_std]
 #![forbid(unsafe_code)]
@@ -28,5 +29,6 @@ pub mod light;
 pub mod link;
 pub mod normal;
 pub mod shade;
+pub mod trace;
 pub mod units;
 pub mod voxelize;
