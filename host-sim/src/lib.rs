@@ -28,3 +28,5 @@ pub mod refrender;
 pub mod render;
 pub mod rng;
 pub mod scene;
+pub mod tiles;
+pub mod wave_ref;
