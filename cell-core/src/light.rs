@@ -33,7 +33,7 @@ use core::cell::Cell as CoreCell;
 use critical_section::Mutex;
 use heapless::{Deque, Vec};
 
-use crate::beam::{Beam, BeamError, FarDistance, FracBits, Source, SplitOrder, Transverse};
+use crate::beam::{Beam, BeamError, Direction, FarDistance, FracBits, Source, SplitOrder, Transverse};
 use crate::dexel::DexelStore;
 use crate::units::{Coord, Depth};
 
@@ -286,6 +286,92 @@ impl Activity {
     }
 }
 
+/// Counts beams appearing and being consumed: the machine-wide [`Activity`], or an
+/// [`ActivityDelta`] that a host simulating many cells at once keeps per worker and adds to the
+/// [`Activity`] at the end of a phase ([`Activity::apply`]).
+pub trait BeamTally {
+    /// `n` beams appeared.
+    fn add(&self, n: u64);
+    /// One beam was consumed.
+    fn consume(&self);
+}
+
+impl BeamTally for Activity {
+    fn add(&self, n: u64) {
+        Activity::add(self, n);
+    }
+    fn consume(&self) {
+        Activity::consume(self);
+    }
+}
+
+/// A local, unsynchronised change of the beam count (not `Sync`: one per worker). Sound
+/// because quiescence is only read between phases, after every delta has been applied.
+#[derive(Debug, Default)]
+pub struct ActivityDelta(CoreCell<i64>);
+
+impl ActivityDelta {
+    /// No change yet.
+    pub const fn new() -> Self {
+        ActivityDelta(CoreCell::new(0))
+    }
+
+    /// Net change so far (appeared − consumed).
+    pub fn get(&self) -> i64 {
+        self.0.get()
+    }
+}
+
+impl BeamTally for ActivityDelta {
+    fn add(&self, n: u64) {
+        self.0.set(self.0.get() + n as i64);
+    }
+    fn consume(&self) {
+        self.0.set(self.0.get() - 1);
+    }
+}
+
+impl Activity {
+    /// Add a worker's net change (one critical section per phase instead of one per beam).
+    pub fn apply(&self, delta: i64) {
+        critical_section::with(|cs| {
+            let c = self.count.borrow(cs);
+            c.set(c.get().saturating_add_signed(delta));
+        });
+    }
+}
+
+/// The bounding box of the occupied voxels, `lo ..= hi` on each axis (x, y, z); 12 bytes that
+/// every cell holds for the *receding-beam skip* (a min/max reduction over the grid after
+/// loading, or the host's broadcast). `lo > hi` on an axis means no voxel is occupied.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct OccupiedBox {
+    /// Smallest occupied coordinate per axis.
+    pub lo: [Depth; 3],
+    /// Largest occupied coordinate per axis.
+    pub hi: [Depth; 3],
+}
+
+impl OccupiedBox {
+    /// Whether no ray of a beam of direction `dir`, from a source in voxel `sv`, that is in voxel
+    /// `at` can ever meet an occupied voxel again. Exact, by monotonicity: along the principal
+    /// axis a ray moves strictly in the direction's sign; on a transverse axis its voxel
+    /// coordinate ⌊S + u·k/D + ½⌋ is monotone in k with the sign of u and equals the source
+    /// voxel's at k = 0, so a ray in a voxel strictly beyond the source voxel on that axis has
+    /// u > 0 (resp. u < 0) and never comes back. So the beam recedes if, on some axis, it is
+    /// beyond the box and moving (principal) or bound (transverse) away from it.
+    pub fn receding(&self, dir: Direction, sv: [i32; 3], at: [i64; 3]) -> bool {
+        if (0..3).any(|a| self.lo[a] > self.hi[a]) {
+            return true;
+        }
+        let w = dir.principal().index();
+        let (lo, hi) = (self.lo.map(i64::from), self.hi.map(i64::from));
+        let sv = sv.map(i64::from);
+        let principal = if dir.sign() > 0 { at[w] > hi[w] } else { at[w] < lo[w] };
+        principal || (0..3).any(|a| a != w && ((at[a] > hi[a] && at[a] > sv[a]) || (at[a] < lo[a] && at[a] < sv[a])))
+    }
+}
+
 /// Per-cell counters of the lighting phase.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -302,6 +388,8 @@ pub struct LightCounters {
     pub rays_absorbed: u64,
     /// Rays whose sub-beam left the grid from this cell.
     pub rays_exited: u64,
+    /// Rays of sub-beams dropped by the receding-beam skip ([`OccupiedBox::receding`]).
+    pub rays_skipped: u64,
     /// Sub-beams sent to neighbours.
     pub sent: u64,
     /// Lit marks lost to a full [`LitRuns`].
@@ -331,6 +419,9 @@ pub struct LightEnv<'a, F: FracBits> {
     pub source_bit: SourceMask,
     /// Merge arriving beams into waiting beams of the same voxel when exact.
     pub merge: bool,
+    /// The receding-beam skip: sub-beams that can meet no occupied voxel are dropped, their
+    /// rays counted as skipped (`None`: off).
+    pub skip: Option<OccupiedBox>,
 }
 
 /// What a cell did in one cycle.
@@ -349,7 +440,7 @@ pub enum Step {
 #[allow(clippy::large_enum_variant)]
 enum Fate<F: FracBits> {
     Absorbed(u64),
-    Split { subs: heapless::Vec<(Target, BeamMsg<F>), 9>, exited: u64 },
+    Split { subs: heapless::Vec<(Target, BeamMsg<F>), 9>, exited: u64, skipped: u64 },
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -410,7 +501,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     /// [`LightCell::can_accept`]; a full FIFO returns the beam back. With `merge`, a beam that
     /// shares a whole side with a waiting beam of the same voxel joins it instead of taking a
     /// slot (exact, see [`Beam::merged`]; one beam fewer in flight).
-    pub fn accept(&mut self, msg: BeamMsg<F>, merge: bool, activity: &Activity) -> Result<(), BeamMsg<F>> {
+    pub fn accept(&mut self, msg: BeamMsg<F>, merge: bool, activity: &impl BeamTally) -> Result<(), BeamMsg<F>> {
         if merge {
             let mut m = msg;
             let mut joined = false;
@@ -454,6 +545,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         let at = Transverse { u: pos[ua.index()] as i32, v: pos[va.index()] as i32 };
         let mut subs = heapless::Vec::new();
         let mut exited = 0;
+        let mut skipped = 0;
+        let sv = env.source.voxel();
         match b.split_with(env.source, env.far, at, env.order) {
             Ok(parts) => {
                 for sb in parts {
@@ -469,6 +562,10 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                         exited += sb.beam.ray_count();
                         continue;
                     }
+                    if env.skip.is_some_and(|bx| bx.receding(dir, sv, to)) {
+                        skipped += sb.beam.ray_count();
+                        continue;
+                    }
                     let target = match Port::from_delta(d[0], d[1]) {
                         Some(p) => Target::Out(p),
                         None => Target::SelfFifo,
@@ -480,7 +577,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             // layer is outside every grid the far distance was chosen for; the rays leave.
             Err(BeamError::AtFarPlane) | Err(_) => exited += b.ray_count(),
         }
-        Fate::Split { subs, exited }
+        Fate::Split { subs, exited, skipped }
     }
 
     /// Whether every sub-beam of `fate` fits now (the no-loss rule), given that the processed
@@ -499,7 +596,12 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
 
     /// One compute cycle (§4.4.1): pick a beam by `env.policy`, process it if the no-loss rule
     /// allows, else wait. `activity` counts beams in flight machine-wide.
-    pub fn step<const D: usize>(&mut self, store: &DexelStore<D>, env: &LightEnv<'_, F>, activity: &Activity) -> Step {
+    pub fn step<const D: usize>(
+        &mut self,
+        store: &DexelStore<D>,
+        env: &LightEnv<'_, F>,
+        activity: &impl BeamTally,
+    ) -> Step {
         if self.fifo.is_empty() {
             return Step::Idle;
         }
@@ -555,8 +657,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                     self.counters.lit_overflows += 1;
                 }
             }
-            Fate::Split { subs, exited } => {
+            Fate::Split { subs, exited, skipped } => {
                 self.counters.rays_exited += exited;
+                self.counters.rays_skipped += skipped;
                 activity.add(subs.len() as u64);
                 for (t, sub) in subs {
                     // Cannot fail: `fits` checked every destination.

@@ -7,7 +7,7 @@
 //! |---|---|---|
 //! | `0x40` | [`Event::Header`] | magic `RC2T` u32, version u8, x u16, y u16, depth u32, frac bits u8, dexel capacity u16, FIFO capacity u16, output buffer u8, lit runs u16 |
 //! | `0x41` | [`Event::Row`] | a row packet arriving from the west (loading, §3.9) |
-//! | `0x42` | [`Event::Light`] | a source's diffusion starts: source id u16, position 3×i32 (1/16 voxel), n u32, depth u32, D u32, policy u8, FIFO limit u16, merge u8, source bit u32 |
+//! | `0x42` | [`Event::Light`] | a source's diffusion starts: source id u16, position 3×i32 (1/16 voxel), n u32, depth u32, D u32, policy u8, FIFO limit u16, merge u8, source bit u32, skip u8 (+ occupied box lo, hi 6×u16 when 1) |
 //! | `0x43` | [`Event::Inject`] | the source emitter hands this cell an initial beam |
 //! | `0x44` | [`Event::Recv`] | link `port` delivers a beam: port u8 + the link frame as on the wire (its own CRC) |
 //! | `0x45` | [`Event::Step`] | `count` u32 compute cycles |
@@ -26,7 +26,7 @@ use heapless::Vec;
 use crate::beam::{FarDistance, FracBits, Source, SourceCoord, SourceId, SplitOrder};
 use crate::cell::Cell;
 use crate::facet::RowPacket;
-use crate::light::{Activity, BeamMsg, LightCell, LightEnv, Policy, Port, SourceMask, Step};
+use crate::light::{Activity, BeamMsg, LightCell, LightEnv, OccupiedBox, Policy, Port, SourceMask, Step};
 use crate::link::{
     self, get_beam, get_row, put_beam, put_row, read_frame, write_frame, ByteSink, DecodeError, EncodeError, Link,
     PutExt, Reader, HEADER, TRAILER,
@@ -37,7 +37,7 @@ use crate::units::{Coord, Depth};
 /// `RC2T`.
 pub const MAGIC: u32 = u32::from_le_bytes(*b"RC2T");
 /// Trace format version.
-pub const VERSION: u8 = 1;
+pub const VERSION: u8 = 2;
 /// Record kinds.
 pub mod kind {
     /// [`super::Event::Header`].
@@ -107,6 +107,8 @@ pub struct LightSetup {
     pub merge: bool,
     /// The source's bit.
     pub source_bit: SourceMask,
+    /// The occupied box of the receding-beam skip (`None`: off).
+    pub skip: Option<OccupiedBox>,
 }
 
 /// What a cell needs to shade its pixel.
@@ -218,7 +220,17 @@ pub fn write_event<F: FracBits>(ev: &Event<'_, F>, buf: &mut [u8]) -> Result<usi
             w.u8(policy_code(s.policy))?;
             w.u16(s.fa)?;
             w.u8(s.merge as u8)?;
-            w.u32(s.source_bit)
+            w.u32(s.source_bit)?;
+            match &s.skip {
+                None => w.u8(0),
+                Some(b) => {
+                    w.u8(1)?;
+                    for v in b.lo.iter().chain(&b.hi) {
+                        w.u16(*v)?;
+                    }
+                    Ok(())
+                }
+            }
         }),
         Event::Inject(m) => write_frame(buf, kind::INJECT, |w| put_beam(w, m)),
         Event::Recv { port, frame } => write_frame(buf, kind::RECV, |w| {
@@ -319,6 +331,13 @@ impl<'a, F: FracBits> Parser<'a, F> {
                     fa: r.u16()?,
                     merge: r.u8()? != 0,
                     source_bit: r.u32()?,
+                    skip: match r.u8()? {
+                        0 => None,
+                        1 => {
+                            Some(OccupiedBox { lo: [r.u16()?, r.u16()?, r.u16()?], hi: [r.u16()?, r.u16()?, r.u16()?] })
+                        }
+                        _ => return Err(DecodeError::BadValue("skip flag").into()),
+                    },
                 };
                 self.far = Some(FarDistance::new(s.far).ok_or(ReplayError::BadFar)?);
                 Event::Light(s)
@@ -549,6 +568,7 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
             fa: setup.fa as usize,
             source_bit: setup.source_bit,
             merge: setup.merge,
+            skip: setup.skip,
         })
     }
 

@@ -132,6 +132,7 @@ pub fn run_bench(
                         policy: k.policy,
                         merge: k.policy == Policy::Wavefront,
                         record_visits: false,
+                        ..Default::default()
                     },
                     normals: k.normals,
                 };

@@ -22,6 +22,9 @@ pub struct Cli {
     /// What to run.
     #[command(subcommand)]
     pub command: Command,
+    /// Host threads simulating the grid (default: all cores). Results do not depend on it.
+    #[arg(long, global = true, value_parser = clap::value_parser!(u16).range(1..))]
+    pub threads: Option<u16>,
 }
 
 /// Subcommands.
@@ -160,6 +163,26 @@ pub struct LightOpts {
     /// for the thesis policy).
     #[arg(long, value_enum, default_value_t = MergeArg::Auto)]
     pub merge: MergeArg,
+    /// Which cells the host visits each cycle: only those holding beams, or every cell (the
+    /// reference). Same results, cycles and counters either way.
+    #[arg(long, value_enum, default_value_t = SteppingArg::Active)]
+    pub stepping: SteppingArg,
+    /// Drop sub-beams that can meet no occupied voxel any more (outside the occupied bounding
+    /// box and moving away from it); their rays are counted as skipped. Exact: same lit voxels.
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub skip_receding: bool,
+    /// Do not emit a source's initial beams whose direction leads away from the occupied box.
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub skip_dead_directions: bool,
+}
+
+/// How the host steps the grid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SteppingArg {
+    /// Only the cells holding beams (event-driven).
+    Active,
+    /// Every cell in every cycle (the reference).
+    AllCells,
 }
 
 impl LightOpts {
@@ -169,6 +192,12 @@ impl LightOpts {
             policy: self.policy.into(),
             merge: self.merge.resolve(self.policy),
             record_visits: false,
+            stepping: match self.stepping {
+                SteppingArg::Active => crate::diffuse::Stepping::Active,
+                SteppingArg::AllCells => crate::diffuse::Stepping::AllCells,
+            },
+            skip_receding: self.skip_receding,
+            skip_dead_directions: self.skip_dead_directions,
         }
     }
 }
@@ -407,6 +436,9 @@ pub const DEFAULT_FRAC_BITS: u32 = 0;
 
 /// Run a parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
+    if let Some(t) = cli.threads {
+        rayon::ThreadPoolBuilder::new().num_threads(t as usize).build_global().context("--threads")?;
+    }
     match cli.command {
         Command::Voxelize(a) => match a.dexel_capacity {
             8 => run_voxelize::<8>(&a),
@@ -436,6 +468,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 policy: cell_core::light::Policy::Wavefront,
                 merge: true,
                 record_visits: false,
+                ..Default::default()
             };
             let default_elf = PathBuf::from(crate::audit::FIRMWARE_ELF);
             let elf = a.elf.clone().or_else(|| default_elf.exists().then_some(default_elf));
@@ -634,6 +667,11 @@ fn run_table<F: cell_core::beam::FracBits>(a: &TableArgs) -> Result<()> {
                     policy: policy.into(),
                     merge: a.merge.resolve(policy),
                     record_visits: false,
+                    // The thesis's experiment measures diffusion through an empty scene, which
+                    // the skips would drop entirely.
+                    skip_receding: false,
+                    skip_dead_directions: false,
+                    ..Default::default()
                 };
                 let (_, s) = run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, |_, _| {})?;
                 let r = &s.sources[0];
@@ -702,6 +740,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
                 policy: a.policy.into(),
                 merge: MergeArg::Auto.resolve(a.policy),
                 record_visits: false,
+                ..Default::default()
             };
             let row = cell_core::with_frac_bits!(f, F => {
                 run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, |_, _| {})

@@ -17,9 +17,13 @@
 
 use anyhow::{bail, Result};
 use cell_core::beam::{Beam, Direction, FarDistance, FracBits, Source, SourceId, SplitOrder};
-use cell_core::light::{Activity, BeamMsg, LightCell, LightCounters, LightEnv, Policy, Port, SourceMask, Step};
+use cell_core::light::{
+    Activity, ActivityDelta, BeamMsg, LightCell, LightCounters, LightEnv, OccupiedBox, Policy, Port, SourceMask, Step,
+};
+use rayon::prelude::*;
 
 use crate::grid::Grid;
+use crate::tiles::{grouped, tiles, tiles_ref};
 use crate::trace::Tap;
 
 /// FIFO capacity compiled into the host's cells (the run-time `--fa` may be smaller).
@@ -43,6 +47,40 @@ pub struct LightConfig {
     pub merge: bool,
     /// Record every voxel where a beam was processed (coverage checks; n³ bits).
     pub record_visits: bool,
+    /// Which cells the host visits each cycle (same results either way).
+    pub stepping: Stepping,
+    /// The receding-beam skip ([`OccupiedBox::receding`]): exact, changes cycles and messages,
+    /// never lit voxels.
+    pub skip_receding: bool,
+    /// The dead-direction skip: the source emits no initial beam whose direction leads away
+    /// from the occupied box (its rays are counted as skipped).
+    pub skip_dead_directions: bool,
+}
+
+impl Default for LightConfig {
+    /// The `render` defaults: FA = 16, wavefront + merge, active stepping, skips on.
+    fn default() -> Self {
+        LightConfig {
+            fa: 16,
+            policy: Policy::Wavefront,
+            merge: true,
+            record_visits: false,
+            stepping: Stepping::Active,
+            skip_receding: true,
+            skip_dead_directions: true,
+        }
+    }
+}
+
+/// How the host steps the grid. Both simulate every cycle of every cell: a cell without a beam
+/// does nothing in a cycle, so visiting it or not changes no state.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Stepping {
+    /// Visit only the cells holding beams (event-driven; the default).
+    #[default]
+    Active,
+    /// Visit every cell in every cycle (the straightforward reference).
+    AllCells,
 }
 
 /// Counters of a diffusion run (SPEC §7): one source's, or the sum over sources.
@@ -68,6 +106,8 @@ pub struct DiffusionCounts {
     pub rays_absorbed: u128,
     /// Rays that left the grid.
     pub rays_exited: u128,
+    /// Rays dropped by the skips (they would have left the grid without meeting a voxel).
+    pub rays_skipped: u128,
     /// Largest FIFO occupancy of any cell.
     pub peak_fifo: u16,
     /// Sum over cells of cycles with beams waiting and none processable.
@@ -90,6 +130,7 @@ impl DiffusionCounts {
         self.rays_emitted += o.rays_emitted;
         self.rays_absorbed += o.rays_absorbed;
         self.rays_exited += o.rays_exited;
+        self.rays_skipped += o.rays_skipped;
         self.peak_fifo = self.peak_fifo.max(o.peak_fifo);
         self.blocked_cell_cycles += o.blocked_cell_cycles;
         self.peak_active_cells = self.peak_active_cells.max(o.peak_active_cells);
@@ -190,6 +231,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
         }
     }
     let order = SplitOrder::default();
+    let occupied = occupied_box(grid);
     let mut reports = Vec::new();
     let mut visited = cfg.record_visits.then(|| vec![false; (n * n * grid.depth) as usize]);
     for (si, src) in sources.iter().enumerate() {
@@ -203,6 +245,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             fa: cfg.fa,
             source_bit: 1 << si,
             merge: cfg.merge,
+            skip: cfg.skip_receding.then_some(occupied),
         };
         let before: Vec<LightCounters> = cells.iter().map(|c| c.counters).collect();
         for c in cells.iter_mut() {
@@ -212,15 +255,9 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
         if let Some(t) = tap.as_deref_mut() {
             t.light(&env);
         }
-        let r = diffuse_one(
-            grid,
-            &mut cells,
-            src,
-            si,
-            &env,
-            Recording { visited: visited.as_deref_mut(), tap: tap.as_deref_mut() },
-            |c| progress(si, c),
-        )?;
+        let dead = cfg.skip_dead_directions.then_some(occupied);
+        let rec = Recording { visited: visited.as_deref_mut(), tap: tap.as_deref_mut() };
+        let r = diffuse_one(grid, &mut cells, src, si, &env, cfg.stepping, dead, rec, |c| progress(si, c))?;
         let mut rep = r;
         rep.position = src.pos.map(|p| p.to_num::<f64>());
         for (c, b) in cells.iter().zip(&before) {
@@ -234,6 +271,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             }
             rep.counts.rays_absorbed += (k.rays_absorbed - b.rays_absorbed) as u128;
             rep.counts.rays_exited += (k.rays_exited - b.rays_exited) as u128;
+            rep.counts.rays_skipped += (k.rays_skipped - b.rays_skipped) as u128;
             rep.counts.blocked_cell_cycles += k.blocked_cycles - b.blocked_cycles;
             rep.counts.peak_fifo = rep.counts.peak_fifo.max(k.peak_fifo);
             if processed > 0 {
@@ -241,12 +279,14 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             }
         }
         rep.counts.lower_bound = rep.counts.lb_distance.max(rep.counts.lb_cell_load);
-        if rep.counts.rays_emitted != rep.counts.rays_absorbed + rep.counts.rays_exited {
+        let c = &rep.counts;
+        if c.rays_emitted != c.rays_absorbed + c.rays_exited + c.rays_skipped {
             bail!(
-                "ray conservation violated for source {si}: emitted {} ≠ absorbed {} + exited {}",
-                rep.counts.rays_emitted,
-                rep.counts.rays_absorbed,
-                rep.counts.rays_exited
+                "ray conservation violated for source {si}: emitted {} ≠ absorbed {} + exited {} + skipped {}",
+                c.rays_emitted,
+                c.rays_absorbed,
+                c.rays_exited,
+                c.rays_skipped
             );
         }
         reports.push(rep);
@@ -260,12 +300,34 @@ struct Recording<'a> {
     tap: Option<&'a mut Tap>,
 }
 
+/// Active cells per piece of work handed to a thread (below it, splitting costs more than it
+/// saves).
+const PIECE: usize = 64;
+
+/// What a piece of the compute phase reports: its beam-count change, whether a beam was
+/// processed, (when visits are recorded) the cells and depths processed, and (when cells are
+/// traced) every cell's step result.
+type PieceResult = (i64, bool, Vec<(usize, u16)>, Vec<(usize, Step)>);
+
+/// A message offered on a link in the link phase: receiver, arbitration key, sender, port, and a
+/// copy of the message at the front of the sender's output buffer.
+struct Offer<F: FracBits> {
+    to: u32,
+    key: u32,
+    from: u32,
+    port: u8,
+    msg: BeamMsg<F>,
+    taken: bool,
+}
+
 fn diffuse_one<F: FracBits, const D: usize>(
     grid: &Grid<D>,
     cells: &mut [HostLightCell<F>],
     src: &Source,
     si: usize,
     env: &LightEnv<'_, F>,
+    stepping: Stepping,
+    dead: Option<OccupiedBox>,
     rec: Recording<'_>,
     mut progress: impl FnMut(u64),
 ) -> Result<SourceReport> {
@@ -274,17 +336,33 @@ fn diffuse_one<F: FracBits, const D: usize>(
     let sv = src.voxel();
     let s_idx = sv[1] as usize * n + sv[0] as usize;
     let activity = Activity::new();
-    let initial: Vec<Beam<F>> = Direction::ALL.iter().map(|&d| Beam::initial(src, d, env.far)).collect();
     let mut rep = SourceReport { source: si, ..Default::default() };
-    rep.counts.rays_emitted = initial.iter().map(|b| b.ray_count() as u128).sum();
+    let mut initial: Vec<Beam<F>> = Vec::new();
+    for d in Direction::ALL {
+        let b = Beam::initial(src, d, env.far);
+        rep.counts.rays_emitted += b.ray_count() as u128;
+        if dead.is_some_and(|bx| bx.receding(d, sv, sv.map(i64::from))) {
+            rep.counts.rays_skipped += b.ray_count() as u128;
+        } else {
+            initial.push(b);
+        }
+    }
     activity.add(initial.len() as u64);
     let mut pending = initial.into_iter();
     let mut next_initial = pending.next();
+    let all: Vec<u32> = match stepping {
+        Stepping::AllCells => (0..cells.len() as u32).collect(),
+        Stepping::Active => Vec::new(),
+    };
     let mut active: Vec<u32> = vec![s_idx as u32];
-    let mut in_active = vec![false; cells.len()];
-    in_active[s_idx] = true;
+    let mut in_active = vec![false; if stepping == Stepping::Active { cells.len() } else { 0 }];
+    if stepping == Stepping::Active {
+        in_active[s_idx] = true;
+    }
+    let mut offers: Vec<Offer<F>> = Vec::new();
     let mut woken: Vec<u32> = Vec::new();
-    let mut transfers: Vec<(u32, u32, u8)> = Vec::new();
+    let record = visited.is_some();
+    let tapping = tap.is_some();
     let mut cycle: u64 = 0;
     while !activity.is_quiescent() {
         let mut moved = false;
@@ -301,83 +379,143 @@ fn diffuse_one<F: FracBits, const D: usize>(
                 }
             }
         }
-        // 2. Compute.
-        for &i in &active {
-            let i = i as usize;
-            let step = cells[i].step(&grid.cells[i].store, env, &activity);
-            if let Some(r) = tap.as_deref_mut().and_then(|t| t.get(i)) {
-                r.step(step);
+        let visit: &[u32] = if stepping == Stepping::AllCells { &all } else { &active };
+        // 2. Compute: every visited cell steps on its own state and its own dexels, in parallel
+        //    over pieces of the (row-major) visit list; each piece counts beams in a local delta.
+        let done: Vec<PieceResult> = tiles(cells, visit, PIECE)
+            .into_par_iter()
+            .map(|(tile, base, idx)| {
+                let delta = ActivityDelta::new();
+                let (mut any, mut seen, mut steps) = (false, Vec::new(), Vec::new());
+                for &i in idx {
+                    let i = i as usize;
+                    let c = &mut tile[i - base];
+                    let step = c.step(&grid.cells[i].store, env, &delta);
+                    if tapping {
+                        steps.push((i, step));
+                    }
+                    if step == Step::Processed {
+                        any = true;
+                        if record {
+                            seen.push((i, c.last_z));
+                        }
+                    }
+                }
+                (delta.get(), any, seen, steps)
+            })
+            .collect();
+        for (delta, any, seen, steps) in done {
+            activity.apply(delta);
+            moved |= any;
+            if let Some(t) = tap.as_deref_mut() {
+                for (i, step) in steps {
+                    if let Some(r) = t.get(i) {
+                        r.step(step);
+                    }
+                }
             }
-            if step == Step::Processed {
-                moved = true;
-                if let Some(v) = visited.as_deref_mut() {
-                    v[i * grid.depth as usize + cells[i].last_z as usize] = true;
+            if let Some(v) = visited.as_deref_mut() {
+                for (i, z) in seen {
+                    v[i * grid.depth as usize + z as usize] = true;
                 }
             }
         }
         // 3. Links. Under the wavefront policy the oldest messages (smallest layer) claim FIFO
-        //    credits first; under the thesis's, senders in row-major order.
-        transfers.clear();
-        for &i in &active {
-            for p in Port::ALL {
-                if let Some(m) = cells[i as usize].out[p.index()].front() {
-                    let key = if env.policy == Policy::Wavefront { m.beam.layer().0 } else { 0 };
-                    transfers.push((key, i, p.index() as u8));
+        //    credits first; under the thesis's, senders in row-major order. A (sender, port)
+        //    feeds one receiver, and receivers interact only through their own FIFO, so each
+        //    receiver pulls its offers in (key, sender) order — the same outcome as one global
+        //    pass in (key, row-major sender) order — in parallel.
+        offers.clear();
+        let wave = env.policy == Policy::Wavefront;
+        let per_tile: Vec<Vec<Offer<F>>> = tiles_ref(cells, visit, PIECE)
+            .into_par_iter()
+            .map(|(tile, base, idx)| {
+                let mut out = Vec::new();
+                for &i in idx {
+                    let c = &tile[i as usize - base];
+                    for p in Port::ALL {
+                        if let Some(m) = c.out[p.index()].front() {
+                            let (dx, dy) = p.delta();
+                            let to = (i as i64 + dy as i64 * n as i64 + dx as i64) as u32;
+                            let key = if wave { m.beam.layer().0 } else { 0 };
+                            out.push(Offer { to, key, from: i, port: p.index() as u8, msg: *m, taken: false });
+                        }
+                    }
                 }
-            }
+                out
+            })
+            .collect();
+        for t in per_tile {
+            offers.extend(t);
         }
-        if env.policy == Policy::Wavefront {
-            transfers.sort_by_key(|t| t.0); // stable: row-major among equals
+        offers.par_sort_unstable_by_key(|o| (o.to, o.key, o.from));
+        let pulled: Vec<(i64, u64)> = grouped(cells, &mut offers, PIECE, |o| o.to as usize)
+            .into_par_iter()
+            .map(|(tile, base, group)| {
+                let delta = ActivityDelta::new();
+                let mut taken = 0u64;
+                for o in group.iter_mut() {
+                    let c = &mut tile[o.to as usize - base];
+                    if c.can_accept(env.fa) && c.accept(o.msg, env.merge, &delta).is_ok() {
+                        o.taken = true;
+                        taken += 1;
+                    }
+                }
+                (delta.get(), taken)
+            })
+            .collect();
+        for (delta, taken) in pulled {
+            activity.apply(delta);
+            rep.counts.messages += taken;
+            moved |= taken > 0;
         }
-        for &(_, i, p) in &transfers {
-            let i = i as usize;
-            let (dx, dy) = Port::ALL[p as usize].delta();
-            let j = (i as i64 + dy as i64 * n as i64 + dx as i64) as usize;
-            if !cells[j].can_accept(env.fa) {
-                continue;
+        for o in offers.iter().filter(|o| o.taken) {
+            cells[o.from as usize].out[o.port as usize].pop_front();
+            if let Some(t) = tap.as_deref_mut() {
+                t.transfer(o.from as usize, o.to as usize, Port::ALL[o.port as usize], &o.msg);
             }
-            if let Some(m) = cells[i].out[p as usize].pop_front() {
-                if let Some(t) = tap.as_deref_mut() {
-                    t.transfer(i, j, Port::ALL[p as usize], &m);
-                }
-                let _ = cells[j].accept(m, env.merge, &activity);
-                rep.counts.messages += 1;
-                moved = true;
-                if !in_active[j] {
-                    in_active[j] = true;
-                    woken.push(j as u32);
-                }
+            if stepping == Stepping::Active && !in_active[o.to as usize] {
+                in_active[o.to as usize] = true;
+                woken.push(o.to);
             }
         }
         cycle += 1;
-        // Next cycle's active set: busy cells, in row-major order.
-        active.retain(|&i| {
-            let busy = cells[i as usize].busy();
-            in_active[i as usize] = busy;
-            busy
-        });
-        for &j in &woken {
-            if cells[j as usize].busy() {
-                in_active[j as usize] = true;
-                active.push(j);
-            } else {
-                in_active[j as usize] = false;
+        let busy_now = match stepping {
+            Stepping::Active => {
+                // Next cycle's active set: busy cells, in row-major order.
+                active.retain(|&i| {
+                    let busy = cells[i as usize].busy();
+                    in_active[i as usize] = busy;
+                    busy
+                });
+                for &j in &woken {
+                    if cells[j as usize].busy() {
+                        active.push(j);
+                    } else {
+                        in_active[j as usize] = false;
+                    }
+                }
+                woken.clear();
+                active.sort_unstable();
+                if next_initial.is_some() && !in_active[s_idx] {
+                    in_active[s_idx] = true;
+                    active.push(s_idx as u32);
+                    active.sort_unstable();
+                }
+                active.len() as u64
             }
-        }
-        woken.clear();
-        active.sort_unstable();
-        if next_initial.is_some() && !in_active[s_idx] {
-            in_active[s_idx] = true;
-            active.push(s_idx as u32);
-            active.sort_unstable();
-        }
-        rep.counts.peak_active_cells = rep.counts.peak_active_cells.max(active.len() as u64);
+            Stepping::AllCells => {
+                let busy = cells.par_iter().filter(|c| c.busy()).count() as u64;
+                busy + u64::from(next_initial.is_some() && !cells[s_idx].busy())
+            }
+        };
+        rep.counts.peak_active_cells = rep.counts.peak_active_cells.max(busy_now);
         if !moved {
-            let blocked: Vec<String> = active
+            let blocked: Vec<String> = cells
                 .iter()
+                .filter(|c| c.busy())
                 .take(8)
-                .map(|&i| {
-                    let c = &cells[i as usize];
+                .map(|c| {
                     format!(
                         "({}, {}) fifo {} out {:?}",
                         c.x,
@@ -400,6 +538,19 @@ fn diffuse_one<F: FracBits, const D: usize>(
     progress(cycle);
     rep.counts.cycles = cycle;
     Ok(rep)
+}
+
+/// The bounding box of the grid's occupied voxels (`lo > hi` when the grid is empty).
+pub fn occupied_box<const D: usize>(grid: &Grid<D>) -> OccupiedBox {
+    let mut b = OccupiedBox { lo: [u16::MAX; 3], hi: [0; 3] };
+    for c in &grid.cells {
+        let ds = c.store.dexels();
+        if let (Some(first), Some(last)) = (ds.first(), ds.last()) {
+            b.lo = [b.lo[0].min(c.x), b.lo[1].min(c.y), b.lo[2].min(first.span.lo)];
+            b.hi = [b.hi[0].max(c.x), b.hi[1].max(c.y), b.hi[2].max(last.span.hi)];
+        }
+    }
+    b
 }
 
 /// A source at a position in voxel units (1/16-voxel lattice), checked to lie in the grid.

@@ -29,4 +29,6 @@ pub mod refrender;
 pub mod render;
 pub mod rng;
 pub mod scene;
+pub mod tiles;
 pub mod trace;
+pub mod wave_ref;

@@ -143,6 +143,7 @@ impl Tap {
             fa: env.fa as u16,
             merge: env.merge,
             source_bit: env.source_bit,
+            skip: env.skip,
         };
         for r in &mut self.recorders {
             r.push::<F>(&Event::Light(s));

@@ -13,7 +13,8 @@ use host_sim::scene::Mesh;
 pub fn cornell_job_cells(n: u32) -> (Mesh, LoadConfig, LightConfig, Vec<[u32; 2]>) {
     let mesh = host_sim::scene::load("cornell").unwrap();
     let load = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
-    let light = LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, record_visits: false };
+    let light =
+        LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, record_visits: false, ..Default::default() };
     let scene = host_sim::lightjob::load_scene(&mesh, &load).unwrap();
     let lights = host_sim::lightjob::resolve_lights(&mesh, &scene, &[]).unwrap();
     let s = source_at(0, lights[0], n).unwrap().voxel();

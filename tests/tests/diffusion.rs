@@ -47,10 +47,12 @@ fn check_against_rays<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) 
     prop_assert_eq!(&got, &want.lit, "lit sets differ (f = {}, {:?})", F::U32, cfg);
     let emitted: u128 = l.reports.iter().map(|r| r.counts.rays_emitted).sum();
     let absorbed: u128 = l.reports.iter().map(|r| r.counts.rays_absorbed).sum();
-    let exited: u128 = l.reports.iter().map(|r| r.counts.rays_exited).sum();
+    // Rays the skips dropped are rays that would have exited without meeting a voxel.
+    let exited: u128 = l.reports.iter().map(|r| r.counts.rays_exited + r.counts.rays_skipped).sum();
     prop_assert_eq!((emitted, absorbed, exited), (want.rays_emitted, want.rays_absorbed, want.rays_exited));
     for r in &l.reports {
-        prop_assert_eq!(r.counts.rays_emitted, r.counts.rays_absorbed + r.counts.rays_exited, "conservation");
+        let c = &r.counts;
+        prop_assert_eq!(c.rays_emitted, c.rays_absorbed + c.rays_exited + c.rays_skipped, "conservation");
         prop_assert!(r.counts.cycles >= r.counts.lower_bound, "T ≥ LB");
     }
     Ok(())
@@ -61,8 +63,17 @@ fn config() -> impl Strategy<Value = LightConfig> {
         prop::sample::select(vec![1usize, 2, 3, 5, 16, 64]),
         prop::sample::select(vec![Policy::Thesis, Policy::Wavefront]),
         any::<bool>(),
+        any::<bool>(),
     )
-        .prop_map(|(fa, policy, merge)| LightConfig { fa, policy, merge, record_visits: false })
+        .prop_map(|(fa, policy, merge, skip)| LightConfig {
+            fa,
+            policy,
+            merge,
+            record_visits: false,
+            skip_receding: skip,
+            skip_dead_directions: skip,
+            ..Default::default()
+        })
 }
 
 proptest! {
@@ -125,7 +136,13 @@ fn adversarial_sources() {
         let g = grid_with(n, tris);
         for p in positions {
             for policy in [Policy::Thesis, Policy::Wavefront] {
-                let cfg = LightConfig { fa: 2, policy, merge: policy == Policy::Wavefront, record_visits: false };
+                let cfg = LightConfig {
+                    fa: 2,
+                    policy,
+                    merge: policy == Policy::Wavefront,
+                    record_visits: false,
+                    ..Default::default()
+                };
                 check_against_rays::<cell_core::beam::frac::U2>(&g, &[p], cfg)
                     .unwrap_or_else(|e| panic!("{name} {p:?}: {e}"));
             }
@@ -146,7 +163,7 @@ fn multi_source_masks_are_unions() {
     ];
     let g = grid_with(n, &tris);
     let srcs = [[16, 170, 16], [160, 150, 100], [90, 40, 90]];
-    let cfg = LightConfig { fa: 8, policy: Policy::Wavefront, merge: true, record_visits: false };
+    let cfg = LightConfig { fa: 8, policy: Policy::Wavefront, merge: true, record_visits: false, ..Default::default() };
     let all = light::<cell_core::beam::frac::U0>(&g, &srcs, cfg);
     let mut union: BTreeMap<[u32; 3], u32> = BTreeMap::new();
     for (i, s) in srcs.iter().enumerate() {
@@ -170,7 +187,15 @@ fn empty_scene_every_voxel_is_reached() {
     for f in [0u32, 1, 2, 3, 4, 6, 8, 12, 16] {
         for p in positions {
             let g = grid_with(n, &[]);
-            let cfg = LightConfig { fa: 4, policy: Policy::Wavefront, merge: f % 2 == 0, record_visits: true };
+            let cfg = LightConfig {
+                fa: 4,
+                policy: Policy::Wavefront,
+                merge: f % 2 == 0,
+                record_visits: true,
+                skip_receding: false,
+                skip_dead_directions: false,
+                ..Default::default()
+            };
             let l = cell_core::with_frac_bits!(f, F => {
                 let l = light::<F>(&g, &[p], cfg);
                 (l.visited.clone().unwrap(), l.reports[0].counts.rays_emitted, l.reports[0].counts.rays_exited)
@@ -194,7 +219,8 @@ fn thesis_shape_and_our_policy() {
         let l = light::<cell_core::beam::frac::U0>(
             &g,
             &[[c, c, c]],
-            LightConfig { fa, policy, merge, record_visits: false },
+            // Skips off: the thesis's experiment diffuses through the empty scene.
+            LightConfig { fa, policy, merge, skip_receding: false, skip_dead_directions: false, ..Default::default() },
         );
         (l.reports[0].counts.cycles, l.reports[0].counts.lower_bound)
     };
@@ -212,7 +238,7 @@ fn thesis_shape_and_our_policy() {
     let loaded = host_sim::lightjob::load_scene(&mesh, &cfg).unwrap();
     let lights = host_sim::lightjob::resolve_lights(&mesh, &loaded, &[]).unwrap();
     let lit = |policy, merge| {
-        let lcfg = LightConfig { fa: 4, policy, merge, record_visits: false };
+        let lcfg = LightConfig { fa: 4, policy, merge, record_visits: false, ..Default::default() };
         let (l, _) =
             host_sim::lightjob::run_diffusion::<cell_core::beam::frac::U2>(&mesh, &loaded, &lights, &lcfg, |_, _| {})
                 .unwrap();

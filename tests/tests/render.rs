@@ -59,6 +59,7 @@ fn render_once(scene: &str, n: u32) -> (host_sim::render::Image, host_sim::rende
             policy: cell_core::light::Policy::Wavefront,
             merge: true,
             record_visits: false,
+            ..Default::default()
         },
         normals: NormalMode::Facet,
     };

@@ -22,7 +22,7 @@ fn replay_fn<F: FracBits>() -> Replay {
 fn all_cells<F: FracBits>(scene: &str, n: u32, policy: Policy, merge: bool, fa: usize) -> Vec<CellTrace> {
     let mesh = host_sim::scene::load(scene).unwrap();
     let load = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
-    let light = LightConfig { fa, policy, merge, record_visits: false };
+    let light = LightConfig { fa, policy, merge, record_visits: false, ..Default::default() };
     let cells = (0..n).flat_map(|y| (0..n).map(move |x| [x, y])).collect();
     record::<F>(&TraceJob { mesh: &mesh, load, light, lights: Vec::new(), cells, busiest: false }).unwrap()
 }
@@ -53,7 +53,8 @@ fn every_cell_replays_to_the_grid_digest() {
 fn busiest_trace() -> CellTrace {
     let mesh = host_sim::scene::load("cornell").unwrap();
     let load = LoadConfig { n: 24, thickness: Thickness::Naive, contour: Contour::Projected };
-    let light = LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, record_visits: false };
+    let light =
+        LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, record_visits: false, ..Default::default() };
     let job = TraceJob { mesh: &mesh, load, light, lights: Vec::new(), cells: Vec::new(), busiest: true };
     record::<U0>(&job).unwrap().pop().unwrap()
 }

@@ -1,0 +1,117 @@
+//! The host's ways of simulating the machine change nothing the machine computes (issue 7):
+//! event-driven (active-cell) stepping against visiting every cell every cycle, one thread
+//! against several, for the lighting phase and the loading wave; and the exact skips
+//! (receding beams, dead directions) leave lit voxels and images unchanged while their dropped
+//! rays are exactly rays that would have left the grid.
+
+use cell_core::beam::frac::U0;
+use cell_core::light::Policy;
+use cell_core::shade::NormalMode;
+use host_sim::diffuse::{LightConfig, SourceReport, Stepping};
+use host_sim::lightjob::{load_scene, resolve_lights, run_diffusion, LoadedScene};
+use host_sim::precompute::{Contour, LoadConfig, Thickness};
+use host_sim::render::{point_lights, shade_grid, write_png};
+use host_sim::scene::Mesh;
+
+/// Everything a run produces that must not depend on the host: per-source reports (cycles and
+/// every counter), lit voxels with masks, and the rendered image's PNG bytes.
+#[derive(Debug, PartialEq)]
+struct Outcome {
+    reports: Vec<SourceReport>,
+    lit: Vec<([u32; 3], u32)>,
+    lit_overflows: u64,
+    png: Vec<u8>,
+}
+
+fn setup(scene: &str, n: u32) -> (Mesh, LoadedScene, Vec<[f64; 3]>) {
+    let mesh = host_sim::scene::load(scene).unwrap();
+    let cfg = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
+    let loaded = load_scene(&mesh, &cfg).unwrap();
+    let lights = resolve_lights(&mesh, &loaded, &[]).unwrap();
+    (mesh, loaded, lights)
+}
+
+fn run(s: &(Mesh, LoadedScene, Vec<[f64; 3]>), cfg: LightConfig, threads: usize) -> Outcome {
+    let (mesh, loaded, lights) = s;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+    let (l, _) = pool.install(|| run_diffusion::<U0>(mesh, loaded, lights, &cfg, |_, _| {}).unwrap());
+    let img = shade_grid(mesh, loaded, &point_lights(lights), &l, NormalMode::Facet);
+    let path = std::env::temp_dir().join(format!(
+        "rc2-host-modes-{}-{:?}.png",
+        std::process::id(),
+        std::thread::current().id()
+    ));
+    write_png(&path, img.n, &img.rgb).unwrap();
+    let png = std::fs::read(&path).unwrap();
+    let _ = std::fs::remove_file(&path);
+    Outcome { reports: l.reports.clone(), lit: l.lit_voxels().collect(), lit_overflows: l.lit_overflows(), png }
+}
+
+fn scenes() -> Vec<(Mesh, LoadedScene, Vec<[f64; 3]>)> {
+    vec![setup("cornell", 40), setup("teapot-floor", 40)]
+}
+
+#[test]
+fn all_cells_stepping_and_threads_give_identical_results() {
+    for s in scenes() {
+        for policy in [Policy::Thesis, Policy::Wavefront] {
+            let cfg = LightConfig { fa: 4, policy, merge: policy == Policy::Wavefront, ..Default::default() };
+            let active = run(&s, cfg, 1);
+            assert!(active.reports[0].counts.beams_processed > 1000 && active.lit.len() > 100);
+            let all = run(&s, LightConfig { stepping: Stepping::AllCells, ..cfg }, 1);
+            assert_eq!(active, all, "{}: {policy:?}, active vs all-cells stepping", s.0.name);
+            for threads in [2, 3] {
+                let par = run(&s, cfg, threads);
+                assert_eq!(active, par, "{}: {policy:?}, 1 vs {threads} threads", s.0.name);
+            }
+            let par_all = run(&s, LightConfig { stepping: Stepping::AllCells, ..cfg }, 2);
+            assert_eq!(active, par_all, "{}: {policy:?}, all-cells stepping on 2 threads", s.0.name);
+        }
+    }
+}
+
+#[test]
+fn skips_change_no_lit_voxel_and_no_pixel() {
+    let mut skipped_somewhere = false;
+    for s in scenes() {
+        for policy in [Policy::Thesis, Policy::Wavefront] {
+            let on = LightConfig { fa: 4, policy, merge: policy == Policy::Wavefront, ..Default::default() };
+            let off = LightConfig { skip_receding: false, skip_dead_directions: false, ..on };
+            let (a, b) = (run(&s, on, 2), run(&s, off, 2));
+            assert_eq!(a.lit, b.lit, "{}: lit voxels", s.0.name);
+            assert_eq!(a.png, b.png, "{}: image", s.0.name);
+            for (x, y) in a.reports.iter().zip(&b.reports) {
+                let (x, y) = (&x.counts, &y.counts);
+                assert_eq!(y.rays_skipped, 0);
+                assert_eq!((x.rays_emitted, x.rays_absorbed), (y.rays_emitted, y.rays_absorbed));
+                assert_eq!(x.rays_exited + x.rays_skipped, y.rays_exited, "skipped rays are rays that exit");
+                assert!(x.beams_processed <= y.beams_processed && x.messages <= y.messages);
+                skipped_somewhere |= x.rays_skipped > 0;
+            }
+            // Each skip alone is exact too.
+            for one in [LightConfig { skip_dead_directions: false, ..on }, LightConfig { skip_receding: false, ..on }] {
+                let c = run(&s, one, 1);
+                assert_eq!((&c.lit, &c.png), (&a.lit, &a.png), "{}: {one:?}", s.0.name);
+            }
+        }
+    }
+    assert!(skipped_somewhere, "the skips dropped something on an open scene");
+}
+
+#[test]
+fn loading_wave_all_cells_equals_active_cells() {
+    for (scene, n) in [("cornell", 32), ("teapot", 48), ("cow-floor", 40)] {
+        let mesh = host_sim::scene::load(scene).unwrap();
+        let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
+        let packets = host_sim::precompute::prepare(&mesh, &cfg).unwrap().packets;
+        let mut a = host_sim::grid::Grid::<64>::new(n, n);
+        let mut b = host_sim::grid::Grid::<64>::new(n, n);
+        let ra = a.load_wave(&packets, |_| {});
+        let rb = b.load_wave_all_cells(&packets);
+        assert_eq!(ra, rb, "{scene}: cycles and message counts");
+        assert!(ra.row_steps > 0);
+        for (ca, cb) in a.cells.iter().zip(&b.cells) {
+            assert_eq!(ca.store.dexels(), cb.store.dexels(), "{scene}: cell ({}, {})", ca.x, ca.y);
+        }
+    }
+}
