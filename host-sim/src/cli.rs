@@ -136,6 +136,10 @@ pub struct LightArgs {
     /// Write every lit voxel as CSV `x,y,z,source_mask` (binvox indexing).
     #[arg(long)]
     pub lit_out: Option<PathBuf>,
+    /// Write a JSON file for outside checks: the scene's triangles (world units), the grid
+    /// mapping, the lights, and every occupied voxel with its source mask (`bench/compare.py`).
+    #[arg(long)]
+    pub dump_lit: Option<PathBuf>,
     /// Do not draw progress bars.
     #[arg(long)]
     pub quiet: bool,
@@ -602,6 +606,11 @@ fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
     if let Some(p) = &a.lit_out {
         let f = File::create(p).with_context(|| format!("cannot create {}", p.display()))?;
         write_lit_csv(&lighting, BufWriter::new(f))?;
+    }
+    if let Some(p) = &a.dump_lit {
+        let f = File::create(p).with_context(|| format!("cannot create {}", p.display()))?;
+        let d = crate::dump::lit_dump(&mesh, &loaded.grid, &loaded.fit, &lighting, &stats);
+        crate::dump::write_lit_dump(&d, BufWriter::new(f))?;
     }
     eprintln!(
         "{}: n = {}, {} facets, {} light(s), FA = {}, f = {}, policy {}, merge {}",

@@ -17,6 +17,7 @@ pub mod bench;
 pub mod binvox;
 pub mod cli;
 pub mod diffuse;
+pub mod dump;
 pub mod grid;
 pub mod lightjob;
 pub mod load;
