@@ -14,6 +14,8 @@
 //! * [`cell`] — one cell: its store and counters.
 //! * [`beam`] — light beams and their split (§4.3).
 //! * [`light`] — the lighting phase: FIFO, ports, back-pressure, lit voxels, quiescence (§4.4).
+//! * [`ray`] — incremental 6/18/26-connected 3D lines for shadow and reflected rays (§2.3).
+//! * [`route`] — destination-addressed routers with virtual channels, deadlock-free (§1.3, §4.1.3).
 //! * [`shade`] — Phong/Blinn shading of the visible voxel with `micromath` (§1.1, §5.2).
 #![no_std]
 #![forbid(unsafe_code)]
@@ -25,6 +27,8 @@ pub mod dexel;
 pub mod facet;
 pub mod light;
 pub mod normal;
+pub mod ray;
+pub mod route;
 pub mod shade;
 pub mod units;
 pub mod voxelize;

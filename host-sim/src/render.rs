@@ -56,6 +56,18 @@ pub fn shade_grid<F: FracBits>(
     lighting: &crate::diffuse::Lighting<F>,
     mode: NormalMode,
 ) -> Image {
+    shade_grid_with(mesh, scene, lights, &|x, y, z| lighting.mask(x, y, z), mode)
+}
+
+/// Shade every cell's visible voxel, `mask(x, y, z)` giving the sources that reached voxel
+/// (x, y, z) (by diffusion or by classic shadow rays).
+pub fn shade_grid_with(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    lights: &[PointLight],
+    mask: &dyn Fn(u32, u32, u16) -> cell_core::light::SourceMask,
+    mode: NormalMode,
+) -> Image {
     let n = scene.grid.n;
     let params = ShadeParams { ambient: [AMBIENT; 3], normal_mode: mode };
     let mats: Vec<CellMaterial> = mesh.materials.iter().map(cell_material).collect();
@@ -77,7 +89,7 @@ pub fn shade_grid<F: FracBits>(
         let m = mats.get(d.material as usize).copied().unwrap_or_default();
         // Lit: a beam of the light reached the voxel and the surface faces the light (the same
         // effective shadow state the reference reports).
-        let reached = lighting.mask(c.x as u32, c.y as u32, z);
+        let reached = mask(c.x as u32, c.y as u32, z);
         let lit = (0..lights.len().min(32)).fold(0u32, |acc, s| {
             let l = lights[s].pos;
             let faces = nrm[0] * (l[0] - p[0]) + nrm[1] * (l[1] - p[1]) + nrm[2] * (l[2] - p[2]) > 0.0;
@@ -214,8 +226,27 @@ pub fn render<F: FracBits>(
     let t0 = Instant::now();
     let (lighting, lstats) = run_diffusion::<F>(mesh, scene, light_positions, &cfg.light, progress)?;
     let t1 = Instant::now();
+    let times = [load_seconds, (t1 - t0).as_secs_f64(), reference_seconds];
+    Ok(finish_render(mesh, scene, light_positions, cfg, reference, &|x, y, z| lighting.mask(x, y, z), lstats, times))
+}
+
+/// Shade with the given lit state and assemble the statistics; `times` = load, light and
+/// reference seconds.
+#[allow(clippy::too_many_arguments)]
+pub fn finish_render(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    light_positions: &[[f64; 3]],
+    cfg: &RenderConfig,
+    reference: Option<&crate::refrender::RefImage>,
+    mask: &dyn Fn(u32, u32, u16) -> cell_core::light::SourceMask,
+    lstats: LightStats,
+    times: [f64; 3],
+) -> Rendered {
+    let [load_seconds, light_seconds, reference_seconds] = times;
+    let t1 = Instant::now();
     let lights = point_lights(light_positions);
-    let image = shade_grid(mesh, scene, &lights, &lighting, cfg.normals);
+    let image = shade_grid_with(mesh, scene, &lights, mask, cfg.normals);
     let t2 = Instant::now();
     let cmp = reference.map(|r| crate::refrender::compare(&image.rgb, &image.covered, &image.lit, r));
     let load_cell = std::mem::size_of::<cell_core::cell::Cell<{ cell_core::cell::DEFAULT_DEXELS }>>()
@@ -234,12 +265,12 @@ pub fn render<F: FracBits>(
         shading_mean_err_levels: image.shading_mean_err_levels,
         reference: cmp,
         load_seconds,
-        light_seconds: (t1 - t0).as_secs_f64(),
+        light_seconds,
         shade_seconds: (t2 - t1).as_secs_f64(),
         reference_seconds,
-        wall_seconds: load_seconds + (t2 - t0).as_secs_f64() + reference_seconds,
+        wall_seconds: load_seconds + light_seconds + (t2 - t1).as_secs_f64() + reference_seconds,
         peak_rss_mib: crate::load::peak_rss_mib(),
         light: lstats,
     };
-    Ok(Rendered { image, stats })
+    Rendered { image, stats }
 }

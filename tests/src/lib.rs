@@ -6,5 +6,6 @@
 #![forbid(unsafe_code)]
 
 pub mod oracle;
+pub mod planes;
 
 pub use oracle::{brute, flood, inside, tunnels};
