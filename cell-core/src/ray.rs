@@ -340,6 +340,8 @@ pub struct ShadowRay {
     pub emitter: [u16; 2],
     /// The facet of the emitting voxel.
     pub facet: FacetId,
+    /// The emitting voxel's z (its answer tells which voxel of the column it is about).
+    pub emitter_z: i32,
     /// Whether the current voxel is still the emitter's own (not tested).
     pub fresh: bool,
 }
@@ -358,10 +360,24 @@ pub enum RayStep {
 }
 
 impl ShadowRay {
-    /// A ray from the centre of voxel `from` to lattice point `to` (the source).
+    /// A ray from the centre of voxel `from` toward lattice point `to` (the source).
+    ///
+    /// The 6-connected walk aims at `to` itself and ends in its voxel. The 18/26-connected
+    /// walks aim at the **centre of `to`'s voxel**: aimed at `to` itself, their last voxel may
+    /// round past the source's voxel, so that rays from opposite sides cross over — and two
+    /// rays waiting for each other's cell deadlock the grid (found by the routing test with
+    /// FIFOs of 1). Aimed at the centre, every ray ends in the source's voxel and each of its
+    /// cell steps strictly decreases |x − x_s| + |y − y_s|.
     pub fn new(from: [u16; 3], to: [i32; 3], conn: Connectivity, facet: FacetId) -> Result<Self, LineError> {
         let a = [from[0] as i32 * Q, from[1] as i32 * Q, from[2] as i32 * Q];
-        Ok(ShadowRay { line: Line::new(a, to, conn)?, emitter: [from[0], from[1]], facet, fresh: true })
+        let to = if conn == Connectivity::Six { to } else { to.map(|c| voxel_of(c) * Q) };
+        Ok(ShadowRay {
+            line: Line::new(a, to, conn)?,
+            emitter: [from[0], from[1]],
+            facet,
+            emitter_z: from[2] as i32,
+            fresh: true,
+        })
     }
 
     /// One voxel of work in the cell owning the current voxel: test it against the column's

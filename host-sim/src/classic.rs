@@ -17,7 +17,8 @@
 //!    and cycle, whatever its kind.
 //! 3. each router hands at most one answer per cycle to its cell, which records it.
 //!
-//! **No deadlock**: a ray's cell steps go monotonically toward the source column, so every ray
+//! **No deadlock**: every ray ends in the source's voxel and its cell steps go monotonically
+//! toward it (18/26 rays aim at the voxel's centre, see [`ShadowRay::new`]), so every ray
 //! move strictly decreases |x − x_s| + |y − y_s| and the cells' waits for FIFO space are
 //! acyclic (one source at a time); answers travel on a network that is deadlock-free by itself
 //! ([`cell_core::route`]) and always drains, so a cell waiting to send an answer waits finitely.
@@ -46,6 +47,9 @@ pub struct ClassicConfig {
     pub connectivity: Connectivity,
     /// Routing of the answers.
     pub route: RoutePolicy,
+    /// Every occupied voxel emits (not only the visible ones): the thesis's count ΣS_i, for
+    /// the occupancy comparison (§4.1.6). Only visible voxels' answers change the image.
+    pub all_voxels: bool,
 }
 
 /// Counters of a classic run (one source's, or summed).
@@ -53,7 +57,7 @@ pub struct ClassicConfig {
 pub struct ClassicCounts {
     /// Cycles until the last answer was recorded.
     pub cycles: u64,
-    /// Shadow rays emitted (one per visible voxel).
+    /// Shadow rays emitted (one per emitting voxel).
     pub rays: u64,
     /// Voxel steps processed (one per cycle per cell at most).
     pub ray_steps: u64,
@@ -63,6 +67,8 @@ pub struct ClassicCounts {
     pub answers: u64,
     /// Answer messages that crossed a link (routed hops).
     pub answer_messages: u64,
+    /// Occupied voxels of the scene (for occupancy = voxels / n³).
+    pub voxels: u64,
     /// Rays answered "lit".
     pub lit: u64,
     /// Largest number of voxel steps one cell processed.
@@ -84,6 +90,7 @@ impl ClassicCounts {
     pub fn add(&mut self, o: &ClassicCounts) {
         self.cycles += o.cycles;
         self.rays += o.rays;
+        self.voxels = o.voxels;
         self.ray_steps += o.ray_steps;
         self.ray_messages += o.ray_messages;
         self.answers += o.answers;
@@ -173,17 +180,33 @@ fn classic_one(
     let mut out: Vec<[Option<ShadowRay>; 8]> = vec![[None; 8]; n * n];
     let mut steps = vec![0u64; n * n];
     let mut ray_link = vec![0u32; n * n * 8];
-    let mut net: Network<bool> = Network::new(grid.n, cfg.route);
+    // Answer payload: bit 0 lit, bit 1 from the visible voxel.
+    let mut net: Network<u8> = Network::new(grid.n, cfg.route);
     let mut k = ClassicCounts::default();
     let mut active: Vec<u32> = Vec::new();
     for (i, c) in grid.cells.iter().enumerate() {
-        let Some(d) = c.store.dexels().first() else { continue };
-        let ray = ShadowRay::new([c.x, c.y, d.span.lo], src, cfg.connectivity, d.facet)
-            .map_err(|e| anyhow::anyhow!("shadow ray from ({}, {}): {e:?}", c.x, c.y))?;
-        fifo[i].push_back(ray);
+        let Some(first) = c.store.dexels().first() else { continue };
+        let visible_z = first.span.lo;
+        for d in c.store.dexels() {
+            let zs = if cfg.all_voxels { d.span.lo..=d.span.hi } else { visible_z..=visible_z };
+            for z in zs {
+                let ray = ShadowRay::new([c.x, c.y, z], src, cfg.connectivity, d.facet)
+                    .map_err(|e| anyhow::anyhow!("shadow ray from ({}, {}, {z}): {e:?}", c.x, c.y))?;
+                // The visible voxel's ray first: it is the one the image waits for.
+                if z == visible_z {
+                    fifo[i].push_front(ray);
+                } else {
+                    fifo[i].push_back(ray);
+                }
+                k.rays += 1;
+            }
+            if !cfg.all_voxels {
+                break;
+            }
+        }
         active.push(i as u32);
-        k.rays += 1;
     }
+    k.voxels = grid.cells.iter().map(|c| c.store.voxel_count() as u64).sum();
     let bit: SourceMask = 1 << si;
     let mut rays_in_flight = k.rays;
     let mut in_active = vec![false; n * n];
@@ -204,7 +227,13 @@ fn classic_one(
             let done = match step {
                 RayStep::Shadow | RayStep::Lit => {
                     let dest = ray.emitter;
-                    net.can_inject(i, dest) && net.inject(i, Routed { dest, payload: step == RayStep::Lit })
+                    let visible = grid.cells[(dest[1] as usize) * n + dest[0] as usize]
+                        .store
+                        .dexels()
+                        .first()
+                        .is_some_and(|d| d.span.lo as i32 == ray.emitter_z);
+                    let payload = (step == RayStep::Lit) as u8 | (visible as u8) << 1;
+                    net.can_inject(i, dest) && net.inject(i, Routed { dest, payload })
                 }
                 RayStep::Stay => {
                     fifo[i].push_back(ray);
@@ -230,9 +259,11 @@ fn classic_one(
         // 2. Links: answers first, then rays.
         link_used.iter_mut().for_each(|u| *u = false);
         moved += net.step(&mut link_used, |cell, m| {
-            if m.payload {
-                masks[cell] |= bit;
+            if m.payload & 1 == 1 {
                 k.lit += 1;
+                if m.payload & 2 == 2 {
+                    masks[cell] |= bit;
+                }
             }
         });
         for &i in &active {
@@ -274,7 +305,15 @@ fn classic_one(
         woken.clear();
         active.sort_unstable();
         if moved == 0 {
-            let busy: Vec<String> = net.busy_cells().take(8).map(|(c, o)| format!("router {c}: {o}")).collect();
+            let mut busy: Vec<String> = net.busy_cells().take(4).map(|(c, o)| format!("router {c}: {o}")).collect();
+            busy.extend(active.iter().take(8).map(|&i| {
+                let i = i as usize;
+                let outs: Vec<String> = (0..8)
+                    .filter_map(|p| out[i][p].map(|r| format!("{:?}→{:?}", Port::ALL[p], r.line.voxel())))
+                    .collect();
+                let heads: Vec<[i32; 3]> = fifo[i].iter().map(|r| r.line.voxel()).collect();
+                format!("cell ({}, {}) fifo {heads:?} out [{}]", i % n, i / n, outs.join(", "))
+            }));
             bail!(
                 "deadlock in the classic phase at cycle {cycle} of source {si}: {rays_in_flight} rays and {} answers in flight, nothing can move ({})",
                 net.in_flight,
@@ -388,6 +427,19 @@ pub struct ClassicOpts {
     /// Routing of classic answers.
     #[arg(long, value_enum, default_value_t = RouteArg::Adaptive)]
     pub route: RouteArg,
+    /// Which voxels send classic shadow rays: the visible ones (what the image needs) or all
+    /// occupied voxels (the thesis's count, §4.1.6).
+    #[arg(long, value_enum, default_value_t = EmittersArg::Visible)]
+    pub emitters: EmittersArg,
+}
+
+/// Emitters of classic shadow rays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum EmittersArg {
+    /// The first occupied voxel of each column.
+    Visible,
+    /// Every occupied voxel.
+    All,
 }
 
 fn parse_connectivity(s: &str) -> std::result::Result<u8, String> {
@@ -413,6 +465,7 @@ impl ClassicOpts {
                 RouteArg::Dor => RoutePolicy::DiagonalFirst,
                 RouteArg::Adaptive => RoutePolicy::Adaptive,
             },
+            all_voxels: self.emitters == EmittersArg::All,
         }
     }
 }
