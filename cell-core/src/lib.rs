@@ -16,6 +16,8 @@
 //! * [`light`] — the lighting phase: FIFO, ports, back-pressure, lit voxels, quiescence (§4.4).
 //! * [`link`] — the bytes a link carries: framed messages with a CRC; the `embedded-hal` link seam.
 //! * [`trace`] — cell traces (what a cell received, as frames) and their replay through the real cell.
+//! * [`ray`] — incremental 6/18/26-connected 3D lines for shadow and reflected rays (§2.3).
+//! * [`route`] — destination-addressed routers with virtual channels, deadlock-free (§1.3, §4.1.3).
 //! * [`shade`] — Phong/Blinn shading of the visible voxel with `micromath` (§1.1, §5.2).
 #![no_std]
 #![forbid(unsafe_code)]
@@ -28,6 +30,8 @@ pub mod facet;
 pub mod light;
 pub mod link;
 pub mod normal;
+pub mod ray;
+pub mod route;
 pub mod shade;
 pub mod trace;
 pub mod units;

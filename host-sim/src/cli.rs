@@ -178,6 +178,9 @@ pub struct LightOpts {
     /// Do not emit a source's initial beams whose direction leads away from the occupied box.
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub skip_dead_directions: bool,
+    /// Classic shadow rays instead of diffusion.
+    #[command(flatten)]
+    pub classic: crate::classic::ClassicOpts,
 }
 
 /// How the host steps the grid.
@@ -594,11 +597,10 @@ fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
     let lights = resolve_lights(&mesh, &loaded, &a.light.lights)?;
     let lcfg = a.light.config();
     let pb = progress_bar(a.quiet, "light");
-    let (lighting, stats) = run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, |s, c| {
-        pb.set_message(format!("light {}", s + 1));
-        pb.set_length(c.max(1));
-        pb.set_position(c);
-    })?;
+    if a.light.classic.lighting == crate::classic::LightingArg::Classic {
+        return run_light_classic::<F>(a, &mesh, &loaded, &lights, pb);
+    }
+    let (lighting, stats) = run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, light_progress(&pb))?;
     pb.finish_and_clear();
     if let Some(p) = &a.stats {
         write_json(p, &stats)?;
@@ -819,6 +821,55 @@ fn run_trace<F: cell_core::beam::FracBits>(a: &TraceArgs) -> Result<()> {
     Ok(())
 }
 
+/// Progress of the lighting phase: source and cycle.
+fn light_progress(pb: &ProgressBar) -> impl FnMut(usize, u64) + '_ {
+    |s, c| {
+        pb.set_message(format!("light {}", s + 1));
+        pb.set_length(c.max(1));
+        pb.set_position(c);
+    }
+}
+
+fn run_light_classic<F: cell_core::beam::FracBits>(
+    a: &LightArgs,
+    mesh: &scene::Mesh,
+    loaded: &crate::lightjob::LoadedScene,
+    lights: &[[f64; 3]],
+    pb: ProgressBar,
+) -> Result<()> {
+    use std::io::Write;
+    let ccfg = a.light.classic.config(a.light.fa);
+    let (cl, stats) = crate::classic::run_classic::<F>(mesh, loaded, lights, &ccfg, light_progress(&pb))?;
+    pb.finish_and_clear();
+    let stats_out = a.stats.as_ref().map(|p| write_json(p, &stats));
+    stats_out.transpose()?;
+    if let Some(p) = &a.lit_out {
+        let mut w = BufWriter::new(File::create(p).with_context(|| format!("cannot create {}", p.display()))?);
+        writeln!(w, "x,y,z,source_mask")?;
+        for (i, c) in loaded.grid.cells.iter().enumerate() {
+            if let (Some(d), m) = (c.store.dexels().first(), cl.masks[i]) {
+                if m != 0 {
+                    writeln!(w, "{},{},{},{m}", c.x, c.y, d.span.lo)?;
+                }
+            }
+        }
+    }
+    eprintln!(
+        "{}: n = {}, {} facets, {} light(s), FA = {}, {}: T = {} cycles, {} lit visible voxels, wall {:.3} s",
+        stats.scene,
+        stats.n,
+        stats.facets,
+        lights.len(),
+        stats.fa,
+        stats.policy,
+        stats.totals.cycles,
+        stats.lit_voxels,
+        stats.wall_seconds
+    );
+    eprintln!("  {}", crate::classic::summary(&cl.totals));
+    Ok(())
+}
+
 fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     use crate::lightjob::{load_scene, resolve_lights};
     use crate::render::{reference_image, render, write_png, RenderConfig};
@@ -850,12 +901,27 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     };
     let reference_seconds = t1.elapsed().as_secs_f64();
     let pb = progress_bar(a.quiet, "light 1");
-    let r =
-        render::<F>(&mesh, &loaded, &lights, &rcfg, reference.as_ref(), load_seconds, reference_seconds, |s, c| {
-            pb.set_message(format!("light {}", s + 1));
-            pb.set_length(c.max(1));
-            pb.set_position(c);
-        })?;
+    let progress = light_progress(&pb);
+    let (r, classic) = if a.light.classic.lighting == crate::classic::LightingArg::Classic {
+        let ccfg = a.light.classic.config(a.light.fa);
+        let (r, c) = crate::classic::render_classic::<F>(
+            &mesh,
+            &loaded,
+            &lights,
+            &rcfg,
+            &ccfg,
+            reference.as_ref(),
+            load_seconds,
+            reference_seconds,
+            progress,
+        )?;
+        (r, Some(c))
+    } else {
+        (
+            render::<F>(&mesh, &loaded, &lights, &rcfg, reference.as_ref(), load_seconds, reference_seconds, progress)?,
+            None,
+        )
+    };
     pb.finish_and_clear();
     write_png(&a.out, r.image.n, &r.image.rgb)?;
     let mut written = vec![a.out.display().to_string()];
@@ -894,6 +960,9 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
         s.covered_pixels, s.lit_pixels, s.bytes_per_cell, s.bytes_per_cell_load, s.light.bytes_light_cell,
         s.shading_max_err_levels, s.shading_mean_err_levels
     );
+    if let Some(c) = &classic {
+        eprintln!("  {}", crate::classic::summary(c));
+    }
     if let Some(c) = &s.reference {
         eprintln!(
             "  reference: shadow disagreement {:.2} %, coverage disagreement {:.2} %, PSNR {:.2} dB",

@@ -320,6 +320,7 @@ struct Offer<F: FracBits> {
     taken: bool,
 }
 
+#[allow(clippy::too_many_arguments)]
 fn diffuse_one<F: FracBits, const D: usize>(
     grid: &Grid<D>,
     cells: &mut [HostLightCell<F>],

@@ -15,6 +15,7 @@
 pub mod audit;
 pub mod bench;
 pub mod binvox;
+pub mod classic;
 pub mod cli;
 pub mod diffuse;
 pub mod dump;
@@ -22,6 +23,7 @@ pub mod grid;
 pub mod lightjob;
 pub mod load;
 pub mod meshops;
+pub mod network;
 pub mod office;
 pub mod plot;
 pub mod precompute;

@@ -56,6 +56,18 @@ pub fn shade_grid<F: FracBits>(
     lighting: &crate::diffuse::Lighting<F>,
     mode: NormalMode,
 ) -> Image {
+    shade_grid_with(mesh, scene, lights, &|x, y, z| lighting.mask(x, y, z), mode)
+}
+
+/// Shade every cell's visible voxel, `mask(x, y, z)` giving the sources that reached voxel
+/// (x, y, z) (by diffusion or by classic shadow rays).
+pub fn shade_grid_with(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    lights: &[PointLight],
+    mask: &dyn Fn(u32, u32, u16) -> cell_core::light::SourceMask,
+    mode: NormalMode,
+) -> Image {
     let n = scene.grid.n;
     let params = ShadeParams { ambient: [AMBIENT; 3], normal_mode: mode };
     let mats: Vec<CellMaterial> = mesh.materials.iter().map(cell_material).collect();
@@ -70,8 +82,7 @@ pub fn shade_grid<F: FracBits>(
     };
     let (mut err_sum, mut err_count) = (0u64, 0u64);
     for (i, c) in scene.grid.cells.iter().enumerate() {
-        let Some(px) = pixel(c.x, c.y, &c.store, |z| lighting.mask(c.x as u32, c.y as u32, z), &mats, lights, &params)
-        else {
+        let Some(px) = pixel(c.x, c.y, &c.store, |z| mask(c.x as u32, c.y as u32, z), &mats, lights, &params) else {
             continue;
         };
         let (rgb, lit) = (px.rgb, px.lit);
@@ -208,8 +219,27 @@ pub fn render<F: FracBits>(
     let t0 = Instant::now();
     let (lighting, lstats) = run_diffusion::<F>(mesh, scene, light_positions, &cfg.light, progress)?;
     let t1 = Instant::now();
+    let times = [load_seconds, (t1 - t0).as_secs_f64(), reference_seconds];
+    Ok(finish_render(mesh, scene, light_positions, cfg, reference, &|x, y, z| lighting.mask(x, y, z), lstats, times))
+}
+
+/// Shade with the given lit state and assemble the statistics; `times` = load, light and
+/// reference seconds.
+#[allow(clippy::too_many_arguments)]
+pub fn finish_render(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    light_positions: &[[f64; 3]],
+    cfg: &RenderConfig,
+    reference: Option<&crate::refrender::RefImage>,
+    mask: &dyn Fn(u32, u32, u16) -> cell_core::light::SourceMask,
+    lstats: LightStats,
+    times: [f64; 3],
+) -> Rendered {
+    let [load_seconds, light_seconds, reference_seconds] = times;
+    let t1 = Instant::now();
     let lights = point_lights(light_positions);
-    let image = shade_grid(mesh, scene, &lights, &lighting, cfg.normals);
+    let image = shade_grid_with(mesh, scene, &lights, mask, cfg.normals);
     let t2 = Instant::now();
     let cmp = reference.map(|r| crate::refrender::compare(&image.rgb, &image.covered, &image.lit, r));
     let load_cell = std::mem::size_of::<cell_core::cell::Cell<{ cell_core::cell::DEFAULT_DEXELS }>>()
@@ -228,12 +258,12 @@ pub fn render<F: FracBits>(
         shading_mean_err_levels: image.shading_mean_err_levels,
         reference: cmp,
         load_seconds,
-        light_seconds: (t1 - t0).as_secs_f64(),
+        light_seconds,
         shade_seconds: (t2 - t1).as_secs_f64(),
         reference_seconds,
-        wall_seconds: load_seconds + (t2 - t0).as_secs_f64() + reference_seconds,
+        wall_seconds: load_seconds + light_seconds + (t2 - t1).as_secs_f64() + reference_seconds,
         peak_rss_mib: crate::load::peak_rss_mib(),
         light: lstats,
     };
-    Ok(Rendered { image, stats })
+    Rendered { image, stats }
 }

@@ -257,3 +257,32 @@ fn audit_reports_sizes_and_the_budget() {
         "the static total is the sum of its parts"
     );
 }
+
+#[test]
+fn classic_lighting_options() {
+    // A ray connectivity that does not exist: a clear error, no panic.
+    let (code, err) =
+        host_sim(&["light", "cornell", "--n", "16", "--quiet", "--lighting", "classic", "--ray-connectivity", "7"]);
+    assert_ne!(code, 0);
+    assert!(err.contains("not a ray connectivity"), "{err}");
+    // FA out of range for the classic phase too.
+    let (code, err) = host_sim(&["light", "cornell", "--n", "16", "--quiet", "--lighting", "classic", "--fa", "0"]);
+    assert_ne!(code, 0);
+    assert!(err.contains("--fa 0 is out of range"), "{err}");
+    // A classic render runs and reports the classic counters and the reference comparison.
+    let out = tmp("classic.png", b"");
+    let (code, err) = host_sim(&[
+        "render",
+        "cornell",
+        "--n",
+        "16",
+        "--quiet",
+        "--lighting",
+        "classic",
+        "--reference",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("classic:") && err.contains("shadow disagreement"), "{err}");
+}

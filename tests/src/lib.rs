@@ -7,6 +7,7 @@
 #![forbid(unsafe_code)]
 
 pub mod oracle;
+pub mod planes;
 
 pub use oracle::{brute, flood, inside, tunnels};
 pub mod traces;

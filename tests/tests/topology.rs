@@ -6,53 +6,18 @@
 //! the continuous plane (counted by the independent oracle `rc2_tests::oracle::tunnels`).
 //! Run with `--nocapture` to print the table that the README quotes.
 
-use cell_core::dexel::FacetTag;
-use host_sim::grid::Grid;
-use host_sim::precompute::{facet_packet, polygon_normal, Contour, LoadConfig, Thickness, Q};
+use host_sim::precompute::{polygon_normal, Thickness, Q};
 use proptest::prelude::*;
 use rc2_tests::oracle::tunnels::{count_tunnels, plane_side};
-
-const N: u32 = 48;
-const LO: [i64; 3] = [16, 16, 16];
-const HI: [i64; 3] = [31, 31, 31];
+use rc2_tests::planes::{random_plane, voxelized, HI, LO};
 
 /// Tunnels of each connectivity (6, 18, 26) through the voxelized plane of `tri`.
 fn tunnels(tri: &[[i64; 3]; 3], thickness: Thickness) -> [usize; 3] {
-    let cfg = LoadConfig { n: N, thickness, contour: Contour::Projected };
-    let pkt = facet_packet(tri, FacetTag::default(), &cfg).unwrap().expect("non-degenerate");
-    let mut grid = Grid::<4>::new(N, N);
-    grid.load_wave(std::slice::from_ref(&pkt), |_| {});
+    let grid = voxelized(tri, thickness);
     let occupied = |p: [i64; 3]| grid.cell(p[0] as u32, p[1] as u32).store.occupied(p[2] as u16).is_some();
     let nrm = polygon_normal(tri).map(|v| i64::try_from(v).unwrap());
     let side = plane_side(nrm, tri[0], Q);
     [6, 18, 26].map(|k| count_tunnels(&occupied, &side, LO, HI, k))
-}
-
-/// A random plane through the measuring box: a triangle far larger than the box, dominant
-/// axis `d`, heights chosen so that `d` stays dominant.
-fn random_plane(seed: u64) -> [[i64; 3]; 3] {
-    // splitmix64: a tiny deterministic generator, so the table is reproducible.
-    let mut state = seed;
-    let mut next = move |m: u64| {
-        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        (z ^ (z >> 31)) % m
-    };
-    let d = next(3) as usize;
-    let (u, v) = ((d + 1) % 3, (d + 2) % 3);
-    // Through a point near the box centre (lattice 384), slopes below 1 so d stays dominant.
-    let c = 384 + next(17) as i64 - 8;
-    let (s1, s2) = (next(1801) as i64 - 900, next(1801) as i64 - 900); // slopes in 1/1000
-    let uv = [(-400, -400), (1600, -400), (-400, 1600)];
-    let mut tri = [[0i64; 3]; 3];
-    for (k, &(pu, pv)) in uv.iter().enumerate() {
-        tri[k][u] = pu;
-        tri[k][v] = pv;
-        tri[k][d] = c + (s1 * (pu - 384) + s2 * (pv - 384)) / 1000;
-    }
-    tri
 }
 
 #[test]

@@ -6,11 +6,13 @@
 //!
 //! * [`brute`] — which voxels belong to a facet (thickness band + contour), by brute force.
 //! * [`tunnels`] — k-tunnels: adjacent free voxel pairs on opposite sides of a surface.
+//! * [`lines`] — reference walks of 6/18/26-connected discrete 3D lines (f64, exact here).
 //! * [`inside`] — strict inside/outside of voxel centres for a closed mesh, by column parity.
 //! * [`flood`] — flood fill from outside the grid and leaks into the mesh's interior.
 
 pub mod brute;
 pub mod flood;
 pub mod inside;
+pub mod lines;
 pub mod rays;
 pub mod tunnels;

@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# Classic shadow rays against beam diffusion (thesis §4.1.6–4.1.7, issue 8): for each scene and
+# n, render with both methods against the f64 reference, and run the classic phase once more
+# with every occupied voxel emitting (the thesis's ray count ΣS_i) to estimate the occupancy at
+# which diffusion starts to win on messages. Writes bench-out/classic.csv and prints a table.
+# NS (default "64 128") and SCENES choose the runs; n = 256 takes minutes per scene, 512 ~10 min.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+NS=${NS:-"64 128"}
+SCENES=${SCENES:-"cornell bureau1 bureau2 classe"}
+mkdir -p bench-out
+cargo build --release -q -p host-sim
+B=./target/release/host-sim
+CSV=bench-out/classic.csv
+echo "scene,n,voxels,occupancy_pct,method,rays,messages,cycles,busiest_cell_load,busiest_cell_distance,peak_link_load,peak_link_distance,peak_fifo,shadow_disagreement_pct,psnr_db,wall_s" > "$CSV"
+for n in $NS; do
+  for scene in $SCENES; do
+    o=bench-out/classic-$scene-$n
+    $B render "$scene" --n "$n" --reference --quiet --out "$o-diffusion.png" --stats "$o-diffusion.json" 2> "$o-diffusion.log"
+    $B render "$scene" --n "$n" --reference --quiet --lighting classic --out "$o-classic.png" --stats "$o-classic.json" 2> "$o-classic.log"
+    $B light "$scene" --n "$n" --sigma naive --contour projected --quiet --lighting classic --emitters all \
+      --stats "$o-all.json" 2> "$o-all.log"
+    python3 - "$o" "$scene" "$n" >> "$CSV" <<'PY'
+import json, re, sys
+o, scene, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
+def classic_line(log):
+    m = re.search(r"classic: (\d+) rays, .*?busiest cell (\d+) steps at distance (\d+); peak link load (\d+) at distance (\d+); peak FIFO (\d+)", open(log).read())
+    if not m:
+        sys.exit(f"no classic summary in {log}")
+    return [int(g) for g in m.groups()]
+rays_all, _, _, _, _, _ = classic_line(o + "-all.log")
+voxels = rays_all // max(1, len(json.load(open(o + "-all.json"))["sources"]))
+occ = 100.0 * voxels / n**3
+for method in ("diffusion", "classic", "all"):
+    path = o + ("-all.json" if method == "all" else f"-{method}.json")
+    s = json.load(open(path))
+    l = s.get("light", s)
+    ref = s.get("reference") or {}
+    if method == "diffusion":
+        rays, cell, cdist, link, ldist, fifo = l["beams_processed"], l["lb_cell_load"], "", "", "", l["peak_fifo"]
+    else:
+        rays, cell, cdist, link, ldist, fifo = classic_line(o + ("-all.log" if method == "all" else "-classic.log"))
+    print(f"{scene},{n},{voxels},{occ:.3f},{'classic-all' if method == 'all' else method},{rays},{l['messages']},{l['cycles']},"
+          f"{cell},{cdist},{link},{ldist},{fifo},{ref.get('shadow_disagreement_pct', '')},{ref.get('psnr_db', '')},{l['wall_seconds']:.2f}")
+PY
+  done
+done
+python3 - "$CSV" <<'PY'
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+by = {}
+for r in rows:
+    by.setdefault((r["scene"], int(r["n"])), {})[r["method"]] = r
+print("| scene | n | occupancy % | method | rays (diffusion: beams) | messages | cycles | busiest cell load (distance) | peak link load (distance) | shadow disagreement % | PSNR dB |")
+print("|---|---|---|---|---|---|---|---|---|---|---|")
+for (scene, n), m in by.items():
+    for k in ("diffusion", "classic", "classic-all"):
+        r = m[k]
+        dist = lambda a, b: f"{r[a]} ({r[b]})" if r[b] else r[a]
+        print(f"| {scene} | {n} | {float(r['occupancy_pct']):.2f} | {k} | {r['rays']} | {r['messages']} | {r['cycles']} | "
+              f"{dist('busiest_cell_load', 'busiest_cell_distance')} | {dist('peak_link_load', 'peak_link_distance') or '–'} | "
+              f"{r['shadow_disagreement_pct'] or '–'} | {r['psnr_db'] or '–'} |")
+print()
+print("| scene | n | occupancy % | messages per classic ray | diffusion messages | diffusion wins on messages above occupancy % | thesis 300/n % |")
+print("|---|---|---|---|---|---|---|")
+for (scene, n), m in by.items():
+    a, d = m["classic-all"], m["diffusion"]
+    per = int(a["messages"]) / max(1, int(a["rays"]))
+    sources = int(a["rays"]) // max(1, int(a["voxels"]))
+    # Classic costs per·(occupancy·n³)·sources messages; diffusion's cost does not depend on it.
+    cross = 100.0 * int(d["messages"]) / (per * n**3 * sources)
+    print(f"| {scene} | {n} | {float(a['occupancy_pct']):.2f} | {per:.1f} | {d['messages']} | {cross:.2f} | {300 / n:.2f} |")
+PY

@@ -1,0 +1,445 @@
+//! §2.3 — incremental discrete 3D lines: a ray that walks voxel to voxel with integer state.
+//!
+//! A [`Line`] goes from point A to point B, both on the lattice of 1/[`Q`] voxel (the facet and
+//! source lattice; voxel `v` has its centre at lattice point `Q·v` and is the set of points p
+//! with `⌊(p + Q/2) / Q⌋ = v` on each axis: round half up). Every step is decided by additions
+//! and comparisons of the state carried in the ray's message, so a cell holding the ray knows
+//! locally whether the next voxel is in its own column (a z step) or which of its 8 neighbours
+//! owns it. Three connectivities (thesis §2.1, Fig. 2.11):
+//!
+//! * [`Connectivity::TwentySix`] — the 3D DDA/Bresenham line: the **major** axis m (largest
+//!   |B − A|, lowest index on ties) advances by one voxel per step; every other axis takes the
+//!   voxel of the continuous line at the major voxel's centre plane, rounded half up. Per minor
+//!   axis the state is (voxel, remainder r ∈ [0, Q·M)) with M = |B_m − A_m|: a step adds
+//!   `Q·(B_i − A_i)` to r and carries ±1 — |B_i − A_i| ≤ M, so at most one carry.
+//!   It visits one voxel per major coordinate from `round(A_m)` to `round(B_m)`.
+//! * [`Connectivity::Eighteen`] — the same walk, but a step that would change all three
+//!   coordinates is split in two: first the major axis with the minor axis whose voxel boundary
+//!   the continuous line crosses first (lowest index on ties), then the other minor.
+//! * [`Connectivity::Six`] — Amanatides–Woo: the voxels the segment A → B passes through, one
+//!   face at a time: the axis whose next boundary the segment reaches first (smallest
+//!   `distance_i / |B_i − A_i|`, compared by cross-multiplication; lowest index on ties; only
+//!   axes not yet at B's voxel) steps. It ends exactly in B's voxel after Σ|round(B_i) − round(A_i)|
+//!   steps.
+//!
+//! **Bit budget.** Construction rejects |B_i − A_i| > [`MAX_SPAN`] = 2²⁰ lattice units (65 536
+//! voxels at Q = 16, the largest grid a [`crate::units::Depth`] can address) and coordinates
+//! beyond ±[`MAX_COORD`] = 2²⁶. Then, per step: 26/18 remainders stay below Q·M ≤ 2²⁴ and
+//! `r + Q·d` below 2²⁵ (i32); the 18 split compares `(Q·M − r)·Q·|d_j|` products below 2⁴⁸ and
+//! the 6-connected walk compares `distance_i·|d_j|` with distance_i ≤ 2²⁰ + Q: below 2⁴²: an
+//! i64 product (one SMULL on a Cortex-M4). Set-up uses one i64 floor division per minor axis
+//! (`(A_i + Q/2)·M + …` below 2⁴⁸). All arithmetic is checked in debug builds (overflow checks)
+//! and the limits are tested at their edges.
+
+use crate::dexel::DexelStore;
+use crate::light::Port;
+use crate::units::FacetId;
+
+/// Lattice units per voxel (the 1/16 voxel lattice of facets and sources).
+pub const Q: i32 = 16;
+/// Largest |B_i − A_i| in lattice units.
+pub const MAX_SPAN: i32 = 1 << 20;
+/// Largest |coordinate| in lattice units.
+pub const MAX_COORD: i32 = 1 << 26;
+
+/// How consecutive voxels of a line touch.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Connectivity {
+    /// Consecutive voxels share a face (Amanatides–Woo).
+    Six,
+    /// Consecutive voxels share a face or an edge.
+    Eighteen,
+    /// Consecutive voxels share a face, an edge or a corner (DDA/Bresenham).
+    TwentySix,
+}
+
+impl Connectivity {
+    /// All three, thinnest walk last.
+    pub const ALL: [Connectivity; 3] = [Connectivity::Six, Connectivity::Eighteen, Connectivity::TwentySix];
+
+    /// 6, 18 or 26.
+    pub const fn k(self) -> u8 {
+        match self {
+            Connectivity::Six => 6,
+            Connectivity::Eighteen => 18,
+            Connectivity::TwentySix => 26,
+        }
+    }
+}
+
+/// Why a line cannot be built.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LineError {
+    /// A coordinate beyond ±[`MAX_COORD`].
+    CoordinateTooLarge,
+    /// |B_i − A_i| beyond [`MAX_SPAN`].
+    SpanTooLarge,
+}
+
+/// The voxel of a lattice coordinate (round half up).
+pub const fn voxel_of(p: i32) -> i32 {
+    (p + Q / 2).div_euclid(Q)
+}
+
+/// The state of a 26/18 walk (major-axis DDA).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+struct Dda {
+    /// Major axis.
+    m: u8,
+    /// ±1 along the major axis.
+    sm: i8,
+    /// Q·(B_i − A_i) per minor axis (0 for the major axis).
+    inc: [i32; 3],
+    /// Remainders in [0, Q·M) (unused for the major axis).
+    r: [i32; 3],
+    /// Q·M.
+    qm: i32,
+    /// Major steps left.
+    left: u32,
+    /// Split corner steps (18-connected).
+    split: bool,
+    /// The second half of a split corner step, still to be visited.
+    pending: Option<[i32; 3]>,
+}
+
+/// The state of a 6-connected walk (Amanatides–Woo).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+struct Aw {
+    /// |B_i − A_i|.
+    d: [i32; 3],
+    /// ±1 (0 if d = 0).
+    s: [i8; 3],
+    /// Lattice distance from A to the next boundary on each axis (≥ 0).
+    nb: [i32; 3],
+    /// B's voxel.
+    target: [i32; 3],
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum Walk {
+    Dda(Dda),
+    Aw(Aw),
+}
+
+/// An incremental discrete line (see the module docs). `voxel()` is the current voxel;
+/// [`Line::step`] moves to the next one.
+///
+/// ```
+/// use cell_core::ray::{Connectivity, Line, Q};
+/// // From the centre of voxel (0, 0, 0) to the centre of voxel (4, 2, 1).
+/// let mut l = Line::new([0, 0, 0], [4 * Q, 2 * Q, Q], Connectivity::TwentySix).unwrap();
+/// let mut path = vec![l.voxel()];
+/// while let Some(v) = l.step() {
+///     path.push(v);
+/// }
+/// assert_eq!(path.len(), 5); // one voxel per x
+/// assert_eq!(*path.last().unwrap(), [4, 2, 1]);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Line {
+    v: [i32; 3],
+    walk: Walk,
+}
+
+impl Line {
+    /// The line from lattice point `a` to lattice point `b`.
+    pub fn new(a: [i32; 3], b: [i32; 3], conn: Connectivity) -> Result<Line, LineError> {
+        if a.iter().chain(b.iter()).any(|c| c.unsigned_abs() > MAX_COORD as u32) {
+            return Err(LineError::CoordinateTooLarge);
+        }
+        let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        if d.iter().any(|c| c.unsigned_abs() > MAX_SPAN as u32) {
+            return Err(LineError::SpanTooLarge);
+        }
+        Ok(match conn {
+            Connectivity::Six => Line::six(a, b, d),
+            Connectivity::Eighteen => Line::dda(a, b, d, true),
+            Connectivity::TwentySix => Line::dda(a, b, d, false),
+        })
+    }
+
+    fn dda(a: [i32; 3], b: [i32; 3], d: [i32; 3], split: bool) -> Line {
+        let mut m = 0;
+        for i in 1..3 {
+            if d[i].abs() > d[m].abs() {
+                m = i;
+            }
+        }
+        let mm = d[m].abs();
+        let sm: i32 = if d[m] < 0 { -1 } else { 1 };
+        let c0 = voxel_of(a[m]);
+        let c1 = voxel_of(b[m]);
+        let mut v = [0; 3];
+        v[m] = c0;
+        let mut inc = [0; 3];
+        let mut r = [0; 3];
+        let qm = Q * mm;
+        if mm > 0 {
+            // Num_i(k) = (A_i + Q/2)·M + d_i·(sm·(c0·Q − A_m) + k·Q); voxel = ⌊Num / (Q·M)⌋.
+            let off = sm as i64 * (c0 as i64 * Q as i64 - a[m] as i64);
+            for i in 0..3 {
+                if i == m {
+                    continue;
+                }
+                let num = (a[i] as i64 + (Q / 2) as i64) * mm as i64 + d[i] as i64 * off;
+                let qmi = qm as i64;
+                v[i] = num.div_euclid(qmi) as i32;
+                r[i] = num.rem_euclid(qmi) as i32;
+                inc[i] = Q * d[i];
+            }
+        } else {
+            v = a.map(voxel_of);
+        }
+        let left = (c1 - c0).unsigned_abs();
+        Line { v, walk: Walk::Dda(Dda { m: m as u8, sm: sm as i8, inc, r, qm, left, split, pending: None }) }
+    }
+
+    fn six(a: [i32; 3], b: [i32; 3], d: [i32; 3]) -> Line {
+        let v = a.map(voxel_of);
+        let mut nb = [0; 3];
+        let mut s = [0; 3];
+        for i in 0..3 {
+            s[i] = d[i].signum() as i8;
+            // Voxel v spans [v·Q − Q/2, v·Q + Q/2).
+            nb[i] = if d[i] > 0 { v[i] * Q + Q / 2 - a[i] } else { a[i] - (v[i] * Q - Q / 2) };
+        }
+        Line { v, walk: Walk::Aw(Aw { d: d.map(i32::abs), s, nb, target: b.map(voxel_of) }) }
+    }
+
+    /// The current voxel.
+    pub fn voxel(&self) -> [i32; 3] {
+        self.v
+    }
+
+    /// Voxels still to visit after the current one.
+    pub fn remaining(&self) -> u32 {
+        match &self.walk {
+            Walk::Dda(w) => {
+                let corners = if w.split { self.corner_steps_left() } else { 0 };
+                w.left + corners + w.pending.is_some() as u32
+            }
+            Walk::Aw(w) => (0..3).map(|i| (w.target[i] - self.v[i]).unsigned_abs()).sum(),
+        }
+    }
+
+    /// Corner steps still ahead (each is split in two by the 18-connected walk): a replay of
+    /// the 26-connected walk, O(remaining) — for reports, not for the cell's hot path.
+    fn corner_steps_left(&self) -> u32 {
+        let mut probe = *self;
+        if let Walk::Dda(p) = &mut probe.walk {
+            p.split = false;
+            p.pending = None;
+        }
+        let mut corners = 0;
+        let mut prev = probe.v;
+        while let Some(nv) = probe.step() {
+            let changed = (0..3).filter(|&i| nv[i] != prev[i]).count();
+            corners += (changed == 3) as u32;
+            prev = nv;
+        }
+        corners
+    }
+
+    /// Move to the next voxel; `None` (and no change) at the end of the line.
+    pub fn step(&mut self) -> Option<[i32; 3]> {
+        match &mut self.walk {
+            Walk::Dda(w) => {
+                if let Some(p) = w.pending.take() {
+                    self.v = p;
+                    return Some(p);
+                }
+                if w.left == 0 {
+                    return None;
+                }
+                w.left -= 1;
+                let m = w.m as usize;
+                let mut next = self.v;
+                next[m] += w.sm as i32;
+                // Boundary-crossing "time" of each minor axis within this step, as a fraction
+                // num / den (only for axes that carry).
+                let mut cross: [Option<(i64, i64)>; 3] = [None; 3];
+                for i in 0..3 {
+                    if i == m || w.inc[i] == 0 {
+                        continue;
+                    }
+                    let old = w.r[i];
+                    let r = old + w.inc[i];
+                    if r >= w.qm {
+                        w.r[i] = r - w.qm;
+                        next[i] += 1;
+                        cross[i] = Some(((w.qm - old) as i64, w.inc[i] as i64));
+                    } else if r < 0 {
+                        w.r[i] = r + w.qm;
+                        next[i] -= 1;
+                        cross[i] = Some((old as i64, -(w.inc[i] as i64)));
+                    } else {
+                        w.r[i] = r;
+                    }
+                }
+                let carried: [usize; 2] = {
+                    let mut it = (0..3).filter(|&i| cross[i].is_some());
+                    [it.next().unwrap_or(3), it.next().unwrap_or(3)]
+                };
+                if w.split && carried[1] < 3 {
+                    let (i, j) = (carried[0], carried[1]);
+                    let (ni, di) = cross[i].unwrap_or((0, 1));
+                    let (nj, dj) = cross[j].unwrap_or((0, 1));
+                    // i first iff ni/di ≤ nj/dj (lowest index on ties).
+                    let first = if ni * dj <= nj * di { i } else { j };
+                    let mut mid = self.v;
+                    mid[m] = next[m];
+                    mid[first] = next[first];
+                    w.pending = Some(next);
+                    self.v = mid;
+                    return Some(mid);
+                }
+                self.v = next;
+                Some(next)
+            }
+            Walk::Aw(w) => {
+                let mut best: Option<usize> = None;
+                for i in 0..3 {
+                    if self.v[i] == w.target[i] {
+                        continue;
+                    }
+                    best = match best {
+                        None => Some(i),
+                        // i beats b iff nb_i / d_i < nb_b / d_b.
+                        Some(b) if (w.nb[i] as i64) * (w.d[b] as i64) < (w.nb[b] as i64) * (w.d[i] as i64) => Some(i),
+                        keep => keep,
+                    };
+                }
+                let i = best?;
+                self.v[i] += w.s[i] as i32;
+                w.nb[i] += Q;
+                Some(self.v)
+            }
+        }
+    }
+}
+
+/// The 2D cell step (dx, dy) between two consecutive voxels of a line, or `None` when the
+/// next voxel is in the same column (a z step, handled inside the cell).
+pub fn cell_step(from: [i32; 3], to: [i32; 3]) -> Option<(i8, i8)> {
+    let (dx, dy) = ((to[0] - from[0]) as i8, (to[1] - from[1]) as i8);
+    if dx == 0 && dy == 0 {
+        None
+    } else {
+        Some((dx, dy))
+    }
+}
+
+/// A shadow ray in flight (§4.1.2): its line toward the source, the cell waiting for the
+/// answer, and the facet of the emitting voxel (a planar facet cannot shadow its own points:
+/// hits on it are ignored, which removes the discrete "self-shadowing" of thick surfaces).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct ShadowRay {
+    /// The walk, its current voxel in the column of the cell holding the ray.
+    pub line: Line,
+    /// The cell that emitted the ray and waits for the answer.
+    pub emitter: [u16; 2],
+    /// The facet of the emitting voxel.
+    pub facet: FacetId,
+    /// The emitting voxel's z (its answer tells which voxel of the column it is about).
+    pub emitter_z: i32,
+    /// Whether the current voxel is still the emitter's own (not tested).
+    pub fresh: bool,
+}
+
+/// What the cell holding a [`ShadowRay`] does with it this cycle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum RayStep {
+    /// The current voxel is occupied: route "shadow" back to the emitter.
+    Shadow,
+    /// The line reached its end (the source) unobstructed: route "lit" back to the emitter.
+    Lit,
+    /// The next voxel is in this column: keep the ray (next cycle tests it).
+    Stay,
+    /// The next voxel is in the neighbour column through this port.
+    Forward(Port),
+}
+
+impl ShadowRay {
+    /// A ray from the centre of voxel `from` toward lattice point `to` (the source).
+    ///
+    /// The 6-connected walk aims at `to` itself and ends in its voxel. The 18/26-connected
+    /// walks aim at the **centre of `to`'s voxel**: aimed at `to` itself, their last voxel may
+    /// round past the source's voxel, so that rays from opposite sides cross over — and two
+    /// rays waiting for each other's cell deadlock the grid (found by the routing test with
+    /// FIFOs of 1). Aimed at the centre, every ray ends in the source's voxel and each of its
+    /// cell steps strictly decreases |x − x_s| + |y − y_s|.
+    pub fn new(from: [u16; 3], to: [i32; 3], conn: Connectivity, facet: FacetId) -> Result<Self, LineError> {
+        let a = [from[0] as i32 * Q, from[1] as i32 * Q, from[2] as i32 * Q];
+        let to = if conn == Connectivity::Six { to } else { to.map(|c| voxel_of(c) * Q) };
+        Ok(ShadowRay {
+            line: Line::new(a, to, conn)?,
+            emitter: [from[0], from[1]],
+            facet,
+            emitter_z: from[2] as i32,
+            fresh: true,
+        })
+    }
+
+    /// One voxel of work in the cell owning the current voxel: test it against the column's
+    /// dexels (unless it is the emitter's), then take one step of the line. Pure in the
+    /// store; the ray advances (the caller keeps a copy if it cannot send the result yet).
+    pub fn advance<const D: usize>(&mut self, store: &DexelStore<D>) -> RayStep {
+        let here = self.line.voxel();
+        if !self.fresh {
+            if let Some(d) = u16::try_from(here[2]).ok().and_then(|z| store.occupied(z)) {
+                if d.facet != self.facet {
+                    return RayStep::Shadow;
+                }
+            }
+        }
+        self.fresh = false;
+        let Some(next) = self.line.step() else { return RayStep::Lit };
+        match cell_step(here, next).and_then(|(dx, dy)| Port::from_delta(dx, dy)) {
+            Some(p) => RayStep::Forward(p),
+            None => RayStep::Stay,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn path(a: [i32; 3], b: [i32; 3], c: Connectivity) -> heapless::Vec<[i32; 3], 256> {
+        let mut l = Line::new(a, b, c).unwrap();
+        let mut out = heapless::Vec::new();
+        out.push(l.voxel()).unwrap();
+        let r0 = l.remaining();
+        while let Some(v) = l.step() {
+            out.push(v).unwrap();
+        }
+        assert_eq!(out.len() as u32, r0 + 1);
+        out
+    }
+
+    #[test]
+    fn axis_lines() {
+        for c in Connectivity::ALL {
+            let p = path([0, 0, 0], [0, 0, 5 * Q], c);
+            assert_eq!(p.len(), 6);
+            assert_eq!(p[5], [0, 0, 5]);
+        }
+    }
+
+    #[test]
+    fn diagonal_lengths() {
+        let b = [3 * Q, 3 * Q, 3 * Q];
+        assert_eq!(path([0; 3], b, Connectivity::TwentySix).len(), 4);
+        assert_eq!(path([0; 3], b, Connectivity::Eighteen).len(), 7);
+        assert_eq!(path([0; 3], b, Connectivity::Six).len(), 10);
+    }
+
+    #[test]
+    fn limits() {
+        assert_eq!(Line::new([0; 3], [MAX_SPAN + 1, 0, 0], Connectivity::Six), Err(LineError::SpanTooLarge));
+        assert_eq!(
+            Line::new([MAX_COORD + 1, 0, 0], [MAX_COORD, 0, 0], Connectivity::Six),
+            Err(LineError::CoordinateTooLarge)
+        );
+    }
+}

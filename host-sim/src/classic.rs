@@ -1,0 +1,510 @@
+//! Classic shadow rays on the grid (thesis §4.1.2–4.1.3, SPEC §3 "Classic shadow rays"): the
+//! method beam diffusion replaces, simulated with the same cycle model so both can be compared.
+//!
+//! For each source in turn (like diffusion, the next starts when the grid is quiescent): every
+//! visible voxel (the first occupied voxel of a column, as `render` shows it) emits one
+//! [`ShadowRay`] toward the source, walking an incremental line ([`cell_core::ray`]). Cycle
+//! model, per cycle:
+//! 1. **compute**: every cell with rays takes its FIFO's head and does one voxel of work
+//!    ([`ShadowRay::advance`]): an occupied voxel (of another facet) → the answer "shadow";
+//!    the end of the line (the source) → "lit"; the next voxel in the same column → the ray
+//!    goes back to the FIFO's tail; in a neighbour column → the output buffer of that link.
+//!    An answer goes to the cell's router, addressed to the emitter. If the buffer or the router
+//!    channel is full the ray is not processed (no loss, §4.4.2), goes to the FIFO's tail, and
+//!    the cell is blocked for the cycle (the thesis's policy).
+//! 2. **links**: answers first ([`crate::network`]: routers, virtual channels, credits), then
+//!    rays (output buffer → neighbour FIFO when it has room); one message per link, direction
+//!    and cycle, whatever its kind.
+//! 3. each router hands at most one answer per cycle to its cell, which records it.
+//!
+//! **No deadlock**: every ray ends in the source's voxel and its cell steps go monotonically
+//! toward it (18/26 rays aim at the voxel's centre, see [`ShadowRay::new`]), so every ray
+//! move strictly decreases |x − x_s| + |y − y_s| and the cells' waits for FIFO space are
+//! acyclic (one source at a time); answers travel on a network that is deadlock-free by itself
+//! ([`cell_core::route`]) and always drains, so a cell waiting to send an answer waits finitely.
+//! A cycle with work in flight and nothing moving is reported as an error, never a hang.
+
+use std::collections::VecDeque;
+use std::time::Instant;
+
+use anyhow::{bail, Result};
+use cell_core::beam::FracBits;
+use cell_core::light::{Port, SourceMask};
+use cell_core::ray::{Connectivity, RayStep, ShadowRay};
+use cell_core::route::{RoutePolicy, Routed};
+
+use crate::diffuse::{DiffusionCounts, SourceReport, FA_CAP};
+use crate::lightjob::{LightStats, LoadedScene};
+use crate::network::Network;
+use crate::scene::Mesh;
+
+/// Classic-phase settings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ClassicConfig {
+    /// FIFO limit of each cell (rays), 1 ..= [`FA_CAP`].
+    pub fa: usize,
+    /// Connectivity of the shadow rays.
+    pub connectivity: Connectivity,
+    /// Routing of the answers.
+    pub route: RoutePolicy,
+    /// Every occupied voxel emits (not only the visible ones): the thesis's count ΣS_i, for
+    /// the occupancy comparison (§4.1.6). Only visible voxels' answers change the image.
+    pub all_voxels: bool,
+}
+
+/// Counters of a classic run (one source's, or summed).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct ClassicCounts {
+    /// Cycles until the last answer was recorded.
+    pub cycles: u64,
+    /// Shadow rays emitted (one per emitting voxel).
+    pub rays: u64,
+    /// Voxel steps processed (one per cycle per cell at most).
+    pub ray_steps: u64,
+    /// Ray messages that crossed a link.
+    pub ray_messages: u64,
+    /// Answers (one per ray).
+    pub answers: u64,
+    /// Answer messages that crossed a link (routed hops).
+    pub answer_messages: u64,
+    /// Occupied voxels of the scene (for occupancy = voxels / n³).
+    pub voxels: u64,
+    /// Rays answered "lit".
+    pub lit: u64,
+    /// Largest number of voxel steps one cell processed.
+    pub busiest_cell_steps: u64,
+    /// Chebyshev distance (cells) from the busiest cell to the source's column.
+    pub busiest_cell_distance: u32,
+    /// Most messages (rays + answers) one link carried in one direction.
+    pub peak_link_load: u64,
+    /// Chebyshev distance from that link's sending cell to the source's column.
+    pub peak_link_distance: u32,
+    /// Largest FIFO occupancy.
+    pub peak_fifo: u16,
+    /// Sum over cells of cycles with rays waiting and none processable.
+    pub blocked_cell_cycles: u64,
+}
+
+impl ClassicCounts {
+    /// Accumulate another source's run (sums; peaks by maximum).
+    pub fn add(&mut self, o: &ClassicCounts) {
+        self.cycles += o.cycles;
+        self.rays += o.rays;
+        self.voxels = o.voxels;
+        self.ray_steps += o.ray_steps;
+        self.ray_messages += o.ray_messages;
+        self.answers += o.answers;
+        self.answer_messages += o.answer_messages;
+        self.lit += o.lit;
+        if o.busiest_cell_steps > self.busiest_cell_steps {
+            self.busiest_cell_steps = o.busiest_cell_steps;
+            self.busiest_cell_distance = o.busiest_cell_distance;
+        }
+        if o.peak_link_load > self.peak_link_load {
+            self.peak_link_load = o.peak_link_load;
+            self.peak_link_distance = o.peak_link_distance;
+        }
+        self.peak_fifo = self.peak_fifo.max(o.peak_fifo);
+        self.blocked_cell_cycles += o.blocked_cell_cycles;
+    }
+
+    /// Messages over links, both kinds.
+    pub fn messages(&self) -> u64 {
+        self.ray_messages + self.answer_messages
+    }
+}
+
+/// Lit state of the visible voxels after the classic phase.
+pub struct ClassicLighting {
+    /// Grid side.
+    pub n: u32,
+    /// Sources that lit the visible voxel of each column (index y·n + x).
+    pub masks: Vec<SourceMask>,
+    /// One report per source.
+    pub per_source: Vec<ClassicCounts>,
+    /// Sum over sources.
+    pub totals: ClassicCounts,
+}
+
+impl ClassicLighting {
+    /// Sources that lit voxel (x, y, z): only visible voxels are ever tested.
+    pub fn mask(&self, x: u32, y: u32, _z: u16) -> SourceMask {
+        self.masks[(y * self.n + x) as usize]
+    }
+}
+
+/// The source position on the 1/16 lattice of the rays.
+fn lattice(p: [f64; 3]) -> [i32; 3] {
+    p.map(|c| (c * cell_core::ray::Q as f64).round() as i32)
+}
+
+/// Run the classic phase for every source (positions in voxel units).
+pub fn classic(
+    scene: &LoadedScene,
+    lights: &[[f64; 3]],
+    cfg: &ClassicConfig,
+    mut progress: impl FnMut(usize, u64),
+) -> Result<ClassicLighting> {
+    let n = scene.grid.n;
+    if lights.len() > cell_core::light::MAX_SOURCES {
+        bail!("{} light sources: at most {} are supported", lights.len(), cell_core::light::MAX_SOURCES);
+    }
+    if cfg.fa == 0 || cfg.fa > FA_CAP {
+        bail!("--fa {} is out of range: 1 ..= {FA_CAP}", cfg.fa);
+    }
+    let mut masks = vec![0; (n * n) as usize];
+    let mut per_source = Vec::new();
+    let mut totals = ClassicCounts::default();
+    for (si, &l) in lights.iter().enumerate() {
+        let c = classic_one(scene, l, si, cfg, &mut masks, |c| progress(si, c))?;
+        totals.add(&c);
+        per_source.push(c);
+    }
+    Ok(ClassicLighting { n, masks, per_source, totals })
+}
+
+fn classic_one(
+    scene: &LoadedScene,
+    light: [f64; 3],
+    si: usize,
+    cfg: &ClassicConfig,
+    masks: &mut [SourceMask],
+    mut progress: impl FnMut(u64),
+) -> Result<ClassicCounts> {
+    let grid = &scene.grid;
+    let n = grid.n as usize;
+    let src = lattice(light);
+    let src_col = [(light[0] + 0.5).floor() as i64, (light[1] + 0.5).floor() as i64];
+    let cheb = |i: usize| ((i % n) as i64 - src_col[0]).abs().max(((i / n) as i64 - src_col[1]).abs()) as u32;
+    let mut fifo: Vec<VecDeque<ShadowRay>> = vec![VecDeque::new(); n * n];
+    let mut out: Vec<[Option<ShadowRay>; 8]> = vec![[None; 8]; n * n];
+    let mut steps = vec![0u64; n * n];
+    let mut ray_link = vec![0u32; n * n * 8];
+    // Answer payload: bit 0 lit, bit 1 from the visible voxel.
+    let mut net: Network<u8> = Network::new(grid.n, cfg.route);
+    let mut k = ClassicCounts::default();
+    let mut active: Vec<u32> = Vec::new();
+    for (i, c) in grid.cells.iter().enumerate() {
+        let Some(first) = c.store.dexels().first() else { continue };
+        let visible_z = first.span.lo;
+        for d in c.store.dexels() {
+            let zs = if cfg.all_voxels { d.span.lo..=d.span.hi } else { visible_z..=visible_z };
+            for z in zs {
+                let ray = ShadowRay::new([c.x, c.y, z], src, cfg.connectivity, d.facet)
+                    .map_err(|e| anyhow::anyhow!("shadow ray from ({}, {}, {z}): {e:?}", c.x, c.y))?;
+                // The visible voxel's ray first: it is the one the image waits for.
+                if z == visible_z {
+                    fifo[i].push_front(ray);
+                } else {
+                    fifo[i].push_back(ray);
+                }
+                k.rays += 1;
+            }
+            if !cfg.all_voxels {
+                break;
+            }
+        }
+        active.push(i as u32);
+    }
+    k.voxels = grid.cells.iter().map(|c| c.store.voxel_count() as u64).sum();
+    let bit: SourceMask = 1 << si;
+    let mut rays_in_flight = k.rays;
+    let mut in_active = vec![false; n * n];
+    for &i in &active {
+        in_active[i as usize] = true;
+    }
+    let mut link_used = vec![false; n * n * 8];
+    let mut woken: Vec<u32> = Vec::new();
+    let mut cycle = 0u64;
+    while rays_in_flight > 0 || net.in_flight > 0 {
+        let mut moved = 0u64;
+        // 1. Compute.
+        for &i in &active {
+            let i = i as usize;
+            let Some(head) = fifo[i].pop_front() else { continue };
+            let mut ray = head;
+            let step = ray.advance(&grid.cells[i].store);
+            let done = match step {
+                RayStep::Shadow | RayStep::Lit => {
+                    let dest = ray.emitter;
+                    let visible = grid.cells[(dest[1] as usize) * n + dest[0] as usize]
+                        .store
+                        .dexels()
+                        .first()
+                        .is_some_and(|d| d.span.lo as i32 == ray.emitter_z);
+                    let payload = (step == RayStep::Lit) as u8 | (visible as u8) << 1;
+                    net.can_inject(i, dest) && net.inject(i, Routed { dest, payload })
+                }
+                RayStep::Stay => {
+                    fifo[i].push_back(ray);
+                    true
+                }
+                RayStep::Forward(p) => {
+                    let slot = &mut out[i][p.index()];
+                    slot.is_none() && slot.replace(ray).is_none()
+                }
+            };
+            if done {
+                steps[i] += 1;
+                moved += 1;
+                if matches!(step, RayStep::Shadow | RayStep::Lit) {
+                    rays_in_flight -= 1;
+                    k.answers += 1;
+                }
+            } else {
+                fifo[i].push_back(head);
+                k.blocked_cell_cycles += 1;
+            }
+        }
+        // 2. Links: answers first, then rays.
+        link_used.iter_mut().for_each(|u| *u = false);
+        moved += net.step(&mut link_used, |cell, m| {
+            if m.payload & 1 == 1 {
+                k.lit += 1;
+                if m.payload & 2 == 2 {
+                    masks[cell] |= bit;
+                }
+            }
+        });
+        for &i in &active {
+            let i = i as usize;
+            for p in Port::ALL {
+                let link = i * 8 + p.index();
+                if link_used[link] {
+                    continue;
+                }
+                let Some(ray) = out[i][p.index()] else { continue };
+                let (dx, dy) = p.delta();
+                let j = (i as i64 + dy as i64 * n as i64 + dx as i64) as usize;
+                if fifo[j].len() >= cfg.fa {
+                    continue;
+                }
+                out[i][p.index()] = None;
+                fifo[j].push_back(ray);
+                k.peak_fifo = k.peak_fifo.max(fifo[j].len() as u16);
+                link_used[link] = true;
+                ray_link[link] += 1;
+                k.ray_messages += 1;
+                moved += 1;
+                if !in_active[j] {
+                    in_active[j] = true;
+                    woken.push(j as u32);
+                }
+            }
+        }
+        cycle += 1;
+        active.retain(|&i| {
+            let busy = !fifo[i as usize].is_empty() || out[i as usize].iter().any(Option::is_some);
+            in_active[i as usize] = busy;
+            busy
+        });
+        for &j in &woken {
+            in_active[j as usize] = true;
+            active.push(j);
+        }
+        woken.clear();
+        active.sort_unstable();
+        if moved == 0 {
+            let mut busy: Vec<String> = net.busy_cells().take(4).map(|(c, o)| format!("router {c}: {o}")).collect();
+            busy.extend(active.iter().take(8).map(|&i| {
+                let i = i as usize;
+                let outs: Vec<String> = (0..8)
+                    .filter_map(|p| out[i][p].map(|r| format!("{:?}→{:?}", Port::ALL[p], r.line.voxel())))
+                    .collect();
+                let heads: Vec<[i32; 3]> = fifo[i].iter().map(|r| r.line.voxel()).collect();
+                format!("cell ({}, {}) fifo {heads:?} out [{}]", i % n, i / n, outs.join(", "))
+            }));
+            bail!(
+                "deadlock in the classic phase at cycle {cycle} of source {si}: {rays_in_flight} rays and {} answers in flight, nothing can move ({})",
+                net.in_flight,
+                busy.join("; ")
+            );
+        }
+        if cycle % 256 == 0 {
+            progress(cycle);
+        }
+    }
+    progress(cycle);
+    k.cycles = cycle;
+    k.ray_steps = steps.iter().sum();
+    if let Some((i, &s)) = steps.iter().enumerate().max_by_key(|&(i, s)| (*s, std::cmp::Reverse(i))) {
+        k.busiest_cell_steps = s;
+        k.busiest_cell_distance = cheb(i);
+    }
+    k.answer_messages = net.hops;
+    if let Some((l, load)) = (0..n * n * 8)
+        .map(|l| (l, ray_link[l] as u64 + net.link_load[l] as u64))
+        .max_by_key(|&(l, v)| (v, std::cmp::Reverse(l)))
+    {
+        k.peak_link_load = load;
+        k.peak_link_distance = cheb(l / 8);
+    }
+    Ok(k)
+}
+
+/// The classic phase as the `light`/`render` jobs report it: the lit state and a [`LightStats`]
+/// whose diffusion counters hold the classic equivalents (cycles; `beams_processed` = voxel
+/// steps; `messages` = ray + answer link messages; `lb_cell_load` = busiest cell's steps).
+pub fn run_classic<F: FracBits>(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    lights: &[[f64; 3]],
+    cfg: &ClassicConfig,
+    progress: impl FnMut(usize, u64),
+) -> Result<(ClassicLighting, LightStats)> {
+    let t0 = Instant::now();
+    let cl = classic(scene, lights, cfg, progress)?;
+    let wall = t0.elapsed().as_secs_f64();
+    let as_diffusion = |c: &ClassicCounts| DiffusionCounts {
+        cycles: c.cycles,
+        lower_bound: c.busiest_cell_steps,
+        lb_cell_load: c.busiest_cell_steps,
+        beams_processed: c.ray_steps,
+        messages: c.messages(),
+        peak_fifo: c.peak_fifo,
+        blocked_cell_cycles: c.blocked_cell_cycles,
+        ..Default::default()
+    };
+    let totals = as_diffusion(&cl.totals);
+    let sources = cl
+        .per_source
+        .iter()
+        .enumerate()
+        .map(|(s, c)| SourceReport { source: s, position: lights[s], busiest_cell: [0, 0], counts: as_diffusion(c) })
+        .collect();
+    let stats = LightStats {
+        scene: mesh.name.clone(),
+        n: scene.grid.n,
+        fa: cfg.fa,
+        frac_bits: 0,
+        policy: format!("classic-{}", cfg.connectivity.k()),
+        merge: false,
+        facets: scene.facets,
+        load_cycles: scene.load_cycles,
+        t_over_lb: totals.t_over_lb(),
+        totals,
+        lit_voxels: cl.masks.iter().filter(|&&m| m != 0).count() as u64,
+        lit_overflows: 0,
+        bytes_beam_message: std::mem::size_of::<ShadowRay>(),
+        bytes_light_cell: cfg.fa * std::mem::size_of::<ShadowRay>()
+            + 8 * std::mem::size_of::<Option<ShadowRay>>()
+            + std::mem::size_of::<crate::network::HostRouter<bool>>(),
+        sources,
+        wall_seconds: wall,
+        peak_rss_mib: crate::load::peak_rss_mib(),
+    };
+    Ok((cl, stats))
+}
+
+/// How the lighting jobs compute the lit state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum LightingArg {
+    /// Beam diffusion from each source (§4.3).
+    Diffusion,
+    /// One shadow ray per visible voxel and source, answers routed back (§4.1.2).
+    Classic,
+}
+
+/// Answer routing of the classic phase.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum RouteArg {
+    /// Diagonal first, then straight.
+    Dor,
+    /// The minimal move with the most free buffer space.
+    Adaptive,
+}
+
+/// Command-line options of the classic phase (flattened into the lighting options).
+#[derive(clap::Args, Debug, Clone)]
+pub struct ClassicOpts {
+    /// Lighting method: diffusion (beams) or classic (shadow rays, answers routed back).
+    #[arg(long, value_enum, default_value_t = LightingArg::Diffusion)]
+    pub lighting: LightingArg,
+    /// Connectivity of classic shadow rays: 6 (Amanatides–Woo; no surface thickness lets it
+    /// through), 18, or 26 (DDA; passes through naive surfaces).
+    #[arg(long, default_value_t = 6, value_parser = parse_connectivity)]
+    pub ray_connectivity: u8,
+    /// Routing of classic answers.
+    #[arg(long, value_enum, default_value_t = RouteArg::Adaptive)]
+    pub route: RouteArg,
+    /// Which voxels send classic shadow rays: the visible ones (what the image needs) or all
+    /// occupied voxels (the thesis's count, §4.1.6).
+    #[arg(long, value_enum, default_value_t = EmittersArg::Visible)]
+    pub emitters: EmittersArg,
+}
+
+/// Emitters of classic shadow rays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum EmittersArg {
+    /// The first occupied voxel of each column.
+    Visible,
+    /// Every occupied voxel.
+    All,
+}
+
+fn parse_connectivity(s: &str) -> std::result::Result<u8, String> {
+    match s {
+        "6" => Ok(6),
+        "18" => Ok(18),
+        "26" => Ok(26),
+        _ => Err(format!("'{s}' is not a ray connectivity: 6, 18 or 26")),
+    }
+}
+
+impl ClassicOpts {
+    /// The classic configuration with FIFO limit `fa`.
+    pub fn config(&self, fa: usize) -> ClassicConfig {
+        ClassicConfig {
+            fa,
+            connectivity: match self.ray_connectivity {
+                18 => Connectivity::Eighteen,
+                26 => Connectivity::TwentySix,
+                _ => Connectivity::Six,
+            },
+            route: match self.route {
+                RouteArg::Dor => RoutePolicy::DiagonalFirst,
+                RouteArg::Adaptive => RoutePolicy::Adaptive,
+            },
+            all_voxels: self.emitters == EmittersArg::All,
+        }
+    }
+}
+
+/// One line of classic counters for the job summaries.
+pub fn summary(c: &ClassicCounts) -> String {
+    format!(
+        "classic: {} rays, {} voxel steps, {} ray + {} answer messages, {} lit; busiest cell {} steps at distance {}; peak link load {} at distance {}; peak FIFO {}",
+        c.rays,
+        c.ray_steps,
+        c.ray_messages,
+        c.answer_messages,
+        c.lit,
+        c.busiest_cell_steps,
+        c.busiest_cell_distance,
+        c.peak_link_load,
+        c.peak_link_distance,
+        c.peak_fifo
+    )
+}
+
+/// `render --lighting classic`: the classic phase, then the same shading and report as
+/// diffusion ([`crate::render::finish_render`]).
+#[allow(clippy::too_many_arguments)]
+pub fn render_classic<F: FracBits>(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    lights: &[[f64; 3]],
+    cfg: &crate::render::RenderConfig,
+    classic_cfg: &ClassicConfig,
+    reference: Option<&crate::refrender::RefImage>,
+    load_seconds: f64,
+    reference_seconds: f64,
+    progress: impl FnMut(usize, u64),
+) -> Result<(crate::render::Rendered, ClassicCounts)> {
+    let t0 = Instant::now();
+    let (cl, stats) = run_classic::<F>(mesh, scene, lights, classic_cfg, progress)?;
+    let times = [load_seconds, t0.elapsed().as_secs_f64(), reference_seconds];
+    let r =
+        crate::render::finish_render(mesh, scene, lights, cfg, reference, &|x, y, z| cl.mask(x, y, z), stats, times);
+    Ok((r, cl.totals))
+}
