@@ -18,6 +18,7 @@ pub mod cli;
 pub mod diffuse;
 pub mod grid;
 pub mod lightjob;
+pub mod limits;
 pub mod load;
 pub mod meshops;
 pub mod office;

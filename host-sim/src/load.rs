@@ -188,6 +188,8 @@ pub fn voxelize<const D: usize>(
     mut progress: impl FnMut(u64, u64),
 ) -> Result<Voxelized<D>> {
     let t0 = Instant::now();
+    cfg.validate()?;
+    crate::limits::check_grid_memory("grid of loading cells", cfg.n, std::mem::size_of::<Cell<D>>())?;
     let prepared = prepare(mesh, cfg)?;
     let t1 = Instant::now();
     let mut grid = Grid::<D>::new(cfg.n, cfg.n);

@@ -248,8 +248,16 @@ fn convex_in_projection(p: &[[i64; 3]], axes: (usize, usize, usize)) -> bool {
 /// A facet's packet, or why it has none.
 pub type PacketOrSkip = std::result::Result<PipelinePacket, Skip>;
 
+/// Largest |lattice coordinate| [`facet_packet`] accepts.
+pub const MAX_LATTICE_COORD: u64 = 1 << 32;
+
 /// Build the packet of one planar convex lattice polygon (`Ok(Err(skip))`: skipped, with the reason).
 pub fn facet_packet(poly: &[[i64; 3]], tag: FacetTag, cfg: &LoadConfig) -> Result<PacketOrSkip> {
+    // The i128 products below (normal · vertex) stay exact for |coordinate| ≤ 2^32 lattice
+    // steps (normal components < 2^67, products < 2^101); a fitted mesh uses 0 ..= 16·n.
+    if let Some(c) = poly.iter().flatten().find(|c| c.unsigned_abs() > MAX_LATTICE_COORD) {
+        bail!("vertex coordinate {c} exceeds the precompute's bit budget (|coordinate| ≤ 2^32 lattice steps)");
+    }
     let n = polygon_normal(poly);
     if n == [0; 3] || poly.len() > MAX_EDGES {
         return Ok(Err(Skip::Degenerate));
