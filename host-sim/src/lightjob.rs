@@ -35,6 +35,11 @@ pub struct LoadedScene {
 pub fn load_scene(mesh: &Mesh, cfg: &LoadConfig) -> Result<LoadedScene> {
     cfg.validate()?;
     if mesh.faces.is_empty() {
+        crate::limits::check_grid_memory(
+            "grid of loading cells",
+            cfg.n,
+            std::mem::size_of::<cell_core::cell::Cell<DEFAULT_DEXELS>>(),
+        )?;
         let fit = Fit { origin: [0.0; 3], voxel: 1.0 / cfg.n as f64 };
         return Ok(LoadedScene {
             grid: Grid::new(cfg.n, cfg.n),

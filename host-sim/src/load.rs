@@ -217,7 +217,7 @@ pub fn voxelize<const D: usize>(
         engine,
         faces: prepared.faces_in,
         facets: packets.len(),
-        facets_skipped: prepared.skipped_degenerate + prepared.skipped_outside,
+        facets_skipped: prepared.skipped_degenerate + prepared.skipped_outside + prepared.skipped_duplicate,
         polygons_split: prepared.polygons_split,
         grid: summary,
         load_cycles: wave.map_or(0, |w| w.cycles),

@@ -123,6 +123,9 @@ pub struct Prepared {
     pub skipped_degenerate: usize,
     /// Faces skipped as outside the grid.
     pub skipped_outside: usize,
+    /// Pieces skipped as exact duplicates of an earlier piece (same lattice vertices, normal
+    /// and material: it could claim no voxel, first come first kept).
+    pub skipped_duplicate: usize,
     /// Polygons split into triangles (non-planar after quantisation, or too many edges).
     pub polygons_split: usize,
 }
@@ -423,6 +426,7 @@ pub fn prepare(mesh: &Mesh, cfg: &LoadConfig) -> Result<Prepared> {
     cfg.validate()?;
     let fit = fit(mesh, cfg.n)?;
     let mut out = Prepared { fit: Some(fit), faces_in: mesh.faces.len(), ..Default::default() };
+    let mut seen: std::collections::HashSet<(u16, [i8; 3], Vec<[i64; 3]>)> = Default::default();
     for (fi, face) in mesh.faces.iter().enumerate() {
         let lat: Vec<[i64; 3]> = face.verts.iter().map(|&v| fit.to_lattice(mesh.positions[v as usize])).collect();
         let (pieces, split) = planar_pieces(lat)
@@ -430,6 +434,12 @@ pub fn prepare(mesh: &Mesh, cfg: &LoadConfig) -> Result<Prepared> {
         out.polygons_split += split as usize;
         for piece in pieces {
             let nrm = polygon_normal(&piece);
+            let mut key = piece.clone();
+            key.sort_unstable();
+            if !seen.insert((face.material, nrm.map(|v| v.signum() as i8), key)) {
+                out.skipped_duplicate += 1;
+                continue;
+            }
             let tag = FacetTag {
                 facet: out.packets.len() as u32,
                 material: face.material,
