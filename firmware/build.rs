@@ -1,5 +1,10 @@
 //! Link against the top-level `memory.x` (the per-cell budget: 256 KiB flash, 64 KiB RAM, laid
-//! out for QEMU's mps2-an386) and cortex-m-rt's `link.x`.
+//! out for QEMU's mps2-an386) and cortex-m-rt's `link.x`; embed the cell traces to replay.
+//!
+//! Traces: every `*.rc2t` file of `$RC2_TRACE_DIR` (the QEMU test records them from a host-sim
+//! run and points this variable at them), or of `firmware/traces/` (a small committed set
+//! recorded by `host-sim trace --n 32 --cell 5,7 --cell 16,16 --busiest --out firmware/traces`).
+//! They become `TRACES: &[(&str, &[u8])]` in `$OUT_DIR/traces.rs` via `include_bytes!`.
 //!
 //! `-Tlink.x` is passed here rather than through `rustflags` in `.cargo/config.toml` so that a
 //! `RUSTFLAGS` in the environment (which replaces config rustflags) cannot drop it.
@@ -8,10 +13,33 @@ use std::{env, fs, path::PathBuf};
 
 fn main() {
     let out = PathBuf::from(env::var_os("OUT_DIR").unwrap());
-    let memory_x = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").unwrap()).join("../memory.x");
+    let root = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").unwrap());
+    let memory_x = root.join("../memory.x");
     fs::copy(&memory_x, out.join("memory.x")).expect("copy ../memory.x");
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rerun-if-changed={}", memory_x.display());
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rustc-link-arg=-Tlink.x");
+    if env::var_os("CARGO_FEATURE_DEFMT").is_some() {
+        println!("cargo:rustc-link-arg=-Tdefmt.x");
+    }
+
+    println!("cargo:rerun-if-env-changed=RC2_TRACE_DIR");
+    let dir = env::var_os("RC2_TRACE_DIR").map(PathBuf::from).unwrap_or_else(|| root.join("traces"));
+    println!("cargo:rerun-if-changed={}", dir.display());
+    let mut files: Vec<PathBuf> = fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("cannot read the trace directory {}: {e}", dir.display()))
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "rc2t"))
+        .collect();
+    files.sort();
+    let mut src =
+        String::from("/// The embedded traces: (file name, bytes).\npub static TRACES: &[(&str, &[u8])] = &[\n");
+    for f in &files {
+        println!("cargo:rerun-if-changed={}", f.display());
+        let name = f.file_name().unwrap().to_string_lossy();
+        src += &format!("    ({name:?}, include_bytes!({:?})),\n", f.canonicalize().unwrap());
+    }
+    src += "];\n";
+    fs::write(out.join("traces.rs"), src).expect("write traces.rs");
 }

@@ -199,6 +199,7 @@ impl Axis {
 /// One of the six propagation directions (§4.3.4.2, Fig 4.22).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[repr(u8)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Direction {
     /// +x: transverse (u, v) = (y, z).
     PosX = 0,
@@ -295,6 +296,7 @@ impl Direction {
 
 /// Identifier of a light source, as numbered by the host.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SourceId(pub u16);
 
 /// A point light source: its id and its position (voxel units, 2^−g lattice).
@@ -332,6 +334,7 @@ impl Source {
 
 /// Layer k: the slab w = w₀ + s·k at principal distance k from the source voxel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Layer(pub u32);
 
 /// The far distance D (≥ every layer used), validated against the bit budget for f = `F::U32`.
@@ -584,6 +587,24 @@ pub struct Beam<F: FracBits> {
     layer: Layer,
     source: SourceId,
     dir: Direction,
+}
+
+#[cfg(feature = "defmt")]
+impl<F: FracBits> defmt::Format for Beam<F> {
+    fn format(&self, f: defmt::Formatter<'_>) {
+        defmt::write!(
+            f,
+            "Beam {{ source: {=u16}, dir: {}, layer: {=u32}, u: [{=i32}, {=i32}], v: [{=i32}, {=i32}] (2^-{=u32}) }}",
+            self.source.0,
+            self.dir,
+            self.layer.0,
+            self.u.lo.to_bits(),
+            self.u.hi.to_bits(),
+            self.v.lo.to_bits(),
+            self.v.hi.to_bits(),
+            F::U32
+        )
+    }
 }
 
 /// One output of a split: the sub-beam (at layer k + 1) and its transverse move.

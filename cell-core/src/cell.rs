@@ -11,6 +11,7 @@ pub const DEFAULT_DEXELS: usize = 64;
 
 /// Per-cell counters of the loading phase.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LoadCounters {
     /// Facet packets received from the west (or from the pipeline).
     pub packets: u32,

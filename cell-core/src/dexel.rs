@@ -15,6 +15,7 @@ use heapless::Vec;
 
 /// One dexel: a run of occupied voxels of one facet, with what shading needs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Dexel {
     /// The voxels `span.lo ..= span.hi` of this column.
     pub span: Span,
@@ -28,6 +29,7 @@ pub struct Dexel {
 
 /// Facet attributes stored with each of its dexels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FacetTag {
     /// Facet id (stream position).
     pub facet: FacetId,
@@ -39,6 +41,7 @@ pub struct FacetTag {
 
 /// What one insertion did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Insertion {
     /// Voxels newly claimed by the facet.
     pub added: u32,

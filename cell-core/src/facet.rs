@@ -26,6 +26,7 @@ pub const MAX_EDGES: usize = 8;
 
 /// The voxels a facet can touch: `x_min ..= x_max`, `y_min ..= y_max`, `z_min ..= z_max`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FacetBox {
     /// First column.
     pub x_min: Coord,
@@ -43,6 +44,7 @@ pub struct FacetBox {
 
 /// One contour edge as a row cell sees it: `g + c·z ≥ 0` at the current column.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RowEdge {
     /// x coefficient `a_i`: added to `g` at each step east.
     pub a: i32,

@@ -14,6 +14,8 @@
 //! * [`cell`] — one cell: its store and counters.
 //! * [`beam`] — light beams and their split (§4.3).
 //! * [`light`] — the lighting phase: FIFO, ports, back-pressure, lit voxels, quiescence (§4.4).
+//! * [`link`] — the bytes a link carries: framed messages with a CRC; the `embedded-hal` link seam.
+//! * [`trace`] — cell traces (what a cell received, as frames) and their replay through the real cell.
 //! * [`shade`] — Phong/Blinn shading of the visible voxel with `micromath` (§1.1, §5.2).
 #![no_std]
 #![forbid(unsafe_code)]
@@ -24,7 +26,9 @@ pub mod cell;
 pub mod dexel;
 pub mod facet;
 pub mod light;
+pub mod link;
 pub mod normal;
 pub mod shade;
+pub mod trace;
 pub mod units;
 pub mod voxelize;

@@ -53,9 +53,17 @@ pub struct BeamMsg<F: FracBits> {
     pub z: Depth,
 }
 
+#[cfg(feature = "defmt")]
+impl<F: FracBits> defmt::Format for BeamMsg<F> {
+    fn format(&self, f: defmt::Formatter<'_>) {
+        defmt::write!(f, "BeamMsg {{ {}, z: {=u16} }}", self.beam, self.z)
+    }
+}
+
 /// The 8 neighbour links, counter-clockwise from east (y grows to the north).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[repr(u8)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Port {
     /// (+1, 0)
     E = 0,
@@ -116,6 +124,7 @@ impl Port {
 
 /// Which beam a cell processes when its FIFO holds several (a documented, measured choice).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Policy {
     /// The thesis (§4.4.1): take the FIFO's head; if its sub-beams cannot all be sent, put it
     /// back at the tail ("remettre le faisceau dans FA") and wait for the next cycle.
@@ -138,6 +147,7 @@ pub struct LitRuns<const L: usize> {
 
 /// A run of lit voxels `lo ..= hi`, lit by the sources in `mask`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LitRun {
     /// First z.
     pub lo: Depth,
@@ -278,6 +288,7 @@ impl Activity {
 
 /// Per-cell counters of the lighting phase.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LightCounters {
     /// Beams processed (one per cycle at most).
     pub processed: u64,
@@ -324,6 +335,7 @@ pub struct LightEnv<'a, F: FracBits> {
 
 /// What a cell did in one cycle.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Step {
     /// Nothing to do.
     Idle,

@@ -7,6 +7,7 @@
 
 /// A facet normal quantised to 16 bits (8 bits per octahedral coordinate).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct NormalCode(pub u16);
 
 fn quantise(v: f32) -> u16 {

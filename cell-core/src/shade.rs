@@ -431,6 +431,45 @@ pub fn shade(
     c.map(encode)
 }
 
+/// What a cell shows: the colour of its visible voxel and the lights that lit it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Pixel {
+    /// Gamma-encoded colour.
+    pub rgb: [u8; 3],
+    /// Lights that lit the voxel: a beam of the light reached it and the surface faces it.
+    pub lit: SourceMask,
+    /// Depth of the visible voxel.
+    pub z: crate::units::Depth,
+}
+
+/// The pixel of column (x, y): the first occupied voxel of `store` seen from the camera (near
+/// end z = 0, looking along +z), shaded with its material (`materials[id]`, default when
+/// missing) under the lights whose bit is set in `reached(z)` and that the surface faces.
+/// `None` when the column is empty.
+pub fn pixel<const D: usize>(
+    x: crate::units::Coord,
+    y: crate::units::Coord,
+    store: &crate::dexel::DexelStore<D>,
+    reached: impl Fn(crate::units::Depth) -> SourceMask,
+    materials: &[Material],
+    lights: &[PointLight],
+    params: &ShadeParams,
+) -> Option<Pixel> {
+    let d = store.dexels().first()?;
+    let z = d.span.lo;
+    let p = [x as f32, y as f32, z as f32];
+    let nrm = shading_normal(d, params.normal_mode);
+    let m = materials.get(d.material as usize).copied().unwrap_or_default();
+    let reached = reached(z);
+    let lit = lights.iter().take(32).enumerate().fold(0u32, |acc, (s, l)| {
+        let l = l.pos;
+        let faces = nrm[0] * (l[0] - p[0]) + nrm[1] * (l[1] - p[1]) + nrm[2] * (l[2] - p[2]) > 0.0;
+        acc | (((reached >> s & 1 == 1) && faces) as u32) << s
+    });
+    Some(Pixel { rgb: shade(p, nrm, &m, lights, lit, params), lit, z })
+}
+
 #[cfg(test)]
 mod tests {
     extern crate std;

@@ -22,6 +22,7 @@ pub const MAX_N: u32 = 1 << 16;
 
 /// Half-open-free inclusive range of depths `lo ..= hi` inside one column.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Span {
     /// First (smallest) z of the range: the thesis's `Z_ar`.
     pub lo: Depth,

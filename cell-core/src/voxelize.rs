@@ -59,10 +59,11 @@ const _: () = assert!(worst_case_t(MAX_LATTICE_SPAN, MAX_LATTICE_Q) < i64::MAX a
 const _: () = assert!(worst_case_g(MAX_LATTICE_SPAN, MAX_LATTICE_Q) < i64::MAX as i128);
 const _: () = assert!(MAX_LATTICE_SPAN * MAX_LATTICE_Q <= i32::MAX as i128);
 
-/// ⌊n / d⌋ for any signs (`d ≠ 0`).
+/// ⌊n / d⌋ for any signs (`d ≠ 0`). Wrapping division: `i64::MIN / −1` (outside every bit
+/// budget, so only reachable from a forged packet) wraps instead of panicking.
 pub const fn floor_div(n: i64, d: i64) -> i64 {
-    let q = n / d;
-    if n % d != 0 && ((n < 0) != (d < 0)) {
+    let q = n.wrapping_div(d);
+    if n.wrapping_rem(d) != 0 && ((n < 0) != (d < 0)) {
         q - 1
     } else {
         q
@@ -71,8 +72,8 @@ pub const fn floor_div(n: i64, d: i64) -> i64 {
 
 /// ⌈n / d⌉ for any signs (`d ≠ 0`).
 pub const fn ceil_div(n: i64, d: i64) -> i64 {
-    let q = n / d;
-    if n % d != 0 && ((n < 0) == (d < 0)) {
+    let q = n.wrapping_div(d);
+    if n.wrapping_rem(d) != 0 && ((n < 0) == (d < 0)) {
         q + 1
     } else {
         q

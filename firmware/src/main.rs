@@ -1,36 +1,136 @@
-//! One RC² cell on a Cortex-M4F: the real `cell_core::cell::Cell` at (5, 7) loads the facet
-//! packets of [`scenario::TABLE`] through `load_step`, then the firmware prints a digest of
-//! every output and of the final dexel store over semihosting and exits with semihosting's exit
-//! code. `tests/tests/firmware_qemu.rs` runs it under QEMU and recomputes the digest on the
-//! host with the same `scenario.rs`.
+//! One RC² cell on a Cortex-M4F: replays the cell traces embedded at build time (see
+//! `build.rs`) through the real `cell_core` cell and prints, for each, the digest of its
+//! outputs and final state over semihosting, then exits with semihosting's exit code.
+//! `tests/tests/firmware_qemu.rs` records the traces from a host-sim run, builds this, runs it
+//! under QEMU (`-machine mps2-an386`) and compares the digests with the host's.
+//!
+//! The code path is the one a real cell would run, with the trace standing in for the wires:
+//!
+//! * **receive**: a frame's bytes land in the link's receive buffer and the link interrupt
+//!   fires (here PendSV, pended by software); the handler decodes the frame (CRC, bounds) and
+//!   puts the beam into the cell's FIFO. What the interrupt shares with the main loop (the
+//!   receive buffer, the cell with its FIFO and activity counter) sits in
+//!   `critical_section::Mutex`es.
+//! * **compute**: the main loop runs `LightCell::step` / `Cell::load_step` in a critical
+//!   section.
+//! * **send**: each output port is a `cell_core::link::HalLink` over `embedded-hal` types: the
+//!   neighbour's ready line is an `InputPin`, the frame goes out over an `SpiDevice`. Under QEMU
+//!   the pin reads what the trace says the neighbour did (it took the message or not) and the
+//!   SPI device counts the bytes.
 #![no_std]
 #![no_main]
 
-mod scenario;
+mod wires;
 
+use core::cell::RefCell;
 use core::panic::PanicInfo;
-use cortex_m_rt::entry;
+
+use cell_core::beam::frac::U0;
+use cell_core::light::Port;
+use cell_core::link::DecodeError;
+use cell_core::trace::{Event, Parser, ReplayError, ReplayStats, Replayer, BEAM_FRAME};
+use cortex_m::peripheral::SCB;
+use cortex_m_rt::{entry, exception};
 use cortex_m_semihosting::{debug, hprintln};
+use critical_section::Mutex;
+use heapless::Vec;
+
+#[cfg(feature = "defmt")]
+use defmt_semihosting as _;
+
+include!(concat!(env!("OUT_DIR"), "/traces.rs"));
+
+/// The cell this firmware is: the host's capacities (64 dexels, FIFO 64, output buffers of 3,
+/// 32 lit runs) and integer rays (f = 0). A trace recorded with others is refused.
+type Cell = Replayer<U0, 64, 64, 3, 32>;
+
+/// The cell, shared between the main loop and the link interrupt.
+static CELL: Mutex<RefCell<Option<Cell>>> = Mutex::new(RefCell::new(None));
+/// A frame that arrived: its link and its bytes.
+type RxFrame = (Port, Vec<u8, BEAM_FRAME>);
+/// The link receive buffer.
+static RX: Mutex<RefCell<Option<RxFrame>>> = Mutex::new(RefCell::new(None));
+/// What the interrupt made of the last frame.
+static RX_RESULT: Mutex<RefCell<Result<(), ReplayError>>> = Mutex::new(RefCell::new(Ok(())));
+
+/// The link receive interrupt: decode the frame and put its beam into the FIFO.
+#[exception]
+fn PendSV() {
+    critical_section::with(|cs| {
+        let Some((port, frame)) = RX.borrow_ref_mut(cs).take() else { return };
+        let r = match CELL.borrow_ref_mut(cs).as_mut() {
+            Some(cell) => cell.receive_frame(port, &frame),
+            None => Err(ReplayError::BadHeader),
+        };
+        *RX_RESULT.borrow_ref_mut(cs) = r;
+    });
+}
+
+/// Bytes arrive on link `port`: fill the receive buffer and raise the interrupt.
+fn wire_receive(port: Port, frame: &[u8]) -> Result<(), ReplayError> {
+    let mut v = Vec::new();
+    v.extend_from_slice(frame).map_err(|_| ReplayError::Decode(DecodeError::BadLength))?;
+    critical_section::with(|cs| *RX.borrow_ref_mut(cs) = Some((port, v)));
+    SCB::set_pendsv();
+    cortex_m::asm::dsb();
+    cortex_m::asm::isb();
+    // The interrupt has run (it preempts as soon as it is pended).
+    critical_section::with(|cs| core::mem::replace(&mut *RX_RESULT.borrow_ref_mut(cs), Ok(())))
+}
+
+fn with_cell<R>(f: impl FnOnce(&mut Cell) -> Result<R, ReplayError>) -> Result<R, ReplayError> {
+    critical_section::with(|cs| match CELL.borrow_ref_mut(cs).as_mut() {
+        Some(c) => f(c),
+        None => Err(ReplayError::BadHeader),
+    })
+}
+
+/// Replay one trace; returns the cell, its stats and the digest.
+fn replay(bytes: &[u8]) -> Result<((u16, u16), ReplayStats, u64), ReplayError> {
+    critical_section::with(|cs| *CELL.borrow_ref_mut(cs) = Some(Cell::new()));
+    let mut links = wires::links();
+    let mut parser = Parser::<U0>::new(bytes);
+    while let Some(ev) = parser.next_event() {
+        match ev? {
+            Event::Recv { port, frame } => wire_receive(port, frame)?,
+            Event::Grant(port) => {
+                wires::grant(&mut links, port);
+                with_cell(|c| c.grant(port, &mut links))?;
+            }
+            ev => with_cell(|c| c.apply(ev))?,
+        }
+    }
+    let cell = critical_section::with(|cs| CELL.borrow_ref_mut(cs).take()).ok_or(ReplayError::BadHeader)?;
+    let (at, stats) = ((cell.cell.x, cell.cell.y), cell.stats);
+    #[cfg(feature = "defmt")]
+    defmt::info!("cell ({=u16}, {=u16}): {}", at.0, at.1, stats);
+    Ok((at, stats, cell.finish()?))
+}
 
 #[entry]
 fn main() -> ! {
-    let o = scenario::run(&scenario::TABLE);
-    hprintln!(
-        "cell=({},{}) packets={} spans={} forwarded={} undecodable={} dexels={} voxels={} shared={} overflows={} lost={}",
-        scenario::X,
-        scenario::Y,
-        o.packets,
-        o.spans,
-        o.forwarded,
-        o.undecodable,
-        o.dexels,
-        o.voxels,
-        o.shared,
-        o.overflows,
-        o.lost
-    );
-    hprintln!("digest={:016x}", o.digest);
-    debug::exit(debug::EXIT_SUCCESS);
+    let mut failed = false;
+    for (name, bytes) in TRACES {
+        match replay(bytes) {
+            Ok(((x, y), s, digest)) => hprintln!(
+                "trace={} cell=({},{}) rows={} beams_in={} cycles={} sent={} digest={:016x}",
+                name,
+                x,
+                y,
+                s.rows,
+                s.received,
+                s.steps,
+                s.sent,
+                digest
+            ),
+            Err(e) => {
+                failed = true;
+                hprintln!("trace={} error={:?}", name, e);
+            }
+        }
+    }
+    hprintln!("traces={} sent_bytes={}", TRACES.len(), wires::bytes_sent());
+    debug::exit(if failed { debug::EXIT_FAILURE } else { debug::EXIT_SUCCESS });
     loop {
         cortex_m::asm::wfi();
     }

@@ -12,6 +12,7 @@ use cell_core::cell::{Cell, DEFAULT_DEXELS};
 use cell_core::dexel::{Dexel, DexelStore};
 use cell_core::facet::{PipelinePacket, RowPacket};
 use cell_core::light::{BeamMsg, LitRun, LitRuns};
+use cell_core::link::{BEAM_PAYLOAD, HEADER, MAX_FRAME, ROW_PAYLOAD_BASE, TRAILER};
 
 use crate::diffuse::{LightConfig, FA_CAP, LIT_CAP, OB_CAP};
 use crate::lightjob::{load_scene, resolve_lights, run_diffusion};
@@ -23,7 +24,15 @@ pub const MEMORY_X: &str = include_str!("../../memory.x");
 
 /// Bytes of the `RAM` region in a linker memory script (`LENGTH = 64K`, `0x10000`, `65536`).
 pub fn ram_budget(memory_x: &str) -> Option<usize> {
-    let line = memory_x.lines().find(|l| l.trim_start().starts_with("RAM"))?;
+    region_length(memory_x, "RAM")
+}
+
+/// Bytes of a region (`FLASH`, `RAM`) in a linker memory script.
+pub fn region_length(memory_x: &str, region: &str) -> Option<usize> {
+    let line = memory_x.lines().find(|l| {
+        let t = l.trim_start();
+        t.starts_with(region) && t[region.len()..].trim_start().starts_with(':')
+    })?;
     let len = line.split("LENGTH").nth(1)?.trim_start().trim_start_matches('=').trim();
     let len = len.trim_end_matches(|c: char| c == ',' || c.is_whitespace());
     let (num, mul) = match len.chars().last()? {
@@ -91,10 +100,66 @@ pub struct Audit {
     pub budget_ram: Option<usize>,
     /// Whether `needed_total` fits the budget.
     pub fits_budget: Option<bool>,
+    /// Link frame sizes on the wire (header, payload, CRC-32): a beam.
+    pub wire_beam: usize,
+    /// A row packet without contour edges.
+    pub wire_row_min: usize,
+    /// A row packet with the most contour edges.
+    pub wire_row_max: usize,
+    /// An acknowledgement.
+    pub wire_ack: usize,
+    /// The firmware, read from its ELF (when built).
+    pub firmware: Option<FirmwareSize>,
 }
 
+/// Sizes of the firmware image, read from its ELF like `size` (Berkeley format).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct FirmwareSize {
+    /// The ELF read.
+    pub elf: String,
+    /// Flash: vector table, code and read-only data.
+    pub text: u64,
+    /// Initialised statics (in flash and RAM).
+    pub data: u64,
+    /// Zeroed statics (RAM).
+    pub bss: u64,
+    /// The firmware's cell state (the `CELL` static: dexels, FIFO, output buffers, lit runs,
+    /// counters, replay bookkeeping), if the symbol is there.
+    pub cell_static: Option<u64>,
+    /// FLASH length of `memory.x`.
+    pub flash_budget: Option<usize>,
+}
+
+/// Read text/data/bss of an ARM ELF.
+pub fn firmware_size(path: &std::path::Path) -> Result<FirmwareSize> {
+    use object::{Object, ObjectSection, ObjectSymbol};
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let elf = object::File::parse(&*bytes).with_context(|| format!("{} is not an ELF file", path.display()))?;
+    let (mut text, mut data, mut bss) = (0, 0, 0);
+    for s in elf.sections() {
+        match s.name().unwrap_or("") {
+            ".vector_table" | ".text" | ".rodata" => text += s.size(),
+            ".data" => data += s.size(),
+            ".bss" | ".uninit" => bss += s.size(),
+            _ => {}
+        }
+    }
+    let cell_static = elf.symbols().find(|y| y.name().is_ok_and(|n| n.contains("rc2_firmware4CELL"))).map(|y| y.size());
+    Ok(FirmwareSize {
+        elf: path.display().to_string(),
+        text,
+        data,
+        bss,
+        cell_static,
+        flash_budget: region_length(MEMORY_X, "FLASH"),
+    })
+}
+
+/// Where `cd firmware && cargo build --release` puts the ELF, relative to the workspace root.
+pub const FIRMWARE_ELF: &str = "firmware/target/thumbv7em-none-eabihf/release/rc2-firmware";
+
 /// Load and light a scene with the default lighting settings and measure its cells.
-pub fn audit(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig) -> Result<Audit> {
+pub fn audit(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig, elf: Option<&std::path::Path>) -> Result<Audit> {
     let loaded = load_scene(mesh, cfg)?;
     let lights = resolve_lights(mesh, &loaded, &[])?;
     let (lighting, _) = run_diffusion::<U0>(mesh, &loaded, &lights, light, |_, _| {})?;
@@ -155,6 +220,11 @@ pub fn audit(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig) -> Result<Audit
         needed_total,
         budget_ram: budget,
         fits_budget: budget.map(|b| needed_total <= b),
+        wire_beam: HEADER + BEAM_PAYLOAD + TRAILER,
+        wire_row_min: HEADER + ROW_PAYLOAD_BASE + TRAILER,
+        wire_row_max: MAX_FRAME,
+        wire_ack: HEADER + 1 + TRAILER,
+        firmware: elf.map(firmware_size).transpose()?,
     })
 }
 
@@ -182,6 +252,23 @@ pub fn print(a: &Audit) {
         "messages in memory: row packet {} B, pipeline packet {} B, beam {} B",
         a.bytes_row_packet, a.bytes_pipeline_packet, a.bytes_beam_message
     );
+    println!(
+        "messages on the wire (framed, CRC-32): beam {} B, row packet {}..{} B, ack {} B",
+        a.wire_beam, a.wire_row_min, a.wire_row_max, a.wire_ack
+    );
+    match &a.firmware {
+        Some(f) => println!(
+            "firmware {}: text {} B, data {} B, bss {} B (flash {} of {} B); its cell state (CELL static) {} B",
+            f.elf,
+            f.text,
+            f.data,
+            f.bss,
+            f.text + f.data,
+            f.flash_budget.map_or("?".into(), |b| b.to_string()),
+            f.cell_static.map_or("?".into(), |b| b.to_string())
+        ),
+        None => println!("firmware: not built (cd firmware && cargo build --release), or give --elf"),
+    }
     match (a.budget_ram, a.fits_budget) {
         (Some(b), Some(fit)) => println!(
             "memory.x RAM budget {} B: {} (anchors: MasPar PE 16 KB; thesis §4.3.2: 16 KB per cell is too much)",
@@ -208,5 +295,6 @@ mod tests {
         assert_eq!(ram_budget(MEMORY_X), Some(64 * 1024));
         assert_eq!(ram_budget("MEMORY {\n RAM : ORIGIN = 0x20000000, LENGTH = 0x8000\n}"), Some(0x8000));
         assert_eq!(ram_budget("MEMORY { FLASH : ORIGIN = 0, LENGTH = 1M }"), None);
+        assert_eq!(region_length(MEMORY_X, "FLASH"), Some(256 * 1024));
     }
 }

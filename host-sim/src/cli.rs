@@ -46,6 +46,10 @@ pub enum Command {
     /// RAM of one cell for a scene: static sizes by part, what the scene uses (peak dexels,
     /// FIFO, lit runs, with the cell that needs most), and whether it fits `memory.x`.
     Audit(AuditArgs),
+    /// Record, for chosen cells of a load + light run, every message they receive and every
+    /// cycle, as binary traces (`cell_X_Y.rc2t`) plus the digest of their outputs and final
+    /// state (`digests.json`); the firmware replays them (issue 5).
+    Trace(TraceArgs),
     /// List the built-in scenes.
     Scenes,
     /// Subdivide a mesh (1 → 4 midpoint splits) to about TARGET triangles and write an OBJ.
@@ -339,6 +343,50 @@ pub struct AuditArgs {
     /// Write the audit as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// The firmware ELF whose text/data/bss to report (default: the release build under
+    /// firmware/, if it exists).
+    #[arg(long)]
+    pub elf: Option<PathBuf>,
+}
+
+/// Options of `trace`.
+#[derive(Args, Debug)]
+pub struct TraceArgs {
+    /// An .obj file, or a built-in scene name (see `host-sim scenes`).
+    #[arg(default_value = "cornell")]
+    pub scene: String,
+    /// Grid side (the traces must fit the firmware's flash: keep n small, e.g. 16..64).
+    #[arg(long, default_value_t = 32)]
+    pub n: u32,
+    /// Plane thickness (as `render`).
+    #[arg(long, value_enum, default_value_t = Thickness::Naive)]
+    pub sigma: Thickness,
+    /// Facet contour (as `render`).
+    #[arg(long, value_enum, default_value_t = Contour::Projected)]
+    pub contour: Contour,
+    /// Lighting options (the firmware is built for --frac-bits 0).
+    #[command(flatten)]
+    pub light: LightOpts,
+    /// A cell to record, X,Y (repeatable).
+    #[arg(long = "cell", value_parser = parse_cell)]
+    pub cells: Vec<[u32; 2]>,
+    /// Also record the cell that processes the most beams (found by a first run).
+    #[arg(long)]
+    pub busiest: bool,
+    /// Directory for the traces and digests.json.
+    #[arg(long, default_value = "out/traces")]
+    pub out: PathBuf,
+}
+
+fn parse_cell(s: &str) -> Result<[u32; 2], String> {
+    let v: Vec<&str> = s.split(',').collect();
+    match v.as_slice() {
+        [x, y] => Ok([
+            x.trim().parse().map_err(|_| format!("'{s}': X is not a cell index"))?,
+            y.trim().parse().map_err(|_| format!("'{s}': Y is not a cell index"))?,
+        ]),
+        _ => Err(format!("'{s}': expected X,Y")),
+    }
 }
 
 /// Options of `subdivide`.
@@ -389,13 +437,17 @@ pub fn run(cli: Cli) -> Result<()> {
                 merge: true,
                 record_visits: false,
             };
-            let audit = crate::audit::audit(&mesh, &cfg, &lcfg)?;
+            let default_elf = PathBuf::from(crate::audit::FIRMWARE_ELF);
+            let elf = a.elf.clone().or_else(|| default_elf.exists().then_some(default_elf));
+            let audit = crate::audit::audit(&mesh, &cfg, &lcfg, elf.as_deref())?;
             crate::audit::print(&audit);
             if let Some(p) = &a.json {
                 crate::audit::write_json(&audit, p)?;
             }
             Ok(())
         }
+        Command::Trace(a) => cell_core::with_frac_bits!(a.light.frac_bits, F => run_trace::<F>(&a))
+            .unwrap_or_else(|| Err(unsupported_f(a.light.frac_bits))),
         Command::Scenes => {
             for (name, what) in scene::BUILTINS {
                 println!("{name:13} {what}");
@@ -686,6 +738,36 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     }
     csv.flush()?;
     eprintln!("wrote {}", a.out.display());
+    Ok(())
+}
+
+fn run_trace<F: cell_core::beam::FracBits>(a: &TraceArgs) -> Result<()> {
+    let load = LoadConfig { n: a.n, thickness: a.sigma, contour: a.contour };
+    load.validate()?;
+    let mesh = scene::load(&a.scene)?;
+    let job = crate::trace::TraceJob {
+        mesh: &mesh,
+        load,
+        light: a.light.config(),
+        lights: a.light.lights.clone(),
+        cells: a.cells.clone(),
+        busiest: a.busiest,
+    };
+    let traces = crate::trace::record::<F>(&job)?;
+    crate::trace::write_traces(&a.out, &traces)?;
+    for t in &traces {
+        // The host's own build of cell-core replays it: the same digest, or the trace is wrong.
+        let (d, st) = crate::trace::replay::<F>(&t.bytes)?;
+        let ok = if d == t.digest { "replay ok" } else { "REPLAY MISMATCH" };
+        println!(
+            "cell ({:>3}, {:>3}): {:>6} bytes, {:>5} records ({} rows, {} beams in, {} cycles, {} sent), digest {:016x}, {ok}",
+            t.x, t.y, t.bytes.len(), t.records, st.rows, st.received, st.steps, st.sent, t.digest
+        );
+        if d != t.digest {
+            anyhow::bail!("replaying the trace of cell ({}, {}) gave digest {d:016x}", t.x, t.y);
+        }
+    }
+    println!("traces written to {}", a.out.display());
     Ok(())
 }
 

@@ -20,6 +20,7 @@ use cell_core::beam::{Beam, Direction, FarDistance, FracBits, Source, SourceId, 
 use cell_core::light::{Activity, BeamMsg, LightCell, LightCounters, LightEnv, Policy, Port, SourceMask, Step};
 
 use crate::grid::Grid;
+use crate::trace::Tap;
 
 /// FIFO capacity compiled into the host's cells (the run-time `--fa` may be smaller).
 pub const FA_CAP: usize = 64;
@@ -154,6 +155,17 @@ pub fn diffuse<F: FracBits, const D: usize>(
     grid: &Grid<D>,
     sources: &[Source],
     cfg: &LightConfig,
+    progress: impl FnMut(usize, u64),
+) -> Result<Lighting<F>> {
+    diffuse_tapped(grid, sources, cfg, None, progress)
+}
+
+/// [`diffuse`], recording what the cells watched by `tap` receive and send.
+pub fn diffuse_tapped<F: FracBits, const D: usize>(
+    grid: &Grid<D>,
+    sources: &[Source],
+    cfg: &LightConfig,
+    mut tap: Option<&mut Tap>,
     mut progress: impl FnMut(usize, u64),
 ) -> Result<Lighting<F>> {
     let n = grid.n;
@@ -198,7 +210,18 @@ pub fn diffuse<F: FracBits, const D: usize>(
             c.counters.max_layer = 0;
             c.counters.peak_fifo = 0;
         }
-        let r = diffuse_one(grid, &mut cells, src, si, &env, visited.as_deref_mut(), |c| progress(si, c))?;
+        if let Some(t) = tap.as_deref_mut() {
+            t.light(&env);
+        }
+        let r = diffuse_one(
+            grid,
+            &mut cells,
+            src,
+            si,
+            &env,
+            Recording { visited: visited.as_deref_mut(), tap: tap.as_deref_mut() },
+            |c| progress(si, c),
+        )?;
         let mut rep = r;
         rep.position = src.pos.map(|p| p.to_num::<f64>());
         for (c, b) in cells.iter().zip(&before) {
@@ -232,15 +255,22 @@ pub fn diffuse<F: FracBits, const D: usize>(
     Ok(Lighting { n, cells, reports, visited })
 }
 
+/// What a run records besides its results: visited voxels, cell traces.
+struct Recording<'a> {
+    visited: Option<&'a mut [bool]>,
+    tap: Option<&'a mut Tap>,
+}
+
 fn diffuse_one<F: FracBits, const D: usize>(
     grid: &Grid<D>,
     cells: &mut [HostLightCell<F>],
     src: &Source,
     si: usize,
     env: &LightEnv<'_, F>,
-    mut visited: Option<&mut [bool]>,
+    rec: Recording<'_>,
     mut progress: impl FnMut(u64),
 ) -> Result<SourceReport> {
+    let Recording { mut visited, mut tap } = rec;
     let n = grid.n as usize;
     let sv = src.voxel();
     let s_idx = sv[1] as usize * n + sv[0] as usize;
@@ -263,6 +293,9 @@ fn diffuse_one<F: FracBits, const D: usize>(
         if let Some(b) = next_initial {
             if cells[s_idx].can_accept(env.fa) {
                 let msg = BeamMsg { beam: b, z: sv[2] as u16 };
+                if let Some(r) = tap.as_deref_mut().and_then(|t| t.get(s_idx)) {
+                    r.inject(&msg);
+                }
                 if cells[s_idx].accept(msg, env.merge, &activity).is_ok() {
                     next_initial = pending.next();
                     moved = true;
@@ -272,7 +305,11 @@ fn diffuse_one<F: FracBits, const D: usize>(
         // 2. Compute.
         for &i in &active {
             let i = i as usize;
-            if cells[i].step(&grid.cells[i].store, env, &activity) == Step::Processed {
+            let step = cells[i].step(&grid.cells[i].store, env, &activity);
+            if let Some(r) = tap.as_deref_mut().and_then(|t| t.get(i)) {
+                r.step(step);
+            }
+            if step == Step::Processed {
                 moved = true;
                 if let Some(v) = visited.as_deref_mut() {
                     v[i * grid.depth as usize + cells[i].last_z as usize] = true;
@@ -301,6 +338,9 @@ fn diffuse_one<F: FracBits, const D: usize>(
                 continue;
             }
             if let Some(m) = cells[i].out[p as usize].pop_front() {
+                if let Some(t) = tap.as_deref_mut() {
+                    t.transfer(i, j, Port::ALL[p as usize], &m);
+                }
                 let _ = cells[j].accept(m, env.merge, &activity);
                 rep.counts.messages += 1;
                 moved = true;

@@ -12,6 +12,8 @@ use cell_core::cell::Cell;
 use cell_core::facet::{PipelinePacket, RowPacket};
 use cell_core::voxelize::{row_span, PipelineCell};
 
+use crate::trace::Tap;
+
 /// Counters of one loading run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct LoadReport {
@@ -58,7 +60,17 @@ impl<const D: usize> Grid<D> {
 
     /// Run the loading wave (§3.9) over the packets, cycle by cycle. `progress` is called
     /// now and then with the cycle reached.
-    pub fn load_wave(&mut self, packets: &[PipelinePacket], mut progress: impl FnMut(u64)) -> LoadReport {
+    pub fn load_wave(&mut self, packets: &[PipelinePacket], progress: impl FnMut(u64)) -> LoadReport {
+        self.load_wave_tapped(packets, None, progress)
+    }
+
+    /// [`Grid::load_wave`], recording what the cells watched by `tap` receive and send.
+    pub fn load_wave_tapped(
+        &mut self,
+        packets: &[PipelinePacket],
+        mut tap: Option<&mut Tap>,
+        mut progress: impl FnMut(u64),
+    ) -> LoadReport {
         let n = self.n as usize;
         let mut rep = LoadReport::default();
         let mut pipes: Vec<PipelinePacket> = packets.to_vec();
@@ -99,9 +111,18 @@ impl<const D: usize> Grid<D> {
                 }
             }
             for &(x, y, slot) in &row_now {
-                let cell = &mut self.cells[y as usize * n + x as usize];
+                let idx = y as usize * n + x as usize;
+                let cell = &mut self.cells[idx];
                 rep.row_steps += 1;
-                if cell.load_step(&mut slab[slot as usize], self.depth) {
+                let mut rec = tap.as_deref_mut().and_then(|t| t.get(idx));
+                if let Some(r) = rec.as_deref_mut() {
+                    r.row(&slab[slot as usize]);
+                }
+                let forward = cell.load_step(&mut slab[slot as usize], self.depth);
+                if let (true, Some(r)) = (forward, rec) {
+                    r.forwarded(&slab[slot as usize]);
+                }
+                if forward {
                     row_next.push((x + 1, y, slot));
                     rep.row_messages += 1;
                 } else {

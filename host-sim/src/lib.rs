@@ -8,6 +8,7 @@
 //! * [`load`] — the `voxelize` job and its statistics.
 //! * [`binvox`] — the `.binvox` voxel file format.
 //! * [`meshops`] — mesh utilities (subdivision for benchmarks).
+//! * [`trace`] — recording cell traces for the firmware replay (issue 5).
 //! * [`cli`] — the command line.
 #![forbid(unsafe_code)]
 
@@ -29,3 +30,4 @@ pub mod refrender;
 pub mod render;
 pub mod rng;
 pub mod scene;
+pub mod trace;

@@ -10,7 +10,6 @@ use cell_core::light::{BeamMsg, Policy};
 
 use crate::diffuse::{diffuse, source_at, DiffusionCounts, HostLightCell, LightConfig, Lighting, SourceReport};
 use crate::grid::Grid;
-use crate::load::voxelize;
 use crate::precompute::{Fit, LoadConfig};
 use crate::scene::{Mesh, SceneLight};
 
@@ -33,6 +32,11 @@ pub struct LoadedScene {
 
 /// Voxelize a scene with the wave (an empty scene gives an empty grid).
 pub fn load_scene(mesh: &Mesh, cfg: &LoadConfig) -> Result<LoadedScene> {
+    load_scene_tapped(mesh, cfg, None)
+}
+
+/// [`load_scene`], recording the cells watched by `tap`.
+pub fn load_scene_tapped(mesh: &Mesh, cfg: &LoadConfig, tap: Option<&mut crate::trace::Tap>) -> Result<LoadedScene> {
     cfg.validate()?;
     if mesh.faces.is_empty() {
         crate::limits::check_grid_memory(
@@ -49,7 +53,7 @@ pub fn load_scene(mesh: &Mesh, cfg: &LoadConfig) -> Result<LoadedScene> {
             source_face: Vec::new(),
         });
     }
-    let v = voxelize::<DEFAULT_DEXELS>(mesh, cfg, crate::load::Engine::Wave, |_, _| {})?;
+    let v = crate::load::voxelize_tapped::<DEFAULT_DEXELS>(mesh, cfg, crate::load::Engine::Wave, tap, |_, _| {})?;
     v.check_overflow()?;
     Ok(LoadedScene {
         facets: v.stats.facets,

@@ -185,6 +185,17 @@ pub fn voxelize<const D: usize>(
     mesh: &Mesh,
     cfg: &LoadConfig,
     engine: Engine,
+    progress: impl FnMut(u64, u64),
+) -> Result<Voxelized<D>> {
+    voxelize_tapped(mesh, cfg, engine, None, progress)
+}
+
+/// [`voxelize`], recording the cells watched by `tap` (wave engine only).
+pub fn voxelize_tapped<const D: usize>(
+    mesh: &Mesh,
+    cfg: &LoadConfig,
+    engine: Engine,
+    tap: Option<&mut crate::trace::Tap>,
     mut progress: impl FnMut(u64, u64),
 ) -> Result<Voxelized<D>> {
     let t0 = Instant::now();
@@ -197,7 +208,7 @@ pub fn voxelize<const D: usize>(
     let wave = match engine {
         Engine::Wave => {
             let est = packets.len() as u64 + 2 * cfg.n as u64;
-            Some(grid.load_wave(packets, |c| progress(c, est)))
+            Some(grid.load_wave_tapped(packets, tap, |c| progress(c, est)))
         }
         Engine::Direct => {
             grid.load_direct(packets, |i| progress(i, packets.len() as u64));

@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use cell_core::beam::FracBits;
-use cell_core::shade::{shade, shading_normal, Material as CellMaterial, NormalMode, PointLight, ShadeParams};
+use cell_core::shade::{pixel, shading_normal, Material as CellMaterial, NormalMode, PointLight, ShadeParams};
 
 use crate::diffuse::LightConfig;
 use crate::lightjob::{run_diffusion, LightStats, LoadedScene};
@@ -70,20 +70,14 @@ pub fn shade_grid<F: FracBits>(
     };
     let (mut err_sum, mut err_count) = (0u64, 0u64);
     for (i, c) in scene.grid.cells.iter().enumerate() {
-        let Some(d) = c.store.dexels().first() else { continue };
-        let z = d.span.lo;
-        let p = [c.x as f32, c.y as f32, z as f32];
-        let nrm = shading_normal(d, mode);
-        let m = mats.get(d.material as usize).copied().unwrap_or_default();
-        // Lit: a beam of the light reached the voxel and the surface faces the light (the same
-        // effective shadow state the reference reports).
-        let reached = lighting.mask(c.x as u32, c.y as u32, z);
-        let lit = (0..lights.len().min(32)).fold(0u32, |acc, s| {
-            let l = lights[s].pos;
-            let faces = nrm[0] * (l[0] - p[0]) + nrm[1] * (l[1] - p[1]) + nrm[2] * (l[2] - p[2]) > 0.0;
-            acc | (((reached >> s & 1 == 1) && faces) as u32) << s
-        });
-        let rgb = shade(p, nrm, &m, lights, lit, &params);
+        let Some(px) = pixel(c.x, c.y, &c.store, |z| lighting.mask(c.x as u32, c.y as u32, z), &mats, lights, &params)
+        else {
+            continue;
+        };
+        let (rgb, lit) = (px.rgb, px.lit);
+        let d = c.store.dexels()[0];
+        let p = [c.x as f32, c.y as f32, px.z as f32];
+        let nrm = shading_normal(&d, mode);
         // The same inputs through the f64 formula: the error of the cell's arithmetic alone.
         let exact = crate::refrender::shade_f64(
             p.map(|v| v as f64),

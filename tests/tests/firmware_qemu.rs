@@ -1,46 +1,31 @@
-//! The cell on a microcontroller (issue 5, first step): the `firmware/` crate runs a real
-//! `cell_core` cell on an emulated Cortex-M4F (QEMU `mps2-an386`), replays the packet table of
-//! `firmware/src/scenario.rs` through `Cell::load_step`, and prints a digest of every output and
-//! of the final dexel store. This test builds the firmware, boots it under QEMU, and checks that
-//! the digest is bit-identical to the one the same `scenario.rs` computes here on the host.
+//! The cell on a microcontroller (issue 5): traces recorded from a host-sim run of the Cornell
+//! box (loading + one light) for several cells — the busiest included — are embedded in the
+//! `firmware/` crate, which drives a real `cell_core` cell through them on an emulated
+//! Cortex-M4F (QEMU `mps2-an386`): frames arrive through the link interrupt, go out through
+//! `embedded-hal` links. It prints the digest of each cell's outputs and final state; this test
+//! checks each equals the digest the host computed from its own grid run. Two altered traces
+//! ride along and must fail: one with a flipped byte (the CRC refuses it) and one re-encoded
+//! with a changed value (valid frames, different digest).
 //!
 //! Skipped, with the reason on stderr, when `qemu-system-arm` or the `thumbv7em-none-eabihf`
 //! target is missing; `.ci/run` installs both.
 
+use std::collections::HashMap;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-#[allow(dead_code)]
-mod scenario {
-    include!("../../firmware/src/scenario.rs");
-}
+use cell_core::beam::frac::U0;
+use host_sim::trace::{record, TraceJob};
+use rc2_tests::traces::{cornell_job_cells, mutate_row_material};
 
 const TARGET: &str = "thumbv7em-none-eabihf";
 const QEMU: &str = "qemu-system-arm";
-const QEMU_TIMEOUT: Duration = Duration::from_secs(30);
+const QEMU_TIMEOUT: Duration = Duration::from_secs(60);
 
 fn firmware_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware")
-}
-
-/// The log line the firmware prints before the digest.
-fn summary_line(o: &scenario::Outcome) -> String {
-    format!(
-        "cell=({},{}) packets={} spans={} forwarded={} undecodable={} dexels={} voxels={} shared={} overflows={} lost={}",
-        scenario::X,
-        scenario::Y,
-        o.packets,
-        o.spans,
-        o.forwarded,
-        o.undecodable,
-        o.dexels,
-        o.voxels,
-        o.shared,
-        o.overflows,
-        o.lost
-    )
 }
 
 /// Why the QEMU test cannot run here, if it cannot.
@@ -61,8 +46,9 @@ fn missing_tool() -> Option<String> {
     None
 }
 
-/// Build the firmware in release mode into a target directory of this test's own.
-fn build_firmware() -> PathBuf {
+/// Build the firmware in release mode, with the traces of `traces`, into a target directory of
+/// this test's own.
+fn build_firmware(traces: &Path) -> PathBuf {
     let target_dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("firmware");
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     // Run from firmware/ so that its .cargo/config.toml applies; no RUSTFLAGS from outside
@@ -71,6 +57,7 @@ fn build_firmware() -> PathBuf {
         .current_dir(firmware_dir())
         .args(["build", "--release", "--target", TARGET])
         .env("CARGO_TARGET_DIR", &target_dir)
+        .env("RC2_TRACE_DIR", traces)
         .env_remove("RUSTFLAGS")
         .env_remove("CARGO_ENCODED_RUSTFLAGS")
         .env_remove("CARGO_BUILD_TARGET")
@@ -113,76 +100,70 @@ fn run_qemu(elf: &Path) -> (Option<i32>, String) {
     (status.code(), reader.join().unwrap())
 }
 
+/// What the firmware printed for each trace: the digest, or the error.
+fn parse_output(out: &str) -> HashMap<String, Result<u64, String>> {
+    let mut m = HashMap::new();
+    for l in out.lines() {
+        let Some(rest) = l.trim().strip_prefix("trace=") else { continue };
+        let name = rest.split_whitespace().next().unwrap_or("").to_string();
+        if let Some(e) = rest.split("error=").nth(1) {
+            m.insert(name, Err(e.to_string()));
+        } else if let Some(d) = rest.split("digest=").nth(1) {
+            m.insert(name, Ok(u64::from_str_radix(d.trim(), 16).expect("digest is hex")));
+        }
+    }
+    m
+}
+
 #[test]
-fn firmware_digest_under_qemu_equals_host_digest() {
+fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
     if let Some(why) = missing_tool() {
-        eprintln!("SKIPPED firmware_digest_under_qemu_equals_host_digest: {why}");
+        eprintln!("SKIPPED firmware_replays_cornell_traces_bit_identical_to_the_host: {why}");
         return;
     }
+    let (mesh, load, light, cells) = cornell_job_cells(64);
+    let job = TraceJob { mesh: &mesh, load, light, lights: Vec::new(), cells, busiest: true };
+    let traces = record::<U0>(&job).expect("record traces");
+    assert!(traces.len() >= 4, "corner, centre, source and busiest cells");
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("qemu-traces");
+    let _ = std::fs::remove_dir_all(&dir);
+    host_sim::trace::write_traces(&dir, &traces).unwrap();
+    // Two altered copies of the busiest cell's trace (the last one recorded).
+    let busiest = traces.last().unwrap();
+    let mut flipped = busiest.bytes.clone();
+    let mid = flipped.len() / 2;
+    flipped[mid] ^= 0x10;
+    std::fs::write(dir.join("z_flipped.rc2t"), &flipped).unwrap();
+    let changed = mutate_row_material(&busiest.bytes).expect("the busiest cell received a row packet");
+    std::fs::write(dir.join("z_changed.rc2t"), &changed).unwrap();
+
     let t0 = Instant::now();
-    let elf = build_firmware();
+    let elf = build_firmware(&dir);
     let t_build = t0.elapsed();
     let (code, out) = run_qemu(&elf);
     eprintln!("firmware build {t_build:?}, QEMU run {:?}; QEMU said:\n{out}", t0.elapsed() - t_build);
-    assert_eq!(code, Some(0), "firmware did not exit with semihosting EXIT_SUCCESS:\n{out}");
-
-    let host = scenario::run(&scenario::TABLE);
-    let digest = out.lines().find_map(|l| l.trim().strip_prefix("digest=")).expect("no `digest=` line in QEMU output");
-    let digest = u64::from_str_radix(digest, 16).expect("digest is hex");
-    let summary = out.lines().find(|l| l.starts_with("cell=")).expect("no `cell=` line in QEMU output");
-    assert_eq!(summary.trim(), summary_line(&host), "counts differ between the Cortex-M4F and the host");
-    assert_eq!(digest, host.digest, "digest differs: firmware {digest:016x}, host {:016x}", host.digest);
-}
-
-/// The digest is a real comparison: one changed byte in any field of a packet record changes it.
-#[test]
-fn one_changed_packet_byte_changes_the_digest() {
-    let base = scenario::run(&scenario::TABLE);
-    // Offsets in record 0 (the floor at z = 3): facet id, material, normal, plane d, Kσ; in
-    // record 1: its z edge's d_i; in record 3 (the wall clipped to its box): bbox z_min. (The
-    // digest covers what the cell outputs, so the byte must matter to the cell: the floor's
-    // z_min 0 → 1 would not.)
-    let rec = scenario::RECORD;
-    for (at, what) in [
-        (0, "facet id"),
-        (4, "material"),
-        (6, "normal"),
-        (20 + 12, "plane d"),
-        (20 + 16, "Kσ"),
-        (rec + 41 + 12, "edge d_i"),
-        (3 * rec + 16, "bbox z_min"),
-    ] {
-        let mut t = scenario::TABLE.to_vec();
-        t[at] ^= 0x01;
-        let o = scenario::run(&t);
-        assert_ne!(o.digest, base.digest, "flipping the {what} byte (offset {at}) left the digest unchanged");
+    let got = parse_output(&out);
+    for t in &traces {
+        let name = format!("cell_{}_{}.rc2t", t.x, t.y);
+        match got.get(&name) {
+            Some(Ok(d)) => assert_eq!(
+                *d, t.digest,
+                "cell ({}, {}): the Cortex-M4F gives {d:016x}, the host grid {:016x}",
+                t.x, t.y, t.digest
+            ),
+            other => panic!("cell ({}, {}): no digest from the firmware: {other:?}\n{out}", t.x, t.y),
+        }
     }
-    // A truncated record is an undecodable value, not a panic, and changes the digest too.
-    let cut = &scenario::TABLE[..scenario::TABLE.len() - 1];
-    let o = scenario::run(cut);
-    assert_eq!(o.undecodable, 1);
-    assert_ne!(o.digest, base.digest);
-}
-
-/// The scenario exercises what its comments say: the hand-made facets give the expected dexels,
-/// and the whole table overflows the 64-dexel store (counted, not silent).
-#[test]
-fn scenario_covers_the_load_step_paths() {
-    let hand = &scenario::TABLE[..scenario::HAND.len() * scenario::RECORD];
-    let mut cell: cell_core::cell::Cell<{ scenario::CAP }> = cell_core::cell::Cell::new(scenario::X, scenario::Y);
-    let mut forwarded = Vec::new();
-    for r in hand.chunks(scenario::RECORD) {
-        let mut pkt = scenario::decode(r, scenario::X, scenario::Y).unwrap();
-        forwarded.push(cell.load_step(&mut pkt, scenario::DEPTH));
+    assert!(
+        matches!(got.get("z_flipped.rc2t"), Some(Err(e)) if e.contains("BadCrc")),
+        "a flipped byte must be refused by the CRC: {:?}",
+        got.get("z_flipped.rc2t")
+    );
+    match got.get("z_changed.rc2t") {
+        Some(Ok(d)) => assert_ne!(*d, busiest.digest, "a changed material must change the digest"),
+        Some(Err(e)) => panic!("the re-encoded trace is valid and must replay: {e}"),
+        None => panic!("no result for z_changed.rc2t:\n{out}"),
     }
-    let got: Vec<(u16, u16, u32)> = cell.store.dexels().iter().map(|d| (d.span.lo, d.span.hi, d.facet)).collect();
-    assert_eq!(got, [(3, 3, 0), (15, 18, 1), (38, 39, 3), (40, 40, 2), (41, 42, 3), (61, 61, 6), (66, 70, 8)]);
-    assert_eq!(forwarded, [true, true, true, true, true, true, false, true, true]);
-    assert_eq!(cell.counters.spans_computed, 8, "facet 5's box starts east of the cell");
-    assert_eq!(cell.counters.voxels_shared, 2, "voxel 40 (facet 3) and 16 (facet 4)");
-
-    let all = scenario::run(&scenario::TABLE);
-    assert_eq!(all.undecodable, 0);
-    assert_eq!(all.dexels as usize, scenario::CAP);
-    assert!(all.overflows > 0 && all.lost > 0, "{all:?}");
+    // The flipped trace makes the firmware report failure through its exit code.
+    assert_eq!(code, Some(1), "the firmware must exit with EXIT_FAILURE when a trace fails:\n{out}");
 }

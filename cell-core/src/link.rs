@@ -1,0 +1,641 @@
+//! The bytes a link carries: framed inter-cell messages with a CRC, and the link seam.
+//!
+//! # Frame layout (all integers little-endian)
+//!
+//! ```text
+//!   kind u8 | len u16 | payload (len bytes) | crc u32
+//! ```
+//!
+//! `crc` is CRC-32/ISO-HDLC (the `crc` crate's `CRC_32_ISO_HDLC`, the Ethernet/zlib one) over
+//! `kind`, `len` and the payload. A frame whose CRC does not match is never applied: decoding
+//! returns [`DecodeError::BadCrc`]. The same framing carries the inter-cell messages
+//! ([`Message`]) and the records of a cell trace ([`crate::trace`]).
+//!
+//! Message payloads:
+//!
+//! | kind | message | payload | bytes on the wire |
+//! |---|---|---|---|
+//! | `0x10` | [`Message::Row`] (a facet row packet, §3.9) | seq u8, facet u32, material u16, normal u16, box 6×u16, a c t u 4×i64, edge count u8, edges (a i32, c i32, g i64) | 61 + 16·edges |
+//! | `0x20` | [`Message::Beam`] (§4.4) | seq u8, frac bits u8, source u16, direction u8, layer u32, u_lo u_hi v_lo v_hi 4×i32, z u16 | 27 + 7 = 34 |
+//! | `0x30` | [`Message::Ack`] | seq u8 | 1 + 7 = 8 |
+//!
+//! `seq` is the link-level sequence number (for acknowledgement and retransmission); a trace
+//! leaves it 0.
+//!
+//! # No panic on malformed input
+//!
+//! Every decoder returns a [`DecodeError`] value for truncated, over-long, corrupted or
+//! out-of-range input: a beam must satisfy [`Beam::new`] (ranges within the far square, layer
+//! ≤ D) and carry this build's fraction bits; a row packet's coefficients must lie within the
+//! bit budget of [`crate::voxelize`] (so that a cell's arithmetic on it stays in `i64`).
+//!
+//! # The link seam
+//!
+//! [`Link`] is what a cell's output side needs from a neighbour link: is the neighbour ready
+//! (it has FIFO credit), and send a frame. [`HalLink`] implements it over `embedded-hal`: the
+//! neighbour's ready line is an [`InputPin`], the frame goes out over an [`SpiDevice`].
+//! [`drain_outputs`] moves the heads of a light cell's output buffers onto its links.
+
+use embedded_hal::digital::InputPin;
+use embedded_hal::spi::SpiDevice;
+use heapless::Vec;
+
+use crate::beam::{Beam, Direction, FarDistance, FarOffset, FracBits, Layer, RayRange, SourceId};
+use crate::dexel::FacetTag;
+use crate::facet::{FacetBox, RowEdge, RowPacket, MAX_EDGES};
+use crate::light::{BeamMsg, LightCell, Port};
+use crate::normal::NormalCode;
+use crate::voxelize::{worst_case_g, worst_case_t, MAX_LATTICE_Q, MAX_LATTICE_SPAN};
+
+/// CRC-32/ISO-HDLC, table-driven (1 KiB of flash).
+pub const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+
+/// Bytes before the payload: kind and length.
+pub const HEADER: usize = 3;
+/// Bytes after the payload: the CRC.
+pub const TRAILER: usize = 4;
+/// Frame kind of a row packet.
+pub const KIND_ROW: u8 = 0x10;
+/// Frame kind of a beam.
+pub const KIND_BEAM: u8 = 0x20;
+/// Frame kind of an acknowledgement.
+pub const KIND_ACK: u8 = 0x30;
+/// Payload bytes of a beam message (with its `seq`).
+pub const BEAM_PAYLOAD: usize = 27;
+/// Payload bytes of a row packet without edges (with its `seq`).
+pub const ROW_PAYLOAD_BASE: usize = 54;
+/// Payload bytes per contour edge of a row packet.
+pub const ROW_EDGE_BYTES: usize = 16;
+/// The longest message frame (a row packet with [`MAX_EDGES`] edges).
+pub const MAX_FRAME: usize = HEADER + ROW_PAYLOAD_BASE + MAX_EDGES * ROW_EDGE_BYTES + TRAILER;
+
+/// Why bytes could not be encoded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum EncodeError {
+    /// The output buffer is too small.
+    BufferTooSmall,
+    /// The payload is longer than a frame's 16-bit length.
+    PayloadTooLong,
+}
+
+/// Why bytes could not be decoded (a value, never a panic).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum DecodeError {
+    /// Fewer bytes than the header, the length or a field announces.
+    Truncated,
+    /// The CRC does not match: a corrupted frame.
+    BadCrc,
+    /// A frame kind this decoder does not know (or not the one expected).
+    UnknownKind(u8),
+    /// The payload is longer or shorter than its kind requires.
+    BadLength,
+    /// A field is out of range (direction, ranges, layer, edge count, bit budget …).
+    BadValue(&'static str),
+    /// A beam encoded with another number of fraction bits than this build's.
+    FracBitsMismatch {
+        /// Fraction bits in the frame.
+        found: u8,
+        /// Fraction bits of this build.
+        expected: u8,
+    },
+}
+
+/// Where encoded bytes go: a buffer, a running digest, a wire.
+pub trait ByteSink {
+    /// Append bytes.
+    fn put(&mut self, bytes: &[u8]) -> Result<(), EncodeError>;
+}
+
+/// A [`ByteSink`] writing into a slice.
+pub struct SliceWriter<'a> {
+    buf: &'a mut [u8],
+    pos: usize,
+}
+
+impl<'a> SliceWriter<'a> {
+    /// Write from the start of `buf`.
+    pub fn new(buf: &'a mut [u8]) -> Self {
+        SliceWriter { buf, pos: 0 }
+    }
+
+    /// Bytes written so far.
+    pub fn len(&self) -> usize {
+        self.pos
+    }
+
+    /// Whether nothing was written.
+    pub fn is_empty(&self) -> bool {
+        self.pos == 0
+    }
+
+    /// What was written.
+    pub fn written(&self) -> &[u8] {
+        &self.buf[..self.pos]
+    }
+}
+
+impl ByteSink for SliceWriter<'_> {
+    fn put(&mut self, bytes: &[u8]) -> Result<(), EncodeError> {
+        let end = self.pos.checked_add(bytes.len()).ok_or(EncodeError::BufferTooSmall)?;
+        let dst = self.buf.get_mut(self.pos..end).ok_or(EncodeError::BufferTooSmall)?;
+        dst.copy_from_slice(bytes);
+        self.pos = end;
+        Ok(())
+    }
+}
+
+/// A [`ByteSink`] that only counts (sizes on the wire).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CountingSink(pub usize);
+
+impl ByteSink for CountingSink {
+    fn put(&mut self, bytes: &[u8]) -> Result<(), EncodeError> {
+        self.0 += bytes.len();
+        Ok(())
+    }
+}
+
+/// Little-endian field writers over any sink.
+pub trait PutExt: ByteSink {
+    /// One byte.
+    fn u8(&mut self, v: u8) -> Result<(), EncodeError> {
+        self.put(&[v])
+    }
+    /// u16 LE.
+    fn u16(&mut self, v: u16) -> Result<(), EncodeError> {
+        self.put(&v.to_le_bytes())
+    }
+    /// u32 LE.
+    fn u32(&mut self, v: u32) -> Result<(), EncodeError> {
+        self.put(&v.to_le_bytes())
+    }
+    /// u64 LE.
+    fn u64(&mut self, v: u64) -> Result<(), EncodeError> {
+        self.put(&v.to_le_bytes())
+    }
+    /// i32 LE.
+    fn i32(&mut self, v: i32) -> Result<(), EncodeError> {
+        self.put(&v.to_le_bytes())
+    }
+    /// i64 LE.
+    fn i64(&mut self, v: i64) -> Result<(), EncodeError> {
+        self.put(&v.to_le_bytes())
+    }
+    /// f32 LE (IEEE bits).
+    fn f32(&mut self, v: f32) -> Result<(), EncodeError> {
+        self.put(&v.to_bits().to_le_bytes())
+    }
+}
+
+impl<S: ByteSink + ?Sized> PutExt for S {}
+
+/// A bounds-checked little-endian reader.
+pub struct Reader<'a> {
+    bytes: &'a [u8],
+}
+
+impl<'a> Reader<'a> {
+    /// Read `bytes` from the start.
+    pub fn new(bytes: &'a [u8]) -> Self {
+        Reader { bytes }
+    }
+
+    /// Bytes not read yet.
+    pub fn remaining(&self) -> usize {
+        self.bytes.len()
+    }
+
+    /// The next `n` bytes.
+    pub fn take(&mut self, n: usize) -> Result<&'a [u8], DecodeError> {
+        if self.bytes.len() < n {
+            return Err(DecodeError::Truncated);
+        }
+        let (a, b) = self.bytes.split_at(n);
+        self.bytes = b;
+        Ok(a)
+    }
+
+    fn array<const K: usize>(&mut self) -> Result<[u8; K], DecodeError> {
+        let mut a = [0u8; K];
+        a.copy_from_slice(self.take(K)?);
+        Ok(a)
+    }
+
+    /// One byte.
+    pub fn u8(&mut self) -> Result<u8, DecodeError> {
+        Ok(self.array::<1>()?[0])
+    }
+    /// u16 LE.
+    pub fn u16(&mut self) -> Result<u16, DecodeError> {
+        Ok(u16::from_le_bytes(self.array()?))
+    }
+    /// u32 LE.
+    pub fn u32(&mut self) -> Result<u32, DecodeError> {
+        Ok(u32::from_le_bytes(self.array()?))
+    }
+    /// u64 LE.
+    pub fn u64(&mut self) -> Result<u64, DecodeError> {
+        Ok(u64::from_le_bytes(self.array()?))
+    }
+    /// i32 LE.
+    pub fn i32(&mut self) -> Result<i32, DecodeError> {
+        Ok(i32::from_le_bytes(self.array()?))
+    }
+    /// i64 LE.
+    pub fn i64(&mut self) -> Result<i64, DecodeError> {
+        Ok(i64::from_le_bytes(self.array()?))
+    }
+    /// f32 LE; NaN and infinities are rejected.
+    pub fn f32(&mut self) -> Result<f32, DecodeError> {
+        let v = f32::from_bits(self.u32()?);
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(DecodeError::BadValue("non-finite float"))
+        }
+    }
+
+    /// Fails unless every byte was read.
+    pub fn finish(&self) -> Result<(), DecodeError> {
+        if self.bytes.is_empty() {
+            Ok(())
+        } else {
+            Err(DecodeError::BadLength)
+        }
+    }
+}
+
+/// Write one frame of `kind` whose payload `body` writes, into `buf`; returns the frame's
+/// length. The payload is written in place, then the header and CRC around it.
+pub fn write_frame(
+    buf: &mut [u8],
+    kind: u8,
+    body: impl FnOnce(&mut SliceWriter<'_>) -> Result<(), EncodeError>,
+) -> Result<usize, EncodeError> {
+    if buf.len() < HEADER + TRAILER {
+        return Err(EncodeError::BufferTooSmall);
+    }
+    let cap = buf.len() - TRAILER;
+    let len = {
+        let mut w = SliceWriter::new(&mut buf[HEADER..cap]);
+        body(&mut w)?;
+        w.len()
+    };
+    let len16 = u16::try_from(len).map_err(|_| EncodeError::PayloadTooLong)?;
+    buf[0] = kind;
+    buf[1..3].copy_from_slice(&len16.to_le_bytes());
+    let end = HEADER + len;
+    let crc = CRC32.checksum(&buf[..end]);
+    buf[end..end + TRAILER].copy_from_slice(&crc.to_le_bytes());
+    Ok(end + TRAILER)
+}
+
+/// A frame as read off a link: its kind and its (CRC-checked) payload.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RawFrame<'a> {
+    /// Frame kind.
+    pub kind: u8,
+    /// Payload.
+    pub payload: &'a [u8],
+}
+
+/// Read the frame at the start of `bytes`: returns it and the number of bytes it took.
+pub fn read_frame(bytes: &[u8]) -> Result<(RawFrame<'_>, usize), DecodeError> {
+    if bytes.len() < HEADER {
+        return Err(DecodeError::Truncated);
+    }
+    let kind = bytes[0];
+    let len = u16::from_le_bytes([bytes[1], bytes[2]]) as usize;
+    let end = HEADER + len;
+    let total = end + TRAILER;
+    if bytes.len() < total {
+        return Err(DecodeError::Truncated);
+    }
+    let mut crc = [0u8; TRAILER];
+    crc.copy_from_slice(&bytes[end..total]);
+    if CRC32.checksum(&bytes[..end]) != u32::from_le_bytes(crc) {
+        return Err(DecodeError::BadCrc);
+    }
+    Ok((RawFrame { kind, payload: &bytes[HEADER..end] }, total))
+}
+
+/// An inter-cell message.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Message<F: FracBits> {
+    /// A facet row packet travelling east during loading.
+    Row(RowPacket),
+    /// A beam travelling to a neighbour during lighting.
+    Beam(BeamMsg<F>),
+    /// Acknowledges the data frame with this sequence number.
+    Ack,
+}
+
+/// A message with its link-level sequence number.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Frame<F: FracBits> {
+    /// Link sequence number (0 in traces).
+    pub seq: u8,
+    /// The message.
+    pub msg: Message<F>,
+}
+
+/// Write a row packet's fields (payload after `seq`).
+pub fn put_row<S: ByteSink + ?Sized>(w: &mut S, p: &RowPacket) -> Result<(), EncodeError> {
+    w.u32(p.tag.facet)?;
+    w.u16(p.tag.material)?;
+    w.u16(p.tag.normal.0)?;
+    let b = p.bbox;
+    for v in [b.x_min, b.x_max, b.y_min, b.y_max, b.z_min, b.z_max] {
+        w.u16(v)?;
+    }
+    for v in [p.a, p.c, p.t, p.u] {
+        w.i64(v)?;
+    }
+    w.u8(p.edges.len() as u8)?;
+    for e in &p.edges {
+        w.i32(e.a)?;
+        w.i32(e.c)?;
+        w.i64(e.g)?;
+    }
+    Ok(())
+}
+
+fn within(v: i64, bound: i128, what: &'static str) -> Result<i64, DecodeError> {
+    if (v as i128).abs() <= bound {
+        Ok(v)
+    } else {
+        Err(DecodeError::BadValue(what))
+    }
+}
+
+/// Read a row packet's fields, checking the bit budget of [`crate::voxelize`].
+pub fn get_row(r: &mut Reader<'_>) -> Result<RowPacket, DecodeError> {
+    let (m, q) = (MAX_LATTICE_SPAN, MAX_LATTICE_Q);
+    let tag = FacetTag { facet: r.u32()?, material: r.u16()?, normal: NormalCode(r.u16()?) };
+    let mut bx = [0u16; 6];
+    for v in bx.iter_mut() {
+        *v = r.u16()?;
+    }
+    let bbox = FacetBox { x_min: bx[0], x_max: bx[1], y_min: bx[2], y_max: bx[3], z_min: bx[4], z_max: bx[5] };
+    if bbox.x_min > bbox.x_max || bbox.y_min > bbox.y_max || bbox.z_min > bbox.z_max {
+        return Err(DecodeError::BadValue("empty facet box"));
+    }
+    let coef = 2 * q * m * m;
+    let a = within(r.i64()?, coef, "plane coefficient a beyond the bit budget")?;
+    let c = within(r.i64()?, coef, "plane coefficient c beyond the bit budget")?;
+    let t = within(r.i64()?, worst_case_t(m, q), "t beyond the bit budget")?;
+    let u = within(r.i64()?, worst_case_t(m, q), "u beyond the bit budget")?;
+    let count = r.u8()? as usize;
+    if count > MAX_EDGES {
+        return Err(DecodeError::BadValue("more contour edges than MAX_EDGES"));
+    }
+    let mut edges = Vec::new();
+    for _ in 0..count {
+        let ea = within(r.i32()? as i64, q * m, "edge coefficient beyond the bit budget")? as i32;
+        let ec = within(r.i32()? as i64, q * m, "edge coefficient beyond the bit budget")? as i32;
+        let g = within(r.i64()?, worst_case_g(m, q), "edge value beyond the bit budget")?;
+        // Cannot fail: count ≤ MAX_EDGES was checked.
+        let _ = edges.push(RowEdge { a: ea, c: ec, g });
+    }
+    Ok(RowPacket { tag, bbox, a, c, t, u, edges })
+}
+
+/// Write a beam message's fields (payload after `seq`).
+pub fn put_beam<F: FracBits, S: ByteSink + ?Sized>(w: &mut S, m: &BeamMsg<F>) -> Result<(), EncodeError> {
+    let b = &m.beam;
+    w.u8(F::U32 as u8)?;
+    w.u16(b.source().0)?;
+    w.u8(b.direction().index())?;
+    w.u32(b.layer().0)?;
+    for v in [b.u().lo(), b.u().hi(), b.v().lo(), b.v().hi()] {
+        w.i32(v.to_bits())?;
+    }
+    w.u16(m.z)
+}
+
+/// Read a beam message's fields, checking them against the far distance in use.
+pub fn get_beam<F: FracBits>(r: &mut Reader<'_>, far: FarDistance<F>) -> Result<BeamMsg<F>, DecodeError> {
+    let f = r.u8()?;
+    if f as u32 != F::U32 {
+        return Err(DecodeError::FracBitsMismatch { found: f, expected: F::U32 as u8 });
+    }
+    let source = SourceId(r.u16()?);
+    let dir = Direction::from_index(r.u8()?).ok_or(DecodeError::BadValue("beam direction"))?;
+    let layer = Layer(r.u32()?);
+    let mut v4 = [FarOffset::<F>::ZERO; 4];
+    for v in v4.iter_mut() {
+        *v = FarOffset::<F>::from_bits(r.i32()?);
+    }
+    let u = RayRange::new(v4[0], v4[1]).ok_or(DecodeError::BadValue("beam u range"))?;
+    let v = RayRange::new(v4[2], v4[3]).ok_or(DecodeError::BadValue("beam v range"))?;
+    let beam = Beam::new(source, dir, layer, u, v, far).map_err(|_| DecodeError::BadValue("beam outside D"))?;
+    Ok(BeamMsg { beam, z: r.u16()? })
+}
+
+/// Encode a message frame into `buf`; returns its length.
+pub fn encode<F: FracBits>(seq: u8, msg: &Message<F>, buf: &mut [u8]) -> Result<usize, EncodeError> {
+    match msg {
+        Message::Row(p) => write_frame(buf, KIND_ROW, |w| {
+            w.u8(seq)?;
+            put_row(w, p)
+        }),
+        Message::Beam(m) => write_frame(buf, KIND_BEAM, |w| {
+            w.u8(seq)?;
+            put_beam(w, m)
+        }),
+        Message::Ack => write_frame(buf, KIND_ACK, |w| w.u8(seq)),
+    }
+}
+
+/// Decode the message frame at the start of `bytes`; returns it and the bytes it took.
+pub fn decode<F: FracBits>(bytes: &[u8], far: FarDistance<F>) -> Result<(Frame<F>, usize), DecodeError> {
+    let (raw, used) = read_frame(bytes)?;
+    Ok((decode_payload(raw, far)?, used))
+}
+
+/// Decode a CRC-checked frame's payload as a message.
+pub fn decode_payload<F: FracBits>(raw: RawFrame<'_>, far: FarDistance<F>) -> Result<Frame<F>, DecodeError> {
+    let mut r = Reader::new(raw.payload);
+    let seq = r.u8()?;
+    let msg = match raw.kind {
+        KIND_ROW => Message::Row(get_row(&mut r)?),
+        KIND_BEAM => Message::Beam(get_beam(&mut r, far)?),
+        KIND_ACK => Message::Ack,
+        k => return Err(DecodeError::UnknownKind(k)),
+    };
+    r.finish()?;
+    Ok(Frame { seq, msg })
+}
+
+/// What a cell's output side needs from one neighbour link.
+pub trait Link {
+    /// The link's error (a pin or bus error).
+    type Error;
+    /// Whether the neighbour can take one more message now (its FIFO has credit).
+    fn ready(&mut self) -> Result<bool, Self::Error>;
+    /// Send one encoded frame.
+    fn send(&mut self, frame: &[u8]) -> Result<(), Self::Error>;
+}
+
+/// A [`Link`] over `embedded-hal`: the neighbour's ready line and an SPI frame link.
+pub struct HalLink<P, S> {
+    /// High when the neighbour has FIFO credit.
+    pub ready: P,
+    /// The frame link.
+    pub spi: S,
+}
+
+/// Error of a [`HalLink`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HalLinkError<P, S> {
+    /// Reading the ready line failed.
+    Pin(P),
+    /// The frame transfer failed.
+    Spi(S),
+}
+
+impl<P: InputPin, S: SpiDevice> Link for HalLink<P, S> {
+    type Error = HalLinkError<P::Error, S::Error>;
+
+    fn ready(&mut self) -> Result<bool, Self::Error> {
+        self.ready.is_high().map_err(HalLinkError::Pin)
+    }
+
+    fn send(&mut self, frame: &[u8]) -> Result<(), Self::Error> {
+        self.spi.write(frame).map_err(HalLinkError::Spi)
+    }
+}
+
+/// Error of [`drain_outputs`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DrainError<E> {
+    /// A link failed (the message stays in its output buffer).
+    Link(Port, E),
+    /// A message could not be encoded (cannot happen for a beam: its frame is fixed-size).
+    Encode(EncodeError),
+}
+
+/// One link cycle of a light cell's output side: for every port whose buffer is not empty and
+/// whose neighbour is ready, send the head message as a frame and pop it. `sent(port, frame)`
+/// sees each frame sent. Returns how many were sent.
+pub fn drain_outputs<F: FracBits, const FA: usize, const OB: usize, const L: usize, K: Link>(
+    cell: &mut LightCell<F, FA, OB, L>,
+    links: &mut [K; 8],
+    mut sent: impl FnMut(Port, &[u8]),
+) -> Result<u32, DrainError<K::Error>> {
+    let mut count = 0;
+    for p in Port::ALL {
+        let Some(m) = cell.out[p.index()].front() else { continue };
+        let link = &mut links[p.index()];
+        if !link.ready().map_err(|e| DrainError::Link(p, e))? {
+            continue;
+        }
+        let mut buf = [0u8; HEADER + BEAM_PAYLOAD + TRAILER];
+        let len = encode(0, &Message::Beam(*m), &mut buf).map_err(DrainError::Encode)?;
+        link.send(&buf[..len]).map_err(|e| DrainError::Link(p, e))?;
+        sent(p, &buf[..len]);
+        cell.out[p.index()].pop_front();
+        count += 1;
+    }
+    Ok(count)
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use crate::beam::Source;
+    use fixed::types::extra::{U0, U4};
+    use proptest::prelude::*;
+
+    fn far<F: FracBits>() -> FarDistance<F> {
+        FarDistance::new(127).unwrap()
+    }
+
+    #[test]
+    fn crc_is_the_standard_one() {
+        assert_eq!(CRC32.checksum(b"123456789"), 0xCBF4_3926);
+    }
+
+    #[test]
+    fn beam_round_trip_and_size() {
+        let s = Source::at_voxel(SourceId(3), [10, 20, 30]).unwrap();
+        for d in Direction::ALL {
+            let b = Beam::<U4>::initial(&s, d, far());
+            let parts = b.split(&s, far(), d.transverse_of([10, 20, 30])).unwrap();
+            for sb in parts {
+                let m = BeamMsg { beam: sb.beam, z: 31 };
+                let mut buf = [0u8; 64];
+                let n = encode(9, &Message::Beam(m), &mut buf).unwrap();
+                assert_eq!(n, HEADER + BEAM_PAYLOAD + TRAILER);
+                let (f, used) = decode::<U4>(&buf[..n], far()).unwrap();
+                assert_eq!((f.seq, f.msg, used), (9, Message::Beam(m), n));
+            }
+        }
+    }
+
+    #[test]
+    fn every_single_bit_flip_is_caught() {
+        let s = Source::at_voxel(SourceId(0), [5, 5, 5]).unwrap();
+        let m = BeamMsg { beam: Beam::<U0>::initial(&s, Direction::ALL[2], far()), z: 5 };
+        let mut buf = [0u8; 64];
+        let n = encode(1, &Message::Beam(m), &mut buf).unwrap();
+        for i in 0..n * 8 {
+            let mut b = buf;
+            b[i / 8] ^= 1 << (i % 8);
+            assert!(decode::<U0>(&b[..n], far()).is_err(), "flip of bit {i} went through");
+        }
+        assert_eq!(
+            decode::<U4>(&buf[..n], far()).unwrap_err(),
+            DecodeError::FracBitsMismatch { found: 0, expected: 4 }
+        );
+    }
+
+    proptest! {
+        #[test]
+        fn row_round_trip(facet in any::<u32>(), a in -1000i64..1000, c in -1000i64..1000, t in any::<i32>(),
+                          edges in proptest::collection::vec((-5000i32..5000, -5000i32..5000, any::<i32>()), 0..=MAX_EDGES)) {
+            let p = RowPacket {
+                tag: FacetTag { facet, material: 3, normal: NormalCode(77) },
+                bbox: FacetBox { x_min: 1, x_max: 9, y_min: 2, y_max: 2, z_min: 0, z_max: 100 },
+                a, c, t: t as i64, u: t as i64 - 40,
+                edges: edges.iter().map(|&(a, c, g)| RowEdge { a, c, g: g as i64 }).collect(),
+            };
+            let mut buf = [0u8; MAX_FRAME];
+            let n = encode::<U0>(0, &Message::Row(p.clone()), &mut buf).unwrap();
+            prop_assert_eq!(n, HEADER + ROW_PAYLOAD_BASE + ROW_EDGE_BYTES * p.edges.len() + TRAILER);
+            let (f, used) = decode::<U0>(&buf[..n], far()).unwrap();
+            prop_assert_eq!(used, n);
+            prop_assert_eq!(f.msg, Message::Row(p));
+        }
+
+        #[test]
+        fn junk_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..300)) {
+            let _ = decode::<U0>(&bytes, far());
+            // Junk behind a valid header and CRC reaches the field checks.
+            let mut buf = [0u8; 512];
+            if let Ok(n) = write_frame(&mut buf, bytes.first().map_or(KIND_BEAM, |k| k & 0x30), |w| w.put(&bytes)) {
+                let _ = decode::<U0>(&buf[..n], far());
+            }
+        }
+    }
+
+    #[test]
+    fn out_of_budget_rows_are_rejected() {
+        let mut buf = [0u8; MAX_FRAME];
+        let n = write_frame(&mut buf, KIND_ROW, |w| {
+            w.u8(0)?;
+            w.put(&[0; 8])?;
+            for v in [0u16, 1, 0, 1, 0, 1] {
+                w.u16(v)?;
+            }
+            w.i64(i64::MAX)?;
+            w.put(&[0; 24])?;
+            w.u8(0)
+        })
+        .unwrap();
+        assert!(matches!(decode::<U0>(&buf[..n], far()), Err(DecodeError::BadValue(_))));
+    }
+}

@@ -1,0 +1,691 @@
+//! Cell traces: everything one cell received during a run, in order, and a replay of it through
+//! the real cell.
+//!
+//! A trace is a sequence of [`crate::link`] frames (same framing and CRC as the links):
+//!
+//! | kind | record | payload |
+//! |---|---|---|
+//! | `0x40` | [`Event::Header`] | magic `RC2T` u32, version u8, x u16, y u16, depth u32, frac bits u8, dexel capacity u16, FIFO capacity u16, output buffer u8, lit runs u16 |
+//! | `0x41` | [`Event::Row`] | a row packet arriving from the west (loading, §3.9) |
+//! | `0x42` | [`Event::Light`] | a source's diffusion starts: source id u16, position 3×i32 (1/16 voxel), n u32, depth u32, D u32, policy u8, FIFO limit u16, merge u8, source bit u32 |
+//! | `0x43` | [`Event::Inject`] | the source emitter hands this cell an initial beam |
+//! | `0x44` | [`Event::Recv`] | link `port` delivers a beam: port u8 + the link frame as on the wire (its own CRC) |
+//! | `0x45` | [`Event::Step`] | `count` u32 compute cycles |
+//! | `0x46` | [`Event::Grant`] | the neighbour on `port` took the head of that output buffer |
+//! | `0x47` | [`Event::Shade`] | ambient 3×f32, normal mode u8, lights (count u8, pos+colour 6×f32), materials (count u8, 13×f32) |
+//! | `0x48` | [`Event::End`] | end of the trace |
+//!
+//! The cell's *outputs* are what it sends (forwarded row packets, beam frames on each port) and
+//! the result of every compute cycle; its *final state* is its dexels, lit runs, counters and
+//! pixel. [`Digester`] folds both into a CRC-64 digest. The host computes it from its own grid
+//! run; [`Replayer`] recomputes it by driving a fresh cell through the trace. The two are equal
+//! iff the cell behaves the same, which the QEMU test checks on a Cortex-M4F.
+
+use heapless::Vec;
+
+use crate::beam::{FarDistance, FracBits, Source, SourceCoord, SourceId, SplitOrder};
+use crate::cell::Cell;
+use crate::facet::RowPacket;
+use crate::light::{Activity, BeamMsg, LightCell, LightEnv, Policy, Port, SourceMask, Step};
+use crate::link::{
+    self, get_beam, get_row, put_beam, put_row, read_frame, write_frame, ByteSink, DecodeError, EncodeError, Link,
+    PutExt, Reader, HEADER, TRAILER,
+};
+use crate::shade::{pixel, Material, NormalMode, Pixel, PointLight, ShadeParams};
+use crate::units::{Coord, Depth};
+
+/// `RC2T`.
+pub const MAGIC: u32 = u32::from_le_bytes(*b"RC2T");
+/// Trace format version.
+pub const VERSION: u8 = 1;
+/// Record kinds.
+pub mod kind {
+    /// [`super::Event::Header`].
+    pub const HEADER: u8 = 0x40;
+    /// [`super::Event::Row`].
+    pub const ROW: u8 = 0x41;
+    /// [`super::Event::Light`].
+    pub const LIGHT: u8 = 0x42;
+    /// [`super::Event::Inject`].
+    pub const INJECT: u8 = 0x43;
+    /// [`super::Event::Recv`].
+    pub const RECV: u8 = 0x44;
+    /// [`super::Event::Step`].
+    pub const STEP: u8 = 0x45;
+    /// [`super::Event::Grant`].
+    pub const GRANT: u8 = 0x46;
+    /// [`super::Event::Shade`].
+    pub const SHADE: u8 = 0x47;
+    /// [`super::Event::End`].
+    pub const END: u8 = 0x48;
+}
+/// Most lights a shading record carries.
+pub const MAX_LIGHTS: usize = 8;
+/// Most materials a shading record carries.
+pub const MAX_MATERIALS: usize = 16;
+/// Longest beam link frame.
+pub const BEAM_FRAME: usize = HEADER + link::BEAM_PAYLOAD + TRAILER;
+
+/// The cell a trace is for and the capacities it was recorded with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Header {
+    /// Column.
+    pub x: Coord,
+    /// Row.
+    pub y: Coord,
+    /// Voxels per column.
+    pub depth: u32,
+    /// Beam fraction bits.
+    pub frac_bits: u8,
+    /// Dexel capacity.
+    pub dexels: u16,
+    /// FIFO capacity.
+    pub fifo: u16,
+    /// Output buffer capacity.
+    pub out: u8,
+    /// Lit-run capacity.
+    pub lit: u16,
+}
+
+/// The lighting environment of one source's diffusion, as a cell receives it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LightSetup {
+    /// The source.
+    pub source: Source,
+    /// Grid side.
+    pub n: u32,
+    /// Voxels per column.
+    pub depth: u32,
+    /// Far distance D.
+    pub far: u32,
+    /// Scheduling policy.
+    pub policy: Policy,
+    /// FIFO limit in use.
+    pub fa: u16,
+    /// Exact beam merging.
+    pub merge: bool,
+    /// The source's bit.
+    pub source_bit: SourceMask,
+}
+
+/// What a cell needs to shade its pixel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShadeSetup {
+    /// Ambient and normal mode.
+    pub params: ShadeParams,
+    /// The lights.
+    pub lights: Vec<PointLight, MAX_LIGHTS>,
+    /// The material table.
+    pub materials: Vec<Material, MAX_MATERIALS>,
+}
+
+/// One trace record.
+// One record lives on the stack at a time, and there is no heap to box the shading inputs into.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq)]
+pub enum Event<'a, F: FracBits> {
+    /// The cell and capacities.
+    Header(Header),
+    /// A row packet arrives.
+    Row(RowPacket),
+    /// A source's diffusion starts.
+    Light(LightSetup),
+    /// The source emitter hands over an initial beam.
+    Inject(BeamMsg<F>),
+    /// A link delivers a frame.
+    Recv {
+        /// The link it came in on (as the receiver names it).
+        port: Port,
+        /// The frame bytes.
+        frame: &'a [u8],
+    },
+    /// Compute cycles.
+    Step(u32),
+    /// A neighbour took the head of an output buffer.
+    Grant(Port),
+    /// Shading inputs.
+    Shade(ShadeSetup),
+    /// End of trace.
+    End,
+}
+
+/// Why a trace could not be replayed (a value, never a panic).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ReplayError {
+    /// A record or frame did not decode.
+    Decode(DecodeError),
+    /// The first record is not a header, or its magic/version is wrong.
+    BadHeader,
+    /// The trace was recorded with other capacities or fraction bits than this build.
+    CapacityMismatch,
+    /// A lighting record came before the source's setup.
+    NoLightSetup,
+    /// The far distance of a setup is beyond the bit budget.
+    BadFar,
+    /// A beam arrived while the FIFO was full: the trace does not match the cell.
+    FifoFull,
+    /// A grant for an empty output buffer: the trace does not match the cell.
+    NothingToSend,
+    /// A link failed.
+    Link,
+    /// Records after the end, or no end.
+    BadEnd,
+}
+
+impl From<DecodeError> for ReplayError {
+    fn from(e: DecodeError) -> Self {
+        ReplayError::Decode(e)
+    }
+}
+
+fn port_of(i: u8) -> Result<Port, DecodeError> {
+    Port::ALL.get(i as usize).copied().ok_or(DecodeError::BadValue("port"))
+}
+
+fn policy_code(p: Policy) -> u8 {
+    match p {
+        Policy::Thesis => 0,
+        Policy::Wavefront => 1,
+    }
+}
+
+/// Write one record into `buf`; returns its length.
+pub fn write_event<F: FracBits>(ev: &Event<'_, F>, buf: &mut [u8]) -> Result<usize, EncodeError> {
+    match ev {
+        Event::Header(h) => write_frame(buf, kind::HEADER, |w| {
+            w.u32(MAGIC)?;
+            w.u8(VERSION)?;
+            w.u16(h.x)?;
+            w.u16(h.y)?;
+            w.u32(h.depth)?;
+            w.u8(h.frac_bits)?;
+            w.u16(h.dexels)?;
+            w.u16(h.fifo)?;
+            w.u8(h.out)?;
+            w.u16(h.lit)
+        }),
+        Event::Row(p) => write_frame(buf, kind::ROW, |w| put_row(w, p)),
+        Event::Light(s) => write_frame(buf, kind::LIGHT, |w| {
+            w.u16(s.source.id.0)?;
+            for c in s.source.pos {
+                w.i32(c.to_bits())?;
+            }
+            w.u32(s.n)?;
+            w.u32(s.depth)?;
+            w.u32(s.far)?;
+            w.u8(policy_code(s.policy))?;
+            w.u16(s.fa)?;
+            w.u8(s.merge as u8)?;
+            w.u32(s.source_bit)
+        }),
+        Event::Inject(m) => write_frame(buf, kind::INJECT, |w| put_beam(w, m)),
+        Event::Recv { port, frame } => write_frame(buf, kind::RECV, |w| {
+            w.u8(port.index() as u8)?;
+            w.put(frame)
+        }),
+        Event::Step(n) => write_frame(buf, kind::STEP, |w| w.u32(*n)),
+        Event::Grant(p) => write_frame(buf, kind::GRANT, |w| w.u8(p.index() as u8)),
+        Event::Shade(s) => write_frame(buf, kind::SHADE, |w| {
+            for a in s.params.ambient {
+                w.f32(a)?;
+            }
+            w.u8(matches!(s.params.normal_mode, NormalMode::Face) as u8)?;
+            w.u8(s.lights.len() as u8)?;
+            for l in &s.lights {
+                for v in l.pos.iter().chain(l.color.iter()) {
+                    w.f32(*v)?;
+                }
+            }
+            w.u8(s.materials.len() as u8)?;
+            for m in &s.materials {
+                for v in m.ka.iter().chain(&m.kd).chain(&m.ks).chain(core::iter::once(&m.ns)).chain(&m.ke) {
+                    w.f32(*v)?;
+                }
+            }
+            Ok(())
+        }),
+        Event::End => write_frame(buf, kind::END, |_| Ok(())),
+    }
+}
+
+fn f32x3(r: &mut Reader<'_>) -> Result<[f32; 3], DecodeError> {
+    Ok([r.f32()?, r.f32()?, r.f32()?])
+}
+
+/// Reads the records of a trace one by one.
+pub struct Parser<'a, F: FracBits> {
+    bytes: &'a [u8],
+    far: Option<FarDistance<F>>,
+}
+
+impl<'a, F: FracBits> Parser<'a, F> {
+    /// Parse `bytes` from the start.
+    pub fn new(bytes: &'a [u8]) -> Self {
+        Parser { bytes, far: None }
+    }
+
+    /// The next record; `None` at the end of the bytes.
+    pub fn next_event(&mut self) -> Option<Result<Event<'a, F>, ReplayError>> {
+        if self.bytes.is_empty() {
+            return None;
+        }
+        let r = self.parse();
+        if r.is_err() {
+            // Stop after the first error: the rest of the bytes cannot be trusted.
+            self.bytes = &[];
+        }
+        Some(r)
+    }
+
+    fn parse(&mut self) -> Result<Event<'a, F>, ReplayError> {
+        let (raw, used) = read_frame(self.bytes)?;
+        self.bytes = &self.bytes[used..];
+        let mut r = Reader::new(raw.payload);
+        let ev = match raw.kind {
+            kind::HEADER => {
+                if r.u32()? != MAGIC || r.u8()? != VERSION {
+                    return Err(ReplayError::BadHeader);
+                }
+                Event::Header(Header {
+                    x: r.u16()?,
+                    y: r.u16()?,
+                    depth: r.u32()?,
+                    frac_bits: r.u8()?,
+                    dexels: r.u16()?,
+                    fifo: r.u16()?,
+                    out: r.u8()?,
+                    lit: r.u16()?,
+                })
+            }
+            kind::ROW => Event::Row(get_row(&mut r)?),
+            kind::LIGHT => {
+                let id = SourceId(r.u16()?);
+                let mut pos = [SourceCoord::ZERO; 3];
+                for p in pos.iter_mut() {
+                    *p = SourceCoord::from_bits(r.i32()?);
+                }
+                let s = LightSetup {
+                    source: Source::new(id, pos),
+                    n: r.u32()?,
+                    depth: r.u32()?,
+                    far: r.u32()?,
+                    policy: match r.u8()? {
+                        0 => Policy::Thesis,
+                        1 => Policy::Wavefront,
+                        _ => return Err(DecodeError::BadValue("policy").into()),
+                    },
+                    fa: r.u16()?,
+                    merge: r.u8()? != 0,
+                    source_bit: r.u32()?,
+                };
+                self.far = Some(FarDistance::new(s.far).ok_or(ReplayError::BadFar)?);
+                Event::Light(s)
+            }
+            kind::INJECT => Event::Inject(get_beam(&mut r, self.far.ok_or(ReplayError::NoLightSetup)?)?),
+            kind::RECV => {
+                let port = port_of(r.u8()?)?;
+                let frame = r.take(r.remaining())?;
+                Event::Recv { port, frame }
+            }
+            kind::STEP => Event::Step(r.u32()?),
+            kind::GRANT => Event::Grant(port_of(r.u8()?)?),
+            kind::SHADE => {
+                let ambient = f32x3(&mut r)?;
+                let normal_mode = if r.u8()? == 1 { NormalMode::Face } else { NormalMode::Facet };
+                let mut lights = Vec::new();
+                for _ in 0..r.u8()? {
+                    let l = PointLight { pos: f32x3(&mut r)?, color: f32x3(&mut r)? };
+                    lights.push(l).map_err(|_| DecodeError::BadValue("too many lights"))?;
+                }
+                let mut materials = Vec::new();
+                for _ in 0..r.u8()? {
+                    let m = Material {
+                        ka: f32x3(&mut r)?,
+                        kd: f32x3(&mut r)?,
+                        ks: f32x3(&mut r)?,
+                        ns: r.f32()?,
+                        ke: f32x3(&mut r)?,
+                    };
+                    materials.push(m).map_err(|_| DecodeError::BadValue("too many materials"))?;
+                }
+                Event::Shade(ShadeSetup { params: ShadeParams { ambient, normal_mode }, lights, materials })
+            }
+            kind::END => Event::End,
+            k => return Err(DecodeError::UnknownKind(k).into()),
+        };
+        r.finish()?;
+        Ok(ev)
+    }
+}
+
+/// CRC-64/XZ, the digest of a cell's outputs and final state.
+pub static CRC64: crc::Crc<u64> = crc::Crc::<u64>::new(&crc::CRC_64_XZ);
+
+/// Folds a cell's outputs and final state into a digest (the same bytes on host and MCU).
+pub struct Digester {
+    digest: crc::Digest<'static, u64>,
+}
+
+impl Default for Digester {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+struct DigestSink<'d>(&'d mut crc::Digest<'static, u64>);
+
+impl ByteSink for DigestSink<'_> {
+    fn put(&mut self, bytes: &[u8]) -> Result<(), EncodeError> {
+        self.0.update(bytes);
+        Ok(())
+    }
+}
+
+impl Digester {
+    /// An empty digest.
+    pub fn new() -> Self {
+        Digester { digest: CRC64.digest() }
+    }
+
+    fn sink(&mut self) -> DigestSink<'_> {
+        DigestSink(&mut self.digest)
+    }
+
+    /// The cell forwarded a row packet east (after stepping it).
+    pub fn forwarded(&mut self, p: &RowPacket) {
+        let mut s = self.sink();
+        let _ = s.u8(b'F');
+        let _ = put_row(&mut s, p);
+    }
+
+    /// The cell sent a frame on `port`.
+    pub fn sent(&mut self, port: Port, frame: &[u8]) {
+        let mut s = self.sink();
+        let _ = s.u8(b'S');
+        let _ = s.u8(port.index() as u8);
+        let _ = s.put(frame);
+    }
+
+    /// One compute cycle's result.
+    pub fn step(&mut self, r: Step) {
+        let code = match r {
+            Step::Idle => 0,
+            Step::Processed => 1,
+            Step::Blocked => 2,
+        };
+        let _ = self.sink().put(&[b'C', code]);
+    }
+
+    /// The cell's final state: dexels, lit runs, counters, pixel.
+    pub fn state<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usize>(
+        &mut self,
+        cell: &Cell<D>,
+        light: &LightCell<F, FA, OB, L>,
+        px: Option<Pixel>,
+    ) {
+        let mut s = self.sink();
+        let _ = s.u8(b'E');
+        for d in cell.store.dexels() {
+            let _ = (s.u16(d.span.lo), s.u16(d.span.hi), s.u32(d.facet), s.u16(d.material), s.u16(d.normal.0));
+        }
+        let k = cell.counters;
+        let _ = (s.u32(cell.store.overflows()), s.u32(cell.store.lost_voxels()));
+        let _ = (s.u32(k.packets), s.u32(k.spans_computed), s.u32(k.voxels_shared));
+        for r in light.lit.runs() {
+            let _ = (s.u16(r.lo), s.u16(r.hi), s.u32(r.mask));
+        }
+        let c = light.counters;
+        let _ = (s.u64(c.processed), s.u64(c.blocked_cycles), s.u16(c.peak_fifo), s.u32(c.max_layer));
+        let _ = (s.u64(c.rays_absorbed), s.u64(c.rays_exited), s.u64(c.sent), s.u32(c.lit_overflows), s.u64(c.merged));
+        let _ = (s.u16(light.fifo.len() as u16), s.u8(light.busy() as u8));
+        match px {
+            Some(p) => {
+                let _ = (s.u8(1), s.put(&p.rgb), s.u32(p.lit), s.u16(p.z));
+            }
+            None => {
+                let _ = s.u8(0);
+            }
+        }
+    }
+
+    /// The digest.
+    pub fn finish(self) -> u64 {
+        self.digest.finalize()
+    }
+}
+
+/// What a replay did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ReplayStats {
+    /// Records read.
+    pub records: u32,
+    /// Row packets processed.
+    pub rows: u32,
+    /// Beams received (links and emitter).
+    pub received: u32,
+    /// Compute cycles.
+    pub steps: u32,
+    /// Frames sent.
+    pub sent: u32,
+}
+
+/// A [`Link`] whose neighbour is ready iff it is the granted one; sending is a no-op (the
+/// frame goes to the digest through `drain_outputs`'s callback).
+struct GrantLink(bool);
+
+impl Link for GrantLink {
+    type Error = core::convert::Infallible;
+    fn ready(&mut self) -> Result<bool, Self::Error> {
+        Ok(self.0)
+    }
+    fn send(&mut self, _: &[u8]) -> Result<(), Self::Error> {
+        Ok(())
+    }
+}
+
+/// A fresh cell driven through a trace: `D` dexels, FIFO `FA`, output buffers `OB`, `L` lit
+/// runs (they must equal the trace header's).
+pub struct Replayer<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usize> {
+    /// The loading state.
+    pub cell: Cell<D>,
+    /// The lighting state.
+    pub light: LightCell<F, FA, OB, L>,
+    /// The cell's activity counter (its share of the global detector).
+    pub activity: Activity,
+    /// What was replayed.
+    pub stats: ReplayStats,
+    /// The pixel, once shaded.
+    pub pixel: Option<Pixel>,
+    setup: Option<LightSetup>,
+    depth: u32,
+    started: bool,
+    ended: bool,
+    order: SplitOrder,
+    digest: Digester,
+}
+
+impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usize> Default
+    for Replayer<F, D, FA, OB, L>
+{
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usize> Replayer<F, D, FA, OB, L> {
+    /// Before the header.
+    pub fn new() -> Self {
+        Replayer {
+            cell: Cell::new(0, 0),
+            light: LightCell::new(0, 0),
+            activity: Activity::new(),
+            stats: ReplayStats::default(),
+            pixel: None,
+            setup: None,
+            depth: 0,
+            started: false,
+            ended: false,
+            order: SplitOrder::default(),
+            digest: Digester::new(),
+        }
+    }
+
+    /// The header this build expects for cell (x, y).
+    pub fn header(x: Coord, y: Coord, depth: u32) -> Header {
+        Header { x, y, depth, frac_bits: F::U32 as u8, dexels: D as u16, fifo: FA as u16, out: OB as u8, lit: L as u16 }
+    }
+
+    fn env<'s>(&self, setup: &'s LightSetup, order: &'s SplitOrder) -> Result<LightEnv<'s, F>, ReplayError> {
+        Ok(LightEnv {
+            source: &setup.source,
+            far: FarDistance::new(setup.far).ok_or(ReplayError::BadFar)?,
+            n: setup.n,
+            depth: setup.depth,
+            policy: setup.policy,
+            order,
+            fa: setup.fa as usize,
+            source_bit: setup.source_bit,
+            merge: setup.merge,
+        })
+    }
+
+    fn accept(&mut self, m: BeamMsg<F>) -> Result<(), ReplayError> {
+        let merge = self.setup.ok_or(ReplayError::NoLightSetup)?.merge;
+        let fa = self.setup.map_or(0, |s| s.fa as usize);
+        if !self.light.can_accept(fa) {
+            return Err(ReplayError::FifoFull);
+        }
+        self.stats.received += 1;
+        self.light.accept(m, merge, &self.activity).map_err(|_| ReplayError::FifoFull)
+    }
+
+    /// The link receive path: decode a frame off link `port` and put its beam into the FIFO.
+    /// On an MCU this runs in the link's receive interrupt.
+    pub fn receive_frame(&mut self, _port: Port, frame: &[u8]) -> Result<(), ReplayError> {
+        let far = FarDistance::new(self.setup.ok_or(ReplayError::NoLightSetup)?.far).ok_or(ReplayError::BadFar)?;
+        let (f, used) = link::decode::<F>(frame, far)?;
+        match f.msg {
+            link::Message::Beam(m) if used == frame.len() => self.accept(m),
+            _ => Err(DecodeError::BadValue("not a single beam frame").into()),
+        }
+    }
+
+    /// A neighbour took the head of output buffer `port`: send it over `links` (only that
+    /// link's neighbour is ready).
+    pub fn grant<K: Link>(&mut self, port: Port, links: &mut [K; 8]) -> Result<(), ReplayError> {
+        if self.light.out[port.index()].is_empty() {
+            return Err(ReplayError::NothingToSend);
+        }
+        let digest = &mut self.digest;
+        let mut sent = 0;
+        link::drain_outputs(&mut self.light, links, |p, frame| {
+            digest.sent(p, frame);
+            sent += 1;
+        })
+        .map_err(|_| ReplayError::Link)?;
+        self.stats.sent += sent;
+        if sent == 1 {
+            Ok(())
+        } else {
+            Err(ReplayError::Link)
+        }
+    }
+
+    /// Apply one record. `Recv` goes through [`Replayer::receive_frame`] and `Grant` through
+    /// [`Replayer::grant`] with in-memory links; a firmware routes them through its interrupt
+    /// and its `embedded-hal` links instead.
+    pub fn apply(&mut self, ev: Event<'_, F>) -> Result<(), ReplayError> {
+        self.stats.records += 1;
+        if self.ended {
+            return Err(ReplayError::BadEnd);
+        }
+        match ev {
+            Event::Header(h) => {
+                if self.started {
+                    return Err(ReplayError::BadHeader);
+                }
+                if h != Self::header(h.x, h.y, h.depth) {
+                    return Err(ReplayError::CapacityMismatch);
+                }
+                self.cell = Cell::new(h.x, h.y);
+                self.light = LightCell::new(h.x, h.y);
+                self.depth = h.depth;
+                self.started = true;
+                return Ok(());
+            }
+            _ if !self.started => return Err(ReplayError::BadHeader),
+            Event::Row(mut p) => {
+                self.stats.rows += 1;
+                if self.cell.load_step(&mut p, self.depth) {
+                    self.digest.forwarded(&p);
+                }
+            }
+            Event::Light(s) => {
+                // The host restarts the per-source peaks at each source.
+                self.light.counters.max_layer = 0;
+                self.light.counters.peak_fifo = 0;
+                self.setup = Some(s);
+            }
+            Event::Inject(m) => self.accept(m)?,
+            Event::Recv { port, frame } => self.receive_frame(port, frame)?,
+            Event::Step(n) => {
+                let setup = self.setup.ok_or(ReplayError::NoLightSetup)?;
+                let order = self.order;
+                let env = self.env(&setup, &order)?;
+                for _ in 0..n {
+                    let r = self.light.step(&self.cell.store, &env, &self.activity);
+                    self.digest.step(r);
+                    self.stats.steps += 1;
+                }
+            }
+            Event::Grant(p) => {
+                let mut links: [GrantLink; 8] = core::array::from_fn(|i| GrantLink(i == p.index()));
+                self.grant(p, &mut links)?;
+            }
+            Event::Shade(s) => {
+                let lit = &self.light.lit;
+                self.pixel = pixel(
+                    self.cell.x,
+                    self.cell.y,
+                    &self.cell.store,
+                    |z: Depth| lit.mask_at(z),
+                    &s.materials,
+                    &s.lights,
+                    &s.params,
+                );
+            }
+            Event::End => self.ended = true,
+        }
+        Ok(())
+    }
+
+    /// Whether the end record was applied.
+    pub fn ended(&self) -> bool {
+        self.ended
+    }
+
+    /// The digest of the outputs and the final state.
+    pub fn finish(mut self) -> Result<u64, ReplayError> {
+        if !self.ended {
+            return Err(ReplayError::BadEnd);
+        }
+        self.digest.state(&self.cell, &self.light, self.pixel);
+        Ok(self.digest.finish())
+    }
+}
+
+/// Replay a whole trace with in-memory links: the host's reference replay.
+pub fn replay<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usize>(
+    bytes: &[u8],
+) -> Result<(u64, ReplayStats), ReplayError> {
+    let mut r = Replayer::<F, D, FA, OB, L>::new();
+    let mut p = Parser::<F>::new(bytes);
+    while let Some(ev) = p.next_event() {
+        r.apply(ev?)?;
+    }
+    let stats = r.stats;
+    Ok((r.finish()?, stats))
+}

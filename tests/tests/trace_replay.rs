@@ -1,0 +1,106 @@
+//! Cell traces (issue 5) on the host: every cell of small grids is recorded during a real grid
+//! run and replayed through a fresh `cell_core` cell (the code the firmware runs); the digest of
+//! outputs and final state must equal the one the grid computed, for both scheduling policies,
+//! with and without merging, with integer and fractional rays. Altered traces must fail: any
+//! flipped byte, any truncation, a re-encoded changed value, a dropped record.
+
+use cell_core::beam::frac::{U0, U2};
+use cell_core::beam::FracBits;
+use cell_core::light::Policy;
+use cell_core::trace::{write_event, Parser};
+use host_sim::diffuse::{LightConfig, FA_CAP, LIT_CAP, OB_CAP};
+use host_sim::precompute::{Contour, LoadConfig, Thickness};
+use host_sim::trace::{record, CellTrace, TraceJob};
+use rc2_tests::traces::mutate_row_material;
+
+type Replay = fn(&[u8]) -> Result<(u64, cell_core::trace::ReplayStats), cell_core::trace::ReplayError>;
+
+fn replay_fn<F: FracBits>() -> Replay {
+    cell_core::trace::replay::<F, { cell_core::cell::DEFAULT_DEXELS }, FA_CAP, OB_CAP, LIT_CAP>
+}
+
+fn all_cells<F: FracBits>(scene: &str, n: u32, policy: Policy, merge: bool, fa: usize) -> Vec<CellTrace> {
+    let mesh = host_sim::scene::load(scene).unwrap();
+    let load = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
+    let light = LightConfig { fa, policy, merge, record_visits: false };
+    let cells = (0..n).flat_map(|y| (0..n).map(move |x| [x, y])).collect();
+    record::<F>(&TraceJob { mesh: &mesh, load, light, lights: Vec::new(), cells, busiest: false }).unwrap()
+}
+
+fn check_all<F: FracBits>(scene: &str, n: u32, policy: Policy, merge: bool, fa: usize) {
+    let traces = all_cells::<F>(scene, n, policy, merge, fa);
+    assert_eq!(traces.len(), (n * n) as usize);
+    let (mut beams, mut sent) = (0u64, 0u64);
+    for t in &traces {
+        let (d, st) = replay_fn::<F>()(&t.bytes).unwrap_or_else(|e| panic!("cell ({}, {}): {e:?}", t.x, t.y));
+        assert_eq!(d, t.digest, "{scene} n={n} {policy:?} merge={merge} f={}: cell ({}, {})", F::U32, t.x, t.y);
+        beams += st.received as u64;
+        sent += st.sent as u64;
+    }
+    // Every beam a cell sent was received by a neighbour: the traces agree with each other.
+    assert!(beams >= sent, "{beams} received < {sent} sent");
+    assert!(sent > 0, "the light reached no cell");
+}
+
+#[test]
+fn every_cell_replays_to_the_grid_digest() {
+    check_all::<U0>("cornell", 16, Policy::Wavefront, true, 16);
+    check_all::<U0>("cornell", 16, Policy::Thesis, false, 2);
+    check_all::<U2>("cornell", 16, Policy::Wavefront, true, 4);
+    check_all::<U0>("teapot-floor", 16, Policy::Wavefront, false, 8);
+}
+
+fn busiest_trace() -> CellTrace {
+    let mesh = host_sim::scene::load("cornell").unwrap();
+    let load = LoadConfig { n: 24, thickness: Thickness::Naive, contour: Contour::Projected };
+    let light = LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, record_visits: false };
+    let job = TraceJob { mesh: &mesh, load, light, lights: Vec::new(), cells: Vec::new(), busiest: true };
+    record::<U0>(&job).unwrap().pop().unwrap()
+}
+
+#[test]
+fn every_flipped_byte_and_every_truncation_fails() {
+    let t = busiest_trace();
+    let replay = replay_fn::<U0>();
+    assert_eq!(replay(&t.bytes).unwrap().0, t.digest);
+    for i in 0..t.bytes.len() {
+        let mut b = t.bytes.clone();
+        b[i] ^= 1 << (i % 8);
+        if let Ok((d, _)) = replay(&b) {
+            panic!("flipping byte {i} of {} went through with digest {d:016x}", t.bytes.len());
+        }
+    }
+    for cut in 0..t.bytes.len() {
+        assert!(replay(&t.bytes[..cut]).is_err(), "a trace cut at {cut} replayed");
+    }
+}
+
+#[test]
+fn re_encoded_changes_change_the_digest() {
+    let t = busiest_trace();
+    let replay = replay_fn::<U0>();
+    let changed = mutate_row_material(&t.bytes).unwrap();
+    assert_ne!(replay(&changed).unwrap().0, t.digest, "changed materials");
+    // Drop one record of each kind that the cell cannot do without: the replay fails or the
+    // digest changes.
+    let events: Vec<Vec<u8>> = {
+        let mut p = Parser::<U0>::new(&t.bytes);
+        let mut v = Vec::new();
+        let mut buf = [0u8; 2048];
+        while let Some(ev) = p.next_event() {
+            let n = write_event(&ev.unwrap(), &mut buf).unwrap();
+            v.push(buf[..n].to_vec());
+        }
+        v
+    };
+    let mut dropped = 0;
+    for skip in 1..events.len() - 1 {
+        let kind = events[skip][0];
+        let b: Vec<u8> = events.iter().enumerate().filter(|(i, _)| *i != skip).flat_map(|(_, e)| e.clone()).collect();
+        if let Ok((d, _)) = replay(&b) {
+            assert_ne!(d, t.digest, "dropping record {skip} (kind {kind:#x}) left the digest unchanged");
+        }
+        dropped += 1;
+    }
+    assert!(dropped > 10);
+}
