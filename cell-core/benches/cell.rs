@@ -247,6 +247,7 @@ fn bench_fifo(c: &mut Criterion) {
         fa: 16,
         source_bit: 1,
         merge: true,
+        skip: None,
     };
     let empty = DexelStore::<DEFAULT_DEXELS>::new();
     let mut wall = DexelStore::<DEFAULT_DEXELS>::new();

@@ -224,6 +224,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             FarDistance::<F>::MAX
         )
     })?;
+    crate::limits::check_grid_memory("grid of lighting cells", n, std::mem::size_of::<HostLightCell<F>>())?;
     let mut cells: Vec<HostLightCell<F>> = Vec::with_capacity((n * n) as usize);
     for y in 0..n {
         for x in 0..n {

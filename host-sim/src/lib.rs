@@ -21,6 +21,7 @@ pub mod diffuse;
 pub mod dump;
 pub mod grid;
 pub mod lightjob;
+pub mod limits;
 pub mod load;
 pub mod meshops;
 pub mod network;

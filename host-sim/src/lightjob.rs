@@ -39,6 +39,11 @@ pub fn load_scene(mesh: &Mesh, cfg: &LoadConfig) -> Result<LoadedScene> {
 pub fn load_scene_tapped(mesh: &Mesh, cfg: &LoadConfig, tap: Option<&mut crate::trace::Tap>) -> Result<LoadedScene> {
     cfg.validate()?;
     if mesh.faces.is_empty() {
+        crate::limits::check_grid_memory(
+            "grid of loading cells",
+            cfg.n,
+            std::mem::size_of::<cell_core::cell::Cell<DEFAULT_DEXELS>>(),
+        )?;
         let fit = Fit { origin: [0.0; 3], voxel: 1.0 / cfg.n as f64 };
         return Ok(LoadedScene {
             grid: Grid::new(cfg.n, cfg.n),
@@ -167,6 +172,24 @@ pub struct LightStats {
     pub peak_rss_mib: Option<f64>,
 }
 
+/// Fail, naming the first cell and the capacity to raise, when a lit store overflowed (a lit
+/// mark lost is a wrong image, never a silent loss).
+pub fn check_lit_overflow<F: FracBits>(lighting: &Lighting<F>) -> Result<()> {
+    let full: Vec<_> = lighting.cells.iter().filter(|c| c.counters.lit_overflows > 0).collect();
+    if let Some(c) = full.first() {
+        bail!(
+            "lit store overflow in {} cell(s), first at cell ({}, {}): more than {} lit runs per column needed, \
+             {} lit marks lost; raise LIT_CAP in host-sim/src/diffuse.rs",
+            full.len(),
+            c.x,
+            c.y,
+            crate::diffuse::LIT_CAP,
+            lighting.lit_overflows()
+        );
+    }
+    Ok(())
+}
+
 /// Diffuse and summarise.
 pub fn run_diffusion<F: FracBits>(
     mesh: &Mesh,
@@ -179,6 +202,7 @@ pub fn run_diffusion<F: FracBits>(
     let sources = lights.iter().enumerate().map(|(i, p)| source_at(i, *p, n)).collect::<Result<Vec<_>>>()?;
     let t0 = Instant::now();
     let lighting = diffuse::<F, DEFAULT_DEXELS>(&scene.grid, &sources, cfg, progress)?;
+    check_lit_overflow(&lighting)?;
     let wall = t0.elapsed().as_secs_f64();
     let r = &lighting.reports;
     let mut totals = DiffusionCounts::default();

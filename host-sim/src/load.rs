@@ -199,6 +199,8 @@ pub fn voxelize_tapped<const D: usize>(
     mut progress: impl FnMut(u64, u64),
 ) -> Result<Voxelized<D>> {
     let t0 = Instant::now();
+    cfg.validate()?;
+    crate::limits::check_grid_memory("grid of loading cells", cfg.n, std::mem::size_of::<Cell<D>>())?;
     let prepared = prepare(mesh, cfg)?;
     let t1 = Instant::now();
     let mut grid = Grid::<D>::new(cfg.n, cfg.n);
@@ -226,7 +228,7 @@ pub fn voxelize_tapped<const D: usize>(
         engine,
         faces: prepared.faces_in,
         facets: packets.len(),
-        facets_skipped: prepared.skipped_degenerate + prepared.skipped_outside,
+        facets_skipped: prepared.skipped_degenerate + prepared.skipped_outside + prepared.skipped_duplicate,
         polygons_split: prepared.polygons_split,
         grid: summary,
         load_cycles: wave.map_or(0, |w| w.cycles),

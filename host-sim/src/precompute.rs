@@ -123,6 +123,9 @@ pub struct Prepared {
     pub skipped_degenerate: usize,
     /// Faces skipped as outside the grid.
     pub skipped_outside: usize,
+    /// Pieces skipped as exact duplicates of an earlier piece (same lattice vertices, normal
+    /// and material: it could claim no voxel, first come first kept).
+    pub skipped_duplicate: usize,
     /// Polygons split into triangles (non-planar after quantisation, or too many edges).
     pub polygons_split: usize,
 }
@@ -248,8 +251,16 @@ fn convex_in_projection(p: &[[i64; 3]], axes: (usize, usize, usize)) -> bool {
 /// A facet's packet, or why it has none.
 pub type PacketOrSkip = std::result::Result<PipelinePacket, Skip>;
 
+/// Largest |lattice coordinate| [`facet_packet`] accepts.
+pub const MAX_LATTICE_COORD: u64 = 1 << 32;
+
 /// Build the packet of one planar convex lattice polygon (`Ok(Err(skip))`: skipped, with the reason).
 pub fn facet_packet(poly: &[[i64; 3]], tag: FacetTag, cfg: &LoadConfig) -> Result<PacketOrSkip> {
+    // The i128 products below (normal · vertex) stay exact for |coordinate| ≤ 2^32 lattice
+    // steps (normal components < 2^67, products < 2^101); a fitted mesh uses 0 ..= 16·n.
+    if let Some(c) = poly.iter().flatten().find(|c| c.unsigned_abs() > MAX_LATTICE_COORD) {
+        bail!("vertex coordinate {c} exceeds the precompute's bit budget (|coordinate| ≤ 2^32 lattice steps)");
+    }
     let n = polygon_normal(poly);
     if n == [0; 3] || poly.len() > MAX_EDGES {
         return Ok(Err(Skip::Degenerate));
@@ -415,6 +426,7 @@ pub fn prepare(mesh: &Mesh, cfg: &LoadConfig) -> Result<Prepared> {
     cfg.validate()?;
     let fit = fit(mesh, cfg.n)?;
     let mut out = Prepared { fit: Some(fit), faces_in: mesh.faces.len(), ..Default::default() };
+    let mut seen: std::collections::HashSet<(u16, [i8; 3], Vec<[i64; 3]>)> = Default::default();
     for (fi, face) in mesh.faces.iter().enumerate() {
         let lat: Vec<[i64; 3]> = face.verts.iter().map(|&v| fit.to_lattice(mesh.positions[v as usize])).collect();
         let (pieces, split) = planar_pieces(lat)
@@ -422,6 +434,12 @@ pub fn prepare(mesh: &Mesh, cfg: &LoadConfig) -> Result<Prepared> {
         out.polygons_split += split as usize;
         for piece in pieces {
             let nrm = polygon_normal(&piece);
+            let mut key = piece.clone();
+            key.sort_unstable();
+            if !seen.insert((face.material, nrm.map(|v| v.signum() as i8), key)) {
+                out.skipped_duplicate += 1;
+                continue;
+            }
             let tag = FacetTag {
                 facet: out.packets.len() as u32,
                 material: face.material,

@@ -139,16 +139,14 @@ pub fn load(scene: &str) -> Result<Mesh> {
         bail!("scene '{scene}' is neither a file nor a built-in scene (built-ins: {})", names.join(", "));
     }
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let text = String::from_utf8(bytes).map_err(|e| {
-        anyhow::anyhow!(
-            "{}: not a text OBJ file (invalid UTF-8 at byte {})",
-            path.display(),
-            e.utf8_error().valid_up_to()
-        )
-    })?;
+    let text = obj_text(&path.display().to_string(), &bytes)?;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    parse_obj(&name, &text, |mtl| tobj::load_mtl(dir.join(mtl)))
+    let mesh = parse_obj(&name, text, |mtl| tobj::load_mtl(dir.join(mtl)))?;
+    if mesh.faces.is_empty() {
+        bail!("{name}: the mesh has no faces: nothing to load (only the built-in 'empty' scene may be empty)");
+    }
+    Ok(mesh)
 }
 
 fn convert_material(m: &tobj::Material) -> Material {
@@ -202,11 +200,39 @@ pub fn add_floor(mesh: &mut Mesh) {
     mesh.lights = vec![SceneLight::Grid([0.25, 0.8, 0.1])];
 }
 
+/// OBJ bytes as text: invalid UTF-8 is refused (binary junk, wrong format).
+fn obj_text<'a>(what: &str, bytes: &'a [u8]) -> Result<&'a str> {
+    std::str::from_utf8(bytes)
+        .map_err(|e| anyhow::anyhow!("{what}: not a text OBJ file (invalid UTF-8 at byte {})", e.valid_up_to()))
+}
+
+/// Load a scene from OBJ bytes and optional MTL bytes (every `mtllib` resolves to them): the
+/// file-free entry point of [`load`], used by the fuzzer.
+pub fn load_obj_bytes(name: &str, obj: &[u8], mtl: Option<&[u8]>) -> Result<Mesh> {
+    let text = obj_text(name, obj)?;
+    parse_obj(name, text, |_| match mtl {
+        Some(m) => tobj::load_mtl_buf(&mut BufReader::new(m)),
+        None => Err(tobj::LoadError::OpenFileFailed),
+    })
+}
+
+/// A face statement with fewer than three vertices (tobj would take it for a line and drop
+/// it silently): its line number and vertex count.
+fn short_face(text: &str) -> Option<(usize, usize)> {
+    text.lines().enumerate().find_map(|(i, l)| {
+        let mut t = l.split_whitespace();
+        (t.next() == Some("f")).then(|| t.count()).filter(|&k| k < 3).map(|k| (i + 1, k))
+    })
+}
+
 /// Parse OBJ text. `mtl_loader` resolves `mtllib` references.
 pub fn parse_obj<ML>(name: &str, text: &str, mtl_loader: ML) -> Result<Mesh>
 where
     ML: Fn(&Path) -> tobj::MTLLoadResult,
 {
+    if let Some((line, k)) = short_face(text) {
+        bail!("{name}: line {line}: a face needs at least 3 vertices, this one has {k}");
+    }
     let opts = tobj::LoadOptions { triangulate: false, single_index: false, ignore_points: true, ignore_lines: true };
     let (models, mats) = tobj::load_obj_buf(&mut BufReader::new(text.as_bytes()), &opts, mtl_loader)
         .map_err(|e| anyhow::anyhow!("{name}: malformed OBJ ({e})"))?;

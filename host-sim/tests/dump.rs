@@ -60,7 +60,8 @@ fn dump_matches_the_grid_the_lights_and_the_geometry() {
     let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
     let loaded = load_scene(&mesh, &cfg).unwrap();
     let lights = resolve_lights(&mesh, &loaded, &[]).unwrap();
-    let lcfg = LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, record_visits: false };
+    let lcfg =
+        LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, record_visits: false, ..Default::default() };
     let (lighting, stats) = run_diffusion::<U0>(&mesh, &loaded, &lights, &lcfg, |_, _| {}).unwrap();
     let mut buf = Vec::new();
     write_lit_dump(&lit_dump(&mesh, &loaded.grid, &loaded.fit, &lighting, &stats), &mut buf).unwrap();

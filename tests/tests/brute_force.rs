@@ -5,44 +5,18 @@
 
 mod common;
 
-use cell_core::dexel::FacetTag;
-use host_sim::grid::Grid;
-use host_sim::precompute::{facet_packet, planar_pieces, Contour, LoadConfig, Thickness, Q};
+use host_sim::precompute::{planar_pieces, Contour, Thickness, Q};
 use proptest::prelude::*;
-use rc2_tests::oracle::brute;
 
 const N: u32 = 20;
 
 fn check(poly: Vec<[i64; 3]>, thickness: Thickness, contour: Contour) -> Result<(), TestCaseError> {
-    let cfg = LoadConfig { n: N, thickness, contour };
     let (pieces, _) = match planar_pieces(poly) {
         Ok(p) => p,
         Err(_) => return Ok(()),
     };
     for piece in pieces {
-        let pkt = facet_packet(&piece, FacetTag::default(), &cfg).unwrap();
-        let mut grid = Grid::<64>::new(N, N);
-        if let Ok(pkt) = pkt {
-            grid.load_wave(std::slice::from_ref(&pkt), |_| {});
-        }
-        let mut got = Vec::new();
-        for c in &grid.cells {
-            for d in c.store.dexels() {
-                for z in d.span.lo..=d.span.hi {
-                    got.push([c.x as i64, c.y as i64, z as i64]);
-                }
-            }
-        }
-        got.sort();
-        let hi = N as i64 - 1;
-        let want = brute::facet_voxels(
-            &piece,
-            Q,
-            common::oracle_thickness(thickness),
-            common::oracle_contour(contour),
-            [0, 0, 0],
-            [hi, hi, hi],
-        );
+        let (got, want) = common::wave_and_oracle_voxels(&piece, N, thickness, contour);
         prop_assert_eq!(got, want, "piece {:?} {:?} {:?}", piece, thickness, contour);
     }
     Ok(())

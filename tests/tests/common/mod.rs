@@ -21,3 +21,41 @@ pub fn oracle_contour(c: Contour) -> brute::Contour {
         Contour::Conservative => brute::Contour::Conservative,
     }
 }
+
+/// Assert that the test runs with overflow checks (the test profile keeps them on).
+pub fn assert_overflow_checks() {
+    #[allow(clippy::assertions_on_constants)]
+    {
+        assert!(cfg!(debug_assertions), "run with overflow checks (the test profile keeps them on)");
+    }
+}
+
+/// One planar convex lattice piece loaded alone by the wave into an n-grid, and the voxels
+/// the brute-force oracle finds over the whole grid: `(got, want)`, both sorted.
+pub fn wave_and_oracle_voxels(
+    piece: &[[i64; 3]],
+    n: u32,
+    thickness: host_sim::precompute::Thickness,
+    contour: host_sim::precompute::Contour,
+) -> (Vec<[i64; 3]>, Vec<[i64; 3]>) {
+    use host_sim::precompute::{facet_packet, LoadConfig, Q};
+    let cfg = LoadConfig { n, thickness, contour };
+    let mut grid = host_sim::grid::Grid::<64>::new(n, n);
+    if let Ok(pkt) = facet_packet(piece, cell_core::dexel::FacetTag::default(), &cfg).expect("in budget") {
+        grid.load_wave(std::slice::from_ref(&pkt), |_| {});
+    }
+    assert_eq!(grid.summary().overflow_cells, 0);
+    let mut got = Vec::new();
+    for c in &grid.cells {
+        for d in c.store.dexels() {
+            for z in d.span.lo..=d.span.hi {
+                got.push([c.x as i64, c.y as i64, z as i64]);
+            }
+        }
+    }
+    got.sort_unstable();
+    let hi = n as i64 - 1;
+    let want =
+        brute::facet_voxels(piece, Q, oracle_thickness(thickness), oracle_contour(contour), [0, 0, 0], [hi, hi, hi]);
+    (got, want)
+}
