@@ -467,6 +467,9 @@ pub struct LightCell<F: FracBits, const FA: usize, const OB: usize, const L: usi
     pub counters: LightCounters,
     /// Depth of the voxel of the last beam processed (for tracing and coverage checks).
     pub last_z: Depth,
+    /// Bit p: the head of output buffer p is on the wire (sent, not yet acknowledged); it is
+    /// not merged into. Only links with acknowledgement set it.
+    pub head_in_flight: u8,
 }
 
 impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F, FA, OB, L> {
@@ -484,6 +487,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             lit: LitRuns::new(),
             counters: LightCounters::default(),
             last_z: 0,
+            head_in_flight: 0,
         }
     }
 
@@ -668,10 +672,13 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                             let _ = self.accept(sub, env.merge, activity);
                         }
                         Target::Out(p) => {
+                            // A head already on the wire (sent, not yet acknowledged) must not
+                            // change: a retransmission has to carry the same beam.
+                            let skip_head = (self.head_in_flight >> p.index() & 1) as usize;
                             let q = &mut self.out[p.index()];
                             // Same neighbour voxel, side by side: join the waiting message.
                             let joined = env.merge
-                                && q.iter_mut().any(|w| {
+                                && q.iter_mut().skip(skip_head).any(|w| {
                                     let j = (w.z == sub.z).then(|| w.beam.merged(&sub.beam)).flatten();
                                     if let Some(b) = j {
                                         w.beam = b;

@@ -392,6 +392,7 @@ pub fn run_classic<F: FracBits>(
         sources,
         wall_seconds: wall,
         peak_rss_mib: crate::load::peak_rss_mib(),
+        link_faults: None,
     };
     Ok((cl, stats))
 }

@@ -178,6 +178,11 @@ pub struct LightOpts {
     /// Do not emit a source's initial beams whose direction leads away from the occupied box.
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub skip_dead_directions: bool,
+    /// Faulty links: every transfer is framed with a CRC-32, corrupted or dropped at these
+    /// rates (e.g. `corrupt=0.01,drop=0.01,seed=7`; rates 0 ..= 0.5), and delivered by
+    /// acknowledgement and retransmission. Same lit voxels and image, more cycles.
+    #[arg(long, value_parser = clap::value_parser!(crate::faults::LinkFaults))]
+    pub link_faults: Option<crate::faults::LinkFaults>,
     /// Classic shadow rays instead of diffusion.
     #[command(flatten)]
     pub classic: crate::classic::ClassicOpts,
@@ -205,6 +210,7 @@ impl LightOpts {
             },
             skip_receding: self.skip_receding,
             skip_dead_directions: self.skip_dead_directions,
+            faults: self.link_faults,
         }
     }
 }
@@ -625,6 +631,7 @@ fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
         stats.policy,
         stats.merge
     );
+    print_link_faults(&stats);
     for s in &stats.sources {
         eprintln!(
             "  light {} at {:?}: T = {} cycles, LB = {} (T/LB {:.2}), {} beams, {} messages, peak FIFO {}",
@@ -791,6 +798,15 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     Ok(())
 }
 
+fn print_link_faults(s: &crate::lightjob::LightStats) {
+    if let Some(f) = &s.link_faults {
+        eprintln!(
+            "  links: {} data frames ({} retransmissions): {} corrupted + {} dropped data frames, {} acks lost, {} refused by CRC, {} duplicates discarded",
+            f.data_frames, f.retransmissions, f.data_corrupted, f.data_dropped, f.acks_lost, f.crc_rejected, f.duplicates
+        );
+    }
+}
+
 fn run_trace<F: cell_core::beam::FracBits>(a: &TraceArgs) -> Result<()> {
     let load = LoadConfig { n: a.n, thickness: a.sigma, contour: a.contour };
     load.validate()?;
@@ -955,6 +971,7 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
         "  cycles: load {}  light {} (T/LB {:.2}, {} beams)  shade {}",
         s.light.load_cycles, t.cycles, s.light.t_over_lb, t.beams_processed, s.shade_cycles
     );
+    print_link_faults(&s.light);
     eprintln!(
         "  pixels: {} covered, {} lit   bytes/cell {} (dexels {} + light {})   shading vs f64: max {} mean {:.3} levels",
         s.covered_pixels, s.lit_pixels, s.bytes_per_cell, s.bytes_per_cell_load, s.light.bytes_light_cell,

@@ -22,6 +22,7 @@ use cell_core::light::{
 };
 use rayon::prelude::*;
 
+use crate::faults::{FaultCounts, FaultyLinks, LinkFaults};
 use crate::grid::Grid;
 use crate::tiles::{grouped, tiles, tiles_ref};
 use crate::trace::Tap;
@@ -55,6 +56,9 @@ pub struct LightConfig {
     /// The dead-direction skip: the source emits no initial beam whose direction leads away
     /// from the occupied box (its rays are counted as skipped).
     pub skip_dead_directions: bool,
+    /// Send every link transfer through the codec and a fault injector, with acknowledgement
+    /// and retransmission ([`crate::faults`]); `None`: perfect links.
+    pub faults: Option<LinkFaults>,
 }
 
 impl Default for LightConfig {
@@ -68,6 +72,7 @@ impl Default for LightConfig {
             stepping: Stepping::Active,
             skip_receding: true,
             skip_dead_directions: true,
+            faults: None,
         }
     }
 }
@@ -166,6 +171,8 @@ pub struct Lighting<F: FracBits> {
     pub reports: Vec<SourceReport>,
     /// Voxels where a beam was processed, index `(y·n + x)·depth + z` (with `record_visits`).
     pub visited: Option<Vec<bool>>,
+    /// What the faulty links did (with `faults`).
+    pub link_faults: Option<FaultCounts>,
 }
 
 impl<F: FracBits> Lighting<F> {
@@ -235,6 +242,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
     let occupied = occupied_box(grid);
     let mut reports = Vec::new();
     let mut visited = cfg.record_visits.then(|| vec![false; (n * n * grid.depth) as usize]);
+    let mut links = cfg.faults.map(|f| FaultyLinks::new(f, cells.len()));
     for (si, src) in sources.iter().enumerate() {
         let env = LightEnv {
             source: src,
@@ -257,7 +265,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             t.light(&env);
         }
         let dead = cfg.skip_dead_directions.then_some(occupied);
-        let rec = Recording { visited: visited.as_deref_mut(), tap: tap.as_deref_mut() };
+        let rec = Recording { visited: visited.as_deref_mut(), tap: tap.as_deref_mut(), links: links.as_mut() };
         let r = diffuse_one(grid, &mut cells, src, si, &env, cfg.stepping, dead, rec, |c| progress(si, c))?;
         let mut rep = r;
         rep.position = src.pos.map(|p| p.to_num::<f64>());
@@ -292,13 +300,14 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
         }
         reports.push(rep);
     }
-    Ok(Lighting { n, cells, reports, visited })
+    Ok(Lighting { n, cells, reports, visited, link_faults: links.map(|l| l.counts) })
 }
 
 /// What a run records besides its results: visited voxels, cell traces.
 struct Recording<'a> {
     visited: Option<&'a mut [bool]>,
     tap: Option<&'a mut Tap>,
+    links: Option<&'a mut FaultyLinks>,
 }
 
 /// Active cells per piece of work handed to a thread (below it, splitting costs more than it
@@ -333,7 +342,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
     rec: Recording<'_>,
     mut progress: impl FnMut(u64),
 ) -> Result<SourceReport> {
-    let Recording { mut visited, mut tap } = rec;
+    let Recording { mut visited, mut tap, mut links } = rec;
     let n = grid.n as usize;
     let sv = src.voxel();
     let s_idx = sv[1] as usize * n + sv[0] as usize;
@@ -366,7 +375,10 @@ fn diffuse_one<F: FracBits, const D: usize>(
     let record = visited.is_some();
     let tapping = tap.is_some();
     let mut cycle: u64 = 0;
-    while !activity.is_quiescent() {
+    // With faulty links a message can sit in an output buffer, already delivered, waiting for
+    // its acknowledgement after the last beam was consumed: run until the buffers are empty.
+    let mut unacked = false;
+    while !activity.is_quiescent() || unacked {
         let mut moved = false;
         // 1. Source emitter.
         if let Some(b) = next_initial {
@@ -451,25 +463,61 @@ fn diffuse_one<F: FracBits, const D: usize>(
             offers.extend(t);
         }
         offers.par_sort_unstable_by_key(|o| (o.to, o.key, o.from));
-        let pulled: Vec<(i64, u64)> = grouped(cells, &mut offers, PIECE, |o| o.to as usize)
-            .into_par_iter()
-            .map(|(tile, base, group)| {
-                let delta = ActivityDelta::new();
-                let mut taken = 0u64;
-                for o in group.iter_mut() {
-                    let c = &mut tile[o.to as usize - base];
-                    if c.can_accept(env.fa) && c.accept(o.msg, env.merge, &delta).is_ok() {
-                        o.taken = true;
-                        taken += 1;
+        if let Some(fl) = links.as_deref_mut() {
+            // Faulty links: the same offers in the same order, one frame each through the codec
+            // and the injector; a message leaves its buffer only when acknowledged.
+            for o in offers.iter_mut() {
+                let to = o.to as usize;
+                if !cells[to].can_accept(env.fa) {
+                    continue;
+                }
+                let port = Port::ALL[o.port as usize];
+                let t = fl.transfer(
+                    cycle,
+                    o.from as usize,
+                    port,
+                    to,
+                    &o.msg,
+                    env.far,
+                    &mut cells[to],
+                    env.merge,
+                    &activity,
+                );
+                moved = true;
+                o.taken = t.acked;
+                let bit = 1u8 << o.port;
+                let sender = &mut cells[o.from as usize];
+                sender.head_in_flight =
+                    if t.acked { sender.head_in_flight & !bit } else { sender.head_in_flight | bit };
+                if t.delivered {
+                    rep.counts.messages += 1;
+                    if stepping == Stepping::Active && !in_active[to] {
+                        in_active[to] = true;
+                        woken.push(o.to);
                     }
                 }
-                (delta.get(), taken)
-            })
-            .collect();
-        for (delta, taken) in pulled {
-            activity.apply(delta);
-            rep.counts.messages += taken;
-            moved |= taken > 0;
+            }
+        } else {
+            let pulled: Vec<(i64, u64)> = grouped(cells, &mut offers, PIECE, |o| o.to as usize)
+                .into_par_iter()
+                .map(|(tile, base, group)| {
+                    let delta = ActivityDelta::new();
+                    let mut taken = 0u64;
+                    for o in group.iter_mut() {
+                        let c = &mut tile[o.to as usize - base];
+                        if c.can_accept(env.fa) && c.accept(o.msg, env.merge, &delta).is_ok() {
+                            o.taken = true;
+                            taken += 1;
+                        }
+                    }
+                    (delta.get(), taken)
+                })
+                .collect();
+            for (delta, taken) in pulled {
+                activity.apply(delta);
+                rep.counts.messages += taken;
+                moved |= taken > 0;
+            }
         }
         for o in offers.iter().filter(|o| o.taken) {
             cells[o.from as usize].out[o.port as usize].pop_front();
@@ -512,6 +560,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
             }
         };
         rep.counts.peak_active_cells = rep.counts.peak_active_cells.max(busy_now);
+        unacked = links.is_some() && busy_now > 0;
         if !moved {
             let blocked: Vec<String> = cells
                 .iter()

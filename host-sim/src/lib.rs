@@ -19,6 +19,7 @@ pub mod classic;
 pub mod cli;
 pub mod diffuse;
 pub mod dump;
+pub mod faults;
 pub mod grid;
 pub mod lightjob;
 pub mod limits;

@@ -170,6 +170,8 @@ pub struct LightStats {
     pub wall_seconds: f64,
     /// Peak resident memory (MiB).
     pub peak_rss_mib: Option<f64>,
+    /// What the faulty links did (`--link-faults`).
+    pub link_faults: Option<crate::faults::FaultCounts>,
 }
 
 /// Fail, naming the first cell and the capacity to raise, when a lit store overflowed (a lit
@@ -227,6 +229,7 @@ pub fn run_diffusion<F: FracBits>(
         sources: r.clone(),
         wall_seconds: wall,
         peak_rss_mib: crate::load::peak_rss_mib(),
+        link_faults: lighting.link_faults,
     };
     Ok((lighting, stats))
 }
