@@ -179,10 +179,14 @@ pub struct LightOpts {
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub skip_dead_directions: bool,
     /// Faulty links: every transfer is framed with a CRC-32, corrupted or dropped at these
-    /// rates (e.g. `corrupt=0.01,drop=0.01,seed=7`; rates 0 ..= 0.5), and delivered by
+    /// rates (e.g. `corrupt=0.01,drop=0.01,seed=7`; rates 0 ..= 1), and delivered by
     /// acknowledgement and retransmission. Same lit voxels and image, more cycles.
     #[arg(long, value_parser = clap::value_parser!(crate::faults::LinkFaults))]
     pub link_faults: Option<crate::faults::LinkFaults>,
+    /// Stop with a stall report (the blocked cells and their queues) after this many cycles in
+    /// a row without progress while beams are in flight: a deadlock, or a dead link.
+    #[arg(long, default_value_t = crate::diffuse::DEFAULT_STALL_CYCLES)]
+    pub stall_cycles: u64,
     /// Classic shadow rays instead of diffusion.
     #[command(flatten)]
     pub classic: crate::classic::ClassicOpts,
@@ -211,6 +215,7 @@ impl LightOpts {
             skip_receding: self.skip_receding,
             skip_dead_directions: self.skip_dead_directions,
             faults: self.link_faults,
+            stall_cycles: self.stall_cycles,
         }
     }
 }

@@ -27,6 +27,10 @@ use crate::grid::Grid;
 use crate::tiles::{grouped, tiles, tiles_ref};
 use crate::trace::Tap;
 
+/// Default of [`LightConfig::stall_cycles`]: a fault-free machine that cannot move for one
+/// cycle is deadlocked; under link faults a few cycles of bad luck are normal.
+pub const DEFAULT_STALL_CYCLES: u64 = 64;
+
 /// FIFO capacity compiled into the host's cells (the run-time `--fa` may be smaller).
 pub const FA_CAP: usize = 64;
 /// Messages an output buffer holds: a ±x/±y beam sends up to 3 sub-beams through one link.
@@ -59,6 +63,9 @@ pub struct LightConfig {
     /// Send every link transfer through the codec and a fault injector, with acknowledgement
     /// and retransmission ([`crate::faults`]); `None`: perfect links.
     pub faults: Option<LinkFaults>,
+    /// Cycles in a row without progress (no beam processed, delivered or acknowledged) while
+    /// beams are in flight before the run stops with a stall report (deadlock, dead link).
+    pub stall_cycles: u64,
 }
 
 impl Default for LightConfig {
@@ -73,6 +80,7 @@ impl Default for LightConfig {
             skip_receding: true,
             skip_dead_directions: true,
             faults: None,
+            stall_cycles: DEFAULT_STALL_CYCLES,
         }
     }
 }
@@ -266,7 +274,9 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
         }
         let dead = cfg.skip_dead_directions.then_some(occupied);
         let rec = Recording { visited: visited.as_deref_mut(), tap: tap.as_deref_mut(), links: links.as_mut() };
-        let r = diffuse_one(grid, &mut cells, src, si, &env, cfg.stepping, dead, rec, |c| progress(si, c))?;
+        let r = diffuse_one(grid, &mut cells, src, si, &env, cfg.stepping, dead, cfg.stall_cycles, rec, |c| {
+            progress(si, c)
+        })?;
         let mut rep = r;
         rep.position = src.pos.map(|p| p.to_num::<f64>());
         for (c, b) in cells.iter().zip(&before) {
@@ -339,6 +349,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
     env: &LightEnv<'_, F>,
     stepping: Stepping,
     dead: Option<OccupiedBox>,
+    stall_cycles: u64,
     rec: Recording<'_>,
     mut progress: impl FnMut(u64),
 ) -> Result<SourceReport> {
@@ -378,6 +389,9 @@ fn diffuse_one<F: FracBits, const D: usize>(
     // With faulty links a message can sit in an output buffer, already delivered, waiting for
     // its acknowledgement after the last beam was consumed: run until the buffers are empty.
     let mut unacked = false;
+    // Cycles in a row in which no beam was processed, delivered or acknowledged.
+    let mut stalled: u64 = 0;
+    let stall_limit = stall_cycles.max(1);
     while !activity.is_quiescent() || unacked {
         let mut moved = false;
         // 1. Source emitter.
@@ -483,7 +497,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
                     env.merge,
                     &activity,
                 );
-                moved = true;
+                moved |= t.delivered || t.acked;
                 o.taken = t.acked;
                 let bit = 1u8 << o.port;
                 let sender = &mut cells[o.from as usize];
@@ -561,7 +575,8 @@ fn diffuse_one<F: FracBits, const D: usize>(
         };
         rep.counts.peak_active_cells = rep.counts.peak_active_cells.max(busy_now);
         unacked = links.is_some() && busy_now > 0;
-        if !moved {
+        stalled = if moved { 0 } else { stalled + 1 };
+        if stalled >= stall_limit {
             let blocked: Vec<String> = cells
                 .iter()
                 .filter(|c| c.busy())
@@ -577,7 +592,8 @@ fn diffuse_one<F: FracBits, const D: usize>(
                 })
                 .collect();
             bail!(
-                "deadlock at cycle {cycle} of source {si}: {} beams in flight, nothing can move; blocked cells: {}",
+                "stall at cycle {cycle} of source {si}: no progress for {stalled} cycle(s) with {} beams in flight \
+                 (deadlock or dead link; --stall-cycles {stall_limit}); blocked cells (fifo, output buffers): {}",
                 activity.get(),
                 blocked.join("; ")
             );

@@ -42,15 +42,16 @@ pub struct LinkFaults {
 impl FromStr for LinkFaults {
     type Err = String;
 
-    /// `corrupt=0.01,drop=0.01,seed=7` (rates in 0 ..= 1; any part may be left out).
+    /// `corrupt=0.01,drop=0.01,seed=7` (rates in 0 ..= 1, 1 being a dead link; any part may be
+    /// left out).
     fn from_str(s: &str) -> Result<Self, String> {
         let mut f = LinkFaults { corrupt_ppm: 0, drop_ppm: 0, seed: 1 };
         for part in s.split(',').filter(|p| !p.trim().is_empty()) {
             let (k, v) = part.split_once('=').ok_or_else(|| format!("'{part}': expected key=value"))?;
             let rate = || -> Result<u32, String> {
                 let r: f64 = v.trim().parse().map_err(|_| format!("'{v}' is not a number"))?;
-                if !(0.0..=0.5).contains(&r) {
-                    return Err(format!("{k}={v}: a fault rate must lie in 0 ..= 0.5"));
+                if !(0.0..=1.0).contains(&r) {
+                    return Err(format!("{k}={v}: a fault rate must lie in 0 ..= 1"));
                 }
                 Ok((r * 1e6).round() as u32)
             };
@@ -264,6 +265,7 @@ mod tests {
         let f: LinkFaults = "corrupt=0.01,drop=0.02,seed=9".parse().unwrap();
         assert_eq!(f, LinkFaults { corrupt_ppm: 10_000, drop_ppm: 20_000, seed: 9 });
         assert!("corrupt=2".parse::<LinkFaults>().is_err());
+        assert!("drop=1".parse::<LinkFaults>().is_ok(), "a dead link is a valid test case");
         assert!("bogus=0.1".parse::<LinkFaults>().is_err());
         assert!("drop".parse::<LinkFaults>().is_err());
     }

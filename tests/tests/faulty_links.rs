@@ -45,3 +45,24 @@ fn faulty_links_light_exactly_what_clean_links_light() {
         }
     }
 }
+
+/// The stall detector: a dead link (every frame lost) stops the run after `stall_cycles`
+/// cycles without progress, naming the blocked cells and their queues, instead of spinning;
+/// with perfect links the machine never goes a single cycle without progress.
+#[test]
+fn a_dead_link_is_reported_as_a_stall_and_perfect_links_never_stall() {
+    let mesh = host_sim::scene::load("cornell").unwrap();
+    let loaded =
+        load_scene(&mesh, &LoadConfig { n: 24, thickness: Thickness::Naive, contour: Contour::Projected }).unwrap();
+    let lights = resolve_lights(&mesh, &loaded, &[]).unwrap();
+    let dead = LinkFaults { corrupt_ppm: 0, drop_ppm: 1_000_000, seed: 1 };
+    let cfg = LightConfig { fa: 4, faults: Some(dead), stall_cycles: 7, ..Default::default() };
+    let err = run_diffusion::<U0>(&mesh, &loaded, &lights, &cfg, |_, _| {}).err().expect("a dead link must stall");
+    let msg = err.to_string();
+    assert!(msg.contains("no progress for 7 cycle(s)") && msg.contains("blocked cells"), "{msg}");
+    assert!(msg.contains("fifo") && msg.contains("out ["), "the report shows the queues: {msg}");
+    for policy in [Policy::Wavefront, Policy::Thesis] {
+        let cfg = LightConfig { fa: 1, policy, merge: false, stall_cycles: 1, ..Default::default() };
+        run_diffusion::<U0>(&mesh, &loaded, &lights, &cfg, |_, _| {}).expect("perfect links never stall");
+    }
+}
