@@ -178,9 +178,11 @@ pub struct LightOpts {
     /// Do not emit a source's initial beams whose direction leads away from the occupied box.
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub skip_dead_directions: bool,
-    /// Faulty links: every transfer is framed with a CRC-32, corrupted or dropped at these
-    /// rates (e.g. `corrupt=0.01,drop=0.01,seed=7`; rates 0 ..= 1), and delivered by
-    /// acknowledgement and retransmission. Same lit voxels and image, more cycles.
+    /// Faulty links: every transfer is framed with a CRC-32, corrupted, dropped or delayed at
+    /// these rates (e.g. `corrupt=0.01,drop=0.01,delay=0.05,delay-cycles=8,seed=7`; rates
+    /// 0 ..= 1 summing to at most 1; a delayed frame is held 1 ..= delay-cycles cycles, default
+    /// 8), and delivered by acknowledgement and retransmission. Same lit voxels and image, more
+    /// cycles.
     #[arg(long, value_parser = clap::value_parser!(crate::faults::LinkFaults))]
     pub link_faults: Option<crate::faults::LinkFaults>,
     /// Stop with a stall report (the blocked cells and their queues) after this many cycles in
@@ -806,8 +808,16 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
 fn print_link_faults(s: &crate::lightjob::LightStats) {
     if let Some(f) = &s.link_faults {
         eprintln!(
-            "  links: {} data frames ({} retransmissions): {} corrupted + {} dropped data frames, {} acks lost, {} refused by CRC, {} duplicates discarded",
-            f.data_frames, f.retransmissions, f.data_corrupted, f.data_dropped, f.acks_lost, f.crc_rejected, f.duplicates
+            "  links: {} data frames ({} retransmissions): {} corrupted + {} dropped data frames, {} acks lost, {} refused by CRC, {} duplicates discarded; {} frames delayed ({} link-cycles held)",
+            f.data_frames,
+            f.retransmissions,
+            f.data_corrupted,
+            f.data_dropped,
+            f.acks_lost,
+            f.crc_rejected,
+            f.duplicates,
+            f.data_delayed,
+            f.delay_cycles
         );
     }
 }

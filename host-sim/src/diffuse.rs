@@ -250,6 +250,13 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
     let occupied = occupied_box(grid);
     let mut reports = Vec::new();
     let mut visited = cfg.record_visits.then(|| vec![false; (n * n * grid.depth) as usize]);
+    if let Some(f) = cfg.faults.filter(|f| f.delay_ppm > 0 && f.delay_cycles as u64 >= cfg.stall_cycles.max(1)) {
+        bail!(
+            "--link-faults delay-cycles={} must be below --stall-cycles {}: a frame held on the wire is not progress",
+            f.delay_cycles,
+            cfg.stall_cycles
+        );
+    }
     let mut links = cfg.faults.map(|f| FaultyLinks::new(f, cells.len()));
     for (si, src) in sources.iter().enumerate() {
         let env = LightEnv {

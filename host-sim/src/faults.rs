@@ -14,6 +14,10 @@
 //! 3. the sender pops the message and flips the bit only when an intact acknowledgement
 //!    arrives; otherwise it sends the same frame again in a later cycle (a retransmission).
 //!
+//! A delayed data frame stays on the wire for 1 ..= `delay_cycles` extra cycles (drawn per
+//! frame) and arrives intact; the link carries nothing else meanwhile (stop-and-wait), and the
+//! sender keeps the message until the acknowledgement of the frame's arrival comes back.
+//!
 //! A beam is therefore applied exactly once, and the no-loss rule holds: nothing leaves an
 //! output buffer before the neighbour holds it. The lit voxels do not depend on when a beam
 //! arrives (beam merging is exact, SPEC §3), so a faulty run lights exactly what a clean run
@@ -35,6 +39,10 @@ pub struct LinkFaults {
     pub corrupt_ppm: u32,
     /// Probability (ppm) that a frame is lost.
     pub drop_ppm: u32,
+    /// Probability (ppm) that a data frame is held on the wire.
+    pub delay_ppm: u32,
+    /// Longest hold of a delayed frame, in cycles (each delay is 1 ..= this, drawn per frame).
+    pub delay_cycles: u32,
     /// Seed of the fault decisions.
     pub seed: u64,
 }
@@ -42,10 +50,10 @@ pub struct LinkFaults {
 impl FromStr for LinkFaults {
     type Err = String;
 
-    /// `corrupt=0.01,drop=0.01,seed=7` (rates in 0 ..= 1, 1 being a dead link; any part may be
-    /// left out).
+    /// `corrupt=0.01,drop=0.01,delay=0.05,delay-cycles=8,seed=7` (rates in 0 ..= 1, 1 being a
+    /// dead link; any part may be left out; the three rates may sum to at most 1).
     fn from_str(s: &str) -> Result<Self, String> {
-        let mut f = LinkFaults { corrupt_ppm: 0, drop_ppm: 0, seed: 1 };
+        let mut f = LinkFaults::NONE;
         for part in s.split(',').filter(|p| !p.trim().is_empty()) {
             let (k, v) = part.split_once('=').ok_or_else(|| format!("'{part}': expected key=value"))?;
             let rate = || -> Result<u32, String> {
@@ -58,12 +66,32 @@ impl FromStr for LinkFaults {
             match k.trim() {
                 "corrupt" => f.corrupt_ppm = rate()?,
                 "drop" => f.drop_ppm = rate()?,
+                "delay" => f.delay_ppm = rate()?,
+                "delay-cycles" => {
+                    f.delay_cycles =
+                        v.trim().parse().ok().filter(|k| (1..=MAX_DELAY_CYCLES).contains(k)).ok_or_else(|| {
+                            format!("delay-cycles={v}: expected an integer in 1 ..= {MAX_DELAY_CYCLES}")
+                        })?
+                }
                 "seed" => f.seed = v.trim().parse().map_err(|_| format!("seed '{v}' is not an integer"))?,
-                other => return Err(format!("unknown link fault '{other}' (corrupt, drop, seed)")),
+                other => {
+                    return Err(format!("unknown link fault '{other}' (corrupt, drop, delay, delay-cycles, seed)"))
+                }
             }
+        }
+        if f.corrupt_ppm as u64 + f.drop_ppm as u64 + f.delay_ppm as u64 > 1_000_000 {
+            return Err("corrupt + drop + delay: the fault rates must sum to at most 1".into());
         }
         Ok(f)
     }
+}
+
+/// Longest delay a frame may be given, in cycles.
+pub const MAX_DELAY_CYCLES: u32 = 1 << 16;
+
+impl LinkFaults {
+    /// Perfect links (seed 1, delays up to 8 cycles once a rate is set).
+    pub const NONE: LinkFaults = LinkFaults { corrupt_ppm: 0, drop_ppm: 0, delay_ppm: 0, delay_cycles: 8, seed: 1 };
 }
 
 /// What the faulty links did.
@@ -77,6 +105,10 @@ pub struct FaultCounts {
     pub data_corrupted: u64,
     /// Data frames lost.
     pub data_dropped: u64,
+    /// Data frames held on the wire (they arrive intact, later).
+    pub data_delayed: u64,
+    /// Cycles links spent holding delayed frames.
+    pub delay_cycles: u64,
     /// Acknowledgements corrupted (refused by the CRC) or lost.
     pub acks_lost: u64,
     /// Frames whose CRC failed at the receiving end (never applied).
@@ -92,6 +124,8 @@ impl FaultCounts {
         self.retransmissions += o.retransmissions;
         self.data_corrupted += o.data_corrupted;
         self.data_dropped += o.data_dropped;
+        self.data_delayed += o.data_delayed;
+        self.delay_cycles += o.delay_cycles;
         self.acks_lost += o.acks_lost;
         self.crc_rejected += o.crc_rejected;
         self.duplicates += o.duplicates;
@@ -102,6 +136,8 @@ impl FaultCounts {
 enum Fate {
     Deliver,
     Drop,
+    /// Hold the frame on the wire this many extra cycles.
+    Delay(u32),
     /// Flip these bits (indices into the frame's bits).
     Corrupt([u64; 2]),
 }
@@ -121,6 +157,8 @@ pub struct FaultyLinks {
     tx_tried: Vec<[bool; 8]>,
     /// Per cell and incoming port: the sequence bit last accepted (2: none yet).
     rx_last: Vec<[u8; 8]>,
+    /// Per cell and outgoing port: the cycle a delayed frame arrives (0: none on the wire).
+    arrives: Vec<[u64; 8]>,
     /// Counters.
     pub counts: FaultCounts,
 }
@@ -142,6 +180,7 @@ impl FaultyLinks {
             tx_seq: vec![[0; 8]; cells],
             tx_tried: vec![[false; 8]; cells],
             rx_last: vec![[2; 8]; cells],
+            arrives: vec![[0; 8]; cells],
             counts: FaultCounts::default(),
         }
     }
@@ -156,6 +195,8 @@ impl FaultyLinks {
             let bits = (len * 8) as u64;
             let r2 = mix(r);
             Fate::Corrupt([r2 % bits, (r2 >> 32) % bits])
+        } else if !ack && p < self.faults.drop_ppm + self.faults.corrupt_ppm + self.faults.delay_ppm {
+            Fate::Delay(1 + (mix(r) % self.faults.delay_cycles as u64) as u32)
         } else {
             Fate::Deliver
         }
@@ -163,7 +204,7 @@ impl FaultyLinks {
 
     fn carry(fate: &Fate, frame: &mut [u8]) -> bool {
         match fate {
-            Fate::Deliver => true,
+            Fate::Deliver | Fate::Delay(_) => true,
             Fate::Drop => false,
             Fate::Corrupt(bits) => {
                 frame[(bits[0] / 8) as usize] ^= 1 << (bits[0] % 8);
@@ -195,17 +236,34 @@ impl FaultyLinks {
         // Cannot fail: the opposite of a unit step is a unit step.
         let back = Port::from_delta(-dx, -dy).expect("opposite port").index();
         let seq = self.tx_seq[from][p];
-        self.counts.data_frames += 1;
-        if std::mem::replace(&mut self.tx_tried[from][p], true) {
-            self.counts.retransmissions += 1;
-        }
         let mut buf = [0u8; MAX_FRAME];
         // Cannot fail: a beam frame has a fixed size below MAX_FRAME.
         let len = encode(seq, &Message::Beam(*m), &mut buf).expect("beam frame fits");
-        let fate = self.fate(cycle, from, port, false, len);
+        let fate = match self.arrives[from][p] {
+            0 => {
+                self.counts.data_frames += 1;
+                if std::mem::replace(&mut self.tx_tried[from][p], true) {
+                    self.counts.retransmissions += 1;
+                }
+                self.fate(cycle, from, port, false, len)
+            }
+            // The delayed frame is still on the wire.
+            t if cycle < t => return Transfer { delivered: false, acked: false },
+            // It arrives (intact) now.
+            _ => {
+                self.arrives[from][p] = 0;
+                Fate::Deliver
+            }
+        };
         match fate {
             Fate::Drop => self.counts.data_dropped += 1,
             Fate::Corrupt(_) => self.counts.data_corrupted += 1,
+            Fate::Delay(k) => {
+                self.counts.data_delayed += 1;
+                self.counts.delay_cycles += k as u64;
+                self.arrives[from][p] = cycle + k as u64;
+                return Transfer { delivered: false, acked: false };
+            }
             Fate::Deliver => {}
         }
         if !Self::carry(&fate, &mut buf[..len]) {
@@ -263,7 +321,11 @@ mod tests {
     #[test]
     fn parses_fault_specs() {
         let f: LinkFaults = "corrupt=0.01,drop=0.02,seed=9".parse().unwrap();
-        assert_eq!(f, LinkFaults { corrupt_ppm: 10_000, drop_ppm: 20_000, seed: 9 });
+        assert_eq!(f, LinkFaults { corrupt_ppm: 10_000, drop_ppm: 20_000, seed: 9, ..LinkFaults::NONE });
+        let d: LinkFaults = "delay=0.5,delay-cycles=3".parse().unwrap();
+        assert_eq!((d.delay_ppm, d.delay_cycles), (500_000, 3));
+        assert!("delay-cycles=0".parse::<LinkFaults>().is_err());
+        assert!("delay=0.6,drop=0.6".parse::<LinkFaults>().is_err(), "rates sum above 1");
         assert!("corrupt=2".parse::<LinkFaults>().is_err());
         assert!("drop=1".parse::<LinkFaults>().is_ok(), "a dead link is a valid test case");
         assert!("bogus=0.1".parse::<LinkFaults>().is_err());
