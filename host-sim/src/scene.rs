@@ -122,7 +122,7 @@ pub fn load(scene: &str) -> Result<Mesh> {
     }
     if let Some((obj, mtl)) = builtin_source(scene) {
         let mut mesh = parse_obj(scene, obj, |_| match mtl {
-            Some(m) => tobj::load_mtl_buf(&mut BufReader::new(m.as_bytes())),
+            Some(m) => load_mtl_bytes(scene, m.as_bytes()),
             None => Err(tobj::LoadError::OpenFileFailed),
         })?;
         mesh.lights = match scene {
@@ -142,7 +142,11 @@ pub fn load(scene: &str) -> Result<Mesh> {
     let text = obj_text(&path.display().to_string(), &bytes)?;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let mesh = parse_obj(&name, text, |mtl| tobj::load_mtl(dir.join(mtl)))?;
+    let mesh = parse_obj(&name, text, |mtl| {
+        let path = dir.join(mtl);
+        let bytes = std::fs::read(&path).map_err(|_| tobj::LoadError::OpenFileFailed)?;
+        load_mtl_bytes(&path.display().to_string(), &bytes)
+    })?;
     if mesh.faces.is_empty() {
         bail!("{name}: the mesh has no faces: nothing to load (only the built-in 'empty' scene may be empty)");
     }
@@ -211,8 +215,31 @@ fn obj_text<'a>(what: &str, bytes: &'a [u8]) -> Result<&'a str> {
 pub fn load_obj_bytes(name: &str, obj: &[u8], mtl: Option<&[u8]>) -> Result<Mesh> {
     let text = obj_text(name, obj)?;
     parse_obj(name, text, |_| match mtl {
-        Some(m) => tobj::load_mtl_buf(&mut BufReader::new(m)),
+        Some(m) => load_mtl_bytes(&format!("{name} (MTL)"), m),
         None => Err(tobj::LoadError::OpenFileFailed),
+    })
+}
+
+/// Parse MTL bytes with tobj, refusing first what tobj 4.0.5 would panic on: a colour
+/// statement (`Ka`, `Kd`, `Ks`, `Ke`) with fewer than three numbers (found by the `obj_load`
+/// fuzz target; regression input `fuzz/regressions/obj_load/crash-short-ke`). The refusal is a
+/// warning naming the line; the scene then uses the default material, like any unreadable MTL.
+fn load_mtl_bytes(what: &str, bytes: &[u8]) -> tobj::MTLLoadResult {
+    if let Some((line, key, k)) = short_colour(bytes) {
+        eprintln!("warning: {what}: line {line}: '{key}' needs 3 numbers, found {k}");
+        return Err(tobj::LoadError::MaterialParseError);
+    }
+    tobj::load_mtl_buf(&mut BufReader::new(bytes))
+}
+
+/// The first colour statement with fewer than three values: (line, keyword, values). tobj reads
+/// lines as UTF-8 (lossily, as we do here) and splits on whitespace.
+fn short_colour(bytes: &[u8]) -> Option<(usize, String, usize)> {
+    String::from_utf8_lossy(bytes).lines().enumerate().find_map(|(i, l)| {
+        let mut t = l.split_whitespace();
+        let key = t.next()?;
+        let k = t.take(3).count();
+        (matches!(key, "Ka" | "Kd" | "Ks" | "Ke") && k < 3).then(|| (i + 1, key.to_string(), k))
     })
 }
 
@@ -294,6 +321,21 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn short_colour_lines_in_mtl_are_refused_not_panicked_on() {
+        // tobj 4.0.5 unwraps a short colour statement; each keyword, 0..=2 values.
+        for key in ["Ka", "Kd", "Ks", "Ke"] {
+            for vals in ["", " 0.5", " 0.5 0.5"] {
+                let mtl = format!("newmtl red\nKd 1 0 0\n{key}{vals}\n");
+                let obj = b"mtllib x.mtl\nusemtl red\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+                let m = load_obj_bytes("t", obj, Some(mtl.as_bytes())).expect("the OBJ itself is fine");
+                assert_eq!(m.materials.len(), 1, "{key}{vals}: the MTL is refused, default material");
+            }
+        }
+        assert_eq!(short_colour(b"Kd 1 2 3\n  Ks 1\n"), Some((2, "Ks".into(), 1)));
+        assert_eq!(short_colour(b"Kd 1 2 3\nKsx 1\n"), None);
+    }
 
     #[test]
     fn builtins_load() {
