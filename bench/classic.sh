@@ -4,6 +4,8 @@
 # with every occupied voxel emitting (the thesis's ray count ΣS_i) to estimate the occupancy at
 # which diffusion starts to win on messages. Writes bench-out/classic.csv and prints a table.
 # NS (default "64 128") and SCENES choose the runs; n = 256 takes minutes per scene, 512 ~10 min.
+# Then plots the table (bench/classic_plot.py, matplotlib in bench-out/venv) to $PLOT
+# (default docs/classic-vs-diffusion.png).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 NS=${NS:-"64 128"}
@@ -37,7 +39,10 @@ for method in ("diffusion", "classic", "all"):
     l = s.get("light", s)
     ref = s.get("reference") or {}
     if method == "diffusion":
-        rays, cell, cdist, link, ldist, fifo = l["beams_processed"], l["lb_cell_load"], "", "", "", l["peak_fifo"]
+        rays, cell, link, ldist, fifo = l["beams_processed"], l["lb_cell_load"], l["peak_link_load"], l["peak_link_distance"], l["peak_fifo"]
+        bx, by = l["sources"][0]["busiest_cell"]
+        sx, sy = (int(c + 0.5) for c in l["sources"][0]["position"][:2])
+        cdist = max(abs(bx - sx), abs(by - sy))
     else:
         rays, cell, cdist, link, ldist, fifo = classic_line(o + ("-all.log" if method == "all" else "-classic.log"))
     print(f"{scene},{n},{voxels},{occ:.3f},{'classic-all' if method == 'all' else method},{rays},{l['messages']},{l['cycles']},"
@@ -71,3 +76,10 @@ for (scene, n), m in by.items():
     cross = 100.0 * int(d["messages"]) / (per * n**3 * sources)
     print(f"| {scene} | {n} | {float(a['occupancy_pct']):.2f} | {per:.1f} | {d['messages']} | {cross:.2f} | {300 / n:.2f} |")
 PY
+# The plot (matplotlib in a venv under bench-out/, not a dependency of the product).
+VENV=bench-out/venv
+if [ ! -x "$VENV/bin/python" ]; then
+  python3 -m venv "$VENV"
+fi
+"$VENV/bin/pip" install -q matplotlib
+"$VENV/bin/python" bench/classic_plot.py "$CSV" "${PLOT:-docs/classic-vs-diffusion.png}"

@@ -363,6 +363,8 @@ pub fn run_classic<F: FracBits>(
         messages: c.messages(),
         peak_fifo: c.peak_fifo,
         blocked_cell_cycles: c.blocked_cell_cycles,
+        peak_link_load: c.peak_link_load,
+        peak_link_distance: c.peak_link_distance,
         ..Default::default()
     };
     let totals = as_diffusion(&cl.totals);

@@ -641,7 +641,7 @@ fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
     print_link_faults(&stats);
     for s in &stats.sources {
         eprintln!(
-            "  light {} at {:?}: T = {} cycles, LB = {} (T/LB {:.2}), {} beams, {} messages, peak FIFO {}",
+            "  light {} at {:?}: T = {} cycles, LB = {} (T/LB {:.2}), {} beams, {} messages, peak FIFO {}, peak link load {} at distance {}",
             s.source + 1,
             s.position,
             s.counts.cycles,
@@ -649,7 +649,9 @@ fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
             s.counts.cycles as f64 / s.counts.lower_bound.max(1) as f64,
             s.counts.beams_processed,
             s.counts.messages,
-            s.counts.peak_fifo
+            s.counts.peak_fifo,
+            s.counts.peak_link_load,
+            s.counts.peak_link_distance
         );
     }
     eprintln!(

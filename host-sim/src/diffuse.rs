@@ -35,8 +35,9 @@ pub const DEFAULT_STALL_CYCLES: u64 = 64;
 pub const FA_CAP: usize = 64;
 /// Messages an output buffer holds: a ±x/±y beam sends up to 3 sub-beams through one link.
 pub const OB_CAP: usize = 3;
-/// Lit runs per column.
-pub const LIT_CAP: usize = 32;
+/// Lit runs per column: 64 since the office scene `bureau2` at n = 128 needed more than 32 in
+/// two columns running along a wall (a lit-store overflow there is an error, never a loss).
+pub const LIT_CAP: usize = 64;
 
 /// The host's lighting cell type.
 pub type HostLightCell<F> = LightCell<F, FA_CAP, OB_CAP, LIT_CAP>;
@@ -127,6 +128,11 @@ pub struct DiffusionCounts {
     pub blocked_cell_cycles: u64,
     /// Most cells active in one cycle.
     pub peak_active_cells: u64,
+    /// Most messages one link carried in one direction (the thesis expects the links near the
+    /// source to be the busiest, §4.1.3).
+    pub peak_link_load: u64,
+    /// Chebyshev distance (cells) from that link's sending cell to the source's column.
+    pub peak_link_distance: u32,
 }
 
 impl DiffusionCounts {
@@ -147,6 +153,10 @@ impl DiffusionCounts {
         self.peak_fifo = self.peak_fifo.max(o.peak_fifo);
         self.blocked_cell_cycles += o.blocked_cell_cycles;
         self.peak_active_cells = self.peak_active_cells.max(o.peak_active_cells);
+        if o.peak_link_load > self.peak_link_load {
+            self.peak_link_load = o.peak_link_load;
+            self.peak_link_distance = o.peak_link_distance;
+        }
     }
 
     /// cycles / lower_bound.
@@ -389,6 +399,8 @@ fn diffuse_one<F: FracBits, const D: usize>(
         in_active[s_idx] = true;
     }
     let mut offers: Vec<Offer<F>> = Vec::new();
+    // Messages delivered per (sending cell, port).
+    let mut link_load = vec![0u32; cells.len() * 8];
     let mut woken: Vec<u32> = Vec::new();
     let record = visited.is_some();
     let tapping = tap.is_some();
@@ -512,6 +524,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
                     if t.acked { sender.head_in_flight & !bit } else { sender.head_in_flight | bit };
                 if t.delivered {
                     rep.counts.messages += 1;
+                    link_load[o.from as usize * 8 + o.port as usize] += 1;
                     if stepping == Stepping::Active && !in_active[to] {
                         in_active[to] = true;
                         woken.push(o.to);
@@ -542,6 +555,9 @@ fn diffuse_one<F: FracBits, const D: usize>(
         }
         for o in offers.iter().filter(|o| o.taken) {
             cells[o.from as usize].out[o.port as usize].pop_front();
+            if links.is_none() {
+                link_load[o.from as usize * 8 + o.port as usize] += 1;
+            }
             if let Some(t) = tap.as_deref_mut() {
                 t.transfer(o.from as usize, o.to as usize, Port::ALL[o.port as usize], &o.msg);
             }
@@ -611,6 +627,11 @@ fn diffuse_one<F: FracBits, const D: usize>(
     }
     progress(cycle);
     rep.counts.cycles = cycle;
+    if let Some((i, &load)) = link_load.iter().enumerate().max_by_key(|&(i, &l)| (l, std::cmp::Reverse(i))) {
+        let (x, y) = ((i / 8) % n, (i / 8) / n);
+        rep.counts.peak_link_load = load as u64;
+        rep.counts.peak_link_distance = (x.abs_diff(sv[0] as usize)).max(y.abs_diff(sv[1] as usize)) as u32;
+    }
     Ok(rep)
 }
 

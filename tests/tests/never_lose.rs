@@ -14,11 +14,12 @@ use host_sim::lightjob::check_lit_overflow;
 
 fn striped_column_lighting(stripes: u16) -> (u32, u64, Result<(), String>) {
     let n = 2 * stripes as u32 + 8;
-    let mut grid = Grid::<64>::new(n, n);
+    let mut grid = Grid::<128>::new(n, n);
     let y0 = n / 2;
     let col = &mut grid.cells[(y0 * n) as usize];
     for k in 0..stripes {
-        col.store.insert(Span { lo: 2 * k + 2, hi: 2 * k + 2 }, FacetTag::default());
+        let ins = col.store.insert(Span { lo: 2 * k + 2, hi: 2 * k + 2 }, FacetTag::default());
+        assert_eq!(ins.lost, 0, "the column holds every stripe");
     }
     let src = source_at(0, [n as f64 - 1.0, y0 as f64, n as f64 / 2.0], n).unwrap();
     let cfg = LightConfig {
@@ -28,18 +29,19 @@ fn striped_column_lighting(stripes: u16) -> (u32, u64, Result<(), String>) {
         record_visits: false,
         ..Default::default()
     };
-    let lighting = diffuse::<U0, 64>(&grid, &[src], &cfg, |_, _| {}).unwrap();
+    let lighting = diffuse::<U0, 128>(&grid, &[src], &cfg, |_, _| {}).unwrap();
     let runs = lighting.cells[(y0 * n) as usize].lit.runs().len() as u32;
     (runs, lighting.lit_overflows(), check_lit_overflow(&lighting).map_err(|e| e.to_string()))
 }
 
 #[test]
 fn lit_store_overflow_names_the_cell_and_the_capacity() {
-    let (runs, lost, res) = striped_column_lighting(44);
+    let stripes = LIT_CAP as u16 + 24;
+    let (runs, lost, res) = striped_column_lighting(stripes);
     assert_eq!(runs as usize, LIT_CAP, "the column's lit store is full");
     assert!(lost > 0);
     let err = res.unwrap_err();
-    let n = 2 * 44 + 8;
+    let n = 2 * stripes as u32 + 8;
     assert!(err.contains(&format!("first at cell (0, {})", n / 2)), "{err}");
     assert!(err.contains(&format!("more than {LIT_CAP} lit runs")), "{err}");
     assert!(err.contains("raise LIT_CAP"), "{err}");
@@ -53,3 +55,4 @@ fn below_capacity_nothing_is_lost() {
     assert_eq!(lost, 0);
     res.unwrap();
 }
+
