@@ -3,37 +3,46 @@
 # n, render with both methods against the f64 reference, and run the classic phase once more
 # with every occupied voxel emitting (the thesis's ray count ΣS_i) to estimate the occupancy at
 # which diffusion starts to win on messages. Writes bench-out/classic.csv and prints a table.
-# NS (default "64 128") and SCENES choose the runs; n = 256 takes minutes per scene, 512 ~10 min.
+# NS (default "64 128") and SCENES choose the runs; n = 256 takes minutes per scene, 512 ~10 min;
+# the every-voxel classic run is skipped above ALL_MAX_N (default 128). APPEND=1 adds rows to an
+# existing CSV (the table and plot then cover every row).
 # Then plots the table (bench/classic_plot.py, matplotlib in bench-out/venv) to $PLOT
 # (default docs/classic-vs-diffusion.png).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 NS=${NS:-"64 128"}
 SCENES=${SCENES:-"cornell bureau1 bureau2 classe"}
+# classic-all (every voxel emits) costs ~8x more per doubling of n: only up to this n.
+ALL_MAX_N=${ALL_MAX_N:-128}
 mkdir -p bench-out
 cargo build --release -q -p host-sim
 B=./target/release/host-sim
 CSV=bench-out/classic.csv
-echo "scene,n,voxels,occupancy_pct,method,rays,messages,cycles,busiest_cell_load,busiest_cell_distance,peak_link_load,peak_link_distance,peak_fifo,shadow_disagreement_pct,psnr_db,wall_s" > "$CSV"
+[[ ${APPEND:-0} == 1 && -f $CSV ]] || echo "scene,n,voxels,occupancy_pct,method,rays,messages,cycles,busiest_cell_load,busiest_cell_distance,peak_link_load,peak_link_distance,peak_fifo,shadow_disagreement_pct,psnr_db,wall_s" > "$CSV"
 for n in $NS; do
   for scene in $SCENES; do
     o=bench-out/classic-$scene-$n
     $B render "$scene" --n "$n" --reference --quiet --out "$o-diffusion.png" --stats "$o-diffusion.json" 2> "$o-diffusion.log"
     $B render "$scene" --n "$n" --reference --quiet --lighting classic --out "$o-classic.png" --stats "$o-classic.json" 2> "$o-classic.log"
-    $B light "$scene" --n "$n" --sigma naive --contour projected --quiet --lighting classic --emitters all \
-      --stats "$o-all.json" 2> "$o-all.log"
+    rm -f "$o-all.json" "$o-all.log"
+    if (( n <= ALL_MAX_N )); then
+      $B light "$scene" --n "$n" --sigma naive --contour projected --quiet --lighting classic --emitters all \
+        --stats "$o-all.json" 2> "$o-all.log"
+    fi
+    $B voxelize "$scene" --n "$n" --sigma naive --contour projected --quiet --stats "$o-vox.json" 2> /dev/null
     python3 - "$o" "$scene" "$n" >> "$CSV" <<'PY'
-import json, re, sys
+import json, os, re, sys
 o, scene, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
 def classic_line(log):
     m = re.search(r"classic: (\d+) rays, .*?busiest cell (\d+) steps at distance (\d+); peak link load (\d+) at distance (\d+); peak FIFO (\d+)", open(log).read())
     if not m:
         sys.exit(f"no classic summary in {log}")
     return [int(g) for g in m.groups()]
-rays_all, _, _, _, _, _ = classic_line(o + "-all.log")
-voxels = rays_all // max(1, len(json.load(open(o + "-all.json"))["sources"]))
+voxels = json.load(open(o + "-vox.json"))["voxels"]
 occ = 100.0 * voxels / n**3
 for method in ("diffusion", "classic", "all"):
+    if method == "all" and not os.path.exists(o + "-all.json"):
+        continue
     path = o + ("-all.json" if method == "all" else f"-{method}.json")
     s = json.load(open(path))
     l = s.get("light", s)
@@ -60,6 +69,8 @@ print("| scene | n | occupancy % | method | rays (diffusion: beams) | messages |
 print("|---|---|---|---|---|---|---|---|---|---|---|")
 for (scene, n), m in by.items():
     for k in ("diffusion", "classic", "classic-all"):
+        if k not in m:
+            continue
         r = m[k]
         dist = lambda a, b: f"{r[a]} ({r[b]})" if r[b] else r[a]
         print(f"| {scene} | {n} | {float(r['occupancy_pct']):.2f} | {k} | {r['rays']} | {r['messages']} | {r['cycles']} | "
@@ -69,6 +80,8 @@ print()
 print("| scene | n | occupancy % | messages per classic ray | diffusion messages | diffusion wins on messages above occupancy % | thesis 300/n % |")
 print("|---|---|---|---|---|---|---|")
 for (scene, n), m in by.items():
+    if "classic-all" not in m:
+        continue
     a, d = m["classic-all"], m["diffusion"]
     per = int(a["messages"]) / max(1, int(a["rays"]))
     sources = int(a["rays"]) // max(1, int(a["voxels"]))

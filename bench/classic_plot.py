@@ -21,6 +21,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker  # noqa: E402
 
 src = sys.argv[1] if len(sys.argv) > 1 else "bench-out/classic.csv"
 out = sys.argv[2] if len(sys.argv) > 2 else "docs/classic-vs-diffusion.png"
@@ -59,7 +60,8 @@ for scene in scenes:
         occ.append((n, float(a["occupancy_pct"])))
     if cross:
         ax[2].plot(*zip(*cross), "-", marker="o", color=colours[scene], label=f"{scene}: crossover")
-        ax[2].plot(*zip(*occ), "none", marker="x", color=colours[scene], label=f"{scene}: its occupancy")
+        ax[2].plot(*zip(*occ), linestyle="none", marker="x", markersize=9, color=colours[scene],
+                   label=f"{scene}: its occupancy")
 all_n = sorted({n for _, n in by})
 ax[2].plot(all_n, [300.0 / n for n in all_n], "k--", label="thesis 300/n %")
 for a, title, ylabel in (
@@ -74,6 +76,8 @@ for a, title, ylabel in (
     a.set_ylabel(ylabel)
     a.set_title(title)
     a.grid(True, which="both", alpha=0.3)
+ax[2].yaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
+ax[2].yaxis.set_minor_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
 ax[0].legend(fontsize=7, ncol=1)
 ax[2].legend(fontsize=7)
 fig.suptitle("Classic shadow rays (dashed: visible emitters, dotted: every voxel) against beam diffusion (solid)")
