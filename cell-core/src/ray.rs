@@ -344,6 +344,9 @@ pub struct ShadowRay {
     pub emitter_z: i32,
     /// Whether the current voxel is still the emitter's own (not tested).
     pub fresh: bool,
+    /// Voxels after the emitter's own still to pass untested: the shadow bias
+    /// ([`ShadowRay::with_bias`]).
+    pub grace: u8,
 }
 
 /// What the cell holding a [`ShadowRay`] does with it this cycle.
@@ -377,7 +380,17 @@ impl ShadowRay {
             facet,
             emitter_z: from[2] as i32,
             fresh: true,
+            grace: 0,
         })
+    }
+
+    /// Leave the first `k` voxels after the emitter's own untested (a shadow bias of `k`
+    /// voxels, the discrete form of the offset ray tracers add against shadow acne): a ray
+    /// leaving a facet then ignores the adjacent facets of the same object it grazes, at the
+    /// price of shadows cast within `k` voxels of the emitter.
+    pub fn with_bias(mut self, k: u8) -> Self {
+        self.grace = k;
+        self
     }
 
     /// One voxel of work in the cell owning the current voxel: test it against the column's
@@ -385,7 +398,15 @@ impl ShadowRay {
     /// store; the ray advances (the caller keeps a copy if it cannot send the result yet).
     pub fn advance<const D: usize>(&mut self, store: &DexelStore<D>) -> RayStep {
         let here = self.line.voxel();
-        if !self.fresh {
+        let test = if self.fresh {
+            false
+        } else if self.grace > 0 {
+            self.grace -= 1;
+            false
+        } else {
+            true
+        };
+        if test {
             if let Some(d) = u16::try_from(here[2]).ok().and_then(|z| store.occupied(z)) {
                 if d.facet != self.facet {
                     return RayStep::Shadow;

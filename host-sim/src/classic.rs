@@ -50,6 +50,9 @@ pub struct ClassicConfig {
     /// Every occupied voxel emits (not only the visible ones): the thesis's count ΣS_i, for
     /// the occupancy comparison (§4.1.6). Only visible voxels' answers change the image.
     pub all_voxels: bool,
+    /// Shadow bias: voxels after the emitter's own a ray does not test
+    /// ([`ShadowRay::with_bias`]; 0 = the thesis's rule, only the emitter's facet is ignored).
+    pub bias: u8,
 }
 
 /// Counters of a classic run (one source's, or summed).
@@ -191,7 +194,8 @@ fn classic_one(
             let zs = if cfg.all_voxels { d.span.lo..=d.span.hi } else { visible_z..=visible_z };
             for z in zs {
                 let ray = ShadowRay::new([c.x, c.y, z], src, cfg.connectivity, d.facet)
-                    .map_err(|e| anyhow::anyhow!("shadow ray from ({}, {}, {z}): {e:?}", c.x, c.y))?;
+                    .map_err(|e| anyhow::anyhow!("shadow ray from ({}, {}, {z}): {e:?}", c.x, c.y))?
+                    .with_bias(cfg.bias);
                 // The visible voxel's ray first: it is the one the image waits for.
                 if z == visible_z {
                     fifo[i].push_front(ray);
@@ -434,6 +438,11 @@ pub struct ClassicOpts {
     /// occupied voxels (the thesis's count, §4.1.6).
     #[arg(long, value_enum, default_value_t = EmittersArg::Visible)]
     pub emitters: EmittersArg,
+    /// Shadow bias of classic rays: the first K voxels after the emitter's are not tested, so
+    /// a ray ignores the neighbouring facets of its own object (shadow acne) but misses shadows
+    /// cast within K voxels. 0 (default) = only the emitter's own facet is ignored.
+    #[arg(long, default_value_t = 0)]
+    pub shadow_bias: u8,
 }
 
 /// Emitters of classic shadow rays.
@@ -469,6 +478,7 @@ impl ClassicOpts {
                 RouteArg::Adaptive => RoutePolicy::Adaptive,
             },
             all_voxels: self.emitters == EmittersArg::All,
+            bias: self.shadow_bias,
         }
     }
 }

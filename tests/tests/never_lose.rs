@@ -55,4 +55,3 @@ fn below_capacity_nothing_is_lost() {
     assert_eq!(lost, 0);
     res.unwrap();
 }
-

@@ -139,7 +139,7 @@ fn classic_answers_match_a_per_ray_oracle() {
     let mut lights = host_sim::lightjob::resolve_lights(&mesh, &loaded, &[]).unwrap();
     lights.push([3.0, 20.0, 9.5]); // a second source, low and to the side
     let grid = &loaded.grid;
-    for conn in Connectivity::ALL {
+    for (conn, bias) in Connectivity::ALL.into_iter().map(|c| (c, 0u8)).chain([(Connectivity::Six, 2)]) {
         // Oracle: the lit mask of each visible voxel.
         let mut want = vec![0u32; (n * n) as usize];
         for (i, c) in grid.cells.iter().enumerate() {
@@ -158,7 +158,8 @@ fn classic_answers_match_a_per_ray_oracle() {
                     Connectivity::Eighteen => walk18(a, b, Q as i64),
                     Connectivity::TwentySix => walk26(a, b, Q as i64),
                 };
-                let blocked = path.iter().skip(1).any(|v| {
+                // The emitter's voxel and `bias` more are not tested.
+                let blocked = path.iter().skip(1 + bias as usize).any(|v| {
                     grid.cell(v[0] as u32, v[1] as u32).store.occupied(v[2] as u16).is_some_and(|o| o.facet != d.facet)
                 });
                 if !blocked {
@@ -167,15 +168,26 @@ fn classic_answers_match_a_per_ray_oracle() {
             }
         }
         let visible = grid.cells.iter().filter(|c| !c.store.dexels().is_empty()).count() as u64;
+        if bias > 0 {
+            // The bias must matter here, or this case tests nothing new.
+            let plain = classic(
+                &loaded,
+                &lights,
+                &ClassicConfig { fa: 4, connectivity: conn, route: RoutePolicy::Adaptive, all_voxels: false, bias: 0 },
+                |_, _| {},
+            )
+            .unwrap();
+            assert_ne!(plain.masks, want, "a bias of {bias} voxels changes some answers");
+        }
         for (fa, route) in [(1, RoutePolicy::DiagonalFirst), (2, RoutePolicy::Adaptive), (16, RoutePolicy::Adaptive)] {
             let cl = classic(
                 &loaded,
                 &lights,
-                &ClassicConfig { fa, connectivity: conn, route, all_voxels: false },
+                &ClassicConfig { fa, connectivity: conn, route, all_voxels: false, bias },
                 |_, _| {},
             )
             .unwrap_or_else(|e| panic!("{conn:?} FA {fa} {route:?}: {e}"));
-            assert_eq!(cl.masks, want, "{conn:?} FA {fa} {route:?}");
+            assert_eq!(cl.masks, want, "{conn:?} bias {bias} FA {fa} {route:?}");
             let t = &cl.totals;
             assert_eq!(t.rays, visible * lights.len() as u64);
             assert_eq!(t.answers, t.rays, "one answer per ray");
@@ -184,7 +196,7 @@ fn classic_answers_match_a_per_ray_oracle() {
             assert!(lit > 0 && lit < t.rays, "the scene has both lit and shadowed voxels");
         }
         // Every occupied voxel emitting (the thesis's count): the same image state, more rays.
-        let all = ClassicConfig { fa: 4, connectivity: conn, route: RoutePolicy::Adaptive, all_voxels: true };
+        let all = ClassicConfig { fa: 4, connectivity: conn, route: RoutePolicy::Adaptive, all_voxels: true, bias };
         let cl = classic(&loaded, &lights, &all, |_, _| {}).unwrap();
         assert_eq!(cl.masks, want, "{conn:?} all voxels");
         assert_eq!(cl.totals.rays, cl.totals.voxels * lights.len() as u64);
