@@ -248,6 +248,7 @@ fn bench_fifo(c: &mut Criterion) {
         source_bit: 1,
         merge: true,
         skip: None,
+        lit_visible_only: false,
     };
     let empty = DexelStore::<DEFAULT_DEXELS>::new();
     let mut wall = DexelStore::<DEFAULT_DEXELS>::new();

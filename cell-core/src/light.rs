@@ -422,6 +422,10 @@ pub struct LightEnv<'a, F: FracBits> {
     /// The receding-beam skip: sub-beams that can meet no occupied voxel are dropped, their
     /// rays counted as skipped (`None`: off).
     pub skip: Option<OccupiedBox>,
+    /// Keep lit marks only for the column's visible voxel (the first occupied one, the voxel
+    /// the cell shades): the rest of the lit set is not stored. The image is the same; the lit
+    /// store needs one run, never overflows, and skips the run bookkeeping of hidden voxels.
+    pub lit_visible_only: bool,
 }
 
 /// What a cell did in one cycle.
@@ -657,7 +661,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         match fate {
             Fate::Absorbed(rays) => {
                 self.counters.rays_absorbed += rays;
-                if !self.lit.mark(m.z, env.source_bit) {
+                let shown = !env.lit_visible_only || store.dexels().first().is_some_and(|d| d.span.lo == m.z);
+                if shown && !self.lit.mark(m.z, env.source_bit) {
                     self.counters.lit_overflows += 1;
                 }
             }

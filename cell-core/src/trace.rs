@@ -569,6 +569,7 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
             source_bit: setup.source_bit,
             merge: setup.merge,
             skip: setup.skip,
+            lit_visible_only: false,
         })
     }
 

@@ -189,6 +189,11 @@ pub struct LightOpts {
     /// a row without progress while beams are in flight: a deadlock, or a dead link.
     #[arg(long, default_value_t = crate::diffuse::DEFAULT_STALL_CYCLES)]
     pub stall_cycles: u64,
+    /// Cells keep lit marks only for their visible voxel (the one they shade): the same image,
+    /// a lit set (`--lit-out`, stats) restricted to visible voxels, and no lit-store overflow
+    /// in columns lit in many separate runs (walls seen edge-on, many lights).
+    #[arg(long)]
+    pub lit_visible_only: bool,
     /// Classic shadow rays instead of diffusion.
     #[command(flatten)]
     pub classic: crate::classic::ClassicOpts,
@@ -218,6 +223,7 @@ impl LightOpts {
             skip_dead_directions: self.skip_dead_directions,
             faults: self.link_faults,
             stall_cycles: self.stall_cycles,
+            lit_visible_only: self.lit_visible_only,
         }
     }
 }

@@ -67,6 +67,9 @@ pub struct LightConfig {
     /// Cycles in a row without progress (no beam processed, delivered or acknowledged) while
     /// beams are in flight before the run stops with a stall report (deadlock, dead link).
     pub stall_cycles: u64,
+    /// Store lit marks only for each column's visible voxel (`LightEnv::lit_visible_only`):
+    /// same image, a lit set restricted to what the image shows, no lit-store overflow.
+    pub lit_visible_only: bool,
 }
 
 impl Default for LightConfig {
@@ -82,6 +85,7 @@ impl Default for LightConfig {
             skip_dead_directions: true,
             faults: None,
             stall_cycles: DEFAULT_STALL_CYCLES,
+            lit_visible_only: false,
         }
     }
 }
@@ -267,6 +271,9 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             cfg.stall_cycles
         );
     }
+    if cfg.lit_visible_only && tap.is_some() {
+        bail!("a cell trace records the whole lit store: record without --lit-visible-only");
+    }
     let mut links = cfg.faults.map(|f| FaultyLinks::new(f, cells.len()));
     for (si, src) in sources.iter().enumerate() {
         let env = LightEnv {
@@ -280,6 +287,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             source_bit: 1 << si,
             merge: cfg.merge,
             skip: cfg.skip_receding.then_some(occupied),
+            lit_visible_only: cfg.lit_visible_only,
         };
         let before: Vec<LightCounters> = cells.iter().map(|c| c.counters).collect();
         for c in cells.iter_mut() {
