@@ -16,16 +16,7 @@ use host_sim::scene::{Mesh, SceneLight};
 use rc2_tests::oracle::lines::{walk18, walk26, walk6};
 
 fn render_cfg() -> RenderConfig {
-    RenderConfig {
-        light: host_sim::diffuse::LightConfig {
-            fa: 16,
-            policy: cell_core::light::Policy::Wavefront,
-            merge: true,
-            record_visits: false,
-            ..Default::default()
-        },
-        normals: NormalMode::Facet,
-    }
+    RenderConfig { light: host_sim::diffuse::LightConfig { fa: 16, ..Default::default() }, normals: NormalMode::Facet }
 }
 
 fn load(mesh: &Mesh, n: u32) -> (LoadedScene, Vec<[f64; 3]>) {
