@@ -899,6 +899,7 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     use crate::render::{reference_image, render, write_png, RenderConfig};
     let cfg = LoadConfig { n: a.n, thickness: a.sigma, contour: a.contour };
     cfg.validate()?;
+    a.reflect.validate(a.light.classic.lighting, a.n, a.light.fa)?;
     let mesh = scene::load(&a.scene)?;
     let t0 = std::time::Instant::now();
     let pb = progress_bar(a.quiet, "load");
@@ -933,11 +934,6 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     let progress = light_progress(&pb);
     let mut reflections = None;
     let (r, classic) = if a.reflect.reflections > 0 {
-        if a.light.classic.lighting == crate::classic::LightingArg::Classic {
-            anyhow::bail!(
-                "--reflections needs --lighting diffusion (the lit state of every voxel, not only the visible ones)"
-            );
-        }
         let refl = a.reflect.config(a.light.fa, &a.light.classic.config(a.light.fa));
         let times = [load_seconds, reference_seconds];
         let (r, c) = crate::reflect::render_reflect::<F>(

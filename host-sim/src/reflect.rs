@@ -76,6 +76,22 @@ pub struct ReflectConfig {
     pub route: RoutePolicy,
 }
 
+impl ReflectConfig {
+    /// Refuse what the phase cannot run on a grid of side `n`.
+    pub fn validate(&self, n: u32) -> Result<()> {
+        if n > MAX_GRID {
+            bail!("reflections support grids up to n = {MAX_GRID} (got n = {n})");
+        }
+        if self.fa == 0 || self.fa > FA_CAP {
+            bail!("--fa {} is out of range: 1 ..= {FA_CAP}", self.fa);
+        }
+        if !(self.threshold.is_finite() && self.threshold >= 0.0) {
+            bail!("--reflect-threshold {} must be a finite number ≥ 0", self.threshold);
+        }
+        Ok(())
+    }
+}
+
 /// Counters of a reflection run.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct ReflectCounts {
@@ -299,15 +315,7 @@ pub fn child_ray(
 pub fn reflect(scene: &LoadedScene, env: &ShadeEnv, cfg: &ReflectConfig) -> Result<Reflected> {
     let grid = &scene.grid;
     let (n, depth) = (grid.n, grid.depth);
-    if n > MAX_GRID || depth > MAX_GRID {
-        bail!("reflections support grids up to n = {MAX_GRID} (got n = {n})");
-    }
-    if cfg.fa == 0 || cfg.fa > FA_CAP {
-        bail!("--fa {} is out of range: 1 ..= {FA_CAP}", cfg.fa);
-    }
-    if !(cfg.threshold.is_finite() && cfg.threshold >= 0.0) {
-        bail!("--reflect-threshold {} must be a finite number ≥ 0", cfg.threshold);
-    }
+    cfg.validate(n.max(depth))?;
     let nn = n as usize;
     let span = ray_span(n, depth);
     let mut cells: Vec<CellState> = (0..nn * nn).map(|_| CellState::default()).collect();
@@ -667,6 +675,24 @@ pub struct ReflectOpts {
 }
 
 impl ReflectOpts {
+    /// Check the options before any work (with reflections on): diffusion lighting, a valid
+    /// configuration for a grid of side `n` and FIFO limit `fa`.
+    pub fn validate(&self, lighting: crate::classic::LightingArg, n: u32, fa: usize) -> Result<()> {
+        if self.reflections == 0 {
+            return Ok(());
+        }
+        if lighting == crate::classic::LightingArg::Classic {
+            bail!("--reflections needs --lighting diffusion (the lit state of every voxel, not only the visible ones)");
+        }
+        let classic = crate::classic::ClassicConfig {
+            fa,
+            connectivity: Connectivity::Six,
+            route: RoutePolicy::Adaptive,
+            all_voxels: false,
+        };
+        self.config(fa, &classic).validate(n)
+    }
+
     /// The configuration (rays use the classic options' connectivity and routing).
     pub fn config(&self, fa: usize, classic: &crate::classic::ClassicConfig) -> ReflectConfig {
         ReflectConfig {
