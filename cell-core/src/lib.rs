@@ -31,6 +31,7 @@ pub mod light;
 pub mod link;
 pub mod normal;
 pub mod ray;
+pub mod reflect;
 pub mod route;
 pub mod shade;
 pub mod trace;

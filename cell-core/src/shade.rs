@@ -337,7 +337,7 @@ pub const GAMMA_THRESHOLDS: [f32; 255] = [
 /// Direction toward the viewer.
 pub const VIEW: [f32; 3] = [0.0, 0.0, -1.0];
 
-fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
+pub(crate) fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
@@ -365,7 +365,7 @@ pub fn powi(mut x: f32, mut k: u32) -> f32 {
 }
 
 /// Normalise (a zero vector stays zero).
-fn normalise(v: [f32; 3]) -> [f32; 3] {
+pub(crate) fn normalise(v: [f32; 3]) -> [f32; 3] {
     let l2 = dot(v, v);
     if l2 <= 0.0 {
         return [0.0; 3];
@@ -404,6 +404,21 @@ pub fn shade(
     lit: SourceMask,
     params: &ShadeParams,
 ) -> [u8; 3] {
+    shade_linear_toward(p, n, VIEW, m, lights, lit, params).map(encode)
+}
+
+/// The linear (unclamped, not encoded) colour of [`shade`] seen from direction `v` (unit vector
+/// from the point toward the eye, [`VIEW`] for the camera; the reversed direction of a
+/// reflected ray for a point it hits, §1.1), `n` the unit normal facing `v`.
+pub fn shade_linear_toward(
+    p: [f32; 3],
+    n: [f32; 3],
+    v: [f32; 3],
+    m: &Material,
+    lights: &[PointLight],
+    lit: SourceMask,
+    params: &ShadeParams,
+) -> [f32; 3] {
     let kmax = m.ke[0].max(m.ke[1]).max(m.ke[2]);
     let mut c: [f32; 3];
     if kmax > 0.0 {
@@ -419,7 +434,7 @@ pub fn shade(
             if ndl <= 0.0 {
                 continue;
             }
-            let h = normalise([ld[0] + VIEW[0], ld[1] + VIEW[1], ld[2] + VIEW[2]]);
+            let h = normalise([ld[0] + v[0], ld[1] + v[1], ld[2] + v[2]]);
             let nh = dot(n, h).max(0.0);
             let spec =
                 if nh > 0.0 && m.ks.iter().any(|&k| k > 0.0) { powi(nh, (m.ns.max(0.0) + 0.5) as u32) } else { 0.0 };
@@ -428,7 +443,17 @@ pub fn shade(
             }
         }
     }
-    c.map(encode)
+    c
+}
+
+/// The lights of `reached` (bit s: a beam or ray of light s reached the voxel) that the surface
+/// at `p` with normal `nrm` faces (N·(L − p) > 0).
+pub fn facing_mask(p: [f32; 3], nrm: [f32; 3], lights: &[PointLight], reached: SourceMask) -> SourceMask {
+    lights.iter().take(32).enumerate().fold(0u32, |acc, (s, l)| {
+        let l = l.pos;
+        let faces = nrm[0] * (l[0] - p[0]) + nrm[1] * (l[1] - p[1]) + nrm[2] * (l[2] - p[2]) > 0.0;
+        acc | (((reached >> s & 1 == 1) && faces) as u32) << s
+    })
 }
 
 /// What a cell shows: the colour of its visible voxel and the lights that lit it.
@@ -461,12 +486,7 @@ pub fn pixel<const D: usize>(
     let p = [x as f32, y as f32, z as f32];
     let nrm = shading_normal(d, params.normal_mode);
     let m = materials.get(d.material as usize).copied().unwrap_or_default();
-    let reached = reached(z);
-    let lit = lights.iter().take(32).enumerate().fold(0u32, |acc, (s, l)| {
-        let l = l.pos;
-        let faces = nrm[0] * (l[0] - p[0]) + nrm[1] * (l[1] - p[1]) + nrm[2] * (l[2] - p[2]) > 0.0;
-        acc | (((reached >> s & 1 == 1) && faces) as u32) << s
-    });
+    let lit = facing_mask(p, nrm, lights, reached(z));
     Some(Pixel { rgb: shade(p, nrm, &m, lights, lit, params), lit, z })
 }
 

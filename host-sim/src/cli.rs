@@ -260,6 +260,9 @@ pub struct RenderArgs {
     /// Normal used for shading.
     #[arg(long, value_enum, default_value_t = NormalArg::Facet)]
     pub normals: NormalArg,
+    /// Reflection options.
+    #[command(flatten)]
+    pub reflect: crate::reflect::ReflectOpts,
     /// Output PNG.
     #[arg(long, default_value = "render.png")]
     pub out: PathBuf,
@@ -914,6 +917,7 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     use crate::render::{reference_image, render, write_png, RenderConfig};
     let cfg = LoadConfig { n: a.n, thickness: a.sigma, contour: a.contour };
     cfg.validate()?;
+    a.reflect.validate(a.light.classic.lighting, a.n, a.light.fa)?;
     let mesh = scene::load(&a.scene)?;
     let t0 = std::time::Instant::now();
     let pb = progress_bar(a.quiet, "load");
@@ -934,14 +938,35 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
         if mesh.faces.is_empty() {
             anyhow::bail!("--reference needs a scene with geometry ('{}' has none)", mesh.name);
         }
-        Some(reference_image(&mesh, &loaded, &lights)?)
+        if a.reflect.reflections > 0 {
+            let (d, t) = (a.reflect.reflections, a.reflect.reflect_threshold);
+            Some(crate::reflect::reference_image(&mesh, &loaded, &lights, d, t)?)
+        } else {
+            Some(reference_image(&mesh, &loaded, &lights)?)
+        }
     } else {
         None
     };
     let reference_seconds = t1.elapsed().as_secs_f64();
     let pb = progress_bar(a.quiet, "light 1");
     let progress = light_progress(&pb);
-    let (r, classic) = if a.light.classic.lighting == crate::classic::LightingArg::Classic {
+    let mut reflections = None;
+    let (r, classic) = if a.reflect.reflections > 0 {
+        let refl = a.reflect.config(a.light.fa, &a.light.classic.config(a.light.fa));
+        let times = [load_seconds, reference_seconds];
+        let (r, c) = crate::reflect::render_reflect::<F>(
+            &mesh,
+            &loaded,
+            &lights,
+            &rcfg,
+            &refl,
+            reference.as_ref(),
+            times,
+            progress,
+        )?;
+        reflections = Some(c);
+        (r, None)
+    } else if a.light.classic.lighting == crate::classic::LightingArg::Classic {
         let ccfg = a.light.classic.config(a.light.fa);
         let (r, c) = crate::classic::render_classic::<F>(
             &mesh,
@@ -973,8 +998,10 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
         written.push(rp.display().to_string());
         written.push(dp.display().to_string());
     }
-    if let Some(p) = &a.stats {
-        write_json(p, &r.stats)?;
+    match (&a.stats, &reflections) {
+        (Some(p), Some(c)) => write_json(p, &crate::reflect::with_counts(&r.stats, c)?)?,
+        (Some(p), None) => write_json(p, &r.stats)?,
+        _ => {}
     }
     let s = &r.stats;
     let t = &s.light.totals;
@@ -1002,6 +1029,9 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     );
     if let Some(c) = &classic {
         eprintln!("  {}", crate::classic::summary(c));
+    }
+    if let Some(c) = &reflections {
+        eprintln!("  {}", crate::reflect::summary(c));
     }
     if let Some(c) = &s.reference {
         eprintln!(

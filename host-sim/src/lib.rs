@@ -30,6 +30,7 @@ pub mod office;
 pub mod plot;
 pub mod precompute;
 pub mod reference;
+pub mod reflect;
 pub mod refrender;
 pub mod render;
 pub mod rng;

@@ -198,6 +198,7 @@ fn materials() -> Vec<Material> {
         ks: [ks; 3],
         ns,
         ke: [0.0; 3],
+        kr: 0.0,
     };
     vec![
         Material::default(),
@@ -212,7 +213,7 @@ fn materials() -> Vec<Material> {
         m("screen", [0.04, 0.06, 0.06], 0.80, 60.0),
         m("glass", [0.55, 0.68, 0.78], 0.50, 60.0),
         m("blackboard", [0.08, 0.20, 0.13], 0.05, 10.0),
-        Material { name: "light".into(), ka: [1.0; 3], kd: [0.8; 3], ks: [0.0; 3], ns: 1.0, ke: [12.0, 11.5, 10.0] },
+        Material { name: "light".into(), ka: [1.0; 3], kd: [0.8; 3], ke: [12.0, 11.5, 10.0], ..Material::default() },
         m("housing", [0.80, 0.80, 0.78], 0.25, 30.0),
         m("book_red", [0.60, 0.08, 0.07], 0.05, 20.0),
         m("book_green", [0.10, 0.40, 0.15], 0.05, 20.0),

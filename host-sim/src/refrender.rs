@@ -92,6 +92,20 @@ pub fn shade_linear_f64(
     lit_mask: u32,
     ambient: [f64; 3],
 ) -> [f64; 3] {
+    shade_linear_view_f64(p_vox, n, [0.0, 0.0, -1.0], m, lights, lit_mask, ambient)
+}
+
+/// [`shade_linear_f64`] seen from direction `v` (unit, from the point toward the eye; the
+/// reversed direction of a reflected ray at the point it hits).
+pub fn shade_linear_view_f64(
+    p_vox: [f64; 3],
+    n: [f64; 3],
+    v: [f64; 3],
+    m: &Material,
+    lights: &[RefLight],
+    lit_mask: u32,
+    ambient: [f64; 3],
+) -> [f64; 3] {
     let ke = m.ke.map(f64::from);
     let kmax = ke[0].max(ke[1]).max(ke[2]);
     if kmax > 0.0 {
@@ -101,7 +115,6 @@ pub fn shade_linear_f64(
     let kd = m.kd.map(f64::from);
     let ks = m.ks.map(f64::from);
     let ns = f64::from(m.ns);
-    let v: V3 = [0.0, 0.0, -1.0];
     let mut c = [0, 1, 2].map(|i| ka[i] * ambient[i]);
     for (s, light) in lights.iter().enumerate() {
         if s >= 32 || lit_mask & (1u32 << s) == 0 {
@@ -198,6 +211,83 @@ pub fn mesh_triangles(mesh: &Mesh) -> Result<(Vec<WorldTriangle>, Vec<u32>)> {
 /// Errors: `n = 0`, more than 32 lights, a non-finite or non-positive voxel size, a face with a
 /// vertex or material index out of range, or no non-degenerate triangle at all.
 pub fn render_reference(mesh: &Mesh, fit: &Fit, n: u32, lights: &[RefLight], ambient: [f64; 3]) -> Result<RefImage> {
+    render_reference_reflect(mesh, fit, n, lights, ambient, &RefReflect { depth: 0, threshold: 0.0 })
+}
+
+/// Mirror reflections of the reference (the grid's rule, `crate::reflect`): a surface with
+/// `Kr > 0` adds `Kr` × the colour its exactly reflected ray brings back (§5.5.5); the tree
+/// stops at `depth` reflections or when the product of the Kr along the path falls below
+/// `threshold` (Hall, §1.2.5.1); a ray that hits nothing brings back black.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RefReflect {
+    /// Largest number of reflections (0: none).
+    pub depth: u32,
+    /// Smallest contribution weight that still reflects.
+    pub threshold: f64,
+}
+
+struct RefScene<'a> {
+    mesh: &'a Mesh,
+    reference: Reference,
+    lights: &'a [RefLight],
+    lights_world: Vec<V3>,
+    ambient: [f64; 3],
+    origin: V3,
+    voxel: f64,
+    max_t: f64,
+    reflect: RefReflect,
+}
+
+impl RefScene<'_> {
+    /// Lit: the surface faces the light (no attached shadow) and sees it.
+    fn lit_mask(&self, p: V3, normal: V3, facet: u32) -> u32 {
+        let mut mask = 0u32;
+        for (s, lw) in self.lights_world.iter().enumerate() {
+            let to_light = sub(*lw, p);
+            if dot(normal, to_light) > 0.0 && self.reference.visible(p, *lw, &[facet]) {
+                mask |= 1 << s;
+            }
+        }
+        mask
+    }
+
+    /// The linear colour at world point `p` of `facet` (unit normal facing the eye, `v` toward
+    /// the eye), reflections included from tree level `level` (1 for a visible point) with
+    /// contribution weight `weight` of the ray that reached it. Also the lit mask.
+    fn colour(&self, p: V3, normal: V3, facet: u32, v: V3, level: u32, weight: f64) -> ([f64; 3], u32) {
+        let (o, vx) = (self.origin, self.voxel);
+        let mask = self.lit_mask(p, normal, facet);
+        let p_vox = [0, 1, 2].map(|i| (p[i] - o[i]) / vx - 0.5);
+        let m = &self.mesh.materials[self.mesh.faces[facet as usize].material as usize];
+        let mut c = shade_linear_view_f64(p_vox, normal, v, m, self.lights, mask, self.ambient);
+        let kr = f64::from(m.kr);
+        let w = weight * kr;
+        if kr > 0.0 && level <= self.reflect.depth && w >= self.reflect.threshold {
+            // R = I − 2(I·N)N with I = −v.
+            let vn = dot(v, normal);
+            let r = [0, 1, 2].map(|k| 2.0 * vn * normal[k] - v[k]);
+            if let Some((t, f2, n2)) = self.reference.first_hit(p, r, self.max_t, &[facet]) {
+                let p2 = [0, 1, 2].map(|k| p[k] + t * r[k]);
+                let back = normalize(r.map(|x| -x)).unwrap_or([0.0, 0.0, -1.0]);
+                let (c2, _) = self.colour(p2, n2, f2, back, level + 1, w);
+                for k in 0..3 {
+                    c[k] += kr * c2[k];
+                }
+            }
+        }
+        (c, mask)
+    }
+}
+
+/// [`render_reference`] with mirror reflections (see [`RefReflect`]).
+pub fn render_reference_reflect(
+    mesh: &Mesh,
+    fit: &Fit,
+    n: u32,
+    lights: &[RefLight],
+    ambient: [f64; 3],
+    reflect: &RefReflect,
+) -> Result<RefImage> {
     if n == 0 {
         bail!("refrender: n must be positive");
     }
@@ -212,7 +302,19 @@ pub fn render_reference(mesh: &Mesh, fit: &Fit, n: u32, lights: &[RefLight], amb
     let reference = Reference::new(tris, facets).with_context(|| format!("refrender: scene {}", mesh.name))?;
     let (o, vx) = (fit.origin, fit.voxel);
     let to_world = |p: V3| [0, 1, 2].map(|i| o[i] + (p[i] + 0.5) * vx);
-    let lights_world: Vec<V3> = lights.iter().map(|l| to_world(l.pos)).collect();
+    let max_t = (n as f64 + 2.0) * vx;
+    let scene = RefScene {
+        mesh,
+        reference,
+        lights,
+        lights_world: lights.iter().map(|l| to_world(l.pos)).collect(),
+        ambient,
+        origin: o,
+        voxel: vx,
+        // Reflected rays are unit vectors: far enough to leave the fitted cube from anywhere.
+        max_t: 2.0 * max_t,
+        reflect: *reflect,
+    };
     let npix = n as usize * n as usize;
     let mut img = RefImage {
         n,
@@ -222,28 +324,17 @@ pub fn render_reference(mesh: &Mesh, fit: &Fit, n: u32, lights: &[RefLight], amb
         lights: lights.len() as u32,
         facet: vec![u32::MAX; npix],
     };
-    let max_t = (n as f64 + 2.0) * vx;
     let dir = [0.0, 0.0, 1.0];
     for y in 0..n {
         for x in 0..n {
             let origin = [o[0] + (x as f64 + 0.5) * vx, o[1] + (y as f64 + 0.5) * vx, o[2] - vx];
-            let Some((t, facet, normal)) = reference.first_hit(origin, dir, max_t, &[]) else {
+            let Some((t, facet, normal)) = scene.reference.first_hit(origin, dir, max_t, &[]) else {
                 continue;
             };
             let p = [origin[0], origin[1], origin[2] + t];
-            let mut mask = 0u32;
-            for (s, lw) in lights_world.iter().enumerate() {
-                // Lit: the surface faces the light (no attached shadow) and sees it.
-                let to_light = [lw[0] - p[0], lw[1] - p[1], lw[2] - p[2]];
-                let faces = normal[0] * to_light[0] + normal[1] * to_light[1] + normal[2] * to_light[2] > 0.0;
-                if faces && reference.visible(p, *lw, &[facet]) {
-                    mask |= 1 << s;
-                }
-            }
-            let p_vox = [0, 1, 2].map(|i| (p[i] - o[i]) / vx - 0.5);
-            let m = &mesh.materials[mesh.faces[facet as usize].material as usize];
+            let (c, mask) = scene.colour(p, normal, facet, [0.0, 0.0, -1.0], 1, 1.0);
             let i = y as usize * n as usize + x as usize;
-            img.rgb[i] = shade_f64(p_vox, normal, m, lights, mask, ambient);
+            img.rgb[i] = c.map(encode_gamma);
             img.covered[i] = true;
             img.lit[i] = mask;
             img.facet[i] = facet;
@@ -345,7 +436,7 @@ mod tests {
     use crate::scene::Face;
 
     fn mat(ka: [f32; 3], kd: [f32; 3], ks: [f32; 3], ns: f32, ke: [f32; 3]) -> Material {
-        Material { name: "m".into(), ka, kd, ks, ns, ke }
+        Material { name: "m".into(), ka, kd, ks, ns, ke, kr: 0.0 }
     }
 
     /// Test fit: a non-trivial origin and voxel size.

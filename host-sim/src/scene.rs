@@ -23,11 +23,14 @@ pub struct Material {
     pub ns: f32,
     /// Emitted radiance `Ke` (light sources).
     pub ke: [f32; 3],
+    /// Mirror reflectance `Kr` in 0..1 (MTL keyword `Kr`, one value; 0: not reflective). A
+    /// reflective surface adds `Kr` × the intensity its reflected ray brings back (§5.5.5).
+    pub kr: f32,
 }
 
 impl Default for Material {
     fn default() -> Self {
-        Material { name: "default".into(), ka: [0.1; 3], kd: [0.7; 3], ks: [0.0; 3], ns: 1.0, ke: [0.0; 3] }
+        Material { name: "default".into(), ka: [0.1; 3], kd: [0.7; 3], ks: [0.0; 3], ns: 1.0, ke: [0.0; 3], kr: 0.0 }
     }
 }
 
@@ -68,6 +71,7 @@ pub struct Mesh {
 /// Built-in scenes: name, one-line description.
 pub const BUILTINS: &[(&str, &str)] = &[
     ("cornell", "the Cornell box (published geometry: 5 walls, ceiling light, two blocks)"),
+    ("cornell-mirror", "the Cornell box with the tall block a mirror (Kr 0.85): for --reflections"),
     ("empty", "nothing: an empty grid with one light at the centre (the thesis's diffusion experiment)"),
     ("facet", "a single triangle in general position"),
     ("teapot", "Utah teapot, 6 320 triangles (open surface)"),
@@ -86,12 +90,15 @@ pub const BUILTINS: &[(&str, &str)] = &[
 
 const CORNELL_OBJ: &str = include_str!("../scenes/cornell.obj");
 const CORNELL_MTL: &str = include_str!("../scenes/cornell.mtl");
+const CORNELL_MIRROR_OBJ: &str = include_str!("../scenes/cornell-mirror.obj");
+const CORNELL_MIRROR_MTL: &str = include_str!("../scenes/cornell-mirror.mtl");
 const FACET_OBJ: &str = "# rc2 built-in: one triangle in general position\n\
 v 0.10 0.20 0.30\nv 0.90 0.35 0.60\nv 0.40 0.85 0.15\nf 1 2 3\n";
 
 fn builtin_source(name: &str) -> Option<(&'static str, Option<&'static str>)> {
     Some(match name {
         "cornell" => (CORNELL_OBJ, Some(CORNELL_MTL)),
+        "cornell-mirror" => (CORNELL_MIRROR_OBJ, Some(CORNELL_MIRROR_MTL)),
         "facet" => (FACET_OBJ, None),
         "teapot" => (include_str!("../scenes/teapot.obj"), None),
         "cow" => (include_str!("../scenes/cow.obj"), None),
@@ -127,7 +134,7 @@ pub fn load(scene: &str) -> Result<Mesh> {
         })?;
         mesh.lights = match scene {
             // The centre of the published light quad (213..343 × 227..332 at y = 548.8).
-            "cornell" => vec![SceneLight::World([278.0, 548.8, 279.5])],
+            "cornell" | "cornell-mirror" => vec![SceneLight::World([278.0, 548.8, 279.5])],
             "facet" => vec![SceneLight::Grid([0.5, 0.5, 0.05])],
             _ => vec![SceneLight::Grid([0.5, 0.95, 0.05])],
         };
@@ -172,6 +179,12 @@ fn convert_material(m: &tobj::Material) -> Material {
         ks: f(m.specular, d.ks),
         ns: m.shininess.map(|s| s as f32).unwrap_or(d.ns),
         ke,
+        kr: m
+            .unknown_param
+            .get("Kr")
+            .and_then(|s| s.split_whitespace().next()?.parse::<f32>().ok())
+            .filter(|k| k.is_finite())
+            .map_or(d.kr, |k| k.clamp(0.0, 1.0)),
     }
 }
 

@@ -1,0 +1,721 @@
+//! Mirror reflections on the grid: the distributed ray tree (thesis §1.1, §1.3.2, ch. 5; issue 8).
+//!
+//! After the light phase every voxel's lit state is known. Each cell whose visible voxel is
+//! reflective (`Kr > 0`, and `Kr` ≥ the threshold) emits a [`ReflectRay`] (the view direction
+//! mirrored about its normal, [`cell_core::reflect`]) and waits. A ray walks voxel by voxel with
+//! the same cycle model as classic shadow rays ([`crate::classic`]): one voxel step per cell and
+//! cycle, FIFOs of `fa` rays, one output buffer per link, one message per link and cycle, the
+//! no-loss rule (a ray that cannot leave waits, the cell is blocked for the cycle). The cell
+//! owning the first occupied voxel the ray meets shades it for the ray's direction; if that
+//! voxel is reflective and the tree may grow (level ≤ `--reflections`, weight ≥
+//! `--reflect-threshold`: Hall's adaptive depth, §1.2.5.1) it opens a **wait-table entry** and
+//! emits its own reflected ray, and answers its parent only when that answer came back (§1.3.2);
+//! otherwise it answers at once. Answers (linear RGB, Q12) are routed to the waiting cell on
+//! [`crate::network`]; a ray leaving the grid answers black. A root combines
+//! `local + Kr · answer` (§5.5.5) and encodes its pixel.
+//!
+//! Per cycle: 1. compute — each cell takes the head of one of its 4 FIFOs (round robin) and does
+//! one voxel of work; then it may move one waiting child ray from its launch queue into the
+//! FIFO of the ray's class (when there is room) and hand one answer of its send queue to its
+//! router. 2. links — answers first (the routers), then rays (output buffer → neighbour FIFO of
+//! the same class with room). 3. each router delivers at most one answer to its cell, which
+//! fills the wait-table entry and queues the combined answer for its own parent.
+//!
+//! **No deadlock, no loss.** Reflected rays go every way, so one FIFO shared by all of them
+//! could wait in a cycle (two cells, each full of rays for the other). Each cell therefore has
+//! one FIFO and one set of output buffers per **class** (the signs of the ray's x and y
+//! steps, [`ReflectRay::class`]): a line never steps against its class, so each cell move of a
+//! class-q ray strictly increases φ_q = ±x ± y, and the waits for FIFO room within a class
+//! follow increasing φ_q: acyclic, and classes never wait for each other. A hit, an exit or a
+//! z step needs no room (the ray's FIFO slot is released or reused); a child ray waits in the
+//! launch queue, outside the FIFOs, so a full FIFO never blocks the hit that spawned it. The
+//! answer network is deadlock-free by itself ([`cell_core::route`]) and a delivered answer only
+//! updates a wait-table entry (never blocks). So every ray ends and every answer arrives; a
+//! cycle with work in flight and nothing moving is still reported as an error, never a hang.
+//! The wait tables and send queues are unbounded here; the run reports their peaks (what a
+//! firmware must provision).
+
+use std::collections::VecDeque;
+
+use anyhow::{bail, Result};
+use cell_core::dexel::Dexel;
+use cell_core::light::{Port, SourceMask};
+use cell_core::ray::{Connectivity, Q};
+use cell_core::reflect::{
+    combine, hit_normal, reflected_dir, to_answer, toward_origin, Answer, ReflectNormal, ReflectRay, ReflectStep,
+    MAX_GRID,
+};
+use cell_core::route::{RoutePolicy, Routed};
+use cell_core::shade::{
+    encode, facing_mask, shade_linear_toward, shading_normal, Material as CellMaterial, NormalMode, PointLight,
+    ShadeParams, VIEW,
+};
+
+use crate::diffuse::FA_CAP;
+use crate::lightjob::LoadedScene;
+use crate::network::Network;
+use crate::scene::Mesh;
+
+/// Reflection-phase settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ReflectConfig {
+    /// Largest tree depth: reflections per path (0 = off).
+    pub depth: u8,
+    /// Hall's threshold: a voxel reflects only if the product of the Kr along the path, its
+    /// own included, is at least this.
+    pub threshold: f32,
+    /// Normal that mirrors the rays (§5.2).
+    pub normal: ReflectNormal,
+    /// Ignore voxels of the facet a ray left (off: the §5.5.2 self-collision shows).
+    pub skip_own_facet: bool,
+    /// Connectivity of the rays' lines.
+    pub connectivity: Connectivity,
+    /// FIFO limit per class and cell (rays), 1 ..= [`FA_CAP`].
+    pub fa: usize,
+    /// Routing of the answers.
+    pub route: RoutePolicy,
+}
+
+impl ReflectConfig {
+    /// Refuse what the phase cannot run on a grid of side `n`.
+    pub fn validate(&self, n: u32) -> Result<()> {
+        if n > MAX_GRID {
+            bail!("reflections support grids up to n = {MAX_GRID} (got n = {n})");
+        }
+        if self.fa == 0 || self.fa > FA_CAP {
+            bail!("--fa {} is out of range: 1 ..= {FA_CAP}", self.fa);
+        }
+        if !(self.threshold.is_finite() && self.threshold >= 0.0) {
+            bail!("--reflect-threshold {} must be a finite number ≥ 0", self.threshold);
+        }
+        Ok(())
+    }
+}
+
+/// Counters of a reflection run.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct ReflectCounts {
+    /// Cycles until the last root had its answer.
+    pub cycles: u64,
+    /// Visible reflective voxels that emitted (tree roots).
+    pub roots: u64,
+    /// Reflected rays emitted (all levels).
+    pub rays: u64,
+    /// Voxel steps processed.
+    pub ray_steps: u64,
+    /// Ray messages over links.
+    pub ray_messages: u64,
+    /// Answers sent (one per ray).
+    pub answers: u64,
+    /// Answer messages over links (routed hops).
+    pub answer_messages: u64,
+    /// Rays that hit a voxel.
+    pub hits: u64,
+    /// Rays that left the grid (answered black).
+    pub exits: u64,
+    /// Hit voxels that reflected again and waited for their child before answering.
+    pub waits: u64,
+    /// Deepest ray level reached (1: rays from visible voxels).
+    pub max_level: u8,
+    /// Reflective hit voxels that did not reflect: tree depth reached.
+    pub cut_depth: u64,
+    /// Reflective hit voxels that did not reflect: weight below the threshold.
+    pub cut_threshold: u64,
+    /// Largest FIFO occupancy (one class).
+    pub peak_fifo: u16,
+    /// Largest wait table of a cell (entries open at once, root included).
+    pub peak_wait: u32,
+    /// Largest send queue of a cell (answers waiting for the router).
+    pub peak_send: u32,
+    /// Sum over cells of cycles with a ray processed in vain (output buffer full).
+    pub blocked_cell_cycles: u64,
+    /// With a reference: PSNR of the image against the reflective reference (dB).
+    pub psnr_db: Option<f64>,
+    /// The same image without its reflections (the local shading only) against it.
+    pub psnr_without_db: Option<f64>,
+    /// PSNR over the pixels where the reference sees a reflective surface.
+    pub mirror_psnr_db: Option<f64>,
+    /// The same without reflections.
+    pub mirror_psnr_without_db: Option<f64>,
+    /// Those pixels.
+    pub mirror_pixels: u64,
+}
+
+/// PSNR (dB, MAX 255, 3 channels) of `a` against `b` over the pixels where `keep` is set.
+pub fn psnr(a: &[[u8; 3]], b: &[[u8; 3]], keep: &[bool]) -> f64 {
+    let (mut sq, mut cnt) = (0u64, 0u64);
+    for ((pa, pb), _) in a.iter().zip(b).zip(keep).filter(|(_, &k)| k) {
+        for c in 0..3 {
+            let d = pa[c].abs_diff(pb[c]) as u64;
+            sq += d * d;
+            cnt += 1;
+        }
+    }
+    if sq == 0 {
+        f64::INFINITY
+    } else {
+        10.0 * (255.0f64 * 255.0 / (sq as f64 / cnt as f64)).log10()
+    }
+}
+
+impl ReflectCounts {
+    /// Messages over links, both kinds.
+    pub fn messages(&self) -> u64 {
+        self.ray_messages + self.answer_messages
+    }
+}
+
+/// The result of the reflection phase.
+pub struct Reflected {
+    /// Pixels of the reflective visible voxels that emitted (index y·n + x), others `None`.
+    pub rgb: Vec<Option<[u8; 3]>>,
+    /// The answer each root received.
+    pub root_answers: Vec<Option<Answer>>,
+    /// Counters.
+    pub counts: ReflectCounts,
+}
+
+/// A wait-table entry: a voxel waiting for its reflected ray's answer.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    /// Where the combined answer goes (`None`: the root, the cell's pixel).
+    parent: Option<([u16; 2], u16)>,
+    /// Local linear intensity.
+    local: [f32; 3],
+    kr: f32,
+}
+
+/// Answer payload: the wait-table slot and the intensity.
+type Msg = (u16, Answer);
+
+#[derive(Default)]
+struct CellState {
+    fifo: [VecDeque<ReflectRay>; 4],
+    out: [[Option<ReflectRay>; 8]; 4],
+    outs: u32,
+    table: Vec<Option<Node>>,
+    free: Vec<u16>,
+    open: u32,
+    launch: VecDeque<ReflectRay>,
+    send: VecDeque<Routed<Msg>>,
+    rr: usize,
+}
+
+impl CellState {
+    fn open(&mut self, node: Node) -> u16 {
+        self.open += 1;
+        match self.free.pop() {
+            Some(s) => {
+                self.table[s as usize] = Some(node);
+                s
+            }
+            None => {
+                self.table.push(Some(node));
+                (self.table.len() - 1) as u16
+            }
+        }
+    }
+
+    fn idle(&self) -> bool {
+        self.outs == 0 && self.launch.is_empty() && self.send.is_empty() && self.fifo.iter().all(VecDeque::is_empty)
+    }
+}
+
+/// What the cells need to shade and reflect: materials, lights, lit state.
+pub struct ShadeEnv<'a> {
+    /// Cell materials by id.
+    pub mats: Vec<CellMaterial>,
+    /// Kr by material id.
+    pub kr: Vec<f32>,
+    /// Lights.
+    pub lights: &'a [PointLight],
+    /// Shading parameters (ambient, the normal mode of the visible voxels).
+    pub params: ShadeParams,
+    /// Sources that reached voxel (x, y, z) (the light phase's result).
+    pub mask: &'a dyn Fn(u32, u32, u16) -> SourceMask,
+}
+
+impl<'a> ShadeEnv<'a> {
+    /// The environment of a mesh's materials.
+    pub fn new(
+        mesh: &Mesh,
+        lights: &'a [PointLight],
+        normals: NormalMode,
+        mask: &'a dyn Fn(u32, u32, u16) -> SourceMask,
+    ) -> Self {
+        ShadeEnv {
+            mats: mesh.materials.iter().map(crate::render::cell_material).collect(),
+            kr: mesh.materials.iter().map(|m| m.kr).collect(),
+            lights,
+            params: ShadeParams { ambient: [crate::render::AMBIENT; 3], normal_mode: normals },
+            mask,
+        }
+    }
+
+    fn material(&self, d: &Dexel) -> (CellMaterial, f32) {
+        let i = d.material as usize;
+        (self.mats.get(i).copied().unwrap_or_default(), self.kr.get(i).copied().unwrap_or(0.0))
+    }
+
+    /// The visible voxel of column (x, y) as the camera sees it: linear local intensity and Kr.
+    pub fn visible_local(&self, x: u16, y: u16, d: &Dexel) -> ([f32; 3], f32) {
+        let z = d.span.lo;
+        let p = [x as f32, y as f32, z as f32];
+        let nrm = shading_normal(d, self.params.normal_mode);
+        let lit = facing_mask(p, nrm, self.lights, (self.mask)(x as u32, y as u32, z));
+        let (m, kr) = self.material(d);
+        (shade_linear_toward(p, nrm, VIEW, &m, self.lights, lit, &self.params), kr)
+    }
+
+    /// A voxel hit by `ray`: linear local intensity seen from the ray's origin, and Kr.
+    pub fn hit_local(
+        &self,
+        x: u16,
+        y: u16,
+        z: u16,
+        d: &Dexel,
+        ray: &ReflectRay,
+        mode: ReflectNormal,
+    ) -> ([f32; 3], f32) {
+        let p = [x as f32, y as f32, z as f32];
+        let v = toward_origin(ray.dir);
+        let nrm = hit_normal(d, mode, v, ray.entry, ray.dir);
+        let lit = facing_mask(p, nrm, self.lights, (self.mask)(x as u32, y as u32, z));
+        let (m, kr) = self.material(d);
+        (shade_linear_toward(p, nrm, v, &m, self.lights, lit, &self.params), kr)
+    }
+}
+
+/// Span (lattice units) of a reflected ray's line: long enough to leave the grid from anywhere.
+pub fn ray_span(n: u32, depth: u32) -> i32 {
+    2 * Q * n.max(depth) as i32
+}
+
+/// The ray a voxel at (x, y, z) of dexel `d` emits after being reached by a ray of direction
+/// `incident` entering by the faces `entry` (the primary ray: (0, 0, 1), face −z).
+#[allow(clippy::too_many_arguments)]
+pub fn child_ray(
+    at: [u16; 3],
+    d: &Dexel,
+    incident: [i32; 3],
+    entry: u8,
+    cfg: &ReflectConfig,
+    span: i32,
+    parent: ([u16; 2], u16),
+    level: u8,
+    weight: f32,
+) -> Result<Option<ReflectRay>> {
+    let Some(dir) = reflected_dir(incident, entry, d.normal, cfg.normal, span) else { return Ok(None) };
+    let r = ReflectRay::new(at, dir, cfg.connectivity, parent.0, parent.1, d.facet, level, weight)
+        .map_err(|e| anyhow::anyhow!("reflected ray from {at:?}: {e:?}"))?;
+    Ok(Some(r))
+}
+
+/// Run the reflection phase over a lit grid.
+pub fn reflect(scene: &LoadedScene, env: &ShadeEnv, cfg: &ReflectConfig) -> Result<Reflected> {
+    let grid = &scene.grid;
+    let (n, depth) = (grid.n, grid.depth);
+    cfg.validate(n.max(depth))?;
+    let nn = n as usize;
+    let span = ray_span(n, depth);
+    let mut cells: Vec<CellState> = (0..nn * nn).map(|_| CellState::default()).collect();
+    let mut out = Reflected { rgb: vec![None; nn * nn], root_answers: vec![None; nn * nn], counts: Default::default() };
+    let k = &mut out.counts;
+    let mut root_local = vec![([0f32; 3], 0f32); nn * nn];
+    let mut roots_left = 0u64;
+    if cfg.depth > 0 {
+        for (i, c) in grid.cells.iter().enumerate() {
+            let Some(d) = c.store.dexels().first() else { continue };
+            let (local, kr) = env.visible_local(c.x, c.y, d);
+            if !(kr > 0.0 && kr >= cfg.threshold) {
+                continue;
+            }
+            let (x, y) = (c.x, c.y);
+            let slot = cells[i].open(Node { parent: None, local, kr });
+            root_local[i] = (local, kr);
+            match child_ray([x, y, d.span.lo], d, [0, 0, 1], 0b100, cfg, span, ([x, y], slot), 1, kr)? {
+                Some(r) => cells[i].launch.push_back(r),
+                None => cells[i].send.push_back(Routed { dest: [x, y], payload: (slot, [0; 3]) }),
+            }
+            k.roots += 1;
+            roots_left += 1;
+        }
+    }
+    let mut net: Network<Msg> = Network::new(n, cfg.route);
+    let mut link_used = vec![false; nn * nn * 8];
+    let mut active: Vec<usize> = (0..nn * nn).filter(|&i| !cells[i].idle()).collect();
+    let mut in_active = vec![false; nn * nn];
+    active.iter().for_each(|&i| in_active[i] = true);
+    let mut woken: Vec<usize> = Vec::new();
+    let mut cycle = 0u64;
+    while roots_left > 0 {
+        let mut moved = 0u64;
+        // 1. Compute, launch, send.
+        for &i in &active {
+            let cell = &grid.cells[i];
+            let st = &mut cells[i];
+            if let Some(c) = (0..4).map(|o| (st.rr + o) % 4).find(|&c| !st.fifo[c].is_empty()) {
+                st.rr = (c + 1) % 4;
+                let head = st.fifo[c].pop_front().expect("non-empty FIFO");
+                let mut ray = head;
+                match ray.advance(&cell.store, n, depth, cfg.skip_own_facet) {
+                    ReflectStep::Hit(d, z) => {
+                        k.hits += 1;
+                        let (local, kr) = env.hit_local(cell.x, cell.y, z, &d, &ray, cfg.normal);
+                        let w = ray.weight * kr;
+                        let parent = (ray.parent, ray.slot);
+                        let reflects = kr > 0.0 && ray.level < cfg.depth && w >= cfg.threshold;
+                        if kr > 0.0 && !reflects {
+                            if ray.level >= cfg.depth {
+                                k.cut_depth += 1;
+                            } else {
+                                k.cut_threshold += 1;
+                            }
+                        }
+                        let child = if reflects {
+                            let slot = st.open(Node { parent: Some(parent), local, kr });
+                            let at = [cell.x, cell.y, z];
+                            let r = child_ray(
+                                at,
+                                &d,
+                                ray.dir,
+                                ray.entry,
+                                cfg,
+                                span,
+                                ([cell.x, cell.y], slot),
+                                ray.level + 1,
+                                w,
+                            )?;
+                            if r.is_none() {
+                                st.table[slot as usize] = None;
+                                st.free.push(slot);
+                                st.open -= 1;
+                            }
+                            r
+                        } else {
+                            None
+                        };
+                        match child {
+                            Some(r) => {
+                                k.waits += 1;
+                                st.launch.push_back(r);
+                            }
+                            None => st.send.push_back(Routed { dest: parent.0, payload: (parent.1, to_answer(local)) }),
+                        }
+                        k.ray_steps += 1;
+                        moved += 1;
+                    }
+                    ReflectStep::Exit => {
+                        k.exits += 1;
+                        st.send.push_back(Routed { dest: ray.parent, payload: (ray.slot, [0; 3]) });
+                        k.ray_steps += 1;
+                        moved += 1;
+                    }
+                    ReflectStep::Stay => {
+                        st.fifo[c].push_back(ray);
+                        k.ray_steps += 1;
+                        moved += 1;
+                    }
+                    ReflectStep::Forward(p) => {
+                        if st.out[c][p.index()].is_none() {
+                            st.out[c][p.index()] = Some(ray);
+                            st.outs += 1;
+                            k.ray_steps += 1;
+                            moved += 1;
+                        } else {
+                            st.fifo[c].push_back(head);
+                            k.blocked_cell_cycles += 1;
+                        }
+                    }
+                }
+            }
+            if let Some(r) = st.launch.front() {
+                let c = r.class();
+                if st.fifo[c].len() < cfg.fa {
+                    let r = st.launch.pop_front().expect("non-empty launch queue");
+                    k.max_level = k.max_level.max(r.level);
+                    k.rays += 1;
+                    st.fifo[c].push_back(r);
+                    k.peak_fifo = k.peak_fifo.max(st.fifo[c].len() as u16);
+                    moved += 1;
+                }
+            }
+            if let Some(m) = st.send.front() {
+                if net.can_inject(i, m.dest) && net.inject(i, *m) {
+                    st.send.pop_front();
+                    k.answers += 1;
+                    moved += 1;
+                }
+            }
+            k.peak_wait = k.peak_wait.max(st.open);
+            k.peak_send = k.peak_send.max(st.send.len() as u32);
+        }
+        // 2. Links: answers first, then rays.
+        link_used.iter_mut().for_each(|u| *u = false);
+        let mut delivered: Vec<(usize, Msg)> = Vec::new();
+        moved += net.step(&mut link_used, |cell, m| delivered.push((cell, m.payload)));
+        for (i, (slot, answer)) in delivered {
+            let st = &mut cells[i];
+            let node = st.table[slot as usize].take().expect("an answer for an open wait-table entry");
+            st.free.push(slot);
+            st.open -= 1;
+            match node.parent {
+                None => {
+                    out.root_answers[i] = Some(answer);
+                    out.rgb[i] = Some(combine(node.local, node.kr, answer).map(encode));
+                    roots_left -= 1;
+                }
+                Some((dest, pslot)) => {
+                    st.send
+                        .push_back(Routed { dest, payload: (pslot, to_answer(combine(node.local, node.kr, answer))) });
+                    if !in_active[i] {
+                        in_active[i] = true;
+                        woken.push(i);
+                    }
+                }
+            }
+        }
+        for &i in &active {
+            if cells[i].outs == 0 {
+                continue;
+            }
+            for c in 0..4 {
+                for p in Port::ALL {
+                    let link = i * 8 + p.index();
+                    if link_used[link] {
+                        continue;
+                    }
+                    let Some(ray) = cells[i].out[c][p.index()] else { continue };
+                    let (dx, dy) = p.delta();
+                    let j = (i as i64 + dy as i64 * nn as i64 + dx as i64) as usize;
+                    if cells[j].fifo[c].len() >= cfg.fa {
+                        continue;
+                    }
+                    cells[i].out[c][p.index()] = None;
+                    cells[i].outs -= 1;
+                    cells[j].fifo[c].push_back(ray);
+                    k.peak_fifo = k.peak_fifo.max(cells[j].fifo[c].len() as u16);
+                    link_used[link] = true;
+                    k.ray_messages += 1;
+                    moved += 1;
+                    if !in_active[j] {
+                        in_active[j] = true;
+                        woken.push(j);
+                    }
+                }
+            }
+        }
+        cycle += 1;
+        active.retain(|&i| {
+            let busy = !cells[i].idle();
+            in_active[i] = busy;
+            busy
+        });
+        for &j in &woken {
+            in_active[j] = true;
+            active.push(j);
+        }
+        woken.clear();
+        active.sort_unstable();
+        if moved == 0 && roots_left > 0 {
+            let busy: Vec<String> = active
+                .iter()
+                .take(6)
+                .map(|&i| {
+                    let s = &cells[i];
+                    format!(
+                        "cell ({}, {}): FIFOs {:?}, {} out, {} to launch, {} to send",
+                        i % nn,
+                        i / nn,
+                        s.fifo.iter().map(VecDeque::len).collect::<Vec<_>>(),
+                        s.outs,
+                        s.launch.len(),
+                        s.send.len()
+                    )
+                })
+                .collect();
+            bail!(
+                "deadlock in the reflection phase at cycle {cycle}: {roots_left} trees unanswered, {} answers in flight, nothing can move ({})",
+                net.in_flight,
+                busy.join("; ")
+            );
+        }
+    }
+    k.cycles = cycle;
+    k.answer_messages = net.hops;
+    Ok(out)
+}
+
+/// One line of reflection counters for the job summaries.
+pub fn summary(c: &ReflectCounts) -> String {
+    format!(
+        "reflections: {} cycles, {} trees, {} rays (deepest level {}), {} hits, {} exits, {} waits, {} voxel steps, {} ray + {} answer messages; cut by depth {}, by threshold {}; peak FIFO {}, wait table {}, send queue {}",
+        c.cycles,
+        c.roots,
+        c.rays,
+        c.max_level,
+        c.hits,
+        c.exits,
+        c.waits,
+        c.ray_steps,
+        c.ray_messages,
+        c.answer_messages,
+        c.cut_depth,
+        c.cut_threshold,
+        c.peak_fifo,
+        c.peak_wait,
+        c.peak_send
+    ) + &match (c.psnr_db, c.psnr_without_db, c.mirror_psnr_db, c.mirror_psnr_without_db) {
+        (Some(a), Some(b), Some(m), Some(mb)) => format!(
+            "\n  vs the reflective reference: PSNR {a:.2} dB (without reflections {b:.2} dB); on the {} mirror pixels {m:.2} dB (without {mb:.2} dB)",
+            c.mirror_pixels
+        ),
+        _ => String::new(),
+    }
+}
+
+/// `render --reflections D` (D ≥ 1): diffusion lighting, shading, then the reflection phase;
+/// reflective visible voxels get `local + Kr · answer`, every other pixel is the plain render's.
+/// Compared with `reference` when given (make it with [`reference_image`]).
+#[allow(clippy::too_many_arguments)]
+pub fn render_reflect<F: cell_core::beam::FracBits>(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    light_positions: &[[f64; 3]],
+    cfg: &crate::render::RenderConfig,
+    rcfg: &ReflectConfig,
+    reference: Option<&crate::refrender::RefImage>,
+    times: [f64; 2],
+    progress: impl FnMut(usize, u64),
+) -> Result<(crate::render::Rendered, ReflectCounts)> {
+    let t0 = std::time::Instant::now();
+    let (lighting, lstats) = crate::lightjob::run_diffusion::<F>(mesh, scene, light_positions, &cfg.light, progress)?;
+    let mask = |x, y, z| lighting.mask(x, y, z);
+    let light_seconds = t0.elapsed().as_secs_f64();
+    let mut r = crate::render::finish_render(
+        mesh,
+        scene,
+        light_positions,
+        cfg,
+        None,
+        &mask,
+        lstats,
+        [times[0], light_seconds, times[1]],
+    );
+    let t1 = std::time::Instant::now();
+    let lights = crate::render::point_lights(light_positions);
+    let env = ShadeEnv::new(mesh, &lights, cfg.normals, &mask);
+    let refl = reflect(scene, &env, rcfg)?;
+    let local_only = r.image.rgb.clone();
+    for (px, v) in r.image.rgb.iter_mut().zip(&refl.rgb) {
+        if let Some(v) = v {
+            *px = *v;
+        }
+    }
+    let mut counts = refl.counts;
+    if let Some(rf) = reference {
+        let mirror: Vec<bool> = rf
+            .facet
+            .iter()
+            .map(|&f| mesh.faces.get(f as usize).is_some_and(|fc| mesh.materials[fc.material as usize].kr > 0.0))
+            .collect();
+        let all = vec![true; mirror.len()];
+        counts.psnr_db = Some(psnr(&r.image.rgb, &rf.rgb, &all));
+        counts.psnr_without_db = Some(psnr(&local_only, &rf.rgb, &all));
+        counts.mirror_psnr_db = Some(psnr(&r.image.rgb, &rf.rgb, &mirror));
+        counts.mirror_psnr_without_db = Some(psnr(&local_only, &rf.rgb, &mirror));
+        counts.mirror_pixels = mirror.iter().filter(|&&m| m).count() as u64;
+    }
+    r.stats.shade_seconds += t1.elapsed().as_secs_f64();
+    r.stats.wall_seconds += t1.elapsed().as_secs_f64();
+    r.stats.reference = reference.map(|rf| crate::refrender::compare(&r.image.rgb, &r.image.covered, &r.image.lit, rf));
+    Ok((r, counts))
+}
+
+/// The f64 reference with the same reflections (depth, threshold; exact normals and hits).
+pub fn reference_image(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    light_positions: &[[f64; 3]],
+    depth: u8,
+    threshold: f32,
+) -> Result<crate::refrender::RefImage> {
+    let rl = crate::render::ref_lights(&crate::render::point_lights(light_positions));
+    let refl = crate::refrender::RefReflect { depth: depth as u32, threshold: threshold as f64 };
+    let ambient = [crate::render::AMBIENT as f64; 3];
+    crate::refrender::render_reference_reflect(mesh, &scene.fit, scene.grid.n, &rl, ambient, &refl)
+}
+
+/// Normal that mirrors reflected rays (§5.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ReflectNormalArg {
+    /// The facet normal stored in each dexel (§5.2.1).
+    Facet,
+    /// The face of the voxel the ray entered: flip that component (§5.2.2, the face flip of §5.5.4).
+    Face,
+}
+
+/// Command-line options of the reflection phase (`render`).
+#[derive(clap::Args, Debug, Clone)]
+pub struct ReflectOpts {
+    /// Mirror reflections: largest depth of the distributed ray tree (reflections per path);
+    /// 0 = off. Needs `--lighting diffusion` (the lit state of every voxel).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=32))]
+    pub reflections: u8,
+    /// Hall's adaptive depth (§1.2.5.1): a voxel reflects only while the product of the Kr along
+    /// the path is at least this.
+    #[arg(long, default_value_t = 0.01)]
+    pub reflect_threshold: f32,
+    /// Normal that mirrors the reflected rays: facet (stored normal) or face (face flip, §5.5.4).
+    #[arg(long, value_enum, default_value_t = ReflectNormalArg::Facet)]
+    pub reflect_normal: ReflectNormalArg,
+    /// Let reflected rays hit the voxels of the facet they left (shows the §5.5.2 self-collision).
+    #[arg(long)]
+    pub reflect_self_hits: bool,
+}
+
+impl ReflectOpts {
+    /// Check the options before any work (with reflections on): diffusion lighting, a valid
+    /// configuration for a grid of side `n` and FIFO limit `fa`.
+    pub fn validate(&self, lighting: crate::classic::LightingArg, n: u32, fa: usize) -> Result<()> {
+        if self.reflections == 0 {
+            return Ok(());
+        }
+        if lighting == crate::classic::LightingArg::Classic {
+            bail!("--reflections needs --lighting diffusion (the lit state of every voxel, not only the visible ones)");
+        }
+        let classic = crate::classic::ClassicConfig {
+            fa,
+            connectivity: Connectivity::Six,
+            route: RoutePolicy::Adaptive,
+            all_voxels: false,
+            bias: 0,
+        };
+        self.config(fa, &classic).validate(n)
+    }
+
+    /// The configuration (rays use the classic options' connectivity and routing).
+    pub fn config(&self, fa: usize, classic: &crate::classic::ClassicConfig) -> ReflectConfig {
+        ReflectConfig {
+            depth: self.reflections,
+            threshold: self.reflect_threshold,
+            normal: match self.reflect_normal {
+                ReflectNormalArg::Facet => ReflectNormal::Facet,
+                ReflectNormalArg::Face => ReflectNormal::Face,
+            },
+            skip_own_facet: !self.reflect_self_hits,
+            connectivity: classic.connectivity,
+            fa,
+            route: classic.route,
+        }
+    }
+}
+
+/// The render statistics with the reflection counters added under `"reflections"`.
+pub fn with_counts(stats: &crate::render::RenderStats, c: &ReflectCounts) -> Result<serde_json::Value> {
+    let mut v = serde_json::to_value(stats)?;
+    if let serde_json::Value::Object(m) = &mut v {
+        m.insert("reflections".into(), serde_json::to_value(c)?);
+    }
+    Ok(v)
+}
