@@ -6,7 +6,9 @@
 #
 #   SCENES="cornell bureau1" NS="128 256" THREADS="1 2" bash bench/scale.sh
 #
-# A run longer than LIMIT seconds (default 600) is stopped and recorded as a timeout.
+# A run longer than LIMIT seconds (default 600) is stopped and recorded as a timeout. EXTRA adds
+# render options to every run (e.g. EXTRA=--lit-visible-only for scenes whose columns need
+# more lit runs than LIT_CAP). CSV (default bench-out/scale.csv) names the output.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SCENES=${SCENES:-"cornell bureau1 bureau2 classe cow70k-floor"}
@@ -19,7 +21,7 @@ B=./target/release/host-sim
 if [[ " $SCENES " == *" cow70k-floor "* && ! -f bench-out/cow70k-floor.obj ]]; then
   $B subdivide cow-floor --target 70000 --out bench-out/cow70k-floor.obj
 fi
-CSV=bench-out/scale.csv
+CSV=${CSV:-bench-out/scale.csv}
 echo "scene,n,threads,facets,status,load_cycles,light_cycles,shade_cycles,beams_processed,messages,rays_skipped,load_s,light_s,shade_s,wall_s,peak_rss_mib" > "$CSV"
 for scene in $SCENES; do
   src=$scene
@@ -33,7 +35,7 @@ for scene in $SCENES; do
       js=bench-out/scale-$scene-$n-t$t.json
       rm -f "$js"
       status=ok
-      timeout "$LIMIT" $B render "$src" --n "$n" --threads "$t" --quiet "${extra[@]}" \
+      timeout "$LIMIT" $B render "$src" --n "$n" --threads "$t" --quiet "${extra[@]}" ${EXTRA:-} \
         --out "bench-out/scale-$scene-$n.png" --stats "$js" >/dev/null 2>bench-out/scale-err.txt || status=fail
       if [[ $status == fail ]]; then
         echo "$scene,$n,$t,,timeout_or_error,,,,,,,,,,," >> "$CSV"
