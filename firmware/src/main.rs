@@ -41,8 +41,8 @@ use defmt_semihosting as _;
 include!(concat!(env!("OUT_DIR"), "/traces.rs"));
 
 /// The cell this firmware is: the host's capacities (64 dexels, FIFO 64, output buffers of 3,
-/// 32 lit runs) and integer rays (f = 0). A trace recorded with others is refused.
-type Cell = Replayer<U0, 64, 64, 3, 32>;
+/// 64 lit runs) and integer rays (f = 0). A trace recorded with others is refused.
+type Cell = Replayer<U0, 64, 64, 3, 64>;
 
 /// The cell, shared between the main loop and the link interrupt.
 static CELL: Mutex<RefCell<Option<Cell>>> = Mutex::new(RefCell::new(None));
