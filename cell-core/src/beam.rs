@@ -681,6 +681,17 @@ impl<F: FracBits> Beam<F> {
         self.u.len() * self.v.len()
     }
 
+    /// A filler for unused slots of fixed-size buffers (never read as a beam).
+    pub(crate) const fn filler() -> Self {
+        Beam {
+            u: RayRange { lo: FarOffset::<F>::ZERO, hi: FarOffset::<F>::ZERO },
+            v: RayRange { lo: FarOffset::<F>::ZERO, hi: FarOffset::<F>::ZERO },
+            layer: Layer(0),
+            source: SourceId(0),
+            dir: Direction::PosX,
+        }
+    }
+
     /// The union of two beams of the same source, direction and layer whose ray rectangles
     /// share a whole side (equal u range and touching v ranges, or the reverse); `None`
     /// otherwise. When both beams are in the same voxel the merge is exact: a ray's voxel at

@@ -31,7 +31,7 @@
 use core::cell::Cell as CoreCell;
 
 use critical_section::Mutex;
-use heapless::{Deque, Vec};
+use heapless::Vec;
 
 use crate::beam::{Beam, BeamError, Direction, FarDistance, FracBits, Source, SplitOrder, Transverse};
 use crate::dexel::DexelStore;
@@ -440,17 +440,116 @@ pub enum Step {
     Blocked,
 }
 
-/// Where a processed beam's rays go (lives on the stack for one step; no heap to box into).
-#[allow(clippy::large_enum_variant)]
-enum Fate<F: FracBits> {
-    Absorbed(u64),
-    Split { subs: heapless::Vec<(Target, BeamMsg<F>), 9>, exited: u64, skipped: u64 },
+/// Where a processed beam's rays go: absorbed in this column, or split into `subs` (plus rays
+/// that exited or were skipped). One lives on the stack for a whole step and is filled in
+/// place for each candidate ([`LightCell::fate`]): the ~300-byte sub-beam list is never moved.
+struct Fate<F: FracBits> {
+    /// Rays absorbed here (`Some`: the beam's voxel is occupied; `subs` is then empty).
+    absorbed: Option<u64>,
+    subs: heapless::Vec<(Target, BeamMsg<F>), 9>,
+    exited: u64,
+    skipped: u64,
+}
+
+impl<F: FracBits> Fate<F> {
+    const fn new() -> Self {
+        Fate { absorbed: None, subs: heapless::Vec::new(), exited: 0, skipped: 0 }
+    }
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Target {
     SelfFifo,
     Out(Port),
+}
+
+/// The cell's eight output buffers, `OB` messages each, FIFO order. The eight lengths sit
+/// together in one word ahead of the messages, so "is anything waiting", "which links have a
+/// message" and the no-loss room check read 8 bytes instead of a header per buffer (the host's
+/// cell step was bound by those loads). Buffers are tiny (`OB` = 3): popping shifts the rest.
+#[derive(Clone, Debug)]
+pub struct OutBuffers<F: FracBits, const OB: usize> {
+    len: [u8; 8],
+    msgs: [[BeamMsg<F>; OB]; 8],
+}
+
+impl<F: FracBits, const OB: usize> Default for OutBuffers<F, OB> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<F: FracBits, const OB: usize> OutBuffers<F, OB> {
+    const OB_FITS_A_BYTE: () = assert!(OB <= 255, "output buffer lengths are bytes");
+
+    /// Eight empty buffers.
+    pub const fn new() -> Self {
+        #[allow(clippy::let_unit_value)]
+        let () = Self::OB_FITS_A_BYTE;
+        OutBuffers { len: [0; 8], msgs: [[BeamMsg { beam: Beam::filler(), z: 0 }; OB]; 8] }
+    }
+
+    /// Messages waiting toward `p`.
+    pub fn len(&self, p: Port) -> usize {
+        self.len[p.index()] as usize
+    }
+
+    /// Whether nothing waits toward `p`.
+    pub fn is_empty(&self, p: Port) -> bool {
+        self.len[p.index()] == 0
+    }
+
+    /// Whether any buffer holds a message.
+    pub fn any(&self) -> bool {
+        self.lengths() != 0
+    }
+
+    /// The eight lengths as one word (byte p: port p).
+    pub fn lengths(&self) -> u64 {
+        u64::from_le_bytes(self.len)
+    }
+
+    /// The links with a message waiting, in port order.
+    pub fn busy_ports(&self) -> impl Iterator<Item = Port> + '_ {
+        Port::ALL.into_iter().filter(|p| self.len[p.index()] != 0)
+    }
+
+    /// The oldest message toward `p`.
+    pub fn front(&self, p: Port) -> Option<&BeamMsg<F>> {
+        self.waiting(p).first()
+    }
+
+    /// The messages toward `p`, oldest first.
+    pub fn waiting(&self, p: Port) -> &[BeamMsg<F>] {
+        &self.msgs[p.index()][..self.len[p.index()] as usize]
+    }
+
+    /// The messages toward `p`, oldest first, to update in place (merging).
+    pub fn waiting_mut(&mut self, p: Port) -> &mut [BeamMsg<F>] {
+        &mut self.msgs[p.index()][..self.len[p.index()] as usize]
+    }
+
+    /// Queue `m` toward `p`; a full buffer gives it back.
+    pub fn push_back(&mut self, p: Port, m: BeamMsg<F>) -> Result<(), BeamMsg<F>> {
+        let (q, n) = (&mut self.msgs[p.index()], &mut self.len[p.index()]);
+        let Some(slot) = q.get_mut(*n as usize) else { return Err(m) };
+        *slot = m;
+        *n += 1;
+        Ok(())
+    }
+
+    /// Take the oldest message toward `p`.
+    pub fn pop_front(&mut self, p: Port) -> Option<BeamMsg<F>> {
+        let (q, n) = (&mut self.msgs[p.index()], &mut self.len[p.index()]);
+        let len = *n as usize;
+        if len == 0 {
+            return None;
+        }
+        let m = q[0];
+        q.copy_within(1..len, 0);
+        *n -= 1;
+        Some(m)
+    }
 }
 
 /// The lighting state of one cell: FIFO capacity `FA`, `OB` messages per output buffer,
@@ -461,10 +560,11 @@ pub struct LightCell<F: FracBits, const FA: usize, const OB: usize, const L: usi
     pub x: Coord,
     /// Row index.
     pub y: Coord,
-    /// The input FIFO ("FA").
+    /// The input FIFO ("FA"). Fill it only through [`LightCell::accept`] (which the blocked-step
+    /// shortcut relies on).
     pub fifo: Vec<BeamMsg<F>, FA>,
     /// One output buffer per neighbour link.
-    pub out: [Deque<BeamMsg<F>, OB>; 8],
+    pub out: OutBuffers<F, OB>,
     /// Lit voxels of the column.
     pub lit: LitRuns<L>,
     /// Counters.
@@ -474,6 +574,14 @@ pub struct LightCell<F: FracBits, const FA: usize, const OB: usize, const L: usi
     /// Bit p: the head of output buffer p is on the wire (sent, not yet acknowledged); it is
     /// not merged into. Only links with acknowledgement set it.
     pub head_in_flight: u8,
+    /// Bumped by every change of the FIFO ([`LightCell::accept`], processing).
+    fifo_generation: u32,
+    /// After a wavefront step found nothing processable: the output-buffer lengths and FIFO
+    /// generation it saw. Between two steps the output buffers can only shrink (links pop) and
+    /// the FIFO only change through `accept`, and a beam's fate depends on nothing else, so
+    /// while both are unchanged the cell is still blocked and skips re-splitting every waiting
+    /// beam (exact: same result, same counters). Cleared when a beam is processed.
+    blocked_on: Option<(u64, u32)>,
 }
 
 impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F, FA, OB, L> {
@@ -487,17 +595,19 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             x,
             y,
             fifo: Vec::new(),
-            out: core::array::from_fn(|_| Deque::new()),
+            out: OutBuffers::new(),
             lit: LitRuns::new(),
             counters: LightCounters::default(),
             last_z: 0,
             head_in_flight: 0,
+            fifo_generation: 0,
+            blocked_on: None,
         }
     }
 
     /// Whether the cell holds any beam (FIFO or output buffers).
     pub fn busy(&self) -> bool {
-        !self.fifo.is_empty() || self.out.iter().any(|q| !q.is_empty())
+        !self.fifo.is_empty() || self.out.any()
     }
 
     /// Whether the FIFO can take one more beam under limit `fa` (the credit a link checks).
@@ -510,6 +620,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     /// shares a whole side with a waiting beam of the same voxel joins it instead of taking a
     /// slot (exact, see [`Beam::merged`]; one beam fewer in flight).
     pub fn accept(&mut self, msg: BeamMsg<F>, merge: bool, activity: &impl BeamTally) -> Result<(), BeamMsg<F>> {
+        self.fifo_generation = self.fifo_generation.wrapping_add(1);
         if merge {
             let mut m = msg;
             let mut joined = false;
@@ -541,19 +652,22 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         Ok(())
     }
 
-    /// Decide a beam's fate without changing anything.
-    fn fate<const D: usize>(&self, m: &BeamMsg<F>, store: &DexelStore<D>, env: &LightEnv<'_, F>) -> Fate<F> {
+    /// Decide a beam's fate into `f` without changing the cell.
+    fn fate<const D: usize>(&self, m: &BeamMsg<F>, store: &DexelStore<D>, env: &LightEnv<'_, F>, f: &mut Fate<F>) {
         let b = &m.beam;
+        f.subs.clear();
+        f.exited = 0;
+        f.skipped = 0;
+        f.absorbed = None;
         if store.occupied(m.z).is_some() {
-            return Fate::Absorbed(b.ray_count());
+            f.absorbed = Some(b.ray_count());
+            return;
         }
         let dir = b.direction();
         let pos = [self.x as i64, self.y as i64, m.z as i64];
         let (ua, va) = dir.transverse();
         let at = Transverse { u: pos[ua.index()] as i32, v: pos[va.index()] as i32 };
-        let mut subs = heapless::Vec::new();
-        let mut exited = 0;
-        let mut skipped = 0;
+        let Fate { subs, exited, skipped, .. } = f;
         let sv = env.source.voxel();
         match b.split_with(env.source, env.far, at, env.order) {
             Ok(parts) => {
@@ -567,11 +681,11 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                         && to[1] < env.n as i64
                         && to[2] < env.depth as i64;
                     if !inside {
-                        exited += sb.beam.ray_count();
+                        *exited += sb.beam.ray_count();
                         continue;
                     }
                     if env.skip.is_some_and(|bx| bx.receding(dir, sv, to)) {
-                        skipped += sb.beam.ray_count();
+                        *skipped += sb.beam.ray_count();
                         continue;
                     }
                     let target = match Port::from_delta(d[0], d[1]) {
@@ -583,23 +697,22 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             }
             // At the far plane (k = D) or for a beam that is not this source's: the next
             // layer is outside every grid the far distance was chosen for; the rays leave.
-            Err(BeamError::AtFarPlane) | Err(_) => exited += b.ray_count(),
+            Err(BeamError::AtFarPlane) | Err(_) => *exited += b.ray_count(),
         }
-        Fate::Split { subs, exited, skipped }
     }
 
     /// Whether every sub-beam of `fate` fits now (the no-loss rule), given that the processed
     /// beam leaves the FIFO first.
     fn fits(&self, fate: &Fate<F>, fa: usize) -> bool {
-        let Fate::Split { subs, .. } = fate else { return true };
         let mut need = [0usize; 9];
-        for (t, _) in subs {
+        for (t, _) in &fate.subs {
             match t {
                 Target::Out(p) => need[p.index()] += 1,
                 Target::SelfFifo => need[8] += 1,
             }
         }
-        (0..8).all(|p| self.out[p].len() + need[p] <= OB) && self.fifo.len() - 1 + need[8] <= fa.min(FA)
+        Port::ALL.into_iter().all(|p| self.out.len(p) + need[p.index()] <= OB)
+            && self.fifo.len() - 1 + need[8] <= fa.min(FA)
     }
 
     /// One compute cycle (§4.4.1): pick a beam by `env.policy`, process it if the no-loss rule
@@ -613,11 +726,17 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         if self.fifo.is_empty() {
             return Step::Idle;
         }
+        let wave = env.policy == Policy::Wavefront;
+        if wave && self.blocked_on == Some((self.out.lengths(), self.fifo_generation)) {
+            self.counters.blocked_cycles += 1;
+            return Step::Blocked;
+        }
+        let mut fate = Fate::new();
         let chosen = match env.policy {
             Policy::Thesis => {
-                let fate = self.fate(&self.fifo[0], store, env);
+                self.fate(&self.fifo[0], store, env, &mut fate);
                 if self.fits(&fate, env.fa) {
-                    Some((0, fate))
+                    Some(0)
                 } else {
                     // Put it back at the tail.
                     let head = self.fifo.remove(0);
@@ -627,7 +746,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             }
             Policy::Wavefront => {
                 // Candidates by (layer, position); the first that fits goes.
-                let mut best: Option<(usize, Fate<F>)> = None;
+                let mut best: Option<usize> = None;
                 let mut tried = 0u64; // FIFO positions already tried (FA ≤ 64, asserted)
                 for _ in 0..self.fifo.len() {
                     let mut pick: Option<usize> = None;
@@ -641,62 +760,63 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                     }
                     let Some(i) = pick else { break };
                     tried |= 1 << i;
-                    let fate = self.fate(&self.fifo[i], store, env);
+                    self.fate(&self.fifo[i], store, env, &mut fate);
                     if self.fits(&fate, env.fa) {
-                        best = Some((i, fate));
+                        best = Some(i);
                         break;
                     }
                 }
                 best
             }
         };
-        let Some((i, fate)) = chosen else {
+        let Some(i) = chosen else {
             self.counters.blocked_cycles += 1;
+            if wave {
+                self.blocked_on = Some((self.out.lengths(), self.fifo_generation));
+            }
             return Step::Blocked;
         };
+        self.blocked_on = None;
+        self.fifo_generation = self.fifo_generation.wrapping_add(1);
         let m = self.fifo.remove(i);
         self.last_z = m.z;
         self.counters.processed += 1;
         self.counters.max_layer = self.counters.max_layer.max(m.beam.layer().0);
-        match fate {
-            Fate::Absorbed(rays) => {
-                self.counters.rays_absorbed += rays;
-                let shown = !env.lit_visible_only || store.dexels().first().is_some_and(|d| d.span.lo == m.z);
-                if shown && !self.lit.mark(m.z, env.source_bit) {
-                    self.counters.lit_overflows += 1;
-                }
+        if let Some(rays) = fate.absorbed {
+            self.counters.rays_absorbed += rays;
+            let shown = !env.lit_visible_only || store.dexels().first().is_some_and(|d| d.span.lo == m.z);
+            if shown && !self.lit.mark(m.z, env.source_bit) {
+                self.counters.lit_overflows += 1;
             }
-            Fate::Split { subs, exited, skipped } => {
-                self.counters.rays_exited += exited;
-                self.counters.rays_skipped += skipped;
-                activity.add(subs.len() as u64);
-                for (t, sub) in subs {
-                    // Cannot fail: `fits` checked every destination.
-                    match t {
-                        Target::SelfFifo => {
-                            let _ = self.accept(sub, env.merge, activity);
-                        }
-                        Target::Out(p) => {
-                            // A head already on the wire (sent, not yet acknowledged) must not
-                            // change: a retransmission has to carry the same beam.
-                            let skip_head = (self.head_in_flight >> p.index() & 1) as usize;
-                            let q = &mut self.out[p.index()];
-                            // Same neighbour voxel, side by side: join the waiting message.
-                            let joined = env.merge
-                                && q.iter_mut().skip(skip_head).any(|w| {
-                                    let j = (w.z == sub.z).then(|| w.beam.merged(&sub.beam)).flatten();
-                                    if let Some(b) = j {
-                                        w.beam = b;
-                                    }
-                                    j.is_some()
-                                });
-                            if joined {
-                                activity.consume();
-                                self.counters.merged += 1;
-                            } else {
-                                let _ = q.push_back(sub);
-                                self.counters.sent += 1;
-                            }
+        } else {
+            self.counters.rays_exited += fate.exited;
+            self.counters.rays_skipped += fate.skipped;
+            activity.add(fate.subs.len() as u64);
+            for &(t, sub) in &fate.subs {
+                // Cannot fail: `fits` checked every destination.
+                match t {
+                    Target::SelfFifo => {
+                        let _ = self.accept(sub, env.merge, activity);
+                    }
+                    Target::Out(p) => {
+                        // A head already on the wire (sent, not yet acknowledged) must not
+                        // change: a retransmission has to carry the same beam.
+                        let skip_head = (self.head_in_flight >> p.index() & 1) as usize;
+                        // Same neighbour voxel, side by side: join the waiting message.
+                        let joined = env.merge
+                            && self.out.waiting_mut(p).iter_mut().skip(skip_head).any(|w| {
+                                let j = (w.z == sub.z).then(|| w.beam.merged(&sub.beam)).flatten();
+                                if let Some(b) = j {
+                                    w.beam = b;
+                                }
+                                j.is_some()
+                            });
+                        if joined {
+                            activity.consume();
+                            self.counters.merged += 1;
+                        } else {
+                            let _ = self.out.push_back(p, sub);
+                            self.counters.sent += 1;
                         }
                     }
                 }
@@ -754,6 +874,93 @@ mod tests {
     }
 
     proptest! {
+        /// The output buffers against eight `VecDeque`s bounded at OB: same accept/refuse, same
+        /// order, and the one-word summaries (`any`, `busy_ports`, `len`) agree.
+        #[test]
+        fn out_buffers_match_bounded_deques(ops in proptest::collection::vec((0usize..8, any::<bool>(), any::<u16>()), 0..200)) {
+            let mut b = OutBuffers::<fixed::types::extra::U0, 3>::new();
+            let mut want: [std::collections::VecDeque<u16>; 8] = Default::default();
+            for (p, push, z) in ops {
+                let port = Port::ALL[p];
+                if push {
+                    let r = b.push_back(port, BeamMsg { beam: Beam::filler(), z });
+                    prop_assert_eq!(r.is_ok(), want[p].len() < 3);
+                    if want[p].len() < 3 {
+                        want[p].push_back(z);
+                    } else {
+                        prop_assert_eq!(r.unwrap_err().z, z);
+                    }
+                } else {
+                    prop_assert_eq!(b.pop_front(port).map(|m| m.z), want[p].pop_front());
+                }
+                for q in Port::ALL {
+                    let w = &want[q.index()];
+                    prop_assert_eq!(b.len(q), w.len());
+                    prop_assert_eq!(b.is_empty(q), w.is_empty());
+                    prop_assert_eq!(b.front(q).map(|m| m.z), w.front().copied());
+                    prop_assert!(b.waiting(q).iter().map(|m| m.z).eq(w.iter().copied()));
+                }
+                prop_assert_eq!(b.any(), want.iter().any(|w| !w.is_empty()));
+                prop_assert!(b.busy_ports().eq(Port::ALL.into_iter().filter(|q| !want[q.index()].is_empty())));
+            }
+        }
+
+        /// The blocked-step shortcut is exact: a cell driven by random steps, link pops and
+        /// arrivals behaves like a twin that forgets the shortcut before every step (full
+        /// re-evaluation of every waiting beam), with output buffers of one message so that
+        /// cells block often.
+        #[test]
+        fn blocked_shortcut_changes_nothing(ops in proptest::collection::vec((0u8..3, 0usize..8, 0usize..6), 1..150)) {
+            use crate::beam::{SourceCoord, SourceId};
+            use fixed::types::extra::U0;
+            let n = 16;
+            let c = |v: f64| SourceCoord::from_num(v);
+            let src = Source::new(SourceId(0), [c(7.5), c(7.25), c(7.0)]);
+            let far = FarDistance::<U0>::new(n - 1).unwrap();
+            let order = SplitOrder::default();
+            let env = LightEnv {
+                source: &src, far, n, depth: n, policy: Policy::Wavefront, order: &order, fa: 4,
+                source_bit: 1, merge: true, skip: None, lit_visible_only: false,
+            };
+            let mut store = DexelStore::<8>::new();
+            let tag = crate::dexel::FacetTag::default();
+            let _ = store.insert(crate::units::Span { lo: 12, hi: 13 }, tag);
+            let sv = src.voxel();
+            let (mut a, mut b) = (LightCell::<U0, 4, 1, 8>::new(sv[0] as u16, sv[1] as u16), LightCell::<U0, 4, 1, 8>::new(sv[0] as u16, sv[1] as u16));
+            let (ta, tb) = (Activity::new(), Activity::new());
+            let six = Beam::<U0>::initial_six(&src, far);
+            let mut popped: std::vec::Vec<BeamMsg<U0>> = std::vec::Vec::new();
+            for (op, port, which) in ops {
+                match op {
+                    0 => {
+                        b.blocked_on = None;
+                        prop_assert_eq!(a.step(&store, &env, &ta), b.step(&store, &env, &tb));
+                    }
+                    1 => {
+                        let p = Port::ALL[port];
+                        let (x, y) = (a.out.pop_front(p), b.out.pop_front(p));
+                        prop_assert_eq!(x, y);
+                        popped.extend(x);
+                    }
+                    _ => {
+                        // A new arrival: an initial beam, or a message a link took earlier.
+                        let m = popped.get(which).copied().unwrap_or(BeamMsg { beam: six[which], z: sv[2] as u16 });
+                        if a.can_accept(env.fa) {
+                            ta.add(1);
+                            tb.add(1);
+                            prop_assert_eq!(a.accept(m, true, &ta).is_ok(), b.accept(m, true, &tb).is_ok());
+                        }
+                    }
+                }
+                prop_assert_eq!(&a.fifo, &b.fifo);
+                for p in Port::ALL {
+                    prop_assert_eq!(a.out.waiting(p), b.out.waiting(p));
+                }
+                prop_assert_eq!(a.counters, b.counters);
+                prop_assert_eq!(ta.get(), tb.get());
+            }
+        }
+
         #[test]
         fn lit_runs_match_a_per_voxel_array(marks in proptest::collection::vec((0u16..40, 0u32..4), 0..60)) {
             let mut r = LitRuns::<64>::new();

@@ -527,7 +527,7 @@ pub fn drain_outputs<F: FracBits, const FA: usize, const OB: usize, const L: usi
 ) -> Result<u32, DrainError<K::Error>> {
     let mut count = 0;
     for p in Port::ALL {
-        let Some(m) = cell.out[p.index()].front() else { continue };
+        let Some(m) = cell.out.front(p) else { continue };
         let link = &mut links[p.index()];
         if !link.ready().map_err(|e| DrainError::Link(p, e))? {
             continue;
@@ -536,7 +536,7 @@ pub fn drain_outputs<F: FracBits, const FA: usize, const OB: usize, const L: usi
         let len = encode(0, &Message::Beam(*m), &mut buf).map_err(DrainError::Encode)?;
         link.send(&buf[..len]).map_err(|e| DrainError::Link(p, e))?;
         sent(p, &buf[..len]);
-        cell.out[p.index()].pop_front();
+        cell.out.pop_front(p);
         count += 1;
     }
     Ok(count)

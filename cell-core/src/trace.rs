@@ -597,7 +597,7 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
     /// A neighbour took the head of output buffer `port`: send it over `links` (only that
     /// link's neighbour is ready).
     pub fn grant<K: Link>(&mut self, port: Port, links: &mut [K; 8]) -> Result<(), ReplayError> {
-        if self.light.out[port.index()].is_empty() {
+        if self.light.out.is_empty(port) {
             return Err(ReplayError::NothingToSend);
         }
         let digest = &mut self.digest;

@@ -11,7 +11,7 @@ use cell_core::beam::frac::U0;
 use cell_core::cell::{Cell, DEFAULT_DEXELS};
 use cell_core::dexel::{Dexel, DexelStore};
 use cell_core::facet::{PipelinePacket, RowPacket};
-use cell_core::light::{BeamMsg, LitRun, LitRuns};
+use cell_core::light::{BeamMsg, LitRun, LitRuns, OutBuffers};
 use cell_core::link::{BEAM_PAYLOAD, HEADER, MAX_FRAME, ROW_PAYLOAD_BASE, TRAILER};
 
 use crate::diffuse::{LightConfig, FA_CAP, LIT_CAP, OB_CAP};
@@ -184,7 +184,7 @@ pub fn audit(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig, elf: Option<&st
     type Light = crate::diffuse::HostLightCell<U0>;
     let (b_dexel, b_msg, b_run) = (size_of::<Dexel>(), size_of::<BeamMsg<U0>>(), size_of::<LitRun>());
     let static_fifo = size_of::<heapless::Vec<BeamMsg<U0>, FA_CAP>>();
-    let static_out = size_of::<[heapless::Deque<BeamMsg<U0>, OB_CAP>; 8]>();
+    let static_out = size_of::<OutBuffers<U0, OB_CAP>>();
     let static_lit = size_of::<LitRuns<LIT_CAP>>();
     let static_cell = size_of::<Cell<DEFAULT_DEXELS>>();
     let static_light = size_of::<Light>();
@@ -241,7 +241,10 @@ pub fn print(a: &Audit) {
         "| FIFO | {} B ({} × {} B) | peak {} beams, cell {:?} |",
         a.static_fifo, a.capacity_fifo, a.bytes_beam_message, a.used_fifo, a.used_fifo_cell
     );
-    println!("| output buffers | {} B (8 × 3 × {} B) | |", a.static_output_buffers, a.bytes_beam_message);
+    println!(
+        "| output buffers | {} B (8 × {OB_CAP} × {} B + 8 lengths) | |",
+        a.static_output_buffers, a.bytes_beam_message
+    );
     println!(
         "| lit runs | {} B ({} × {} B) | {} runs, cell {:?} |",
         a.static_lit_runs, a.capacity_lit_runs, a.bytes_lit_run, a.used_lit_runs, a.used_lit_runs_cell

@@ -488,13 +488,12 @@ fn diffuse_one<F: FracBits, const D: usize>(
                 let mut out = Vec::new();
                 for &i in idx {
                     let c = &tile[i as usize - base];
-                    for p in Port::ALL {
-                        if let Some(m) = c.out[p.index()].front() {
-                            let (dx, dy) = p.delta();
-                            let to = (i as i64 + dy as i64 * n as i64 + dx as i64) as u32;
-                            let key = if wave { m.beam.layer().0 } else { 0 };
-                            out.push(Offer { to, key, from: i, port: p.index() as u8, msg: *m, taken: false });
-                        }
+                    for p in c.out.busy_ports() {
+                        let m = &c.out.waiting(p)[0];
+                        let (dx, dy) = p.delta();
+                        let to = (i as i64 + dy as i64 * n as i64 + dx as i64) as u32;
+                        let key = if wave { m.beam.layer().0 } else { 0 };
+                        out.push(Offer { to, key, from: i, port: p.index() as u8, msg: *m, taken: false });
                     }
                 }
                 out
@@ -562,7 +561,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
             }
         }
         for o in offers.iter().filter(|o| o.taken) {
-            cells[o.from as usize].out[o.port as usize].pop_front();
+            cells[o.from as usize].out.pop_front(Port::ALL[o.port as usize]);
             if links.is_none() {
                 link_load[o.from as usize * 8 + o.port as usize] += 1;
             }
@@ -612,15 +611,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
                 .iter()
                 .filter(|c| c.busy())
                 .take(8)
-                .map(|c| {
-                    format!(
-                        "({}, {}) fifo {} out {:?}",
-                        c.x,
-                        c.y,
-                        c.fifo.len(),
-                        c.out.iter().map(|q| q.len()).collect::<Vec<_>>()
-                    )
-                })
+                .map(|c| format!("({}, {}) fifo {} out {:?}", c.x, c.y, c.fifo.len(), Port::ALL.map(|p| c.out.len(p))))
                 .collect();
             bail!(
                 "stall at cycle {cycle} of source {si}: no progress for {stalled} cycle(s) with {} beams in flight \
