@@ -21,10 +21,11 @@ use cell_core::light::{
     Activity, ActivityDelta, BeamMsg, LightCell, LightCounters, LightEnv, OccupiedBox, Policy, Port, SourceMask, Step,
 };
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU8, Ordering::Relaxed};
 
 use crate::faults::{FaultCounts, FaultyLinks, LinkFaults};
 use crate::grid::Grid;
-use crate::tiles::{grouped, tiles, tiles_ref};
+use crate::tiles::{grouped, tiles};
 use crate::trace::Tap;
 
 /// Default of [`LightConfig::stall_cycles`]: a fault-free machine that cannot move for one
@@ -350,9 +351,17 @@ struct Recording<'a> {
 const PIECE: usize = 64;
 
 /// What a piece of the compute phase reports: its beam-count change, whether a beam was
-/// processed, (when visits are recorded) the cells and depths processed, and (when cells are
-/// traced) every cell's step result.
-type PieceResult = (i64, bool, Vec<(usize, u16)>, Vec<(usize, Step)>);
+/// processed, (when visits are recorded) the cells and depths processed, (when cells are
+/// traced) every cell's step result, and the link offers of its cells.
+struct PieceResult<F: FracBits> {
+    delta: i64,
+    any: bool,
+    seen: Vec<(usize, u16)>,
+    steps: Vec<(usize, Step)>,
+    offers: Vec<Offer<F>>,
+    /// Cells left with nothing to do by their step (empty FIFO, empty output buffers).
+    quiet: Vec<u32>,
+}
 
 /// A message offered on a link in the link phase: receiver, arbitration key, sender, port, and a
 /// copy of the message at the front of the sender's output buffer.
@@ -402,13 +411,21 @@ fn diffuse_one<F: FracBits, const D: usize>(
         Stepping::Active => Vec::new(),
     };
     let mut active: Vec<u32> = vec![s_idx as u32];
-    let mut in_active = vec![false; if stepping == Stepping::Active { cells.len() } else { 0 }];
+    // Per-cell flags and counters that the parallel pieces of a phase write, each index from
+    // one piece only: relaxed atomics are plain loads and stores, and the phase's join orders
+    // them. `in_active`: the cell is (or, during a cycle, will be) in the active list.
+    let in_active: Vec<AtomicBool> =
+        (0..if stepping == Stepping::Active { cells.len() } else { 0 }).map(|_| AtomicBool::new(false)).collect();
     if stepping == Stepping::Active {
-        in_active[s_idx] = true;
+        in_active[s_idx].store(true, Relaxed);
     }
+    // Ports whose offer the receiver took this cycle, per sender (set by the receivers' pieces,
+    // consumed by the senders' pieces).
+    let taken_ports: Vec<AtomicU8> = (0..cells.len()).map(|_| AtomicU8::new(0)).collect();
     let mut offers: Vec<Offer<F>> = Vec::new();
     // Messages delivered per (sending cell, port).
-    let mut link_load = vec![0u32; cells.len() * 8];
+    let link_load: Vec<AtomicU32> = (0..cells.len() * 8).map(|_| AtomicU32::new(0)).collect();
+    let bump = |i: usize| link_load[i].store(link_load[i].load(Relaxed) + 1, Relaxed);
     let mut woken: Vec<u32> = Vec::new();
     let record = visited.is_some();
     let tapping = tap.is_some();
@@ -437,29 +454,58 @@ fn diffuse_one<F: FracBits, const D: usize>(
         let visit: &[u32] = if stepping == Stepping::AllCells { &all } else { &active };
         // 2. Compute: every visited cell steps on its own state and its own dexels, in parallel
         //    over pieces of the (row-major) visit list; each piece counts beams in a local delta.
-        let done: Vec<PieceResult> = tiles(cells, visit, PIECE)
+        //    A cell's output buffers change only in its own step, so the piece also gathers its
+        //    cells' link offers (the message at the front of each busy output buffer) while the
+        //    cell is in cache: the same offers, in the same order, as a pass after all steps.
+        let wave = env.policy == Policy::Wavefront;
+        let done: Vec<PieceResult<F>> = tiles(cells, visit, PIECE)
             .into_par_iter()
             .map(|(tile, base, idx)| {
                 let delta = ActivityDelta::new();
-                let (mut any, mut seen, mut steps) = (false, Vec::new(), Vec::new());
+                let mut r = PieceResult {
+                    delta: 0,
+                    any: false,
+                    seen: Vec::new(),
+                    steps: Vec::new(),
+                    offers: Vec::new(),
+                    quiet: Vec::new(),
+                };
                 for &i in idx {
-                    let i = i as usize;
-                    let c = &mut tile[i - base];
-                    let step = c.step(&grid.cells[i].store, env, &delta);
+                    let c = &mut tile[i as usize - base];
+                    let step = c.step(&grid.cells[i as usize].store, env, &delta);
                     if tapping {
-                        steps.push((i, step));
+                        r.steps.push((i as usize, step));
                     }
                     if step == Step::Processed {
-                        any = true;
+                        r.any = true;
                         if record {
-                            seen.push((i, c.last_z));
+                            r.seen.push((i as usize, c.last_z));
                         }
                     }
+                    if !c.busy() {
+                        r.quiet.push(i);
+                    }
+                    for p in c.out.busy_ports() {
+                        let m = &c.out.waiting(p)[0];
+                        let (dx, dy) = p.delta();
+                        let to = (i as i64 + dy as i64 * n as i64 + dx as i64) as u32;
+                        let key = if wave { m.beam.layer().0 } else { 0 };
+                        r.offers.push(Offer { to, key, from: i, port: p.index() as u8, msg: *m, taken: false });
+                    }
                 }
-                (delta.get(), any, seen, steps)
+                r.delta = delta.get();
+                r
             })
             .collect();
-        for (delta, any, seen, steps) in done {
+        offers.clear();
+        for PieceResult { delta, any, seen, steps, offers: o, quiet } in done {
+            offers.extend(o);
+            if stepping == Stepping::Active {
+                // Marked idle now; a quiet cell that receives below is marked busy again.
+                for q in quiet {
+                    in_active[q as usize].store(false, Relaxed);
+                }
+            }
             activity.apply(delta);
             moved |= any;
             if let Some(t) = tap.as_deref_mut() {
@@ -480,28 +526,6 @@ fn diffuse_one<F: FracBits, const D: usize>(
         //    feeds one receiver, and receivers interact only through their own FIFO, so each
         //    receiver pulls its offers in (key, sender) order — the same outcome as one global
         //    pass in (key, row-major sender) order — in parallel.
-        offers.clear();
-        let wave = env.policy == Policy::Wavefront;
-        let per_tile: Vec<Vec<Offer<F>>> = tiles_ref(cells, visit, PIECE)
-            .into_par_iter()
-            .map(|(tile, base, idx)| {
-                let mut out = Vec::new();
-                for &i in idx {
-                    let c = &tile[i as usize - base];
-                    for p in c.out.busy_ports() {
-                        let m = &c.out.waiting(p)[0];
-                        let (dx, dy) = p.delta();
-                        let to = (i as i64 + dy as i64 * n as i64 + dx as i64) as u32;
-                        let key = if wave { m.beam.layer().0 } else { 0 };
-                        out.push(Offer { to, key, from: i, port: p.index() as u8, msg: *m, taken: false });
-                    }
-                }
-                out
-            })
-            .collect();
-        for t in per_tile {
-            offers.extend(t);
-        }
         offers.par_sort_unstable_by_key(|o| (o.to, o.key, o.from));
         if let Some(fl) = links.as_deref_mut() {
             // Faulty links: the same offers in the same order, one frame each through the codec
@@ -525,74 +549,90 @@ fn diffuse_one<F: FracBits, const D: usize>(
                 );
                 moved |= t.delivered || t.acked;
                 o.taken = t.acked;
+                if t.acked {
+                    taken_ports[o.from as usize].fetch_or(1 << o.port, Relaxed);
+                }
                 let bit = 1u8 << o.port;
                 let sender = &mut cells[o.from as usize];
                 sender.head_in_flight =
                     if t.acked { sender.head_in_flight & !bit } else { sender.head_in_flight | bit };
                 if t.delivered {
                     rep.counts.messages += 1;
-                    link_load[o.from as usize * 8 + o.port as usize] += 1;
-                    if stepping == Stepping::Active && !in_active[to] {
-                        in_active[to] = true;
+                    bump(o.from as usize * 8 + o.port as usize);
+                    if stepping == Stepping::Active && !in_active[to].swap(true, Relaxed) {
                         woken.push(o.to);
                     }
                 }
             }
         } else {
-            let pulled: Vec<(i64, u64)> = grouped(cells, &mut offers, PIECE, |o| o.to as usize)
+            let pulled: Vec<(i64, u64, Vec<u32>)> = grouped(cells, &mut offers, PIECE, |o| o.to as usize)
                 .into_par_iter()
                 .map(|(tile, base, group)| {
                     let delta = ActivityDelta::new();
-                    let mut taken = 0u64;
+                    let (mut taken, mut woke) = (0u64, Vec::new());
                     for o in group.iter_mut() {
                         let c = &mut tile[o.to as usize - base];
                         if c.can_accept(env.fa) && c.accept(o.msg, env.merge, &delta).is_ok() {
                             o.taken = true;
                             taken += 1;
+                            taken_ports[o.from as usize].fetch_or(1 << o.port, Relaxed);
+                            if stepping == Stepping::Active && !in_active[o.to as usize].swap(true, Relaxed) {
+                                woke.push(o.to);
+                            }
                         }
                     }
-                    (delta.get(), taken)
+                    (delta.get(), taken, woke)
                 })
                 .collect();
-            for (delta, taken) in pulled {
+            for (delta, taken, mut woke) in pulled {
                 activity.apply(delta);
                 rep.counts.messages += taken;
                 moved |= taken > 0;
+                woken.append(&mut woke);
             }
         }
-        for o in offers.iter().filter(|o| o.taken) {
-            cells[o.from as usize].out.pop_front(Port::ALL[o.port as usize]);
-            if links.is_none() {
-                link_load[o.from as usize * 8 + o.port as usize] += 1;
+        // Senders drop what was taken, in parallel over the visited cells (every sender is
+        // one); a cell's last pop leaves its flag right (receptions came before the pops).
+        let count_load = links.is_none();
+        tiles(cells, visit, PIECE).into_par_iter().for_each(|(tile, base, idx)| {
+            for &i in idx {
+                let i = i as usize;
+                let ports = taken_ports[i].load(Relaxed);
+                if ports == 0 {
+                    continue;
+                }
+                taken_ports[i].store(0, Relaxed);
+                let c = &mut tile[i - base];
+                for p in Port::ALL.into_iter().filter(|p| ports >> p.index() & 1 == 1) {
+                    c.out.pop_front(p);
+                    if count_load {
+                        bump(i * 8 + p.index());
+                    }
+                }
+                if stepping == Stepping::Active {
+                    in_active[i].store(c.busy(), Relaxed);
+                }
             }
-            if let Some(t) = tap.as_deref_mut() {
+        });
+        if let Some(t) = tap.as_deref_mut() {
+            for o in offers.iter().filter(|o| o.taken) {
                 t.transfer(o.from as usize, o.to as usize, Port::ALL[o.port as usize], &o.msg);
-            }
-            if stepping == Stepping::Active && !in_active[o.to as usize] {
-                in_active[o.to as usize] = true;
-                woken.push(o.to);
             }
         }
         cycle += 1;
         let busy_now = match stepping {
             Stepping::Active => {
-                // Next cycle's active set: busy cells, in row-major order.
-                active.retain(|&i| {
-                    let busy = cells[i as usize].busy();
-                    in_active[i as usize] = busy;
-                    busy
-                });
-                for &j in &woken {
-                    if cells[j as usize].busy() {
-                        active.push(j);
-                    } else {
-                        in_active[j as usize] = false;
-                    }
-                }
-                woken.clear();
+                // Next cycle's active set: busy cells, in row-major order. `in_active` now says
+                // which cells are busy without reading them: a cell is idle after the link phase
+                // if its step left it quiet and it received nothing, or its last pop drained it;
+                // every receiver holds a beam. (A quiet receiver can be in both lists: dedup.)
+                active.retain(|&i| in_active[i as usize].load(Relaxed));
+                debug_assert!(woken.iter().all(|&j| cells[j as usize].busy()));
+                active.append(&mut woken);
                 active.sort_unstable();
-                if next_initial.is_some() && !in_active[s_idx] {
-                    in_active[s_idx] = true;
+                active.dedup();
+                debug_assert!(active.iter().all(|&i| cells[i as usize].busy()));
+                if next_initial.is_some() && !in_active[s_idx].swap(true, Relaxed) {
                     active.push(s_idx as u32);
                     active.sort_unstable();
                 }
@@ -626,6 +666,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
     }
     progress(cycle);
     rep.counts.cycles = cycle;
+    let link_load: Vec<u32> = link_load.into_iter().map(AtomicU32::into_inner).collect();
     if let Some((i, &load)) = link_load.iter().enumerate().max_by_key(|&(i, &l)| (l, std::cmp::Reverse(i))) {
         let (x, y) = ((i / 8) % n, (i / 8) / n);
         rep.counts.peak_link_load = load as u64;

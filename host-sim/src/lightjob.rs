@@ -181,7 +181,8 @@ pub fn check_lit_overflow<F: FracBits>(lighting: &Lighting<F>) -> Result<()> {
     if let Some(c) = full.first() {
         bail!(
             "lit store overflow in {} cell(s), first at cell ({}, {}): more than {} lit runs per column needed, \
-             {} lit marks lost; raise LIT_CAP in host-sim/src/diffuse.rs",
+             {} lit marks lost; raise LIT_CAP in host-sim/src/diffuse.rs, or pass --lit-visible-only \
+             (keeps only the marks shading needs: same image)",
             full.len(),
             c.x,
             c.y,

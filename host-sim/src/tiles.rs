@@ -22,18 +22,6 @@ pub fn tiles<'a, T>(mut cells: &'a mut [T], idx: &'a [u32], min: usize) -> Vec<(
     out
 }
 
-/// [`tiles`] for read-only access.
-pub fn tiles_ref<'a, T>(cells: &'a [T], idx: &'a [u32], min: usize) -> Vec<(&'a [T], usize, &'a [u32])> {
-    let mut out = Vec::new();
-    let mut base = 0usize;
-    for chunk in idx.chunks(piece_len(idx.len(), min)) {
-        let end = chunk[chunk.len() - 1] as usize + 1;
-        out.push((&cells[base..end], base, chunk));
-        base = end;
-    }
-    out
-}
-
 /// Cut `cells` and `items` (sorted by the cell index `at(item)`) together into pieces that never
 /// separate two items of the same cell: `(cells of the piece, its first cell, its items)`.
 pub fn grouped<'a, T, O>(
