@@ -754,6 +754,26 @@ impl<F: FracBits> Beam<F> {
         at: Transverse,
         order: &SplitOrder,
     ) -> Result<SubBeams<F>, BeamError> {
+        let mut out = SubBeams::new();
+        // At most nine distinct offsets (a SplitOrder is a permutation): never full.
+        self.split_each(source, far, at, order, |sb| {
+            let _ = out.push(sb);
+        })?;
+        Ok(out)
+    }
+
+    /// [`Beam::split_with`] handing each sub-beam to `emit`, in `order`, instead of collecting
+    /// them: the cell's step files sub-beams straight into its own list, with no intermediate
+    /// array to fill and copy. Same sub-beams, same order, same errors (checked before any
+    /// sub-beam is emitted).
+    pub fn split_each(
+        &self,
+        source: &Source,
+        far: FarDistance<F>,
+        at: Transverse,
+        order: &SplitOrder,
+        mut emit: impl FnMut(SubBeam<F>),
+    ) -> Result<(), BeamError> {
         if self.source != source.id {
             return Err(BeamError::WrongSource);
         }
@@ -769,18 +789,15 @@ impl<F: FracBits> Beam<F> {
         let cu = split_axis(self.u, source.pos[ua.index()], at.u, far, m);
         let cv = split_axis(self.v, source.pos[va.index()], at.v, far, m);
         let next = Layer(self.layer.0 + 1);
-        let mut out = SubBeams::new();
         for &offset in order.offsets() {
             let Some((i, j)) = offset.slot() else {
                 continue;
             };
             if let (Some(u), Some(v)) = (cu[i], cv[j]) {
-                let beam = Beam { u, v, layer: next, source: self.source, dir: self.dir };
-                // At most nine distinct offsets (a SplitOrder is a permutation): never full.
-                let _ = out.push(SubBeam { offset, beam });
+                emit(SubBeam { offset, beam: Beam { u, v, layer: next, source: self.source, dir: self.dir } });
             }
         }
-        Ok(out)
+        Ok(())
     }
 }
 
