@@ -5,7 +5,9 @@
 # which diffusion starts to win on messages. Writes bench-out/classic.csv and prints a table.
 # NS (default "64 128") and SCENES choose the runs; n = 256 takes minutes per scene, 512 ~10 min;
 # the every-voxel classic run is skipped above ALL_MAX_N (default 128). APPEND=1 adds rows to an
-# existing CSV (the table and plot then cover every row).
+# existing CSV (the table and plot then cover every row). EXTRA adds options to both renders
+# (e.g. EXTRA=--lit-visible-only for office scenes at n = 512, whose columns along a wall need
+# more lit runs than LIT_CAP; the image and counts are the same).
 # Then plots the table (bench/classic_plot.py, matplotlib in bench-out/venv) to $PLOT
 # (default docs/classic-vs-diffusion.png).
 set -euo pipefail
@@ -22,8 +24,8 @@ CSV=bench-out/classic.csv
 for n in $NS; do
   for scene in $SCENES; do
     o=bench-out/classic-$scene-$n
-    $B render "$scene" --n "$n" --reference --quiet --out "$o-diffusion.png" --stats "$o-diffusion.json" 2> "$o-diffusion.log"
-    $B render "$scene" --n "$n" --reference --quiet --lighting classic --out "$o-classic.png" --stats "$o-classic.json" 2> "$o-classic.log"
+    $B render "$scene" --n "$n" --reference --quiet ${EXTRA:-} --out "$o-diffusion.png" --stats "$o-diffusion.json" 2> "$o-diffusion.log"
+    $B render "$scene" --n "$n" --reference --quiet ${EXTRA:-} --lighting classic --out "$o-classic.png" --stats "$o-classic.json" 2> "$o-classic.log"
     rm -f "$o-all.json" "$o-all.log"
     if (( n <= ALL_MAX_N )); then
       $B light "$scene" --n "$n" --sigma naive --contour projected --quiet --lighting classic --emitters all \

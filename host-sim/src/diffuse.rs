@@ -351,7 +351,7 @@ struct Recording<'a> {
 const PIECE: usize = 64;
 
 /// How many cells (or offers) ahead of the one being worked on the passes [`prefetch`]: about
-/// one memory latency's worth of work (4 and 8 measured alike, 1 line or 7 lines of FIFO worse
+/// one memory latency's worth of work (8 measured no better; 1 line or 7 lines of FIFO worse
 /// than 4; without prefetching the Cornell n = 192 light phase takes ~20 % longer).
 const AHEAD: usize = 4;
 
