@@ -355,16 +355,16 @@ const PIECE: usize = 64;
 /// than 4; without prefetching the Cornell n = 192 light phase takes ~20 % longer).
 const AHEAD: usize = 4;
 
-/// Prefetch what a cell's step and link offers read first: the blocked-step key and output
-/// lengths (first line), the first four lines of FIFO slots, the FIFO length and the counters
-/// (see the field order of [`LightCell`]).
-fn prefetch_cell<F: FracBits>(c: &HostLightCell<F>) {
+/// Prefetch what a pass reads first of a cell: the blocked-step key and output lengths (first
+/// line), the FIFO length and the counters, and `fifo_lines` lines of FIFO slots (see the field
+/// order of [`LightCell`]): 4 for a step, 1 for a delivery (merge scan), 0 for pops.
+fn prefetch_cell<F: FracBits>(c: &HostLightCell<F>, fifo_lines: usize) {
     prefetch(c);
+    prefetch(&c.counters);
     let f = c.fifo.as_ptr().cast::<u8>();
-    for line in 0..4 {
+    for line in 0..fifo_lines {
         prefetch(f.wrapping_add(64 * line));
     }
-    prefetch(&c.counters);
 }
 
 /// What a piece of the compute phase reports: its beam-count change, whether a beam was
@@ -490,7 +490,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
                 };
                 for (k, &i) in idx.iter().enumerate() {
                     if let Some(&j) = idx.get(k + AHEAD) {
-                        prefetch_cell(&tile[j as usize - base]);
+                        prefetch_cell(&tile[j as usize - base], 4);
                         prefetch_ends(&grid.cells[j as usize].store);
                     }
                     let c = &mut tile[i as usize - base];
@@ -594,10 +594,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
                     let (mut taken, mut woke) = (0u64, Vec::new());
                     for k in 0..group.len() {
                         if let Some(a) = group.get(k + AHEAD) {
-                            let c = &tile[a.to as usize - base];
-                            prefetch(c);
-                            prefetch(c.fifo.as_ptr());
-                            prefetch(&c.counters);
+                            prefetch_cell(&tile[a.to as usize - base], 1);
                             prefetch(&taken_ports[a.from as usize]);
                         }
                         let o = &mut group[k];
@@ -627,9 +624,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
         tiles(cells, visit, PIECE).into_par_iter().for_each(|(tile, base, idx)| {
             for (k, &i) in idx.iter().enumerate() {
                 if let Some(&j) = idx.get(k + AHEAD) {
-                    let c = &tile[j as usize - base];
-                    prefetch(c);
-                    prefetch(&c.counters);
+                    prefetch_cell(&tile[j as usize - base], 0);
                 }
                 let i = i as usize;
                 let ports = taken_ports[i].load(Relaxed);
