@@ -176,14 +176,14 @@ type BenchCell = LightCell<frac::U0, 64, 3, 32>;
 /// (first) and `extra` other real beams of the same cell column at other depths.
 fn loaded_cell(src: &Source, far: FarDistance<frac::U0>, layer: u32, extra: u32) -> (BenchCell, BeamMsg<frac::U0>) {
     let (beam, v) = beam_at(src, far, Direction::PosX, layer);
-    let msg = BeamMsg { beam, z: v[2] as u16 };
+    let msg = BeamMsg::new(beam, v[2] as u16);
     let mut cell = BenchCell::new(v[0] as u16, v[1] as u16);
     let activity = Activity::new();
     activity.add(1 + extra as u64);
     cell.accept(msg, false, &activity).expect("room");
     for k in 0..extra {
         // Other beams waiting in the same cell: same beam, other depths (no merge possible).
-        let other = BeamMsg { beam, z: (v[2] as u16 + 1 + k as u16) % ROW };
+        let other = BeamMsg::new(beam, (v[2] as u16 + 1 + k as u16) % ROW);
         cell.accept(other, false, &activity).expect("room");
     }
     (cell, msg)
@@ -202,16 +202,13 @@ fn bench_fifo(c: &mut Criterion) {
     let half = |lo: i32, hi: i32| {
         let u = RayRange::new(cell_core::beam::FarOffset::from_bits(lo), cell_core::beam::FarOffset::from_bits(hi))
             .expect("lo ≤ hi");
-        BeamMsg {
-            beam: Beam::new(whole.source(), whole.direction(), whole.layer(), u, whole.v(), far).expect("ok"),
-            z: msg.z,
-        }
+        BeamMsg::new(Beam::new(whole.source(), whole.direction(), whole.layer(), u, whole.v(), far).expect("ok"), msg.z)
     };
     assert!(whole.u().len() >= 2, "the benchmark beam must be splittable");
     let (lower, upper) = (half(whole.u().lo().to_bits(), mid), half(mid + 1, whole.u().hi().to_bits()));
     let mut cell_lower = cell15.clone();
     cell_lower.fifo[0] = lower;
-    let stranger = BeamMsg { z: (msg.z + 40) % ROW, ..msg }; // matches nothing waiting
+    let stranger = BeamMsg::new(msg.beam, (msg.z + 40) % ROW); // matches nothing waiting
 
     let mut g = c.benchmark_group("fifo_accept");
     g.bench_function("no_merge_into_15", |b| {
@@ -249,6 +246,7 @@ fn bench_fifo(c: &mut Criterion) {
         merge: true,
         skip: None,
         lit_visible_only: false,
+        hold: 0,
     };
     let empty = DexelStore::<DEFAULT_DEXELS>::new();
     let mut wall = DexelStore::<DEFAULT_DEXELS>::new();

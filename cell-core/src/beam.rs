@@ -724,6 +724,20 @@ impl<F: FracBits> Beam<F> {
             && trace_ray_voxel(source, self.dir, self.u.hi, self.v.hi, far, k) == want
     }
 
+    /// Whether the beam holds every ray of the far square that occupies voxel `at` at its
+    /// layer — no other beam of this source and direction can ever bring rays to that voxel,
+    /// so there is nothing left to merge with. For a consistent beam (see
+    /// [`Beam::occupies`]); four multiplications, no division. Layer 0 holds the whole square.
+    pub fn complete(&self, source: &Source, far: FarDistance<F>, at: Transverse) -> bool {
+        let m = self.layer.0 as i64;
+        if m == 0 {
+            return self.u == RayRange::full(far) && self.v == RayRange::full(far);
+        }
+        let (ua, va) = self.dir.transverse();
+        AxisPlanes::new(source.pos[ua.index()], at.u, far, m).spans(self.u, far)
+            && AxisPlanes::new(source.pos[va.index()], at.v, far, m).spans(self.v, far)
+    }
+
     /// The voxel of the beam's (u_min, v_min) ray at the beam's layer — the beam's voxel when it
     /// is consistent. `None` if it does not fit `i32` (rays beyond the far square only).
     pub fn voxel(&self, source: &Source, far: FarDistance<F>) -> Option<Transverse> {
@@ -801,6 +815,49 @@ impl<F: FracBits> Beam<F> {
     }
 }
 
+/// The two planes of voxel x at layer m on one transverse axis, scaled so that a lattice ray
+/// a (`to_bits`) compares with one multiplication: u < U1 ⇔ a·q < n1, u ≥ U2 ⇔ a·q ≥ n2
+/// (see the module doc for the budget: every product is < 2⁶³ in magnitude).
+#[derive(Clone, Copy)]
+struct AxisPlanes {
+    q: i64,
+    n1: i64,
+    n2: i64,
+}
+
+impl AxisPlanes {
+    fn new<F: FracBits>(src: SourceCoord, x: i32, far: FarDistance<F>, m: i64) -> Self {
+        let q = m << (G + 1); // m·2^(g+1) < 2^32
+        let limit = (far.get() as i64 + 1) << (G + 1); // planes beyond ±(D+1)·D/m
+        let r = 2 * (((x as i64) << G) - src.to_bits() as i64); // 2^(g+1)·(x − x_s), |r| < 2^37
+        let c1 = (r - (1 << G)).clamp(-limit, limit);
+        let c2 = (r + (1 << G)).clamp(-limit, limit);
+        let n = far.scaled(); // D·2^f ≤ i32::MAX
+        AxisPlanes { q, n1: c1 * n, n2: c2 * n }
+    }
+
+    /// 0, 1, 2: ray a occupies voxel x − 1, x, x + 1 at layer m.
+    fn class(self, a: i64) -> usize {
+        let aq = a * self.q;
+        if aq < self.n1 {
+            0
+        } else if aq >= self.n2 {
+            2
+        } else {
+            1
+        }
+    }
+
+    /// Whether `range` (rays of voxel x) reaches both ends of the voxel's rays within [−N, N]:
+    /// the ray below its first is in x − 1 (or beyond the far square), the ray above its last in
+    /// x + 1.
+    fn spans<F: FracBits>(self, range: RayRange<F>, far: FarDistance<F>) -> bool {
+        let n = far.scaled();
+        let (lo, hi) = (range.lo.to_bits() as i64, range.hi.to_bits() as i64);
+        (lo == -n || self.class(lo - 1) == 0) && (hi == n || self.class(hi + 1) == 2)
+    }
+}
+
 /// ⌈n / q⌉ for q > 0 and |n| < 2⁶³.
 const fn ceil_div(n: i64, q: i64) -> i64 {
     -((-n).div_euclid(q))
@@ -816,24 +873,9 @@ fn split_axis<F: FracBits>(
     far: FarDistance<F>,
     m: i64,
 ) -> [Option<RayRange<F>>; 3] {
-    let q = m << (G + 1); // m·2^(g+1) < 2^32
-    let limit = (far.get() as i64 + 1) << (G + 1); // planes beyond ±(D+1)·D/m
-    let r = 2 * (((x as i64) << G) - src.to_bits() as i64); // 2^(g+1)·(x − x_s), |r| < 2^37
-    let c1 = (r - (1 << G)).clamp(-limit, limit);
-    let c2 = (r + (1 << G)).clamp(-limit, limit);
-    let n = far.scaled(); // D·2^f ≤ i32::MAX
-    let n1 = c1 * n; // u < U1  ⇔  a·q < n1
-    let n2 = c2 * n; // u ≥ U2  ⇔  a·q ≥ n2
-    let class = |a: i64| -> usize {
-        let aq = a * q;
-        if aq < n1 {
-            0
-        } else if aq >= n2 {
-            2
-        } else {
-            1
-        }
-    };
+    let planes = AxisPlanes::new(src, x, far, m);
+    let AxisPlanes { q, n1, n2 } = planes;
+    let class = |a: i64| planes.class(a);
     let lo = range.lo.to_bits() as i64;
     let hi = range.hi.to_bits() as i64;
     let mut out = [None; 3];
@@ -1061,6 +1103,7 @@ macro_rules! with_frac_bits {
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
     use fixed::types::extra::{U0, U8};
 
@@ -1099,6 +1142,70 @@ mod tests {
         let r = RayRange::<U0>::new(FarOffset::from_num(0), FarOffset::from_num(0)).unwrap();
         let out = split_axis(r, SourceCoord::ZERO, 0, far, 1);
         assert_eq!(out, [None, Some(r), None]);
+    }
+
+    /// `complete` against the per-ray oracle, exhaustively on small cases: for every voxel of
+    /// every layer, the rays of the far square that occupy it (found ray by ray with
+    /// [`trace_ray_voxel`]) form a rectangle R; the beam R is complete, and R less one lattice
+    /// row or column on any side is not.
+    fn complete_matches_rays<F: FracBits>(d: u32, pos: [f64; 3], dir: Direction) {
+        let far = FarDistance::<F>::new(d).unwrap();
+        let src = Source::new(SourceId(0), pos.map(SourceCoord::from_num));
+        let n = far.scaled() as i32;
+        let ray = |a: i32| FarOffset::<F>::from_bits(a);
+        let range = |lo: i32, hi: i32| RayRange::<F>::new(ray(lo), ray(hi)).unwrap();
+        let mut checked = 0;
+        for k in 0..=d {
+            // Per axis, the rays of each voxel coordinate (an interval, by monotonicity).
+            let per_axis = |ax: usize, other: i32| -> std::vec::Vec<(i64, i32, i32)> {
+                let mut out: std::vec::Vec<(i64, i32, i32)> = std::vec::Vec::new();
+                for a in -n..=n {
+                    let (u, v) = if ax == 0 { (a, other) } else { (other, a) };
+                    let (x, y) = trace_ray_voxel(&src, dir, ray(u), ray(v), far, Layer(k));
+                    let c = if ax == 0 { x } else { y };
+                    match out.last_mut() {
+                        Some(l) if l.0 == c => l.2 = a,
+                        _ => out.push((c, a, a)),
+                    }
+                }
+                out
+            };
+            for &(xu, ulo, uhi) in &per_axis(0, 0) {
+                for &(xv, vlo, vhi) in &per_axis(1, 0) {
+                    let at = Transverse { u: xu as i32, v: xv as i32 };
+                    let beam = Beam { u: range(ulo, uhi), v: range(vlo, vhi), layer: Layer(k), source: src.id, dir };
+                    assert!(beam.occupies(&src, far, at));
+                    assert!(beam.complete(&src, far, at), "k {k} at {at:?}: {beam:?}");
+                    let shrunk = [
+                        (ulo + 1, uhi, vlo, vhi),
+                        (ulo, uhi - 1, vlo, vhi),
+                        (ulo, uhi, vlo + 1, vhi),
+                        (ulo, uhi, vlo, vhi - 1),
+                    ];
+                    for (a, b, c, e) in shrunk {
+                        if a <= b && c <= e {
+                            let part = Beam { u: range(a, b), v: range(c, e), ..beam };
+                            assert!(!part.complete(&src, far, at), "k {k} at {at:?}: {part:?} is a part");
+                            checked += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(checked > 0);
+    }
+
+    #[test]
+    fn complete_matches_the_per_ray_oracle() {
+        for dir in [Direction::PosZ, Direction::NegX, Direction::PosY] {
+            for pos in [[4.0, 4.0, 4.0], [3.5, 4.25, 5.0625], [0.0, 7.9375, 2.5]] {
+                for d in [1, 3, 7] {
+                    complete_matches_rays::<U0>(d, pos, dir);
+                    complete_matches_rays::<frac::U2>(d, pos, dir);
+                }
+                complete_matches_rays::<frac::U1>(12, pos, dir);
+            }
+        }
     }
 
     #[test]

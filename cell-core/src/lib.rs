@@ -14,6 +14,7 @@
 //! * [`cell`] — one cell: its store and counters.
 //! * [`beam`] — light beams and their split (§4.3).
 //! * [`light`] — the lighting phase: FIFO, ports, back-pressure, lit voxels, quiescence (§4.4).
+//! * [`occupancy`] — a coarse block summary of the scene and the sound empty-frustum beam skip.
 //! * [`link`] — the bytes a link carries: framed messages with a CRC; the `embedded-hal` link seam.
 //! * [`trace`] — cell traces (what a cell received, as frames) and their replay through the real cell.
 //! * [`ray`] — incremental 6/18/26-connected 3D lines for shadow and reflected rays (§2.3).
@@ -30,6 +31,7 @@ pub mod facet;
 pub mod light;
 pub mod link;
 pub mod normal;
+pub mod occupancy;
 pub mod ray;
 pub mod reflect;
 pub mod route;

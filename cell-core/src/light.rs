@@ -51,6 +51,17 @@ pub struct BeamMsg<F: FracBits> {
     /// The z of the beam's voxel (needed for ±x and ±y beams; for ±z beams it is implied by
     /// the layer but carried all the same).
     pub z: Depth,
+    /// Cell-local, not sent on links: in a FIFO, the receiving cell's clock when the beam
+    /// arrived (for the sibling wait, [`LightEnv::hold`]); 0 elsewhere. It lives in what would
+    /// be padding: a message is 28 bytes with or without it.
+    since: u16,
+}
+
+impl<F: FracBits> BeamMsg<F> {
+    /// The message carrying `beam`, whose voxel is at depth `z` in the receiving column.
+    pub const fn new(beam: Beam<F>, z: Depth) -> Self {
+        BeamMsg { beam, z, since: 0 }
+    }
 }
 
 #[cfg(feature = "defmt")]
@@ -396,6 +407,8 @@ pub struct LightCounters {
     pub lit_overflows: u32,
     /// Beams merged into a waiting beam on arrival.
     pub merged: u64,
+    /// Cycles in which every beam that could go waited for its siblings ([`LightEnv::hold`]).
+    pub held_cycles: u64,
 }
 
 /// What the machine around a cell looks like during one source's diffusion.
@@ -426,6 +439,10 @@ pub struct LightEnv<'a, F: FracBits> {
     /// the cell shades): the rest of the lit set is not stored. The image is the same; the lit
     /// store needs one run, never overflows, and skips the run bookkeeping of hidden voxels.
     pub lit_visible_only: bool,
+    /// The sibling wait: an incomplete beam (one that does not yet hold every ray of its voxel,
+    /// [`Beam::complete`]) is not processed until it has waited this many of the cell's busy
+    /// cycles, so that the pieces its sibling parents send can merge into it first. 0: off.
+    pub hold: u16,
 }
 
 /// What a cell did in one cycle.
@@ -438,6 +455,8 @@ pub enum Step {
     Processed,
     /// Had beams, could process none (all destinations busy).
     Blocked,
+    /// Had beams that could go, but every one waits for its siblings ([`LightEnv::hold`]).
+    Held,
 }
 
 /// Where a processed beam's rays go: absorbed in this column, or split into `subs` (plus rays
@@ -487,7 +506,7 @@ impl<F: FracBits, const OB: usize> OutBuffers<F, OB> {
     pub const fn new() -> Self {
         #[allow(clippy::let_unit_value)]
         let () = Self::OB_FITS_A_BYTE;
-        OutBuffers { len: [0; 8], msgs: [[BeamMsg { beam: Beam::filler(), z: 0 }; OB]; 8] }
+        OutBuffers { len: [0; 8], msgs: [[BeamMsg::new(Beam::filler(), 0); OB]; 8] }
     }
 
     /// Messages waiting toward `p`.
@@ -572,6 +591,12 @@ pub struct LightCell<F: FracBits, const FA: usize, const OB: usize, const L: usi
     blocked_on: Option<(u64, u32)>,
     /// Bumped by every change of the FIFO ([`LightCell::accept`], processing).
     fifo_generation: u32,
+    /// With `blocked_on`: the `ticks` at which the first waiting beam's sibling wait ends
+    /// (`None`: no beam was waiting, the cell was blocked). Until then the cell stays held.
+    held_until: Option<u16>,
+    /// The cell's clock for the sibling wait: steps taken with a non-empty FIFO (wrapping; a
+    /// FIFO entry's `since` is this clock when it arrived).
+    ticks: u16,
     /// Column index.
     pub x: Coord,
     /// Row index.
@@ -610,6 +635,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             head_in_flight: 0,
             fifo_generation: 0,
             blocked_on: None,
+            ticks: 0,
+            held_until: None,
         }
     }
 
@@ -632,6 +659,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         if merge {
             let mut m = msg;
             let mut joined = false;
+            // The joined beam keeps the oldest arrival among its pieces: a ray waits at most
+            // `hold` cycles in a cell for siblings, however many pieces join.
+            let mut stamp = self.ticks;
             // Keep joining while the grown rectangle meets another waiting beam.
             while let Some((i, b)) = self
                 .fifo
@@ -639,23 +669,26 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 .enumerate()
                 .find_map(|(i, e)| (e.z == m.z).then(|| e.beam.merged(&m.beam)).flatten().map(|b| (i, b)))
             {
-                self.fifo.remove(i);
+                let old = self.fifo.remove(i).since;
+                if self.ticks.wrapping_sub(old) > self.ticks.wrapping_sub(stamp) {
+                    stamp = old;
+                }
                 if joined {
                     // Two waiting beams became one.
                     activity.consume();
                 }
-                m = BeamMsg { beam: b, z: m.z };
+                m = BeamMsg::new(b, m.z);
                 joined = true;
                 self.counters.merged += 1;
             }
             if joined {
                 activity.consume();
                 // Cannot fail: a slot was freed by the removal.
-                let _ = self.fifo.push(m);
+                let _ = self.fifo.push(BeamMsg { since: stamp, ..m });
                 return Ok(());
             }
         }
-        self.fifo.push(msg)?;
+        self.fifo.push(BeamMsg { since: self.ticks, ..msg }).map_err(|_| msg)?;
         self.counters.peak_fifo = self.counters.peak_fifo.max(self.fifo.len() as u16);
         Ok(())
     }
@@ -696,7 +729,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                     None => Target::SelfFifo,
                 };
                 // At most nine sub-beams: never full.
-                let _ = subs.push((target, BeamMsg { beam: sb.beam, z: to[2] as Depth }));
+                let _ = subs.push((target, BeamMsg::new(sb.beam, to[2] as Depth)));
             }
         });
         // At the far plane (k = D) or for a beam that is not this source's: the next layer is
@@ -704,6 +737,34 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         if split.is_err() {
             *exited += b.ray_count();
         }
+    }
+
+    /// While the cell is held (its last step returned [`Step::Held`] and neither its FIFO nor
+    /// its output buffers changed since): the number of steps until a waiting beam's sibling
+    /// wait ends. Every step before that returns [`Step::Held`] and changes nothing but the
+    /// clock and `held_cycles`, so a host may skip them ([`LightCell::skip_held`]).
+    pub fn held_wait(&self) -> Option<u16> {
+        match (self.blocked_on, self.held_until) {
+            (Some(key), Some(t)) if key == (self.out.lengths(), self.fifo_generation) => {
+                Some(t.wrapping_sub(self.ticks)).filter(|&w| (w as i16) > 0)
+            }
+            _ => None,
+        }
+    }
+
+    /// Account for `k` steps that a held cell was not given (`k` < [`LightCell::held_wait`]):
+    /// exactly what `k` steps would have done — each one a [`Step::Held`].
+    pub fn skip_held(&mut self, k: u16) {
+        debug_assert!(k == 0 || self.held_wait().is_some_and(|w| k < w));
+        self.ticks = self.ticks.wrapping_add(k);
+        self.counters.held_cycles += k as u64;
+    }
+
+    /// Whether the beam of `m` holds all the rays its voxel can receive ([`Beam::complete`]).
+    fn complete(&self, m: &BeamMsg<F>, env: &LightEnv<'_, F>) -> bool {
+        let pos = [self.x as i32, self.y as i32, m.z as i32];
+        let (ua, va) = m.beam.direction().transverse();
+        m.beam.complete(env.source, env.far, Transverse { u: pos[ua.index()], v: pos[va.index()] })
     }
 
     /// Whether every sub-beam of `fate` fits now (the no-loss rule), given that the processed
@@ -731,12 +792,26 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         if self.fifo.is_empty() {
             return Step::Idle;
         }
+        self.ticks = self.ticks.wrapping_add(1);
         let wave = env.policy == Policy::Wavefront;
         if wave && self.blocked_on == Some((self.out.lengths(), self.fifo_generation)) {
-            self.counters.blocked_cycles += 1;
-            return Step::Blocked;
+            // Unchanged since the last step, and no waiting beam's sibling wait has ended yet.
+            match self.held_until {
+                None => {
+                    self.counters.blocked_cycles += 1;
+                    return Step::Blocked;
+                }
+                Some(t) if (t.wrapping_sub(self.ticks) as i16) > 0 => {
+                    self.counters.held_cycles += 1;
+                    return Step::Held;
+                }
+                Some(_) => {}
+            }
         }
         let mut fate = Fate::new();
+        // Cycles until the first waiting beam's sibling wait ends (`hold`: none is waiting).
+        let mut wait = env.hold;
+        let mut held = false;
         let chosen = match env.policy {
             Policy::Thesis => {
                 self.fate(&self.fifo[0], store, env, &mut fate);
@@ -753,6 +828,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 // Candidates by (layer, position); the first that fits goes.
                 let mut best: Option<usize> = None;
                 let mut tried = 0u64; // FIFO positions already tried (FA ≤ 64, asserted)
+                                      // A full FIFO takes no sibling: nothing is worth waiting for.
+                let may_hold = env.hold > 0 && self.fifo.len() < env.fa.min(FA);
                 for _ in 0..self.fifo.len() {
                     let mut pick: Option<usize> = None;
                     for (i, m) in self.fifo.iter().enumerate() {
@@ -765,6 +842,12 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                     }
                     let Some(i) = pick else { break };
                     tried |= 1 << i;
+                    let age = self.ticks.wrapping_sub(self.fifo[i].since);
+                    if may_hold && age < env.hold && !self.complete(&self.fifo[i], env) {
+                        held = true;
+                        wait = wait.min(env.hold - age);
+                        continue;
+                    }
                     self.fate(&self.fifo[i], store, env, &mut fate);
                     if self.fits(&fate, env.fa) {
                         best = Some(i);
@@ -775,10 +858,16 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             }
         };
         let Some(i) = chosen else {
-            self.counters.blocked_cycles += 1;
             if wave {
                 self.blocked_on = Some((self.out.lengths(), self.fifo_generation));
+                self.held_until = held.then(|| self.ticks.wrapping_add(wait));
             }
+            if held {
+                // Waiting by choice, for a bounded time.
+                self.counters.held_cycles += 1;
+                return Step::Held;
+            }
+            self.counters.blocked_cycles += 1;
             return Step::Blocked;
         };
         self.blocked_on = None;
@@ -888,7 +977,7 @@ mod tests {
             for (p, push, z) in ops {
                 let port = Port::ALL[p];
                 if push {
-                    let r = b.push_back(port, BeamMsg { beam: Beam::filler(), z });
+                    let r = b.push_back(port, BeamMsg::new(Beam::filler(), z));
                     prop_assert_eq!(r.is_ok(), want[p].len() < 3);
                     if want[p].len() < 3 {
                         want[p].push_back(z);
@@ -910,14 +999,20 @@ mod tests {
             }
         }
 
-        /// The blocked-step shortcut is exact: a cell driven by random steps, link pops and
-        /// arrivals behaves like a twin that forgets the shortcut before every step (full
-        /// re-evaluation of every waiting beam), with output buffers of one message so that
-        /// cells block often.
+        /// The blocked- and held-step shortcuts are exact: a cell driven by random steps, link
+        /// pops and arrivals behaves like a twin that forgets the shortcut before every step
+        /// (full re-evaluation of every waiting beam), and like a twin that is not stepped at
+        /// all while held ([`LightCell::held_wait`]) and catches up with
+        /// [`LightCell::skip_held`] before anything changes it — the host's sleeping cells.
+        /// Output buffers of one message, so that cells block often; sibling waits of 0, 2, 3.
         #[test]
-        fn blocked_shortcut_changes_nothing(ops in proptest::collection::vec((0u8..3, 0usize..8, 0usize..6), 1..150)) {
+        fn blocked_and_held_shortcuts_change_nothing(
+            hold in prop_oneof![Just(0u16), Just(2), Just(3)],
+            ops in proptest::collection::vec((0u8..4, 0usize..8, 0usize..24), 1..150),
+        ) {
             use crate::beam::{SourceCoord, SourceId};
             use fixed::types::extra::U0;
+            type C = LightCell<U0, 4, 1, 8>;
             let n = 16;
             let c = |v: f64| SourceCoord::from_num(v);
             let src = Source::new(SourceId(0), [c(7.5), c(7.25), c(7.0)]);
@@ -925,44 +1020,99 @@ mod tests {
             let order = SplitOrder::default();
             let env = LightEnv {
                 source: &src, far, n, depth: n, policy: Policy::Wavefront, order: &order, fa: 4,
-                source_bit: 1, merge: true, skip: None, lit_visible_only: false,
+                source_bit: 1, merge: true, skip: None, lit_visible_only: false, hold,
             };
             let mut store = DexelStore::<8>::new();
             let tag = crate::dexel::FacetTag::default();
             let _ = store.insert(crate::units::Span { lo: 12, hi: 13 }, tag);
             let sv = src.voxel();
-            let (mut a, mut b) = (LightCell::<U0, 4, 1, 8>::new(sv[0] as u16, sv[1] as u16), LightCell::<U0, 4, 1, 8>::new(sv[0] as u16, sv[1] as u16));
-            let (ta, tb) = (Activity::new(), Activity::new());
-            let six = Beam::<U0>::initial_six(&src, far);
-            let mut popped: std::vec::Vec<BeamMsg<U0>> = std::vec::Vec::new();
-            for (op, port, which) in ops {
-                match op {
-                    0 => {
-                        b.blocked_on = None;
-                        prop_assert_eq!(a.step(&store, &env, &ta), b.step(&store, &env, &tb));
+            // The cell two columns east of the source's and one north, and what can reach it:
+            // the initial beams, and the source's +x beam split twice, every layer-2 sub-beam
+            // for this column cut in two along u (pieces that wait for each other and merge).
+            let (cx, cy) = (sv[0] + 2, sv[1] + 1);
+            let mut arrivals: std::vec::Vec<BeamMsg<U0>> =
+                Beam::<U0>::initial_six(&src, far).iter().map(|&beam| BeamMsg::new(beam, sv[2] as u16)).collect();
+            let px = Direction::PosX;
+            for s1 in Beam::<U0>::initial(&src, px, far).split(&src, far, px.transverse_of(sv)).unwrap() {
+                let d1 = px.displacement(s1.offset);
+                let v1 = [sv[0] + d1[0] as i32, sv[1] + d1[1] as i32, sv[2] + d1[2] as i32];
+                for s2 in s1.beam.split(&src, far, px.transverse_of(v1)).unwrap() {
+                    let d2 = px.displacement(s2.offset);
+                    let v2 = [v1[0] + d2[0] as i32, v1[1] + d2[1] as i32, v1[2] + d2[2] as i32];
+                    if (v2[0], v2[1]) != (cx, cy) {
+                        continue;
                     }
-                    1 => {
-                        let p = Port::ALL[port];
-                        let (x, y) = (a.out.pop_front(p), b.out.pop_front(p));
-                        prop_assert_eq!(x, y);
-                        popped.extend(x);
-                    }
-                    _ => {
-                        // A new arrival: an initial beam, or a message a link took earlier.
-                        let m = popped.get(which).copied().unwrap_or(BeamMsg { beam: six[which], z: sv[2] as u16 });
-                        if a.can_accept(env.fa) {
-                            ta.add(1);
-                            tb.add(1);
-                            prop_assert_eq!(a.accept(m, true, &ta).is_ok(), b.accept(m, true, &tb).is_ok());
+                    let (b, u) = (s2.beam, s2.beam.u());
+                    let mid = crate::beam::FarOffset::<U0>::from_bits((u.lo().to_bits() + u.hi().to_bits()) / 2);
+                    for (lo, hi) in [(u.lo(), mid), (mid + crate::beam::FarOffset::<U0>::from_bits(1), u.hi())] {
+                        if let Some(r) = crate::beam::RayRange::new(lo, hi) {
+                            let piece = Beam::new(b.source(), px, b.layer(), r, b.v(), far).unwrap();
+                            arrivals.push(BeamMsg::new(piece, v2[2] as u16));
                         }
                     }
                 }
-                prop_assert_eq!(&a.fifo, &b.fifo);
-                for p in Port::ALL {
-                    prop_assert_eq!(a.out.waiting(p), b.out.waiting(p));
+            }
+            let new = || C::new(cx as u16, cy as u16);
+            let (mut a, mut b, mut s) = (new(), new(), new());
+            let (ta, tb, ts) = (Activity::new(), Activity::new(), Activity::new());
+            // The sleeping twin `s`: asleep after a held step, owing the steps it skips.
+            let (mut asleep, mut owed) = (false, 0u16);
+            let mut popped: std::vec::Vec<BeamMsg<U0>> = std::vec::Vec::new();
+            for (op, port, which) in ops {
+                // Anything but a step that the wait still covers wakes the twin first.
+                let covered = asleep && op == 0 && s.held_wait().is_some_and(|w| owed + 1 < w);
+                if asleep && !covered {
+                    s.skip_held(owed);
+                    (asleep, owed) = (false, 0);
                 }
-                prop_assert_eq!(a.counters, b.counters);
+                match op {
+                    0 => {
+                        b.blocked_on = None;
+                        let r = a.step(&store, &env, &ta);
+                        prop_assert_eq!(r, b.step(&store, &env, &tb));
+                        if covered {
+                            prop_assert_eq!(r, Step::Held);
+                            owed += 1;
+                        } else {
+                            prop_assert_eq!(r, s.step(&store, &env, &ts));
+                            asleep = r == Step::Held;
+                        }
+                    }
+                    1 => {
+                        let p = Port::ALL[port];
+                        let (x, y, z) = (a.out.pop_front(p), b.out.pop_front(p), s.out.pop_front(p));
+                        prop_assert_eq!(x, y);
+                        prop_assert_eq!(x, z);
+                        popped.extend(x);
+                    }
+                    _ => {
+                        // A new arrival: a piece for this column, or a message a link took earlier.
+                        let m = match popped.get(which) {
+                            Some(&m) if which % 2 == 0 => m,
+                            _ => arrivals[which % arrivals.len()],
+                        };
+                        if a.can_accept(env.fa) {
+                            ta.add(1);
+                            tb.add(1);
+                            ts.add(1);
+                            let r = a.accept(m, true, &ta).is_ok();
+                            prop_assert_eq!(r, b.accept(m, true, &tb).is_ok());
+                            prop_assert_eq!(r, s.accept(m, true, &ts).is_ok());
+                        }
+                    }
+                }
+                let mut caught_up = s.clone();
+                caught_up.skip_held(owed);
+                for t in [&b, &caught_up] {
+                    prop_assert_eq!(&a.fifo, &t.fifo);
+                    prop_assert_eq!(a.ticks, t.ticks);
+                    for p in Port::ALL {
+                        prop_assert_eq!(a.out.waiting(p), t.out.waiting(p));
+                    }
+                    prop_assert_eq!(a.counters, t.counters);
+                }
                 prop_assert_eq!(ta.get(), tb.get());
+                prop_assert_eq!(ta.get(), ts.get());
             }
         }
 

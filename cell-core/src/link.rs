@@ -431,7 +431,7 @@ pub fn get_beam<F: FracBits>(r: &mut Reader<'_>, far: FarDistance<F>) -> Result<
     let u = RayRange::new(v4[0], v4[1]).ok_or(DecodeError::BadValue("beam u range"))?;
     let v = RayRange::new(v4[2], v4[3]).ok_or(DecodeError::BadValue("beam v range"))?;
     let beam = Beam::new(source, dir, layer, u, v, far).map_err(|_| DecodeError::BadValue("beam outside D"))?;
-    Ok(BeamMsg { beam, z: r.u16()? })
+    Ok(BeamMsg::new(beam, r.u16()?))
 }
 
 /// Encode a message frame into `buf`; returns its length.
@@ -566,7 +566,7 @@ mod tests {
             let b = Beam::<U4>::initial(&s, d, far());
             let parts = b.split(&s, far(), d.transverse_of([10, 20, 30])).unwrap();
             for sb in parts {
-                let m = BeamMsg { beam: sb.beam, z: 31 };
+                let m = BeamMsg::new(sb.beam, 31);
                 let mut buf = [0u8; 64];
                 let n = encode(9, &Message::Beam(m), &mut buf).unwrap();
                 assert_eq!(n, HEADER + BEAM_PAYLOAD + TRAILER);
@@ -579,7 +579,7 @@ mod tests {
     #[test]
     fn every_single_bit_flip_is_caught() {
         let s = Source::at_voxel(SourceId(0), [5, 5, 5]).unwrap();
-        let m = BeamMsg { beam: Beam::<U0>::initial(&s, Direction::ALL[2], far()), z: 5 };
+        let m = BeamMsg::new(Beam::<U0>::initial(&s, Direction::ALL[2], far()), 5);
         let mut buf = [0u8; 64];
         let n = encode(1, &Message::Beam(m), &mut buf).unwrap();
         for i in 0..n * 8 {

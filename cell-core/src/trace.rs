@@ -433,6 +433,7 @@ impl Digester {
             Step::Idle => 0,
             Step::Processed => 1,
             Step::Blocked => 2,
+            Step::Held => 3,
         };
         let _ = self.sink().put(&[b'C', code]);
     }
@@ -570,6 +571,7 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
             merge: setup.merge,
             skip: setup.skip,
             lit_visible_only: false,
+            hold: 0,
         })
     }
 

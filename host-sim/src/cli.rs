@@ -194,6 +194,12 @@ pub struct LightOpts {
     /// in columns lit in many separate runs (walls seen edge-on, many lights).
     #[arg(long)]
     pub lit_visible_only: bool,
+    /// The sibling wait: a beam that does not yet hold every ray its voxel can receive waits
+    /// up to this many cycles (while its FIFO has room) for the pieces from its other parent
+    /// voxels to merge into it: fewer beams and messages, same lit voxels. 0: off. Wavefront
+    /// policy only.
+    #[arg(long, default_value_t = 0)]
+    pub hold: u16,
     /// Classic shadow rays instead of diffusion.
     #[command(flatten)]
     pub classic: crate::classic::ClassicOpts,
@@ -224,6 +230,7 @@ impl LightOpts {
             faults: self.link_faults,
             stall_cycles: self.stall_cycles,
             lit_visible_only: self.lit_visible_only,
+            hold: self.hold,
         }
     }
 }

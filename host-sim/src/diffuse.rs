@@ -21,7 +21,7 @@ use cell_core::light::{
     Activity, ActivityDelta, BeamMsg, LightCell, LightCounters, LightEnv, OccupiedBox, Policy, Port, SourceMask, Step,
 };
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU8, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Relaxed};
 
 use crate::faults::{FaultCounts, FaultyLinks, LinkFaults};
 use crate::grid::Grid;
@@ -71,6 +71,9 @@ pub struct LightConfig {
     /// Store lit marks only for each column's visible voxel (`LightEnv::lit_visible_only`):
     /// same image, a lit set restricted to what the image shows, no lit-store overflow.
     pub lit_visible_only: bool,
+    /// The sibling wait in cycles ([`LightEnv::hold`]; 0: off). Exact: changes cycles and
+    /// beam counts, never lit voxels.
+    pub hold: u16,
 }
 
 impl Default for LightConfig {
@@ -87,6 +90,7 @@ impl Default for LightConfig {
             faults: None,
             stall_cycles: DEFAULT_STALL_CYCLES,
             lit_visible_only: false,
+            hold: 0,
         }
     }
 }
@@ -131,6 +135,9 @@ pub struct DiffusionCounts {
     pub peak_fifo: u16,
     /// Sum over cells of cycles with beams waiting and none processable.
     pub blocked_cell_cycles: u64,
+    /// Sum over cells of cycles in which every beam that could go waited for its siblings
+    /// (`--hold`).
+    pub held_cell_cycles: u64,
     /// Most cells active in one cycle.
     pub peak_active_cells: u64,
     /// Most messages one link carried in one direction (the thesis expects the links near the
@@ -157,6 +164,7 @@ impl DiffusionCounts {
         self.rays_skipped += o.rays_skipped;
         self.peak_fifo = self.peak_fifo.max(o.peak_fifo);
         self.blocked_cell_cycles += o.blocked_cell_cycles;
+        self.held_cell_cycles += o.held_cell_cycles;
         self.peak_active_cells = self.peak_active_cells.max(o.peak_active_cells);
         if o.peak_link_load > self.peak_link_load {
             self.peak_link_load = o.peak_link_load;
@@ -272,6 +280,9 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             cfg.stall_cycles
         );
     }
+    if cfg.hold > 0 && tap.is_some() {
+        bail!("a cell trace does not record the sibling wait: record without --hold");
+    }
     if cfg.lit_visible_only && tap.is_some() {
         bail!("a cell trace records the whole lit store: record without --lit-visible-only");
     }
@@ -289,6 +300,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             merge: cfg.merge,
             skip: cfg.skip_receding.then_some(occupied),
             lit_visible_only: cfg.lit_visible_only,
+            hold: cfg.hold,
         };
         let before: Vec<LightCounters> = cells.iter().map(|c| c.counters).collect();
         for c in cells.iter_mut() {
@@ -318,6 +330,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             rep.counts.rays_exited += (k.rays_exited - b.rays_exited) as u128;
             rep.counts.rays_skipped += (k.rays_skipped - b.rays_skipped) as u128;
             rep.counts.blocked_cell_cycles += k.blocked_cycles - b.blocked_cycles;
+            rep.counts.held_cell_cycles += k.held_cycles - b.held_cycles;
             rep.counts.peak_fifo = rep.counts.peak_fifo.max(k.peak_fifo);
             if processed > 0 {
                 rep.counts.lb_distance = rep.counts.lb_distance.max(k.max_layer as u64 + 1);
@@ -378,6 +391,9 @@ struct PieceResult<F: FracBits> {
     offers: Vec<Offer<F>>,
     /// Cells left with nothing to do by their step (empty FIFO, empty output buffers).
     quiet: Vec<u32>,
+    /// Held cells with empty output buffers, and their [`LightCell::held_wait`]: nothing
+    /// changes for them until that many cycles pass or a beam arrives.
+    sleep: Vec<(u32, u16)>,
 }
 
 /// A message offered on a link in the link phase: receiver, arbitration key, sender, port, and a
@@ -448,6 +464,15 @@ fn diffuse_one<F: FracBits, const D: usize>(
     let record = visited.is_some();
     let tapping = tap.is_some();
     let mut cycle: u64 = 0;
+    // Held cells the host does not visit until their sibling wait ends or a beam arrives
+    // (exact: [`LightCell::skip_held`] gives them the steps they missed). Not while tracing
+    // (a trace records every step).
+    const AWAKE: u64 = u64::MAX;
+    let may_sleep = stepping == Stepping::Active && tap.is_none() && links.is_none() && env.hold > 0;
+    let asleep: Vec<AtomicU64> = (0..if may_sleep { cells.len() } else { 0 }).map(|_| AtomicU64::new(AWAKE)).collect();
+    let ring = env.hold as usize + 1;
+    let mut alarms: Vec<Vec<(u32, u64)>> = (0..ring).map(|_| Vec::new()).collect();
+    let mut sleeping: usize = 0;
     // With faulty links a message can sit in an output buffer, already delivered, waiting for
     // its acknowledgement after the last beam was consumed: run until the buffers are empty.
     let mut unacked = false;
@@ -459,7 +484,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
         // 1. Source emitter.
         if let Some(b) = next_initial {
             if cells[s_idx].can_accept(env.fa) {
-                let msg = BeamMsg { beam: b, z: sv[2] as u16 };
+                let msg = BeamMsg::new(b, sv[2] as u16);
                 if let Some(r) = tap.as_deref_mut().and_then(|t| t.get(s_idx)) {
                     r.inject(&msg);
                 }
@@ -470,6 +495,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
             }
         }
         let visit: &[u32] = if stepping == Stepping::AllCells { &all } else { &active };
+        let emitting = next_initial.is_some();
         // 2. Compute: every visited cell steps on its own state and its own dexels, in parallel
         //    over pieces of the (row-major) visit list; each piece counts beams in a local delta.
         //    A cell's output buffers change only in its own step, so the piece also gathers its
@@ -487,6 +513,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
                     steps: Vec::new(),
                     offers: Vec::new(),
                     quiet: Vec::new(),
+                    sleep: Vec::new(),
                 };
                 for (k, &i) in idx.iter().enumerate() {
                     if let Some(&j) = idx.get(k + AHEAD) {
@@ -498,6 +525,8 @@ fn diffuse_one<F: FracBits, const D: usize>(
                     if tapping {
                         r.steps.push((i as usize, step));
                     }
+                    // A sibling wait ends by itself within `hold` cycles: not a stall.
+                    r.any |= step == Step::Held;
                     if step == Step::Processed {
                         r.any = true;
                         if record {
@@ -506,6 +535,10 @@ fn diffuse_one<F: FracBits, const D: usize>(
                     }
                     if !c.busy() {
                         r.quiet.push(i);
+                    } else if may_sleep && step == Step::Held && !c.out.any() && (i as usize != s_idx || !emitting) {
+                        if let Some(w) = c.held_wait() {
+                            r.sleep.push((i, w));
+                        }
                     }
                     for p in c.out.busy_ports() {
                         let m = &c.out.waiting(p)[0];
@@ -520,12 +553,19 @@ fn diffuse_one<F: FracBits, const D: usize>(
             })
             .collect();
         offers.clear();
-        for PieceResult { delta, any, seen, steps, offers: o, quiet } in done {
+        for PieceResult { delta, any, seen, steps, offers: o, quiet, sleep } in done {
             offers.extend(o);
             if stepping == Stepping::Active {
                 // Marked idle now; a quiet cell that receives below is marked busy again.
                 for q in quiet {
                     in_active[q as usize].store(false, Relaxed);
+                }
+                // Sleepers too, until their wait ends (or a beam arrives, below).
+                for (q, w) in sleep {
+                    in_active[q as usize].store(false, Relaxed);
+                    asleep[q as usize].store(cycle, Relaxed);
+                    alarms[(cycle + w as u64) as usize % ring].push((q, cycle));
+                    sleeping += 1;
                 }
             }
             activity.apply(delta);
@@ -587,11 +627,11 @@ fn diffuse_one<F: FracBits, const D: usize>(
                 }
             }
         } else {
-            let pulled: Vec<(i64, u64, Vec<u32>)> = grouped(cells, &mut offers, PIECE, |o| o.to as usize)
+            let pulled: Vec<(i64, u64, Vec<u32>, usize)> = grouped(cells, &mut offers, PIECE, |o| o.to as usize)
                 .into_par_iter()
                 .map(|(tile, base, group)| {
                     let delta = ActivityDelta::new();
-                    let (mut taken, mut woke) = (0u64, Vec::new());
+                    let (mut taken, mut woke, mut roused) = (0u64, Vec::new(), 0usize);
                     for k in 0..group.len() {
                         if let Some(a) = group.get(k + AHEAD) {
                             prefetch_cell(&tile[a.to as usize - base], 1);
@@ -599,7 +639,20 @@ fn diffuse_one<F: FracBits, const D: usize>(
                         }
                         let o = &mut group[k];
                         let c = &mut tile[o.to as usize - base];
-                        if c.can_accept(env.fa) && c.accept(o.msg, env.merge, &delta).is_ok() {
+                        if !c.can_accept(env.fa) {
+                            continue;
+                        }
+                        if may_sleep {
+                            // A sleeper first takes the held steps it missed (cycles
+                            // c0 + 1 ..= cycle): the arrival is stamped with its true clock.
+                            let c0 = asleep[o.to as usize].load(Relaxed);
+                            if c0 != AWAKE {
+                                c.skip_held((cycle - c0) as u16);
+                                asleep[o.to as usize].store(AWAKE, Relaxed);
+                                roused += 1;
+                            }
+                        }
+                        if c.accept(o.msg, env.merge, &delta).is_ok() {
                             o.taken = true;
                             taken += 1;
                             taken_ports[o.from as usize].fetch_or(1 << o.port, Relaxed);
@@ -608,10 +661,11 @@ fn diffuse_one<F: FracBits, const D: usize>(
                             }
                         }
                     }
-                    (delta.get(), taken, woke)
+                    (delta.get(), taken, woke, roused)
                 })
                 .collect();
-            for (delta, taken, mut woke) in pulled {
+            for (delta, taken, mut woke, roused) in pulled {
+                sleeping -= roused;
                 activity.apply(delta);
                 rep.counts.messages += taken;
                 moved |= taken > 0;
@@ -652,6 +706,19 @@ fn diffuse_one<F: FracBits, const D: usize>(
         cycle += 1;
         let busy_now = match stepping {
             Stepping::Active => {
+                // Sleepers whose wait ends next cycle, and sleepers a beam reached, wake up: they
+                // are owed the held steps they were not given (cycles c0 + 1 ..= cycle).
+                let due = std::mem::take(&mut alarms[(cycle as usize) % ring]);
+                for (q, c0) in due {
+                    if asleep[q as usize].load(Relaxed) == c0 {
+                        cells[q as usize].skip_held((cycle - 1 - c0) as u16);
+                        asleep[q as usize].store(AWAKE, Relaxed);
+                        sleeping -= 1;
+                        let was = in_active[q as usize].swap(true, Relaxed);
+                        debug_assert!(!was);
+                        woken.push(q);
+                    }
+                }
                 // Next cycle's active set: busy cells, in row-major order. `in_active` now says
                 // which cells are busy without reading them: a cell is idle after the link phase
                 // if its step left it quiet and it received nothing, or its last pop drained it;
@@ -666,7 +733,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
                     active.push(s_idx as u32);
                     active.sort_unstable();
                 }
-                active.len() as u64
+                active.len() as u64 + sleeping as u64
             }
             Stepping::AllCells => {
                 let busy = cells.par_iter().filter(|c| c.busy()).count() as u64;
@@ -675,7 +742,8 @@ fn diffuse_one<F: FracBits, const D: usize>(
         };
         rep.counts.peak_active_cells = rep.counts.peak_active_cells.max(busy_now);
         unacked = links.is_some() && busy_now > 0;
-        stalled = if moved { 0 } else { stalled + 1 };
+        // A sleeping cell's wait ends by itself: not a stall.
+        stalled = if moved || sleeping > 0 { 0 } else { stalled + 1 };
         if stalled >= stall_limit {
             let blocked: Vec<String> = cells
                 .iter()

@@ -136,3 +136,35 @@ fn visible_only_lit_store_gives_the_same_image() {
         assert!(want.len() < full.lit.len(), "{scene}: hidden lit voxels exist, so the test compares something");
     }
 }
+
+/// The sibling wait (`--hold`) is exact: the same lit voxels and image for every wait, fewer
+/// beams processed (pieces of one voxel merge), and its host shortcut — held cells with nothing
+/// to send are not visited until their wait ends or a beam arrives — gives the counters of the
+/// all-cells reference, on 1 or 2 threads.
+#[test]
+fn sibling_wait_is_exact_and_merges() {
+    for (scene, n) in [("cornell", 40), ("teapot-floor", 40), ("cow-floor", 32)] {
+        let s = setup(scene, n);
+        let off = run(&s, LightConfig::default(), 2);
+        for hold in [2, 3, 8] {
+            let cfg = LightConfig { hold, ..Default::default() };
+            let on = run(&s, cfg, 1);
+            assert_eq!((&on.lit, &on.png), (&off.lit, &off.png), "{scene}: hold {hold}: lit voxels and image");
+            let (a, b) = (&on.reports[0].counts, &off.reports[0].counts);
+            assert_eq!(
+                (a.rays_absorbed, a.rays_exited, a.rays_skipped),
+                (b.rays_absorbed, b.rays_exited, b.rays_skipped)
+            );
+            assert!(a.held_cell_cycles > 0, "{scene}: hold {hold}: some cell waited");
+            assert!(
+                a.beams_processed < b.beams_processed,
+                "{scene}: hold {hold}: {} ≥ {} beams",
+                a.beams_processed,
+                b.beams_processed
+            );
+            let all = run(&s, LightConfig { stepping: Stepping::AllCells, ..cfg }, 2);
+            assert_eq!(on, all, "{scene}: hold {hold}: active (sleeping held cells) vs all-cells stepping");
+            assert_eq!(on, run(&s, cfg, 2), "{scene}: hold {hold}: 1 vs 2 threads");
+        }
+    }
+}
