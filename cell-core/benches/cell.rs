@@ -247,6 +247,7 @@ fn bench_fifo(c: &mut Criterion) {
         skip: None,
         lit_visible_only: false,
         hold: 0,
+        frustum: None,
     };
     let empty = DexelStore::<DEFAULT_DEXELS>::new();
     let mut wall = DexelStore::<DEFAULT_DEXELS>::new();

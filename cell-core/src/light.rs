@@ -37,6 +37,10 @@ use crate::beam::{Beam, Direction, FarDistance, FracBits, Source, SplitOrder, Tr
 use crate::dexel::DexelStore;
 use crate::units::{Coord, Depth};
 
+/// The occupancy summary the empty-frustum skip uses ([`LightEnv::frustum`]): 8 blocks per
+/// axis, 232 bytes per cell.
+pub type FrustumSummary = crate::occupancy::Occupancy8;
+
 /// One bit per light source (sources are diffused one after another; at most 32).
 pub type SourceMask = u32;
 
@@ -439,6 +443,11 @@ pub struct LightEnv<'a, F: FracBits> {
     /// the cell shades): the rest of the lit set is not stored. The image is the same; the lit
     /// store needs one run, never overflows, and skips the run bookkeeping of hidden voxels.
     pub lit_visible_only: bool,
+    /// The empty-frustum skip: a beam none of whose rays can meet an occupied block of this
+    /// summary at any later layer ([`FrustumSummary::frustum_empty`]) is dropped when
+    /// processed, its rays counted as skipped (`None`: off). Each cell holds the summary
+    /// ([`FrustumSummary::BYTES`] bytes), an OR-reduction over the grid after loading.
+    pub frustum: Option<&'a FrustumSummary>,
     /// The sibling wait: an incomplete beam (one that does not yet hold every ray of its voxel,
     /// [`Beam::complete`]) is not processed until it has waited this many of the cell's busy
     /// cycles, so that the pieces its sibling parents send can merge into it first. 0: off.
@@ -702,6 +711,10 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         f.absorbed = None;
         if store.occupied(m.z).is_some() {
             f.absorbed = Some(b.ray_count());
+            return;
+        }
+        if env.frustum.is_some_and(|o| o.frustum_empty(b, env.source, env.far, b.layer().0 + 1)) {
+            f.skipped = b.ray_count();
             return;
         }
         let dir = b.direction();
@@ -1020,7 +1033,7 @@ mod tests {
             let order = SplitOrder::default();
             let env = LightEnv {
                 source: &src, far, n, depth: n, policy: Policy::Wavefront, order: &order, fa: 4,
-                source_bit: 1, merge: true, skip: None, lit_visible_only: false, hold,
+                source_bit: 1, merge: true, skip: None, lit_visible_only: false, hold, frustum: None,
             };
             let mut store = DexelStore::<8>::new();
             let tag = crate::dexel::FacetTag::default();

@@ -572,6 +572,7 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
             skip: setup.skip,
             lit_visible_only: false,
             hold: 0,
+            frustum: None,
         })
     }
 

@@ -194,6 +194,11 @@ pub struct LightOpts {
     /// in columns lit in many separate runs (walls seen edge-on, many lights).
     #[arg(long)]
     pub lit_visible_only: bool,
+    /// Drop a beam when none of its rays can meet an occupied block of the scene's 8 × 8 × 8
+    /// occupancy summary at any later layer (their rays are counted as skipped). Exact: same
+    /// lit voxels; each cell holds the 232-byte summary.
+    #[arg(long, default_value_t = false, action = clap::ArgAction::Set)]
+    pub skip_frustum: bool,
     /// The sibling wait: a beam that does not yet hold every ray its voxel can receive waits
     /// up to this many cycles (while its FIFO has room) for the pieces from its other parent
     /// voxels to merge into it: fewer beams and messages, same lit voxels. 0: off. Wavefront
@@ -231,6 +236,7 @@ impl LightOpts {
             stall_cycles: self.stall_cycles,
             lit_visible_only: self.lit_visible_only,
             hold: self.hold,
+            skip_frustum: self.skip_frustum,
         }
     }
 }

@@ -18,7 +18,8 @@
 use anyhow::{bail, Result};
 use cell_core::beam::{Beam, Direction, FarDistance, FracBits, Source, SourceId, SplitOrder};
 use cell_core::light::{
-    Activity, ActivityDelta, BeamMsg, LightCell, LightCounters, LightEnv, OccupiedBox, Policy, Port, SourceMask, Step,
+    Activity, ActivityDelta, BeamMsg, FrustumSummary, LightCell, LightCounters, LightEnv, OccupiedBox, Policy, Port,
+    SourceMask, Step,
 };
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Relaxed};
@@ -74,6 +75,9 @@ pub struct LightConfig {
     /// The sibling wait in cycles ([`LightEnv::hold`]; 0: off). Exact: changes cycles and
     /// beam counts, never lit voxels.
     pub hold: u16,
+    /// The empty-frustum skip ([`LightEnv::frustum`]): exact, changes cycles and messages,
+    /// never lit voxels.
+    pub skip_frustum: bool,
 }
 
 impl Default for LightConfig {
@@ -91,6 +95,7 @@ impl Default for LightConfig {
             stall_cycles: DEFAULT_STALL_CYCLES,
             lit_visible_only: false,
             hold: 0,
+            skip_frustum: false,
         }
     }
 }
@@ -271,6 +276,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
     }
     let order = SplitOrder::default();
     let occupied = occupied_box(grid);
+    let frustum = cfg.skip_frustum.then(|| occupancy_summary(grid));
     let mut reports = Vec::new();
     let mut visited = cfg.record_visits.then(|| vec![false; (n * n * grid.depth) as usize]);
     if let Some(f) = cfg.faults.filter(|f| f.delay_ppm > 0 && f.delay_cycles as u64 >= cfg.stall_cycles.max(1)) {
@@ -279,6 +285,9 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             f.delay_cycles,
             cfg.stall_cycles
         );
+    }
+    if cfg.skip_frustum && tap.is_some() {
+        bail!("a cell trace does not record the empty-frustum skip: record without --skip-frustum");
     }
     if cfg.hold > 0 && tap.is_some() {
         bail!("a cell trace does not record the sibling wait: record without --hold");
@@ -301,6 +310,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             skip: cfg.skip_receding.then_some(occupied),
             lit_visible_only: cfg.lit_visible_only,
             hold: cfg.hold,
+            frustum: frustum.as_ref(),
         };
         let before: Vec<LightCounters> = cells.iter().map(|c| c.counters).collect();
         for c in cells.iter_mut() {
@@ -771,6 +781,16 @@ fn diffuse_one<F: FracBits, const D: usize>(
         rep.counts.peak_link_distance = (x.abs_diff(sv[0] as usize)).max(y.abs_diff(sv[1] as usize)) as u32;
     }
     Ok(rep)
+}
+
+/// The grid's occupancy summary for the empty-frustum skip (what the OR-reduction of every
+/// cell's own summary gives).
+pub fn occupancy_summary<const D: usize>(grid: &Grid<D>) -> FrustumSummary {
+    let mut s = FrustumSummary::new(grid.n, grid.depth);
+    for c in &grid.cells {
+        s.mark_column(c.x as u32, c.y as u32, c.store.dexels());
+    }
+    s
 }
 
 /// The bounding box of the grid's occupied voxels (`lo > hi` when the grid is empty).

@@ -75,8 +75,14 @@ fn skips_change_no_lit_voxel_and_no_pixel() {
     let mut skipped_somewhere = false;
     for s in scenes() {
         for policy in [Policy::Thesis, Policy::Wavefront] {
-            let on = LightConfig { fa: 4, policy, merge: policy == Policy::Wavefront, ..Default::default() };
-            let off = LightConfig { skip_receding: false, skip_dead_directions: false, ..on };
+            let on = LightConfig {
+                fa: 4,
+                policy,
+                merge: policy == Policy::Wavefront,
+                skip_frustum: true,
+                ..Default::default()
+            };
+            let off = LightConfig { skip_receding: false, skip_dead_directions: false, skip_frustum: false, ..on };
             let (a, b) = (run(&s, on, 2), run(&s, off, 2));
             assert_eq!(a.lit, b.lit, "{}: lit voxels", s.0.name);
             assert_eq!(a.png, b.png, "{}: image", s.0.name);
@@ -89,13 +95,32 @@ fn skips_change_no_lit_voxel_and_no_pixel() {
                 skipped_somewhere |= x.rays_skipped > 0;
             }
             // Each skip alone is exact too.
-            for one in [LightConfig { skip_dead_directions: false, ..on }, LightConfig { skip_receding: false, ..on }] {
+            let only = LightConfig { skip_receding: false, skip_dead_directions: false, ..on };
+            for one in [
+                LightConfig { skip_dead_directions: false, skip_frustum: false, ..on },
+                LightConfig { skip_receding: false, skip_frustum: false, ..on },
+                only,
+            ] {
                 let c = run(&s, one, 1);
                 assert_eq!((&c.lit, &c.png), (&a.lit, &a.png), "{}: {one:?}", s.0.name);
             }
         }
     }
     assert!(skipped_somewhere, "the skips dropped something on an open scene");
+}
+
+/// The empty-frustum skip on an open scene: most rays that would leave the grid are dropped
+/// early (a 8 × 8 × 8 summary), the lit set is unchanged, and the machine processes fewer beams.
+#[test]
+fn frustum_skip_drops_beams_that_light_nothing() {
+    let s = setup("teapot-floor", 48);
+    let base = LightConfig { skip_receding: false, skip_dead_directions: false, ..Default::default() };
+    let (off, on) = (run(&s, base, 2), run(&s, LightConfig { skip_frustum: true, ..base }, 2));
+    assert_eq!((&on.lit, &on.png), (&off.lit, &off.png));
+    let (a, b) = (&on.reports[0].counts, &off.reports[0].counts);
+    assert_eq!(a.rays_exited + a.rays_skipped, b.rays_exited, "skipped rays are rays that exit");
+    assert!(a.rays_skipped * 10 > b.rays_exited * 9, "{} of {} exiting rays skipped", a.rays_skipped, b.rays_exited);
+    assert!(a.beams_processed * 10 < b.beams_processed * 8, "{} vs {} beams", a.beams_processed, b.beams_processed);
 }
 
 #[test]
