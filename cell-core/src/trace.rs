@@ -7,7 +7,7 @@
 //! |---|---|---|
 //! | `0x40` | [`Event::Header`] | magic `RC2T` u32, version u8, x u16, y u16, depth u32, frac bits u8, dexel capacity u16, FIFO capacity u16, output buffer u8, lit runs u16 |
 //! | `0x41` | [`Event::Row`] | a row packet arriving from the west (loading, §3.9) |
-//! | `0x42` | [`Event::Light`] | a source's diffusion starts: source id u16, position 3×i32 (1/16 voxel), n u32, depth u32, D u32, policy u8, FIFO limit u16, merge u8, source bit u32, skip u8 (+ occupied box lo, hi 6×u16 when 1) |
+//! | `0x42` | [`Event::Light`] | a source's diffusion starts: source id u16, position 3×i32 (1/16 voxel), n u32, depth u32, D u32, policy u8, FIFO limit u16, merge u8, source bit u32, skip u8 (+ occupied box lo, hi 6×u16 when 1); from version 3: sibling wait u16, frustum u8 (+ the summary's 8 × 8 block rows, 64 × u8 bit masks over z, when 1) |
 //! | `0x43` | [`Event::Inject`] | the source emitter hands this cell an initial beam |
 //! | `0x44` | [`Event::Recv`] | link `port` delivers a beam: port u8 + the link frame as on the wire (its own CRC) |
 //! | `0x45` | [`Event::Step`] | `count` u32 compute cycles |
@@ -26,7 +26,9 @@ use heapless::Vec;
 use crate::beam::{FarDistance, FracBits, Source, SourceCoord, SourceId, SplitOrder};
 use crate::cell::Cell;
 use crate::facet::RowPacket;
-use crate::light::{Activity, BeamMsg, LightCell, LightEnv, OccupiedBox, Policy, Port, SourceMask, Step};
+use crate::light::{
+    Activity, BeamMsg, FrustumSummary, LightCell, LightEnv, OccupiedBox, Policy, Port, SourceMask, Step,
+};
 use crate::link::{
     self, get_beam, get_row, put_beam, put_row, read_frame, write_frame, ByteSink, DecodeError, EncodeError, Link,
     PutExt, Reader, HEADER, TRAILER,
@@ -36,8 +38,9 @@ use crate::units::{Coord, Depth};
 
 /// `RC2T`.
 pub const MAGIC: u32 = u32::from_le_bytes(*b"RC2T");
-/// Trace format version.
-pub const VERSION: u8 = 2;
+/// Trace format version written (3: the light record carries the sibling wait and the
+/// frustum summary). Version 2 traces (without them) are still read.
+pub const VERSION: u8 = 3;
 /// Record kinds.
 pub mod kind {
     /// [`super::Event::Header`].
@@ -109,6 +112,10 @@ pub struct LightSetup {
     pub source_bit: SourceMask,
     /// The occupied box of the receding-beam skip (`None`: off).
     pub skip: Option<OccupiedBox>,
+    /// The sibling wait ([`LightEnv::hold`]; 0: off).
+    pub hold: u16,
+    /// The empty-frustum skip's summary (`None`: off).
+    pub frustum: Option<FrustumSummary>,
 }
 
 /// What a cell needs to shade its pixel.
@@ -222,11 +229,25 @@ pub fn write_event<F: FracBits>(ev: &Event<'_, F>, buf: &mut [u8]) -> Result<usi
             w.u8(s.merge as u8)?;
             w.u32(s.source_bit)?;
             match &s.skip {
-                None => w.u8(0),
+                None => w.u8(0)?,
                 Some(b) => {
                     w.u8(1)?;
                     for v in b.lo.iter().chain(&b.hi) {
                         w.u16(*v)?;
+                    }
+                }
+            }
+            w.u16(s.hold)?;
+            match &s.frustum {
+                None => w.u8(0),
+                Some(o) => {
+                    w.u8(1)?;
+                    for bx in 0..FRUSTUM_BLOCKS {
+                        for by in 0..FRUSTUM_BLOCKS {
+                            let row =
+                                (0..FRUSTUM_BLOCKS).fold(0u8, |m, bz| m | (o.occupied_block([bx, by, bz]) as u8) << bz);
+                            w.u8(row)?;
+                        }
                     }
                     Ok(())
                 }
@@ -270,12 +291,52 @@ fn f32x3(r: &mut Reader<'_>) -> Result<[f32; 3], DecodeError> {
 pub struct Parser<'a, F: FracBits> {
     bytes: &'a [u8],
     far: Option<FarDistance<F>>,
+    /// The header's format version (0 before the header).
+    version: u8,
+}
+
+/// Blocks per axis of the frustum summary a trace carries.
+const FRUSTUM_BLOCKS: usize = 8;
+const _: () = assert!(
+    FrustumSummary::BYTES == crate::occupancy::Occupancy8::BYTES,
+    "traces carry an 8 x 8 x 8 summary, one byte per block row"
+);
+
+/// The version-3 tail of a light record: the sibling wait and the frustum summary (its occupied
+/// blocks, rebuilt by marking one voxel of each: the summary is a function of its blocks).
+fn read_wait_and_frustum(r: &mut Reader<'_>, mut s: LightSetup) -> Result<LightSetup, DecodeError> {
+    s.hold = r.u16()?;
+    s.frustum = match r.u8()? {
+        0 => None,
+        1 => {
+            if !(1..=crate::units::MAX_N).contains(&s.n) || !(1..=crate::units::MAX_N).contains(&s.depth) {
+                return Err(DecodeError::BadValue("frustum grid"));
+            }
+            let mut o = FrustumSummary::new(s.n, s.depth);
+            let (side, used) = (o.side(), o.blocks());
+            for bx in 0..FRUSTUM_BLOCKS {
+                for by in 0..FRUSTUM_BLOCKS {
+                    let row = r.u8()?;
+                    for bz in (0..FRUSTUM_BLOCKS).filter(|&bz| row >> bz & 1 == 1) {
+                        if bx >= used[0] || by >= used[1] || bz >= used[2] {
+                            return Err(DecodeError::BadValue("frustum block outside the grid"));
+                        }
+                        let v = [bx as u32 * side[0], by as u32 * side[1], bz as u32 * side[2]];
+                        o.mark_span(v[0], v[1], v[2], v[2]);
+                    }
+                }
+            }
+            Some(o)
+        }
+        _ => return Err(DecodeError::BadValue("frustum flag")),
+    };
+    Ok(s)
 }
 
 impl<'a, F: FracBits> Parser<'a, F> {
     /// Parse `bytes` from the start.
     pub fn new(bytes: &'a [u8]) -> Self {
-        Parser { bytes, far: None }
+        Parser { bytes, far: None, version: 0 }
     }
 
     /// The next record; `None` at the end of the bytes.
@@ -297,7 +358,11 @@ impl<'a, F: FracBits> Parser<'a, F> {
         let mut r = Reader::new(raw.payload);
         let ev = match raw.kind {
             kind::HEADER => {
-                if r.u32()? != MAGIC || r.u8()? != VERSION {
+                if r.u32()? != MAGIC {
+                    return Err(ReplayError::BadHeader);
+                }
+                self.version = r.u8()?;
+                if !(2..=VERSION).contains(&self.version) {
                     return Err(ReplayError::BadHeader);
                 }
                 Event::Header(Header {
@@ -338,7 +403,10 @@ impl<'a, F: FracBits> Parser<'a, F> {
                         }
                         _ => return Err(DecodeError::BadValue("skip flag").into()),
                     },
+                    hold: 0,
+                    frustum: None,
                 };
+                let s = if self.version >= 3 { read_wait_and_frustum(&mut r, s)? } else { s };
                 self.far = Some(FarDistance::new(s.far).ok_or(ReplayError::BadFar)?);
                 Event::Light(s)
             }
@@ -571,8 +639,8 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
             merge: setup.merge,
             skip: setup.skip,
             lit_visible_only: false,
-            hold: 0,
-            frustum: None,
+            hold: setup.hold,
+            frustum: setup.frustum.as_ref(),
         })
     }
 

@@ -286,12 +286,6 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             cfg.stall_cycles
         );
     }
-    if cfg.skip_frustum && tap.is_some() {
-        bail!("a cell trace does not record the empty-frustum skip: record without --skip-frustum");
-    }
-    if cfg.hold > 0 && tap.is_some() {
-        bail!("a cell trace does not record the sibling wait: record without --hold");
-    }
     if cfg.lit_visible_only && tap.is_some() {
         bail!("a cell trace records the whole lit store: record without --lit-visible-only");
     }

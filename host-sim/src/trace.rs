@@ -144,6 +144,8 @@ impl Tap {
             merge: env.merge,
             source_bit: env.source_bit,
             skip: env.skip,
+            hold: env.hold,
+            frustum: env.frustum.copied(),
         };
         for r in &mut self.recorders {
             r.push::<F>(&Event::Light(s));

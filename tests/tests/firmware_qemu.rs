@@ -17,6 +17,8 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use cell_core::beam::frac::U0;
+use host_sim::diffuse::LightConfig;
+use host_sim::precompute::LoadConfig;
 use host_sim::trace::{record, TraceJob};
 use rc2_tests::traces::{cornell_job_cells, mutate_row_material};
 
@@ -136,6 +138,23 @@ fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
     std::fs::write(dir.join("z_flipped.rc2t"), &flipped).unwrap();
     let changed = mutate_row_material(&busiest.bytes).expect("the busiest cell received a row packet");
     std::fs::write(dir.join("z_changed.rc2t"), &changed).unwrap();
+    // The sibling wait and the empty-frustum skip on the MCU: an open scene's busiest cell and
+    // its source cell, recorded with both on.
+    let teapot = host_sim::scene::load("teapot-floor").unwrap();
+    let tload = LoadConfig { n: 32, ..load };
+    let tlight = LightConfig { hold: 4, skip_frustum: true, ..light };
+    let tjob = TraceJob {
+        mesh: &teapot,
+        load: tload,
+        light: tlight,
+        lights: Vec::new(),
+        cells: vec![[16, 16]],
+        busiest: true,
+    };
+    let waits = record::<U0>(&tjob).expect("record traces with the wait and the frustum skip");
+    for t in &waits {
+        std::fs::write(dir.join(format!("w_cell_{}_{}.rc2t", t.x, t.y)), &t.bytes).unwrap();
+    }
 
     let t0 = Instant::now();
     let elf = build_firmware(&dir);
@@ -152,6 +171,15 @@ fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
                 t.x, t.y, t.digest
             ),
             other => panic!("cell ({}, {}): no digest from the firmware: {other:?}\n{out}", t.x, t.y),
+        }
+    }
+    for t in &waits {
+        let name = format!("w_cell_{}_{}.rc2t", t.x, t.y);
+        match got.get(&name) {
+            Some(Ok(d)) => {
+                assert_eq!(*d, t.digest, "{name} (hold 4, frustum skip): firmware {d:016x}, host {:016x}", t.digest)
+            }
+            other => panic!("{name}: no digest from the firmware: {other:?}\n{out}"),
         }
     }
     assert!(

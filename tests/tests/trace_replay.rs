@@ -19,16 +19,20 @@ fn replay_fn<F: FracBits>() -> Replay {
     cell_core::trace::replay::<F, { cell_core::cell::DEFAULT_DEXELS }, FA_CAP, OB_CAP, LIT_CAP>
 }
 
-fn all_cells<F: FracBits>(scene: &str, n: u32, policy: Policy, merge: bool, fa: usize) -> Vec<CellTrace> {
+fn all_cells<F: FracBits>(scene: &str, n: u32, light: LightConfig) -> Vec<CellTrace> {
     let mesh = host_sim::scene::load(scene).unwrap();
     let load = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
-    let light = LightConfig { fa, policy, merge, record_visits: false, ..Default::default() };
     let cells = (0..n).flat_map(|y| (0..n).map(move |x| [x, y])).collect();
     record::<F>(&TraceJob { mesh: &mesh, load, light, lights: Vec::new(), cells, busiest: false }).unwrap()
 }
 
 fn check_all<F: FracBits>(scene: &str, n: u32, policy: Policy, merge: bool, fa: usize) {
-    let traces = all_cells::<F>(scene, n, policy, merge, fa);
+    check_all_with::<F>(scene, n, LightConfig { fa, policy, merge, record_visits: false, ..Default::default() });
+}
+
+fn check_all_with<F: FracBits>(scene: &str, n: u32, light: LightConfig) {
+    let (policy, merge) = (light.policy, light.merge);
+    let traces = all_cells::<F>(scene, n, light);
     assert_eq!(traces.len(), (n * n) as usize);
     let (mut beams, mut sent) = (0u64, 0u64);
     for t in &traces {
@@ -48,6 +52,15 @@ fn every_cell_replays_to_the_grid_digest() {
     check_all::<U0>("cornell", 16, Policy::Thesis, false, 2);
     check_all::<U2>("cornell", 16, Policy::Wavefront, true, 4);
     check_all::<U0>("teapot-floor", 16, Policy::Wavefront, false, 8);
+}
+
+/// The sibling wait and the empty-frustum skip run in the cell too: traces (version 3) carry
+/// the wait and the summary, and every cell replays to the grid's digest.
+#[test]
+fn every_cell_replays_with_the_sibling_wait_and_the_frustum_skip() {
+    let light = LightConfig { hold: 3, skip_frustum: true, ..Default::default() };
+    check_all_with::<U0>("teapot-floor", 20, light);
+    check_all_with::<U2>("cornell", 16, LightConfig { hold: 8, ..light });
 }
 
 fn busiest_trace() -> CellTrace {
@@ -111,7 +124,8 @@ fn re_encoded_changes_change_the_digest() {
 #[test]
 fn peak_link_load_equals_the_busiest_link_in_the_traces() {
     let n = 16;
-    let traces = all_cells::<U0>("cornell", n, Policy::Wavefront, true, 16);
+    let light = LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, ..Default::default() };
+    let traces = all_cells::<U0>("cornell", n, light);
     let mut best = (0u64, u32::MAX);
     let mesh = host_sim::scene::load("cornell").unwrap();
     let load = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
@@ -144,4 +158,42 @@ fn peak_link_load_equals_the_busiest_link_in_the_traces() {
         c.peak_link_load, c.peak_link_distance, best.1
     );
     assert!(c.peak_link_distance >= best.1);
+}
+
+/// A version-3 light record round-trips: the sibling wait, and the frustum summary rebuilt from
+/// its 64 block rows equals the summary the grid built from every dexel (the summary is a
+/// function of its occupied blocks), for scenes whose blocks do and do not divide n.
+#[test]
+fn light_records_carry_the_wait_and_the_summary() {
+    use cell_core::beam::{Source, SourceId};
+    use cell_core::trace::{Event, Header, LightSetup};
+    for (scene, n) in [("teapot-floor", 24), ("cow-floor", 21), ("cornell", 16)] {
+        let mesh = host_sim::scene::load(scene).unwrap();
+        let load = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
+        let loaded = host_sim::lightjob::load_scene(&mesh, &load).unwrap();
+        let summary = host_sim::diffuse::occupancy_summary(&loaded.grid);
+        assert!(!summary.is_empty());
+        let setup = LightSetup {
+            source: Source::at_voxel(SourceId(0), [3, 4, 5]).unwrap(),
+            n,
+            depth: loaded.grid.depth,
+            far: n - 1,
+            policy: Policy::Wavefront,
+            fa: 16,
+            merge: true,
+            source_bit: 1,
+            skip: None,
+            hold: 7,
+            frustum: Some(summary),
+        };
+        let header =
+            Header { x: 1, y: 2, depth: loaded.grid.depth, frac_bits: 0, dexels: 64, fifo: 64, out: 3, lit: 64 };
+        let mut bytes = vec![0u8; 1024];
+        let a = write_event::<U0>(&Event::Header(header), &mut bytes).unwrap();
+        let b = write_event::<U0>(&Event::Light(setup), &mut bytes[a..]).unwrap();
+        let mut p = Parser::<U0>::new(&bytes[..a + b]);
+        assert_eq!(p.next_event().unwrap().unwrap(), Event::Header(header));
+        assert_eq!(p.next_event().unwrap().unwrap(), Event::Light(setup), "{scene}");
+        assert!(p.next_event().is_none());
+    }
 }
