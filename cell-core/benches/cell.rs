@@ -1,7 +1,7 @@
 //! Criterion benchmarks of what one cell does per step (issue 7): the loading wave's row cell
 //! (`row_span`, `Cell::load_step`, `DexelStore::insert`), the beam split at several layers and
-//! fraction bits, the lighting FIFO (`LightCell::accept` with and without merging, `step`), and
-//! the shading of one pixel.
+//! fraction bits, the tests of the sibling wait and the empty-frustum skip, the lighting FIFO
+//! (`LightCell::accept` with and without merging, `step`), and the shading of one pixel.
 //!
 //! `cargo bench -p cell-core` (results in BENCHMARKS.md). Not part of `cargo test`: benches are
 //! built only with `--benches`/`--all-targets`, and then run once per case as a smoke test.
@@ -19,6 +19,7 @@ use cell_core::dexel::{DexelStore, FacetTag};
 use cell_core::facet::{FacetBox, RowEdge, RowPacket};
 use cell_core::light::{Activity, BeamMsg, LightCell, LightEnv, Policy};
 use cell_core::normal::NormalCode;
+use cell_core::occupancy::Occupancy8;
 use cell_core::shade::{shade, shading_normal, Material, NormalMode, PointLight, ShadeParams};
 use cell_core::units::Span;
 use cell_core::voxelize::row_span;
@@ -170,6 +171,41 @@ fn bench_split(c: &mut Criterion) {
     split_group::<frac::U8>(c);
 }
 
+/// The two tests the new skips run per beam: `Beam::complete` (the sibling wait, every held
+/// candidate) and `OccupancySummary::frustum_empty` (the empty-frustum skip, every processed
+/// beam) on an open scene (a floor and a cube) at n = 256, for beams heading into it and away.
+fn bench_skips(c: &mut Criterion) {
+    let n = 256u32;
+    let src = Source::at_voxel(SourceId(0), [100, 128, 140]).expect("fits");
+    let far = FarDistance::<frac::U0>::new(n - 1).expect("within the bit budget");
+    let mut open = Occupancy8::new(n, n);
+    for x in 0..n {
+        for y in 0..n {
+            open.mark_span(x, y, 0, 3);
+        }
+    }
+    for x in 150..190 {
+        for y in 100..140 {
+            open.mark_span(x, y, 100, 140);
+        }
+    }
+    let mut g = c.benchmark_group("skips");
+    for (dir, layer) in [(Direction::PosX, 16u32), (Direction::PosX, 128), (Direction::NegZ, 16), (Direction::PosZ, 16)]
+    {
+        let (beam, voxel) = beam_at(&src, far, dir, layer);
+        let at = dir.transverse_of(voxel.map(|v| v as i32));
+        let empty = open.frustum_empty(&beam, &src, far, layer + 1);
+        let id = format!("{dir:?}_layer{layer}_{}", if empty { "empty" } else { "meets" });
+        g.bench_function(BenchmarkId::new("frustum_empty_8", &id), |b| {
+            b.iter(|| black_box(&open).frustum_empty(black_box(&beam), &src, far, layer + 1))
+        });
+        g.bench_function(BenchmarkId::new("complete", &id), |b| {
+            b.iter(|| black_box(&beam).complete(&src, far, black_box(at)))
+        });
+    }
+    g.finish();
+}
+
 type BenchCell = LightCell<frac::U0, 64, 3, 32>;
 
 /// A lighting cell at the voxel of a real layer-`layer` beam, its FIFO holding that beam
@@ -301,5 +337,5 @@ fn bench_shade(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench_voxelize, bench_split, bench_fifo, bench_shade);
+criterion_group!(benches, bench_voxelize, bench_split, bench_skips, bench_fifo, bench_shade);
 criterion_main!(benches);
