@@ -41,6 +41,10 @@ use crate::units::{Coord, Depth};
 /// axis, 232 bytes per cell.
 pub type FrustumSummary = crate::occupancy::Occupancy8;
 
+/// Longest sibling wait ([`LightEnv::hold`]): wait ends are compared on the cell's 16-bit clock
+/// as signed differences.
+pub const MAX_HOLD: u16 = i16::MAX as u16;
+
 /// One bit per light source (sources are diffused one after another; at most 32).
 pub type SourceMask = u32;
 
@@ -450,7 +454,9 @@ pub struct LightEnv<'a, F: FracBits> {
     pub frustum: Option<&'a FrustumSummary>,
     /// The sibling wait: an incomplete beam (one that does not yet hold every ray of its voxel,
     /// [`Beam::complete`]) is not processed until it has waited this many of the cell's busy
-    /// cycles, so that the pieces its sibling parents send can merge into it first. 0: off.
+    /// cycles, so that the pieces its sibling parents send can merge into it first. 0: off;
+    /// at most [`MAX_HOLD`] (larger values act as it). Waits are counted on the cell's 16-bit
+    /// clock: a beam kept blocked for 65 536 cycles may wait once more, never longer than `hold`.
     pub hold: u16,
 }
 
@@ -822,8 +828,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             }
         }
         let mut fate = Fate::new();
+        let hold = env.hold.min(MAX_HOLD);
         // Cycles until the first waiting beam's sibling wait ends (`hold`: none is waiting).
-        let mut wait = env.hold;
+        let mut wait = hold;
         let mut held = false;
         let chosen = match env.policy {
             Policy::Thesis => {
@@ -842,7 +849,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 let mut best: Option<usize> = None;
                 let mut tried = 0u64; // FIFO positions already tried (FA ≤ 64, asserted)
                                       // A full FIFO takes no sibling: nothing is worth waiting for.
-                let may_hold = env.hold > 0 && self.fifo.len() < env.fa.min(FA);
+                let may_hold = hold > 0 && self.fifo.len() < env.fa.min(FA);
                 for _ in 0..self.fifo.len() {
                     let mut pick: Option<usize> = None;
                     for (i, m) in self.fifo.iter().enumerate() {
@@ -856,9 +863,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                     let Some(i) = pick else { break };
                     tried |= 1 << i;
                     let age = self.ticks.wrapping_sub(self.fifo[i].since);
-                    if may_hold && age < env.hold && !self.complete(&self.fifo[i], env) {
+                    if may_hold && age < hold && !self.complete(&self.fifo[i], env) {
                         held = true;
-                        wait = wait.min(env.hold - age);
+                        wait = wait.min(hold - age);
                         continue;
                     }
                     self.fate(&self.fifo[i], store, env, &mut fate);

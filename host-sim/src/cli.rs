@@ -202,8 +202,8 @@ pub struct LightOpts {
     /// The sibling wait: a beam that does not yet hold every ray its voxel can receive waits
     /// up to this many cycles (while its FIFO has room) for the pieces from its other parent
     /// voxels to merge into it: fewer beams and messages, same lit voxels. 0: off. Wavefront
-    /// policy only.
-    #[arg(long, default_value_t = 0)]
+    /// policy only; at most 4096.
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u16).range(0..=4096))]
     pub hold: u16,
     /// Classic shadow rays instead of diffusion.
     #[command(flatten)]

@@ -117,6 +117,8 @@ fn bad_arguments_fail_clearly() {
         (&["render", "--n", "16", "--light", "0.5,0.5"], "--light"),
         (&["render", "--n", "sixteen"], "--n"),
         (&["render", "--policy", "fastest"], "--policy"),
+        (&["render", "--n", "16", "--hold", "5000"], "--hold"),
+        (&["render", "--n", "16", "--skip-frustum", "maybe"], "--skip-frustum"),
         (&["no-such-command"], "no-such-command"),
     ];
     for (args, expect) in cases {
