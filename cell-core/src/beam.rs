@@ -804,9 +804,8 @@ impl<F: FracBits> Beam<F> {
         let cv = split_axis(self.v, source.pos[va.index()], at.v, far, m);
         let next = Layer(self.layer.0 + 1);
         for &offset in order.offsets() {
-            let Some((i, j)) = offset.slot() else {
-                continue;
-            };
+            // A `SplitOrder` holds valid offsets only (checked when it was made).
+            let (i, j) = ((offset.du + 1) as usize, (offset.dv + 1) as usize);
             if let (Some(u), Some(v)) = (cu[i], cv[j]) {
                 emit(SubBeam { offset, beam: Beam { u, v, layer: next, source: self.source, dir: self.dir } });
             }

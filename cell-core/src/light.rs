@@ -45,6 +45,11 @@ pub type FrustumSummary = crate::occupancy::Occupancy8;
 /// as signed differences.
 pub const MAX_HOLD: u16 = i16::MAX as u16;
 
+/// The output-buffer lengths of a blocked-step key that no length matches: the cell was held
+/// with no beam refused for room, so no change of the lengths can unblock it. Buffers hold at
+/// most 127 messages, so a real length word is never all ones.
+const ANY_LENGTHS: u64 = u64::MAX;
+
 /// One bit per light source (sources are diffused one after another; at most 32).
 pub type SourceMask = u32;
 
@@ -380,14 +385,23 @@ impl OccupiedBox {
     /// u > 0 (resp. u < 0) and never comes back. So the beam recedes if, on some axis, it is
     /// beyond the box and moving (principal) or bound (transverse) away from it.
     pub fn receding(&self, dir: Direction, sv: [i32; 3], at: [i64; 3]) -> bool {
-        if (0..3).any(|a| self.lo[a] > self.hi[a]) {
-            return true;
-        }
         let w = dir.principal().index();
-        let (lo, hi) = (self.lo.map(i64::from), self.hi.map(i64::from));
-        let sv = sv.map(i64::from);
-        let principal = if dir.sign() > 0 { at[w] > hi[w] } else { at[w] < lo[w] };
-        principal || (0..3).any(|a| a != w && ((at[a] > hi[a] && at[a] > sv[a]) || (at[a] < lo[a] && at[a] < sv[a])))
+        let mut out = false;
+        // Branch-free over the three axes (this runs for every sub-beam).
+        for a in 0..3 {
+            let (lo, hi, s) = (self.lo[a] as i64, self.hi[a] as i64, sv[a] as i64);
+            let away = if a == w {
+                if dir.sign() > 0 {
+                    at[a] > hi
+                } else {
+                    at[a] < lo
+                }
+            } else {
+                (at[a] > hi) & (at[a] > s) | (at[a] < lo) & (at[a] < s)
+            };
+            out |= away | (lo > hi);
+        }
+        out
     }
 }
 
@@ -515,7 +529,8 @@ impl<F: FracBits, const OB: usize> Default for OutBuffers<F, OB> {
 }
 
 impl<F: FracBits, const OB: usize> OutBuffers<F, OB> {
-    const OB_FITS_A_BYTE: () = assert!(OB <= 255, "output buffer lengths are bytes");
+    const OB_FITS_A_BYTE: () =
+        assert!(OB <= 127, "output buffer lengths are bytes, checked eight at a time with a bias of 127 − OB");
 
     /// Eight empty buffers.
     pub const fn new() -> Self {
@@ -581,10 +596,24 @@ impl<F: FracBits, const OB: usize> OutBuffers<F, OB> {
             return None;
         }
         let m = q[0];
-        q.copy_within(1..len, 0);
+        // Every slot moves up, waiting or not (`OB` is tiny): a fixed-size copy the compiler
+        // unrolls, where a copy of `len − 1` slots was a call to `memmove`. Slots past the
+        // length are never read.
+        for s in 1..OB {
+            q[s - 1] = q[s];
+        }
         *n -= 1;
         Some(m)
     }
+}
+
+/// Whether every byte of `lengths` (each ≤ `OB` ≤ 127) plus the same byte of `need` (each ≤ 9)
+/// is at most `OB`: the bytes of `lengths + need + (127 − OB)` are at most 136 (no carry) and
+/// reach 128 exactly when the sum exceeds `OB`.
+const fn room<const OB: usize>(lengths: u64, need: u64) -> bool {
+    const HIGH: u64 = 0x8080_8080_8080_8080;
+    let bias = u64::from_le_bytes([(127 - OB) as u8; 8]);
+    (lengths + need + bias) & HIGH == 0
 }
 
 /// The lighting state of one cell: FIFO capacity `FA`, `OB` messages per output buffer,
@@ -602,7 +631,9 @@ pub struct LightCell<F: FracBits, const FA: usize, const OB: usize, const L: usi
     /// generation it saw. Between two steps the output buffers can only shrink (links pop) and
     /// the FIFO only change through `accept`, and a beam's fate depends on nothing else, so
     /// while both are unchanged the cell is still blocked and skips re-splitting every waiting
-    /// beam (exact: same result, same counters). Cleared when a beam is processed.
+    /// beam (exact: same result, same counters). Cleared when a beam is processed. When every
+    /// waiting beam was held (none was refused for room), the lengths are [`ANY_LENGTHS`]:
+    /// output buffers that shrink cannot end a sibling wait, only its clock or an arrival can.
     blocked_on: Option<(u64, u32)>,
     /// Bumped by every change of the FIFO ([`LightCell::accept`], processing).
     fifo_generation: u32,
@@ -758,15 +789,21 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         }
     }
 
+    /// Whether nothing that could unblock the cell changed since its last step found nothing
+    /// processable (see `blocked_on`).
+    fn still_blocked(&self) -> bool {
+        self.blocked_on.is_some_and(|(lengths, generation)| {
+            generation == self.fifo_generation && (lengths == ANY_LENGTHS || lengths == self.out.lengths())
+        })
+    }
+
     /// While the cell is held (its last step returned [`Step::Held`] and neither its FIFO nor
     /// its output buffers changed since): the number of steps until a waiting beam's sibling
     /// wait ends. Every step before that returns [`Step::Held`] and changes nothing but the
     /// clock and `held_cycles`, so a host may skip them ([`LightCell::skip_held`]).
     pub fn held_wait(&self) -> Option<u16> {
-        match (self.blocked_on, self.held_until) {
-            (Some(key), Some(t)) if key == (self.out.lengths(), self.fifo_generation) => {
-                Some(t.wrapping_sub(self.ticks)).filter(|&w| (w as i16) > 0)
-            }
+        match (self.still_blocked(), self.held_until) {
+            (true, Some(t)) => Some(t.wrapping_sub(self.ticks)).filter(|&w| (w as i16) > 0),
             _ => None,
         }
     }
@@ -788,16 +825,20 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
 
     /// Whether every sub-beam of `fate` fits now (the no-loss rule), given that the processed
     /// beam leaves the FIFO first.
+    ///
+    /// The eight buffers are checked at once on their length word: byte p of `need` counts the
+    /// sub-beams for port p (at most 9), and a byte of `lengths + need + (127 − OB)` (at most
+    /// OB + 9 + 127 − OB = 136: no carry into the next byte) reaches 128 exactly when
+    /// `len + need > OB`.
     fn fits(&self, fate: &Fate<F>, fa: usize) -> bool {
-        let mut need = [0usize; 9];
+        let (mut need, mut own) = (0u64, 0usize);
         for (t, _) in &fate.subs {
             match t {
-                Target::Out(p) => need[p.index()] += 1,
-                Target::SelfFifo => need[8] += 1,
+                Target::Out(p) => need += 1 << (8 * p.index()),
+                Target::SelfFifo => own += 1,
             }
         }
-        Port::ALL.into_iter().all(|p| self.out.len(p) + need[p.index()] <= OB)
-            && self.fifo.len() - 1 + need[8] <= fa.min(FA)
+        room::<OB>(self.out.lengths(), need) && self.fifo.len() - 1 + own <= fa.min(FA)
     }
 
     /// One compute cycle (§4.4.1): pick a beam by `env.policy`, process it if the no-loss rule
@@ -813,7 +854,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         }
         self.ticks = self.ticks.wrapping_add(1);
         let wave = env.policy == Policy::Wavefront;
-        if wave && self.blocked_on == Some((self.out.lengths(), self.fifo_generation)) {
+        if wave && self.still_blocked() {
             // Unchanged since the last step, and no waiting beam's sibling wait has ended yet.
             match self.held_until {
                 None => {
@@ -832,6 +873,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         // Cycles until the first waiting beam's sibling wait ends (`hold`: none is waiting).
         let mut wait = hold;
         let mut held = false;
+        // Whether a beam was refused for lack of room (then the output lengths matter).
+        let mut refused = false;
         let chosen = match env.policy {
             Policy::Thesis => {
                 self.fate(&self.fifo[0], store, env, &mut fate);
@@ -845,23 +888,26 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 }
             }
             Policy::Wavefront => {
-                // Candidates by (layer, position); the first that fits goes.
+                // Candidates by (layer, position); the first that fits goes. Keys are
+                // layer << 6 | position (FA ≤ 64, asserted): the smallest is found by one scan,
+                // and the rest are listed and sorted only if it cannot go.
                 let mut best: Option<usize> = None;
-                let mut tried = 0u64; // FIFO positions already tried (FA ≤ 64, asserted)
-                                      // A full FIFO takes no sibling: nothing is worth waiting for.
+                let key = |i: usize| (self.fifo[i].beam.layer().0 as u64) << 6 | i as u64;
+                let first = (0..self.fifo.len()).map(key).min().unwrap_or(0);
+                let mut rest: Vec<u64, FA> = Vec::new();
+                // A full FIFO takes no sibling: nothing is worth waiting for.
                 let may_hold = hold > 0 && self.fifo.len() < env.fa.min(FA);
-                for _ in 0..self.fifo.len() {
-                    let mut pick: Option<usize> = None;
-                    for (i, m) in self.fifo.iter().enumerate() {
-                        if tried >> i & 1 == 1 {
-                            continue;
+                for c in 0..self.fifo.len() {
+                    let i = if c == 0 {
+                        (first & 63) as usize
+                    } else {
+                        if c == 1 {
+                            // Cannot overflow: FA keys at most.
+                            rest.extend((0..self.fifo.len()).map(key).filter(|&k| k != first));
+                            rest.sort_unstable();
                         }
-                        if pick.is_none_or(|p| m.beam.layer().0 < self.fifo[p].beam.layer().0) {
-                            pick = Some(i);
-                        }
-                    }
-                    let Some(i) = pick else { break };
-                    tried |= 1 << i;
+                        (rest[c - 1] & 63) as usize
+                    };
                     let age = self.ticks.wrapping_sub(self.fifo[i].since);
                     if may_hold && age < hold && !self.complete(&self.fifo[i], env) {
                         held = true;
@@ -873,13 +919,15 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                         best = Some(i);
                         break;
                     }
+                    refused = true;
                 }
                 best
             }
         };
         let Some(i) = chosen else {
             if wave {
-                self.blocked_on = Some((self.out.lengths(), self.fifo_generation));
+                let lengths = if refused { self.out.lengths() } else { ANY_LENGTHS };
+                self.blocked_on = Some((lengths, self.fifo_generation));
                 self.held_until = held.then(|| self.ticks.wrapping_add(wait));
             }
             if held {
@@ -987,7 +1035,52 @@ mod tests {
         assert!(r.mark(2, 1), "merging needs no new run");
     }
 
+    /// The eight-at-once room check against byte-by-byte comparison, exhaustively for one
+    /// byte at every position (the other seven empty or full), at OB = 1, 3 and 127.
+    #[test]
+    fn room_matches_bytewise_comparison() {
+        fn check<const OB: usize>() {
+            for pos in 0..8 {
+                for other in [0u64, OB as u64] {
+                    for len in 0..=OB as u64 {
+                        for need in 0..=9u64 {
+                            let fill = u64::from_le_bytes([other as u8; 8]) & !(0xFF << (8 * pos));
+                            let lengths = fill | len << (8 * pos);
+                            let needs = need << (8 * pos);
+                            let expect = len + need <= OB as u64 && other <= OB as u64;
+                            assert_eq!(room::<OB>(lengths, needs), expect, "OB {OB} byte {pos} len {len} need {need}");
+                        }
+                    }
+                }
+            }
+        }
+        check::<1>();
+        check::<3>();
+        check::<127>();
+    }
+
     proptest! {
+        /// The receding test against its definition, axis by axis: empty box, or beyond the box
+        /// along the principal axis in the direction of travel, or beyond the box on a
+        /// transverse axis and strictly beyond the source voxel on the same side.
+        #[test]
+        fn receding_matches_its_definition(
+            lo in proptest::array::uniform3(0u16..12), hi in proptest::array::uniform3(0u16..12),
+            sv in proptest::array::uniform3(-2i32..14), at in proptest::array::uniform3(-3i64..15),
+            d in 0usize..6,
+        ) {
+            let dir = Direction::ALL[d];
+            let bx = OccupiedBox { lo, hi };
+            let w = dir.principal().index();
+            let empty = (0..3).any(|a| lo[a] > hi[a]);
+            let ahead = if dir.sign() > 0 { at[w] > hi[w] as i64 } else { at[w] < lo[w] as i64 };
+            let side = (0..3).filter(|&a| a != w).any(|a| {
+                let (l, h, s) = (lo[a] as i64, hi[a] as i64, sv[a] as i64);
+                (at[a] > h && at[a] > s) || (at[a] < l && at[a] < s)
+            });
+            prop_assert_eq!(bx.receding(dir, sv, at), empty || ahead || side);
+        }
+
         /// The output buffers against eight `VecDeque`s bounded at OB: same accept/refuse, same
         /// order, and the one-word summaries (`any`, `busy_ports`, `len`) agree.
         #[test]

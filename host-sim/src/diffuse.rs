@@ -398,6 +398,8 @@ struct PieceResult<F: FracBits> {
     /// Held cells with empty output buffers, and their [`LightCell::held_wait`]: nothing
     /// changes for them until that many cycles pass or a beam arrives.
     sleep: Vec<(u32, u16)>,
+    /// Cells that the last cycle's deferred pops left with nothing (counted busy last cycle).
+    drained: u64,
 }
 
 /// A message offered on a link in the link phase: receiver, arbitration key, sender, port, and a
@@ -409,6 +411,21 @@ struct Offer<F: FracBits> {
     port: u8,
     msg: BeamMsg<F>,
     taken: bool,
+}
+
+/// Drop the messages of cell `i` whose offers were taken (its `taken` bits, then cleared),
+/// counting each on its link with `bump`; whether there were any.
+fn pop_taken<F: FracBits>(c: &mut HostLightCell<F>, i: usize, taken: &[AtomicU8], bump: &impl Fn(usize)) -> bool {
+    let ports = taken[i].load(Relaxed);
+    if ports == 0 {
+        return false;
+    }
+    taken[i].store(0, Relaxed);
+    for p in Port::ALL.into_iter().filter(|p| ports >> p.index() & 1 == 1) {
+        c.out.pop_front(p);
+        bump(i * 8 + p.index());
+    }
+    true
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -459,6 +476,17 @@ fn diffuse_one<F: FracBits, const D: usize>(
     // Ports whose offer the receiver took this cycle, per sender (set by the receivers' pieces,
     // consumed by the senders' pieces).
     let taken_ports: Vec<AtomicU8> = (0..cells.len()).map(|_| AtomicU8::new(0)).collect();
+    // Deferred pops: a sender drops what was taken at the start of its next step, when the
+    // compute pass has the cell in cache anyway, instead of in a pass of its own over every
+    // sender (a third walk over scattered cells per cycle). Exact: between the link phase and
+    // its next step a sender is touched only by deliveries into its FIFO (and by the emitter,
+    // whose cell's pops are not deferred), which neither read nor change output buffers. Every
+    // sender is in the next active list (its output was busy). The busy count a cycle reports
+    // (`peak_active_cells`) is settled one cycle late: the cells the pops left idle are
+    // subtracted then. The reference modes (all cells, faulty links) pop in a pass.
+    let defer_pops = stepping == Stepping::Active && links.is_none();
+    // Cells counted busy at the end of the last cycle, pending its deferred pops.
+    let mut pending_busy: Option<u64> = None;
     let mut offers: Vec<Offer<F>> = Vec::new();
     // Messages delivered per (sending cell, port).
     let link_load: Vec<AtomicU32> = (0..cells.len() * 8).map(|_| AtomicU32::new(0)).collect();
@@ -515,9 +543,10 @@ fn diffuse_one<F: FracBits, const D: usize>(
                     any: false,
                     seen: Vec::new(),
                     steps: Vec::new(),
-                    offers: Vec::new(),
+                    offers: Vec::with_capacity(idx.len() + idx.len() / 2),
                     quiet: Vec::new(),
                     sleep: Vec::new(),
+                    drained: 0,
                 };
                 for (k, &i) in idx.iter().enumerate() {
                     if let Some(&j) = idx.get(k + AHEAD) {
@@ -525,6 +554,9 @@ fn diffuse_one<F: FracBits, const D: usize>(
                         prefetch_ends(&grid.cells[j as usize].store);
                     }
                     let c = &mut tile[i as usize - base];
+                    if defer_pops && pop_taken(c, i as usize, &taken_ports, &bump) && !c.busy() {
+                        r.drained += 1;
+                    }
                     let step = c.step(&grid.cells[i as usize].store, env, &delta);
                     if tapping {
                         r.steps.push((i as usize, step));
@@ -557,7 +589,11 @@ fn diffuse_one<F: FracBits, const D: usize>(
             })
             .collect();
         offers.clear();
-        for PieceResult { delta, any, seen, steps, offers: o, quiet, sleep } in done {
+        let drained: u64 = done.iter().map(|r| r.drained).sum();
+        if let Some(b) = pending_busy.take() {
+            rep.counts.peak_active_cells = rep.counts.peak_active_cells.max(b - drained);
+        }
+        for PieceResult { delta, any, seen, steps, offers: o, quiet, sleep, drained: _ } in done {
             offers.extend(o);
             if stepping == Stepping::Active {
                 // Marked idle now; a quiet cell that receives below is marked busy again.
@@ -660,7 +696,9 @@ fn diffuse_one<F: FracBits, const D: usize>(
                             o.taken = true;
                             taken += 1;
                             taken_ports[o.from as usize].fetch_or(1 << o.port, Relaxed);
-                            if stepping == Stepping::Active && !in_active[o.to as usize].swap(true, Relaxed) {
+                            // Receivers are this piece's alone: a plain load and store.
+                            if stepping == Stepping::Active && !in_active[o.to as usize].load(Relaxed) {
+                                in_active[o.to as usize].store(true, Relaxed);
                                 woke.push(o.to);
                             }
                         }
@@ -676,32 +714,35 @@ fn diffuse_one<F: FracBits, const D: usize>(
                 woken.append(&mut woke);
             }
         }
-        // Senders drop what was taken, in parallel over the visited cells (every sender is
-        // one); a cell's last pop leaves its flag right (receptions came before the pops).
-        let count_load = links.is_none();
-        tiles(cells, visit, PIECE).into_par_iter().for_each(|(tile, base, idx)| {
-            for (k, &i) in idx.iter().enumerate() {
-                if let Some(&j) = idx.get(k + AHEAD) {
-                    prefetch_cell(&tile[j as usize - base], 0);
-                }
-                let i = i as usize;
-                let ports = taken_ports[i].load(Relaxed);
-                if ports == 0 {
-                    continue;
-                }
-                taken_ports[i].store(0, Relaxed);
-                let c = &mut tile[i - base];
-                for p in Port::ALL.into_iter().filter(|p| ports >> p.index() & 1 == 1) {
-                    c.out.pop_front(p);
-                    if count_load {
-                        bump(i * 8 + p.index());
+        // Senders drop what was taken: deferred to their next step (see `defer_pops`) but for
+        // the emitting cell, whose room the emitter checks first; otherwise in parallel over the
+        // visited cells (every sender is one). A cell's last pop leaves its flag right
+        // (receptions came before the pops).
+        if defer_pops {
+            let c = &mut cells[s_idx];
+            if pop_taken(c, s_idx, &taken_ports, &bump) {
+                in_active[s_idx].store(c.busy(), Relaxed);
+            }
+        } else {
+            let count_load = links.is_none();
+            tiles(cells, visit, PIECE).into_par_iter().for_each(|(tile, base, idx)| {
+                for (k, &i) in idx.iter().enumerate() {
+                    if let Some(&j) = idx.get(k + AHEAD) {
+                        prefetch_cell(&tile[j as usize - base], 0);
+                    }
+                    let i = i as usize;
+                    let c = &mut tile[i - base];
+                    let popped = if count_load {
+                        pop_taken(c, i, &taken_ports, &bump)
+                    } else {
+                        pop_taken(c, i, &taken_ports, &|_| ())
+                    };
+                    if popped && stepping == Stepping::Active {
+                        in_active[i].store(c.busy(), Relaxed);
                     }
                 }
-                if stepping == Stepping::Active {
-                    in_active[i].store(c.busy(), Relaxed);
-                }
-            }
-        });
+            });
+        }
         if let Some(t) = tap.as_deref_mut() {
             for o in offers.iter().filter(|o| o.taken) {
                 t.transfer(o.from as usize, o.to as usize, Port::ALL[o.port as usize], &o.msg);
@@ -732,7 +773,9 @@ fn diffuse_one<F: FracBits, const D: usize>(
                 woken.sort_unstable();
                 merge_sorted(&mut active, &woken, &mut merged);
                 woken.clear();
-                debug_assert!(active.iter().all(|&i| cells[i as usize].busy()));
+                debug_assert!(active
+                    .iter()
+                    .all(|&i| cells[i as usize].busy() || taken_ports[i as usize].load(Relaxed) != 0));
                 if next_initial.is_some() && !in_active[s_idx].swap(true, Relaxed) {
                     active.push(s_idx as u32);
                     active.sort_unstable();
@@ -744,7 +787,11 @@ fn diffuse_one<F: FracBits, const D: usize>(
                 busy + u64::from(next_initial.is_some() && !cells[s_idx].busy())
             }
         };
-        rep.counts.peak_active_cells = rep.counts.peak_active_cells.max(busy_now);
+        if defer_pops {
+            pending_busy = Some(busy_now);
+        } else {
+            rep.counts.peak_active_cells = rep.counts.peak_active_cells.max(busy_now);
+        }
         unacked = links.is_some() && busy_now > 0;
         // A sleeping cell's wait ends by itself: not a stall.
         stalled = if moved || sleeping > 0 { 0 } else { stalled + 1 };
@@ -767,6 +814,20 @@ fn diffuse_one<F: FracBits, const D: usize>(
         }
     }
     progress(cycle);
+    if defer_pops {
+        // The last cycle's pops, and its busy count.
+        let mut drained = 0;
+        for &i in &active {
+            let c = &mut cells[i as usize];
+            if pop_taken(c, i as usize, &taken_ports, &bump) && !c.busy() {
+                drained += 1;
+            }
+        }
+        if let Some(b) = pending_busy {
+            rep.counts.peak_active_cells = rep.counts.peak_active_cells.max(b - drained);
+        }
+    }
+    debug_assert!(cells.iter().all(|c| !c.busy()) && taken_ports.iter().all(|t| t.load(Relaxed) == 0));
     rep.counts.cycles = cycle;
     let link_load: Vec<u32> = link_load.into_iter().map(AtomicU32::into_inner).collect();
     if let Some((i, &load)) = link_load.iter().enumerate().max_by_key(|&(i, &l)| (l, std::cmp::Reverse(i))) {
