@@ -442,11 +442,15 @@ const fn off(du: i8, dv: i8) -> Offset {
 
 /// The order in which [`Beam::split_with`] emits sub-beams: a permutation of the nine offsets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct SplitOrder([Offset; 9]);
+pub struct SplitOrder {
+    offsets: [Offset; 9],
+    /// The order is [`SplitOrder::ROW_MAJOR`] (the split has a faster path for it).
+    row_major: bool,
+}
 
 impl SplitOrder {
     /// du = −1, 0, 1 (outer) × dv = −1, 0, 1 (inner). The default.
-    pub const ROW_MAJOR: SplitOrder = SplitOrder([
+    pub const ROW_MAJOR: SplitOrder = SplitOrder::known([
         off(-1, -1),
         off(-1, 0),
         off(-1, 1),
@@ -460,7 +464,7 @@ impl SplitOrder {
 
     /// The four axis neighbours, then the four diagonals, then (0, 0) (for a ±z beam: the
     /// x/y neighbour cells first, the beam that stays in this column last).
-    pub const AXIS_NEIGHBOURS_FIRST: SplitOrder = SplitOrder([
+    pub const AXIS_NEIGHBOURS_FIRST: SplitOrder = SplitOrder::known([
         off(-1, 0),
         off(1, 0),
         off(0, -1),
@@ -488,12 +492,23 @@ impl SplitOrder {
             }
             i += 1;
         }
-        Some(SplitOrder(order))
+        Some(SplitOrder::known(order))
     }
 
     /// The nine offsets in emission order.
     pub const fn offsets(&self) -> &[Offset; 9] {
-        &self.0
+        &self.offsets
+    }
+
+    /// The order `offsets` (a permutation of the nine offsets).
+    const fn known(offsets: [Offset; 9]) -> SplitOrder {
+        let mut row_major = true;
+        let mut i = 0;
+        while i < 9 {
+            row_major &= offsets[i].du as i32 == (i / 3) as i32 - 1 && offsets[i].dv as i32 == (i % 3) as i32 - 1;
+            i += 1;
+        }
+        SplitOrder { offsets, row_major }
     }
 }
 
@@ -803,11 +818,25 @@ impl<F: FracBits> Beam<F> {
         let cu = split_axis(self.u, source.pos[ua.index()], at.u, far, m);
         let cv = split_axis(self.v, source.pos[va.index()], at.v, far, m);
         let next = Layer(self.layer.0 + 1);
+        let sub =
+            |offset, u, v| SubBeam { offset, beam: Beam { u, v, layer: next, source: self.source, dir: self.dir } };
+        if order.row_major {
+            // The default order, du outer and dv inner: a missing u piece skips its whole row.
+            for (i, u) in cu.into_iter().enumerate() {
+                let Some(u) = u else { continue };
+                for (j, v) in cv.into_iter().enumerate() {
+                    if let Some(v) = v {
+                        emit(sub(Offset { du: i as i8 - 1, dv: j as i8 - 1 }, u, v));
+                    }
+                }
+            }
+            return Ok(());
+        }
         for &offset in order.offsets() {
             // A `SplitOrder` holds valid offsets only (checked when it was made).
             let (i, j) = ((offset.du + 1) as usize, (offset.dv + 1) as usize);
             if let (Some(u), Some(v)) = (cu[i], cv[j]) {
-                emit(SubBeam { offset, beam: Beam { u, v, layer: next, source: self.source, dir: self.dir } });
+                emit(sub(offset, u, v));
             }
         }
         Ok(())

@@ -385,23 +385,52 @@ impl OccupiedBox {
     /// u > 0 (resp. u < 0) and never comes back. So the beam recedes if, on some axis, it is
     /// beyond the box and moving (principal) or bound (transverse) away from it.
     pub fn receding(&self, dir: Direction, sv: [i32; 3], at: [i64; 3]) -> bool {
-        let w = dir.principal().index();
-        let mut out = false;
-        // Branch-free over the three axes (this runs for every sub-beam).
-        for a in 0..3 {
-            let (lo, hi, s) = (self.lo[a] as i64, self.hi[a] as i64, sv[a] as i64);
-            let away = if a == w {
-                if dir.sign() > 0 {
-                    at[a] > hi
-                } else {
-                    at[a] < lo
-                }
-            } else {
-                (at[a] > hi) & (at[a] > s) | (at[a] < lo) & (at[a] < s)
-            };
-            out |= away | (lo > hi);
+        !self.alive(dir, sv).contains(at)
+    }
+
+    /// The voxels a beam of direction `dir` from a source in voxel `sv` may be in and still
+    /// meet an occupied voxel later: [`OccupiedBox::receding`] is "outside this box", so a cell
+    /// computes it once per beam and tests each sub-beam with six comparisons. On a transverse
+    /// axis a beam recedes beyond max(hi, s) or below min(lo, s); along the principal axis
+    /// beyond the box in the direction of travel; an empty box keeps nothing.
+    pub fn alive(&self, dir: Direction, sv: [i32; 3]) -> VoxelBox {
+        if (0..3).any(|a| self.lo[a] > self.hi[a]) {
+            return VoxelBox { lo: [1; 3], hi: [0; 3] };
         }
-        out
+        let w = dir.principal().index();
+        let bound = |a: usize| {
+            let (lo, hi, s) = (self.lo[a] as i64, self.hi[a] as i64, sv[a] as i64);
+            if a != w {
+                (lo.min(s), hi.max(s))
+            } else if dir.sign() > 0 {
+                (i64::MIN, hi)
+            } else {
+                (lo, i64::MAX)
+            }
+        };
+        let b = [bound(0), bound(1), bound(2)];
+        VoxelBox { lo: b.map(|x| x.0), hi: b.map(|x| x.1) }
+    }
+}
+
+/// A box of voxel coordinates, bounds included (empty if some `lo` > `hi`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct VoxelBox {
+    /// Smallest coordinate per axis.
+    pub lo: [i64; 3],
+    /// Largest coordinate per axis.
+    pub hi: [i64; 3],
+}
+
+impl VoxelBox {
+    /// Whether `at` is in the box.
+    pub fn contains(&self, at: [i64; 3]) -> bool {
+        (at[0] >= self.lo[0])
+            & (at[0] <= self.hi[0])
+            & (at[1] >= self.lo[1])
+            & (at[1] <= self.hi[1])
+            & (at[2] >= self.lo[2])
+            & (at[2] <= self.hi[2])
     }
 }
 
@@ -572,6 +601,11 @@ impl<F: FracBits, const OB: usize> OutBuffers<F, OB> {
     /// The messages toward `p`, oldest first.
     pub fn waiting(&self, p: Port) -> &[BeamMsg<F>] {
         &self.msgs[p.index()][..self.len[p.index()] as usize]
+    }
+
+    /// Where the slots of buffer `p` start (reads nothing: for a host that prefetches).
+    pub fn slots(&self, p: Port) -> *const BeamMsg<F> {
+        self.msgs[p.index()].as_ptr()
     }
 
     /// The messages toward `p`, oldest first, to update in place (merging).
@@ -759,19 +793,14 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         let (ua, va) = dir.transverse();
         let at = Transverse { u: pos[ua.index()] as i32, v: pos[va.index()] as i32 };
         let Fate { subs, exited, skipped, .. } = f;
-        let sv = env.source.voxel();
+        let grid = VoxelBox { lo: [0; 3], hi: [env.n as i64 - 1, env.n as i64 - 1, env.depth as i64 - 1] };
+        let alive = env.skip.map(|bx| bx.alive(dir, env.source.voxel()));
         let split = b.split_each(env.source, env.far, at, env.order, |sb| {
             let d = dir.displacement(sb.offset);
             let to = [pos[0] + d[0] as i64, pos[1] + d[1] as i64, pos[2] + d[2] as i64];
-            let inside = to[0] >= 0
-                && to[1] >= 0
-                && to[2] >= 0
-                && to[0] < env.n as i64
-                && to[1] < env.n as i64
-                && to[2] < env.depth as i64;
-            if !inside {
+            if !grid.contains(to) {
                 *exited += sb.beam.ray_count();
-            } else if env.skip.is_some_and(|bx| bx.receding(dir, sv, to)) {
+            } else if alive.is_some_and(|a| !a.contains(to)) {
                 *skipped += sb.beam.ray_count();
             } else {
                 let target = match Port::from_delta(d[0], d[1]) {
@@ -894,18 +923,20 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 let mut best: Option<usize> = None;
                 let key = |i: usize| (self.fifo[i].beam.layer().0 as u64) << 6 | i as u64;
                 let first = (0..self.fifo.len()).map(key).min().unwrap_or(0);
-                let mut rest: Vec<u64, FA> = Vec::new();
+                // Built when the first candidate cannot go (rare without a sibling wait).
+                let mut rest: Option<Vec<u64, FA>> = None;
                 // A full FIFO takes no sibling: nothing is worth waiting for.
                 let may_hold = hold > 0 && self.fifo.len() < env.fa.min(FA);
                 for c in 0..self.fifo.len() {
                     let i = if c == 0 {
                         (first & 63) as usize
                     } else {
-                        if c == 1 {
+                        let rest = rest.get_or_insert_with(|| {
                             // Cannot overflow: FA keys at most.
-                            rest.extend((0..self.fifo.len()).map(key).filter(|&k| k != first));
-                            rest.sort_unstable();
-                        }
+                            let mut r: Vec<u64, FA> = (0..self.fifo.len()).map(key).filter(|&k| k != first).collect();
+                            r.sort_unstable();
+                            r
+                        });
                         (rest[c - 1] & 63) as usize
                     };
                     let age = self.ticks.wrapping_sub(self.fifo[i].since);

@@ -614,6 +614,14 @@ fn arbitrary_split<F: FracBits>(c: &Case, at: [i32; 2], order: &[usize]) -> Resu
     let s = src(c.src);
     let subs = beam.split_with(&s, far, Transverse { u: at[0], v: at[1] }, &order).unwrap();
     check_structure(&beam, &subs);
+    // The default order has a path of its own: the same sub-beams as the general one (any
+    // other permutation), in row-major order of their offsets.
+    let rm = beam.split(&s, far, Transverse { u: at[0], v: at[1] }).unwrap();
+    prop_assert!(rm.windows(2).all(|w| (w[0].offset.du, w[0].offset.dv) < (w[1].offset.du, w[1].offset.dv)));
+    prop_assert_eq!(rm.len(), subs.len());
+    for sb in subs.iter() {
+        prop_assert!(rm.contains(sb));
+    }
     let _ = beam.voxel(&s, far);
     let _ = beam.occupies(&s, far, Transverse { u: at[0], v: at[1] });
     let _ = split_planes(&s, dir, far, Layer(k), Transverse { u: at[0], v: at[1] });

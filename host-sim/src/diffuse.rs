@@ -550,8 +550,16 @@ fn diffuse_one<F: FracBits, const D: usize>(
                 };
                 for (k, &i) in idx.iter().enumerate() {
                     if let Some(&j) = idx.get(k + AHEAD) {
-                        prefetch_cell(&tile[j as usize - base], 4);
+                        let cj = &tile[j as usize - base];
+                        prefetch_cell(cj, 4);
                         prefetch_ends(&grid.cells[j as usize].store);
+                        if defer_pops {
+                            // The buffers its pending pops will shift.
+                            let t = taken_ports[j as usize].load(Relaxed);
+                            for p in Port::ALL.into_iter().filter(|p| t >> p.index() & 1 == 1) {
+                                prefetch(cj.out.slots(p));
+                            }
+                        }
                     }
                     let c = &mut tile[i as usize - base];
                     if defer_pops && pop_taken(c, i as usize, &taken_ports, &bump) && !c.busy() {
