@@ -932,9 +932,13 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                         (first & 63) as usize
                     } else {
                         let rest = rest.get_or_insert_with(|| {
-                            // Cannot overflow: FA keys at most.
-                            let mut r: Vec<u64, FA> = (0..self.fifo.len()).map(key).filter(|&k| k != first).collect();
-                            r.sort_unstable();
+                            let mut r: Vec<u64, FA> = Vec::new();
+                            // Insertion sort: a few keys, and no general sort in a firmware.
+                            for k in (0..self.fifo.len()).map(key).filter(|&k| k != first) {
+                                let at = r.iter().position(|&x| x > k).unwrap_or(r.len());
+                                // Cannot fail: FA keys at most.
+                                let _ = r.insert(at, k);
+                            }
                             r
                         });
                         (rest[c - 1] & 63) as usize
