@@ -826,8 +826,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         })
     }
 
-    /// While the cell is held (its last step returned [`Step::Held`] and neither its FIFO nor
-    /// its output buffers changed since): the number of steps until a waiting beam's sibling
+    /// While the cell is held (its last step returned [`Step::Held`] and nothing that could end
+    /// the wait changed since, see `blocked_on`): the number of steps until a waiting beam's sibling
     /// wait ends. Every step before that returns [`Step::Held`] and changes nothing but the
     /// clock and `held_cycles`, so a host may skip them ([`LightCell::skip_held`]).
     pub fn held_wait(&self) -> Option<u16> {
@@ -854,11 +854,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
 
     /// Whether every sub-beam of `fate` fits now (the no-loss rule), given that the processed
     /// beam leaves the FIFO first.
-    ///
-    /// The eight buffers are checked at once on their length word: byte p of `need` counts the
-    /// sub-beams for port p (at most 9), and a byte of `lengths + need + (127 − OB)` (at most
-    /// OB + 9 + 127 − OB = 136: no carry into the next byte) reaches 128 exactly when
-    /// `len + need > OB`.
+    /// The eight output buffers are checked at once on their length word ([`room`]; byte p of
+    /// `need` counts the sub-beams for port p).
     fn fits(&self, fate: &Fate<F>, fa: usize) -> bool {
         let (mut need, mut own) = (0u64, 0usize);
         for (t, _) in &fate.subs {

@@ -543,7 +543,12 @@ fn diffuse_one<F: FracBits, const D: usize>(
                     any: false,
                     seen: Vec::new(),
                     steps: Vec::new(),
-                    offers: Vec::with_capacity(idx.len() + idx.len() / 2),
+                    // About 1.2 offers per busy cell; all-cells stepping visits idle cells too.
+                    offers: Vec::with_capacity(if stepping == Stepping::Active {
+                        idx.len() + idx.len() / 2
+                    } else {
+                        0
+                    }),
                     quiet: Vec::new(),
                     sleep: Vec::new(),
                     drained: 0,
