@@ -144,6 +144,17 @@ impl Port {
     pub const fn index(self) -> usize {
         self as usize
     }
+
+    /// The ports whose bit is set in `mask` (bit p: port p), in port order. One
+    /// `trailing_zeros` per port present, where filtering [`Port::ALL`] tests all eight.
+    pub fn each(mask: u8) -> impl Iterator<Item = Port> {
+        let mut m = mask;
+        core::iter::from_fn(move || {
+            let i = m.trailing_zeros() as usize;
+            m &= m.wrapping_sub(1);
+            Port::ALL.get(i).copied()
+        })
+    }
 }
 
 /// Which beam a cell processes when its FIFO holds several (a documented, measured choice).
@@ -520,17 +531,23 @@ pub enum Step {
 /// Where a processed beam's rays go: absorbed in this column, or split into `subs` (plus rays
 /// that exited or were skipped). One lives on the stack for a whole step and is filled in
 /// place for each candidate ([`LightCell::fate`]): the ~300-byte sub-beam list is never moved.
-struct Fate<F: FracBits> {
+/// The list is a local of its own that the fate borrows: as a field of a struct built with
+/// zeroed scalars, the compiler cleared its whole buffer (a 312-byte `memset` per step,
+/// heapless issue #305).
+struct Fate<'s, F: FracBits> {
     /// Rays absorbed here (`Some`: the beam's voxel is occupied; `subs` is then empty).
     absorbed: Option<u64>,
-    subs: heapless::Vec<(Target, BeamMsg<F>), 9>,
+    subs: &'s mut SubList<F>,
     exited: u64,
     skipped: u64,
 }
 
-impl<F: FracBits> Fate<F> {
-    const fn new() -> Self {
-        Fate { absorbed: None, subs: heapless::Vec::new(), exited: 0, skipped: 0 }
+/// A beam's sub-beams and where each goes (at most nine).
+type SubList<F> = heapless::Vec<(Target, BeamMsg<F>), 9>;
+
+impl<'s, F: FracBits> Fate<'s, F> {
+    fn new(subs: &'s mut SubList<F>) -> Self {
+        Fate { absorbed: None, subs, exited: 0, skipped: 0 }
     }
 }
 
@@ -588,9 +605,19 @@ impl<F: FracBits, const OB: usize> OutBuffers<F, OB> {
         u64::from_le_bytes(self.len)
     }
 
+    /// The links with a message waiting, as a mask (bit p: port p). Each length is at most
+    /// 127, so adding 127 to every byte sets its high bit exactly when it is non-zero, with no
+    /// carry into the next byte.
+    pub fn busy_mask(&self) -> u8 {
+        const HIGH: u64 = 0x8080_8080_8080_8080;
+        let nonzero = (self.lengths() + (HIGH - 0x0101_0101_0101_0101)) & HIGH;
+        // Gather the eight high bits into one byte (bit 7 of byte p lands on bit 56 + p).
+        (((nonzero >> 7).wrapping_mul(0x0102_0408_1020_4080)) >> 56) as u8
+    }
+
     /// The links with a message waiting, in port order.
-    pub fn busy_ports(&self) -> impl Iterator<Item = Port> + '_ {
-        Port::ALL.into_iter().filter(|p| self.len[p.index()] != 0)
+    pub fn busy_ports(&self) -> impl Iterator<Item = Port> {
+        Port::each(self.busy_mask())
     }
 
     /// The oldest message toward `p`.
@@ -774,7 +801,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     }
 
     /// Decide a beam's fate into `f` without changing the cell.
-    fn fate<const D: usize>(&self, m: &BeamMsg<F>, store: &DexelStore<D>, env: &LightEnv<'_, F>, f: &mut Fate<F>) {
+    fn fate<const D: usize>(&self, m: &BeamMsg<F>, store: &DexelStore<D>, env: &LightEnv<'_, F>, f: &mut Fate<'_, F>) {
         let b = &m.beam;
         f.subs.clear();
         f.exited = 0;
@@ -856,9 +883,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     /// beam leaves the FIFO first.
     /// The eight output buffers are checked at once on their length word ([`room`]; byte p of
     /// `need` counts the sub-beams for port p).
-    fn fits(&self, fate: &Fate<F>, fa: usize) -> bool {
+    fn fits(&self, fate: &Fate<'_, F>, fa: usize) -> bool {
         let (mut need, mut own) = (0u64, 0usize);
-        for (t, _) in &fate.subs {
+        for (t, _) in fate.subs.iter() {
             match t {
                 Target::Out(p) => need += 1 << (8 * p.index()),
                 Target::SelfFifo => own += 1,
@@ -894,7 +921,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 Some(_) => {}
             }
         }
-        let mut fate = Fate::new();
+        let mut subs = SubList::new();
+        let mut fate = Fate::new(&mut subs);
         let hold = env.hold.min(MAX_HOLD);
         // Cycles until the first waiting beam's sibling wait ends (`hold`: none is waiting).
         let mut wait = hold;
@@ -986,7 +1014,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             self.counters.rays_exited += fate.exited;
             self.counters.rays_skipped += fate.skipped;
             activity.add(fate.subs.len() as u64);
-            for &(t, sub) in &fate.subs {
+            for &(t, sub) in fate.subs.iter() {
                 // Cannot fail: `fits` checked every destination.
                 match t {
                     Target::SelfFifo => {
@@ -1091,6 +1119,25 @@ mod tests {
         check::<127>();
     }
 
+    /// The busy-port mask against byte-by-byte testing, exhaustively over which of the eight
+    /// buffers hold something, with lengths at both ends of a byte (1 and the cap 127) and in
+    /// between; and `Port::each` against filtering `Port::ALL`.
+    #[test]
+    fn busy_mask_matches_bytewise_test() {
+        for mask in 0..=255u8 {
+            let each: std::vec::Vec<Port> = Port::each(mask).collect();
+            let want: std::vec::Vec<Port> = Port::ALL.into_iter().filter(|p| mask >> p.index() & 1 == 1).collect();
+            assert_eq!(each, want, "mask {mask:#010b}");
+            for len in [1u8, 2, 3, 64, 126, 127] {
+                let mut b = OutBuffers::<fixed::types::extra::U0, 127>::new();
+                for p in Port::ALL {
+                    b.len[p.index()] = if mask >> p.index() & 1 == 1 { len.max(1 + p.index() as u8) } else { 0 };
+                }
+                assert_eq!(b.busy_mask(), mask, "lengths {:?}", b.len);
+                assert!(b.busy_ports().eq(want.iter().copied()));
+            }
+        }
+    }
     proptest! {
         /// The receding test against its definition, axis by axis: empty box, or beyond the box
         /// along the principal axis in the direction of travel, or beyond the box on a
@@ -1296,5 +1343,12 @@ mod tests {
             assert_eq!(Port::from_delta(dx, dy), Some(p));
         }
         assert_eq!(Port::from_delta(0, 0), None);
+        // Exhaustively: a port exactly for the eight unit steps.
+        for dx in i8::MIN..=i8::MAX {
+            for dy in i8::MIN..=i8::MAX {
+                let want = Port::ALL.into_iter().find(|p| p.delta() == (dx, dy));
+                assert_eq!(Port::from_delta(dx, dy), want, "({dx}, {dy})");
+            }
+        }
     }
 }

@@ -421,7 +421,7 @@ fn pop_taken<F: FracBits>(c: &mut HostLightCell<F>, i: usize, taken: &[AtomicU8]
         return false;
     }
     taken[i].store(0, Relaxed);
-    for p in Port::ALL.into_iter().filter(|p| ports >> p.index() & 1 == 1) {
+    for p in Port::each(ports) {
         c.out.pop_front(p);
         bump(i * 8 + p.index());
     }
@@ -561,7 +561,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
                         if defer_pops {
                             // The buffers its pending pops will shift.
                             let t = taken_ports[j as usize].load(Relaxed);
-                            for p in Port::ALL.into_iter().filter(|p| t >> p.index() & 1 == 1) {
+                            for p in Port::each(t) {
                                 prefetch(cj.out.slots(p));
                             }
                         }
