@@ -478,10 +478,19 @@ pub const DEFAULT_FRAC_BITS: u32 = 0;
 
 /// Run a parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
-    if let Some(t) = cli.threads {
-        rayon::ThreadPoolBuilder::new().num_threads(t as usize).build_global().context("--threads")?;
-    }
-    match cli.command {
+    // The command runs on a thread of the pool, so that the lighting loop's parallel passes
+    // (several per machine cycle) fork and join among the pool's own threads: called from a
+    // thread outside it, every pass would inject its job and block, a futex wake and sleep
+    // per pass.
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(cli.threads.map_or(0, |t| t as usize))
+        .build()
+        .context("--threads")?;
+    pool.install(|| dispatch(cli.command))
+}
+
+fn dispatch(command: Command) -> Result<()> {
+    match command {
         Command::Voxelize(a) => match a.dexel_capacity {
             8 => run_voxelize::<8>(&a),
             16 => run_voxelize::<16>(&a),
