@@ -17,7 +17,7 @@ use cell_core::beam::{frac, Beam, Direction, FarDistance, FracBits, Layer, RayRa
 use cell_core::cell::{Cell, DEFAULT_DEXELS};
 use cell_core::dexel::{DexelStore, FacetTag};
 use cell_core::facet::{FacetBox, RowEdge, RowPacket};
-use cell_core::light::{Activity, BeamMsg, LightCell, LightEnv, Policy};
+use cell_core::light::{Activity, BeamMsg, LightCell, LightEnv, Policy, SubBeamBounds};
 use cell_core::normal::NormalCode;
 use cell_core::occupancy::Occupancy8;
 use cell_core::shade::{shade, shading_normal, Material, NormalMode, PointLight, ShadeParams};
@@ -281,6 +281,7 @@ fn bench_fifo(c: &mut Criterion) {
         source_bit: 1,
         merge: true,
         skip: None,
+        bounds: SubBeamBounds::new(ROW as u32, ROW as u32, None, &src),
         lit_visible_only: false,
         hold: 0,
         frustum: None,

@@ -424,6 +424,53 @@ impl OccupiedBox {
     }
 }
 
+/// Where a sub-beam may go and still be sent, per direction: the grid, cut by the receding
+/// skip's [`OccupiedBox::alive`] box when that skip is on. It depends only on the grid, the
+/// skip's box and the source, so a cell computes it once per source ([`SubBeamBounds::new`])
+/// rather than once per beam; a sub-beam outside it left the grid or is skipped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SubBeamBounds {
+    /// Largest x, y, z of the grid (the smallest are 0).
+    grid_hi: [i32; 3],
+    /// Per direction (index: [`Direction`] as `usize`): smallest and largest x, y, z kept
+    /// (empty: some lo > hi). Within the grid, so they fit `i32`.
+    keep: [([i32; 3], [i32; 3]); 6],
+}
+
+impl SubBeamBounds {
+    /// The bounds of an `n` × `n` grid of `depth` voxels per column, with the receding skip's
+    /// box `skip` (`None`: off), for beams from `source`.
+    pub fn new(n: u32, depth: u32, skip: Option<OccupiedBox>, source: &Source) -> Self {
+        let grid_hi = [n as i64 - 1, n as i64 - 1, depth as i64 - 1];
+        let sv = source.voxel();
+        let keep = Direction::ALL.map(|dir| {
+            let alive = skip.map(|bx| bx.alive(dir, sv));
+            let axis = |a: usize| {
+                let (lo, hi) = alive.map_or((0, grid_hi[a]), |b| (b.lo[a].max(0), b.hi[a].min(grid_hi[a])));
+                // An empty range stays empty: lo > hi after clamping both into [0, grid_hi].
+                (lo.clamp(0, grid_hi[a] + 1) as i32, hi.clamp(-1, grid_hi[a]) as i32)
+            };
+            let [x, y, z] = [axis(0), axis(1), axis(2)];
+            ([x.0, y.0, z.0], [x.1, y.1, z.1])
+        });
+        SubBeamBounds { grid_hi: grid_hi.map(|h| h as i32), keep }
+    }
+
+    /// Whether a sub-beam of direction `dir` going to voxel `to` is sent (the common case: one
+    /// box test).
+    #[inline]
+    fn keeps(&self, dir: Direction, to: [i64; 3]) -> bool {
+        let (lo, hi) = &self.keep[dir as usize];
+        (0..3).fold(true, |ok, a| ok & (to[a] >= lo[a] as i64) & (to[a] <= hi[a] as i64))
+    }
+
+    /// Whether voxel `to` is in the grid.
+    #[inline]
+    fn in_grid(&self, to: [i64; 3]) -> bool {
+        (0..3).fold(true, |ok, a| ok & (to[a] >= 0) & (to[a] <= self.grid_hi[a] as i64))
+    }
+}
+
 /// A box of voxel coordinates, bounds included (empty if some `lo` > `hi`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct VoxelBox {
@@ -497,6 +544,9 @@ pub struct LightEnv<'a, F: FracBits> {
     /// The receding-beam skip: sub-beams that can meet no occupied voxel are dropped, their
     /// rays counted as skipped (`None`: off).
     pub skip: Option<OccupiedBox>,
+    /// Where sub-beams may go: `SubBeamBounds::new(n, depth, skip, source)` with this
+    /// environment's fields (checked in debug builds).
+    pub bounds: SubBeamBounds,
     /// Keep lit marks only for the column's visible voxel (the first occupied one, the voxel
     /// the cell shades): the rest of the lit set is not stored. The image is the same; the lit
     /// store needs one run, never overflows, and skips the run bookkeeping of hidden voxels.
@@ -820,22 +870,22 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         let (ua, va) = dir.transverse();
         let at = Transverse { u: pos[ua.index()] as i32, v: pos[va.index()] as i32 };
         let Fate { subs, exited, skipped, .. } = f;
-        let grid = VoxelBox { lo: [0; 3], hi: [env.n as i64 - 1, env.n as i64 - 1, env.depth as i64 - 1] };
-        let alive = env.skip.map(|bx| bx.alive(dir, env.source.voxel()));
+        debug_assert_eq!(env.bounds, SubBeamBounds::new(env.n, env.depth, env.skip, env.source));
+        let bounds = &env.bounds;
         let split = b.split_each(env.source, env.far, at, env.order, |sb| {
             let d = dir.displacement(sb.offset);
             let to = [pos[0] + d[0] as i64, pos[1] + d[1] as i64, pos[2] + d[2] as i64];
-            if !grid.contains(to) {
-                *exited += sb.beam.ray_count();
-            } else if alive.is_some_and(|a| !a.contains(to)) {
-                *skipped += sb.beam.ray_count();
-            } else {
+            if bounds.keeps(dir, to) {
                 let target = match Port::from_delta(d[0], d[1]) {
                     Some(p) => Target::Out(p),
                     None => Target::SelfFifo,
                 };
                 // At most nine sub-beams: never full.
                 let _ = subs.push((target, BeamMsg::new(sb.beam, to[2] as Depth)));
+            } else if !bounds.in_grid(to) {
+                *exited += sb.beam.ray_count();
+            } else {
+                *skipped += sb.beam.ray_count();
             }
         });
         // At the far plane (k = D) or for a beam that is not this source's: the next layer is
@@ -1213,6 +1263,7 @@ mod tests {
             let env = LightEnv {
                 source: &src, far, n, depth: n, policy: Policy::Wavefront, order: &order, fa: 4,
                 source_bit: 1, merge: true, skip: None, lit_visible_only: false, hold, frustum: None,
+                bounds: SubBeamBounds::new(n, n, None, &src),
             };
             let mut store = DexelStore::<8>::new();
             let tag = crate::dexel::FacetTag::default();

@@ -27,7 +27,7 @@ use crate::beam::{FarDistance, FracBits, Source, SourceCoord, SourceId, SplitOrd
 use crate::cell::Cell;
 use crate::facet::RowPacket;
 use crate::light::{
-    Activity, BeamMsg, FrustumSummary, LightCell, LightEnv, OccupiedBox, Policy, Port, SourceMask, Step,
+    Activity, BeamMsg, FrustumSummary, LightCell, LightEnv, OccupiedBox, Policy, Port, SourceMask, Step, SubBeamBounds,
 };
 use crate::link::{
     self, get_beam, get_row, put_beam, put_row, read_frame, write_frame, ByteSink, DecodeError, EncodeError, Link,
@@ -638,6 +638,7 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
             source_bit: setup.source_bit,
             merge: setup.merge,
             skip: setup.skip,
+            bounds: SubBeamBounds::new(setup.n, setup.depth, setup.skip, &setup.source),
             lit_visible_only: false,
             hold: setup.hold,
             frustum: setup.frustum.as_ref(),

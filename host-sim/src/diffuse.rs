@@ -19,7 +19,7 @@ use anyhow::{bail, Result};
 use cell_core::beam::{Beam, Direction, FarDistance, FracBits, Source, SourceId, SplitOrder};
 use cell_core::light::{
     Activity, ActivityDelta, BeamMsg, FrustumSummary, LightCell, LightCounters, LightEnv, OccupiedBox, Policy, Port,
-    SourceMask, Step,
+    SourceMask, Step, SubBeamBounds,
 };
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Relaxed};
@@ -302,6 +302,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             source_bit: 1 << si,
             merge: cfg.merge,
             skip: cfg.skip_receding.then_some(occupied),
+            bounds: SubBeamBounds::new(n, grid.depth, cfg.skip_receding.then_some(occupied), src),
             lit_visible_only: cfg.lit_visible_only,
             hold: cfg.hold,
             frustum: frustum.as_ref(),
