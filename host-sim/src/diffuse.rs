@@ -26,7 +26,7 @@ use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Re
 
 use crate::faults::{FaultCounts, FaultyLinks, LinkFaults};
 use crate::grid::Grid;
-use crate::tiles::{grouped, merge_sorted, prefetch, prefetch_ends, tiles};
+use crate::tiles::{merge_sorted, prefetch, prefetch_ends, tiles};
 use crate::trace::Tap;
 
 /// Default of [`LightConfig::stall_cycles`]: a fault-free machine that cannot move for one
@@ -399,7 +399,8 @@ struct PieceResult<F: FracBits> {
     any: bool,
     seen: Vec<(usize, u16)>,
     steps: Vec<(usize, Step)>,
-    offers: Vec<Offer<F>>,
+    /// Its cells' offers, one list per port (each in sender order, so in receiver order).
+    offers: [Vec<Offer<F>>; 8],
     /// Cells left with nothing to do by their step (empty FIFO, empty output buffers).
     quiet: Vec<u32>,
     /// Held cells with empty output buffers, and their [`LightCell::held_wait`]: nothing
@@ -409,6 +410,8 @@ struct PieceResult<F: FracBits> {
     drained: u64,
     /// Link phase: cells that received a beam and were not yet in the active list.
     woke: Vec<u32>,
+    /// Link phase: the piece's offers in link order ([`link_order`]).
+    order: Vec<(u8, u32)>,
     /// Link phase: messages taken, and sleeping cells a delivery woke.
     taken: u64,
     roused: usize,
@@ -421,11 +424,12 @@ impl<F: FracBits> PieceResult<F> {
         self.any = false;
         self.seen.clear();
         self.steps.clear();
-        self.offers.clear();
+        self.offers.iter_mut().for_each(Vec::clear);
         self.quiet.clear();
         self.sleep.clear();
         self.drained = 0;
         self.woke.clear();
+        self.order.clear();
         self.taken = 0;
         self.roused = 0;
     }
@@ -451,6 +455,90 @@ struct Offer<F: FracBits> {
     port: u8,
     msg: BeamMsg<F>,
     taken: bool,
+}
+
+/// The offers of `lists` (list p: the offers on port p, in increasing receiver order) in link
+/// order, as (port, index) into `order`: by receiver, then arbitration key, then sender — the
+/// order a sort of all offers by (receiver, key, sender) gives, by an 8-way merge. A receiver
+/// has at most one offer per port (from its neighbour on that side), so its offers are the
+/// lists' heads with the smallest receiver; most receivers have one.
+fn link_order<F: FracBits>(lists: &[&mut [Offer<F>]; 8], order: &mut Vec<(u8, u32)>) {
+    order.clear();
+    // Receiver of each list's head; `u32::MAX` once a list is done (no cell has that index:
+    // the grid is checked to fit memory long before 2^32 cells).
+    let next_to = |l: &[Offer<F>], h: usize| l.get(h).map_or(u32::MAX, |o| o.to);
+    let mut head = [0usize; 8];
+    let mut next: [u32; 8] = std::array::from_fn(|p| next_to(&lists[p][..], 0));
+    loop {
+        let to = next.iter().fold(u32::MAX, |m, &t| m.min(t));
+        if to == u32::MAX {
+            return;
+        }
+        let mut mask = 0u8;
+        for (p, &t) in next.iter().enumerate() {
+            mask |= u8::from(t == to) << p;
+        }
+        if mask.is_power_of_two() {
+            let p = mask.trailing_zeros() as usize;
+            order.push((p as u8, head[p] as u32));
+            head[p] += 1;
+            next[p] = next_to(&lists[p][..], head[p]);
+            continue;
+        }
+        // Several offers to one receiver: by (key, sender), ordered by insertion (at most 8).
+        let mut group = [(0u32, 0u32, 0usize); 8];
+        let mut g = 0;
+        for p in Port::each(mask).map(Port::index) {
+            let o = &lists[p][head[p]];
+            let mut at = g;
+            while at > 0 && (group[at - 1].0, group[at - 1].1) > (o.key, o.from) {
+                group[at] = group[at - 1];
+                at -= 1;
+            }
+            group[at] = (o.key, o.from, p);
+            g += 1;
+        }
+        for &(_, _, p) in &group[..g] {
+            order.push((p as u8, head[p] as u32));
+            head[p] += 1;
+            next[p] = next_to(&lists[p][..], head[p]);
+        }
+    }
+}
+
+/// The offers of every list, whole, for [`link_order`].
+fn whole<F: FracBits>(offers: &mut [Vec<Offer<F>>; 8]) -> [&mut [Offer<F>]; 8] {
+    offers.each_mut().map(Vec::as_mut_slice)
+}
+
+/// Cut `cells` and the per-port offer lists together at the receiver indices `cuts`
+/// (increasing): `(cells of the piece, its first cell, its offers per port)`, pieces without
+/// offers left out. Every offer of a receiver lands in the piece that owns the receiver.
+#[allow(clippy::type_complexity)]
+fn by_receiver<'a, T, F: FracBits>(
+    mut cells: &'a mut [T],
+    offers: &'a mut [Vec<Offer<F>>; 8],
+    cuts: &[u32],
+) -> Vec<(&'a mut [T], usize, [&'a mut [Offer<F>]; 8])> {
+    let mut rest = whole(offers);
+    let mut out = Vec::with_capacity(cuts.len() + 1);
+    let (mut base, total) = (0usize, cells.len());
+    for end in cuts.iter().map(|&c| c as usize).chain([total]) {
+        let end = end.clamp(base, total);
+        let lists: [&'a mut [Offer<F>]; 8] = std::array::from_fn(|p| {
+            let l = std::mem::take(&mut rest[p]);
+            let (mine, later) = l.split_at_mut(l.partition_point(|o| (o.to as usize) < end));
+            rest[p] = later;
+            mine
+        });
+        let (tile, tail) = std::mem::take(&mut cells).split_at_mut(end - base);
+        if lists.iter().any(|l| !l.is_empty()) {
+            out.push((tile, base, lists));
+        }
+        cells = tail;
+        base = end;
+    }
+    out
 }
 
 /// Drop the messages of cell `i` whose offers were taken (its `taken` bits, then cleared),
@@ -527,7 +615,10 @@ fn diffuse_one<F: FracBits, const D: usize>(
     let defer_pops = stepping == Stepping::Active && links.is_none();
     // Cells counted busy at the end of the last cycle, pending its deferred pops.
     let mut pending_busy: Option<u64> = None;
-    let mut offers: Vec<Offer<F>> = Vec::new();
+    let mut offers: [Vec<Offer<F>>; 8] = Default::default();
+    // Where the compute pieces started (cell indices), and a link order (see `link_order`).
+    let mut cuts: Vec<u32> = Vec::new();
+    let mut order: Vec<(u8, u32)> = Vec::new();
     // Per-piece results, kept from cycle to cycle (see `PieceResult`).
     let mut scratch: Vec<PieceResult<F>> = Vec::new();
     // Messages delivered per (sending cell, port).
@@ -577,6 +668,9 @@ fn diffuse_one<F: FracBits, const D: usize>(
         //    cell is in cache: the same offers, in the same order, as a pass after all steps.
         let wave = env.policy == Policy::Wavefront;
         let pieces = tiles(cells, visit, PIECE);
+        // Where the pieces start: the link phase cuts the receivers there too.
+        cuts.clear();
+        cuts.extend(pieces.iter().skip(1).map(|&(_, base, _)| base as u32));
         let done = scratch_for(&mut scratch, pieces.len());
         pieces.into_par_iter().zip(done.par_iter_mut()).for_each(|((tile, base, idx), r)| {
             let delta = ActivityDelta::new();
@@ -621,19 +715,21 @@ fn diffuse_one<F: FracBits, const D: usize>(
                     let (dx, dy) = p.delta();
                     let to = (i as i64 + dy as i64 * n as i64 + dx as i64) as u32;
                     let key = if wave { m.beam.layer().0 } else { 0 };
-                    r.offers.push(Offer { to, key, from: i, port: p.index() as u8, msg: *m, taken: false });
+                    r.offers[p.index()].push(Offer { to, key, from: i, port: p.index() as u8, msg: *m, taken: false });
                 }
             }
             r.delta = delta.get();
         });
-        offers.clear();
+        offers.iter_mut().for_each(Vec::clear);
         let drained: u64 = done.iter().map(|r| r.drained).sum();
         if let Some(b) = pending_busy.take() {
             rep.counts.peak_active_cells = rep.counts.peak_active_cells.max(b - drained);
         }
         for PieceResult { delta, any, seen, steps, offers: o, quiet, sleep, .. } in done.iter() {
             let (delta, any) = (*delta, *any);
-            offers.extend_from_slice(o);
+            for (all, mine) in offers.iter_mut().zip(o) {
+                all.extend_from_slice(mine);
+            }
             if stepping == Stepping::Active {
                 // Marked idle now; a quiet cell that receives below is marked busy again.
                 for &q in quiet {
@@ -666,12 +762,16 @@ fn diffuse_one<F: FracBits, const D: usize>(
         //    credits first; under the thesis's, senders in row-major order. A (sender, port)
         //    feeds one receiver, and receivers interact only through their own FIFO, so each
         //    receiver pulls its offers in (key, sender) order — the same outcome as one global
-        //    pass in (key, row-major sender) order — in parallel.
-        offers.par_sort_unstable_by_key(|o| (o.to, o.key, o.from));
+        //    pass in (key, row-major sender) order — in parallel. Each port's offers are in
+        //    receiver order already (a port's receiver is its sender plus a constant): the
+        //    lists are merged ([`link_order`]), not sorted.
         if let Some(fl) = links.as_deref_mut() {
             // Faulty links: the same offers in the same order, one frame each through the codec
             // and the injector; a message leaves its buffer only when acknowledged.
-            for o in offers.iter_mut() {
+            let lists = whole(&mut offers);
+            link_order(&lists, &mut order);
+            for &(p, j) in &order {
+                let o = &mut lists[p as usize][j as usize];
                 let to = o.to as usize;
                 if !cells[to].can_accept(env.fa) {
                     continue;
@@ -706,17 +806,20 @@ fn diffuse_one<F: FracBits, const D: usize>(
                 }
             }
         } else {
-            let groups = grouped(cells, &mut offers, PIECE, |o| o.to as usize);
+            let groups = by_receiver(cells, &mut offers, &cuts);
             let pulled = scratch_for(&mut scratch, groups.len());
-            groups.into_par_iter().zip(pulled.par_iter_mut()).for_each(|((tile, base, group), r)| {
+            groups.into_par_iter().zip(pulled.par_iter_mut()).for_each(|((tile, base, lists), r)| {
                 let delta = ActivityDelta::new();
-                let PieceResult { taken, woke, roused, .. } = r;
-                for k in 0..group.len() {
-                    if let Some(a) = group.get(k + AHEAD) {
+                let PieceResult { taken, woke, roused, order, .. } = r;
+                link_order(&lists, order);
+                for k in 0..order.len() {
+                    if let Some(&(p, j)) = order.get(k + AHEAD) {
+                        let a = &lists[p as usize][j as usize];
                         prefetch_cell(&tile[a.to as usize - base], 1);
                         prefetch(&taken_ports[a.from as usize]);
                     }
-                    let o = &mut group[k];
+                    let (p, j) = order[k];
+                    let o = &mut lists[p as usize][j as usize];
                     let c = &mut tile[o.to as usize - base];
                     if !c.can_accept(env.fa) {
                         continue;
@@ -782,7 +885,9 @@ fn diffuse_one<F: FracBits, const D: usize>(
             });
         }
         if let Some(t) = tap.as_deref_mut() {
-            for o in offers.iter().filter(|o| o.taken) {
+            let lists = whole(&mut offers);
+            link_order(&lists, &mut order);
+            for o in order.iter().map(|&(p, j)| &lists[p as usize][j as usize]).filter(|o| o.taken) {
                 t.transfer(o.from as usize, o.to as usize, Port::ALL[o.port as usize], &o.msg);
             }
         }
@@ -907,4 +1012,77 @@ pub fn source_at(id: usize, pos: [f64; 3], n: u32) -> Result<Source> {
     }
     let q = pos.map(|p| cell_core::beam::SourceCoord::from_num((p * 16.0).round() / 16.0));
     Ok(Source::new(SourceId(id as u16), q))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cell_core::beam::frac::U0;
+    use cell_core::beam::SourceCoord;
+    use proptest::prelude::*;
+
+    /// Offers as the compute pass makes them: senders in increasing order, each with the ports
+    /// of `mask` (receivers outside an `n` × `n` grid left out), one list per port.
+    fn offers(n: u32, senders: &[(u32, u8, u32)]) -> [Vec<Offer<U0>>; 8] {
+        let src = Source::new(SourceId(0), [SourceCoord::from_num(0.0); 3]);
+        let far = FarDistance::<U0>::new(n).unwrap();
+        let msg = BeamMsg::new(Beam::initial(&src, Direction::PosX, far), 0);
+        let mut lists: [Vec<Offer<U0>>; 8] = Default::default();
+        for &(from, mask, key) in senders {
+            let (x, y) = ((from % n) as i64, (from / n) as i64);
+            for p in Port::each(mask) {
+                let (dx, dy) = p.delta();
+                let (tx, ty) = (x + dx as i64, y + dy as i64);
+                if (0..n as i64).contains(&tx) && (0..n as i64).contains(&ty) {
+                    let to = (ty * n as i64 + tx) as u32;
+                    // Keys from a few values, so that ties between senders are common.
+                    let key = key.wrapping_mul(p.index() as u32 + 3) % 4;
+                    lists[p.index()].push(Offer { to, key, from, port: p.index() as u8, msg, taken: false });
+                }
+            }
+        }
+        lists
+    }
+
+    proptest! {
+        /// The merge gives exactly the order of a sort of all offers by (receiver, key,
+        /// sender), and the receiver cut hands every offer, once, to the piece owning its
+        /// receiver.
+        #[test]
+        fn link_order_is_the_sorted_order(
+            n in 1u32..12,
+            picks in proptest::collection::btree_map(0u32..144, (any::<u8>(), any::<u32>()), 0..60),
+            cut_picks in proptest::collection::btree_set(0u32..160, 0..6),
+        ) {
+            let senders: Vec<(u32, u8, u32)> =
+                picks.into_iter().filter(|&(c, _)| c < n * n).map(|(c, (m, k))| (c, m, k)).collect();
+            let mut lists = offers(n, &senders);
+            let mut expect: Vec<(u32, u32, u32, u8)> =
+                lists.iter().flatten().map(|o| (o.to, o.key, o.from, o.port)).collect();
+            expect.sort_unstable();
+            let mut order = Vec::new();
+            let whole_lists = whole(&mut lists);
+            link_order(&whole_lists, &mut order);
+            let got: Vec<(u32, u32, u32, u8)> = order
+                .iter()
+                .map(|&(p, j)| {
+                    let o = &whole_lists[p as usize][j as usize];
+                    (o.to, o.key, o.from, o.port)
+                })
+                .collect();
+            prop_assert_eq!(&got, &expect);
+
+            let mut cells: Vec<u32> = (0..n * n).collect();
+            let cuts: Vec<u32> = cut_picks.into_iter().collect();
+            let mut seen = Vec::new();
+            for (tile, base, piece) in by_receiver(&mut cells, &mut lists, &cuts) {
+                for o in piece.iter().flat_map(|l| l.iter()) {
+                    prop_assert_eq!(tile[o.to as usize - base], o.to);
+                    seen.push((o.to, o.key, o.from, o.port));
+                }
+            }
+            seen.sort_unstable();
+            prop_assert_eq!(seen, expect);
+        }
+    }
 }

@@ -22,33 +22,6 @@ pub fn tiles<'a, T>(mut cells: &'a mut [T], idx: &'a [u32], min: usize) -> Vec<(
     out
 }
 
-/// Cut `cells` and `items` (sorted by the cell index `at(item)`) together into pieces that never
-/// separate two items of the same cell: `(cells of the piece, its first cell, its items)`.
-pub fn grouped<'a, T, O>(
-    mut cells: &'a mut [T],
-    mut items: &'a mut [O],
-    min: usize,
-    at: impl Fn(&O) -> usize,
-) -> Vec<(&'a mut [T], usize, &'a mut [O])> {
-    let per = piece_len(items.len(), min);
-    let mut out = Vec::new();
-    let mut base = 0usize;
-    while !items.is_empty() {
-        let mut cut = per.min(items.len());
-        while cut < items.len() && at(&items[cut]) == at(&items[cut - 1]) {
-            cut += 1;
-        }
-        let end = at(&items[cut - 1]) + 1;
-        let (head, tail) = std::mem::take(&mut items).split_at_mut(cut);
-        let (ch, ct) = std::mem::take(&mut cells).split_at_mut(end - base);
-        out.push((ch, base, head));
-        items = tail;
-        cells = ct;
-        base = end;
-    }
-    out
-}
-
 /// Ask the CPU to start loading the cache line at `p` (a hint: no effect on results, never a
 /// fault, a no-op off x86-64). The grid's passes walk scattered cells of a large array and are
 /// bound by memory latency; they announce the cells a few steps ahead.
@@ -105,18 +78,6 @@ mod tests {
                 assert_eq!(tile[i as usize - base], i);
                 seen.push(i);
             }
-        }
-        assert_eq!(seen, idx);
-        let mut items: Vec<u32> = idx.iter().flat_map(|&i| [i, i, i]).collect();
-        let mut seen = Vec::new();
-        for (tile, base, group) in grouped(&mut cells, &mut items, 4, |&o| o as usize) {
-            let mut here: Vec<u32> = group.to_vec();
-            here.dedup();
-            for &o in &here {
-                assert_eq!(tile[o as usize - base], o);
-                assert_eq!(group.iter().filter(|&&g| g == o).count(), 3, "a cell's items stay together");
-            }
-            seen.extend(here);
         }
         assert_eq!(seen, idx);
     }
