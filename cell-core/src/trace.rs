@@ -197,6 +197,7 @@ fn policy_code(p: Policy) -> u8 {
     match p {
         Policy::Thesis => 0,
         Policy::Wavefront => 1,
+        Policy::Radial => 2,
     }
 }
 
@@ -391,6 +392,7 @@ impl<'a, F: FracBits> Parser<'a, F> {
                     policy: match r.u8()? {
                         0 => Policy::Thesis,
                         1 => Policy::Wavefront,
+                        2 => Policy::Radial,
                         _ => return Err(DecodeError::BadValue("policy").into()),
                     },
                     fa: r.u16()?,

@@ -130,7 +130,7 @@ pub fn run_bench(
                     light: LightConfig {
                         fa: k.fa,
                         policy: k.policy,
-                        merge: k.policy == Policy::Wavefront,
+                        merge: k.policy.by_layer(),
                         record_visits: false,
                         ..Default::default()
                     },

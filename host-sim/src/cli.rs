@@ -91,6 +91,10 @@ pub enum PolicyArg {
     /// Ours: among beams that can go now, the one at the smallest layer (longest remaining
     /// path) first; no head-of-line blocking.
     Wavefront,
+    /// The wavefront's rule with ties at one layer broken by distance to the source's axis,
+    /// nearest first: far fewer cycles on large grids (Cornell n = 512: −56 %), a few % more
+    /// beams.
+    Radial,
 }
 
 impl From<PolicyArg> for cell_core::light::Policy {
@@ -98,6 +102,7 @@ impl From<PolicyArg> for cell_core::light::Policy {
         match p {
             PolicyArg::Thesis => cell_core::light::Policy::Thesis,
             PolicyArg::Wavefront => cell_core::light::Policy::Wavefront,
+            PolicyArg::Radial => cell_core::light::Policy::Radial,
         }
     }
 }
@@ -163,8 +168,8 @@ pub struct LightOpts {
     #[arg(long, value_enum, default_value_t = PolicyArg::Wavefront)]
     pub policy: PolicyArg,
     /// Merge an arriving beam into a waiting beam of the same voxel when their ray rectangles
-    /// share a side (exact; fewer beams to process): on, off, or auto (on for wavefront, off
-    /// for the thesis policy).
+    /// share a side (exact; fewer beams to process): on, off, or auto (on for wavefront and
+    /// radial, off for the thesis policy).
     #[arg(long, value_enum, default_value_t = MergeArg::Auto)]
     pub merge: MergeArg,
     /// Which cells the host visits each cycle: only those holding beams, or every cell (the
@@ -323,7 +328,7 @@ pub struct TableArgs {
 /// Beam merging switch.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum MergeArg {
-    /// On for the wavefront policy, off for the thesis's.
+    /// On for the wavefront and radial policies, off for the thesis's.
     Auto,
     /// Always merge.
     On,
@@ -334,7 +339,7 @@ pub enum MergeArg {
 impl MergeArg {
     fn resolve(self, p: PolicyArg) -> bool {
         match self {
-            MergeArg::Auto => p == PolicyArg::Wavefront,
+            MergeArg::Auto => p != PolicyArg::Thesis,
             MergeArg::On => true,
             MergeArg::Off => false,
         }

@@ -666,7 +666,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
         //    A cell's output buffers change only in its own step, so the piece also gathers its
         //    cells' link offers (the message at the front of each busy output buffer) while the
         //    cell is in cache: the same offers, in the same order, as a pass after all steps.
-        let wave = env.policy == Policy::Wavefront;
+        let wave = env.policy.by_layer();
         let pieces = tiles(cells, visit, PIECE);
         // Where the pieces start: the link phase cuts the receivers there too.
         cuts.clear();

@@ -240,6 +240,7 @@ pub fn policy_name(p: Policy) -> &'static str {
     match p {
         Policy::Thesis => "thesis",
         Policy::Wavefront => "wavefront",
+        Policy::Radial => "radial",
     }
 }
 

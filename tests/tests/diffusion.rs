@@ -61,7 +61,7 @@ fn check_against_rays<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) 
 fn config() -> impl Strategy<Value = LightConfig> {
     (
         prop::sample::select(vec![1usize, 2, 3, 5, 16, 64]),
-        prop::sample::select(vec![Policy::Thesis, Policy::Wavefront]),
+        prop::sample::select(vec![Policy::Thesis, Policy::Wavefront, Policy::Radial]),
         any::<bool>(),
         any::<bool>(),
     )
@@ -135,14 +135,9 @@ fn adversarial_sources() {
     for (name, tris) in &scenes {
         let g = grid_with(n, tris);
         for p in positions {
-            for policy in [Policy::Thesis, Policy::Wavefront] {
-                let cfg = LightConfig {
-                    fa: 2,
-                    policy,
-                    merge: policy == Policy::Wavefront,
-                    record_visits: false,
-                    ..Default::default()
-                };
+            for policy in [Policy::Thesis, Policy::Wavefront, Policy::Radial] {
+                let cfg =
+                    LightConfig { fa: 2, policy, merge: policy.by_layer(), record_visits: false, ..Default::default() };
                 check_against_rays::<cell_core::beam::frac::U2>(&g, &[p], cfg)
                     .unwrap_or_else(|e| panic!("{name} {p:?}: {e}"));
             }

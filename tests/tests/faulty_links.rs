@@ -14,13 +14,15 @@ use host_sim::render::{point_lights, shade_grid};
 
 #[test]
 fn faulty_links_light_exactly_what_clean_links_light() {
-    for (scene, n, policy) in [("cornell", 32, Policy::Wavefront), ("teapot-floor", 24, Policy::Thesis)] {
+    for (scene, n, policy) in
+        [("cornell", 32, Policy::Wavefront), ("teapot-floor", 24, Policy::Thesis), ("cornell", 24, Policy::Radial)]
+    {
         let mesh = host_sim::scene::load(scene).unwrap();
         let loaded =
             load_scene(&mesh, &LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected }).unwrap();
         let lights = resolve_lights(&mesh, &loaded, &[]).unwrap();
         let run = |faults: Option<LinkFaults>| {
-            let cfg = LightConfig { fa: 4, policy, merge: policy == Policy::Wavefront, faults, ..Default::default() };
+            let cfg = LightConfig { fa: 4, policy, merge: policy.by_layer(), faults, ..Default::default() };
             let (l, stats) = run_diffusion::<U0>(&mesh, &loaded, &lights, &cfg, |_, _| {}).unwrap();
             let img = shade_grid(&mesh, &loaded, &point_lights(&lights), &l, NormalMode::Facet);
             (l.lit_voxels().collect::<Vec<_>>(), img.rgb, stats)
@@ -86,7 +88,7 @@ fn a_dead_link_is_reported_as_a_stall_and_perfect_links_never_stall() {
     assert!(st.totals.cycles > 2 * cs.totals.cycles, "{} vs {}", st.totals.cycles, cs.totals.cycles);
     assert!(msg.contains("no progress for 7 cycle(s)") && msg.contains("blocked cells"), "{msg}");
     assert!(msg.contains("fifo") && msg.contains("out ["), "the report shows the queues: {msg}");
-    for policy in [Policy::Wavefront, Policy::Thesis] {
+    for policy in [Policy::Wavefront, Policy::Thesis, Policy::Radial] {
         let cfg = LightConfig { fa: 1, policy, merge: false, stall_cycles: 1, ..Default::default() };
         run_diffusion::<U0>(&mesh, &loaded, &lights, &cfg, |_, _| {}).expect("perfect links never stall");
     }

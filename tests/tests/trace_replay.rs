@@ -50,6 +50,7 @@ fn check_all_with<F: FracBits>(scene: &str, n: u32, light: LightConfig) {
 fn every_cell_replays_to_the_grid_digest() {
     check_all::<U0>("cornell", 16, Policy::Wavefront, true, 16);
     check_all::<U0>("cornell", 16, Policy::Thesis, false, 2);
+    check_all::<U0>("cornell", 16, Policy::Radial, true, 16);
     check_all::<U2>("cornell", 16, Policy::Wavefront, true, 4);
     check_all::<U0>("teapot-floor", 16, Policy::Wavefront, false, 8);
 }
