@@ -1010,15 +1010,16 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             Policy::Wavefront | Policy::Radial => {
                 // Candidates by (layer, position), or (layer, distance to the axis, position)
                 // for radial; the first that fits goes. Keys are layer << 27 | distance << 6 |
-                // position (FA ≤ 64, asserted; the distance |z·16 − z_s·16| < 2^21, z_s in
-                // 1/16 voxel): the smallest is found by one scan, and the rest are listed and
+                // position (FA ≤ 64, asserted; layer < 2^31; the distance |z·16 − z_s·16|, z_s
+                // in 1/16 voxel, is < 2^21 for a source inside the grid and clamped there for
+                // one outside): the smallest is found by one scan, and the rest are listed and
                 // sorted only if it cannot go.
                 let mut best: Option<usize> = None;
                 let radial = env.policy == Policy::Radial;
                 let zs = env.source.pos[2].to_bits() as i64;
                 let key = |i: usize| {
                     let m = &self.fifo[i];
-                    let d = if radial { (((m.z as i64) << 4) - zs).unsigned_abs() } else { 0 };
+                    let d = if radial { (((m.z as i64) << 4) - zs).unsigned_abs().min((1 << 21) - 1) } else { 0 };
                     (m.beam.layer().0 as u64) << 27 | d << 6 | i as u64
                 };
                 let first = (0..self.fifo.len()).map(key).min().unwrap_or(0);
