@@ -87,6 +87,7 @@ pub fn sweep(fs: &[u32]) -> Vec<Knobs> {
         v.push(Knobs { fa, ..d });
     }
     v.push(Knobs { policy: Policy::Thesis, ..d });
+    v.push(Knobs { policy: Policy::Radial, ..d });
     v.dedup();
     v
 }
