@@ -204,6 +204,12 @@ pub struct LightOpts {
     /// lit voxels; each cell holds the 232-byte summary.
     #[arg(long, default_value_t = false, action = clap::ArgAction::Set)]
     pub skip_frustum: bool,
+    /// Drop a beam when none of its rays can reach a block holding a visible voxel (a column's
+    /// first occupied voxel, the one its cell shades): the empty-frustum test against a summary
+    /// of the visible voxels only. Same image and same visible lit set; hidden voxels are not
+    /// lit. Needs --lit-visible-only.
+    #[arg(long, requires = "lit_visible_only")]
+    pub skip_hidden: bool,
     /// The sibling wait: a beam that does not yet hold every ray its voxel can receive waits
     /// up to this many cycles (while its FIFO has room) for the pieces from its other parent
     /// voxels to merge into it: fewer beams and messages, same lit voxels. 0: off. Wavefront
@@ -242,6 +248,7 @@ impl LightOpts {
             lit_visible_only: self.lit_visible_only,
             hold: self.hold,
             skip_frustum: self.skip_frustum,
+            skip_hidden: self.skip_hidden,
         }
     }
 }
@@ -945,6 +952,12 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     let cfg = LoadConfig { n: a.n, thickness: a.sigma, contour: a.contour };
     cfg.validate()?;
     a.reflect.validate(a.light.classic.lighting, a.n, a.light.fa)?;
+    if a.reflect.reflections > 0 && a.light.lit_visible_only {
+        anyhow::bail!(
+            "--reflections reads the lit state of the voxels reflected rays hit, hidden ones included: \
+             run without --lit-visible-only (and --skip-hidden)"
+        );
+    }
     let mesh = scene::load(&a.scene)?;
     let t0 = std::time::Instant::now();
     let pb = progress_bar(a.quiet, "load");

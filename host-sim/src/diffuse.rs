@@ -78,6 +78,12 @@ pub struct LightConfig {
     /// The empty-frustum skip ([`LightEnv::frustum`]): exact, changes cycles and messages,
     /// never lit voxels.
     pub skip_frustum: bool,
+    /// The hidden-voxel skip (needs `lit_visible_only`): the frustum summary holds only the
+    /// visible voxels (each column's first occupied voxel, the one its cell shades), so a beam
+    /// none of whose rays can reach a visible voxel's block is dropped, its rays counted as
+    /// skipped. Exact for what `lit_visible_only` keeps: same visible lit set, same image.
+    /// Hidden voxels are not lit (rays they would absorb may be counted as skipped).
+    pub skip_hidden: bool,
 }
 
 impl Default for LightConfig {
@@ -96,6 +102,7 @@ impl Default for LightConfig {
             lit_visible_only: false,
             hold: 0,
             skip_frustum: false,
+            skip_hidden: false,
         }
     }
 }
@@ -276,7 +283,11 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
     }
     let order = SplitOrder::default();
     let occupied = occupied_box(grid);
-    let frustum = cfg.skip_frustum.then(|| occupancy_summary(grid));
+    if cfg.skip_hidden && !cfg.lit_visible_only {
+        bail!("the hidden-voxel skip drops the light of hidden voxels: use it with --lit-visible-only");
+    }
+    let frustum =
+        if cfg.skip_hidden { Some(visible_summary(grid)) } else { cfg.skip_frustum.then(|| occupancy_summary(grid)) };
     let mut reports = Vec::new();
     let mut visited = cfg.record_visits.then(|| vec![false; (n * n * grid.depth) as usize]);
     if let Some(f) = cfg.faults.filter(|f| f.delay_ppm > 0 && f.delay_cycles as u64 >= cfg.stall_cycles.max(1)) {
@@ -987,6 +998,18 @@ pub fn occupancy_summary<const D: usize>(grid: &Grid<D>) -> FrustumSummary {
     let mut s = FrustumSummary::new(grid.n, grid.depth);
     for c in &grid.cells {
         s.mark_column(c.x as u32, c.y as u32, c.store.dexels());
+    }
+    s
+}
+
+/// The summary of the grid's visible voxels (each column's first occupied voxel) for the
+/// hidden-voxel skip (what the OR-reduction of every cell's one-voxel summary gives).
+pub fn visible_summary<const D: usize>(grid: &Grid<D>) -> FrustumSummary {
+    let mut s = FrustumSummary::new(grid.n, grid.depth);
+    for c in &grid.cells {
+        if let Some(d) = c.store.dexels().first() {
+            s.mark_span(c.x as u32, c.y as u32, d.span.lo as u32, d.span.lo as u32);
+        }
     }
     s
 }

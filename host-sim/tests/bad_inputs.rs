@@ -119,6 +119,12 @@ fn bad_arguments_fail_clearly() {
         (&["render", "--policy", "fastest"], "--policy"),
         (&["render", "--n", "16", "--hold", "5000"], "--hold"),
         (&["render", "--n", "16", "--skip-frustum", "maybe"], "--skip-frustum"),
+        (&["render", "--n", "16", "--skip-hidden"], "required arguments were not provided"),
+        (&["light", "--n", "16", "--skip-hidden"], "required arguments were not provided"),
+        (
+            &["render", "cornell-mirror", "--n", "16", "--reflections", "1", "--lit-visible-only"],
+            "run without --lit-visible-only",
+        ),
         (&["no-such-command"], "no-such-command"),
     ];
     for (args, expect) in cases {

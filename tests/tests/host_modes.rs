@@ -200,3 +200,42 @@ fn sibling_wait_is_exact_and_merges() {
         }
     }
 }
+
+/// The hidden-voxel skip drops the beams that can reach no visible voxel: the visible lit set
+/// and the image are those of the same run without it (itself the full lit set restricted to
+/// visible voxels, `lit_visible_only` above), under both by-layer policies; the rays it drops
+/// are rays the run without it absorbed in hidden voxels or let out, and it drops some on the
+/// Cornell box (whose walls are seen edge-on: almost all of them is hidden).
+#[test]
+fn hidden_skip_keeps_the_visible_lit_set_and_the_image() {
+    for s in scenes() {
+        for policy in [Policy::Wavefront, Policy::Radial] {
+            let visible = LightConfig { fa: 4, policy, merge: true, lit_visible_only: true, ..Default::default() };
+            let hidden = LightConfig { skip_hidden: true, ..visible };
+            let (a, b) = (run(&s, visible, 2), run(&s, hidden, 2));
+            assert_eq!(a.lit, b.lit, "{}: {policy:?}: visible lit voxels", s.0.name);
+            assert_eq!(a.png, b.png, "{}: {policy:?}: image", s.0.name);
+            assert!(!a.lit.is_empty());
+            for (x, y) in a.reports.iter().zip(&b.reports) {
+                let (x, y) = (&x.counts, &y.counts);
+                assert_eq!(x.rays_emitted, y.rays_emitted);
+                assert_eq!(y.rays_emitted, y.rays_absorbed + y.rays_exited + y.rays_skipped, "conservation");
+                assert!(y.rays_absorbed <= x.rays_absorbed && y.rays_exited <= x.rays_exited + x.rays_skipped);
+                if s.0.name == "cornell" {
+                    assert!(
+                        y.rays_skipped > x.rays_skipped && y.beams_processed < x.beams_processed,
+                        "{policy:?}: {x:?} / {y:?}"
+                    );
+                }
+            }
+        }
+    }
+    // Without `lit_visible_only` the skip would lose hidden voxels' light: refused.
+    let s = setup("cornell", 16);
+    let cfg = LightConfig { skip_hidden: true, ..Default::default() };
+    let Err(err) = run_diffusion::<U0>(&s.0, &s.1, &s.2, &cfg, |_, _| {}) else {
+        panic!("the hidden-voxel skip ran without --lit-visible-only");
+    };
+    let err = err.to_string();
+    assert!(err.contains("--lit-visible-only"), "{err}");
+}
