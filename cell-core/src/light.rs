@@ -35,10 +35,11 @@ use heapless::Vec;
 
 use crate::beam::{Beam, Direction, FarDistance, FracBits, Source, SplitOrder, Transverse};
 use crate::dexel::DexelStore;
+use crate::occupancy::FrustumTest;
 use crate::units::{Coord, Depth};
 
-/// The occupancy summary the empty-frustum skip uses ([`LightEnv::frustum`]): 8 blocks per
-/// axis, 232 bytes per cell.
+/// The occupancy summary a cell trace carries for the empty-frustum skip ([`LightEnv::frustum`]
+/// takes any [`FrustumTest`]): 8 blocks per axis, 232 bytes per cell.
 pub type FrustumSummary = crate::occupancy::Occupancy8;
 
 /// Longest sibling wait ([`LightEnv::hold`]): wait ends are compared on the cell's 16-bit clock
@@ -568,10 +569,11 @@ pub struct LightEnv<'a, F: FracBits> {
     /// store needs one run, never overflows, and skips the run bookkeeping of hidden voxels.
     pub lit_visible_only: bool,
     /// The empty-frustum skip: a beam none of whose rays can meet an occupied block of this
-    /// summary at any later layer ([`FrustumSummary::frustum_empty`]) is dropped when
-    /// processed, its rays counted as skipped (`None`: off). Each cell holds the summary
-    /// ([`FrustumSummary::BYTES`] bytes), an OR-reduction over the grid after loading.
-    pub frustum: Option<&'a FrustumSummary>,
+    /// summary at any later layer ([`FrustumTest::frustum_empty`]) is dropped when processed,
+    /// its rays counted as skipped (`None`: off). Each cell holds the summary
+    /// ([`FrustumTest::bytes`]: 232 B for [`FrustumSummary`], 8 blocks per axis; 1 348 B for
+    /// 16, 9 384 B for 32), an OR-reduction over the grid after loading.
+    pub frustum: Option<&'a dyn FrustumTest<F>>,
     /// The sibling wait: an incomplete beam (one that does not yet hold every ray of its voxel,
     /// [`Beam::complete`]) is not processed until it has waited this many of the cell's busy
     /// cycles, so that the pieces its sibling parents send can merge into it first. 0: off;

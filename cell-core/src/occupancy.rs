@@ -465,6 +465,27 @@ impl<const B: usize, R: BlockRow> OccupancySummary<B, R> {
     }
 }
 
+/// The empty-frustum test as the lighting cell asks it ([`crate::light::LightEnv::frustum`]):
+/// object-safe for one fraction type, so that a host can choose the summary's resolution at
+/// run time ([`Occupancy8`], [`Occupancy16`], [`Occupancy32`]: finer blocks drop more beams
+/// and cost more memory per cell) while the cell's code stays one function.
+pub trait FrustumTest<F: FracBits>: Debug + Sync {
+    /// [`OccupancySummary::frustum_empty`].
+    fn frustum_empty(&self, beam: &Beam<F>, source: &Source, far: FarDistance<F>, k0: u32) -> bool;
+    /// The summary's size in bytes (what each cell holds).
+    fn bytes(&self) -> usize;
+}
+
+impl<const B: usize, R: BlockRow, F: FracBits> FrustumTest<F> for OccupancySummary<B, R> {
+    fn frustum_empty(&self, beam: &Beam<F>, source: &Source, far: FarDistance<F>, k0: u32) -> bool {
+        OccupancySummary::frustum_empty(self, beam, source, far, k0)
+    }
+
+    fn bytes(&self) -> usize {
+        Self::BYTES
+    }
+}
+
 /// Where a beam's rays are on one transverse axis over the layers of a slab.
 enum Cover {
     /// Inside the grid, within these blocks (a mask).

@@ -643,7 +643,7 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
             bounds: SubBeamBounds::new(setup.n, setup.depth, setup.skip, &setup.source),
             lit_visible_only: false,
             hold: setup.hold,
-            frustum: setup.frustum.as_ref(),
+            frustum: setup.frustum.as_ref().map(|o| o as &dyn crate::occupancy::FrustumTest<F>),
         })
     }
 

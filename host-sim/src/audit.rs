@@ -14,7 +14,7 @@ use cell_core::facet::{PipelinePacket, RowPacket};
 use cell_core::light::{BeamMsg, LitRun, LitRuns, OutBuffers};
 use cell_core::link::{BEAM_PAYLOAD, HEADER, MAX_FRAME, ROW_PAYLOAD_BASE, TRAILER};
 
-use crate::diffuse::{LightConfig, FA_CAP, LIT_CAP, OB_CAP};
+use crate::diffuse::{FrustumBlocks, LightConfig, FA_CAP, LIT_CAP, OB_CAP};
 use crate::lightjob::{load_scene, resolve_lights, run_diffusion};
 use crate::precompute::LoadConfig;
 use crate::scene::Mesh;
@@ -76,6 +76,10 @@ pub struct Audit {
     pub static_light_cell: usize,
     /// Static total: loading cell + one inbound row-packet register + lighting state.
     pub static_total: usize,
+    /// The occupancy summary a cell holds when `--skip-frustum` or `--skip-hidden` is on, for
+    /// 8, 16 and 32 blocks per axis (`--frustum-blocks`); not in the totals, which are those of
+    /// a cell without the skips.
+    pub frustum_summary: [usize; 3],
     /// Capacities compiled into the host.
     pub capacity_dexels: usize,
     /// See `capacity_dexels`.
@@ -208,6 +212,7 @@ pub fn audit(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig, elf: Option<&st
         static_lit_runs: static_lit,
         static_light_cell: static_light,
         static_total,
+        frustum_summary: [FrustumBlocks::B8, FrustumBlocks::B16, FrustumBlocks::B32].map(FrustumBlocks::bytes),
         capacity_dexels: DEFAULT_DEXELS,
         capacity_fifo: FA_CAP,
         capacity_lit_runs: LIT_CAP,
@@ -251,6 +256,10 @@ pub fn print(a: &Audit) {
     );
     println!("| inbound row packet | {} B | |", a.bytes_row_packet);
     println!("| **total** | {} B | {} B with exactly the capacities used |", a.static_total, a.needed_total);
+    let [s8, s16, s32] = a.frustum_summary;
+    println!(
+        "with --skip-frustum or --skip-hidden, add the occupancy summary: {s8} B (--frustum-blocks 8), {s16} B (16), {s32} B (32)"
+    );
     println!(
         "messages in memory: row packet {} B, pipeline packet {} B, beam {} B",
         a.bytes_row_packet, a.bytes_pipeline_packet, a.bytes_beam_message

@@ -21,6 +21,7 @@ use cell_core::light::{
     Activity, ActivityDelta, BeamMsg, FrustumSummary, LightCell, LightCounters, LightEnv, OccupiedBox, Policy, Port,
     SourceMask, Step, SubBeamBounds,
 };
+use cell_core::occupancy::{BlockRow, FrustumTest, Occupancy16, Occupancy32, Occupancy8, OccupancySummary};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Relaxed};
 
@@ -84,6 +85,77 @@ pub struct LightConfig {
     /// skipped. Exact for what `lit_visible_only` keeps: same visible lit set, same image.
     /// Hidden voxels are not lit (rays they would absorb may be counted as skipped).
     pub skip_hidden: bool,
+    /// Resolution of the summary the empty-frustum and hidden-voxel skips test against.
+    pub frustum_blocks: FrustumBlocks,
+}
+
+/// Blocks per axis of the summary the empty-frustum and hidden-voxel skips test beams against
+/// ([`cell_core::occupancy`]): finer blocks drop more beams (the test is exact only with
+/// one-voxel blocks) for more memory per cell. Same lit voxels and image whichever is chosen.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum)]
+pub enum FrustumBlocks {
+    /// 8 × 8 × 8 blocks, `u8` rows: 232 bytes per cell (what a cell trace carries).
+    #[value(name = "8")]
+    B8,
+    /// 16 × 16 × 16 blocks, `u16` rows: 1 348 bytes per cell.
+    #[value(name = "16")]
+    B16,
+    /// 32 × 32 × 32 blocks, `u32` rows: 9 384 bytes per cell.
+    #[default]
+    #[value(name = "32")]
+    B32,
+}
+
+impl FrustumBlocks {
+    /// Bytes each cell holds for the summary.
+    pub const fn bytes(self) -> usize {
+        match self {
+            FrustumBlocks::B8 => Occupancy8::BYTES,
+            FrustumBlocks::B16 => Occupancy16::BYTES,
+            FrustumBlocks::B32 => Occupancy32::BYTES,
+        }
+    }
+}
+
+/// A summary of the chosen resolution ([`FrustumBlocks`]).
+#[derive(Clone, Debug)]
+pub enum Summary {
+    /// 8 blocks per axis.
+    B8(Box<Occupancy8>),
+    /// 16 blocks per axis.
+    B16(Box<Occupancy16>),
+    /// 32 blocks per axis.
+    B32(Box<Occupancy32>),
+}
+
+impl Summary {
+    /// The summary of the grid's occupied voxels, or (`visible_only`) of its visible voxels
+    /// only (each column's first occupied voxel): what the OR-reduction of every cell's own
+    /// summary gives.
+    pub fn of<const D: usize>(grid: &Grid<D>, blocks: FrustumBlocks, visible_only: bool) -> Self {
+        match blocks {
+            FrustumBlocks::B8 => Summary::B8(Box::new(summarise(grid, visible_only))),
+            FrustumBlocks::B16 => Summary::B16(Box::new(summarise(grid, visible_only))),
+            FrustumBlocks::B32 => Summary::B32(Box::new(summarise(grid, visible_only))),
+        }
+    }
+
+    /// The test a cell runs.
+    pub fn test<F: FracBits>(&self) -> &dyn FrustumTest<F> {
+        match self {
+            Summary::B8(o) => &**o,
+            Summary::B16(o) => &**o,
+            Summary::B32(o) => &**o,
+        }
+    }
+
+    /// The 8-block summary a cell trace carries (`None` for finer ones).
+    pub fn traceable(&self) -> Option<&FrustumSummary> {
+        match self {
+            Summary::B8(o) => Some(&**o),
+            _ => None,
+        }
+    }
 }
 
 impl Default for LightConfig {
@@ -103,6 +175,7 @@ impl Default for LightConfig {
             hold: 0,
             skip_frustum: false,
             skip_hidden: false,
+            frustum_blocks: FrustumBlocks::default(),
         }
     }
 }
@@ -286,8 +359,11 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
     if cfg.skip_hidden && !cfg.lit_visible_only {
         bail!("the hidden-voxel skip drops the light of hidden voxels: use it with --lit-visible-only");
     }
-    let frustum =
-        if cfg.skip_hidden { Some(visible_summary(grid)) } else { cfg.skip_frustum.then(|| occupancy_summary(grid)) };
+    let frustum = (cfg.skip_hidden || cfg.skip_frustum).then(|| Summary::of(grid, cfg.frustum_blocks, cfg.skip_hidden));
+    let traced = frustum.as_ref().map(Summary::traceable);
+    if tap.is_some() && traced == Some(None) {
+        bail!("a cell trace carries the 8 × 8 × 8 frustum summary: record with --frustum-blocks 8");
+    }
     let mut reports = Vec::new();
     let mut visited = cfg.record_visits.then(|| vec![false; (n * n * grid.depth) as usize]);
     if let Some(f) = cfg.faults.filter(|f| f.delay_ppm > 0 && f.delay_cycles as u64 >= cfg.stall_cycles.max(1)) {
@@ -316,7 +392,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             bounds: SubBeamBounds::new(n, grid.depth, cfg.skip_receding.then_some(occupied), src),
             lit_visible_only: cfg.lit_visible_only,
             hold: cfg.hold,
-            frustum: frustum.as_ref(),
+            frustum: frustum.as_ref().map(Summary::test),
         };
         let before: Vec<LightCounters> = cells.iter().map(|c| c.counters).collect();
         for c in cells.iter_mut() {
@@ -324,7 +400,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             c.counters.peak_fifo = 0;
         }
         if let Some(t) = tap.as_deref_mut() {
-            t.light(&env);
+            t.light(&env, traced.flatten());
         }
         let dead = cfg.skip_dead_directions.then_some(occupied);
         let rec = Recording { visited: visited.as_deref_mut(), tap: tap.as_deref_mut(), links: links.as_mut() };
@@ -992,23 +1068,23 @@ fn diffuse_one<F: FracBits, const D: usize>(
     Ok(rep)
 }
 
-/// The grid's occupancy summary for the empty-frustum skip (what the OR-reduction of every
-/// cell's own summary gives).
+/// The grid's 8-block occupancy summary for the empty-frustum skip (what the OR-reduction of
+/// every cell's own summary gives; what a cell trace carries).
 pub fn occupancy_summary<const D: usize>(grid: &Grid<D>) -> FrustumSummary {
-    let mut s = FrustumSummary::new(grid.n, grid.depth);
-    for c in &grid.cells {
-        s.mark_column(c.x as u32, c.y as u32, c.store.dexels());
-    }
-    s
+    summarise(grid, false)
 }
 
-/// The summary of the grid's visible voxels (each column's first occupied voxel) for the
-/// hidden-voxel skip (what the OR-reduction of every cell's one-voxel summary gives).
-pub fn visible_summary<const D: usize>(grid: &Grid<D>) -> FrustumSummary {
-    let mut s = FrustumSummary::new(grid.n, grid.depth);
+/// The summary of the grid's occupied voxels, or (`visible_only`) of each column's first
+/// occupied voxel (the one its cell shades) for the hidden-voxel skip.
+fn summarise<const B: usize, R: BlockRow, const D: usize>(
+    grid: &Grid<D>,
+    visible_only: bool,
+) -> OccupancySummary<B, R> {
+    let mut s = OccupancySummary::new(grid.n, grid.depth);
     for c in &grid.cells {
-        if let Some(d) = c.store.dexels().first() {
-            s.mark_span(c.x as u32, c.y as u32, d.span.lo as u32, d.span.lo as u32);
+        match c.store.dexels().first() {
+            Some(d) if visible_only => s.mark_span(c.x as u32, c.y as u32, d.span.lo as u32, d.span.lo as u32),
+            _ => s.mark_column(c.x as u32, c.y as u32, c.store.dexels()),
         }
     }
     s

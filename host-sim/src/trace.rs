@@ -11,7 +11,7 @@ use anyhow::{bail, Context, Result};
 use cell_core::beam::FracBits;
 use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::facet::RowPacket;
-use cell_core::light::{BeamMsg, LightEnv, Port, Step};
+use cell_core::light::{BeamMsg, FrustumSummary, LightEnv, Port, Step};
 use cell_core::link::{self, Message};
 use cell_core::shade::{pixel, NormalMode, ShadeParams};
 use cell_core::trace::{
@@ -133,7 +133,7 @@ impl Tap {
     }
 
     /// A source's diffusion starts.
-    pub fn light<F: FracBits>(&mut self, env: &LightEnv<'_, F>) {
+    pub fn light<F: FracBits>(&mut self, env: &LightEnv<'_, F>, frustum: Option<&FrustumSummary>) {
         let s = LightSetup {
             source: *env.source,
             n: env.n,
@@ -145,7 +145,7 @@ impl Tap {
             source_bit: env.source_bit,
             skip: env.skip,
             hold: env.hold,
-            frustum: env.frustum.copied(),
+            frustum: frustum.copied(),
         };
         for r in &mut self.recorders {
             r.push::<F>(&Event::Light(s));

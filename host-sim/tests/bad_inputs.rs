@@ -121,6 +121,22 @@ fn bad_arguments_fail_clearly() {
         (&["render", "--n", "16", "--skip-frustum", "maybe"], "--skip-frustum"),
         (&["render", "--n", "16", "--skip-hidden"], "required arguments were not provided"),
         (&["light", "--n", "16", "--skip-hidden"], "required arguments were not provided"),
+        (&["light", "--n", "16", "--skip-frustum", "true", "--frustum-blocks", "12"], "--frustum-blocks"),
+        (
+            &[
+                "trace",
+                "--n",
+                "16",
+                "--skip-frustum",
+                "true",
+                "--frustum-blocks",
+                "32",
+                "--busiest",
+                "--out",
+                "/nonexistent/t",
+            ],
+            "record with --frustum-blocks 8",
+        ),
         (
             &["render", "cornell-mirror", "--n", "16", "--reflections", "1", "--lit-visible-only"],
             "run without --lit-visible-only",

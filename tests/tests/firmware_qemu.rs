@@ -17,7 +17,7 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use cell_core::beam::frac::U0;
-use host_sim::diffuse::LightConfig;
+use host_sim::diffuse::{FrustumBlocks, LightConfig};
 use host_sim::precompute::LoadConfig;
 use host_sim::trace::{record, TraceJob};
 use rc2_tests::traces::{cornell_job_cells, mutate_row_material};
@@ -142,7 +142,7 @@ fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
     // its source cell, recorded with both on.
     let teapot = host_sim::scene::load("teapot-floor").unwrap();
     let tload = LoadConfig { n: 32, ..load };
-    let tlight = LightConfig { hold: 4, skip_frustum: true, ..light };
+    let tlight = LightConfig { hold: 4, skip_frustum: true, frustum_blocks: FrustumBlocks::B8, ..light };
     let tjob = TraceJob {
         mesh: &teapot,
         load: tload,

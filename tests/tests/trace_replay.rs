@@ -8,7 +8,7 @@ use cell_core::beam::frac::{U0, U2};
 use cell_core::beam::FracBits;
 use cell_core::light::Policy;
 use cell_core::trace::{write_event, Parser};
-use host_sim::diffuse::{LightConfig, FA_CAP, LIT_CAP, OB_CAP};
+use host_sim::diffuse::{FrustumBlocks, LightConfig, FA_CAP, LIT_CAP, OB_CAP};
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
 use host_sim::trace::{record, CellTrace, TraceJob};
 use rc2_tests::traces::mutate_row_material;
@@ -59,7 +59,7 @@ fn every_cell_replays_to_the_grid_digest() {
 /// the wait and the summary, and every cell replays to the grid's digest.
 #[test]
 fn every_cell_replays_with_the_sibling_wait_and_the_frustum_skip() {
-    let light = LightConfig { hold: 3, skip_frustum: true, ..Default::default() };
+    let light = LightConfig { hold: 3, skip_frustum: true, frustum_blocks: FrustumBlocks::B8, ..Default::default() };
     check_all_with::<U0>("teapot-floor", 20, light);
     check_all_with::<U2>("cornell", 16, LightConfig { hold: 8, ..light });
 }
