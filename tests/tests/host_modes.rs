@@ -129,7 +129,8 @@ fn skips_change_no_lit_voxel_and_no_pixel() {
 }
 
 /// The empty-frustum skip on an open scene: most rays that would leave the grid are dropped
-/// early (a 8 × 8 × 8 summary), the lit set is unchanged, and the machine processes fewer beams.
+/// early (the default 32 × 32 × 32 summary), the lit set is unchanged, and the machine processes
+/// fewer beams.
 #[test]
 fn frustum_skip_drops_beams_that_light_nothing() {
     let s = setup("teapot-floor", 48);
