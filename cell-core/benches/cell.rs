@@ -35,11 +35,20 @@ fn row_packet(a: i64, b: i64, c: i64, d: i64, y: i64) -> RowPacket {
     let k = (a.abs() + b.abs() + c.abs()) / 2;
     let p = b * y + d; // P(0, y)
     let mut edges = heapless::Vec::new();
-    for e in [RowEdge { a: 1, c: 0, g: 0 }, RowEdge { a: 0, c: 0, g: y }, RowEdge { a: -1, c: 0, g: 63 - y }] {
+    for e in [
+        RowEdge { a: 1, c: 0, g: 0, off: 0 },
+        RowEdge { a: 0, c: 0, g: y, off: 0 },
+        RowEdge { a: -1, c: 0, g: 63 - y, off: 0 },
+    ] {
         edges.push(e).expect("3 ≤ MAX_EDGES");
     }
     RowPacket {
-        tag: FacetTag { facet: 7, material: 1, normal: NormalCode::encode([a as f32, b as f32, c as f32]) },
+        tag: FacetTag {
+            facet: 7,
+            material: 1,
+            normal: NormalCode::encode([a as f32, b as f32, c as f32]),
+            ..Default::default()
+        },
         bbox: FacetBox { x_min: 0, x_max: ROW - 1, y_min: 0, y_max: ROW - 1, z_min: 0, z_max: ROW - 1 },
         a,
         c,
@@ -96,7 +105,7 @@ fn bench_voxelize(c: &mut Criterion) {
     let spans: Vec<(Span, FacetTag)> = (0..32u16)
         .map(|i| {
             let j = (i * 13) % 32; // a permutation of 0..32
-            let tag = FacetTag { facet: j as u32, material: j % 2, normal: NormalCode(j) };
+            let tag = FacetTag { facet: j as u32, material: j % 2, normal: NormalCode(j), ..Default::default() };
             (Span { lo: 4 * j, hi: 4 * j + 2 }, tag)
         })
         .collect();
@@ -276,6 +285,7 @@ fn bench_fifo(c: &mut Criterion) {
         n: ROW as u32,
         depth: ROW as u32,
         policy,
+        rule: cell_core::lit::LitRule::Thesis,
         order: &order,
         fa: 16,
         source_bit: 1,
@@ -286,9 +296,9 @@ fn bench_fifo(c: &mut Criterion) {
         hold: 0,
         frustum: None,
     };
-    let empty = DexelStore::<DEFAULT_DEXELS>::new();
-    let mut wall = DexelStore::<DEFAULT_DEXELS>::new();
-    wall.insert(Span { lo: 0, hi: ROW - 1 }, FacetTag::default());
+    let empty = cell_core::cell::Cell::<DEFAULT_DEXELS>::new(0, 0);
+    let mut wall = cell_core::cell::Cell::<DEFAULT_DEXELS>::new(0, 0);
+    wall.store.insert(Span { lo: 0, hi: ROW - 1 }, FacetTag::default());
     let mut g = c.benchmark_group("light_step");
     for (name, policy) in [("wavefront", Policy::Wavefront), ("thesis", Policy::Thesis)] {
         let env = env(policy);
@@ -321,6 +331,7 @@ fn bench_shade(c: &mut Criterion) {
         facet: 3,
         material: 0,
         normal: NormalCode::encode([0.3, 0.5, -0.8]),
+        plane: Default::default(),
     };
     let p = [64.0, 70.0, 40.0];
     let mut g = c.benchmark_group("shade_pixel");

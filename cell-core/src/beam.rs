@@ -550,6 +550,12 @@ impl<F: FracBits> RayRange<F> {
         (lo <= hi).then_some(RayRange { lo, hi })
     }
 
+    /// `lo ..= hi` for a piece of a beam's own range (`lo ≤ hi` and both within it: the caller's
+    /// invariant, not checked).
+    pub(crate) const fn within_beam(lo: FarOffset<F>, hi: FarOffset<F>) -> Self {
+        RayRange { lo, hi }
+    }
+
     /// `[−D, D]`: every ray of a face.
     pub const fn full(far: FarDistance<F>) -> Self {
         let n = far.scaled() as i32;
@@ -602,6 +608,9 @@ pub struct Beam<F: FracBits> {
     layer: Layer,
     source: SourceId,
     dir: Direction,
+    /// Its rays crossed a surface plane just before this layer: they act here and die (the
+    /// plane rule of [`crate::lit`]; always false under the thesis's rule).
+    terminal: bool,
 }
 
 #[cfg(feature = "defmt")]
@@ -638,7 +647,7 @@ impl<F: FracBits> Beam<F> {
     /// The initial beam of `source` toward `dir`: all rays [−D, D]² at layer 0.
     pub fn initial(source: &Source, dir: Direction, far: FarDistance<F>) -> Self {
         let full = RayRange::full(far);
-        Beam { u: full, v: full, layer: Layer(0), source: source.id, dir }
+        Beam { u: full, v: full, layer: Layer(0), source: source.id, dir, terminal: false }
     }
 
     /// The six initial beams of `source`, in [`Direction::ALL`] order (see the module doc for
@@ -663,7 +672,7 @@ impl<F: FracBits> Beam<F> {
         if layer.0 > far.get() {
             return Err(BeamError::LayerBeyondFar);
         }
-        Ok(Beam { u, v, layer, source, dir })
+        Ok(Beam { u, v, layer, source, dir, terminal: false })
     }
 
     /// Rays along the u-axis: [u_min, u_max].
@@ -691,6 +700,21 @@ impl<F: FracBits> Beam<F> {
         self.dir
     }
 
+    /// Whether its rays are terminal: they act at this layer's voxel and die ([`crate::lit`]).
+    pub const fn is_terminal(&self) -> bool {
+        self.terminal
+    }
+
+    /// The same rays, terminal or not.
+    pub const fn with_terminal(self, terminal: bool) -> Self {
+        Beam { terminal, ..self }
+    }
+
+    /// The same beam with other ray ranges (within the far square when `self` is).
+    pub(crate) const fn with_rays(self, u: RayRange<F>, v: RayRange<F>) -> Self {
+        Beam { u, v, ..self }
+    }
+
     /// Number of lattice rays in the beam, ≥ 1 (≤ (2³² − 1)², fits `u64`).
     pub const fn ray_count(&self) -> u64 {
         self.u.len() * self.v.len()
@@ -704,6 +728,7 @@ impl<F: FracBits> Beam<F> {
             layer: Layer(0),
             source: SourceId(0),
             dir: Direction::PosX,
+            terminal: false,
         }
     }
 
@@ -712,7 +737,11 @@ impl<F: FracBits> Beam<F> {
     /// otherwise. When both beams are in the same voxel the merge is exact: a ray's voxel at
     /// every later layer depends only on (u, v) and the layer, not on the beam it came in.
     pub fn merged(&self, other: &Beam<F>) -> Option<Beam<F>> {
-        if self.source != other.source || self.dir != other.dir || self.layer != other.layer {
+        if self.source != other.source
+            || self.dir != other.dir
+            || self.layer != other.layer
+            || self.terminal != other.terminal
+        {
             return None;
         }
         let (u, v) = if self.u == other.u {
@@ -818,8 +847,7 @@ impl<F: FracBits> Beam<F> {
         let cu = split_axis(self.u, source.pos[ua.index()], at.u, far, m);
         let cv = split_axis(self.v, source.pos[va.index()], at.v, far, m);
         let next = Layer(self.layer.0 + 1);
-        let sub =
-            |offset, u, v| SubBeam { offset, beam: Beam { u, v, layer: next, source: self.source, dir: self.dir } };
+        let sub = |offset, u, v| SubBeam { offset, beam: Beam { u, v, layer: next, ..*self } };
         if order.row_major {
             // The default order, du outer and dv inner: a missing u piece skips its whole row.
             for (i, u) in cu.into_iter().enumerate() {
@@ -884,6 +912,14 @@ impl AxisPlanes {
         let (lo, hi) = (range.lo.to_bits() as i64, range.hi.to_bits() as i64);
         (lo == -n || self.class(lo - 1) == 0) && (hi == n || self.class(hi + 1) == 2)
     }
+}
+
+/// The lattice rays (`to_bits` units, `lo ..= hi`, empty when lo > hi) of one transverse axis
+/// that stay in voxel coordinate `x` from layer k to layer k + 1 (the split's middle class),
+/// for the cell at `x` and source coordinate `src`: `⌈n1/q⌉ ..= ⌈n2/q⌉ − 1`.
+pub fn staying_rays<F: FracBits>(src: SourceCoord, x: i32, far: FarDistance<F>, layer: Layer) -> (i64, i64) {
+    let AxisPlanes { q, n1, n2 } = AxisPlanes::new(src, x, far, layer.0 as i64 + 1);
+    (ceil_div(n1, q), ceil_div(n2, q) - 1)
 }
 
 /// ⌈n / q⌉ for q > 0 and |n| < 2⁶³.
@@ -1201,7 +1237,14 @@ mod tests {
             for &(xu, ulo, uhi) in &per_axis(0, 0) {
                 for &(xv, vlo, vhi) in &per_axis(1, 0) {
                     let at = Transverse { u: xu as i32, v: xv as i32 };
-                    let beam = Beam { u: range(ulo, uhi), v: range(vlo, vhi), layer: Layer(k), source: src.id, dir };
+                    let beam = Beam {
+                        u: range(ulo, uhi),
+                        v: range(vlo, vhi),
+                        layer: Layer(k),
+                        source: src.id,
+                        dir,
+                        terminal: false,
+                    };
                     assert!(beam.occupies(&src, far, at));
                     assert!(beam.complete(&src, far, at), "k {k} at {at:?}: {beam:?}");
                     let shrunk = [

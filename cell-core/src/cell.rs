@@ -32,6 +32,8 @@ pub struct Cell<const D: usize> {
     pub store: DexelStore<D>,
     /// Loading counters.
     pub counters: LoadCounters,
+    /// The facet the column's centre line meets first ([`crate::visible`]): what the pixel shows.
+    pub visible: Option<crate::visible::VisibleSurface>,
 }
 
 impl<const D: usize> Cell<D> {
@@ -42,6 +44,7 @@ impl<const D: usize> Cell<D> {
             y,
             store: DexelStore::new(),
             counters: LoadCounters { packets: 0, spans_computed: 0, voxels_shared: 0 },
+            visible: None,
         }
     }
 }

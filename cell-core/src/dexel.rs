@@ -8,8 +8,14 @@
 //! instead of taking a slot: the merged dexel keeps the first facet's id. The capacity is a const generic, so `size_of::<DexelStore<N>>()` is the real RAM
 //! cost. When a range does not fit, the voxels it would have added are counted as lost and the
 //! overflow is counted: never silent.
+//!
+//! Each dexel also stores its facet's plane ([`crate::plane::DexelPlane`], 16 bytes: the
+//! plane-aware lit rule of [`crate::lit`] tests rays against it), so "the same surface" also
+//! means the same exact plane: two touching pieces merge only when their plane ids are equal,
+//! and a merged dexel's plane offset is taken at its (possibly new) first voxel.
 
 use crate::normal::NormalCode;
+use crate::plane::{ColumnPlane, DexelPlane, FacetPlane};
 use crate::units::{Depth, FacetId, MaterialId, Span};
 use heapless::Vec;
 
@@ -25,6 +31,8 @@ pub struct Dexel {
     pub material: MaterialId,
     /// The facet's normal, quantised.
     pub normal: NormalCode,
+    /// The facet's plane (offset at `span.lo`).
+    pub plane: DexelPlane,
 }
 
 /// Facet attributes stored with each of its dexels.
@@ -37,6 +45,8 @@ pub struct FacetTag {
     pub material: MaterialId,
     /// Quantised facet normal.
     pub normal: NormalCode,
+    /// The facet's plane as the packet carries it.
+    pub plane: FacetPlane,
 }
 
 /// What one insertion did.
@@ -94,7 +104,7 @@ impl<const N: usize> DexelStore<N> {
     /// Extend a neighbour of slot `i` (the dexel before it, or the one at it) by `d` when they
     /// touch and belong to the same surface. Returns whether `d` was absorbed.
     fn absorb(&mut self, i: usize, d: Dexel) -> bool {
-        let same = |o: &Dexel| o.material == d.material && o.normal == d.normal;
+        let same = |o: &Dexel| o.material == d.material && o.normal == d.normal && o.plane.id == d.plane.id;
         if i > 0 {
             let prev = &mut self.dexels[i - 1];
             if same(prev) && prev.span.hi as u32 + 1 == d.span.lo as u32 {
@@ -111,15 +121,25 @@ impl<const N: usize> DexelStore<N> {
         }
         if let Some(next) = self.dexels.get_mut(i) {
             if same(next) && d.span.hi as u32 + 1 == next.span.lo as u32 {
+                // The dexel now starts at the piece's first voxel: so does its plane offset.
                 next.span.lo = d.span.lo;
+                next.plane.e = d.plane.e;
                 return true;
             }
         }
         false
     }
 
-    /// Insert the voxels of `span` not yet occupied, tagged with `tag`.
+    /// Insert the voxels of `span` not yet occupied, tagged with `tag`, with plane offsets of
+    /// 0 (a store whose lit rule ignores planes, and tests). See [`DexelStore::insert_on`].
     pub fn insert(&mut self, span: Span, tag: FacetTag) -> Insertion {
+        self.insert_on(span, tag, &ColumnPlane::default())
+    }
+
+    /// Insert the voxels of `span` not yet occupied, tagged with `tag`; `column` is the facet's
+    /// exact plane along this column, from which each new dexel's plane offset is taken at its
+    /// first voxel ([`FacetPlane::dexel_plane`]).
+    pub fn insert_on(&mut self, span: Span, tag: FacetTag, column: &ColumnPlane) -> Insertion {
         let mut out = Insertion::default();
         let mut cur = span.lo as u32; // first voxel not yet decided (u32: may pass u16::MAX)
         let hi = span.hi as u32;
@@ -140,7 +160,8 @@ impl<const N: usize> DexelStore<N> {
                         _ => hi + 1,
                     };
                     let piece = Span { lo: cur as Depth, hi: (gap_end - 1) as Depth };
-                    let d = Dexel { span: piece, facet: tag.facet, material: tag.material, normal: tag.normal };
+                    let plane = tag.plane.dexel_plane(column.value(piece.lo as i64));
+                    let d = Dexel { span: piece, facet: tag.facet, material: tag.material, normal: tag.normal, plane };
                     if self.absorb(i, d) || self.dexels.insert(i, d).is_ok() {
                         out.added += piece.len();
                     } else {
@@ -193,7 +214,7 @@ mod tests {
 
     #[test]
     fn touching_pieces_of_one_surface_share_a_slot() {
-        let wall = |f: u32| FacetTag { facet: f, material: 3, normal: NormalCode(77) };
+        let wall = |f: u32| FacetTag { facet: f, material: 3, normal: NormalCode(77), ..Default::default() };
         let mut s = DexelStore::<2>::new();
         s.insert(Span { lo: 0, hi: 4 }, wall(1));
         s.insert(Span { lo: 10, hi: 14 }, wall(2));
@@ -205,6 +226,33 @@ mod tests {
         // Another surface touching it does not merge.
         s.insert(Span { lo: 15, hi: 15 }, tag(9));
         assert_eq!(s.dexels().len(), 2);
+    }
+
+    /// Pieces of one plane merge, and the merged dexel's offset is the plane's value at its
+    /// first voxel; a touching piece of another plane (same material and normal code) does not
+    /// merge.
+    #[test]
+    fn merging_follows_planes() {
+        let plane = |id| FacetPlane { id, nx: 0, ny: 0, nz: 1 << 30, m: 1 };
+        // E(z) = 16·(z − 20): a plane z = 20 in loading units (q = 16, m = 1).
+        let column = ColumnPlane { p: -16 * 20, c: 16 };
+        let tag = |f, id| FacetTag { facet: f, material: 1, normal: NormalCode(5), plane: plane(id) };
+        let mut s = DexelStore::<4>::new();
+        s.insert_on(Span { lo: 19, hi: 21 }, tag(1, 7), &column);
+        assert_eq!(s.dexels()[0].plane.e, -(16 << 10));
+        // A piece below, same plane: extends the dexel downward, offset at z = 17.
+        s.insert_on(Span { lo: 17, hi: 18 }, tag(2, 7), &column);
+        assert_eq!(s.dexels().len(), 1);
+        assert_eq!((s.dexels()[0].span.lo, s.dexels()[0].facet), (17, 1));
+        assert_eq!(s.dexels()[0].plane.e, -3 * (16 << 10));
+        // A piece above, same plane: extends upward, offset unchanged.
+        s.insert_on(Span { lo: 22, hi: 22 }, tag(3, 7), &column);
+        assert_eq!((s.dexels().len(), s.dexels()[0].span.hi, s.dexels()[0].plane.e), (1, 22, -3 * (16 << 10)));
+        // Another plane touching it: a dexel of its own.
+        s.insert_on(Span { lo: 23, hi: 24 }, tag(4, 8), &column);
+        assert_eq!(s.dexels().len(), 2);
+        assert_eq!(s.dexels()[1].plane.id, 8);
+        check_invariant(&s);
     }
 
     #[test]
@@ -257,7 +305,7 @@ mod tests {
             let mut s = DexelStore::<64>::new();
             let mut occ = [false; 80];
             for (f, (lo, len, surf)) in spans.iter().enumerate() {
-                let t = FacetTag { facet: f as u32, material: 0, normal: NormalCode(*surf) };
+                let t = FacetTag { facet: f as u32, material: 0, normal: NormalCode(*surf), ..Default::default() };
                 let ins = s.insert(Span { lo: *lo, hi: lo + len }, t);
                 prop_assert_eq!(ins.added + ins.shared, *len as u32 + 1);
                 for z in *lo..=lo + len { occ[z as usize] = true; }

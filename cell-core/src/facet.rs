@@ -52,6 +52,9 @@ pub struct RowEdge {
     pub c: i32,
     /// `g_i = a_i·x + b_i·y + d_i` at the current column.
     pub g: i64,
+    /// How far the conservative contour pushed the edge out (`g_i − off` is the facet's own
+    /// edge; 0 for the projected contour): the exact hit test of [`crate::visible`] uses it.
+    pub off: i32,
 }
 
 /// One contour edge as a pipeline cell sees it (it also needs `b_i` to step down).
@@ -65,6 +68,8 @@ pub struct PipeEdge {
     pub c: i32,
     /// `g_i` at column (0, y).
     pub g: i64,
+    /// The conservative push (see [`RowEdge::off`]).
+    pub off: i32,
 }
 
 /// What travels along a row: the thesis's `A, C, T, U, A_i, C_i, T_i` plus the tag and box.
@@ -117,7 +122,7 @@ impl PipelinePacket {
             c: self.c,
             t: self.t,
             u: self.u,
-            edges: self.edges.iter().map(|e| RowEdge { a: e.a, c: e.c, g: e.g }).collect(),
+            edges: self.edges.iter().map(|e| RowEdge { a: e.a, c: e.c, g: e.g, off: e.off }).collect(),
         }
     }
 
@@ -132,6 +137,14 @@ impl PipelinePacket {
 }
 
 impl RowPacket {
+    /// The facet's exact plane value along the current column, `E(z) = P(x, y) + c·z`, from
+    /// `t = Kσ − P` and `u = −Kσ − P`: `P = −u − (t − u)/2` (t − u = 2Kσ, so no sum of two large
+    /// terms is formed). Wrapping: exact within the bit budget, no panic on a forged packet.
+    pub fn column_plane(&self) -> crate::plane::ColumnPlane {
+        let half_band = self.t.wrapping_sub(self.u) / 2;
+        crate::plane::ColumnPlane { p: self.u.wrapping_add(half_band).wrapping_neg(), c: self.c }
+    }
+
     /// Advance from column x to column x + 1: `T − A`, `U − A`, `G_i + A_i` (§3.9).
     pub fn step_east(&mut self) {
         self.t -= self.a;

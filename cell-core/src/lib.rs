@@ -11,14 +11,17 @@
 //! * [`voxelize`] — the pipeline cell and the row cell of the loading wave (§3.5–3.9).
 //! * [`dexel`] — the per-cell dexel store (§3.4).
 //! * [`normal`] — the 16-bit octahedral normal code stored with each dexel.
+//! * [`plane`] — the facet plane stored with each dexel (for the plane-aware lit rule).
 //! * [`cell`] — one cell: its store and counters.
 //! * [`beam`] — light beams and their split (§4.3).
 //! * [`light`] — the lighting phase: FIFO, ports, back-pressure, lit voxels, quiescence (§4.4).
+//! * [`lit`] — the lit rules: the thesis's (§5.5.5) and the plane rule for grazing light (§5.5.6).
 //! * [`occupancy`] — a coarse block summary of the scene and the sound empty-frustum beam skip.
 //! * [`link`] — the bytes a link carries: framed messages with a CRC; the `embedded-hal` link seam.
 //! * [`trace`] — cell traces (what a cell received, as frames) and their replay through the real cell.
 //! * [`ray`] — incremental 6/18/26-connected 3D lines for shadow and reflected rays (§2.3).
 //! * [`route`] — destination-addressed routers with virtual channels, deadlock-free (§1.3, §4.1.3).
+//! * [`visible`] — the surface the pixel shows: a per-cell depth test of the exact facets during loading.
 //! * [`shade`] — Phong/Blinn shading of the visible voxel with `micromath` (§1.1, §5.2).
 #![no_std]
 #![forbid(unsafe_code)]
@@ -30,12 +33,15 @@ pub mod dexel;
 pub mod facet;
 pub mod light;
 pub mod link;
+pub mod lit;
 pub mod normal;
 pub mod occupancy;
+pub mod plane;
 pub mod ray;
 pub mod reflect;
 pub mod route;
 pub mod shade;
 pub mod trace;
 pub mod units;
+pub mod visible;
 pub mod voxelize;

@@ -33,8 +33,12 @@ use core::cell::Cell as CoreCell;
 use critical_section::Mutex;
 use heapless::Vec;
 
-use crate::beam::{Beam, Direction, FarDistance, FracBits, Source, SplitOrder, Transverse};
-use crate::dexel::DexelStore;
+use crate::beam::{
+    staying_rays, Beam, Direction, FarDistance, FarOffset, FracBits, RayRange, Source, SplitOrder, Transverse,
+};
+use crate::cell::Cell;
+use crate::dexel::{Dexel, DexelStore};
+use crate::lit::{run_end, segments, uniform, Along, LitRule, Notch, Out, RayPlane, Segments, Visit};
 use crate::occupancy::FrustumTest;
 use crate::units::{Coord, Depth};
 
@@ -67,14 +71,67 @@ pub struct BeamMsg<F: FracBits> {
     pub z: Depth,
     /// Cell-local, not sent on links: in a FIFO, the receiving cell's clock when the beam
     /// arrived (for the sibling wait, [`LightEnv::hold`]); 0 elsewhere. It lives in what would
-    /// be padding: a message is 28 bytes with or without it.
+    /// be padding.
     since: u16,
+    /// Cell-local, not sent on links: the plane rule's state of a FIFO entry ([`Local`]).
+    local: Local,
 }
 
 impl<F: FracBits> BeamMsg<F> {
     /// The message carrying `beam`, whose voxel is at depth `z` in the receiving column.
     pub const fn new(beam: Beam<F>, z: Depth) -> Self {
-        BeamMsg { beam, z, since: 0 }
+        BeamMsg { beam, z, since: 0, local: Local::NONE }
+    }
+
+    /// The plane rule's local state (none for a message on a link).
+    pub const fn local(&self) -> Local {
+        self.local
+    }
+
+    /// Whether it may merge with, or take in, another beam: no local state (a plain or a
+    /// terminal beam that is not being peeled).
+    pub fn mergeable(&self) -> bool {
+        self.local == Local::NONE
+    }
+}
+
+/// What a FIFO entry carries under the plane rule besides its rays, never sent on a link
+/// (8 bytes): the column rule's notch ([`Notch`]: a ±z beam that stayed in its column after a
+/// surface voxel), and how far the cell has peeled it (pieces of the current run already sent).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Local {
+    state: u16,
+    t1: u16,
+    t2: u16,
+    flags: u8,
+    piece: u8,
+}
+
+const HAS_NOTCH: u8 = 1;
+const FRESH: u8 = 2;
+
+impl Local {
+    /// No state: a plain beam.
+    pub const NONE: Local = Local { state: 0, t1: 0, t2: 0, flags: 0, piece: 0 };
+
+    /// A beam with this notch.
+    pub const fn notched(n: Notch) -> Local {
+        Local { state: n.state, t1: n.t1, t2: n.t2, flags: HAS_NOTCH | if n.fresh { FRESH } else { 0 }, piece: 0 }
+    }
+
+    /// The notch, if any.
+    pub const fn notch(&self) -> Option<Notch> {
+        if self.flags & HAS_NOTCH == 0 {
+            None
+        } else {
+            Some(Notch { state: self.state, t1: self.t1, t2: self.t2, fresh: self.flags & FRESH != 0 })
+        }
+    }
+
+    /// Pieces of the current run already sent.
+    pub const fn piece(&self) -> u8 {
+        self.piece
     }
 }
 
@@ -550,6 +607,8 @@ pub struct LightEnv<'a, F: FracBits> {
     pub depth: u32,
     /// Scheduling policy.
     pub policy: Policy,
+    /// The lit rule ([`crate::lit`]).
+    pub rule: LitRule,
     /// Sub-beam emission order.
     pub order: &'a SplitOrder,
     /// The FIFO limit in use (≤ the compile-time capacity; for FIFO-size sweeps).
@@ -603,11 +662,17 @@ pub enum Step {
 /// zeroed scalars, the compiler cleared its whole buffer (a 312-byte `memset` per step,
 /// heapless issue #305).
 struct Fate<'s, F: FracBits> {
-    /// Rays absorbed here (`Some`: the beam's voxel is occupied; `subs` is then empty).
-    absorbed: Option<u64>,
+    /// Rays absorbed here.
+    absorbed: u64,
+    /// The beam lights its voxel (for the lit store).
+    lit: bool,
+    /// The beam lights the column's visible surface (plane rule).
+    visible: bool,
     subs: &'s mut SubList<F>,
     exited: u64,
     skipped: u64,
+    /// The entry stays in its FIFO slot as this (a beam being peeled); `None`: it is consumed.
+    keep: Option<BeamMsg<F>>,
 }
 
 /// A beam's sub-beams and where each goes (at most nine).
@@ -615,7 +680,17 @@ type SubList<F> = heapless::Vec<(Target, BeamMsg<F>), 9>;
 
 impl<'s, F: FracBits> Fate<'s, F> {
     fn new(subs: &'s mut SubList<F>) -> Self {
-        Fate { absorbed: None, subs, exited: 0, skipped: 0 }
+        Fate { absorbed: 0, lit: false, visible: false, subs, exited: 0, skipped: 0, keep: None }
+    }
+
+    fn reset(&mut self) {
+        self.subs.clear();
+        self.absorbed = 0;
+        self.lit = false;
+        self.visible = false;
+        self.exited = 0;
+        self.skipped = 0;
+        self.keep = None;
     }
 }
 
@@ -623,6 +698,32 @@ impl<'s, F: FracBits> Fate<'s, F> {
 enum Target {
     SelfFifo,
     Out(Port),
+}
+
+/// What becomes of one sub-beam of a split ([`LightCell::route`]).
+#[derive(Clone, Copy)]
+enum Sub {
+    /// Sent, terminal or not, with this local state.
+    Send(bool, Local),
+    /// Absorbed here (staying rays the column rule stops).
+    Absorb,
+}
+
+/// Counts a sub-beam's rays: `(rays, of which terminal at the next layer)`, given the
+/// sub-beam and whether it is sent terminal.
+type RayCount<'a, F> = dyn FnMut(&Beam<F>, bool) -> (u64, u64) + 'a;
+
+/// The sub-beam offset of the rays that stay in the column (a ±z beam's only).
+const STAY: crate::beam::Offset = crate::beam::Offset { du: 0, dv: 0 };
+
+/// A ray range in lattice steps (`to_bits`), `(lo, hi)`.
+fn lattice<F: FracBits>(r: RayRange<F>) -> (i64, i64) {
+    (r.lo().to_bits() as i64, r.hi().to_bits() as i64)
+}
+
+/// The ray range `lo ..= hi` (lattice steps within the far square: a piece of a beam's range).
+fn range<F: FracBits>((lo, hi): (i64, i64)) -> RayRange<F> {
+    RayRange::within_beam(FarOffset::<F>::from_bits(lo as i32), FarOffset::<F>::from_bits(hi as i32))
 }
 
 /// The cell's eight output buffers, `OB` messages each, FIFO order. The eight lengths sit
@@ -790,6 +891,9 @@ pub struct LightCell<F: FracBits, const FA: usize, const OB: usize, const L: usi
     pub counters: LightCounters,
     /// Lit voxels of the column.
     pub lit: LitRuns<L>,
+    /// The sources that light the column's visible surface (the plane rule's image; under the
+    /// thesis's rule the image reads the lit store).
+    pub visible_lit: SourceMask,
 }
 
 impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F, FA, OB, L> {
@@ -812,6 +916,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             blocked_on: None,
             ticks: 0,
             held_until: None,
+            visible_lit: 0,
         }
     }
 
@@ -831,19 +936,16 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     /// slot (exact, see [`Beam::merged`]; one beam fewer in flight).
     pub fn accept(&mut self, msg: BeamMsg<F>, merge: bool, activity: &impl BeamTally) -> Result<(), BeamMsg<F>> {
         self.fifo_generation = self.fifo_generation.wrapping_add(1);
-        if merge {
+        if merge && msg.mergeable() {
             let mut m = msg;
             let mut joined = false;
             // The joined beam keeps the oldest arrival among its pieces: a ray waits at most
             // `hold` cycles in a cell for siblings, however many pieces join.
             let mut stamp = self.ticks;
             // Keep joining while the grown rectangle meets another waiting beam.
-            while let Some((i, b)) = self
-                .fifo
-                .iter()
-                .enumerate()
-                .find_map(|(i, e)| (e.z == m.z).then(|| e.beam.merged(&m.beam)).flatten().map(|b| (i, b)))
-            {
+            while let Some((i, b)) = self.fifo.iter().enumerate().find_map(|(i, e)| {
+                (e.z == m.z && e.mergeable()).then(|| e.beam.merged(&m.beam)).flatten().map(|b| (i, b))
+            }) {
                 let old = self.fifo.remove(i).since;
                 if self.ticks.wrapping_sub(old) > self.ticks.wrapping_sub(stamp) {
                     stamp = old;
@@ -869,28 +971,93 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     }
 
     /// Decide a beam's fate into `f` without changing the cell.
-    fn fate<const D: usize>(&self, m: &BeamMsg<F>, store: &DexelStore<D>, env: &LightEnv<'_, F>, f: &mut Fate<'_, F>) {
-        let b = &m.beam;
-        f.subs.clear();
-        f.exited = 0;
-        f.skipped = 0;
-        f.absorbed = None;
+    fn fate<const D: usize>(&self, m: &BeamMsg<F>, cell: &Cell<D>, env: &LightEnv<'_, F>, f: &mut Fate<'_, F>) {
+        f.reset();
+        match env.rule {
+            LitRule::Thesis => self.thesis_fate(m, &cell.store, env, f),
+            LitRule::Plane => self.plane_fate(m, cell, env, f),
+        }
+    }
+
+    /// The thesis's rule (§5.5.5): an occupied voxel absorbs the beam and is lit by it.
+    fn thesis_fate<const D: usize>(
+        &self,
+        m: &BeamMsg<F>,
+        store: &DexelStore<D>,
+        env: &LightEnv<'_, F>,
+        f: &mut Fate<'_, F>,
+    ) {
         if store.occupied(m.z).is_some() {
-            f.absorbed = Some(b.ray_count());
+            f.absorbed = m.beam.ray_count();
+            f.lit = true;
             return;
         }
-        if env.frustum.is_some_and(|o| o.frustum_empty(b, env.source, env.far, b.layer().0 + 1)) {
+        if self.frustum_skips(m, env, f) {
+            return;
+        }
+        self.route(&m.beam, m.z, env, f, |_| Sub::Send(false, Local::NONE));
+    }
+
+    /// The empty-frustum skip ([`LightEnv::frustum`]): drops the beam (its rays skipped) when
+    /// none of its rays can meet an occupied block at a later layer. For a beam with nothing to
+    /// do at its own voxel.
+    fn frustum_skips(&self, m: &BeamMsg<F>, env: &LightEnv<'_, F>, f: &mut Fate<'_, F>) -> bool {
+        let b = &m.beam;
+        let skip = env.frustum.is_some_and(|o| o.frustum_empty(b, env.source, env.far, b.layer().0 + 1));
+        if skip {
             f.skipped = b.ray_count();
-            return;
         }
-        let dir = b.direction();
-        let pos = [self.x as i64, self.y as i64, m.z as i64];
+        skip
+    }
+
+    /// The transverse position of voxel `z` of this column for direction `dir`.
+    fn at(&self, dir: Direction, z: Depth) -> ([i64; 3], Transverse) {
+        let pos = [self.x as i64, self.y as i64, z as i64];
         let (ua, va) = dir.transverse();
-        let at = Transverse { u: pos[ua.index()] as i32, v: pos[va.index()] as i32 };
-        let Fate { subs, exited, skipped, .. } = f;
+        (pos, Transverse { u: pos[ua.index()] as i32, v: pos[va.index()] as i32 })
+    }
+
+    /// Split `beam` (held at voxel `z` of this column) and file its sub-beams into `f`: `decide`
+    /// says, by transverse offset, whether a sub-beam is sent (terminal or not, with what local
+    /// state) or absorbed here. Sub-beams leaving the grid count as exited, those the receding
+    /// skip drops as skipped; `rays` counts a sub-beam's rays (its rectangle's, unless a notch
+    /// removes some).
+    fn route(
+        &self,
+        beam: &Beam<F>,
+        z: Depth,
+        env: &LightEnv<'_, F>,
+        f: &mut Fate<'_, F>,
+        mut decide: impl FnMut(crate::beam::Offset) -> Sub,
+    ) {
+        let mut rays = |b: &Beam<F>, terminal: bool| (b.ray_count(), if terminal { b.ray_count() } else { 0 });
+        self.route_counted(beam, z, env, f, &mut decide, &mut rays);
+    }
+
+    /// [`LightCell::route`] with the rays of each sub-beam counted by `rays(sub-beam, terminal)`:
+    /// `(rays, of which terminal at the next layer)`.
+    fn route_counted(
+        &self,
+        beam: &Beam<F>,
+        z: Depth,
+        env: &LightEnv<'_, F>,
+        f: &mut Fate<'_, F>,
+        decide: &mut dyn FnMut(crate::beam::Offset) -> Sub,
+        rays: &mut RayCount<'_, F>,
+    ) {
+        let dir = beam.direction();
+        let (pos, at) = self.at(dir, z);
+        let Fate { subs, exited, skipped, absorbed, .. } = f;
         debug_assert_eq!(env.bounds, SubBeamBounds::new(env.n, env.depth, env.skip, env.source));
         let bounds = &env.bounds;
-        let split = b.split_each(env.source, env.far, at, env.order, |sb| {
+        let split = beam.split_each(env.source, env.far, at, env.order, |sb| {
+            let (terminal, local) = match decide(sb.offset) {
+                Sub::Send(t, l) => (t, l),
+                Sub::Absorb => {
+                    *absorbed += rays(&sb.beam, false).0;
+                    return;
+                }
+            };
             let d = dir.displacement(sb.offset);
             let to = [pos[0] + d[0] as i64, pos[1] + d[1] as i64, pos[2] + d[2] as i64];
             if bounds.keeps(dir, to) {
@@ -898,21 +1065,294 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                     Some(p) => Target::Out(p),
                     None => Target::SelfFifo,
                 };
+                let msg = BeamMsg { local, ..BeamMsg::new(sb.beam.with_terminal(terminal), to[2] as Depth) };
                 // At most nine sub-beams: never full.
-                let _ = subs.push((target, BeamMsg::new(sb.beam, to[2] as Depth)));
+                let _ = subs.push((target, msg));
             } else if !bounds.in_grid(to) {
-                *exited += sb.beam.ray_count();
+                *exited += rays(&sb.beam, terminal).0;
             } else {
-                *skipped += sb.beam.ray_count();
+                // Dropped by the receding skip; a terminal ray dies at its next voxel anyway
+                // (lighting nothing: it is beyond every occupied voxel): absorbed.
+                let (all, dying) = rays(&sb.beam, terminal);
+                *absorbed += dying;
+                *skipped += all - dying;
             }
         });
         // At the far plane (k = D) or for a beam that is not this source's: the next layer is
         // outside every grid the far distance was chosen for; the rays leave.
         if split.is_err() {
-            *exited += b.ray_count();
+            *exited += rays(beam, false).0;
         }
     }
 
+    /// The plane rule ([`crate::lit`]) at this beam's voxel.
+    fn plane_fate<const D: usize>(&self, m: &BeamMsg<F>, cell: &Cell<D>, env: &LightEnv<'_, F>, f: &mut Fate<'_, F>) {
+        let b = &m.beam;
+        let dir = b.direction();
+        let k = b.layer().0 as i64;
+        let (x, y) = (self.x as i64, self.y as i64);
+        let plane = |d: &Dexel| RayPlane::new(&d.plane, [x, y, d.span.lo as i64], env.source, dir, env.far);
+        let own = cell.store.occupied(m.z);
+        let notch = m.local.notch();
+        let state = notch.and_then(|n| cell.store.occupied(n.state).map(|d| (plane(d), n)));
+        let other = matches!((notch, own), (Some(n), Some(d)) if !d.span.contains(n.state));
+        let visible = cell
+            .visible
+            .filter(|v| v.brackets(m.z as i64))
+            .map(|v| RayPlane::new(&v.plane, [x, y, v.z_v as i64], env.source, dir, env.far));
+        let visit = Visit::new(k, b.is_terminal(), own.map(plane), state, visible, other);
+        if visit.is_plain() {
+            // Nothing happens at this voxel: the thesis's path (a notched beam is not plain).
+            if m.local == Local::NONE && self.frustum_skips(m, env, f) {
+                return;
+            }
+            self.route(b, m.z, env, f, |_| Sub::Send(false, Local::NONE));
+            return;
+        }
+        let stay = self.staying(b, env);
+        let (u, v) = (lattice(b.u()), lattice(b.v()));
+        if let Some(bits) = uniform(&visit.tests, u, v) {
+            let out = visit.verdict(bits, false);
+            let stays = visit.verdict(bits, true);
+            f.lit = out.lit;
+            f.visible = out.visible;
+            match out.out {
+                Out::Absent => {}
+                Out::Absorbed => f.absorbed = b.ray_count(),
+                Out::Continue | Out::Terminal => {
+                    let send = out.out == Out::Terminal;
+                    let stay_sub = match stays.out {
+                        Out::Continue => Sub::Send(false, self.carried(m, own.map(|d| d.span), k)),
+                        Out::Terminal => Sub::Send(true, Local::NONE),
+                        _ => Sub::Absorb,
+                    };
+                    let z = m.z;
+                    self.route(b, z, env, f, |o| {
+                        if o == STAY && stay.is_some() {
+                            stay_sub
+                        } else {
+                            Sub::Send(send, Local::NONE)
+                        }
+                    });
+                }
+            }
+            return;
+        }
+        self.peel(m, own.map(|d| d.span), &visit, stay, env, f);
+    }
+
+    /// The local state a ±z beam's staying rays carry to the next layer of this column (see
+    /// the column rule of [`crate::lit`]): after a surface voxel (`own`: its dexel's span; the
+    /// staying rays were not absorbed by the column rule), a fresh notch of that dexel's plane
+    /// (extending the beam's own when it is the same dexel); after an empty voxel, the beam's
+    /// notch without its terminal rays, which died there.
+    fn carried(&self, m: &BeamMsg<F>, own: Option<crate::units::Span>, k: i64) -> Local {
+        let notch = m.local.notch();
+        match own {
+            Some(span) => {
+                let t1 = match notch {
+                    Some(n) if span.contains(n.state) => n.t1,
+                    _ => (k - 1).max(0) as u16,
+                };
+                Local::notched(Notch { state: m.z, t1, t2: k as u16, fresh: true })
+            }
+            None => match notch {
+                Some(n) => Local::notched(Notch { t2: n.t2 + n.fresh as u16, fresh: false, ..n }),
+                None => Local::NONE,
+            },
+        }
+    }
+
+    /// The rays an entry holds: its rectangle's, less those its notch excludes (counted run by
+    /// run, [`crate::lit`]). For the per-step conservation check of debug builds.
+    #[cfg(debug_assertions)]
+    fn present_rays<const D: usize>(&self, m: &BeamMsg<F>, cell: &Cell<D>, env: &LightEnv<'_, F>) -> u64 {
+        let b = &m.beam;
+        let Some((n, d)) = m.local.notch().and_then(|n| cell.store.occupied(n.state).map(|d| (n, d))) else {
+            return b.ray_count();
+        };
+        let (x, y) = (self.x as i64, self.y as i64);
+        let plane = RayPlane::new(&d.plane, [x, y, d.span.lo as i64], env.source, b.direction(), env.far);
+        let visit =
+            Visit::new(b.layer().0 as i64, false, None, Some((plane, Notch { fresh: false, ..n })), None, false);
+        let (u, v) = (lattice(b.u()), lattice(b.v()));
+        let mut seg = Segments::new();
+        let (mut line, mut present) = (u.0, 0u64);
+        while line <= u.1 {
+            let end = run_end(&visit.tests, Along::V, line, u.1, v.0, v.1);
+            segments(&visit.tests, Along::V, line, v.0, v.1, &mut seg);
+            for (i, &(start, bits)) in seg.iter().enumerate() {
+                let stop = seg.get(i + 1).map_or(v.1, |s| s.0 - 1);
+                if visit.verdict(bits, false).out != Out::Absent {
+                    present += (end - line + 1) as u64 * (stop - start + 1) as u64;
+                }
+            }
+            line = end + 1;
+        }
+        present
+    }
+
+    /// For a ±z beam, the lattice rays of each axis that stay in this column at the next layer
+    /// (`None` for the other directions, whose sub-beams all change column).
+    fn staying(&self, b: &Beam<F>, env: &LightEnv<'_, F>) -> Option<((i64, i64), (i64, i64))> {
+        let dir = b.direction();
+        if dir.principal() != crate::beam::Axis::Z {
+            return None;
+        }
+        let (ua, va) = dir.transverse();
+        let su = staying_rays(env.source.pos[ua.index()], self.x as i32, env.far, b.layer());
+        let sv = staying_rays(env.source.pos[va.index()], self.y as i32, env.far, b.layer());
+        Some((su, sv))
+    }
+
+    /// Peel a beam whose rectangle is not uniform under the plane rule: one rectangle of uniform
+    /// verdict per step, the rest staying in the FIFO slot (see [`crate::lit`]). The rays that
+    /// change column go first, run by run, from the outside in (for a ±z beam: the columns
+    /// before and after the staying rays, then the rows below and above them), so that what is
+    /// left is always a rectangle; the staying rays go last, as one beam, and the entry is
+    /// consumed.
+    fn peel(
+        &self,
+        m: &BeamMsg<F>,
+        own: Option<crate::units::Span>,
+        visit: &Visit,
+        stay: Option<((i64, i64), (i64, i64))>,
+        env: &LightEnv<'_, F>,
+        f: &mut Fate<'_, F>,
+    ) {
+        let mut beam = m.beam;
+        let mut piece = m.local.piece;
+        let mut seg = Segments::new();
+        loop {
+            let (a0, a1) = lattice(beam.u());
+            let (b0, b1) = lattice(beam.v());
+            // The region of this step: lines `from` toward `to` along `along` (upward: from the
+            // low end), across `cross`.
+            let region = match stay {
+                Some(((su0, su1), (sv0, sv1))) => {
+                    if a0 < su0 {
+                        Some((Along::V, true, a0, a1.min(su0 - 1), (b0, b1)))
+                    } else if a1 > su1 {
+                        Some((Along::V, false, a1, a0.max(su1 + 1), (b0, b1)))
+                    } else if b0 < sv0 {
+                        Some((Along::U, true, b0, b1.min(sv0 - 1), (a0, a1)))
+                    } else if b1 > sv1 {
+                        Some((Along::U, false, b1, b0.max(sv1 + 1), (a0, a1)))
+                    } else {
+                        None
+                    }
+                }
+                None => Some((Along::V, true, a0, a1, (b0, b1))),
+            };
+            let Some((along, upward, from, to, cross)) = region else {
+                // Only staying rays are left: one beam to this column's next voxel.
+                self.peel_staying(m, beam, own, visit, env, f);
+                return;
+            };
+            let end = run_end(&visit.tests, along, from, to, cross.0, cross.1);
+            let lines = (from.min(end), from.max(end));
+
+            let width = (lines.1 - lines.0 + 1) as u64;
+            segments(&visit.tests, along, from, cross.0, cross.1, &mut seg);
+            let (mut present, mut sent, mut count) = (0u64, 0u64, 0u8);
+            let mut emit = None;
+            for (i, &(start, bits)) in seg.iter().enumerate() {
+                let stop = seg.get(i + 1).map_or(cross.1, |s| s.0 - 1);
+                let v = visit.verdict(bits, false);
+                f.lit |= v.lit;
+                f.visible |= v.visible;
+                let rays = width * (stop - start + 1) as u64;
+                if v.out != Out::Absent {
+                    present += rays;
+                }
+                if matches!(v.out, Out::Continue | Out::Terminal) {
+                    if count == piece {
+                        emit = Some((start, stop, v.out == Out::Terminal));
+                    }
+                    count += 1;
+                    sent += rays;
+                }
+            }
+            if let Some((start, stop, terminal)) = emit {
+                let (u, v) = match along {
+                    Along::V => (lines, (start, stop)),
+                    Along::U => ((start, stop), lines),
+                };
+                let rect = beam.with_rays(range::<F>(u), range::<F>(v));
+                self.route(&rect, m.z, env, f, |_| Sub::Send(terminal, Local::NONE));
+                piece += 1;
+                if piece < count {
+                    f.keep = Some(BeamMsg { beam, local: Local { piece, ..m.local }, ..*m });
+                    return;
+                }
+            }
+            // The run is done: its rays not sent were absorbed; the beam shrinks past it.
+            f.absorbed += present - sent;
+            piece = 0;
+            let (u, v) = (lattice(beam.u()), lattice(beam.v()));
+            let shrunk = match (along, upward) {
+                (Along::V, true) => ((lines.1 + 1, u.1), v),
+                (Along::V, false) => ((u.0, lines.0 - 1), v),
+                (Along::U, true) => (u, (lines.1 + 1, v.1)),
+                (Along::U, false) => (u, (v.0, lines.0 - 1)),
+            };
+            if shrunk.0 .0 > shrunk.0 .1 || shrunk.1 .0 > shrunk.1 .1 {
+                // Nothing left: the entry is consumed.
+                return;
+            }
+            beam = beam.with_rays(range::<F>(shrunk.0), range::<F>(shrunk.1));
+            if emit.is_some() {
+                f.keep = Some(BeamMsg { beam, local: Local { piece: 0, ..m.local }, ..*m });
+                return;
+            }
+        }
+    }
+
+    /// The last step of a peeled ±z beam: `beam` holds only rays that stay in the column. Those
+    /// that go on become one beam for the next voxel of the column ([`LightCell::carried`]); the
+    /// entry is consumed.
+    fn peel_staying(
+        &self,
+        m: &BeamMsg<F>,
+        beam: Beam<F>,
+        own: Option<crate::units::Span>,
+        visit: &Visit,
+        env: &LightEnv<'_, F>,
+        f: &mut Fate<'_, F>,
+    ) {
+        let (u, v) = (lattice(beam.u()), lattice(beam.v()));
+        let (mut present, mut going, mut dying) = (0u64, 0u64, 0u64);
+        let mut seg = Segments::new();
+        let mut line = u.0;
+        while line <= u.1 {
+            let end = run_end(&visit.tests, Along::V, line, u.1, v.0, v.1);
+            let width = (end - line + 1) as u64;
+            segments(&visit.tests, Along::V, line, v.0, v.1, &mut seg);
+            for (i, &(start, bits)) in seg.iter().enumerate() {
+                let stop = seg.get(i + 1).map_or(v.1, |s| s.0 - 1);
+                let verdict = visit.verdict(bits, true);
+                f.lit |= verdict.lit;
+                f.visible |= verdict.visible;
+                let rays = width * (stop - start + 1) as u64;
+                if verdict.out != Out::Absent {
+                    present += rays;
+                }
+                if matches!(verdict.out, Out::Continue | Out::Terminal) {
+                    going += rays;
+                }
+                if verdict.out == Out::Terminal {
+                    dying += rays;
+                }
+            }
+            line = end + 1;
+        }
+        f.absorbed += present - going;
+        if going > 0 {
+            let carry = self.carried(m, own, beam.layer().0 as i64);
+            let mut decide = |_| Sub::Send(false, carry);
+            self.route_counted(&beam, m.z, env, f, &mut decide, &mut |_, _| (going, dying));
+        }
+    }
     /// Whether nothing that could unblock the cell changed since its last step found nothing
     /// processable (see `blocked_on`).
     fn still_blocked(&self) -> bool {
@@ -941,14 +1381,20 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     }
 
     /// Whether the beam of `m` holds all the rays its voxel can receive ([`Beam::complete`]).
+    /// A beam with local state, or a terminal one, never waits for siblings: nothing merges with
+    /// it.
     fn complete(&self, m: &BeamMsg<F>, env: &LightEnv<'_, F>) -> bool {
+        if !m.mergeable() || m.beam.is_terminal() {
+            return true;
+        }
         let pos = [self.x as i32, self.y as i32, m.z as i32];
         let (ua, va) = m.beam.direction().transverse();
         m.beam.complete(env.source, env.far, Transverse { u: pos[ua.index()], v: pos[va.index()] })
     }
 
     /// Whether every sub-beam of `fate` fits now (the no-loss rule), given that the processed
-    /// beam leaves the FIFO first.
+    /// beam leaves the FIFO first (a beam being peeled stays, and sends nothing to its own
+    /// FIFO).
     /// The eight output buffers are checked at once on their length word ([`room`]; byte p of
     /// `need` counts the sub-beams for port p).
     fn fits(&self, fate: &Fate<'_, F>, fa: usize) -> bool {
@@ -959,17 +1405,13 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 Target::SelfFifo => own += 1,
             }
         }
-        room::<OB>(self.out.lengths(), need) && self.fifo.len() - 1 + own <= fa.min(FA)
+        let stays = fate.keep.is_some() as usize;
+        room::<OB>(self.out.lengths(), need) && self.fifo.len() - 1 + stays + own <= fa.min(FA)
     }
 
     /// One compute cycle (§4.4.1): pick a beam by `env.policy`, process it if the no-loss rule
     /// allows, else wait. `activity` counts beams in flight machine-wide.
-    pub fn step<const D: usize>(
-        &mut self,
-        store: &DexelStore<D>,
-        env: &LightEnv<'_, F>,
-        activity: &impl BeamTally,
-    ) -> Step {
+    pub fn step<const D: usize>(&mut self, cell: &Cell<D>, env: &LightEnv<'_, F>, activity: &impl BeamTally) -> Step {
         if self.fifo.is_empty() {
             return Step::Idle;
         }
@@ -999,7 +1441,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         let mut refused = false;
         let chosen = match env.policy {
             Policy::Thesis => {
-                self.fate(&self.fifo[0], store, env, &mut fate);
+                self.fate(&self.fifo[0], cell, env, &mut fate);
                 if self.fits(&fate, env.fa) {
                     Some(0)
                 } else {
@@ -1051,7 +1493,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                         wait = wait.min(hold - age);
                         continue;
                     }
-                    self.fate(&self.fifo[i], store, env, &mut fate);
+                    self.fate(&self.fifo[i], cell, env, &mut fate);
                     if self.fits(&fate, env.fa) {
                         best = Some(i);
                         break;
@@ -1075,51 +1517,88 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             self.counters.blocked_cycles += 1;
             return Step::Blocked;
         };
+        // Conservation per step, for steps that start and end at a run boundary (mid-run the
+        // entry still holds the rectangle of pieces already sent).
+        #[cfg(debug_assertions)]
+        if env.rule == LitRule::Plane && self.fifo[i].local.piece == 0 && fate.keep.is_none_or(|k| k.local.piece == 0) {
+            let before = self.present_rays(&self.fifo[i], cell, env);
+            let subs: u64 = fate.subs.iter().map(|(_, s)| self.present_rays(s, cell, env)).sum();
+            let kept = fate.keep.as_ref().map_or(0, |k| self.present_rays(k, cell, env));
+            debug_assert_eq!(
+                before,
+                fate.absorbed + fate.exited + fate.skipped + subs + kept,
+                "rays of {:?} at ({}, {}, {}): absorbed {} exited {} skipped {} subs {} kept {}",
+                self.fifo[i],
+                self.x,
+                self.y,
+                self.fifo[i].z,
+                fate.absorbed,
+                fate.exited,
+                fate.skipped,
+                subs,
+                kept
+            );
+        }
         self.blocked_on = None;
         self.fifo_generation = self.fifo_generation.wrapping_add(1);
-        let m = self.fifo.remove(i);
+        let m = match fate.keep {
+            // Being peeled: the rest of the beam keeps its slot (and its arrival time).
+            Some(rest) => core::mem::replace(&mut self.fifo[i], rest),
+            None => self.fifo.remove(i),
+        };
         self.last_z = m.z;
         self.counters.processed += 1;
         self.counters.max_layer = self.counters.max_layer.max(m.beam.layer().0);
-        if let Some(rays) = fate.absorbed {
-            self.counters.rays_absorbed += rays;
-            let shown = !env.lit_visible_only || store.dexels().first().is_some_and(|d| d.span.lo == m.z);
+        self.counters.rays_absorbed += fate.absorbed;
+        self.counters.rays_exited += fate.exited;
+        self.counters.rays_skipped += fate.skipped;
+        if fate.lit {
+            let shown = match env.rule {
+                LitRule::Thesis => {
+                    !env.lit_visible_only || cell.store.dexels().first().is_some_and(|d| d.span.lo == m.z)
+                }
+                // The image reads the visible surface's mark; the lit store is for the lit set.
+                LitRule::Plane => !env.lit_visible_only,
+            };
             if shown && !self.lit.mark(m.z, env.source_bit) {
                 self.counters.lit_overflows += 1;
             }
-        } else {
-            self.counters.rays_exited += fate.exited;
-            self.counters.rays_skipped += fate.skipped;
-            activity.add(fate.subs.len() as u64);
-            for &(t, sub) in fate.subs.iter() {
-                // Cannot fail: `fits` checked every destination.
-                match t {
-                    Target::SelfFifo => {
-                        let _ = self.accept(sub, env.merge, activity);
-                    }
-                    Target::Out(p) => {
-                        // A head already on the wire (sent, not yet acknowledged) must not
-                        // change: a retransmission has to carry the same beam.
-                        let skip_head = (self.head_in_flight >> p.index() & 1) as usize;
-                        // Same neighbour voxel, side by side: join the waiting message.
-                        let joined = env.merge
-                            && self.out.waiting_mut(p).iter_mut().skip(skip_head).any(|w| {
-                                let j = (w.z == sub.z).then(|| w.beam.merged(&sub.beam)).flatten();
-                                if let Some(b) = j {
-                                    w.beam = b;
-                                }
-                                j.is_some()
-                            });
-                        if joined {
-                            activity.consume();
-                            self.counters.merged += 1;
-                        } else {
-                            let _ = self.out.push_back(p, sub);
-                            self.counters.sent += 1;
-                        }
+        }
+        if fate.visible {
+            self.visible_lit |= env.source_bit;
+        }
+        activity.add(fate.subs.len() as u64);
+        for &(t, sub) in fate.subs.iter() {
+            // Cannot fail: `fits` checked every destination.
+            match t {
+                Target::SelfFifo => {
+                    let _ = self.accept(sub, env.merge, activity);
+                }
+                Target::Out(p) => {
+                    // A head already on the wire (sent, not yet acknowledged) must not
+                    // change: a retransmission has to carry the same beam.
+                    let skip_head = (self.head_in_flight >> p.index() & 1) as usize;
+                    // Same neighbour voxel, side by side: join the waiting message.
+                    let joined = env.merge
+                        && self.out.waiting_mut(p).iter_mut().skip(skip_head).any(|w| {
+                            let j = (w.z == sub.z).then(|| w.beam.merged(&sub.beam)).flatten();
+                            if let Some(b) = j {
+                                w.beam = b;
+                            }
+                            j.is_some()
+                        });
+                    if joined {
+                        activity.consume();
+                        self.counters.merged += 1;
+                    } else {
+                        let _ = self.out.push_back(p, sub);
+                        self.counters.sent += 1;
                     }
                 }
             }
+        }
+        if fate.keep.is_some() {
+            return Step::Processed;
         }
         activity.consume();
         Step::Processed
@@ -1290,13 +1769,13 @@ mod tests {
             let order = SplitOrder::default();
             let env = LightEnv {
                 source: &src, far, n, depth: n, order: &order, fa: 4, source_bit: 1, merge: true,
-                policy: if radial { Policy::Radial } else { Policy::Wavefront },
+                policy: if radial { Policy::Radial } else { Policy::Wavefront }, rule: LitRule::Thesis,
                 skip: None, lit_visible_only: false, hold, frustum: None,
                 bounds: SubBeamBounds::new(n, n, None, &src),
             };
-            let mut store = DexelStore::<8>::new();
+            let mut store = Cell::<8>::new(0, 0);
             let tag = crate::dexel::FacetTag::default();
-            let _ = store.insert(crate::units::Span { lo: 12, hi: 13 }, tag);
+            let _ = store.store.insert(crate::units::Span { lo: 12, hi: 13 }, tag);
             let sv = src.voxel();
             // The cell two columns east of the source's and one north, and what can reach it:
             // the initial beams, and the source's +x beam split twice, every layer-2 sub-beam
@@ -1421,6 +1900,7 @@ mod tests {
             n,
             depth: n,
             policy,
+            rule: LitRule::Thesis,
             order: &order,
             fa: 8,
             source_bit: 1,
@@ -1431,7 +1911,7 @@ mod tests {
             frustum: None,
             bounds: SubBeamBounds::new(n, n, None, &src),
         };
-        let store = DexelStore::<8>::new();
+        let store = Cell::<8>::new(0, 0);
         let sv = src.voxel();
         let px = Direction::PosX;
         // Every sub-beam of layers 1 and 2 that lands in column (x_s + 2, y_s), by voxel z.

@@ -15,8 +15,8 @@
 //!
 //! | kind | message | payload | bytes on the wire |
 //! |---|---|---|---|
-//! | `0x10` | [`Message::Row`] (a facet row packet, §3.9) | seq u8, facet u32, material u16, normal u16, box 6×u16, a c t u 4×i64, edge count u8, edges (a i32, c i32, g i64) | 61 + 16·edges |
-//! | `0x20` | [`Message::Beam`] (§4.4) | seq u8, frac bits u8, source u16, direction u8, layer u32, u_lo u_hi v_lo v_hi 4×i32, z u16 | 27 + 7 = 34 |
+//! | `0x10` | [`Message::Row`] (a facet row packet, §3.9) | seq u8, facet u32, material u16, normal u16, plane (id u32, nx i16, ny i16, nz i32, m u64), box 6×u16, a c t u 4×i64, edge count u8, edges (a i32, c i32, g i64, off i32) | 81 + 20·edges |
+//! | `0x20` | [`Message::Beam`] (§4.4) | seq u8, frac bits u8, source u16, direction u8 (bit 7: terminal, [`crate::lit`]), layer u32, u_lo u_hi v_lo v_hi 4×i32, z u16 | 27 + 7 = 34 |
 //! | `0x30` | [`Message::Ack`] | seq u8 | 1 + 7 = 8 |
 //!
 //! `seq` is the link-level sequence number (for acknowledgement and retransmission); a trace
@@ -45,6 +45,7 @@ use crate::dexel::FacetTag;
 use crate::facet::{FacetBox, RowEdge, RowPacket, MAX_EDGES};
 use crate::light::{BeamMsg, LightCell, Port};
 use crate::normal::NormalCode;
+use crate::plane::FacetPlane;
 use crate::voxelize::{worst_case_g, worst_case_t, MAX_LATTICE_Q, MAX_LATTICE_SPAN};
 
 /// CRC-32/ISO-HDLC, table-driven (1 KiB of flash).
@@ -63,9 +64,9 @@ pub const KIND_ACK: u8 = 0x30;
 /// Payload bytes of a beam message (with its `seq`).
 pub const BEAM_PAYLOAD: usize = 27;
 /// Payload bytes of a row packet without edges (with its `seq`).
-pub const ROW_PAYLOAD_BASE: usize = 54;
+pub const ROW_PAYLOAD_BASE: usize = 74;
 /// Payload bytes per contour edge of a row packet.
-pub const ROW_EDGE_BYTES: usize = 16;
+pub const ROW_EDGE_BYTES: usize = 20;
 /// The longest message frame (a row packet with [`MAX_EDGES`] edges).
 pub const MAX_FRAME: usize = HEADER + ROW_PAYLOAD_BASE + MAX_EDGES * ROW_EDGE_BYTES + TRAILER;
 
@@ -322,6 +323,9 @@ pub fn read_frame(bytes: &[u8]) -> Result<(RawFrame<'_>, usize), DecodeError> {
 }
 
 /// An inter-cell message.
+// A decoded message lives on the stack for the time of one frame: no point boxing the row
+// packet (and no allocator on a cell).
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Message<F: FracBits> {
     /// A facet row packet travelling east during loading.
@@ -346,6 +350,12 @@ pub fn put_row<S: ByteSink + ?Sized>(w: &mut S, p: &RowPacket) -> Result<(), Enc
     w.u32(p.tag.facet)?;
     w.u16(p.tag.material)?;
     w.u16(p.tag.normal.0)?;
+    let pl = p.tag.plane;
+    w.u32(pl.id)?;
+    w.put(&pl.nx.to_le_bytes())?;
+    w.put(&pl.ny.to_le_bytes())?;
+    w.i32(pl.nz)?;
+    w.u64(pl.m)?;
     let b = p.bbox;
     for v in [b.x_min, b.x_max, b.y_min, b.y_max, b.z_min, b.z_max] {
         w.u16(v)?;
@@ -358,6 +368,7 @@ pub fn put_row<S: ByteSink + ?Sized>(w: &mut S, p: &RowPacket) -> Result<(), Enc
         w.i32(e.a)?;
         w.i32(e.c)?;
         w.i64(e.g)?;
+        w.i32(e.off)?;
     }
     Ok(())
 }
@@ -373,7 +384,12 @@ fn within(v: i64, bound: i128, what: &'static str) -> Result<i64, DecodeError> {
 /// Read a row packet's fields, checking the bit budget of [`crate::voxelize`].
 pub fn get_row(r: &mut Reader<'_>) -> Result<RowPacket, DecodeError> {
     let (m, q) = (MAX_LATTICE_SPAN, MAX_LATTICE_Q);
-    let tag = FacetTag { facet: r.u32()?, material: r.u16()?, normal: NormalCode(r.u16()?) };
+    let (facet, material, normal) = (r.u32()?, r.u16()?, NormalCode(r.u16()?));
+    let plane = FacetPlane { id: r.u32()?, nx: r.u16()? as i16, ny: r.u16()? as i16, nz: r.i32()?, m: r.u64()? };
+    if !plane.in_budget() {
+        return Err(DecodeError::BadValue("facet plane beyond the bit budget"));
+    }
+    let tag = FacetTag { facet, material, normal, plane };
     let mut bx = [0u16; 6];
     for v in bx.iter_mut() {
         *v = r.u16()?;
@@ -396,8 +412,12 @@ pub fn get_row(r: &mut Reader<'_>) -> Result<RowPacket, DecodeError> {
         let ea = within(r.i32()? as i64, q * m, "edge coefficient beyond the bit budget")? as i32;
         let ec = within(r.i32()? as i64, q * m, "edge coefficient beyond the bit budget")? as i32;
         let g = within(r.i64()?, worst_case_g(m, q), "edge value beyond the bit budget")?;
+        let off = r.i32()?;
+        if !(0..=(q * m) as i32).contains(&off) {
+            return Err(DecodeError::BadValue("edge push beyond the bit budget"));
+        }
         // Cannot fail: count ≤ MAX_EDGES was checked.
-        let _ = edges.push(RowEdge { a: ea, c: ec, g });
+        let _ = edges.push(RowEdge { a: ea, c: ec, g, off });
     }
     Ok(RowPacket { tag, bbox, a, c, t, u, edges })
 }
@@ -407,7 +427,7 @@ pub fn put_beam<F: FracBits, S: ByteSink + ?Sized>(w: &mut S, m: &BeamMsg<F>) ->
     let b = &m.beam;
     w.u8(F::U32 as u8)?;
     w.u16(b.source().0)?;
-    w.u8(b.direction().index())?;
+    w.u8(b.direction().index() | (b.is_terminal() as u8) << 7)?;
     w.u32(b.layer().0)?;
     for v in [b.u().lo(), b.u().hi(), b.v().lo(), b.v().hi()] {
         w.i32(v.to_bits())?;
@@ -422,7 +442,8 @@ pub fn get_beam<F: FracBits>(r: &mut Reader<'_>, far: FarDistance<F>) -> Result<
         return Err(DecodeError::FracBitsMismatch { found: f, expected: F::U32 as u8 });
     }
     let source = SourceId(r.u16()?);
-    let dir = Direction::from_index(r.u8()?).ok_or(DecodeError::BadValue("beam direction"))?;
+    let d = r.u8()?;
+    let dir = Direction::from_index(d & 0x7f).ok_or(DecodeError::BadValue("beam direction"))?;
     let layer = Layer(r.u32()?);
     let mut v4 = [FarOffset::<F>::ZERO; 4];
     for v in v4.iter_mut() {
@@ -430,7 +451,9 @@ pub fn get_beam<F: FracBits>(r: &mut Reader<'_>, far: FarDistance<F>) -> Result<
     }
     let u = RayRange::new(v4[0], v4[1]).ok_or(DecodeError::BadValue("beam u range"))?;
     let v = RayRange::new(v4[2], v4[3]).ok_or(DecodeError::BadValue("beam v range"))?;
-    let beam = Beam::new(source, dir, layer, u, v, far).map_err(|_| DecodeError::BadValue("beam outside D"))?;
+    let beam = Beam::new(source, dir, layer, u, v, far)
+        .map_err(|_| DecodeError::BadValue("beam outside D"))?
+        .with_terminal(d & 0x80 != 0);
     Ok(BeamMsg::new(beam, r.u16()?))
 }
 
@@ -598,10 +621,10 @@ mod tests {
         fn row_round_trip(facet in any::<u32>(), a in -1000i64..1000, c in -1000i64..1000, t in any::<i32>(),
                           edges in proptest::collection::vec((-5000i32..5000, -5000i32..5000, any::<i32>()), 0..=MAX_EDGES)) {
             let p = RowPacket {
-                tag: FacetTag { facet, material: 3, normal: NormalCode(77) },
+                tag: FacetTag { facet, material: 3, normal: NormalCode(77), plane: FacetPlane { id: facet ^ 5, nx: -16384, ny: 77, nz: -(1 << 30), m: 1 << 41 } },
                 bbox: FacetBox { x_min: 1, x_max: 9, y_min: 2, y_max: 2, z_min: 0, z_max: 100 },
                 a, c, t: t as i64, u: t as i64 - 40,
-                edges: edges.iter().map(|&(a, c, g)| RowEdge { a, c, g: g as i64 }).collect(),
+                edges: edges.iter().map(|&(a, c, g)| RowEdge { a, c, g: g as i64, off: (a.unsigned_abs() % 977) as i32 }).collect(),
             };
             let mut buf = [0u8; MAX_FRAME];
             let n = encode::<U0>(0, &Message::Row(p.clone()), &mut buf).unwrap();
@@ -624,18 +647,27 @@ mod tests {
 
     #[test]
     fn out_of_budget_rows_are_rejected() {
-        let mut buf = [0u8; MAX_FRAME];
-        let n = write_frame(&mut buf, KIND_ROW, |w| {
-            w.u8(0)?;
-            w.put(&[0; 8])?;
-            for v in [0u16, 1, 0, 1, 0, 1] {
-                w.u16(v)?;
-            }
-            w.i64(i64::MAX)?;
-            w.put(&[0; 24])?;
-            w.u8(0)
-        })
-        .unwrap();
-        assert!(matches!(decode::<U0>(&buf[..n], far()), Err(DecodeError::BadValue(_))));
+        // A plane coefficient beyond the loading budget, then a facet plane beyond its own.
+        let row = |a: i64, m: u64| {
+            let mut buf = [0u8; MAX_FRAME];
+            let n = write_frame(&mut buf, KIND_ROW, |w| {
+                w.u8(0)?;
+                w.put(&[0; 8])?;
+                w.put(&[0; 12])?;
+                w.u64(m)?;
+                for v in [0u16, 1, 0, 1, 0, 1] {
+                    w.u16(v)?;
+                }
+                w.i64(a)?;
+                w.put(&[0; 24])?;
+                w.u8(0)
+            })
+            .unwrap();
+            decode::<U0>(&buf[..n], far()).map(|_| ())
+        };
+        assert_eq!(row(0, 1), Ok(()));
+        assert_eq!(row(i64::MAX, 1), Err(DecodeError::BadValue("plane coefficient a beyond the bit budget")));
+        assert_eq!(row(0, 0), Err(DecodeError::BadValue("facet plane beyond the bit budget")));
+        assert_eq!(row(0, (1 << 41) + 1), Err(DecodeError::BadValue("facet plane beyond the bit budget")));
     }
 }

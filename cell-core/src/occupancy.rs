@@ -1096,7 +1096,13 @@ mod tests {
         use crate::dexel::Dexel;
         use crate::normal::NormalCode;
         use crate::units::Span;
-        let d = |lo, hi| Dexel { span: Span { lo, hi }, facet: 0, material: 0, normal: NormalCode(0) };
+        let d = |lo, hi| Dexel {
+            span: Span { lo, hi },
+            facet: 0,
+            material: 0,
+            normal: NormalCode(0),
+            plane: Default::default(),
+        };
         let mut s = OccupancySummary::<4, u8>::new(16, 32);
         s.mark_column(5, 9, &[d(0, 2), d(20, 31)]);
         let mut t = OccupancySummary::<4, u8>::new(16, 32);

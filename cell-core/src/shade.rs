@@ -376,10 +376,15 @@ pub(crate) fn normalise(v: [f32; 3]) -> [f32; 3] {
 
 /// The unit normal a cell shades `d` with, turned toward the viewer.
 pub fn shading_normal(d: &Dexel, mode: NormalMode) -> [f32; 3] {
+    shading_normal_of(d.normal, mode)
+}
+
+/// [`shading_normal`] of a normal code.
+pub fn shading_normal_of(code: crate::normal::NormalCode, mode: NormalMode) -> [f32; 3] {
     match mode {
         NormalMode::Face => VIEW,
         NormalMode::Facet => {
-            let n = normalise(d.normal.decode());
+            let n = normalise(code.decode());
             if dot(n, VIEW) < 0.0 {
                 [-n[0], -n[1], -n[2]]
             } else {
@@ -488,6 +493,25 @@ pub fn pixel<const D: usize>(
     let m = materials.get(d.material as usize).copied().unwrap_or_default();
     let lit = facing_mask(p, nrm, lights, reached(z));
     Some(Pixel { rgb: shade(p, nrm, &m, lights, lit, params), lit, z })
+}
+
+/// The pixel of column (x, y) under the plane rule: the facet its centre line meets first
+/// ([`crate::visible`]), shaded at that exact point (x, y, z*) with its material under the lights
+/// in `reached` (those that lit the surface, [`crate::lit`]) that it faces.
+pub fn surface_pixel(
+    x: crate::units::Coord,
+    y: crate::units::Coord,
+    surface: &crate::visible::VisibleSurface,
+    reached: SourceMask,
+    materials: &[Material],
+    lights: &[PointLight],
+    params: &ShadeParams,
+) -> Pixel {
+    let p = [x as f32, y as f32, surface.depth()];
+    let nrm = shading_normal_of(surface.normal, params.normal_mode);
+    let m = materials.get(surface.material as usize).copied().unwrap_or_default();
+    let lit = facing_mask(p, nrm, lights, reached);
+    Pixel { rgb: shade(p, nrm, &m, lights, lit, params), lit, z: surface.z_v.clamp(0, u16::MAX as i32) as u16 }
 }
 
 #[cfg(test)]

@@ -7,7 +7,7 @@
 //! |---|---|---|
 //! | `0x40` | [`Event::Header`] | magic `RC2T` u32, version u8, x u16, y u16, depth u32, frac bits u8, dexel capacity u16, FIFO capacity u16, output buffer u8, lit runs u16 |
 //! | `0x41` | [`Event::Row`] | a row packet arriving from the west (loading, §3.9) |
-//! | `0x42` | [`Event::Light`] | a source's diffusion starts: source id u16, position 3×i32 (1/16 voxel), n u32, depth u32, D u32, policy u8, FIFO limit u16, merge u8, source bit u32, skip u8 (+ occupied box lo, hi 6×u16 when 1); from version 3: sibling wait u16, frustum u8 (+ the summary's 8 × 8 block rows, 64 × u8 bit masks over z, when 1) |
+//! | `0x42` | [`Event::Light`] | a source's diffusion starts: source id u16, position 3×i32 (1/16 voxel), n u32, depth u32, D u32, policy u8, FIFO limit u16, merge u8, source bit u32, skip u8 (+ occupied box lo, hi 6×u16 when 1); from version 3: sibling wait u16, frustum u8 (+ the summary's 8 × 8 block rows, 64 × u8 bit masks over z, when 1), lit rule u8 (0 thesis, 1 plane) |
 //! | `0x43` | [`Event::Inject`] | the source emitter hands this cell an initial beam |
 //! | `0x44` | [`Event::Recv`] | link `port` delivers a beam: port u8 + the link frame as on the wire (its own CRC) |
 //! | `0x45` | [`Event::Step`] | `count` u32 compute cycles |
@@ -33,14 +33,16 @@ use crate::link::{
     self, get_beam, get_row, put_beam, put_row, read_frame, write_frame, ByteSink, DecodeError, EncodeError, Link,
     PutExt, Reader, HEADER, TRAILER,
 };
-use crate::shade::{pixel, Material, NormalMode, Pixel, PointLight, ShadeParams};
+use crate::lit::LitRule;
+use crate::shade::{pixel, surface_pixel, Material, NormalMode, Pixel, PointLight, ShadeParams};
 use crate::units::{Coord, Depth};
 
 /// `RC2T`.
 pub const MAGIC: u32 = u32::from_le_bytes(*b"RC2T");
-/// Trace format version written (3: the light record carries the sibling wait and the
-/// frustum summary). Version 2 traces (without them) are still read.
-pub const VERSION: u8 = 3;
+/// Trace format version (4: row packets carry their facet's plane and contour pushes, beams
+/// their terminal flag, the light record the lit rule). Earlier versions are refused: their
+/// row packets cannot be read as version 4's.
+pub const VERSION: u8 = 4;
 /// Record kinds.
 pub mod kind {
     /// [`super::Event::Header`].
@@ -116,6 +118,8 @@ pub struct LightSetup {
     pub hold: u16,
     /// The empty-frustum skip's summary (`None`: off).
     pub frustum: Option<FrustumSummary>,
+    /// The lit rule.
+    pub rule: LitRule,
 }
 
 /// What a cell needs to shade its pixel.
@@ -240,7 +244,7 @@ pub fn write_event<F: FracBits>(ev: &Event<'_, F>, buf: &mut [u8]) -> Result<usi
             }
             w.u16(s.hold)?;
             match &s.frustum {
-                None => w.u8(0),
+                None => w.u8(0)?,
                 Some(o) => {
                     w.u8(1)?;
                     for bx in 0..FRUSTUM_BLOCKS {
@@ -250,9 +254,9 @@ pub fn write_event<F: FracBits>(ev: &Event<'_, F>, buf: &mut [u8]) -> Result<usi
                             w.u8(row)?;
                         }
                     }
-                    Ok(())
                 }
             }
+            w.u8(matches!(s.rule, LitRule::Plane) as u8)
         }),
         Event::Inject(m) => write_frame(buf, kind::INJECT, |w| put_beam(w, m)),
         Event::Recv { port, frame } => write_frame(buf, kind::RECV, |w| {
@@ -303,7 +307,7 @@ const _: () = assert!(
     "traces carry an 8 x 8 x 8 summary, one byte per block row"
 );
 
-/// The version-3 tail of a light record: the sibling wait and the frustum summary (its occupied
+/// The sibling wait and the frustum summary of a light record (the summary's occupied
 /// blocks, rebuilt by marking one voxel of each: the summary is a function of its blocks).
 fn read_wait_and_frustum(r: &mut Reader<'_>, mut s: LightSetup) -> Result<LightSetup, DecodeError> {
     s.hold = r.u16()?;
@@ -363,7 +367,7 @@ impl<'a, F: FracBits> Parser<'a, F> {
                     return Err(ReplayError::BadHeader);
                 }
                 self.version = r.u8()?;
-                if !(2..=VERSION).contains(&self.version) {
+                if self.version != VERSION {
                     return Err(ReplayError::BadHeader);
                 }
                 Event::Header(Header {
@@ -407,8 +411,14 @@ impl<'a, F: FracBits> Parser<'a, F> {
                     },
                     hold: 0,
                     frustum: None,
+                    rule: LitRule::Thesis,
                 };
-                let s = if self.version >= 3 { read_wait_and_frustum(&mut r, s)? } else { s };
+                let mut s = read_wait_and_frustum(&mut r, s)?;
+                s.rule = match r.u8()? {
+                    0 => LitRule::Thesis,
+                    1 => LitRule::Plane,
+                    _ => return Err(DecodeError::BadValue("lit rule").into()),
+                };
                 self.far = Some(FarDistance::new(s.far).ok_or(ReplayError::BadFar)?);
                 Event::Light(s)
             }
@@ -519,6 +529,7 @@ impl Digester {
         let _ = s.u8(b'E');
         for d in cell.store.dexels() {
             let _ = (s.u16(d.span.lo), s.u16(d.span.hi), s.u32(d.facet), s.u16(d.material), s.u16(d.normal.0));
+            let _ = (s.u32(d.plane.id), s.u32(d.plane.e as u32));
         }
         let k = cell.counters;
         let _ = (s.u32(cell.store.overflows()), s.u32(cell.store.lost_voxels()));
@@ -530,6 +541,11 @@ impl Digester {
         let _ = (s.u64(c.processed), s.u64(c.blocked_cycles), s.u16(c.peak_fifo), s.u32(c.max_layer));
         let _ = (s.u64(c.rays_absorbed), s.u64(c.rays_exited), s.u64(c.sent), s.u32(c.lit_overflows), s.u64(c.merged));
         let _ = (s.u16(light.fifo.len() as u16), s.u8(light.busy() as u8));
+        if let Some(v) = &cell.visible {
+            let _ = (s.u8(b'V'), s.u64(v.num as u64), s.u64(v.den as u64), s.u32(v.facet), s.u16(v.material));
+            let _ = (s.u32(v.plane.id), s.u32(v.plane.e as u32), s.u32(v.z_v as u32));
+        }
+        let _ = s.u32(light.visible_lit);
         match px {
             Some(p) => {
                 let _ = (s.u8(1), s.put(&p.rgb), s.u32(p.lit), s.u16(p.z));
@@ -635,6 +651,7 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
             n: setup.n,
             depth: setup.depth,
             policy: setup.policy,
+            rule: setup.rule,
             order,
             fa: setup.fa as usize,
             source_bit: setup.source_bit,
@@ -731,7 +748,7 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
                 let order = self.order;
                 let env = self.env(&setup, &order)?;
                 for _ in 0..n {
-                    let r = self.light.step(&self.cell.store, &env, &self.activity);
+                    let r = self.light.step(&self.cell, &env, &self.activity);
                     self.digest.step(r);
                     self.stats.steps += 1;
                 }
@@ -741,16 +758,17 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
                 self.grant(p, &mut links)?;
             }
             Event::Shade(s) => {
-                let lit = &self.light.lit;
-                self.pixel = pixel(
-                    self.cell.x,
-                    self.cell.y,
-                    &self.cell.store,
-                    |z: Depth| lit.mask_at(z),
-                    &s.materials,
-                    &s.lights,
-                    &s.params,
-                );
+                let (x, y) = (self.cell.x, self.cell.y);
+                self.pixel =
+                    match self.setup.map(|l| l.rule) {
+                        Some(LitRule::Plane) => self.cell.visible.as_ref().map(|v| {
+                            surface_pixel(x, y, v, self.light.visible_lit, &s.materials, &s.lights, &s.params)
+                        }),
+                        _ => {
+                            let lit = &self.light.lit;
+                            pixel(x, y, &self.cell.store, |z: Depth| lit.mask_at(z), &s.materials, &s.lights, &s.params)
+                        }
+                    };
             }
             Event::End => self.ended = true,
         }

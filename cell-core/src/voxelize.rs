@@ -156,9 +156,10 @@ impl<const D: usize> Cell<D> {
         if self.x >= pkt.bbox.x_min {
             self.counters.spans_computed += 1;
             if let Some(span) = row_span(pkt, depth) {
-                let ins = self.store.insert(span, pkt.tag);
+                let ins = self.store.insert_on(span, pkt.tag, &pkt.column_plane());
                 self.counters.voxels_shared += ins.shared;
             }
+            crate::visible::depth_test(&mut self.visible, crate::visible::surface_of(pkt, depth));
         }
         let forward = self.x < pkt.bbox.x_max;
         if forward {

@@ -517,7 +517,15 @@ pub fn render_classic<F: FracBits>(
     let t0 = Instant::now();
     let (cl, stats) = run_classic::<F>(mesh, scene, lights, classic_cfg, progress)?;
     let times = [load_seconds, t0.elapsed().as_secs_f64(), reference_seconds];
-    let r =
-        crate::render::finish_render(mesh, scene, lights, cfg, reference, &|x, y, z| cl.mask(x, y, z), stats, times);
+    let r = crate::render::finish_render(
+        mesh,
+        scene,
+        lights,
+        cfg,
+        reference,
+        &crate::render::Seen::FirstVoxel(Box::new(|x, y, z| cl.mask(x, y, z))),
+        stats,
+        times,
+    );
     Ok((r, cl.totals))
 }

@@ -222,9 +222,35 @@ pub struct LightOpts {
     /// policy only; at most 4096.
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u16).range(0..=4096))]
     pub hold: u16,
+    /// The lit rule: `plane` (default) stops a ray only where it crosses the plane of the facet
+    /// owning the voxel it is in, lights only facets facing the source, and lights each pixel's
+    /// exact visible surface from that surface's own plane: right at grazing angles (thesis
+    /// §5.5.6). `thesis`: a beam entering an occupied voxel lights it and stops (§5.5.5), and the
+    /// pixel shows the first occupied voxel of its column (today's figures: add
+    /// `--sigma naive --contour projected --frac-bits 0 --policy wavefront`).
+    #[arg(long, value_enum, default_value_t = LitRuleArg::Plane)]
+    pub lit_rule: LitRuleArg,
     /// Classic shadow rays instead of diffusion.
     #[command(flatten)]
     pub classic: crate::classic::ClassicOpts,
+}
+
+/// The lit rule ([`cell_core::lit`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum LitRuleArg {
+    /// A beam entering an occupied voxel lights it and stops (§5.5.5).
+    Thesis,
+    /// Stopped only by a plane crossed there; each pixel lit from its visible surface's plane.
+    Plane,
+}
+
+impl From<LitRuleArg> for cell_core::lit::LitRule {
+    fn from(a: LitRuleArg) -> Self {
+        match a {
+            LitRuleArg::Thesis => cell_core::lit::LitRule::Thesis,
+            LitRuleArg::Plane => cell_core::lit::LitRule::Plane,
+        }
+    }
 }
 
 /// How the host steps the grid.
@@ -256,6 +282,7 @@ impl LightOpts {
             skip_frustum: self.skip_frustum,
             skip_hidden: self.skip_hidden,
             frustum_blocks: self.frustum_blocks.unwrap_or_default(),
+            rule: self.lit_rule.into(),
         }
     }
 }

@@ -21,6 +21,7 @@ use cell_core::light::{
     Activity, ActivityDelta, BeamMsg, FrustumSummary, LightCell, LightCounters, LightEnv, OccupiedBox, Policy, Port,
     SourceMask, Step, SubBeamBounds,
 };
+use cell_core::lit::LitRule;
 use cell_core::occupancy::{BlockRow, FrustumTest, Occupancy16, Occupancy32, Occupancy8, OccupancySummary};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Relaxed};
@@ -87,6 +88,8 @@ pub struct LightConfig {
     pub skip_hidden: bool,
     /// Resolution of the summary the empty-frustum and hidden-voxel skips test against.
     pub frustum_blocks: FrustumBlocks,
+    /// The lit rule ([`cell_core::lit`]): the plane rule (default) or the thesis's.
+    pub rule: LitRule,
 }
 
 /// Blocks per axis of the summary the empty-frustum and hidden-voxel skips test beams against
@@ -129,14 +132,15 @@ pub enum Summary {
 }
 
 impl Summary {
-    /// The summary of the grid's occupied voxels, or (`visible_only`) of its visible voxels
-    /// only (each column's first occupied voxel): what the OR-reduction of every cell's own
-    /// summary gives.
-    pub fn of<const D: usize>(grid: &Grid<D>, blocks: FrustumBlocks, visible_only: bool) -> Self {
+    /// The summary of the grid's occupied voxels, or (`visible` given) of the voxels the image
+    /// reads only: each column's first occupied voxel under the thesis's rule, the two voxels
+    /// bracketing its visible surface under the plane rule. What the OR-reduction of every
+    /// cell's own summary gives.
+    pub fn of<const D: usize>(grid: &Grid<D>, blocks: FrustumBlocks, visible: Option<LitRule>) -> Self {
         match blocks {
-            FrustumBlocks::B8 => Summary::B8(Box::new(summarise(grid, visible_only))),
-            FrustumBlocks::B16 => Summary::B16(Box::new(summarise(grid, visible_only))),
-            FrustumBlocks::B32 => Summary::B32(Box::new(summarise(grid, visible_only))),
+            FrustumBlocks::B8 => Summary::B8(Box::new(summarise(grid, visible))),
+            FrustumBlocks::B16 => Summary::B16(Box::new(summarise(grid, visible))),
+            FrustumBlocks::B32 => Summary::B32(Box::new(summarise(grid, visible))),
         }
     }
 
@@ -176,6 +180,7 @@ impl Default for LightConfig {
             skip_frustum: false,
             skip_hidden: false,
             frustum_blocks: FrustumBlocks::default(),
+            rule: LitRule::Plane,
         }
     }
 }
@@ -289,12 +294,19 @@ pub struct Lighting<F: FracBits> {
     pub visited: Option<Vec<bool>>,
     /// What the faulty links did (with `faults`).
     pub link_faults: Option<FaultCounts>,
+    /// The lit rule the cells applied.
+    pub rule: LitRule,
 }
 
 impl<F: FracBits> Lighting<F> {
     /// Sources that lit voxel (x, y, z).
     pub fn mask(&self, x: u32, y: u32, z: u16) -> SourceMask {
         self.cells[(y * self.n + x) as usize].lit.mask_at(z)
+    }
+
+    /// Sources that lit the visible surface of column (x, y) (the plane rule).
+    pub fn visible_mask(&self, x: u32, y: u32) -> SourceMask {
+        self.cells[(y * self.n + x) as usize].visible_lit
     }
 
     /// Every lit voxel with its mask, in (y, x, z) order.
@@ -359,7 +371,8 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
     if cfg.skip_hidden && !cfg.lit_visible_only {
         bail!("the hidden-voxel skip drops the light of hidden voxels: use it with --lit-visible-only");
     }
-    let frustum = (cfg.skip_hidden || cfg.skip_frustum).then(|| Summary::of(grid, cfg.frustum_blocks, cfg.skip_hidden));
+    let frustum = (cfg.skip_hidden || cfg.skip_frustum)
+        .then(|| Summary::of(grid, cfg.frustum_blocks, cfg.skip_hidden.then_some(cfg.rule)));
     let traced = frustum.as_ref().map(Summary::traceable);
     if tap.is_some() && traced == Some(None) {
         bail!("a cell trace carries the 8 × 8 × 8 frustum summary: record with --frustum-blocks 8");
@@ -384,6 +397,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             n,
             depth: grid.depth,
             policy: cfg.policy,
+            rule: cfg.rule,
             order: &order,
             fa: cfg.fa,
             source_bit: 1 << si,
@@ -441,7 +455,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
         }
         reports.push(rep);
     }
-    Ok(Lighting { n, cells, reports, visited, link_faults: links.map(|l| l.counts) })
+    Ok(Lighting { n, cells, reports, visited, link_faults: links.map(|l| l.counts), rule: cfg.rule })
 }
 
 /// What a run records besides its results: visited voxels, cell traces.
@@ -778,7 +792,7 @@ fn diffuse_one<F: FracBits, const D: usize>(
                 if defer_pops && pop_taken(c, i as usize, &taken_ports, &bump) && !c.busy() {
                     r.drained += 1;
                 }
-                let step = c.step(&grid.cells[i as usize].store, env, &delta);
+                let step = c.step(&grid.cells[i as usize], env, &delta);
                 if tapping {
                     r.steps.push((i as usize, step));
                 }
@@ -1071,20 +1085,32 @@ fn diffuse_one<F: FracBits, const D: usize>(
 /// The grid's 8-block occupancy summary for the empty-frustum skip (what the OR-reduction of
 /// every cell's own summary gives; what a cell trace carries).
 pub fn occupancy_summary<const D: usize>(grid: &Grid<D>) -> FrustumSummary {
-    summarise(grid, false)
+    summarise(grid, None)
 }
 
 /// The summary of the grid's occupied voxels, or (`visible_only`) of each column's first
 /// occupied voxel (the one its cell shades) for the hidden-voxel skip.
 fn summarise<const B: usize, R: BlockRow, const D: usize>(
     grid: &Grid<D>,
-    visible_only: bool,
+    visible: Option<LitRule>,
 ) -> OccupancySummary<B, R> {
     let mut s = OccupancySummary::new(grid.n, grid.depth);
+    let top = grid.depth as i64 - 1;
     for c in &grid.cells {
-        match c.store.dexels().first() {
-            Some(d) if visible_only => s.mark_span(c.x as u32, c.y as u32, d.span.lo as u32, d.span.lo as u32),
-            _ => s.mark_column(c.x as u32, c.y as u32, c.store.dexels()),
+        let (x, y) = (c.x as u32, c.y as u32);
+        match visible {
+            None => s.mark_column(x, y, c.store.dexels()),
+            Some(LitRule::Thesis) => {
+                if let Some(d) = c.store.dexels().first() {
+                    s.mark_span(x, y, d.span.lo as u32, d.span.lo as u32);
+                }
+            }
+            Some(LitRule::Plane) => {
+                if let Some(v) = &c.visible {
+                    let (lo, hi) = ((v.z_v as i64).clamp(0, top), (v.z_v as i64 + 1).clamp(0, top));
+                    s.mark_span(x, y, lo as u32, hi as u32);
+                }
+            }
         }
     }
     s

@@ -157,9 +157,11 @@ impl<const D: usize> Grid<D> {
                     for (re, pe) in rp.edges.iter_mut().zip(p.edges.iter()) {
                         re.g = pe.g + pe.a as i64 * x + pe.b as i64 * y;
                     }
+                    let cell = &mut self.cells[y as usize * n + x as usize];
                     if let Some(span) = row_span(&rp, self.depth) {
-                        self.cells[y as usize * n + x as usize].store.insert(span, p.tag);
+                        cell.store.insert_on(span, p.tag, &rp.column_plane());
                     }
+                    cell_core::visible::depth_test(&mut cell.visible, cell_core::visible::surface_of(&rp, self.depth));
                 }
             }
             if i % 1024 == 0 {

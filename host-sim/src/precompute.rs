@@ -20,6 +20,7 @@ use anyhow::{bail, Result};
 use cell_core::dexel::FacetTag;
 use cell_core::facet::{FacetBox, PipeEdge, PipelinePacket, MAX_EDGES};
 use cell_core::normal::NormalCode;
+use cell_core::plane::FacetPlane;
 use cell_core::units::MAX_N;
 
 use crate::scene::Mesh;
@@ -299,14 +300,14 @@ pub fn facet_packet(poly: &[[i64; 3]], tag: FacetTag, cfg: &LoadConfig) -> Resul
         coef[ua] = -s * dv * q;
         coef[va] = s * du * q;
         let mut g0 = s * (du * (h - pi[va] as i128) - dv * (h - pi[ua] as i128));
-        if conservative {
-            g0 += h * (du.abs() + dv.abs());
-        }
+        let off = if conservative { h * (du.abs() + dv.abs()) } else { 0 };
+        g0 += off;
         let e = PipeEdge {
             a: fits_i32(coef[0], "edge coefficient a_i")?,
             b: fits_i32(coef[1], "edge coefficient b_i")?,
             c: fits_i32(coef[2], "edge coefficient c_i")?,
             g: fits_i64(g0, "edge value g_i")?,
+            off: fits_i32(off, "edge push")?,
         };
         // Cannot fail: at most poly.len() <= MAX_EDGES edges.
         let _ = edges.push(e);
@@ -421,12 +422,40 @@ fn ear_clip(p: &[[i64; 3]], (_, u, v): (usize, usize, usize)) -> std::result::Re
     Ok(tris)
 }
 
+/// Plane ids by exact oriented plane (primitive normal, offset): the first facet's id.
+pub type PlaneIds = std::collections::HashMap<([i128; 3], i128), u32>;
+
+fn gcd(a: i128, b: i128) -> i128 {
+    let (mut a, mut b) = (a.abs(), b.abs());
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    a
+}
+
+/// The plane a facet's packet carries ([`cell_core::plane`]): its normal scaled to a largest
+/// component of 2¹⁴, and an id shared by every facet in the same exact oriented plane (`ids`
+/// maps the primitive normal and offset to the first such facet). A zero normal (a degenerate
+/// piece, which the packet builder skips) gets the default.
+pub fn facet_plane(poly: &[[i64; 3]], facet: u32, ids: &mut PlaneIds) -> FacetPlane {
+    let n = polygon_normal(poly);
+    let Some((nx, ny, nz, m)) = cell_core::plane::scale_normal(n) else {
+        return FacetPlane::default();
+    };
+    let g = gcd(gcd(n[0], n[1]), n[2]);
+    let p = n.map(|v| v / g);
+    let d = dot(p, poly[0].map(|c| c as i128));
+    let id = *ids.entry((p, d)).or_insert(facet);
+    FacetPlane { id, nx, ny, nz, m }
+}
+
 /// Run the precompute for a whole mesh.
 pub fn prepare(mesh: &Mesh, cfg: &LoadConfig) -> Result<Prepared> {
     cfg.validate()?;
     let fit = fit(mesh, cfg.n)?;
     let mut out = Prepared { fit: Some(fit), faces_in: mesh.faces.len(), ..Default::default() };
     let mut seen: std::collections::HashSet<(u16, [i8; 3], Vec<[i64; 3]>)> = Default::default();
+    let mut planes = PlaneIds::default();
     for (fi, face) in mesh.faces.iter().enumerate() {
         let lat: Vec<[i64; 3]> = face.verts.iter().map(|&v| fit.to_lattice(mesh.positions[v as usize])).collect();
         let (pieces, split) = planar_pieces(lat)
@@ -440,10 +469,12 @@ pub fn prepare(mesh: &Mesh, cfg: &LoadConfig) -> Result<Prepared> {
                 out.skipped_duplicate += 1;
                 continue;
             }
+            let facet = out.packets.len() as u32;
             let tag = FacetTag {
-                facet: out.packets.len() as u32,
+                facet,
                 material: face.material,
                 normal: NormalCode::encode(nrm.map(|v| v as f32)),
+                plane: facet_plane(&piece, facet, &mut planes),
             };
             match facet_packet(&piece, tag, cfg)? {
                 Ok(pkt) => {

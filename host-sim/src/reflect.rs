@@ -598,7 +598,7 @@ pub fn render_reflect<F: cell_core::beam::FracBits>(
         light_positions,
         cfg,
         None,
-        &mask,
+        &crate::render::seen(&lighting),
         lstats,
         [times[0], light_seconds, times[1]],
     );

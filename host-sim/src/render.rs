@@ -12,7 +12,12 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use cell_core::beam::FracBits;
-use cell_core::shade::{pixel, shading_normal, Material as CellMaterial, NormalMode, PointLight, ShadeParams};
+use cell_core::light::SourceMask;
+use cell_core::lit::LitRule;
+use cell_core::shade::{
+    pixel, shading_normal, shading_normal_of, surface_pixel, Material as CellMaterial, NormalMode, PointLight,
+    ShadeParams,
+};
 
 use crate::diffuse::LightConfig;
 use crate::lightjob::{run_diffusion, LightStats, LoadedScene};
@@ -48,6 +53,24 @@ pub fn point_lights(positions: &[[f64; 3]]) -> Vec<PointLight> {
     positions.iter().map(|p| PointLight { pos: p.map(|c| c as f32), color: [e; 3] }).collect()
 }
 
+/// What the image reads for each cell.
+pub enum Seen<'a> {
+    /// The thesis's: the first occupied voxel of the column, lit by the sources
+    /// `mask(x, y, z)` gives for voxel (x, y, z) (diffusion or classic shadow rays).
+    FirstVoxel(Box<dyn Fn(u32, u32, u16) -> SourceMask + 'a>),
+    /// The plane rule's: the surface the column's centre line meets ([`cell_core::visible`]),
+    /// lit by the sources `mask(x, y)` gives for column (x, y).
+    Surface(Box<dyn Fn(u32, u32) -> SourceMask + 'a>),
+}
+
+/// What the image of a diffusion reads, by its lit rule.
+pub fn seen<F: FracBits>(lighting: &crate::diffuse::Lighting<F>) -> Seen<'_> {
+    match lighting.rule {
+        LitRule::Thesis => Seen::FirstVoxel(Box::new(|x, y, z| lighting.mask(x, y, z))),
+        LitRule::Plane => Seen::Surface(Box::new(|x, y| lighting.visible_mask(x, y))),
+    }
+}
+
 /// Shade every cell's visible voxel.
 pub fn shade_grid<F: FracBits>(
     mesh: &Mesh,
@@ -56,16 +79,15 @@ pub fn shade_grid<F: FracBits>(
     lighting: &crate::diffuse::Lighting<F>,
     mode: NormalMode,
 ) -> Image {
-    shade_grid_with(mesh, scene, lights, &|x, y, z| lighting.mask(x, y, z), mode)
+    shade_grid_with(mesh, scene, lights, &seen(lighting), mode)
 }
 
-/// Shade every cell's visible voxel, `mask(x, y, z)` giving the sources that reached voxel
-/// (x, y, z) (by diffusion or by classic shadow rays).
+/// Shade every cell's visible voxel or surface (see [`Seen`]).
 pub fn shade_grid_with(
     mesh: &Mesh,
     scene: &LoadedScene,
     lights: &[PointLight],
-    mask: &dyn Fn(u32, u32, u16) -> cell_core::light::SourceMask,
+    seen: &Seen<'_>,
     mode: NormalMode,
 ) -> Image {
     let n = scene.grid.n;
@@ -82,18 +104,27 @@ pub fn shade_grid_with(
     };
     let (mut err_sum, mut err_count) = (0u64, 0u64);
     for (i, c) in scene.grid.cells.iter().enumerate() {
-        let Some(px) = pixel(c.x, c.y, &c.store, |z| mask(c.x as u32, c.y as u32, z), &mats, lights, &params) else {
+        let (x, y) = (c.x as u32, c.y as u32);
+        // The pixel, the point and normal it was shaded at, and its material.
+        let shaded = match seen {
+            Seen::FirstVoxel(mask) => pixel(c.x, c.y, &c.store, |z| mask(x, y, z), &mats, lights, &params).map(|px| {
+                let d = c.store.dexels()[0];
+                (px, [c.x as f32, c.y as f32, px.z as f32], shading_normal(&d, mode), d.material)
+            }),
+            Seen::Surface(mask) => c.visible.as_ref().map(|v| {
+                let px = surface_pixel(c.x, c.y, v, mask(x, y), &mats, lights, &params);
+                (px, [c.x as f32, c.y as f32, v.depth()], shading_normal_of(v.normal, mode), v.material)
+            }),
+        };
+        let Some((px, p, nrm, material)) = shaded else {
             continue;
         };
         let (rgb, lit) = (px.rgb, px.lit);
-        let d = c.store.dexels()[0];
-        let p = [c.x as f32, c.y as f32, px.z as f32];
-        let nrm = shading_normal(&d, mode);
         // The same inputs through the f64 formula: the error of the cell's arithmetic alone.
         let exact = crate::refrender::shade_f64(
             p.map(|v| v as f64),
             nrm.map(|v| v as f64),
-            &mesh.materials[(d.material as usize).min(mesh.materials.len() - 1)],
+            &mesh.materials[(material as usize).min(mesh.materials.len() - 1)],
             &ref_lights,
             lit,
             [AMBIENT as f64; 3],
@@ -220,7 +251,8 @@ pub fn render<F: FracBits>(
     let (lighting, lstats) = run_diffusion::<F>(mesh, scene, light_positions, &cfg.light, progress)?;
     let t1 = Instant::now();
     let times = [load_seconds, (t1 - t0).as_secs_f64(), reference_seconds];
-    Ok(finish_render(mesh, scene, light_positions, cfg, reference, &|x, y, z| lighting.mask(x, y, z), lstats, times))
+    let rendered = finish_render(mesh, scene, light_positions, cfg, reference, &seen(&lighting), lstats, times);
+    Ok(rendered)
 }
 
 /// Shade with the given lit state and assemble the statistics; `times` = load, light and
@@ -232,14 +264,14 @@ pub fn finish_render(
     light_positions: &[[f64; 3]],
     cfg: &RenderConfig,
     reference: Option<&crate::refrender::RefImage>,
-    mask: &dyn Fn(u32, u32, u16) -> cell_core::light::SourceMask,
+    seen: &Seen<'_>,
     lstats: LightStats,
     times: [f64; 3],
 ) -> Rendered {
     let [load_seconds, light_seconds, reference_seconds] = times;
     let t1 = Instant::now();
     let lights = point_lights(light_positions);
-    let image = shade_grid_with(mesh, scene, &lights, mask, cfg.normals);
+    let image = shade_grid_with(mesh, scene, &lights, seen, cfg.normals);
     let t2 = Instant::now();
     let cmp = reference.map(|r| crate::refrender::compare(&image.rgb, &image.covered, &image.lit, r));
     let load_cell = std::mem::size_of::<cell_core::cell::Cell<{ cell_core::cell::DEFAULT_DEXELS }>>()

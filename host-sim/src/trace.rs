@@ -146,6 +146,7 @@ impl Tap {
             skip: env.skip,
             hold: env.hold,
             frustum: frustum.copied(),
+            rule: env.rule,
         };
         for r in &mut self.recorders {
             r.push::<F>(&Event::Light(s));

@@ -5,23 +5,24 @@
 //! scene, conservation, termination on adversarial sources, and the cycle counts we claim.
 
 use cell_core::beam::{FracBits, Source, SourceCoord, SourceId};
-use cell_core::dexel::FacetTag;
 use cell_core::light::Policy;
+use cell_core::lit::LitRule;
 use host_sim::diffuse::{diffuse, LightConfig, Lighting};
 use host_sim::grid::Grid;
-use host_sim::precompute::{facet_packet, Contour, LoadConfig, Thickness, Q};
+use host_sim::precompute::{Contour, LoadConfig, Thickness, Q};
 use proptest::prelude::*;
+use rc2_tests::oracle::lit::trace_all_plane;
 use rc2_tests::oracle::rays::trace_all;
 use std::collections::BTreeMap;
 
 type G = Grid<64>;
 
+mod common;
+
 fn grid_with(n: u32, tris: &[[[i64; 3]; 3]]) -> G {
     let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
-    let packets: Vec<_> =
-        tris.iter().filter_map(|t| facet_packet(t, FacetTag::default(), &cfg).unwrap().ok()).collect();
     let mut g = G::new(n, n);
-    g.load_wave(&packets, |_| {});
+    g.load_wave(&common::packets_of(tris, &cfg), |_| {});
     g
 }
 
@@ -37,12 +38,28 @@ fn light<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) -> Lighting<F
     diffuse::<F, 64>(g, &sources(src16), &cfg, |_, _| {}).expect("diffusion terminates without loss")
 }
 
-/// Beam diffusion == per-ray tracing: lit voxels, masks, and every ray count.
+/// Beam diffusion == per-ray tracing under the configured lit rule: lit voxels, masks, the
+/// visible surfaces' masks (plane rule), and every ray count.
 fn check_against_rays<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) -> Result<(), TestCaseError> {
     let n = g.n as i64;
     let l = light::<F>(g, src16, cfg);
-    let occupied = |x: i64, y: i64, z: i64| g.cell(x as u32, y as u32).store.occupied(z as u16).is_some();
-    let want = trace_all(n, &occupied, src16, n - 1, F::U32);
+    let want = match cfg.rule {
+        LitRule::Thesis => {
+            let occupied = |x: i64, y: i64, z: i64| g.cell(x as u32, y as u32).store.occupied(z as u16).is_some();
+            trace_all(n, &occupied, src16, n - 1, F::U32)
+        }
+        LitRule::Plane => {
+            let o = trace_all_plane(n, &common::surfaces_of(g), &common::columns_of(g), src16, n - 1, F::U32);
+            let got: BTreeMap<[i64; 2], u64> = l
+                .cells
+                .iter()
+                .filter(|c| c.visible_lit != 0)
+                .map(|c| ([c.x as i64, c.y as i64], c.visible_lit as u64))
+                .collect();
+            prop_assert_eq!(&got, &o.visible, "visible surfaces lit differ (f = {}, {:?})", F::U32, cfg);
+            o.rays
+        }
+    };
     let got: BTreeMap<[i64; 3], u64> = l.lit_voxels().map(|(v, m)| (v.map(|c| c as i64), m as u64)).collect();
     prop_assert_eq!(&got, &want.lit, "lit sets differ (f = {}, {:?})", F::U32, cfg);
     let emitted: u128 = l.reports.iter().map(|r| r.counts.rays_emitted).sum();
@@ -64,14 +81,16 @@ fn config() -> impl Strategy<Value = LightConfig> {
         prop::sample::select(vec![Policy::Thesis, Policy::Wavefront, Policy::Radial]),
         any::<bool>(),
         any::<bool>(),
+        prop::sample::select(vec![LitRule::Thesis, LitRule::Plane]),
     )
-        .prop_map(|(fa, policy, merge, skip)| LightConfig {
+        .prop_map(|(fa, policy, merge, skip, rule)| LightConfig {
             fa,
             policy,
             merge,
             record_visits: false,
             skip_receding: skip,
             skip_dead_directions: skip,
+            rule,
             ..Default::default()
         })
 }
@@ -136,10 +155,12 @@ fn adversarial_sources() {
         let g = grid_with(n, tris);
         for p in positions {
             for policy in [Policy::Thesis, Policy::Wavefront, Policy::Radial] {
-                let cfg =
-                    LightConfig { fa: 2, policy, merge: policy.by_layer(), record_visits: false, ..Default::default() };
-                check_against_rays::<cell_core::beam::frac::U2>(&g, &[p], cfg)
-                    .unwrap_or_else(|e| panic!("{name} {p:?}: {e}"));
+                for rule in [LitRule::Thesis, LitRule::Plane] {
+                    let merge = policy.by_layer();
+                    let cfg = LightConfig { fa: 2, policy, merge, record_visits: false, rule, ..Default::default() };
+                    check_against_rays::<cell_core::beam::frac::U2>(&g, &[p], cfg)
+                        .unwrap_or_else(|e| panic!("{name} {p:?} {rule:?}: {e}"));
+                }
             }
         }
     }

@@ -9,10 +9,13 @@
 //! * [`lines`] — reference walks of 6/18/26-connected discrete 3D lines (f64, exact here).
 //! * [`inside`] — strict inside/outside of voxel centres for a closed mesh, by column parity.
 //! * [`flood`] — flood fill from outside the grid and leaks into the mesh's interior.
+//! * [`rays`] — per-ray lighting under the thesis's rule (§4.1.5, §5.5.5).
+//! * [`lit`] — per-ray lighting under the plane-aware rule (§5.5.6).
 
 pub mod brute;
 pub mod flood;
 pub mod inside;
 pub mod lines;
+pub mod lit;
 pub mod rays;
 pub mod tunnels;

@@ -59,3 +59,53 @@ pub fn wave_and_oracle_voxels(
         brute::facet_voxels(piece, Q, oracle_thickness(thickness), oracle_contour(contour), [0, 0, 0], [hi, hi, hi]);
     (got, want)
 }
+
+/// The plane rule's oracle view of a loaded grid: each occupied voxel's dexel plane.
+pub fn surfaces_of<const D: usize>(
+    g: &host_sim::grid::Grid<D>,
+) -> impl Fn(i64, i64, i64) -> Option<rc2_tests::oracle::lit::Surface> + '_ {
+    move |x, y, z| {
+        g.cell(x as u32, y as u32).store.occupied(z as u16).map(|d| rc2_tests::oracle::lit::Surface {
+            lo: d.span.lo as i64,
+            nx: d.plane.nx as i64,
+            ny: d.plane.ny as i64,
+            nz: d.plane.nz as i64,
+            e: d.plane.e as i64,
+        })
+    }
+}
+
+/// The plane rule's oracle view of a loaded grid: each column's visible surface.
+pub fn columns_of<const D: usize>(
+    g: &host_sim::grid::Grid<D>,
+) -> impl Fn(i64, i64) -> Option<rc2_tests::oracle::lit::Visible> + '_ {
+    move |x, y| {
+        g.cell(x as u32, y as u32).visible.map(|v| rc2_tests::oracle::lit::Visible {
+            z_v: v.z_v as i64,
+            plane: rc2_tests::oracle::lit::Surface {
+                lo: v.z_v as i64,
+                nx: v.plane.nx as i64,
+                ny: v.plane.ny as i64,
+                nz: v.plane.nz as i64,
+                e: v.plane.e as i64,
+            },
+        })
+    }
+}
+
+/// The packets of lattice triangles with their planes (ids shared by coplanar ones) and
+/// distinct materials, skipping degenerate ones.
+pub fn packets_of(
+    tris: &[[[i64; 3]; 3]],
+    cfg: &host_sim::precompute::LoadConfig,
+) -> Vec<cell_core::facet::PipelinePacket> {
+    let mut ids = host_sim::precompute::PlaneIds::default();
+    tris.iter()
+        .enumerate()
+        .filter_map(|(i, t)| {
+            let plane = host_sim::precompute::facet_plane(t, i as u32, &mut ids);
+            let tag = cell_core::dexel::FacetTag { facet: i as u32, material: i as u16, plane, ..Default::default() };
+            host_sim::precompute::facet_packet(t, tag, cfg).expect("in budget").ok()
+        })
+        .collect()
+}

@@ -1,0 +1,549 @@
+//! §5.5.5–5.5.6 — the lit rules: which rays a surface voxel stops, lights or lets pass.
+//!
+//! **Invariant: the rule is defined ray by ray ([`Visit::verdict`]), and every set of rays the
+//! cell treats at once (a beam, a piece of a beam) is uniform under it: the cell only ever
+//! applies a verdict to rays whose tests all agree.** The per-ray oracle of the test suite
+//! restates the rule with its own arithmetic, and beam diffusion must equal it ray for ray.
+//!
+//! # The thesis's rule (§5.5.5): [`LitRule::Thesis`]
+//!
+//! A beam entering an occupied voxel lights it and stops. It is wrong at grazing angles: a
+//! surface is a staircase of voxels, and the ray aimed at one step is absorbed by the step before
+//! it (§5.5.6, "one of the hardest problems … no truly satisfactory solution").
+//!
+//! # The plane rule: [`LitRule::Plane`]
+//!
+//! Each dexel stores its facet's plane ([`crate::plane`]): g(p) > 0 on the outward side. A ray
+//! is the line `p(t) = Se + t·(s·e_w + (u/D)·e_u + (v/D)·e_v)` from the source with its principal
+//! coordinate snapped to the source voxel's (`Se`); at layer k its point `p(k)` lies in its voxel.
+//! Write σ_t = [g(p(t)) > 0] for the plane of a voxel, and σ₋ = σ_{k−1} (σ₀ at layer 0).
+//! Because g(p(t)) is affine in t, σ changes at most once along a ray. A facet stops a ray only
+//! where the ray crosses its plane *there*: a planar facet cannot shadow itself, and the plane
+//! of a facet says nothing about rays that pass beside the facet (beyond its edges, on its far
+//! side without crossing it). At layer k in voxel V a ray
+//!
+//! 1. lights the column's *visible surface* (the facet its centre line meets, [`crate::visible`])
+//!    if V is one of the two voxels bracketing it, that facet's plane B faces the source
+//!    (g_B(Se) > 0) and σᴮ_k or σᴮ₋ holds;
+//! 2. if it is *terminal* (it crossed a plane just before this layer): lights V if V is occupied,
+//!    its plane faces the source and σ_k or σ₋ holds; it is absorbed;
+//! 3. in an empty V goes on;
+//! 4. in an occupied V: lights V if V's plane faces the source and σ_k or σ₋; is absorbed if
+//!    σ₋ ≠ σ_k (it crossed the plane between the two layers); is absorbed if it is a ±z ray that
+//!    stays in its column at layer k + 1 and has passed another dexel of this column while
+//!    staying in it (the *column rule*, see below); becomes terminal if σ_k ≠ σ_{k+1} (it will
+//!    cross before the next layer: one more step, act there, die); otherwise goes on.
+//!
+//! The terminal step lights the voxel the crossing point may lie in at the next layer. Planes
+//! stop rays from both sides (an open sheet is opaque both ways), but only facets facing the
+//! source are lit. A closed mesh stays closed: a ray crossing its surface crosses a plane in
+//! one of the two voxels around the crossing (the standard surface has no 26-tunnel), so it is
+//! stopped there — unless that voxel belongs to another facet (a junction), and then it is
+//! inside the mesh and is stopped where it leaves it.
+//!
+//! # Beams under the plane rule
+//!
+//! For one plane and one layer t, the rays with σ_t form a half-plane of the (u, v) lattice: an
+//! exact affine function `V(a, b, t) = K₀ + K₁·t + 16·t·(c_b·a + c_g·b)` of the lattice offsets
+//! a, b has the sign of g ([`RayPlane`]). So in each column of a beam's rectangle (fixed a) the
+//! rays a test holds for are a prefix or a suffix ([`Test::interval`]), and columns with the same
+//! prefixes and suffixes for every test form *runs* (found by binary search: each boundary is
+//! monotone in a). A run cut at its boundaries gives rectangles of uniform verdict. A beam whose
+//! rectangle is uniform (all four corners agree on every test: each test holds on a half-plane)
+//! is processed in one step as before; otherwise the cell *peels* it, one rectangle per step,
+//! the rest staying in its FIFO slot ([`crate::light`]).
+//!
+//! **The column rule.** A ±z beam's rays that stay in the column go back into the cell's own
+//! FIFO. For the no-deadlock argument of [`crate::light`] a step may put at most one beam
+//! there, so the rays that stay must form one message. After an occupied voxel they are a
+//! rectangle minus the rays that crossed its plane (a *notch*: the rays whose σ changed between
+//! two layers, [`Notch`]). A second plane would need a second notch, so a ray that stays in its
+//! column and meets a voxel of another dexel of that column, having passed one already while
+//! staying, is absorbed there. Rays leave a column all the time, and then forget: the rule only
+//! concerns rays nearly parallel to z inside one column.
+//!
+//! # Arithmetic
+//!
+//! With L = 16·D·2^f every coordinate of L·p(t) is an integer, and `2¹⁶·L·g(p(t))` is one: with
+//! the scaled normal (|n| ≤ 2³⁰ after the 2¹⁶ of `nx`, `ny`), |L·(p − ref)| ≤ 2³⁵·2¹⁷ and
+//! |16·t·c·a| ≤ 2⁴·2¹⁷·2³⁰·2³¹, every term is below 2⁸³: `i128`, exact, for every f and D the beam
+//! budget of [`crate::beam`] admits.
+
+use crate::beam::{Direction, FarDistance, FracBits, Source};
+use crate::plane::DexelPlane;
+use heapless::Vec;
+
+/// Which lit rule the cells apply.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum LitRule {
+    /// §5.5.5: a beam entering an occupied voxel lights it and stops.
+    Thesis,
+    /// The plane rule (see the module doc): stopped only by a plane crossed there; lights the
+    /// column's visible surface from its own plane.
+    #[default]
+    Plane,
+}
+
+/// A dexel's plane seen along the rays of one source and direction: `V(a, b, t)` has the sign of
+/// g at the point of parameter t of lattice ray (a, b) (see the module doc).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RayPlane {
+    k0: i128,
+    k1: i128,
+    cb: i128,
+    cg: i128,
+}
+
+impl RayPlane {
+    /// The plane of a dexel of column (x, y) whose first voxel is `lo` (`reference` = (x, y, lo)).
+    pub fn new<F: FracBits>(
+        plane: &DexelPlane,
+        reference: [i64; 3],
+        source: &Source,
+        dir: Direction,
+        far: FarDistance<F>,
+    ) -> Self {
+        let df = far.scaled() as i128;
+        let l = 16 * df;
+        let c = [(plane.nx as i128) << 16, (plane.ny as i128) << 16, plane.nz as i128];
+        let w = dir.principal().index();
+        let (ua, va) = dir.transverse();
+        let (u, v) = (ua.index(), va.index());
+        let sv = source.voxel();
+        let s16 = |i: usize| source.pos[i].to_bits() as i128;
+        let k0 = c[w] * l * (sv[w] as i128 - reference[w] as i128)
+            + c[u] * (df * s16(u) - l * reference[u] as i128)
+            + c[v] * (df * s16(v) - l * reference[v] as i128)
+            + (1i128 << 16) * l * plane.e as i128;
+        RayPlane { k0, k1: c[w] * l * dir.sign() as i128, cb: c[u], cg: c[v] }
+    }
+
+    /// `2¹⁶·L·g` at ray (a, b)'s point of parameter t.
+    pub fn value(&self, a: i64, b: i64, t: i64) -> i128 {
+        let t = t as i128;
+        self.k0 + self.k1 * t + 16 * t * (self.cb * a as i128 + self.cg * b as i128)
+    }
+
+    /// Whether the plane faces the source: g(Se) > 0 (the same for every ray: p(0) = Se).
+    pub fn faces_source(&self) -> bool {
+        self.k0 > 0
+    }
+}
+
+/// One test of the rule: σ_t of a plane ("the ray's point of parameter t is on the outward
+/// side").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Test {
+    /// The plane.
+    pub plane: RayPlane,
+    /// The ray parameter (a layer, ≥ 0).
+    pub t: i64,
+}
+
+/// Which lattice axis is held fixed when a test is read along the other.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Along {
+    /// Columns: a (the u offset) fixed, b varies.
+    V,
+    /// Rows: b (the v offset) fixed, a varies.
+    U,
+}
+
+/// ⌊n/d⌋ for d > 0.
+fn floor_div(n: i128, d: i128) -> i128 {
+    n.div_euclid(d)
+}
+
+impl Test {
+    /// Whether the test holds for ray (a, b).
+    pub fn holds(&self, a: i64, b: i64) -> bool {
+        self.plane.value(a, b, self.t) > 0
+    }
+
+    /// The offsets of `lo ..= hi` along `along` for which the test holds, with the other offset
+    /// fixed at `fixed`: an interval touching one end (σ is monotone along a line of rays), as
+    /// `(first, last)`, empty when first > last.
+    pub fn interval(&self, along: Along, fixed: i64, lo: i64, hi: i64) -> (i64, i64) {
+        let p = &self.plane;
+        let t = self.t as i128;
+        let (fixed_c, free_c) = match along {
+            Along::V => (p.cb, p.cg),
+            Along::U => (p.cg, p.cb),
+        };
+        let a = p.k0 + p.k1 * t + 16 * t * fixed_c * fixed as i128;
+        let b = 16 * t * free_c;
+        if b == 0 {
+            return if a > 0 { (lo, hi) } else { (hi.saturating_add(1), hi) };
+        }
+        // a + b·x > 0.
+        let (lo128, hi128) = (lo as i128, hi as i128);
+        let (first, last) = if b > 0 { (floor_div(-a, b) + 1, hi128) } else { (lo128, -floor_div(-a, -b) - 1) };
+        let (first, last) = (first.max(lo128), last.min(hi128));
+        if first > last {
+            (hi.saturating_add(1), hi)
+        } else {
+            (first as i64, last as i64)
+        }
+    }
+}
+
+/// At most this many tests in one visit (three for the voxel's plane, three for a notch, two
+/// for the visible surface).
+pub const MAX_TESTS: usize = 8;
+
+/// Segments of a line of rays: `(first offset, test bits)`, each up to the next one's first
+/// offset − 1 (the last up to the line's end). At most one cut per test end.
+pub type Segments = Vec<(i64, u8), { 2 * MAX_TESTS + 1 }>;
+
+/// Split `lo ..= hi` (along `along`, the other offset at `fixed`) into segments on which every
+/// test in `tests` has one value (bit i: test i holds).
+pub fn segments(tests: &[Test], along: Along, fixed: i64, lo: i64, hi: i64, out: &mut Segments) {
+    out.clear();
+    let mut cuts: Vec<i64, { 2 * MAX_TESTS + 1 }> = Vec::new();
+    let mut spans: Vec<(i64, i64), MAX_TESTS> = Vec::new();
+    let _ = cuts.push(lo);
+    for t in tests {
+        let (f, l) = t.interval(along, fixed, lo, hi);
+        let _ = spans.push((f, l));
+        if f <= l {
+            for c in [f, l.saturating_add(1)] {
+                if c > lo && c <= hi && !cuts.contains(&c) {
+                    let at = cuts.iter().position(|&x| x > c).unwrap_or(cuts.len());
+                    // Cannot fail: at most 2 cuts per test plus `lo`.
+                    let _ = cuts.insert(at, c);
+                }
+            }
+        }
+    }
+    for &c in &cuts {
+        let bits = spans.iter().enumerate().fold(0u8, |m, (i, &(f, l))| m | (((f <= c && c <= l) as u8) << i));
+        let _ = out.push((c, bits));
+    }
+}
+
+/// Whether every test in `tests` has the same value on the whole rectangle `[a0, a1] × [b0, b1]`
+/// (a test holds on a half-plane: it is constant on a rectangle iff it agrees on the corners).
+pub fn uniform(tests: &[Test], a: (i64, i64), b: (i64, i64)) -> Option<u8> {
+    let mut bits = 0u8;
+    for (i, t) in tests.iter().enumerate() {
+        let c = [t.holds(a.0, b.0), t.holds(a.0, b.1), t.holds(a.1, b.0), t.holds(a.1, b.1)];
+        if c.iter().any(|&x| x != c[0]) {
+            return None;
+        }
+        bits |= (c[0] as u8) << i;
+    }
+    Some(bits)
+}
+
+/// The last line (offset along the run direction, moving from `start` toward `end`) whose test
+/// intervals across `lo ..= hi` equal those of line `start`: a run of lines with the same
+/// segments. Each interval's ends are monotone in the line, so each test's equal lines form an
+/// interval: binary search per test.
+pub fn run_end(tests: &[Test], along: Along, start: i64, end: i64, lo: i64, hi: i64) -> i64 {
+    let mut reach = end;
+    for t in tests {
+        let want = t.interval(along, start, lo, hi);
+        let same = |line: i64| t.interval(along, line, lo, hi) == want;
+        // Invariant: `good` is equal, `bad` (if moved) is not; search between them.
+        let (mut good, mut bad) = (start, reach);
+        if same(bad) {
+            continue;
+        }
+        while (bad - good).abs() > 1 {
+            let mid = good + (bad - good) / 2;
+            if same(mid) {
+                good = mid;
+            } else {
+                bad = mid;
+            }
+        }
+        reach = good;
+    }
+    reach
+}
+
+/// Rays excluded from a beam that stays in its column (see the column rule in the module doc):
+/// those whose σ for the plane of the column's dexel at `state` changed between layers `t1` and
+/// `t2`. With `fresh`, those whose σ changes between `t2` and `t2 + 1` are terminal at layer
+/// `t2 + 1`, the beam's layer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Notch {
+    /// A voxel of the dexel whose plane cut the beam (the rays' column state).
+    pub state: u16,
+    /// First layer of the excluded crossing.
+    pub t1: u16,
+    /// Last layer of the excluded crossing.
+    pub t2: u16,
+    /// The rays crossing between t2 and t2 + 1 are terminal at this layer.
+    pub fresh: bool,
+}
+
+/// What happens to a set of rays with the same test bits at one visit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Out {
+    /// Not in the beam (a notch excludes them).
+    Absent,
+    /// Stopped here.
+    Absorbed,
+    /// Go on to the next layer.
+    Continue,
+    /// Go on one more layer as terminal rays.
+    Terminal,
+}
+
+/// The verdict on rays with the same test bits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Verdict {
+    /// Where they go.
+    pub out: Out,
+    /// They light the voxel (its own plane).
+    pub lit: bool,
+    /// They light the column's visible surface.
+    pub visible: bool,
+}
+
+/// Everything the plane rule needs about one beam at one voxel, and the tests it reads.
+#[derive(Clone, Debug)]
+pub struct Visit {
+    /// The tests, in the order [`Visit::verdict`] reads their bits.
+    pub tests: Vec<Test, MAX_TESTS>,
+    /// Index of the voxel's own σ₋, σ_k, σ_{k+1} (when occupied).
+    own: Option<(usize, bool)>,
+    /// Index of the notch's σ_{t1}, σ_{t2} (and σ_{t2+1} when fresh).
+    notch: Option<(usize, bool)>,
+    /// Index of the visible surface's σ₋, σ_k (when the voxel brackets it and it faces the source).
+    visible: Option<usize>,
+    /// The beam arrived terminal.
+    terminal: bool,
+    /// Staying rays meet another dexel than their state's: the column rule absorbs them.
+    other_dexel: bool,
+}
+
+impl Visit {
+    /// A visit at layer `k` of a beam (`terminal`: it arrived terminal), in a voxel whose dexel's
+    /// plane is `own` (None: empty), with `notch` (plane and notch) and the visible surface's
+    /// plane when the voxel brackets it; `other_dexel`: the beam has a column state and the
+    /// voxel is occupied by another dexel.
+    pub fn new(
+        k: i64,
+        terminal: bool,
+        own: Option<RayPlane>,
+        notch: Option<(RayPlane, Notch)>,
+        visible: Option<RayPlane>,
+        other_dexel: bool,
+    ) -> Self {
+        let mut tests = Vec::new();
+        let prev = (k - 1).max(0);
+        let own = own.map(|p| {
+            let i = tests.len();
+            for t in [prev, k, k + 1] {
+                let _ = tests.push(Test { plane: p, t });
+            }
+            (i, p.faces_source())
+        });
+        let notch = notch.map(|(p, n)| {
+            let i = tests.len();
+            for t in [n.t1 as i64, n.t2 as i64, n.t2 as i64 + 1] {
+                let _ = tests.push(Test { plane: p, t });
+            }
+            (i, n.fresh)
+        });
+        let visible = visible.filter(RayPlane::faces_source).map(|p| {
+            let i = tests.len();
+            for t in [prev, k] {
+                let _ = tests.push(Test { plane: p, t });
+            }
+            i
+        });
+        Visit { tests, own, notch, visible, terminal, other_dexel }
+    }
+
+    /// Whether the visit needs no test at all: an empty voxel that does not bracket the visible
+    /// surface, for a plain beam (the fast path of the thesis's machine).
+    pub fn is_plain(&self) -> bool {
+        self.tests.is_empty() && !self.terminal
+    }
+
+    /// The verdict on rays whose test bits are `bits`; `stays`: they stay in the column (a ±z
+    /// beam's rays whose voxel at the next layer is in this column).
+    pub fn verdict(&self, bits: u8, stays: bool) -> Verdict {
+        let bit = |i: usize| bits >> i & 1 == 1;
+        let mut v = Verdict { out: Out::Continue, lit: false, visible: false };
+        let mut terminal = self.terminal;
+        if let Some((i, fresh)) = self.notch {
+            if bit(i) != bit(i + 1) {
+                v.out = Out::Absent;
+                return v;
+            }
+            terminal |= fresh && bit(i + 1) != bit(i + 2);
+        }
+        if let Some(i) = self.visible {
+            v.visible = bit(i) || bit(i + 1);
+        }
+        let own = self.own.map(|(i, front)| (bit(i), bit(i + 1), bit(i + 2), front));
+        if let Some((prev, now, _, front)) = own {
+            v.lit = front && (prev || now);
+        }
+        if terminal {
+            v.out = Out::Absorbed;
+            return v;
+        }
+        let Some((prev, now, next, _)) = own else {
+            return v;
+        };
+        v.out = if prev != now || (stays && self.other_dexel) {
+            Out::Absorbed
+        } else if now != next {
+            Out::Terminal
+        } else {
+            Out::Continue
+        };
+        v
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use crate::beam::{frac, Layer, SourceCoord, SourceId};
+
+    fn lcg(s: &mut u64) -> u64 {
+        *s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        *s >> 33
+    }
+
+    /// `value` against the definition, in f64 where it is exact enough: g at the ray's point.
+    #[test]
+    fn ray_plane_value_is_scaled_g() {
+        let src = Source::new(SourceId(0), [5.25, 7.5, 3.0625].map(SourceCoord::from_num));
+        let far = FarDistance::<frac::U1>::new(15).unwrap();
+        let plane = DexelPlane { id: 0, nx: 1200, ny: -16384, nz: 300 << 16, e: -777 };
+        let reference = [6i64, 9, 4];
+        for dir in Direction::ALL {
+            let rp = RayPlane::new(&plane, reference, &src, dir, far);
+            for (a, b, t) in [(0i64, 0i64, 0i64), (7, -3, 2), (-30, 30, 9), (13, 1, 15)] {
+                let w = dir.principal().index();
+                let (ua, va) = dir.transverse();
+                let mut p = [0f64; 3];
+                p[w] = src.voxel()[w] as f64 + dir.sign() as f64 * t as f64;
+                p[ua.index()] = src.pos[ua.index()].to_num::<f64>() + (a as f64 / 2.0) * t as f64 / 15.0;
+                p[va.index()] = src.pos[va.index()].to_num::<f64>() + (b as f64 / 2.0) * t as f64 / 15.0;
+                let g = 1200.0 * (p[0] - 6.0) - 16384.0 * (p[1] - 9.0) + 300.0 * (p[2] - 4.0) - 777.0;
+                let want = g * 65536.0 * 16.0 * 30.0;
+                let got = rp.value(a, b, t) as f64;
+                assert!((got - want).abs() <= want.abs() * 1e-12 + 1e-3, "{dir:?} {a} {b} {t}: {got} vs {want}");
+            }
+        }
+    }
+
+    /// Intervals and segments against testing every ray, on random planes.
+    #[test]
+    fn intervals_and_segments_match_every_ray() {
+        let mut s = 7u64;
+        let src = Source::new(SourceId(0), [4.5, 6.0, 2.25].map(SourceCoord::from_num));
+        let far = FarDistance::<frac::U2>::new(12).unwrap();
+        for _ in 0..300 {
+            let r = |s: &mut u64, m: u64| (lcg(s) % (2 * m + 1)) as i64 - m as i64;
+            let plane = DexelPlane {
+                id: 0,
+                nx: r(&mut s, 16384) as i16,
+                ny: r(&mut s, 16384) as i16,
+                nz: (r(&mut s, 16384) << 16) as i32,
+                e: r(&mut s, 30000) as i32,
+            };
+            let dir = Direction::ALL[(lcg(&mut s) % 6) as usize];
+            let reference = [r(&mut s, 8) + 6, r(&mut s, 8) + 6, r(&mut s, 8) + 6];
+            let rp = RayPlane::new(&plane, reference, &src, dir, far);
+            let tests: std::vec::Vec<Test> = (0..3).map(|_| Test { plane: rp, t: (lcg(&mut s) % 13) as i64 }).collect();
+            let (lo, hi) = (r(&mut s, 48), r(&mut s, 48));
+            let (lo, hi) = (lo.min(hi), lo.max(hi));
+            let fixed = r(&mut s, 48);
+            for along in [Along::V, Along::U] {
+                let at = |x: i64| match along {
+                    Along::V => (fixed, x),
+                    Along::U => (x, fixed),
+                };
+                for t in &tests {
+                    let (f, l) = t.interval(along, fixed, lo, hi);
+                    for x in lo..=hi {
+                        let (a, b) = at(x);
+                        assert_eq!(f <= x && x <= l, t.holds(a, b), "{t:?} {along:?} {x}");
+                    }
+                }
+                let mut seg = Segments::new();
+                segments(&tests, along, fixed, lo, hi, &mut seg);
+                assert_eq!(seg[0].0, lo);
+                for (i, &(start, bits)) in seg.iter().enumerate() {
+                    let end = seg.get(i + 1).map_or(hi, |n| n.0 - 1);
+                    assert!(start <= end);
+                    for x in start..=end {
+                        let (a, b) = at(x);
+                        let want = tests.iter().enumerate().fold(0u8, |m, (j, t)| m | ((t.holds(a, b) as u8) << j));
+                        assert_eq!(bits, want);
+                    }
+                }
+            }
+            // Runs: every line from start to run_end has the same segments, the next does not.
+            let (a0, a1) = (r(&mut s, 40), r(&mut s, 40));
+            let (a0, a1) = (a0.min(a1), a0.max(a1));
+            for (start, end) in [(a0, a1), (a1, a0)] {
+                let e = run_end(&tests, Along::V, start, end, lo, hi);
+                let seg_of = |x: i64| {
+                    let mut g = Segments::new();
+                    segments(&tests, Along::V, x, lo, hi, &mut g);
+                    g
+                };
+                let first = seg_of(start);
+                let step = if end >= start { 1 } else { -1 };
+                let mut x = start;
+                loop {
+                    assert_eq!(seg_of(x), first, "line {x} in the run {start}..={e}");
+                    if x == e {
+                        break;
+                    }
+                    x += step;
+                }
+                if e != end {
+                    assert_ne!(seg_of(e + step), first);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn verdicts_by_hand() {
+        let p = RayPlane { k0: 1, k1: 0, cb: 0, cg: 0 };
+        // Own plane only: bits (σ₋, σ_k, σ_{k+1}).
+        let v = Visit::new(3, false, Some(p), None, None, false);
+        let out = |bits, stays| v.verdict(bits, stays).out;
+        assert_eq!(out(0b111, false), Out::Continue);
+        assert_eq!(out(0b000, false), Out::Continue);
+        assert_eq!(out(0b011, false), Out::Terminal); // σ₋ = σ_k = 1, σ_{k+1} = 0
+        assert_eq!(out(0b001, false), Out::Absorbed); // crossed between k − 1 and k
+        assert!(v.verdict(0b001, false).lit && v.verdict(0b110, false).lit && !v.verdict(0b000, false).lit);
+        // The column rule: staying rays meeting another dexel are absorbed.
+        let w = Visit::new(3, false, Some(p), None, None, true);
+        assert_eq!(w.verdict(0b111, true).out, Out::Absorbed);
+        assert_eq!(w.verdict(0b111, false).out, Out::Continue);
+        // A terminal beam acts and dies; an empty voxel lets everything go on.
+        let t = Visit::new(3, true, Some(p), None, None, false);
+        assert_eq!(t.verdict(0b111, false), Verdict { out: Out::Absorbed, lit: true, visible: false });
+        assert_eq!(Visit::new(3, false, None, None, None, false).verdict(0, false).out, Out::Continue);
+        assert!(Visit::new(3, false, None, None, None, false).is_plain());
+        // A notch: bits 3.. are σ_{t1}, σ_{t2}, σ_{t2+1}.
+        let n = Notch { state: 4, t1: 1, t2: 2, fresh: true };
+        let v = Visit::new(3, false, None, Some((p, n)), None, false);
+        assert_eq!(v.verdict(0b010, false).out, Out::Absent);
+        assert_eq!(v.verdict(0b011, false).out, Out::Absorbed); // terminal: crossed between 2 and 3
+        assert_eq!(v.verdict(0b111, false).out, Out::Continue);
+        // The visible surface's bits come after.
+        let back = RayPlane { k0: -1, ..p };
+        assert_eq!(Visit::new(3, false, None, None, Some(back), false).tests.len(), 0, "a back face is never lit");
+        let v = Visit::new(3, false, None, None, Some(p), false);
+        assert!(v.verdict(0b10, false).visible && !v.verdict(0b00, false).visible);
+        let _ = Layer(0);
+    }
+}

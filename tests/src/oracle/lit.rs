@@ -1,0 +1,587 @@
+//! Per-ray oracle of the plane rule (thesis §5.5.6): every ray of the lattice traced on its
+//! own against the planes the surface voxels store.
+//!
+//! Rays, layers, sources and directions are those of [`super::rays`] (SPEC §3): ray
+//! `(dir, a, b)` of a source given in sixteenths is at layer `k` in the voxel
+//! [`super::rays::ray_voxel`] gives. This module adds what a surface voxel and a column store, and
+//! the rule that uses them. It restates both from their definitions with its own `i128`
+//! arithmetic and never calls `cell-core`.
+//!
+//! # Planes
+//!
+//! An occupied voxel belongs to a dexel of its column (x, y); the dexel's first voxel is `lo`
+//! and it stores its facet's plane as `(nx, ny, nz, e)` ([`Surface`], `lo` its reference depth).
+//! For a point p in voxel units
+//!
+//! ```text
+//!   g(p) = nx·(p_x − x) + ny·(p_y − y) + (nz / 2¹⁶)·(p_z − lo) + e
+//! ```
+//!
+//! is positive on the facet's outward side. A column may also have a *visible surface*
+//! ([`Visible`]): the plane of the facet its centre line meets first, with reference depth
+//! `z_v`, and the two voxels `z_v`, `z_v + 1` that bracket it.
+//!
+//! # The ray's points
+//!
+//! Ray `(dir, a, b)` with principal axis w, sign s and transverse axes (u, v) is the line
+//! `p(t) = Se + t·(s·e_w + (a/2^f)/D·e_u + (b/2^f)/D·e_v)` where `Se` is the source with its w
+//! coordinate replaced by its voxel's. With L = 16·D·2^f every coordinate of L·p(t) is an
+//! integer, so `2¹⁶·L·g(p(t))` is one ([`plane_value`]). σ_t = [g(p(t)) > 0]; at layer k,
+//! σ₋ = σ_{max(k−1, 0)}.
+//!
+//! # The rule
+//!
+//! A ray walks layers k = 0, 1, … as in [`super::rays`] (it exits past layer D or outside the
+//! grid). It is *terminal* or not, and a ±z ray has a *column state*: the dexel (by its first
+//! voxel) of the last surface voxel it passed while staying in its column, forgotten when it
+//! moves to another column. At layer k, in voxel V of column (x, y):
+//!
+//! 1. if V is one of the two voxels bracketing the column's visible surface B, B faces the
+//!    source (σᴮ₀) and σᴮ_k or σᴮ₋ holds, the ray lights the visible surface;
+//! 2. a terminal ray lights V if V is occupied, V's plane faces the source (σ₀) and σ_k or σ₋
+//!    holds; it is absorbed;
+//! 3. in an empty V it goes on;
+//! 4. in an occupied V: it lights V if σ₀ and (σ_k or σ₋); it is absorbed if σ₋ ≠ σ_k; it is
+//!    absorbed if it is a ±z ray whose voxel at layer k + 1 is in this column and whose column
+//!    state is another dexel than V's; it becomes terminal if σ_k ≠ σ_{k+1}; a ±z ray staying in
+//!    the column takes V's dexel as its state.
+//!
+//! The thesis's rule (§5.5.5) is [`super::rays::trace_all`].
+
+use std::collections::BTreeMap;
+
+use super::rays::{dir_axes, ray_voxel, rays_per_source, source_voxel, transverse, Fate, RayOutcome};
+
+/// The plane a surface voxel's dexel stores, or a column's visible surface (see the module doc).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Surface {
+    /// The reference depth: the dexel's first voxel (also its identity in the column), or
+    /// `z_v` for a visible surface.
+    pub lo: i64,
+    /// x component of the scaled normal.
+    pub nx: i64,
+    /// y component of the scaled normal.
+    pub ny: i64,
+    /// z component, with 16 more fraction bits.
+    pub nz: i64,
+    /// The plane's value at the centre of voxel (x, y, lo).
+    pub e: i64,
+}
+
+/// A column's visible surface: its plane (reference depth `z_v`) and the voxels `z_v`,
+/// `z_v + 1` that bracket it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Visible {
+    /// ⌊z*⌋.
+    pub z_v: i64,
+    /// The plane, `lo` = `z_v`.
+    pub plane: Surface,
+}
+
+/// The voxels of a scene with their planes: `None` where empty.
+pub type Surfaces<'a> = &'a dyn Fn(i64, i64, i64) -> Option<Surface>;
+
+/// The columns' visible surfaces: `None` where the centre line meets no facet.
+pub type Columns<'a> = &'a dyn Fn(i64, i64) -> Option<Visible>;
+
+/// What the rays of every source did under the plane rule.
+#[derive(Clone, Debug, PartialEq, Eq, Default)]
+pub struct PlaneOutcome {
+    /// Lit voxels (by their own planes) and the ray counts.
+    pub rays: RayOutcome,
+    /// Column (x, y) → the sources that lit its visible surface.
+    pub visible: BTreeMap<[i64; 2], u64>,
+}
+
+/// `2¹⁶·L·g(p(t))` for ray `(dir, a, b)` of `src` against the plane of `s` in column `(x, y)`
+/// (L = 16·D·2^f): its sign is the sign of g at the ray's point of parameter t.
+#[allow(clippy::too_many_arguments)] // the ray's full coordinates, as the definition states them
+pub fn plane_value(
+    s: &Surface,
+    x: i64,
+    y: i64,
+    src: [i64; 3],
+    dir: usize,
+    a: i64,
+    b: i64,
+    d: i64,
+    f: u32,
+    t: i64,
+) -> i128 {
+    let (w, sign, ua, va) = dir_axes(dir);
+    let l = 16 * ((d as i128) << f);
+    let df = (d as i128) << f;
+    let reference = [x as i128, y as i128, s.lo as i128];
+    // L·(p_i(t) − reference_i), exactly.
+    let mut lp = [0i128; 3];
+    lp[w] = l * (source_voxel(src)[w] as i128 + sign as i128 * t as i128 - reference[w]);
+    lp[ua] = df * src[ua] as i128 + 16 * a as i128 * t as i128 - l * reference[ua];
+    lp[va] = df * src[va] as i128 + 16 * b as i128 * t as i128 - l * reference[va];
+    (s.nx as i128 * lp[0] + s.ny as i128 * lp[1]) * 65536 + s.nz as i128 * lp[2] + 65536 * l * s.e as i128
+}
+
+/// One ray: its parameters and walk state.
+struct Ray {
+    src: [i64; 3],
+    dir: usize,
+    a: i64,
+    b: i64,
+    d: i64,
+    f: u32,
+    terminal: bool,
+    column: Option<i64>,
+}
+
+impl Ray {
+    fn new(src: [i64; 3], dir: usize, a: i64, b: i64, d: i64, f: u32) -> Self {
+        Ray { src, dir, a, b, d, f, terminal: false, column: None }
+    }
+
+    /// σ_t of plane `s` in column (x, y).
+    fn sigma(&self, s: &Surface, x: i64, y: i64, t: i64) -> bool {
+        plane_value(s, x, y, self.src, self.dir, self.a, self.b, self.d, self.f, t) > 0
+    }
+
+    /// The rule at layer k in voxel `p` (occupied by `own`, with the column's visible surface
+    /// `vis`), `stays`: the ray's voxel at k + 1 is in the same column (±z rays only). Sets
+    /// `lit` / `lit_visible` when the ray lights V / the visible surface; returns whether it
+    /// goes on.
+    fn step(
+        &mut self,
+        p: [i64; 3],
+        k: i64,
+        own: Option<Surface>,
+        vis: Option<Visible>,
+        stays: bool,
+        lit: &mut bool,
+        lit_visible: &mut bool,
+    ) -> bool {
+        let (x, y) = (p[0], p[1]);
+        let prev = (k - 1).max(0);
+        if let Some(v) = vis {
+            if (p[2] == v.z_v || p[2] == v.z_v + 1)
+                && self.sigma(&v.plane, x, y, 0)
+                && (self.sigma(&v.plane, x, y, k) || self.sigma(&v.plane, x, y, prev))
+            {
+                *lit_visible = true;
+            }
+        }
+        let lights = |r: &Ray, s: &Surface| r.sigma(s, x, y, 0) && (r.sigma(s, x, y, k) || r.sigma(s, x, y, prev));
+        if self.terminal {
+            if let Some(s) = own {
+                *lit = lights(self, &s);
+            }
+            return false;
+        }
+        let z_ray = self.dir >= 4;
+        let Some(s) = own else {
+            if z_ray && !stays {
+                self.column = None;
+            }
+            return true;
+        };
+        *lit = lights(self, &s);
+        let (was, now, next) = (self.sigma(&s, x, y, prev), self.sigma(&s, x, y, k), self.sigma(&s, x, y, k + 1));
+        if was != now {
+            return false;
+        }
+        if z_ray && stays && self.column.is_some_and(|c| c != s.lo) {
+            return false;
+        }
+        self.terminal = now != next;
+        self.column = (z_ray && stays).then_some(s.lo);
+        true
+    }
+}
+
+fn in_grid(n: i64, p: [i64; 3]) -> bool {
+    p.iter().all(|&c| (0..n).contains(&c))
+}
+
+/// Whether a ±z ray's voxel at layer k + 1 has the same (x, y) as at layer k.
+fn stays_in_column(dir: usize, now: [i64; 3], next: [i64; 3]) -> bool {
+    dir >= 4 && now[0] == next[0] && now[1] == next[1]
+}
+
+/// Walks one ray by the rule, one [`ray_voxel`] per layer; the voxels it lit and the columns
+/// whose visible surface it lit.
+#[allow(clippy::too_many_arguments)]
+pub fn trace_ray_plane(
+    n: i64,
+    surfaces: Surfaces<'_>,
+    columns: Columns<'_>,
+    src: [i64; 3],
+    dir: usize,
+    a: i64,
+    b: i64,
+    d: i64,
+    f: u32,
+    lit: &mut Vec<[i64; 3]>,
+    lit_visible: &mut Vec<[i64; 2]>,
+) -> Fate {
+    let mut ray = Ray::new(src, dir, a, b, d, f);
+    let mut k = 0;
+    loop {
+        if k > d {
+            return Fate::Exited { k };
+        }
+        let p = ray_voxel(n, src, dir, a, b, d, f, k);
+        if !in_grid(n, p) {
+            return Fate::Exited { k };
+        }
+        let next = ray_voxel(n, src, dir, a, b, d, f, k + 1);
+        let (mut l, mut lv) = (false, false);
+        let goes = ray.step(
+            p,
+            k,
+            surfaces(p[0], p[1], p[2]),
+            columns(p[0], p[1]),
+            stays_in_column(dir, p, next),
+            &mut l,
+            &mut lv,
+        );
+        if l {
+            lit.push(p);
+        }
+        if lv {
+            lit_visible.push([p[0], p[1]]);
+        }
+        if !goes {
+            return Fate::Absorbed { voxel: p, k };
+        }
+        k += 1;
+    }
+}
+
+/// Every ray of every source traced one by one with [`trace_ray_plane`]. Slow: a reference
+/// for [`trace_all_plane`], for small `D·2^f`.
+pub fn trace_all_plane_naive(
+    n: i64,
+    surfaces: Surfaces<'_>,
+    columns: Columns<'_>,
+    sources: &[[i64; 3]],
+    d: i64,
+    f: u32,
+) -> PlaneOutcome {
+    assert!(sources.len() <= 64, "at most 64 sources (mask bits)");
+    let m = d << f;
+    let mut out = PlaneOutcome::default();
+    let (mut lit, mut vis) = (Vec::new(), Vec::new());
+    for (i, &src) in sources.iter().enumerate() {
+        for dir in 0..6 {
+            for a in -m..=m {
+                for b in -m..=m {
+                    out.rays.rays_emitted += 1;
+                    lit.clear();
+                    vis.clear();
+                    match trace_ray_plane(n, surfaces, columns, src, dir, a, b, d, f, &mut lit, &mut vis) {
+                        Fate::Absorbed { .. } => out.rays.rays_absorbed += 1,
+                        Fate::Exited { .. } => out.rays.rays_exited += 1,
+                    }
+                    for p in &lit {
+                        *out.rays.lit.entry(*p).or_insert(0) |= 1 << i;
+                    }
+                    for c in &vis {
+                        *out.visible.entry(*c).or_insert(0) |= 1 << i;
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Offsets `a ∈ [−D·2^f, D·2^f]` grouped by their transverse coordinate sequence at layers
+/// `0 ..= kmax + 1` (one past the last the walk may use, so that a ray's next voxel is known):
+/// each class is an interval of a (the coordinate is monotone in a at every layer).
+fn class_ranges(src_c: i64, d: i64, f: u32, kmax: i64) -> Vec<(Vec<i64>, i64, i64)> {
+    let m = d << f;
+    let mut out: Vec<(Vec<i64>, i64, i64)> = Vec::new();
+    for a in -m..=m {
+        let seq: Vec<i64> = (0..=kmax + 1).map(|k| transverse(src_c, a, d, f, k)).collect();
+        match out.last_mut() {
+            Some(c) if c.0 == seq => c.2 = a,
+            _ => out.push((seq, a, a)),
+        }
+    }
+    out
+}
+
+/// The same result as [`trace_all_plane_naive`], fast: rays whose voxel sequences agree on both
+/// transverse axes share a path, walked once to find where something can happen (surface
+/// voxels, the voxels bracketing a visible surface); each ray of the class applies the rule
+/// there only (and at the layer after one that made it terminal). The tests compare the two.
+pub fn trace_all_plane(
+    n: i64,
+    surfaces: Surfaces<'_>,
+    columns: Columns<'_>,
+    sources: &[[i64; 3]],
+    d: i64,
+    f: u32,
+) -> PlaneOutcome {
+    assert!(sources.len() <= 64, "at most 64 sources (mask bits)");
+    let mut out = PlaneOutcome::default();
+    for (i, &src) in sources.iter().enumerate() {
+        let mask = 1u64 << i;
+        let sv = source_voxel(src);
+        out.rays.rays_emitted += rays_per_source(d, f);
+        for dir in 0..6 {
+            let (w, s, ua, va) = dir_axes(dir);
+            let side = 2 * ((d as u128) << f) + 1;
+            let kmax = if !(0..n).contains(&sv[w]) {
+                -1
+            } else if s > 0 {
+                (n - 1 - sv[w]).min(d)
+            } else {
+                sv[w].min(d)
+            };
+            if kmax < 0 {
+                out.rays.rays_exited += side * side;
+                continue;
+            }
+            let us = class_ranges(src[ua], d, f, kmax);
+            let vs = class_ranges(src[va], d, f, kmax);
+            for (useq, alo, ahi) in &us {
+                for (vseq, blo, bhi) in &vs {
+                    let voxel = |k: usize| {
+                        let mut p = [0i64; 3];
+                        p[w] = sv[w] + s * k as i64;
+                        p[ua] = useq[k];
+                        p[va] = vseq[k];
+                        p
+                    };
+                    // The shared path: layers 0 ..= last, inside the grid.
+                    let mut last: i64 = -1;
+                    while last < kmax && in_grid(n, voxel((last + 1) as usize)) {
+                        last += 1;
+                    }
+                    let len = (last + 1) as usize;
+                    let own: Vec<Option<Surface>> =
+                        (0..len).map(|k| voxel(k)).map(|p| surfaces(p[0], p[1], p[2])).collect();
+                    let vis: Vec<Option<Visible>> = (0..len)
+                        .map(|k| {
+                            let p = voxel(k);
+                            columns(p[0], p[1]).filter(|v| p[2] == v.z_v || p[2] == v.z_v + 1)
+                        })
+                        .collect();
+                    let stays: Vec<bool> = (0..len).map(|k| stays_in_column(dir, voxel(k), voxel(k + 1))).collect();
+                    let visits: Vec<usize> = (0..len).filter(|&k| own[k].is_some() || vis[k].is_some()).collect();
+                    let weight = ((ahi - alo + 1) as u128) * ((bhi - blo + 1) as u128);
+                    if !visits.iter().any(|&k| own[k].is_some()) {
+                        // Nothing absorbs on this path; only the visible surfaces can be lit.
+                        out.rays.rays_exited += weight;
+                        if visits.is_empty() {
+                            continue;
+                        }
+                    }
+                    for a in *alo..=*ahi {
+                        for b in *blo..=*bhi {
+                            let mut ray = Ray::new(src, dir, a, b, d, f);
+                            let mut absorbed = false;
+                            let mut at = 0usize; // next index into `visits`
+                            let mut k = visits[0];
+                            let mut since = 0usize; // layer of the ray's previous visit
+                            loop {
+                                // The column state is forgotten when the ray left its column
+                                // between its previous visit and this one.
+                                if (since..k).any(|j| !stays[j]) {
+                                    ray.column = None;
+                                }
+                                let p = voxel(k);
+                                let (mut l, mut lv) = (false, false);
+                                let goes = ray.step(p, k as i64, own[k], vis[k], stays[k], &mut l, &mut lv);
+                                if l {
+                                    *out.rays.lit.entry(p).or_insert(0) |= mask;
+                                }
+                                if lv {
+                                    *out.visible.entry([p[0], p[1]]).or_insert(0) |= mask;
+                                }
+                                if !goes {
+                                    absorbed = true;
+                                    break;
+                                }
+                                // The step already applied the move to layer k + 1; the moves
+                                // after it, through empty voxels, are checked at the next visit.
+                                since = k + 1;
+                                let next = if ray.terminal {
+                                    Some(k + 1)
+                                } else {
+                                    while at < visits.len() && visits[at] <= k {
+                                        at += 1;
+                                    }
+                                    visits.get(at).copied()
+                                };
+                                match next {
+                                    Some(nk) if nk < len => k = nk,
+                                    _ => break,
+                                }
+                            }
+                            if visits.iter().any(|&v| own[v].is_some()) {
+                                if absorbed {
+                                    out.rays.rays_absorbed += 1;
+                                } else {
+                                    out.rays.rays_exited += 1;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lcg(seed: &mut u64) -> u64 {
+        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        *seed >> 33
+    }
+
+    /// The plane z = zp (normal +z or −z) as stored by a dexel starting at `lo`.
+    fn z_plane(zp: f64, up: bool, lo: i64) -> Surface {
+        let sgn = if up { 1 } else { -1 };
+        // g = sgn·2^14·(p_z − zp) = (nz/2^16)(p_z − lo) + e.
+        Surface { lo, nx: 0, ny: 0, nz: sgn << 30, e: (sgn as f64 * 16384.0 * (lo as f64 - zp)).round() as i64 }
+    }
+
+    fn none_visible(_: i64, _: i64) -> Option<Visible> {
+        None
+    }
+
+    #[test]
+    fn plane_value_signs_by_hand() {
+        // A floor z = 4.25 facing +z; source at (5, 5, 8) (sixteenths 80, 80, 128).
+        let s = z_plane(4.25, true, 4);
+        let src = [80, 80, 128];
+        // At t = 0 the point is the source (z = 8): above the plane, which faces it.
+        assert!(plane_value(&s, 5, 5, src, 0, 0, 0, 15, 0, 0) > 0);
+        // A −z ray (dir 5) reaches z = 4.25 at t = 3.75: above at 3, below at 4.
+        assert!(plane_value(&s, 5, 5, src, 5, 0, 0, 15, 0, 3) > 0);
+        assert!(plane_value(&s, 5, 5, src, 5, 0, 0, 15, 0, 4) < 0);
+        // Facing down instead: the source is on its inner side.
+        assert!(plane_value(&z_plane(4.25, false, 4), 5, 5, src, 5, 0, 0, 15, 0, 0) < 0);
+    }
+
+    /// A −z ray into a thick floor (dexel 3 ..= 5, plane z = 4.25): at layer 4 (z = 5) it is
+    /// above the plane and will cross it before layer 5, so it lights z = 5 and becomes
+    /// terminal; at layer 5 (z = 4) it lights z = 4 (it was above the plane at layer 4) and dies.
+    #[test]
+    fn terminal_step_lights_the_voxel_after_the_crossing() {
+        let n = 12;
+        let src = [80, 80, 16 * 9]; // (5, 5, 9)
+        let floor = |x: i64, y: i64, z: i64| ((x, y) == (5, 5) && (3..=5).contains(&z)).then(|| z_plane(4.25, true, 3));
+        let (mut lit, mut vis) = (Vec::new(), Vec::new());
+        let fate = trace_ray_plane(n, &floor, &none_visible, src, 5, 0, 0, 11, 0, &mut lit, &mut vis);
+        assert_eq!(lit, vec![[5, 5, 5], [5, 5, 4]]);
+        assert_eq!(fate, Fate::Absorbed { voxel: [5, 5, 4], k: 5 });
+        assert!(vis.is_empty());
+    }
+
+    /// A ray passing on the far side of a plane it does not cross there goes on: the plane of a
+    /// facet says nothing about rays that pass beside the facet.
+    #[test]
+    fn a_plane_not_crossed_there_does_not_stop_the_ray() {
+        let n = 12;
+        let src = [80, 80, 16 * 9];
+        // The voxels z = 3 ..= 5 of column (5, 5) hold a plane z = 7.5 facing +z: the −z ray is
+        // below it all along those voxels (it crossed it at t = 1.5, in empty voxels).
+        let sheet = |x: i64, y: i64, z: i64| ((x, y) == (5, 5) && (3..=5).contains(&z)).then(|| z_plane(7.5, true, 3));
+        let (mut lit, mut vis) = (Vec::new(), Vec::new());
+        let fate = trace_ray_plane(n, &sheet, &none_visible, src, 5, 0, 0, 11, 0, &mut lit, &mut vis);
+        assert_eq!(fate, Fate::Exited { k: 10 });
+        assert!(lit.is_empty(), "below a plane facing the source: not lit");
+    }
+
+    /// The visible surface is lit by rays in the two voxels that bracket it, on its own plane.
+    #[test]
+    fn visible_surface_lit_from_its_own_plane() {
+        let n = 12;
+        let src = [80, 80, 16 * 9];
+        let empty = |_: i64, _: i64, _: i64| None;
+        // Visible plane z = 4.25 facing +z in column (5, 5): z_v = 4, bracket 4 and 5.
+        let col = |x: i64, y: i64| ((x, y) == (5, 5)).then(|| Visible { z_v: 4, plane: z_plane(4.25, true, 4) });
+        let (mut lit, mut vis) = (Vec::new(), Vec::new());
+        trace_ray_plane(n, &empty, &col, src, 5, 0, 0, 11, 0, &mut lit, &mut vis);
+        // At z = 5 (layer 4) the ray is above: lit; at z = 4 (layer 5) it was above at 4: lit.
+        assert_eq!(vis, vec![[5, 5], [5, 5]]);
+        // Facing away from the source: never lit.
+        let back = |x: i64, y: i64| ((x, y) == (5, 5)).then(|| Visible { z_v: 4, plane: z_plane(4.25, false, 4) });
+        vis.clear();
+        trace_ray_plane(n, &empty, &back, src, 5, 0, 0, 11, 0, &mut lit, &mut vis);
+        assert!(vis.is_empty());
+    }
+
+    #[test]
+    fn fast_path_matches_naive() {
+        let mut seed = 99u64;
+        for case in 0..60 {
+            let n = 3 + (lcg(&mut seed) % 6) as i64;
+            let d = (n - 1).max(1);
+            let f = (lcg(&mut seed) % 3) as u32;
+            let r = |seed: &mut u64, m: u64| (lcg(seed) % (2 * m + 1)) as i64 - m as i64;
+            // Random dexels of random planes in random columns, and random visible surfaces.
+            let mut cols: Vec<Vec<(i64, i64, Surface)>> = vec![Vec::new(); (n * n) as usize];
+            let mut vis: Vec<Option<Visible>> = vec![None; (n * n) as usize];
+            for (i, col) in cols.iter_mut().enumerate() {
+                let mut z = 0;
+                while z < n {
+                    if lcg(&mut seed) % 3 == 0 {
+                        let hi = (z + (lcg(&mut seed) % 3) as i64).min(n - 1);
+                        let s = Surface {
+                            lo: z,
+                            nx: r(&mut seed, 16384),
+                            ny: r(&mut seed, 16384),
+                            nz: r(&mut seed, 16384) << 16,
+                            e: r(&mut seed, 20000),
+                        };
+                        col.push((z, hi, s));
+                        z = hi + 2;
+                    } else {
+                        z += 1;
+                    }
+                }
+                if lcg(&mut seed) % 2 == 0 {
+                    let z_v = r(&mut seed, n as u64).abs().min(n - 1);
+                    let plane = Surface {
+                        lo: z_v,
+                        nx: r(&mut seed, 16384),
+                        ny: r(&mut seed, 16384),
+                        nz: r(&mut seed, 16384) << 16,
+                        e: r(&mut seed, 20000),
+                    };
+                    vis[i] = Some(Visible { z_v, plane });
+                }
+            }
+            let surf =
+                |x: i64, y: i64, z: i64| cols[(y * n + x) as usize].iter().find(|c| c.0 <= z && z <= c.1).map(|c| c.2);
+            let columns = |x: i64, y: i64| vis[(y * n + x) as usize];
+            let sources: Vec<[i64; 3]> =
+                (0..1 + case % 2).map(|_| [0; 3].map(|_| (lcg(&mut seed) % (16 * n as u64)) as i64)).collect();
+            let fast = trace_all_plane(n, &surf, &columns, &sources, d, f);
+            let naive = trace_all_plane_naive(n, &surf, &columns, &sources, d, f);
+            assert_eq!(fast, naive, "case {case}: n={n} f={f} sources={sources:?}");
+            assert_eq!(fast.rays.rays_emitted, fast.rays.rays_absorbed + fast.rays.rays_exited);
+        }
+    }
+
+    /// A wall whose planes lie on its near face (x = 5.5, facing the source, a hair outside the
+    /// voxels): every ray point in a wall voxel is behind it and every earlier point in front
+    /// (ray points have denominators 16·D·2^f = 256 here), so the plane rule gives exactly the
+    /// thesis's: the first occupied voxel is lit and absorbs.
+    #[test]
+    fn planes_on_the_near_face_give_the_thesis_rule() {
+        let n = 9;
+        let wall = |x: i64, _: i64, _: i64| x == 6;
+        // g(p) = −2^14·(p_x − 6) − 2^13 − 1: zero at x = 5.5 − 2^−14.
+        let surf =
+            |x: i64, y: i64, z: i64| wall(x, y, z).then_some(Surface { lo: z, nx: -16384, ny: 0, nz: 0, e: -8193 });
+        let src = [16 * 2, 16 * 4, 16 * 4];
+        let got = trace_all_plane(n, &surf, &none_visible, &[src], n - 1, 1);
+        let want = super::super::rays::trace_all(n, &|x, y, z| wall(x, y, z), &[src], n - 1, 1);
+        assert_eq!(got.rays, want);
+    }
+}
