@@ -1557,8 +1557,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 LitRule::Thesis => {
                     !env.lit_visible_only || cell.store.dexels().first().is_some_and(|d| d.span.lo == m.z)
                 }
-                // The image reads the visible surface's mark; the lit store is for the lit set.
-                LitRule::Plane => !env.lit_visible_only,
+                // The image reads the visible surface's mark; the lit store is for the lit set,
+                // restricted to the two voxels bracketing the visible surface.
+                LitRule::Plane => !env.lit_visible_only || cell.visible.is_some_and(|v| v.brackets(m.z as i64)),
             };
             if shown && !self.lit.mark(m.z, env.source_bit) {
                 self.counters.lit_overflows += 1;

@@ -514,6 +514,27 @@ pub fn surface_pixel(
     Pixel { rgb: shade(p, nrm, &m, lights, lit, params), lit, z: surface.z_v.clamp(0, u16::MAX as i32) as u16 }
 }
 
+/// The pixel a cell shows under `rule`: its first occupied voxel lit by `reached(z)` (the
+/// thesis's rule, [`pixel`]), or its visible surface lit by `visible_lit` (the plane rule,
+/// [`surface_pixel`]). `None` when the column shows nothing.
+#[allow(clippy::too_many_arguments)]
+pub fn cell_pixel<const D: usize>(
+    rule: crate::lit::LitRule,
+    cell: &crate::cell::Cell<D>,
+    reached: impl Fn(crate::units::Depth) -> SourceMask,
+    visible_lit: SourceMask,
+    materials: &[Material],
+    lights: &[PointLight],
+    params: &ShadeParams,
+) -> Option<Pixel> {
+    match rule {
+        crate::lit::LitRule::Thesis => pixel(cell.x, cell.y, &cell.store, reached, materials, lights, params),
+        crate::lit::LitRule::Plane => {
+            cell.visible.as_ref().map(|v| surface_pixel(cell.x, cell.y, v, visible_lit, materials, lights, params))
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     extern crate std;

@@ -34,7 +34,7 @@ use crate::link::{
     PutExt, Reader, HEADER, TRAILER,
 };
 use crate::lit::LitRule;
-use crate::shade::{pixel, surface_pixel, Material, NormalMode, Pixel, PointLight, ShadeParams};
+use crate::shade::{cell_pixel, Material, NormalMode, Pixel, PointLight, ShadeParams};
 use crate::units::{Coord, Depth};
 
 /// `RC2T`.
@@ -758,17 +758,17 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
                 self.grant(p, &mut links)?;
             }
             Event::Shade(s) => {
-                let (x, y) = (self.cell.x, self.cell.y);
-                self.pixel =
-                    match self.setup.map(|l| l.rule) {
-                        Some(LitRule::Plane) => self.cell.visible.as_ref().map(|v| {
-                            surface_pixel(x, y, v, self.light.visible_lit, &s.materials, &s.lights, &s.params)
-                        }),
-                        _ => {
-                            let lit = &self.light.lit;
-                            pixel(x, y, &self.cell.store, |z: Depth| lit.mask_at(z), &s.materials, &s.lights, &s.params)
-                        }
-                    };
+                let rule = self.setup.map_or(LitRule::Thesis, |l| l.rule);
+                let (lit, visible) = (&self.light.lit, self.light.visible_lit);
+                self.pixel = cell_pixel(
+                    rule,
+                    &self.cell,
+                    |z: Depth| lit.mask_at(z),
+                    visible,
+                    &s.materials,
+                    &s.lights,
+                    &s.params,
+                );
             }
             Event::End => self.ended = true,
         }

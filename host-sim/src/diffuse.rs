@@ -132,15 +132,16 @@ pub enum Summary {
 }
 
 impl Summary {
-    /// The summary of the grid's occupied voxels, or (`visible` given) of the voxels the image
-    /// reads only: each column's first occupied voxel under the thesis's rule, the two voxels
-    /// bracketing its visible surface under the plane rule. What the OR-reduction of every
-    /// cell's own summary gives.
-    pub fn of<const D: usize>(grid: &Grid<D>, blocks: FrustumBlocks, visible: Option<LitRule>) -> Self {
+    /// The summary of the voxels where a beam can do something ([`active_span`]: the occupied
+    /// voxels, and under the plane rule the voxels bracketing each visible surface), or
+    /// (`visible`) of the voxels the image reads only: each column's first occupied voxel under
+    /// the thesis's rule, the two voxels bracketing its visible surface under the plane rule.
+    /// What the OR-reduction of every cell's own summary gives.
+    pub fn of<const D: usize>(grid: &Grid<D>, blocks: FrustumBlocks, visible: bool, rule: LitRule) -> Self {
         match blocks {
-            FrustumBlocks::B8 => Summary::B8(Box::new(summarise(grid, visible))),
-            FrustumBlocks::B16 => Summary::B16(Box::new(summarise(grid, visible))),
-            FrustumBlocks::B32 => Summary::B32(Box::new(summarise(grid, visible))),
+            FrustumBlocks::B8 => Summary::B8(Box::new(summarise(grid, visible, rule))),
+            FrustumBlocks::B16 => Summary::B16(Box::new(summarise(grid, visible, rule))),
+            FrustumBlocks::B32 => Summary::B32(Box::new(summarise(grid, visible, rule))),
         }
     }
 
@@ -367,12 +368,12 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
         }
     }
     let order = SplitOrder::default();
-    let occupied = occupied_box(grid);
+    let occupied = occupied_box(grid, cfg.rule);
     if cfg.skip_hidden && !cfg.lit_visible_only {
         bail!("the hidden-voxel skip drops the light of hidden voxels: use it with --lit-visible-only");
     }
-    let frustum = (cfg.skip_hidden || cfg.skip_frustum)
-        .then(|| Summary::of(grid, cfg.frustum_blocks, cfg.skip_hidden.then_some(cfg.rule)));
+    let frustum =
+        (cfg.skip_hidden || cfg.skip_frustum).then(|| Summary::of(grid, cfg.frustum_blocks, cfg.skip_hidden, cfg.rule));
     let traced = frustum.as_ref().map(Summary::traceable);
     if tap.is_some() && traced == Some(None) {
         bail!("a cell trace carries the 8 × 8 × 8 frustum summary: record with --frustum-blocks 8");
@@ -1084,29 +1085,37 @@ fn diffuse_one<F: FracBits, const D: usize>(
 
 /// The grid's 8-block occupancy summary for the empty-frustum skip (what the OR-reduction of
 /// every cell's own summary gives; what a cell trace carries).
-pub fn occupancy_summary<const D: usize>(grid: &Grid<D>) -> FrustumSummary {
-    summarise(grid, None)
+pub fn occupancy_summary<const D: usize>(grid: &Grid<D>, rule: LitRule) -> FrustumSummary {
+    summarise(grid, false, rule)
 }
 
 /// The summary of the grid's occupied voxels, or (`visible_only`) of each column's first
 /// occupied voxel (the one its cell shades) for the hidden-voxel skip.
 fn summarise<const B: usize, R: BlockRow, const D: usize>(
     grid: &Grid<D>,
-    visible: Option<LitRule>,
+    visible_only: bool,
+    rule: LitRule,
 ) -> OccupancySummary<B, R> {
     let mut s = OccupancySummary::new(grid.n, grid.depth);
-    let top = grid.depth as i64 - 1;
     for c in &grid.cells {
         let (x, y) = (c.x as u32, c.y as u32);
-        match visible {
-            None => s.mark_column(x, y, c.store.dexels()),
-            Some(LitRule::Thesis) => {
+        match (visible_only, rule) {
+            (false, _) => {
+                s.mark_column(x, y, c.store.dexels());
+                // Under the plane rule a ray may light the pixel in an empty voxel bracketing
+                // the visible surface: a beam that can reach one is not empty.
+                if let (LitRule::Plane, Some((lo, hi))) = (rule, active_span(c, grid.depth, rule)) {
+                    s.mark_span(x, y, lo as u32, hi as u32);
+                }
+            }
+            (true, LitRule::Thesis) => {
                 if let Some(d) = c.store.dexels().first() {
                     s.mark_span(x, y, d.span.lo as u32, d.span.lo as u32);
                 }
             }
-            Some(LitRule::Plane) => {
-                if let Some(v) = &c.visible {
+            (true, LitRule::Plane) => {
+                if let Some(v) = c.visible {
+                    let top = grid.depth as i64 - 1;
                     let (lo, hi) = ((v.z_v as i64).clamp(0, top), (v.z_v as i64 + 1).clamp(0, top));
                     s.mark_span(x, y, lo as u32, hi as u32);
                 }
@@ -1116,14 +1125,35 @@ fn summarise<const B: usize, R: BlockRow, const D: usize>(
     s
 }
 
-/// The bounding box of the grid's occupied voxels (`lo > hi` when the grid is empty).
-pub fn occupied_box<const D: usize>(grid: &Grid<D>) -> OccupiedBox {
+/// The depths of column `c` where a beam can do something besides passing: its occupied
+/// voxels, and under the plane rule the two voxels bracketing its visible surface (where a ray
+/// may light the pixel in an empty voxel), clipped to the grid. The skips keep every beam that
+/// can reach one.
+fn active_span<const D: usize>(c: &cell_core::cell::Cell<D>, depth: u32, rule: LitRule) -> Option<(u16, u16)> {
+    let ds = c.store.dexels();
+    let occupied = ds.first().zip(ds.last()).map(|(f, l)| (f.span.lo, l.span.hi));
+    let top = depth as i64 - 1;
+    let bracket = match rule {
+        LitRule::Thesis => None,
+        LitRule::Plane => c.visible.map(|v| {
+            let (lo, hi) = ((v.z_v as i64).clamp(0, top), (v.z_v as i64 + 1).clamp(0, top));
+            (lo as u16, hi as u16)
+        }),
+    };
+    match (occupied, bracket) {
+        (Some(a), Some(b)) => Some((a.0.min(b.0), a.1.max(b.1))),
+        (a, b) => a.or(b),
+    }
+}
+
+/// The bounding box of the grid's occupied voxels, and under the plane rule of the voxels that
+/// bracket its visible surfaces ([`active_span`]); `lo > hi` when there are none.
+pub fn occupied_box<const D: usize>(grid: &Grid<D>, rule: LitRule) -> OccupiedBox {
     let mut b = OccupiedBox { lo: [u16::MAX; 3], hi: [0; 3] };
     for c in &grid.cells {
-        let ds = c.store.dexels();
-        if let (Some(first), Some(last)) = (ds.first(), ds.last()) {
-            b.lo = [b.lo[0].min(c.x), b.lo[1].min(c.y), b.lo[2].min(first.span.lo)];
-            b.hi = [b.hi[0].max(c.x), b.hi[1].max(c.y), b.hi[2].max(last.span.hi)];
+        if let Some((lo, hi)) = active_span(c, grid.depth, rule) {
+            b.lo = [b.lo[0].min(c.x), b.lo[1].min(c.y), b.lo[2].min(lo)];
+            b.hi = [b.hi[0].max(c.x), b.hi[1].max(c.y), b.hi[2].max(hi)];
         }
     }
     b

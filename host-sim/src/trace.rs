@@ -13,7 +13,7 @@ use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::facet::RowPacket;
 use cell_core::light::{BeamMsg, FrustumSummary, LightEnv, Port, Step};
 use cell_core::link::{self, Message};
-use cell_core::shade::{pixel, NormalMode, ShadeParams};
+use cell_core::shade::{cell_pixel, NormalMode, ShadeParams};
 use cell_core::trace::{
     write_event, Digester, Event, Header, LightSetup, Replayer, ShadeSetup, MAX_LIGHTS, MAX_MATERIALS,
 };
@@ -235,8 +235,9 @@ pub fn record<F: FracBits>(job: &TraceJob<'_>) -> Result<Vec<CellTrace>> {
     for mut r in tap.recorders {
         let idx = (r.y * n + r.x) as usize;
         let (cell, light) = (&scene.grid.cells[idx], &lighting.cells[idx]);
-        let lit = &light.lit;
-        let px = pixel(cell.x, cell.y, &cell.store, |z| lit.mask_at(z), &shade.materials, &shade.lights, &shade.params);
+        let (lit, visible) = (&light.lit, light.visible_lit);
+        let (mats, lights) = (&shade.materials, &shade.lights);
+        let px = cell_pixel(job.light.rule, cell, |z| lit.mask_at(z), visible, mats, lights, &shade.params);
         r.push::<F>(&Event::Shade(shade.clone()));
         r.push::<F>(&Event::End);
         r.digest.state(cell, light, px);

@@ -193,7 +193,7 @@ fn light_writes_lit_csv_and_stats() {
     assert!(rows.iter().all(|r| r.len() == 4 && r[3] == 1 && r[..3].iter().all(|&c| c < 24)));
     assert_eq!(
         s["rays_emitted"].as_u64().unwrap(),
-        s["rays_absorbed"].as_u64().unwrap() + s["rays_exited"].as_u64().unwrap()
+        s["rays_absorbed"].as_u64().unwrap() + s["rays_exited"].as_u64().unwrap() + s["rays_skipped"].as_u64().unwrap()
     );
 }
 

@@ -6,6 +6,7 @@
 
 use cell_core::beam::frac::U0;
 use cell_core::light::Policy;
+use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
 use host_sim::diffuse::{FrustumBlocks, LightConfig, SourceReport, Stepping};
 use host_sim::lightjob::{load_scene, resolve_lights, run_diffusion, LoadedScene};
@@ -163,22 +164,30 @@ fn loading_wave_all_cells_equals_active_cells() {
 
 /// Keeping lit marks for visible voxels only (`--lit-visible-only`) is a skip of work no one
 /// sees: the image bytes and cycles are those of the full lit store, and the lit set is exactly
-/// the full one restricted to each column's first occupied voxel.
+/// the full one restricted to the voxels the image reads — each column's first occupied voxel
+/// under the thesis's rule, the two voxels bracketing its visible surface under the plane rule.
 #[test]
 fn visible_only_lit_store_gives_the_same_image() {
     for (scene, n) in [("cornell", 32), ("teapot-floor", 24), ("bureau1", 32)] {
         let s = setup(scene, n);
-        let full = run(&s, LightConfig::default(), 2);
-        let vis = run(&s, LightConfig { lit_visible_only: true, ..Default::default() }, 2);
-        assert_eq!(vis.png, full.png, "{scene}: image");
-        let cycles = |o: &Outcome| o.reports.iter().map(|r| r.counts.cycles).collect::<Vec<_>>();
-        assert_eq!(cycles(&vis), cycles(&full), "{scene}: the machine does the same work");
-        let grid = &s.1.grid;
-        let visible =
-            |p: &[u32; 3]| grid.cell(p[0], p[1]).store.dexels().first().is_some_and(|d| d.span.lo as u32 == p[2]);
-        let want: Vec<_> = full.lit.iter().filter(|(p, _)| visible(p)).cloned().collect();
-        assert_eq!(vis.lit, want, "{scene}: lit set restricted to visible voxels");
-        assert!(want.len() < full.lit.len(), "{scene}: hidden lit voxels exist, so the test compares something");
+        for rule in [LitRule::Thesis, LitRule::Plane] {
+            let full = run(&s, LightConfig { rule, ..Default::default() }, 2);
+            let vis = run(&s, LightConfig { lit_visible_only: true, rule, ..Default::default() }, 2);
+            assert_eq!(vis.png, full.png, "{scene} {rule:?}: image");
+            let cycles = |o: &Outcome| o.reports.iter().map(|r| r.counts.cycles).collect::<Vec<_>>();
+            assert_eq!(cycles(&vis), cycles(&full), "{scene} {rule:?}: the machine does the same work");
+            let grid = &s.1.grid;
+            let visible = |p: &[u32; 3]| {
+                let c = grid.cell(p[0], p[1]);
+                match rule {
+                    LitRule::Thesis => c.store.dexels().first().is_some_and(|d| d.span.lo as u32 == p[2]),
+                    LitRule::Plane => c.visible.is_some_and(|v| v.brackets(p[2] as i64)),
+                }
+            };
+            let want: Vec<_> = full.lit.iter().filter(|(p, _)| visible(p)).cloned().collect();
+            assert_eq!(vis.lit, want, "{scene} {rule:?}: lit set restricted to visible voxels");
+            assert!(want.len() < full.lit.len(), "{scene}: hidden lit voxels exist, so the test compares something");
+        }
     }
 }
 

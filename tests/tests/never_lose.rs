@@ -17,8 +17,13 @@ fn striped_column_lighting(stripes: u16) -> (u32, u64, Result<(), String>) {
     let mut grid = Grid::<128>::new(n, n);
     let y0 = n / 2;
     let col = &mut grid.cells[(y0 * n) as usize];
+    // Each stripe's plane faces the source (+x), on the voxel's near face: g = 2^14·(p_x − ½) − 1
+    // (m = 1024 makes the stored offset the exact value, see cell_core::plane).
+    let plane = cell_core::plane::FacetPlane { id: 1, nx: 1 << 14, ny: 0, nz: 0, m: 1024 };
+    let face = cell_core::plane::ColumnPlane { p: -(1 << 13) - 1, c: 0 };
     for k in 0..stripes {
-        let ins = col.store.insert(Span { lo: 2 * k + 2, hi: 2 * k + 2 }, FacetTag::default());
+        let tag = FacetTag { facet: k as u32, plane, ..Default::default() };
+        let ins = col.store.insert_on(Span { lo: 2 * k + 2, hi: 2 * k + 2 }, tag, &face);
         assert_eq!(ins.lost, 0, "the column holds every stripe");
     }
     let src = source_at(0, [n as f64 - 1.0, y0 as f64, n as f64 / 2.0], n).unwrap();

@@ -161,8 +161,8 @@ fn peak_link_load_equals_the_busiest_link_in_the_traces() {
     assert!(c.peak_link_distance >= best.1);
 }
 
-/// A version-3 light record round-trips: the sibling wait, and the frustum summary rebuilt from
-/// its 64 block rows equals the summary the grid built from every dexel (the summary is a
+/// A light record round-trips: the sibling wait, the lit rule, and the frustum summary rebuilt
+/// from its 64 block rows equals the summary the grid built from every dexel (the summary is a
 /// function of its occupied blocks), for scenes whose blocks do and do not divide n.
 #[test]
 fn light_records_carry_the_wait_and_the_summary() {
@@ -172,7 +172,7 @@ fn light_records_carry_the_wait_and_the_summary() {
         let mesh = host_sim::scene::load(scene).unwrap();
         let load = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
         let loaded = host_sim::lightjob::load_scene(&mesh, &load).unwrap();
-        let summary = host_sim::diffuse::occupancy_summary(&loaded.grid);
+        let summary = host_sim::diffuse::occupancy_summary(&loaded.grid, cell_core::lit::LitRule::Thesis);
         assert!(!summary.is_empty());
         let setup = LightSetup {
             source: Source::at_voxel(SourceId(0), [3, 4, 5]).unwrap(),
@@ -186,6 +186,7 @@ fn light_records_carry_the_wait_and_the_summary() {
             skip: None,
             hold: 7,
             frustum: Some(summary),
+            rule: if n % 2 == 0 { cell_core::lit::LitRule::Plane } else { cell_core::lit::LitRule::Thesis },
         };
         let header =
             Header { x: 1, y: 2, depth: loaded.grid.depth, frac_bits: 0, dexels: 64, fifo: 64, out: 3, lit: 64 };
