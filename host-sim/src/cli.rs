@@ -161,11 +161,13 @@ pub struct LightOpts {
     #[arg(long, default_value_t = 16)]
     pub fa: usize,
     /// Fraction bits f of the far-plane ray offsets (0 = the thesis's integer rays; up to 24,
-    /// bounded by D·2^f < 2^31). More bits: more rays, fewer missed voxels, more beams.
+    /// bounded by D·2^f < 2^31). More bits: more rays, fewer missed voxels, more beams. Default
+    /// 1: with the plane rule the error then falls with n (f = 0 levels off).
     #[arg(long, default_value_t = DEFAULT_FRAC_BITS)]
     pub frac_bits: u32,
-    /// Which beam a cell processes first.
-    #[arg(long, value_enum, default_value_t = PolicyArg::Wavefront)]
+    /// Which beam a cell processes first. Default: radial (fewest cycles measured on every
+    /// scene; `wavefront` was the default before).
+    #[arg(long, value_enum, default_value_t = PolicyArg::Radial)]
     pub policy: PolicyArg,
     /// Merge an arriving beam into a waiting beam of the same voxel when their ray rectangles
     /// share a side (exact; fewer beams to process): on, off, or auto (on for wavefront and
@@ -194,22 +196,23 @@ pub struct LightOpts {
     /// a row without progress while beams are in flight: a deadlock, or a dead link.
     #[arg(long, default_value_t = crate::diffuse::DEFAULT_STALL_CYCLES)]
     pub stall_cycles: u64,
-    /// Cells keep lit marks only for their visible voxel (the one they shade): the same image,
-    /// a lit set (`--lit-out`, stats) restricted to visible voxels, and no lit-store overflow
-    /// in columns lit in many separate runs (walls seen edge-on, many lights).
-    #[arg(long)]
-    pub lit_visible_only: bool,
+    /// Cells keep lit marks only for the voxels their pixel reads: the same image, a lit set
+    /// (`--lit-out`, stats) restricted to those voxels, and no lit-store overflow in columns lit
+    /// in many separate runs (walls seen edge-on, many lights). `render`: on by default (off
+    /// with --reflections, which read hidden voxels); `light`: off by default.
+    #[arg(long, num_args = 0..=1, default_missing_value = "true", action = clap::ArgAction::Set)]
+    pub lit_visible_only: Option<bool>,
     /// Drop a beam when none of its rays can meet an occupied block of the scene's occupancy
     /// summary (--frustum-blocks) at any later layer (their rays are counted as skipped).
     /// Exact: same lit voxels; each cell holds the summary.
     #[arg(long, default_value_t = false, action = clap::ArgAction::Set)]
     pub skip_frustum: bool,
-    /// Drop a beam when none of its rays can reach a block holding a visible voxel (a column's
-    /// first occupied voxel, the one its cell shades): the empty-frustum test against a summary
-    /// of the visible voxels only. Same image and same visible lit set; hidden voxels are not
-    /// lit. Needs --lit-visible-only.
-    #[arg(long, requires = "lit_visible_only")]
-    pub skip_hidden: bool,
+    /// Drop a beam when none of its rays can reach a block holding a voxel a pixel reads: the
+    /// empty-frustum test against a summary of those voxels only. Same image and same visible
+    /// lit set; hidden voxels are not lit. Needs the visible-only lit store; on by default
+    /// wherever that is (`render`).
+    #[arg(long, num_args = 0..=1, default_missing_value = "true", action = clap::ArgAction::Set)]
+    pub skip_hidden: Option<bool>,
     /// Blocks per axis of the summary --skip-frustum and --skip-hidden test beams against:
     /// finer blocks drop more beams and take more memory per cell (8: 232 B, 16: 1 348 B,
     /// 32: 9 384 B). Same lit voxels and image with any. Default: 32; 8 for `trace` (a cell
@@ -263,6 +266,21 @@ pub enum SteppingArg {
 }
 
 impl LightOpts {
+    /// The configuration, with the visible-only lit store and the hidden-voxel skip on by
+    /// default when `visible_only` (what `render` needs), unless given.
+    fn config_for(&self, visible_only: bool) -> Result<crate::diffuse::LightConfig> {
+        let lit_visible_only = self.lit_visible_only.unwrap_or(visible_only);
+        let skip_hidden = self.skip_hidden.unwrap_or(lit_visible_only && visible_only);
+        if skip_hidden && !lit_visible_only {
+            anyhow::bail!(
+                "--skip-hidden drops the light of hidden voxels: it needs the visible-only lit store \
+                 (--lit-visible-only)"
+            );
+        }
+        Ok(crate::diffuse::LightConfig { lit_visible_only, skip_hidden, ..self.config() })
+    }
+
+    /// The configuration with the full lit store (the `light` and `trace` jobs' default).
     fn config(&self) -> crate::diffuse::LightConfig {
         crate::diffuse::LightConfig {
             fa: self.fa,
@@ -277,10 +295,10 @@ impl LightOpts {
             skip_dead_directions: self.skip_dead_directions,
             faults: self.link_faults,
             stall_cycles: self.stall_cycles,
-            lit_visible_only: self.lit_visible_only,
+            lit_visible_only: self.lit_visible_only.unwrap_or(false),
             hold: self.hold,
             skip_frustum: self.skip_frustum,
-            skip_hidden: self.skip_hidden,
+            skip_hidden: self.skip_hidden.unwrap_or(false),
             frustum_blocks: self.frustum_blocks.unwrap_or_default(),
             rule: self.lit_rule.into(),
         }
@@ -305,13 +323,13 @@ pub struct RenderArgs {
     /// Grid side: n × n cells (and pixels), each owning a column of n voxels.
     #[arg(long, default_value_t = 128)]
     pub n: u32,
-    /// Plane thickness (naive, thesis, standard; see `voxelize --help`). The default, the thinnest surface, gives the best
-    /// image per cycle (`host-sim bench`, BENCHMARKS.md); `standard` is the tunnel-free one.
-    #[arg(long, value_enum, default_value_t = Thickness::Naive)]
+    /// Plane thickness (naive, thesis, standard; see `voxelize --help`). Default: standard, the
+    /// tunnel-free surface (as every job): no light passes through a closed mesh.
+    #[arg(long, value_enum, default_value_t = Thickness::Standard)]
     pub sigma: Thickness,
-    /// Facet contour (see `voxelize --help`). Default: the thesis's projected contour (measured
-    /// best image per cycle); `conservative` is the watertight one.
-    #[arg(long, value_enum, default_value_t = Contour::Projected)]
+    /// Facet contour (see `voxelize --help`). Default: conservative, the watertight one (the
+    /// pixel still shows the exact facet its centre line meets, not the fatter voxels).
+    #[arg(long, value_enum, default_value_t = Contour::Conservative)]
     pub contour: Contour,
     /// Lighting options.
     #[command(flatten)]
@@ -476,12 +494,12 @@ pub struct TraceArgs {
     #[arg(long, default_value_t = 32)]
     pub n: u32,
     /// Plane thickness (as `render`).
-    #[arg(long, value_enum, default_value_t = Thickness::Naive)]
+    #[arg(long, value_enum, default_value_t = Thickness::Standard)]
     pub sigma: Thickness,
     /// Facet contour (as `render`).
-    #[arg(long, value_enum, default_value_t = Contour::Projected)]
+    #[arg(long, value_enum, default_value_t = Contour::Conservative)]
     pub contour: Contour,
-    /// Lighting options (the firmware is built for --frac-bits 0).
+    /// Lighting options (the firmware is built for the default --frac-bits 1).
     #[command(flatten)]
     pub light: LightOpts,
     /// A cell to record, X,Y (repeatable).
@@ -519,8 +537,9 @@ pub struct SubdivideArgs {
     pub out: PathBuf,
 }
 
-/// Fraction bits the lighting jobs use unless told otherwise.
-pub const DEFAULT_FRAC_BITS: u32 = 0;
+/// Fraction bits the lighting jobs use unless told otherwise: with the plane rule, f = 1 makes
+/// the error fall with n where f = 0 levels off (BENCHMARKS.md, "How accurate is the light").
+pub const DEFAULT_FRAC_BITS: u32 = 1;
 
 /// Run a parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
@@ -685,7 +704,7 @@ fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
     let mesh = scene::load(&l.scene)?;
     let loaded = load_scene(&mesh, &cfg)?;
     let lights = resolve_lights(&mesh, &loaded, &a.light.lights)?;
-    let lcfg = a.light.config();
+    let lcfg = a.light.config_for(false)?;
     let pb = progress_bar(a.quiet, "light");
     if a.light.classic.lighting == crate::classic::LightingArg::Classic {
         return run_light_classic::<F>(a, &mesh, &loaded, &lights, pb);
@@ -989,12 +1008,15 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     let cfg = LoadConfig { n: a.n, thickness: a.sigma, contour: a.contour };
     cfg.validate()?;
     a.reflect.validate(a.light.classic.lighting, a.n, a.light.fa)?;
-    if a.reflect.reflections > 0 && a.light.lit_visible_only {
+    let reflecting = a.reflect.reflections > 0;
+    if reflecting && a.light.lit_visible_only == Some(true) {
         anyhow::bail!(
             "--reflections reads the lit state of the voxels reflected rays hit, hidden ones included: \
              run without --lit-visible-only (and --skip-hidden)"
         );
     }
+    // The image needs only what its pixels read; reflected rays read hidden voxels too.
+    let light = a.light.config_for(!reflecting)?;
     let mesh = scene::load(&a.scene)?;
     let t0 = std::time::Instant::now();
     let pb = progress_bar(a.quiet, "load");
@@ -1004,7 +1026,7 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     let load_seconds = t0.elapsed().as_secs_f64();
     let lights = resolve_lights(&mesh, &loaded, &a.light.lights)?;
     let rcfg = RenderConfig {
-        light: a.light.config(),
+        light,
         normals: match a.normals {
             NormalArg::Facet => cell_core::shade::NormalMode::Facet,
             NormalArg::Face => cell_core::shade::NormalMode::Face,

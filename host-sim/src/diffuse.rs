@@ -164,11 +164,13 @@ impl Summary {
 }
 
 impl Default for LightConfig {
-    /// The `render` defaults: FA = 16, wavefront + merge, active stepping, skips on.
+    /// The lighting defaults: the plane rule, FA = 16, radial + merge, active stepping, the
+    /// receding and dead-direction skips on, the full lit store (`render` adds the visible-only
+    /// store and the hidden-voxel skip).
     fn default() -> Self {
         LightConfig {
             fa: 16,
-            policy: Policy::Wavefront,
+            policy: Policy::Radial,
             merge: true,
             record_visits: false,
             stepping: Stepping::Active,

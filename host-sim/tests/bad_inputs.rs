@@ -119,8 +119,9 @@ fn bad_arguments_fail_clearly() {
         (&["render", "--policy", "fastest"], "--policy"),
         (&["render", "--n", "16", "--hold", "5000"], "--hold"),
         (&["render", "--n", "16", "--skip-frustum", "maybe"], "--skip-frustum"),
-        (&["render", "--n", "16", "--skip-hidden"], "required arguments were not provided"),
-        (&["light", "--n", "16", "--skip-hidden"], "required arguments were not provided"),
+        (&["render", "--n", "16", "--lit-visible-only", "false", "--skip-hidden"], "needs the visible-only lit store"),
+        (&["light", "--n", "16", "--skip-hidden"], "needs the visible-only lit store"),
+        (&["render", "--n", "16", "--skip-hidden", "maybe"], "--skip-hidden"),
         (&["light", "--n", "16", "--skip-frustum", "true", "--frustum-blocks", "12"], "--frustum-blocks"),
         (
             &[

@@ -1,18 +1,18 @@
 //! Helpers for the trace tests: the Cornell-box job the firmware test records, and re-encoding a
 //! trace with a changed value (valid frames, different meaning).
 
-use cell_core::beam::frac::U0;
+use cell_core::beam::FracBits;
 use cell_core::light::Policy;
 use cell_core::trace::{write_event, Event, Parser};
 use host_sim::diffuse::{source_at, LightConfig};
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
 use host_sim::scene::Mesh;
 
-/// The Cornell box at side `n` with `render`'s defaults, and cells to record: near a corner, the
+/// The Cornell box at side `n` (tunnel-free surfaces, the plane rule), and cells to record: near a corner, the
 /// centre, and the light's own cell (the one the source emitter feeds).
 pub fn cornell_job_cells(n: u32) -> (Mesh, LoadConfig, LightConfig, Vec<[u32; 2]>) {
     let mesh = host_sim::scene::load("cornell").unwrap();
-    let load = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
+    let load = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
     let light =
         LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, record_visits: false, ..Default::default() };
     let scene = host_sim::lightjob::load_scene(&mesh, &load).unwrap();
@@ -23,8 +23,8 @@ pub fn cornell_job_cells(n: u32) -> (Mesh, LoadConfig, LightConfig, Vec<[u32; 2]
 
 /// The trace with the material of every row packet changed (re-encoded, so every CRC is
 /// valid); `None` when the trace holds no row packet.
-pub fn mutate_row_material(bytes: &[u8]) -> Option<Vec<u8>> {
-    let mut p = Parser::<U0>::new(bytes);
+pub fn mutate_row_material<F: FracBits>(bytes: &[u8]) -> Option<Vec<u8>> {
+    let mut p = Parser::<F>::new(bytes);
     let mut out = Vec::new();
     let mut changed = false;
     let mut buf = [0u8; 2048];

@@ -94,7 +94,7 @@ fn every_flipped_byte_and_every_truncation_fails() {
 fn re_encoded_changes_change_the_digest() {
     let t = busiest_trace();
     let replay = replay_fn::<U0>();
-    let changed = mutate_row_material(&t.bytes).unwrap();
+    let changed = mutate_row_material::<U0>(&t.bytes).unwrap();
     assert_ne!(replay(&changed).unwrap().0, t.digest, "changed materials");
     // Drop one record of each kind that the cell cannot do without: the replay fails or the
     // digest changes.
