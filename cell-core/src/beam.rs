@@ -608,10 +608,15 @@ pub struct Beam<F: FracBits> {
     layer: Layer,
     source: SourceId,
     dir: Direction,
-    /// Its rays crossed a surface plane just before this layer: they act here and die (the
-    /// plane rule of [`crate::lit`]; always false under the thesis's rule).
-    terminal: bool,
+    /// Flags of the plane rule ([`crate::lit`]; both clear under the thesis's rule):
+    /// [`Beam::is_terminal`], [`Beam::after_empty`].
+    flags: u8,
 }
+
+/// [`Beam::is_terminal`].
+const TERMINAL: u8 = 1;
+/// [`Beam::after_empty`].
+const AFTER_EMPTY: u8 = 2;
 
 #[cfg(feature = "defmt")]
 impl<F: FracBits> defmt::Format for Beam<F> {
@@ -647,7 +652,7 @@ impl<F: FracBits> Beam<F> {
     /// The initial beam of `source` toward `dir`: all rays [−D, D]² at layer 0.
     pub fn initial(source: &Source, dir: Direction, far: FarDistance<F>) -> Self {
         let full = RayRange::full(far);
-        Beam { u: full, v: full, layer: Layer(0), source: source.id, dir, terminal: false }
+        Beam { u: full, v: full, layer: Layer(0), source: source.id, dir, flags: 0 }
     }
 
     /// The six initial beams of `source`, in [`Direction::ALL`] order (see the module doc for
@@ -672,7 +677,7 @@ impl<F: FracBits> Beam<F> {
         if layer.0 > far.get() {
             return Err(BeamError::LayerBeyondFar);
         }
-        Ok(Beam { u, v, layer, source, dir, terminal: false })
+        Ok(Beam { u, v, layer, source, dir, flags: 0 })
     }
 
     /// Rays along the u-axis: [u_min, u_max].
@@ -702,12 +707,24 @@ impl<F: FracBits> Beam<F> {
 
     /// Whether its rays are terminal: they act at this layer's voxel and die ([`crate::lit`]).
     pub const fn is_terminal(&self) -> bool {
-        self.terminal
+        self.flags & TERMINAL != 0
     }
 
     /// The same rays, terminal or not.
     pub const fn with_terminal(self, terminal: bool) -> Self {
-        Beam { terminal, ..self }
+        Beam { flags: (self.flags & !TERMINAL) | if terminal { TERMINAL } else { 0 }, ..self }
+    }
+
+    /// Whether its rays were in an empty voxel at the previous layer ([`crate::lit`]: a ray
+    /// that comes from empty space into the back of a surface voxel's plane crossed a surface
+    /// between the two layers).
+    pub const fn after_empty(&self) -> bool {
+        self.flags & AFTER_EMPTY != 0
+    }
+
+    /// The same rays, with or without [`Beam::after_empty`].
+    pub const fn with_after_empty(self, after_empty: bool) -> Self {
+        Beam { flags: (self.flags & !AFTER_EMPTY) | if after_empty { AFTER_EMPTY } else { 0 }, ..self }
     }
 
     /// The same beam with other ray ranges (within the far square when `self` is).
@@ -728,7 +745,7 @@ impl<F: FracBits> Beam<F> {
             layer: Layer(0),
             source: SourceId(0),
             dir: Direction::PosX,
-            terminal: false,
+            flags: 0,
         }
     }
 
@@ -740,7 +757,7 @@ impl<F: FracBits> Beam<F> {
         if self.source != other.source
             || self.dir != other.dir
             || self.layer != other.layer
-            || self.terminal != other.terminal
+            || self.flags != other.flags
         {
             return None;
         }
@@ -1237,14 +1254,8 @@ mod tests {
             for &(xu, ulo, uhi) in &per_axis(0, 0) {
                 for &(xv, vlo, vhi) in &per_axis(1, 0) {
                     let at = Transverse { u: xu as i32, v: xv as i32 };
-                    let beam = Beam {
-                        u: range(ulo, uhi),
-                        v: range(vlo, vhi),
-                        layer: Layer(k),
-                        source: src.id,
-                        dir,
-                        terminal: false,
-                    };
+                    let beam =
+                        Beam { u: range(ulo, uhi), v: range(vlo, vhi), layer: Layer(k), source: src.id, dir, flags: 0 };
                     assert!(beam.occupies(&src, far, at));
                     assert!(beam.complete(&src, far, at), "k {k} at {at:?}: {beam:?}");
                     let shrunk = [

@@ -110,6 +110,7 @@ pub struct Local {
 
 const HAS_NOTCH: u8 = 1;
 const FRESH: u8 = 2;
+const FRONT: u8 = 4;
 
 impl Local {
     /// No state: a plain beam.
@@ -117,7 +118,8 @@ impl Local {
 
     /// A beam with this notch.
     pub const fn notched(n: Notch) -> Local {
-        Local { state: n.state, t1: n.t1, t2: n.t2, flags: HAS_NOTCH | if n.fresh { FRESH } else { 0 }, piece: 0 }
+        let flags = HAS_NOTCH | if n.fresh { FRESH } else { 0 } | if n.front { FRONT } else { 0 };
+        Local { state: n.state, t1: n.t1, t2: n.t2, flags, piece: 0 }
     }
 
     /// The notch, if any.
@@ -125,7 +127,8 @@ impl Local {
         if self.flags & HAS_NOTCH == 0 {
             None
         } else {
-            Some(Notch { state: self.state, t1: self.t1, t2: self.t2, fresh: self.flags & FRESH != 0 })
+            let (fresh, front) = (self.flags & FRESH != 0, self.flags & FRONT != 0);
+            Some(Notch { state: self.state, t1: self.t1, t2: self.t2, fresh, front })
         }
     }
 
@@ -673,6 +676,8 @@ struct Fate<'s, F: FracBits> {
     skipped: u64,
     /// The entry stays in its FIFO slot as this (a beam being peeled); `None`: it is consumed.
     keep: Option<BeamMsg<F>>,
+    /// The sub-beams leave an empty voxel (plane rule): they carry [`Beam::after_empty`].
+    after_empty: bool,
 }
 
 /// A beam's sub-beams and where each goes (at most nine).
@@ -680,7 +685,7 @@ type SubList<F> = heapless::Vec<(Target, BeamMsg<F>), 9>;
 
 impl<'s, F: FracBits> Fate<'s, F> {
     fn new(subs: &'s mut SubList<F>) -> Self {
-        Fate { absorbed: 0, lit: false, visible: false, subs, exited: 0, skipped: 0, keep: None }
+        Fate { absorbed: 0, lit: false, visible: false, subs, exited: 0, skipped: 0, keep: None, after_empty: false }
     }
 
     fn reset(&mut self) {
@@ -691,6 +696,7 @@ impl<'s, F: FracBits> Fate<'s, F> {
         self.exited = 0;
         self.skipped = 0;
         self.keep = None;
+        self.after_empty = false;
     }
 }
 
@@ -1047,7 +1053,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     ) {
         let dir = beam.direction();
         let (pos, at) = self.at(dir, z);
-        let Fate { subs, exited, skipped, absorbed, .. } = f;
+        let Fate { subs, exited, skipped, absorbed, after_empty, .. } = f;
+        let after_empty = *after_empty;
         debug_assert_eq!(env.bounds, SubBeamBounds::new(env.n, env.depth, env.skip, env.source));
         let bounds = &env.bounds;
         let split = beam.split_each(env.source, env.far, at, env.order, |sb| {
@@ -1065,7 +1072,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                     Some(p) => Target::Out(p),
                     None => Target::SelfFifo,
                 };
-                let msg = BeamMsg { local, ..BeamMsg::new(sb.beam.with_terminal(terminal), to[2] as Depth) };
+                let beam = sb.beam.with_terminal(terminal).with_after_empty(after_empty);
+                let msg = BeamMsg { local, ..BeamMsg::new(beam, to[2] as Depth) };
                 // At most nine sub-beams: never full.
                 let _ = subs.push((target, msg));
             } else if !bounds.in_grid(to) {
@@ -1100,7 +1108,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             .visible
             .filter(|v| v.brackets(m.z as i64))
             .map(|v| RayPlane::new(&v.plane, [x, y, v.z_v as i64], env.source, dir, env.far));
-        let visit = Visit::new(k, b.is_terminal(), own.map(plane), state, visible, other);
+        let visit = Visit::new(k, b.is_terminal(), b.after_empty(), own.map(plane), state, visible, other);
+        f.after_empty = own.is_none();
         if visit.is_plain() {
             // Nothing happens at this voxel: the thesis's path (a notched beam is not plain).
             if m.local == Local::NONE && self.frustum_skips(m, env, f) {
@@ -1150,11 +1159,13 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         let notch = m.local.notch();
         match own {
             Some(span) => {
-                let t1 = match notch {
-                    Some(n) if span.contains(n.state) => n.t1,
-                    _ => (k - 1).max(0) as u16,
+                // A new notch excludes, besides the rays that crossed, those the visit absorbed
+                // for coming from an empty voxel into the back of the plane.
+                let (t1, front) = match notch {
+                    Some(n) if span.contains(n.state) => (n.t1, n.front),
+                    _ => ((k - 1).max(0) as u16, m.beam.after_empty()),
                 };
-                Local::notched(Notch { state: m.z, t1, t2: k as u16, fresh: true })
+                Local::notched(Notch { state: m.z, t1, t2: k as u16, fresh: true, front })
             }
             None => match notch {
                 Some(n) => Local::notched(Notch { t2: n.t2 + n.fresh as u16, fresh: false, ..n }),
@@ -1174,7 +1185,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         let (x, y) = (self.x as i64, self.y as i64);
         let plane = RayPlane::new(&d.plane, [x, y, d.span.lo as i64], env.source, b.direction(), env.far);
         let visit =
-            Visit::new(b.layer().0 as i64, false, None, Some((plane, Notch { fresh: false, ..n })), None, false);
+            Visit::new(b.layer().0 as i64, false, false, None, Some((plane, Notch { fresh: false, ..n })), None, false);
         let (u, v) = (lattice(b.u()), lattice(b.v()));
         let mut seg = Segments::new();
         let (mut line, mut present) = (u.0, 0u64);

@@ -23,23 +23,31 @@
 //! side without crossing it). At layer k in voxel V a ray
 //!
 //! 1. lights the column's *visible surface* (the facet its centre line meets, [`crate::visible`])
-//!    if V is one of the two voxels bracketing it, that facet's plane B faces the source
-//!    (g_B(Se) > 0) and σᴮ_k or σᴮ₋ holds;
+//!    if V is one of the two voxels bracketing it, that facet's plane B — oriented toward the
+//!    viewer, whatever the facet's winding — faces the source (g_B(Se) > 0) and σᴮ_k or σᴮ₋
+//!    holds;
 //! 2. if it is *terminal* (it crossed a plane just before this layer): lights V if V is occupied,
 //!    its plane faces the source and σ_k or σ₋ holds; it is absorbed;
 //! 3. in an empty V goes on;
 //! 4. in an occupied V: lights V if V's plane faces the source and σ_k or σ₋; is absorbed if
-//!    σ₋ ≠ σ_k (it crossed the plane between the two layers); is absorbed if it is a ±z ray that
-//!    stays in its column at layer k + 1 and has passed another dexel of this column while
-//!    staying in it (the *column rule*, see below); becomes terminal if σ_k ≠ σ_{k+1} (it will
-//!    cross before the next layer: one more step, act there, die); otherwise goes on.
+//!    σ₋ ≠ σ_k (it crossed the plane between the two layers); is absorbed if it was in an empty
+//!    voxel at layer k − 1 and is behind V's plane at both layers (σ₋ = σ_k = 0: it came from
+//!    empty space into the back of a surface — it crossed a surface between the two layers,
+//!    in a voxel the 26-connected step skipped, [`crate::beam::Beam::after_empty`]); is
+//!    absorbed if it is a ±z ray that stays in its column at layer k + 1 and has passed another
+//!    dexel of this column while staying in it (the *column rule*, see below); becomes terminal
+//!    if σ_k ≠ σ_{k+1} (it will cross before the next layer: one more step, act there, die);
+//!    otherwise goes on.
 //!
 //! The terminal step lights the voxel the crossing point may lie in at the next layer. Planes
 //! stop rays from both sides (an open sheet is opaque both ways), but only facets facing the
 //! source are lit. A closed mesh stays closed: a ray crossing its surface crosses a plane in
 //! one of the two voxels around the crossing (the standard surface has no 26-tunnel), so it is
 //! stopped there — unless that voxel belongs to another facet (a junction), and then it is
-//! inside the mesh and is stopped where it leaves it.
+//! inside the mesh and is stopped where it leaves it. A step of a layer moves diagonally, so
+//! the crossing point may lie in a voxel neither layer visits; the ray then reaches a surface
+//! voxel from empty space already behind its plane, and is stopped there (rule 4). Without
+//! that, light went through the thin parts of real meshes (the teapot's lid knob at n = 64).
 //!
 //! # Beams under the plane rule
 //!
@@ -265,7 +273,7 @@ pub fn run_end(tests: &[Test], along: Along, start: i64, end: i64, lo: i64, hi: 
 
 /// Rays excluded from a beam that stays in its column (see the column rule in the module doc):
 /// those whose σ for the plane of the column's dexel at `state` changed between layers `t1` and
-/// `t2`. With `fresh`, those whose σ changes between `t2` and `t2 + 1` are terminal at layer
+/// `t2` (and with `front`, those with σ = 0 at both). With `fresh`, those whose σ changes between `t2` and `t2 + 1` are terminal at layer
 /// `t2 + 1`, the beam's layer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -278,6 +286,9 @@ pub struct Notch {
     pub t2: u16,
     /// The rays crossing between t2 and t2 + 1 are terminal at this layer.
     pub fresh: bool,
+    /// The rays behind the plane at both t1 and t2 are excluded too (they came into the back
+    /// of the plane from an empty voxel and were absorbed, rule 4).
+    pub front: bool,
 }
 
 /// What happens to a set of rays with the same test bits at one visit.
@@ -311,24 +322,28 @@ pub struct Visit {
     pub tests: Vec<Test, MAX_TESTS>,
     /// Index of the voxel's own σ₋, σ_k, σ_{k+1} (when occupied).
     own: Option<(usize, bool)>,
-    /// Index of the notch's σ_{t1}, σ_{t2} (and σ_{t2+1} when fresh).
-    notch: Option<(usize, bool)>,
+    /// Index of the notch's σ_{t1}, σ_{t2} (and σ_{t2+1} when fresh), and its `fresh`, `front`.
+    notch: Option<(usize, bool, bool)>,
     /// Index of the visible surface's σ₋, σ_k (when the voxel brackets it and it faces the source).
     visible: Option<usize>,
     /// The beam arrived terminal.
     terminal: bool,
+    /// The beam's rays were in an empty voxel at the previous layer.
+    after_empty: bool,
     /// Staying rays meet another dexel than their state's: the column rule absorbs them.
     other_dexel: bool,
 }
 
 impl Visit {
-    /// A visit at layer `k` of a beam (`terminal`: it arrived terminal), in a voxel whose dexel's
-    /// plane is `own` (None: empty), with `notch` (plane and notch) and the visible surface's
-    /// plane when the voxel brackets it; `other_dexel`: the beam has a column state and the
-    /// voxel is occupied by another dexel.
+    /// A visit at layer `k` of a beam (`terminal`: it arrived terminal; `after_empty`: its rays
+    /// were in an empty voxel at layer k − 1), in a voxel whose dexel's plane is `own` (None:
+    /// empty), with `notch` (plane and notch) and the visible surface's plane when the voxel
+    /// brackets it; `other_dexel`: the beam has a column state and the voxel is occupied by
+    /// another dexel.
     pub fn new(
         k: i64,
         terminal: bool,
+        after_empty: bool,
         own: Option<RayPlane>,
         notch: Option<(RayPlane, Notch)>,
         visible: Option<RayPlane>,
@@ -348,7 +363,7 @@ impl Visit {
             for t in [n.t1 as i64, n.t2 as i64, n.t2 as i64 + 1] {
                 let _ = tests.push(Test { plane: p, t });
             }
-            (i, n.fresh)
+            (i, n.fresh, n.front)
         });
         let visible = visible.filter(RayPlane::faces_source).map(|p| {
             let i = tests.len();
@@ -357,7 +372,7 @@ impl Visit {
             }
             i
         });
-        Visit { tests, own, notch, visible, terminal, other_dexel }
+        Visit { tests, own, notch, visible, terminal, after_empty, other_dexel }
     }
 
     /// Whether the visit needs no test at all: an empty voxel that does not bracket the visible
@@ -372,8 +387,8 @@ impl Visit {
         let bit = |i: usize| bits >> i & 1 == 1;
         let mut v = Verdict { out: Out::Continue, lit: false, visible: false };
         let mut terminal = self.terminal;
-        if let Some((i, fresh)) = self.notch {
-            if bit(i) != bit(i + 1) {
+        if let Some((i, fresh, front)) = self.notch {
+            if bit(i) != bit(i + 1) || (front && !bit(i) && !bit(i + 1)) {
                 v.out = Out::Absent;
                 return v;
             }
@@ -393,7 +408,7 @@ impl Visit {
         let Some((prev, now, next, _)) = own else {
             return v;
         };
-        v.out = if prev != now || (stays && self.other_dexel) {
+        v.out = if prev != now || (stays && self.other_dexel) || (self.after_empty && !prev && !now) {
             Out::Absorbed
         } else if now != next {
             Out::Terminal
@@ -517,32 +532,46 @@ mod tests {
     fn verdicts_by_hand() {
         let p = RayPlane { k0: 1, k1: 0, cb: 0, cg: 0 };
         // Own plane only: bits (σ₋, σ_k, σ_{k+1}).
-        let v = Visit::new(3, false, Some(p), None, None, false);
+        let v = Visit::new(3, false, false, Some(p), None, None, false);
         let out = |bits, stays| v.verdict(bits, stays).out;
         assert_eq!(out(0b111, false), Out::Continue);
         assert_eq!(out(0b000, false), Out::Continue);
         assert_eq!(out(0b011, false), Out::Terminal); // σ₋ = σ_k = 1, σ_{k+1} = 0
         assert_eq!(out(0b001, false), Out::Absorbed); // crossed between k − 1 and k
         assert!(v.verdict(0b001, false).lit && v.verdict(0b110, false).lit && !v.verdict(0b000, false).lit);
+        // From an empty voxel into the back of the plane (crossed in a voxel the layers skipped):
+        // absorbed; from a surface voxel, or in front of the plane, not.
+        let e = Visit::new(3, false, true, Some(p), None, None, false);
+        assert_eq!(e.verdict(0b000, false).out, Out::Absorbed);
+        assert_eq!(e.verdict(0b111, false).out, Out::Continue);
+        assert_eq!(e.verdict(0b011, false).out, Out::Terminal);
         // The column rule: staying rays meeting another dexel are absorbed.
-        let w = Visit::new(3, false, Some(p), None, None, true);
+        let w = Visit::new(3, false, false, Some(p), None, None, true);
         assert_eq!(w.verdict(0b111, true).out, Out::Absorbed);
         assert_eq!(w.verdict(0b111, false).out, Out::Continue);
         // A terminal beam acts and dies; an empty voxel lets everything go on.
-        let t = Visit::new(3, true, Some(p), None, None, false);
+        let t = Visit::new(3, true, false, Some(p), None, None, false);
         assert_eq!(t.verdict(0b111, false), Verdict { out: Out::Absorbed, lit: true, visible: false });
-        assert_eq!(Visit::new(3, false, None, None, None, false).verdict(0, false).out, Out::Continue);
-        assert!(Visit::new(3, false, None, None, None, false).is_plain());
+        assert_eq!(Visit::new(3, false, false, None, None, None, false).verdict(0, false).out, Out::Continue);
+        assert!(Visit::new(3, false, false, None, None, None, false).is_plain());
         // A notch: bits 3.. are σ_{t1}, σ_{t2}, σ_{t2+1}.
-        let n = Notch { state: 4, t1: 1, t2: 2, fresh: true };
-        let v = Visit::new(3, false, None, Some((p, n)), None, false);
+        let n = Notch { state: 4, t1: 1, t2: 2, fresh: true, front: false };
+        let v = Visit::new(3, false, false, None, Some((p, n)), None, false);
         assert_eq!(v.verdict(0b010, false).out, Out::Absent);
         assert_eq!(v.verdict(0b011, false).out, Out::Absorbed); // terminal: crossed between 2 and 3
         assert_eq!(v.verdict(0b111, false).out, Out::Continue);
+        assert_eq!(v.verdict(0b000, false).out, Out::Continue);
+        let v = Visit::new(3, false, false, None, Some((p, Notch { front: true, ..n })), None, false);
+        assert_eq!(v.verdict(0b000, false).out, Out::Absent);
+        assert_eq!(v.verdict(0b111, false).out, Out::Continue);
         // The visible surface's bits come after.
         let back = RayPlane { k0: -1, ..p };
-        assert_eq!(Visit::new(3, false, None, None, Some(back), false).tests.len(), 0, "a back face is never lit");
-        let v = Visit::new(3, false, None, None, Some(p), false);
+        assert_eq!(
+            Visit::new(3, false, false, None, None, Some(back), false).tests.len(),
+            0,
+            "a back face is never lit"
+        );
+        let v = Visit::new(3, false, false, None, None, Some(p), false);
         assert!(v.verdict(0b10, false).visible && !v.verdict(0b00, false).visible);
         let _ = Layer(0);
     }

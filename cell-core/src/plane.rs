@@ -103,6 +103,14 @@ pub struct DexelPlane {
     pub e: i32,
 }
 
+impl DexelPlane {
+    /// The same plane with the other orientation (g → −g), the same id. Exact: every field
+    /// is within ±2³⁰ (or a saturated `e`, negated within `i32`).
+    pub const fn flipped(&self) -> DexelPlane {
+        DexelPlane { id: self.id, nx: -self.nx, ny: -self.ny, nz: -self.nz, e: self.e.saturating_neg() }
+    }
+}
+
 /// The exact plane value of a facet along one column, `E(z) = p + c·z`, in the loading units of
 /// [`crate::voxelize`] (what the row packet holds at that column).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]

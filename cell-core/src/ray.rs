@@ -30,9 +30,48 @@
 //! i64 product (one SMULL on a Cortex-M4). Set-up uses one i64 floor division per minor axis
 //! (`(A_i + Q/2)·M + …` below 2⁴⁸). All arithmetic is checked in debug builds (overflow checks)
 //! and the limits are tested at their edges.
+//!
+//! # Shadow rays and the plane principle (§4.1.2, §5.5.6)
+//!
+//! A [`ShadowRay`] walks from an emitting surface toward a source and is answered "shadow" at
+//! the first occupied voxel that stops it. Under the thesis's rule every occupied voxel of
+//! another facet stops it, so a ray leaving a surface at a grazing angle is stopped by the
+//! staircase of its own surface (shadow *acne*; a bias of k voxels hides it and loses the
+//! shadows cast within k voxels). Under the plane rule ([`crate::lit::LitRule::Plane`]) the ray
+//! is the exact segment from the emitter's surface point A to the source B, walked 6-connected
+//! (the voxels it passes through, with the parameter interval `[t_in, t_out]` of its part in
+//! each, [`Line::exit`]), and an occupied voxel stops it **only if the segment crosses that
+//! voxel's own plane inside it** ([`crate::plane`]: σ = [g > 0] differs at the segment's entry
+//! into and exit from the voxel):
+//!
+//! * crossing from the plane's outward side to its inward side (*entering*) always stops it;
+//! * crossing from the inward side to the outward side (*leaving*) stops it unless the segment
+//!   is, where it enters that voxel, still within one normal unit of 2¹⁴ (about a voxel) of the
+//!   emitter's own plane. There it is the overhang of a neighbouring facet's voxels past an
+//!   edge it shares with the emitter's facet (a thick band reaches past its facet's edges):
+//!   the ray, leaving the emitter outward, crosses the neighbour's plane beside that facet, not
+//!   through it — and a ray outside a closed surface cannot leave it. Farther away a leaving
+//!   crossing is an open sheet seen from behind, and stops the ray (sheets are opaque both
+//!   ways).
+//!
+//! Dexels of the emitter's own plane never stop the ray. A surface whose plane does not face
+//! the source emits no ray: it is in its own shadow. This is the principle of the plane lit
+//! rule of [`crate::lit`] for one exact segment: a facet stops a ray only where the ray
+//! crosses it. Without the overhang exception a grazing ray leaving a face near a convex edge
+//! is stopped by the neighbouring face's band, and the face shows streaks of false shadow
+//! (the Cornell box at n = 128: 4.1 % of pixels wrong instead of 0.3 %).
+//!
+//! *Arithmetic.* The ray carries A and D = B − A (lattice units, |A_i| ≤ 2²⁶, |D_i| ≤ 2²⁰),
+//! t_in = num/den with 0 ≤ num ≤ den ≤ 2²⁰ + Q, and its own plane's value along the segment.
+//! The plane of a dexel of column (x, y) with first voxel `lo` at the point A + t·D, times 2²⁰
+//! and den, is `2¹⁶·(nx·X + ny·Y) + nz·Z + 2²⁰·den·e` with X = den·(A_x − 16x) + num·D_x (and
+//! Y, Z alike): |X| < 2⁴⁹, every product below 2⁸¹ (`i128`), exact. Its sign is the sign of g
+//! there. The own plane's `2²⁰·g` at A (|·| ≤ 2⁵³: A lies on the surface within 1/32 voxel)
+//! and its growth to B (|·| < 2⁵⁸) fit `i64`.
 
 use crate::dexel::DexelStore;
 use crate::light::Port;
+use crate::plane::{DexelPlane, PlaneId, NORMAL_SCALE};
 use crate::units::FacetId;
 
 /// Lattice units per voxel (the 1/16 voxel lattice of facets and sources).
@@ -240,6 +279,21 @@ impl Line {
         corners
     }
 
+    /// The parameter t = num / den (den > 0) at which the segment leaves the current voxel,
+    /// t = 1 in B's voxel (the segment ends there): the smallest `nb_i / |D_i|` over the axes
+    /// not yet at B's voxel. Only the 6-connected walk follows the segment exactly: `None` for
+    /// the others.
+    pub fn exit(&self) -> Option<(i32, i32)> {
+        let Walk::Aw(w) = &self.walk else { return None };
+        let mut best = (1, 1);
+        for i in 0..3 {
+            if self.v[i] != w.target[i] && (w.nb[i] as i64) * (best.1 as i64) < (best.0 as i64) * (w.d[i] as i64) {
+                best = (w.nb[i], w.d[i]);
+            }
+        }
+        Some(best)
+    }
+
     /// Move to the next voxel; `None` (and no change) at the end of the line.
     pub fn step(&mut self) -> Option<[i32; 3]> {
         match &mut self.walk {
@@ -347,6 +401,74 @@ pub struct ShadowRay {
     /// Voxels after the emitter's own still to pass untested: the shadow bias
     /// ([`ShadowRay::with_bias`]).
     pub grace: u8,
+    /// Whether the answer is about the surface the emitter's pixel shows.
+    pub surface: bool,
+    /// The plane principle's state (see the module doc), `None` under the thesis's rule.
+    pub plane: Option<PlaneWalk>,
+}
+
+/// What a shadow ray under the plane principle carries (see the module doc): 56 bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct PlaneWalk {
+    /// The segment's start A (lattice units).
+    pub a: [i32; 3],
+    /// D = B − A (lattice units).
+    pub d: [i32; 3],
+    /// The emitter's plane: its dexels never stop the ray.
+    pub own: PlaneId,
+    /// Where the segment entered the current voxel: t = num / den (0 in the emitter's voxel).
+    pub t_in: (i32, i32),
+    /// The emitter's own plane along the segment: `2²⁰·g_own` at t = 0 and its growth to t = 1.
+    pub own_g: (i64, i64),
+}
+
+/// How a segment crosses a plane inside a voxel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Crossing {
+    /// From the plane's outward side to its inward side.
+    Entering,
+    /// From the inward side to the outward side.
+    Leaving,
+}
+
+impl PlaneWalk {
+    /// `2²⁰·den·g` at the point A + (num/den)·D for the plane of a dexel of `column` whose
+    /// first voxel is `lo`: it has the sign of g there (see the module doc's arithmetic).
+    pub fn value(&self, plane: &DexelPlane, column: [i32; 2], lo: i32, t: (i32, i32)) -> i128 {
+        plane_value(plane, [column[0], column[1], lo], self.a, self.d, t)
+    }
+
+    /// How the segment crosses `plane` between `t_in` and `t_out` (σ differs), if it does.
+    pub fn crossing(&self, plane: &DexelPlane, column: [i32; 2], lo: i32, t_out: (i32, i32)) -> Option<Crossing> {
+        match (self.value(plane, column, lo, self.t_in) > 0, self.value(plane, column, lo, t_out) > 0) {
+            (true, false) => Some(Crossing::Entering),
+            (false, true) => Some(Crossing::Leaving),
+            _ => None,
+        }
+    }
+
+    /// Whether the segment is within `NEAR` of its own plane at `t_in` (g_own < 2¹⁴).
+    pub fn near_own(&self) -> bool {
+        let (num, den) = self.t_in;
+        let g = (den as i128) * (self.own_g.0 as i128) + (num as i128) * (self.own_g.1 as i128);
+        g < ((den as i128) * (NORMAL_SCALE as i128)) << 20
+    }
+}
+
+/// `2²⁰·den·g` of `plane` (reference voxel `r`: its column and first voxel) at the lattice
+/// point A + (num/den)·D.
+fn plane_value(plane: &DexelPlane, r: [i32; 3], a: [i32; 3], d: [i32; 3], (num, den): (i32, i32)) -> i128 {
+    let off = |i: usize| den as i128 * (a[i] as i128 - (Q * r[i]) as i128) + num as i128 * d[i] as i128;
+    ((plane.nx as i128 * off(0) + plane.ny as i128 * off(1)) << 16)
+        + plane.nz as i128 * off(2)
+        + ((den as i128 * plane.e as i128) << 20)
+}
+
+/// The lattice z nearest the exact depth z\* = num/den (den > 0) of a surface: round(Q·z\*),
+/// half up, saturated to ±[`MAX_COORD`] (beyond which no line is built).
+pub fn lattice_depth(num: i64, den: i64) -> i32 {
+    let q = (2 * Q as i128 * num as i128 + den as i128).div_euclid(2 * den as i128);
+    q.clamp(-(MAX_COORD as i128) - 1, MAX_COORD as i128 + 1) as i32
 }
 
 /// What the cell holding a [`ShadowRay`] does with it this cycle.
@@ -381,7 +503,46 @@ impl ShadowRay {
             emitter_z: from[2] as i32,
             fresh: true,
             grace: 0,
+            surface: false,
+            plane: None,
         })
+    }
+
+    /// A ray under the plane principle (see the module doc) from lattice point `a` of a surface
+    /// of plane `own` — the plane of a dexel (or visible surface) of column (a's column) with
+    /// first voxel `lo` — toward lattice point `to`, walked 6-connected. `Ok(None)` when the
+    /// plane does not face the source (g(B) ≤ 0): the surface is in its own shadow, no ray.
+    pub fn on_plane(
+        a: [i32; 3],
+        own: &DexelPlane,
+        lo: i32,
+        to: [i32; 3],
+        facet: FacetId,
+    ) -> Result<Option<Self>, LineError> {
+        let line = Line::new(a, to, Connectivity::Six)?;
+        let [x, y, z] = line.voxel();
+        let g_b = plane_value(own, [x, y, lo], to, [0; 3], (0, 1));
+        if g_b <= 0 {
+            return Ok(None);
+        }
+        let g_a = plane_value(own, [x, y, lo], a, [0; 3], (0, 1));
+        let d = [to[0] - a[0], to[1] - a[1], to[2] - a[2]];
+        Ok(Some(ShadowRay {
+            line,
+            emitter: [x as u16, y as u16],
+            facet,
+            emitter_z: z,
+            fresh: true,
+            grace: 0,
+            surface: false,
+            plane: Some(PlaneWalk { a, d, own: own.id, t_in: (0, 1), own_g: (g_a as i64, (g_b - g_a) as i64) }),
+        }))
+    }
+
+    /// Mark the ray as the one whose answer shades the emitter's pixel.
+    pub fn for_surface(mut self) -> Self {
+        self.surface = true;
+        self
     }
 
     /// Leave the first `k` voxels after the emitter's own untested (a shadow bias of `k`
@@ -394,26 +555,45 @@ impl ShadowRay {
     }
 
     /// One voxel of work in the cell owning the current voxel: test it against the column's
-    /// dexels (unless it is the emitter's), then take one step of the line. Pure in the
-    /// store; the ray advances (the caller keeps a copy if it cannot send the result yet).
+    /// dexels, then take one step of the line. Under the thesis's rule the emitter's voxel is
+    /// not tested and a voxel of another facet stops the ray; under the plane principle every
+    /// voxel is tested and stops the ray iff the segment crosses its plane there (see the
+    /// module doc). Pure in the store; the ray advances (the caller keeps a copy if it cannot
+    /// send the result yet).
     pub fn advance<const D: usize>(&mut self, store: &DexelStore<D>) -> RayStep {
         let here = self.line.voxel();
-        let test = if self.fresh {
+        let test = if self.fresh && self.plane.is_none() {
             false
-        } else if self.grace > 0 {
+        } else if self.grace > 0 && !self.fresh {
             self.grace -= 1;
             false
         } else {
             true
         };
+        // The segment's exit from this voxel (the plane principle walks 6-connected: known).
+        let t_out = self.line.exit().unwrap_or((1, 1));
         if test {
             if let Some(d) = u16::try_from(here[2]).ok().and_then(|z| store.occupied(z)) {
-                if d.facet != self.facet {
+                let stops = match &self.plane {
+                    None => d.facet != self.facet,
+                    Some(w) => {
+                        d.plane.id != w.own
+                            && match w.crossing(&d.plane, [here[0], here[1]], d.span.lo as i32, t_out) {
+                                None => false,
+                                Some(Crossing::Entering) => true,
+                                Some(Crossing::Leaving) => !w.near_own(),
+                            }
+                    }
+                };
+                if stops {
                     return RayStep::Shadow;
                 }
             }
         }
         self.fresh = false;
+        if let Some(w) = &mut self.plane {
+            w.t_in = t_out;
+        }
         let Some(next) = self.line.step() else { return RayStep::Lit };
         match cell_step(here, next).and_then(|(dx, dy)| Port::from_delta(dx, dy)) {
             Some(p) => RayStep::Forward(p),
@@ -453,6 +633,95 @@ mod tests {
         assert_eq!(path([0; 3], b, Connectivity::TwentySix).len(), 4);
         assert_eq!(path([0; 3], b, Connectivity::Eighteen).len(), 7);
         assert_eq!(path([0; 3], b, Connectivity::Six).len(), 10);
+    }
+
+    #[test]
+    fn exits_follow_the_segment() {
+        // From the centre of voxel 0 to the centre of voxel 3 along x: exits at 8/48, 24/48, …
+        let mut l = Line::new([0; 3], [3 * Q, 0, 0], Connectivity::Six).unwrap();
+        let mut exits = heapless::Vec::<(i32, i32), 8>::new();
+        loop {
+            exits.push(l.exit().unwrap()).unwrap();
+            if l.step().is_none() {
+                break;
+            }
+        }
+        assert_eq!(exits, [(8, 48), (24, 48), (40, 48), (1, 1)]);
+        assert_eq!(Line::new([0; 3], [3 * Q, 0, 0], Connectivity::TwentySix).unwrap().exit(), None);
+    }
+
+    fn z_plane(id: u32, nz: i32, e: i32) -> DexelPlane {
+        DexelPlane { id, nx: 0, ny: 0, nz, e }
+    }
+
+    #[test]
+    fn plane_rays_stop_only_where_they_cross() {
+        use crate::dexel::{DexelStore, FacetTag};
+        use crate::plane::{ColumnPlane, FacetPlane, NZ_MAX};
+        use crate::units::Span;
+        // The emitter: a floor at z* = 9 facing −z (the viewer), the source 8 voxels above.
+        let floor = z_plane(1, -NZ_MAX, 0);
+        let source = [0, 0, Q];
+        let run = |store: &DexelStore<4>| {
+            let mut r = ShadowRay::on_plane([0, 0, 9 * Q], &floor, 9, source, 0).unwrap().unwrap();
+            loop {
+                match r.advance(store) {
+                    RayStep::Stay => continue,
+                    other => return other,
+                }
+            }
+        };
+        // A source behind the floor: no ray.
+        assert_eq!(ShadowRay::on_plane([0, 0, 9 * Q], &floor, 9, [0, 0, 12 * Q], 0), Ok(None));
+        assert_eq!(run(&DexelStore::<4>::new()), RayStep::Lit);
+        // A one-voxel dexel at z of plane id `id`, z slope `nz` and value `e` at its centre
+        // (m = 2¹⁰: the stored offset is the column value itself).
+        let slab = |z: u16, id: u32, nz: i32, e: i64| {
+            let mut store = DexelStore::<4>::new();
+            let plane = FacetPlane { id, nx: 0, ny: 0, nz, m: 1 << 10 };
+            let tag = FacetTag { facet: 2, plane, ..FacetTag::default() };
+            store.insert_on(Span { lo: z, hi: z }, tag, &ColumnPlane { p: e, c: 0 });
+            assert_eq!(store.occupied(z).unwrap().plane.e as i64, e);
+            store
+        };
+        // The plane z = 4.25 facing +z (g = 2¹⁴·(z − 4.25)) in voxel 4: entered there: shadow.
+        assert_eq!(run(&slab(4, 2, NZ_MAX, -(1 << 12))), RayStep::Shadow);
+        // The plane z = 5.5 in voxel 4: not crossed inside it: lit.
+        assert_eq!(run(&slab(4, 2, NZ_MAX, -(3 << 13))), RayStep::Lit);
+        // A dexel of the emitter's own plane id never stops the ray.
+        assert_eq!(run(&slab(4, 1, NZ_MAX, -(1 << 12))), RayStep::Lit);
+        // Leaving a plane's inward side: within a voxel of the floor it is a neighbour's
+        // overhang (no stop); farther it is a sheet seen from behind (shadow).
+        assert_eq!(run(&slab(9, 2, -NZ_MAX, -(1 << 12))), RayStep::Lit);
+        assert_eq!(run(&slab(4, 2, -NZ_MAX, -(1 << 12))), RayStep::Shadow);
+    }
+
+    #[test]
+    fn message_sizes() {
+        assert_eq!(core::mem::size_of::<PlaneWalk>(), 56);
+        // The line's walk state (72), the plane state (64 with its tag), emitter and flags.
+        assert_eq!(core::mem::size_of::<ShadowRay>(), 144);
+    }
+
+    #[test]
+    fn plane_values_at_the_bit_budget() {
+        // Extreme coordinates, span, normal and offset: no overflow (checked in debug builds),
+        // and the sign is right at both ends of the segment.
+        let p = DexelPlane {
+            id: 0,
+            nx: NORMAL_SCALE as i16,
+            ny: -(NORMAL_SCALE as i16),
+            nz: crate::plane::NZ_MAX,
+            e: i32::MAX,
+        };
+        let a = [MAX_COORD, -MAX_COORD, MAX_COORD];
+        let d = [-MAX_SPAN, MAX_SPAN, -MAX_SPAN];
+        let r = [-(MAX_COORD / Q), MAX_COORD / Q, -(MAX_COORD / Q)];
+        for t in [(0, 1), (MAX_SPAN + Q, MAX_SPAN + Q), (1, MAX_SPAN + Q)] {
+            assert!(plane_value(&p, r, a, d, t) > 0);
+            let flipped = plane_value(&p.flipped(), r, a, d, t);
+            assert!(flipped < 0);
+        }
     }
 
     #[test]

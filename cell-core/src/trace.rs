@@ -39,10 +39,11 @@ use crate::units::{Coord, Depth};
 
 /// `RC2T`.
 pub const MAGIC: u32 = u32::from_le_bytes(*b"RC2T");
-/// Trace format version (4: row packets carry their facet's plane and contour pushes, beams
-/// their terminal flag, the light record the lit rule). Earlier versions are refused: their
-/// row packets cannot be read as version 4's.
-pub const VERSION: u8 = 4;
+/// Trace format version (5: row packets carry their facet's plane and contour pushes, beams
+/// their terminal and after-empty flags, the light record the lit rule; the visible surface's
+/// plane faces the viewer). Earlier versions are refused: they were recorded under other
+/// rules, and their replays would not reach their digests.
+pub const VERSION: u8 = 5;
 /// Record kinds.
 pub mod kind {
     /// [`super::Event::Header`].

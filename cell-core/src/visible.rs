@@ -29,6 +29,12 @@
 //! centre of voxel `z_v = ⌊z*⌋`: the lighting phase tests the rays that visit voxels `z_v` and
 //! `z_v + 1` of the column — the two whose centres bracket z\*, so that at least half a voxel of
 //! depth lies on each side of the surface — against that plane ([`crate::lit`]). 40 bytes.
+//!
+//! The plane is kept **oriented toward the viewer** (g > 0 on the −z side, where the view ray
+//! comes from), whatever the facet's winding: a pixel shows the side of the surface the viewer
+//! sees, and that side is lit by the sources in front of it — as the exact reference and the
+//! shading (both two-sided) take it. A mesh wound inside out, or an open sheet seen from its
+//! back, is then lit right. The plane keeps its facet's id (the id names the geometric plane).
 
 use crate::facet::RowPacket;
 use crate::normal::NormalCode;
@@ -49,7 +55,8 @@ pub struct VisibleSurface {
     pub material: MaterialId,
     /// Its normal code (for shading).
     pub normal: NormalCode,
-    /// Its plane, with the offset at the centre of voxel [`VisibleSurface::z_v`].
+    /// Its plane, oriented toward the viewer (see the module doc), with the offset at the centre
+    /// of voxel [`VisibleSurface::z_v`].
     pub plane: DexelPlane,
     /// ⌊z\*⌋: the nearer of the two voxels that bracket the surface (−1 when z\* < 0).
     pub z_v: i32,
@@ -94,13 +101,16 @@ pub fn surface_of(p: &RowPacket, depth: u32) -> Option<VisibleSurface> {
     let (num, den) = hit(p, depth)?;
     let z_v = num.div_euclid(den);
     let e = p.column_plane().value(z_v);
+    let plane = p.tag.plane.dexel_plane(e);
+    // E grows along c·z: c > 0 means the facet's outward side is +z, away from the viewer.
+    let plane = if p.c > 0 { plane.flipped() } else { plane };
     Some(VisibleSurface {
         num,
         den,
         facet: p.tag.facet,
         material: p.tag.material,
         normal: p.tag.normal,
-        plane: p.tag.plane.dexel_plane(e),
+        plane,
         z_v: z_v as i32,
     })
 }

@@ -2,9 +2,14 @@
 //! method beam diffusion replaces, simulated with the same cycle model so both can be compared.
 //!
 //! For each source in turn (like diffusion, the next starts when the grid is quiescent): every
-//! visible voxel (the first occupied voxel of a column, as `render` shows it) emits one
-//! [`ShadowRay`] toward the source, walking an incremental line ([`cell_core::ray`]). Cycle
-//! model, per cycle:
+//! column's visible surface emits one [`ShadowRay`] toward the source, walking an incremental
+//! line ([`cell_core::ray`]). Under the thesis's rule ([`LitRule::Thesis`]) the visible surface is
+//! the first occupied voxel of the column and the ray starts at its centre; under the plane rule
+//! ([`LitRule::Plane`], the default) it is the surface the column's centre line meets
+//! ([`cell_core::visible`]), the ray is the exact segment from that point, and a voxel stops it
+//! only where the segment crosses the voxel's own plane (the plane principle of
+//! [`cell_core::ray`]); a surface whose plane turns away from the source emits no ray (it is in
+//! its own shadow, counted as `back_facing`). Cycle model, per cycle:
 //! 1. **compute**: every cell with rays takes its FIFO's head and does one voxel of work
 //!    ([`ShadowRay::advance`]): an occupied voxel (of another facet) → the answer "shadow";
 //!    the end of the line (the source) → "lit"; the next voxel in the same column → the ray
@@ -30,6 +35,7 @@ use std::time::Instant;
 use anyhow::{bail, Result};
 use cell_core::beam::FracBits;
 use cell_core::light::{Port, SourceMask};
+use cell_core::lit::LitRule;
 use cell_core::ray::{Connectivity, RayStep, ShadowRay};
 use cell_core::route::{RoutePolicy, Routed};
 
@@ -53,6 +59,9 @@ pub struct ClassicConfig {
     /// Shadow bias: voxels after the emitter's own a ray does not test
     /// ([`ShadowRay::with_bias`]; 0 = the thesis's rule, only the emitter's facet is ignored).
     pub bias: u8,
+    /// Which voxels stop a ray: the thesis's (every occupied voxel of another facet) or the
+    /// plane principle (only where the ray crosses the voxel's plane; 6-connected rays only).
+    pub rule: LitRule,
 }
 
 /// Counters of a classic run (one source's, or summed).
@@ -74,6 +83,8 @@ pub struct ClassicCounts {
     pub voxels: u64,
     /// Rays answered "lit".
     pub lit: u64,
+    /// Emitters whose plane turns away from the source (plane rule): no ray, in shadow.
+    pub back_facing: u64,
     /// Largest number of voxel steps one cell processed.
     pub busiest_cell_steps: u64,
     /// Chebyshev distance (cells) from the busiest cell to the source's column.
@@ -99,6 +110,7 @@ impl ClassicCounts {
         self.answers += o.answers;
         self.answer_messages += o.answer_messages;
         self.lit += o.lit;
+        self.back_facing += o.back_facing;
         if o.busiest_cell_steps > self.busiest_cell_steps {
             self.busiest_cell_steps = o.busiest_cell_steps;
             self.busiest_cell_distance = o.busiest_cell_distance;
@@ -130,8 +142,8 @@ pub struct ClassicLighting {
 }
 
 impl ClassicLighting {
-    /// Sources that lit voxel (x, y, z): only visible voxels are ever tested.
-    pub fn mask(&self, x: u32, y: u32, _z: u16) -> SourceMask {
+    /// Sources that lit the surface column (x, y) shows: only visible surfaces are ever tested.
+    pub fn mask(&self, x: u32, y: u32) -> SourceMask {
         self.masks[(y * self.n + x) as usize]
     }
 }
@@ -155,6 +167,16 @@ pub fn classic(
     if cfg.fa == 0 || cfg.fa > FA_CAP {
         bail!("--fa {} is out of range: 1 ..= {FA_CAP}", cfg.fa);
     }
+    for (i, &l) in lights.iter().enumerate() {
+        crate::diffuse::source_at(i, l, n)?;
+    }
+    if cfg.rule == LitRule::Plane && cfg.connectivity != Connectivity::Six {
+        bail!(
+            "the plane rule walks the exact segment (6-connected): use --ray-connectivity 6, or \
+             --lit-rule thesis for {}-connected rays",
+            cfg.connectivity.k()
+        );
+    }
     let mut masks = vec![0; (n * n) as usize];
     let mut per_source = Vec::new();
     let mut totals = ClassicCounts::default();
@@ -164,6 +186,67 @@ pub fn classic(
         per_source.push(c);
     }
     Ok(ClassicLighting { n, masks, per_source, totals })
+}
+
+/// The rays cell `c` emits toward lattice point `src`, the one its pixel waits for first
+/// (see the module doc; with `all_voxels`, one more per occupied voxel, from its centre).
+fn emit<const D: usize>(
+    c: &cell_core::cell::Cell<D>,
+    src: [i32; 3],
+    cfg: &ClassicConfig,
+    k: &mut ClassicCounts,
+) -> Result<VecDeque<ShadowRay>> {
+    let err = |z: i64, e| anyhow::anyhow!("shadow ray from ({}, {}, {z}): {e:?}", c.x, c.y);
+    let mut rays = VecDeque::new();
+    let mut push = |ray: Option<ShadowRay>, k: &mut ClassicCounts| match ray {
+        Some(r) => {
+            rays.push_back(r.with_bias(cfg.bias));
+            k.rays += 1;
+        }
+        None => k.back_facing += 1,
+    };
+    let centre = |z: u16| [c.x as i32, c.y as i32, z as i32].map(|v| v * cell_core::ray::Q);
+    match cfg.rule {
+        LitRule::Thesis => {
+            let Some(first) = c.store.dexels().first() else { return Ok(rays) };
+            let visible_z = first.span.lo;
+            for d in c.store.dexels() {
+                for z in d.span.lo..=if cfg.all_voxels { d.span.hi } else { d.span.lo } {
+                    let ray =
+                        ShadowRay::new([c.x, c.y, z], src, cfg.connectivity, d.facet).map_err(|e| err(z as i64, e))?;
+                    push(Some(if z == visible_z { ray.for_surface() } else { ray }), k);
+                }
+                if !cfg.all_voxels {
+                    break;
+                }
+            }
+        }
+        LitRule::Plane => {
+            if let Some(v) = &c.visible {
+                let a = [
+                    c.x as i32 * cell_core::ray::Q,
+                    c.y as i32 * cell_core::ray::Q,
+                    cell_core::ray::lattice_depth(v.num, v.den),
+                ];
+                let ray = ShadowRay::on_plane(a, &v.plane, v.z_v, src, v.facet).map_err(|e| err(v.z_v as i64, e))?;
+                push(ray.map(ShadowRay::for_surface), k);
+            }
+            if cfg.all_voxels {
+                for d in c.store.dexels() {
+                    for z in d.span.lo..=d.span.hi {
+                        let ray = ShadowRay::on_plane(centre(z), &d.plane, d.span.lo as i32, src, d.facet)
+                            .map_err(|e| err(z as i64, e))?;
+                        push(ray, k);
+                    }
+                }
+            }
+        }
+    }
+    // The surface's ray first: it is the one the image waits for.
+    if let Some(ray) = rays.iter().position(|r| r.surface).and_then(|i| rays.remove(i)) {
+        rays.push_front(ray);
+    }
+    Ok(rays)
 }
 
 fn classic_one(
@@ -188,27 +271,11 @@ fn classic_one(
     let mut k = ClassicCounts::default();
     let mut active: Vec<u32> = Vec::new();
     for (i, c) in grid.cells.iter().enumerate() {
-        let Some(first) = c.store.dexels().first() else { continue };
-        let visible_z = first.span.lo;
-        for d in c.store.dexels() {
-            let zs = if cfg.all_voxels { d.span.lo..=d.span.hi } else { visible_z..=visible_z };
-            for z in zs {
-                let ray = ShadowRay::new([c.x, c.y, z], src, cfg.connectivity, d.facet)
-                    .map_err(|e| anyhow::anyhow!("shadow ray from ({}, {}, {z}): {e:?}", c.x, c.y))?
-                    .with_bias(cfg.bias);
-                // The visible voxel's ray first: it is the one the image waits for.
-                if z == visible_z {
-                    fifo[i].push_front(ray);
-                } else {
-                    fifo[i].push_back(ray);
-                }
-                k.rays += 1;
-            }
-            if !cfg.all_voxels {
-                break;
-            }
+        let rays = emit(c, src, cfg, &mut k)?;
+        if !rays.is_empty() {
+            fifo[i] = rays;
+            active.push(i as u32);
         }
-        active.push(i as u32);
     }
     k.voxels = grid.cells.iter().map(|c| c.store.voxel_count() as u64).sum();
     let bit: SourceMask = 1 << si;
@@ -231,12 +298,7 @@ fn classic_one(
             let done = match step {
                 RayStep::Shadow | RayStep::Lit => {
                     let dest = ray.emitter;
-                    let visible = grid.cells[(dest[1] as usize) * n + dest[0] as usize]
-                        .store
-                        .dexels()
-                        .first()
-                        .is_some_and(|d| d.span.lo as i32 == ray.emitter_z);
-                    let payload = (step == RayStep::Lit) as u8 | (visible as u8) << 1;
+                    let payload = (step == RayStep::Lit) as u8 | (ray.surface as u8) << 1;
                     net.can_inject(i, dest) && net.inject(i, Routed { dest, payload })
                 }
                 RayStep::Stay => {
@@ -464,8 +526,8 @@ fn parse_connectivity(s: &str) -> std::result::Result<u8, String> {
 }
 
 impl ClassicOpts {
-    /// The classic configuration with FIFO limit `fa`.
-    pub fn config(&self, fa: usize) -> ClassicConfig {
+    /// The classic configuration with FIFO limit `fa` and lit rule `rule`.
+    pub fn config(&self, fa: usize, rule: LitRule) -> ClassicConfig {
         ClassicConfig {
             fa,
             connectivity: match self.ray_connectivity {
@@ -479,6 +541,7 @@ impl ClassicOpts {
             },
             all_voxels: self.emitters == EmittersArg::All,
             bias: self.shadow_bias,
+            rule,
         }
     }
 }
@@ -486,8 +549,9 @@ impl ClassicOpts {
 /// One line of classic counters for the job summaries.
 pub fn summary(c: &ClassicCounts) -> String {
     format!(
-        "classic: {} rays, {} voxel steps, {} ray + {} answer messages, {} lit; busiest cell {} steps at distance {}; peak link load {} at distance {}; peak FIFO {}",
+        "classic: {} rays ({} surfaces facing away), {} voxel steps, {} ray + {} answer messages, {} lit; busiest cell {} steps at distance {}; peak link load {} at distance {}; peak FIFO {}",
         c.rays,
+        c.back_facing,
         c.ray_steps,
         c.ray_messages,
         c.answer_messages,
@@ -523,7 +587,10 @@ pub fn render_classic<F: FracBits>(
         lights,
         cfg,
         reference,
-        &crate::render::Seen::FirstVoxel(Box::new(|x, y, z| cl.mask(x, y, z))),
+        &match classic_cfg.rule {
+            LitRule::Thesis => crate::render::Seen::FirstVoxel(Box::new(|x, y, _| cl.mask(x, y))),
+            LitRule::Plane => crate::render::Seen::Surface(Box::new(|x, y| cl.mask(x, y))),
+        },
         stats,
         times,
     );

@@ -970,7 +970,7 @@ fn run_light_classic<F: cell_core::beam::FracBits>(
     pb: ProgressBar,
 ) -> Result<()> {
     use std::io::Write;
-    let ccfg = a.light.classic.config(a.light.fa);
+    let ccfg = a.light.classic.config(a.light.fa, a.light.lit_rule.into());
     let (cl, stats) = crate::classic::run_classic::<F>(mesh, loaded, lights, &ccfg, light_progress(&pb))?;
     pb.finish_and_clear();
     let stats_out = a.stats.as_ref().map(|p| write_json(p, &stats));
@@ -1051,7 +1051,7 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     let progress = light_progress(&pb);
     let mut reflections = None;
     let (r, classic) = if a.reflect.reflections > 0 {
-        let refl = a.reflect.config(a.light.fa, &a.light.classic.config(a.light.fa));
+        let refl = a.reflect.config(a.light.fa, &a.light.classic.config(a.light.fa, a.light.lit_rule.into()));
         let times = [load_seconds, reference_seconds];
         let (r, c) = crate::reflect::render_reflect::<F>(
             &mesh,
@@ -1066,7 +1066,7 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
         reflections = Some(c);
         (r, None)
     } else if a.light.classic.lighting == crate::classic::LightingArg::Classic {
-        let ccfg = a.light.classic.config(a.light.fa);
+        let ccfg = a.light.classic.config(a.light.fa, a.light.lit_rule.into());
         let (r, c) = crate::classic::render_classic::<F>(
             &mesh,
             &loaded,

@@ -1,4 +1,5 @@
-//! Mesh utilities: midpoint subdivision (to build large benchmark meshes) and OBJ output.
+//! Mesh utilities: consistent winding, midpoint subdivision (to build large benchmark meshes)
+//! and OBJ output.
 
 use std::collections::HashMap;
 use std::io::Write;
@@ -70,6 +71,163 @@ pub fn subdivide_to(mesh: &Mesh, target: usize) -> Mesh {
     m
 }
 
+/// What [`orient`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Orientation {
+    /// Connected surfaces (faces joined by edges shared by exactly two faces).
+    pub components: usize,
+    /// Of which closed (every edge shared by exactly two faces, consistently orientable).
+    pub closed: usize,
+    /// Faces whose winding was reversed.
+    pub rewound: usize,
+}
+
+/// Make every connected surface's winding consistent, closed surfaces wound outward.
+///
+/// The plane lit rule ([`cell_core::lit`]) reads a facet's winding normal as the side light
+/// travels on (a ray that reaches a surface voxel from empty space behind its plane has crossed
+/// a surface). OBJ files wind outward by convention, but not always: a stray reversed facet, or
+/// a whole mesh inside out. So, with vertices identified by position, each surface of faces
+/// joined by manifold edges (shared by exactly two faces) is made consistent — two faces
+/// sharing an edge traverse it in opposite directions — and then oriented: a closed surface
+/// so that its signed volume is positive (normals outward); an open one (a floor, a room open
+/// to the viewer) keeping the winding of the larger part of its area, as its author meant.
+/// Degenerate faces (fewer than three distinct vertices) are left alone.
+pub fn orient(mesh: &mut Mesh) -> Orientation {
+    let faces = &mesh.faces;
+    // Vertices identified by exact position (files may repeat a position).
+    let mut canon: HashMap<[u64; 3], u32> = HashMap::new();
+    let id: Vec<u32> = mesh
+        .positions
+        .iter()
+        .map(|p| {
+            let n = canon.len() as u32;
+            *canon.entry(p.map(f64::to_bits)).or_insert(n)
+        })
+        .collect();
+    let ring =
+        |f: &Face| -> Vec<u32> { f.verts.iter().map(|&v| id.get(v as usize).copied().unwrap_or(u32::MAX)).collect() };
+    // Undirected edge → (face, traverses it from the smaller vertex id).
+    let mut edges: HashMap<(u32, u32), Vec<(u32, bool)>> = HashMap::new();
+    for (fi, f) in faces.iter().enumerate() {
+        let r = ring(f);
+        for k in 0..r.len() {
+            let (a, b) = (r[k], r[(k + 1) % r.len()]);
+            if a != b {
+                edges.entry((a.min(b), a.max(b))).or_default().push((fi as u32, a < b));
+            }
+        }
+    }
+    let mut adj: Vec<Vec<(u32, bool, bool)>> = vec![Vec::new(); faces.len()]; // (other, my dir, its dir)
+    let mut open = vec![false; faces.len()];
+    for inc in edges.values() {
+        if let [(f, df), (g, dg)] = inc[..] {
+            if f != g {
+                adj[f as usize].push((g, df, dg));
+                adj[g as usize].push((f, dg, df));
+                continue;
+            }
+        }
+        for &(f, _) in inc {
+            open[f as usize] = true;
+        }
+    }
+    let mut flip: Vec<Option<bool>> = vec![None; faces.len()];
+    let mut out = Orientation::default();
+    for seed in 0..faces.len() {
+        if flip[seed].is_some() || ring(&faces[seed]).iter().collect::<std::collections::HashSet<_>>().len() < 3 {
+            continue;
+        }
+        // Flood one surface: consistent iff the two faces traverse the shared edge oppositely.
+        out.components += 1;
+        let (mut members, mut stack, mut consistent) = (vec![seed], vec![seed], true);
+        flip[seed] = Some(false);
+        while let Some(f) = stack.pop() {
+            let ff = flip[f].unwrap_or(false);
+            for &(g, df, dg) in &adj[f] {
+                let want = ff ^ (df == dg);
+                match flip[g as usize] {
+                    None => {
+                        flip[g as usize] = Some(want);
+                        members.push(g as usize);
+                        stack.push(g as usize);
+                    }
+                    Some(have) => consistent &= have == want,
+                }
+            }
+        }
+        let closed = consistent && members.iter().all(|&f| !open[f]);
+        let reverse = if closed {
+            out.closed += 1;
+            signed_volume(mesh, &members, &flip) < 0.0
+        } else {
+            let (mut kept, mut turned) = (0.0, 0.0);
+            for &f in &members {
+                let a = area(mesh, &faces[f]);
+                if flip[f] == Some(true) {
+                    turned += a;
+                } else {
+                    kept += a;
+                }
+            }
+            turned > kept
+        };
+        for &f in &members {
+            flip[f] = flip[f].map(|x| x ^ reverse);
+        }
+    }
+    for (f, fl) in mesh.faces.iter_mut().zip(&flip) {
+        if *fl == Some(true) {
+            f.verts.reverse();
+            out.rewound += 1;
+        }
+    }
+    out
+}
+
+fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
+    [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+}
+
+/// The polygon's area vector (Newell: half the sum of its fan's cross products).
+fn area_vector(mesh: &Mesh, f: &Face) -> [f64; 3] {
+    let p = |i: usize| mesh.positions[f.verts[i] as usize];
+    let mut s = [0.0; 3];
+    for k in 1..f.verts.len().saturating_sub(1) {
+        let (a, b, c) = (p(0), p(k), p(k + 1));
+        let n = cross([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
+        s = [0, 1, 2].map(|i| s[i] + n[i] / 2.0);
+    }
+    s
+}
+
+fn area(mesh: &Mesh, f: &Face) -> f64 {
+    let a = area_vector(mesh, f);
+    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+
+/// Signed volume of a closed surface, each face wound as `flip` says (about its first vertex,
+/// to keep the terms small).
+fn signed_volume(mesh: &Mesh, members: &[usize], flip: &[Option<bool>]) -> f64 {
+    let o = mesh.positions[mesh.faces[members[0]].verts[0] as usize];
+    let rel = |v: u32| {
+        let p = mesh.positions[v as usize];
+        [p[0] - o[0], p[1] - o[1], p[2] - o[2]]
+    };
+    let mut vol = 0.0;
+    for &fi in members {
+        let f = &mesh.faces[fi];
+        let mut t = 0.0;
+        for k in 1..f.verts.len().saturating_sub(1) {
+            let (a, b, c) = (rel(f.verts[0]), rel(f.verts[k]), rel(f.verts[k + 1]));
+            let n = cross(b, c);
+            t += (a[0] * n[0] + a[1] * n[1] + a[2] * n[2]) / 6.0;
+        }
+        vol += if flip[fi] == Some(true) { -t } else { t };
+    }
+    vol
+}
+
 /// Write a mesh as OBJ (positions and faces only).
 pub fn write_obj(mesh: &Mesh, mut w: impl Write) -> Result<()> {
     writeln!(w, "# {} — written by rc2 host-sim, {} faces", mesh.name, mesh.faces.len())?;
@@ -89,6 +247,57 @@ pub fn write_obj(mesh: &Mesh, mut w: impl Write) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every face's outward normal (area vector) points away from the mesh's centroid: true
+    /// for the star-shaped closed meshes used below.
+    fn outward(m: &Mesh) -> usize {
+        let n = m.positions.len() as f64;
+        let c = [0, 1, 2].map(|i| m.positions.iter().map(|p| p[i]).sum::<f64>() / n);
+        m.faces
+            .iter()
+            .filter(|f| {
+                let a = area_vector(m, f);
+                let p = m.positions[f.verts[0] as usize];
+                (0..3).map(|i| a[i] * (p[i] - c[i])).sum::<f64>() > 0.0
+            })
+            .count()
+    }
+
+    #[test]
+    fn orient_fixes_stray_and_inverted_windings() {
+        let cow = crate::scene::load("cow").unwrap();
+        let mut m = cow.clone();
+        assert_eq!(orient(&mut m), Orientation { components: 1, closed: 1, rewound: 0 }, "the cow is wound outward");
+        assert_eq!(m.faces, cow.faces);
+        // Inside out, or one face in three reversed: wound back as the original.
+        for every in [1, 3] {
+            let mut bad = cow.clone();
+            for (i, f) in bad.faces.iter_mut().enumerate() {
+                if i % every == 0 {
+                    f.verts.reverse();
+                }
+            }
+            let o = orient(&mut bad);
+            assert_eq!(o.rewound, cow.faces.len().div_ceil(every), "every {every}");
+            assert_eq!(bad.faces, cow.faces, "every {every}");
+        }
+        // A closed cube wound inward is turned outward; an open box (a room seen from its
+        // open side) keeps its authored side, majority by area, stray faces fixed.
+        let cube = |faces: &[[u32; 4]]| Mesh {
+            positions: (0..8).map(|i| [(i & 1) as f64, (i >> 1 & 1) as f64, (i >> 2 & 1) as f64]).collect(),
+            faces: faces.iter().map(|f| Face { verts: f.to_vec(), material: 0 }).collect(),
+            ..Mesh::default()
+        };
+        let inward = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]];
+        let mut c = cube(&inward);
+        assert_eq!(outward(&c), 0);
+        assert_eq!(orient(&mut c), Orientation { components: 1, closed: 1, rewound: 6 });
+        assert_eq!(outward(&c), 6);
+        let mut room = cube(&inward[..5]);
+        room.faces[1].verts.reverse();
+        assert_eq!(orient(&mut room), Orientation { components: 1, closed: 0, rewound: 1 });
+        assert_eq!(outward(&room), 0, "the open box stays wound inward");
+    }
 
     #[test]
     fn subdivision_reaches_target_and_keeps_closed_meshes_closed() {

@@ -1248,6 +1248,8 @@ pub fn build(kind: Kind) -> Office {
         faces: all.faces,
         materials: materials(),
         lights: s.lights.into_iter().map(SceneLight::World).collect(),
+        // Built wound as `orient` says: closed solids outward, the open room inward.
+        rewound: 0,
     };
     Office {
         mesh,

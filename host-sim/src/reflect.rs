@@ -690,6 +690,7 @@ impl ReflectOpts {
             route: RoutePolicy::Adaptive,
             all_voxels: false,
             bias: 0,
+            rule: cell_core::lit::LitRule::Thesis,
         };
         self.config(fa, &classic).validate(n)
     }

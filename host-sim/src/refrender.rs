@@ -488,6 +488,7 @@ mod tests {
                 mat([0.1; 3], [0.5; 3], [0.0; 3], 1.0, [0.0; 3]),
             ],
             lights: vec![],
+            rewound: 0,
         }
     }
 
@@ -672,6 +673,7 @@ mod tests {
             faces: f.iter().map(|t| Face { verts: t.iter().map(|&k| k as u32).collect(), material: 0 }).collect(),
             materials: vec![Material::default()],
             lights: vec![],
+            rewound: 0,
         }
     }
 

@@ -2,7 +2,8 @@
 //!
 //! A [`Mesh`] keeps the polygons as the file gives them (no triangulation here: the host
 //! precompute keeps planar convex polygons and splits the rest) with world coordinates in
-//! `f64` and one material per face.
+//! `f64` and one material per face — wound consistently, closed surfaces outward
+//! ([`crate::meshops::orient`]: the lit rule reads the winding).
 
 use anyhow::{bail, Context, Result};
 use std::io::BufReader;
@@ -66,6 +67,9 @@ pub struct Mesh {
     pub materials: Vec<Material>,
     /// The scene's own lights (built-ins); `--light` replaces them.
     pub lights: Vec<SceneLight>,
+    /// Faces whose winding the loader reversed to make each surface consistent, closed ones
+    /// outward ([`crate::meshops::orient`]).
+    pub rewound: usize,
 }
 
 /// Built-in scenes: name, one-line description.
@@ -328,6 +332,7 @@ where
             }
         }
     }
+    mesh.rewound = crate::meshops::orient(&mut mesh).rewound;
     Ok(mesh)
 }
 

@@ -6,6 +6,8 @@
 use cell_core::route::{RoutePolicy, Routed};
 use host_sim::network::Network;
 
+mod common;
+
 /// Run `traffic[cell]` (destinations, in injection order; each cell's compute unit injects at
 /// most one message per cycle) to completion. Returns the cycles, or an error on a stall.
 fn run(n: u32, policy: RoutePolicy, traffic: &[Vec<[u16; 2]>]) -> Result<(u64, Network<u32>), String> {
@@ -127,6 +129,7 @@ fn hotspot_and_transpose_traffic() {
 /// policies; every ray gets exactly one answer and the stall detector never fires.
 #[test]
 fn classic_answers_match_a_per_ray_oracle() {
+    use cell_core::lit::LitRule;
     use cell_core::ray::{Connectivity, Q};
     use host_sim::classic::{classic, ClassicConfig};
     use host_sim::precompute::{Contour, LoadConfig, Thickness};
@@ -173,7 +176,14 @@ fn classic_answers_match_a_per_ray_oracle() {
             let plain = classic(
                 &loaded,
                 &lights,
-                &ClassicConfig { fa: 4, connectivity: conn, route: RoutePolicy::Adaptive, all_voxels: false, bias: 0 },
+                &ClassicConfig {
+                    fa: 4,
+                    connectivity: conn,
+                    route: RoutePolicy::Adaptive,
+                    all_voxels: false,
+                    bias: 0,
+                    rule: LitRule::Thesis,
+                },
                 |_, _| {},
             )
             .unwrap();
@@ -183,7 +193,7 @@ fn classic_answers_match_a_per_ray_oracle() {
             let cl = classic(
                 &loaded,
                 &lights,
-                &ClassicConfig { fa, connectivity: conn, route, all_voxels: false, bias },
+                &ClassicConfig { fa, connectivity: conn, route, all_voxels: false, bias, rule: LitRule::Thesis },
                 |_, _| {},
             )
             .unwrap_or_else(|e| panic!("{conn:?} FA {fa} {route:?}: {e}"));
@@ -196,10 +206,130 @@ fn classic_answers_match_a_per_ray_oracle() {
             assert!(lit > 0 && lit < t.rays, "the scene has both lit and shadowed voxels");
         }
         // Every occupied voxel emitting (the thesis's count): the same image state, more rays.
-        let all = ClassicConfig { fa: 4, connectivity: conn, route: RoutePolicy::Adaptive, all_voxels: true, bias };
+        let all = ClassicConfig {
+            fa: 4,
+            connectivity: conn,
+            route: RoutePolicy::Adaptive,
+            all_voxels: true,
+            bias,
+            rule: LitRule::Thesis,
+        };
         let cl = classic(&loaded, &lights, &all, |_, _| {}).unwrap();
         assert_eq!(cl.masks, want, "{conn:?} all voxels");
         assert_eq!(cl.totals.rays, cl.totals.voxels * lights.len() as u64);
         assert_eq!(cl.totals.answers, cl.totals.rays);
+    }
+}
+
+/// Classic shadow rays under the plane principle (`cell_core::ray`, §4.1.2 with §5.5.6): the lit
+/// state the cells assemble equals the brute-force segment oracle
+/// (`rc2_tests::oracle::shadow`: every occupied voxel of the segment's box clipped on its
+/// own), on the Cornell box and the teapot on its floor with thick tunnel-free surfaces, two
+/// sources each (one low and grazing), small FIFOs and both routing policies; every occupied
+/// voxel emitting gives the same image state.
+#[test]
+fn classic_plane_answers_match_the_segment_oracle() {
+    use cell_core::lit::LitRule;
+    use cell_core::ray::{Connectivity, Q};
+    use host_sim::classic::{classic, ClassicConfig};
+    use host_sim::precompute::{Contour, LoadConfig, Thickness};
+
+    for (scene, extra) in [("cornell", [3.0, 20.0, 9.5]), ("teapot-floor", [30.0, 2.0, 4.0])] {
+        let mesh = host_sim::scene::load(scene).unwrap();
+        let n = 32;
+        let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
+        let loaded = host_sim::lightjob::load_scene(&mesh, &cfg).unwrap();
+        let mut lights = host_sim::lightjob::resolve_lights(&mesh, &loaded, &[]).unwrap();
+        lights.push(extra);
+        let grid = &loaded.grid;
+        let occ = common::occupants_of(grid);
+        let mut want = vec![0u32; (n * n) as usize];
+        let mut emitters = 0u64;
+        for (i, c) in grid.cells.iter().enumerate() {
+            let Some(e) = common::emitter_of(grid, c.x as u32, c.y as u32) else { continue };
+            emitters += 1;
+            for (s, l) in lights.iter().enumerate() {
+                let b = l.map(|v| (v * Q as f64).round() as i64);
+                if rc2_tests::oracle::shadow::lit(&e, b, &occ) {
+                    want[i] |= 1 << s;
+                }
+            }
+        }
+        let lit: u64 = want.iter().map(|m| m.count_ones() as u64).sum();
+        assert!(lit > 0 && lit < emitters * lights.len() as u64, "{scene}: both lit and shadowed surfaces");
+        for (fa, route) in [(1, RoutePolicy::DiagonalFirst), (2, RoutePolicy::Adaptive), (16, RoutePolicy::Adaptive)] {
+            let c = ClassicConfig {
+                fa,
+                connectivity: Connectivity::Six,
+                route,
+                all_voxels: false,
+                bias: 0,
+                rule: LitRule::Plane,
+            };
+            let cl =
+                classic(&loaded, &lights, &c, |_, _| {}).unwrap_or_else(|e| panic!("{scene} FA {fa} {route:?}: {e}"));
+            assert_eq!(cl.masks, want, "{scene} FA {fa} {route:?}");
+            let t = &cl.totals;
+            assert_eq!(t.rays + t.back_facing, emitters * lights.len() as u64, "one ray per surface facing a source");
+            assert_eq!(t.answers, t.rays, "one answer per ray");
+            assert_eq!(t.lit, lit, "each lit answer delivered once");
+        }
+        let all = ClassicConfig {
+            fa: 4,
+            connectivity: Connectivity::Six,
+            route: RoutePolicy::Adaptive,
+            all_voxels: true,
+            bias: 0,
+            rule: LitRule::Plane,
+        };
+        let cl = classic(&loaded, &lights, &all, |_, _| {}).unwrap();
+        assert_eq!(cl.masks, want, "{scene}: all voxels");
+        let per_light = emitters + cl.totals.voxels;
+        assert_eq!(cl.totals.rays + cl.totals.back_facing, per_light * lights.len() as u64);
+        // The plane principle walks the exact segment: other connectivities are refused.
+        let c26 = ClassicConfig { connectivity: Connectivity::TwentySix, ..all };
+        let e = classic(&loaded, &lights, &c26, |_, _| {}).err().expect("26-connected plane rays are refused");
+        assert!(e.to_string().contains("--ray-connectivity 6"), "{e}");
+        // A source outside the grid is an error, not a ray walking off it.
+        let e = classic(&loaded, &[[n as f64 + 0.5, 3.0, 3.0]], &all, |_, _| {}).err().expect("outside source");
+        assert!(e.to_string().contains("outside the grid"), "{e}");
+    }
+}
+
+/// The same against random sources (anywhere in the grid, on and off the lattice's voxel
+/// boundaries) and FIFO sizes, on small grids.
+mod random_sources {
+    use super::common;
+    use cell_core::lit::LitRule;
+    use cell_core::ray::{Connectivity, Q};
+    use cell_core::route::RoutePolicy;
+    use host_sim::classic::{classic, ClassicConfig};
+    use host_sim::precompute::{Contour, LoadConfig, Thickness};
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+        #[test]
+        fn classic_plane_matches_the_oracle(
+            scene in prop::sample::select(vec!["cornell", "teapot-floor", "cow-floor"]),
+            lights16 in prop::collection::vec(prop::array::uniform3(0i64..=240), 1..=2),
+            fa in 1usize..=3,
+        ) {
+            let mesh = host_sim::scene::load(scene).unwrap();
+            let n = 16;
+            let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
+            let loaded = host_sim::lightjob::load_scene(&mesh, &cfg).unwrap();
+            let lights: Vec<[f64; 3]> = lights16.iter().map(|l| l.map(|c| c as f64 / Q as f64)).collect();
+            let grid = &loaded.grid;
+            let occ = common::occupants_of(grid);
+            let c = ClassicConfig { fa, connectivity: Connectivity::Six, route: RoutePolicy::Adaptive, all_voxels: false, bias: 0, rule: LitRule::Plane };
+            let cl = classic(&loaded, &lights, &c, |_, _| {}).unwrap();
+            for cell in grid.cells.iter() {
+                let want = common::emitter_of(grid, cell.x as u32, cell.y as u32).map_or(0, |e| {
+                    lights16.iter().enumerate().filter(|(_, b)| rc2_tests::oracle::shadow::lit(&e, **b, &occ)).map(|(s, _)| 1u32 << s).sum()
+                });
+                prop_assert_eq!(cl.mask(cell.x as u32, cell.y as u32), want, "{} cell ({}, {})", scene, cell.x, cell.y);
+            }
+        }
     }
 }

@@ -36,12 +36,14 @@
 //! voxel) of the last surface voxel it passed while staying in its column, forgotten when it
 //! moves to another column. At layer k, in voxel V of column (x, y):
 //!
-//! 1. if V is one of the two voxels bracketing the column's visible surface B, B faces the
-//!    source (σᴮ₀) and σᴮ_k or σᴮ₋ holds, the ray lights the visible surface;
+//! 1. if V is one of the two voxels bracketing the column's visible surface B (its plane as the
+//!    column stores it: turned toward the viewer), B faces the source (σᴮ₀) and σᴮ_k or σᴮ₋
+//!    holds, the ray lights the visible surface;
 //! 2. a terminal ray lights V if V is occupied, V's plane faces the source (σ₀) and σ_k or σ₋
 //!    holds; it is absorbed;
 //! 3. in an empty V it goes on;
 //! 4. in an occupied V: it lights V if σ₀ and (σ_k or σ₋); it is absorbed if σ₋ ≠ σ_k; it is
+//!    absorbed if its voxel at layer k − 1 was empty and σ₋ = σ_k = 0; it is
 //!    absorbed if it is a ±z ray whose voxel at layer k + 1 is in this column and whose column
 //!    state is another dexel than V's; it becomes terminal if σ_k ≠ σ_{k+1}; a ±z ray staying in
 //!    the column takes V's dexel as its state.
@@ -143,9 +145,11 @@ impl Ray {
     }
 
     /// The rule at layer k in voxel `p` (occupied by `own`, with the column's visible surface
-    /// `vis`), `stays`: the ray's voxel at k + 1 is in the same column (±z rays only). Sets
+    /// `vis`), `stays`: the ray's voxel at k + 1 is in the same column (±z rays only),
+    /// `from_empty`: its voxel at layer k − 1 was empty (false at layer 0). Sets
     /// `lit` / `lit_visible` when the ray lights V / the visible surface; returns whether it
     /// goes on.
+    #[allow(clippy::too_many_arguments)]
     fn step(
         &mut self,
         p: [i64; 3],
@@ -153,6 +157,7 @@ impl Ray {
         own: Option<Surface>,
         vis: Option<Visible>,
         stays: bool,
+        from_empty: bool,
         lit: &mut bool,
         lit_visible: &mut bool,
     ) -> bool {
@@ -182,7 +187,7 @@ impl Ray {
         };
         *lit = lights(self, &s);
         let (was, now, next) = (self.sigma(&s, x, y, prev), self.sigma(&s, x, y, k), self.sigma(&s, x, y, k + 1));
-        if was != now {
+        if was != now || (from_empty && !was && !now) {
             return false;
         }
         if z_ray && stays && self.column.is_some_and(|c| c != s.lo) {
@@ -221,6 +226,7 @@ pub fn trace_ray_plane(
 ) -> Fate {
     let mut ray = Ray::new(src, dir, a, b, d, f);
     let mut k = 0;
+    let mut from_empty = false;
     loop {
         if k > d {
             return Fate::Exited { k };
@@ -231,15 +237,9 @@ pub fn trace_ray_plane(
         }
         let next = ray_voxel(n, src, dir, a, b, d, f, k + 1);
         let (mut l, mut lv) = (false, false);
-        let goes = ray.step(
-            p,
-            k,
-            surfaces(p[0], p[1], p[2]),
-            columns(p[0], p[1]),
-            stays_in_column(dir, p, next),
-            &mut l,
-            &mut lv,
-        );
+        let own = surfaces(p[0], p[1], p[2]);
+        let goes = ray.step(p, k, own, columns(p[0], p[1]), stays_in_column(dir, p, next), from_empty, &mut l, &mut lv);
+        from_empty = own.is_none();
         if l {
             lit.push(p);
         }
@@ -357,7 +357,7 @@ pub fn trace_all_plane(
                     }
                     let len = (last + 1) as usize;
                     let own: Vec<Option<Surface>> =
-                        (0..len).map(|k| voxel(k)).map(|p| surfaces(p[0], p[1], p[2])).collect();
+                        (0..len).map(&voxel).map(|p| surfaces(p[0], p[1], p[2])).collect();
                     let vis: Vec<Option<Visible>> = (0..len)
                         .map(|k| {
                             let p = voxel(k);
@@ -389,7 +389,8 @@ pub fn trace_all_plane(
                                 }
                                 let p = voxel(k);
                                 let (mut l, mut lv) = (false, false);
-                                let goes = ray.step(p, k as i64, own[k], vis[k], stays[k], &mut l, &mut lv);
+                                let from_empty = k > 0 && own[k - 1].is_none();
+                                let goes = ray.step(p, k as i64, own[k], vis[k], stays[k], from_empty, &mut l, &mut lv);
                                 if l {
                                     *out.rays.lit.entry(p).or_insert(0) |= mask;
                                 }

@@ -11,6 +11,7 @@
 //! * [`flood`] — flood fill from outside the grid and leaks into the mesh's interior.
 //! * [`rays`] — per-ray lighting under the thesis's rule (§4.1.5, §5.5.5).
 //! * [`lit`] — per-ray lighting under the plane-aware rule (§5.5.6).
+//! * [`shadow`] — classic shadow rays under the plane principle, by brute force (§4.1.2).
 
 pub mod brute;
 pub mod flood;
@@ -18,4 +19,5 @@ pub mod inside;
 pub mod lines;
 pub mod lit;
 pub mod rays;
+pub mod shadow;
 pub mod tunnels;

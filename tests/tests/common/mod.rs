@@ -93,6 +93,32 @@ pub fn columns_of<const D: usize>(
     }
 }
 
+/// The classic shadow-ray oracle's view of a loaded grid: each occupied voxel's plane id and
+/// plane.
+pub fn occupants_of<const D: usize>(
+    g: &host_sim::grid::Grid<D>,
+) -> impl Fn(i64, i64, i64) -> Option<rc2_tests::oracle::shadow::Occupant> + '_ {
+    let planes = surfaces_of(g);
+    move |x, y, z| {
+        if [x, y].iter().any(|&c| c < 0 || c >= g.n as i64) || !(0..=u16::MAX as i64).contains(&z) {
+            return None;
+        }
+        let id = g.cell(x as u32, y as u32).store.occupied(z as u16)?.plane.id;
+        planes(x, y, z).map(|plane| rc2_tests::oracle::shadow::Occupant { id, plane })
+    }
+}
+
+/// The emitting surface of column (x, y) for the classic shadow-ray oracle.
+pub fn emitter_of<const D: usize>(
+    g: &host_sim::grid::Grid<D>,
+    x: u32,
+    y: u32,
+) -> Option<rc2_tests::oracle::shadow::Emitter> {
+    let v = g.cell(x, y).visible?;
+    let plane = columns_of(g)(x as i64, y as i64)?.plane;
+    Some(rc2_tests::oracle::shadow::Emitter { x: x as i64, y: y as i64, num: v.num, den: v.den, id: v.plane.id, plane })
+}
+
 /// The packets of lattice triangles with their planes (ids shared by coplanar ones) and
 /// distinct materials, skipping degenerate ones.
 pub fn packets_of(
