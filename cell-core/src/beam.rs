@@ -609,7 +609,7 @@ pub struct Beam<F: FracBits> {
     source: SourceId,
     dir: Direction,
     /// Flags of the plane rule ([`crate::lit`]; both clear under the thesis's rule):
-    /// [`Beam::is_terminal`], [`Beam::after_empty`].
+    /// [`Beam::is_terminal`], [`Beam::after_empty`], [`Beam::after_outside`].
     flags: u8,
 }
 
@@ -617,6 +617,8 @@ pub struct Beam<F: FracBits> {
 const TERMINAL: u8 = 1;
 /// [`Beam::after_empty`].
 const AFTER_EMPTY: u8 = 2;
+/// [`Beam::after_outside`].
+const AFTER_OUTSIDE: u8 = 4;
 
 #[cfg(feature = "defmt")]
 impl<F: FracBits> defmt::Format for Beam<F> {
@@ -725,6 +727,18 @@ impl<F: FracBits> Beam<F> {
     /// The same rays, with or without [`Beam::after_empty`].
     pub const fn with_after_empty(self, after_empty: bool) -> Self {
         Beam { flags: (self.flags & !AFTER_EMPTY) | if after_empty { AFTER_EMPTY } else { 0 }, ..self }
+    }
+
+    /// Whether its rays were, at the previous layer, in an occupied voxel of another column and
+    /// on the outside of its plane ([`crate::lit`]: a ray that comes from there into the back
+    /// of a plane facing the source crossed a surface between the two layers).
+    pub const fn after_outside(&self) -> bool {
+        self.flags & AFTER_OUTSIDE != 0
+    }
+
+    /// The same rays, with or without [`Beam::after_outside`].
+    pub const fn with_after_outside(self, after_outside: bool) -> Self {
+        Beam { flags: (self.flags & !AFTER_OUTSIDE) | if after_outside { AFTER_OUTSIDE } else { 0 }, ..self }
     }
 
     /// The same beam with other ray ranges (within the far square when `self` is).

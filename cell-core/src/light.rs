@@ -38,7 +38,7 @@ use crate::beam::{
 };
 use crate::cell::Cell;
 use crate::dexel::{Dexel, DexelStore};
-use crate::lit::{run_end, segments, uniform, Along, LitRule, Notch, Out, RayPlane, Segments, Visit};
+use crate::lit::{run_end, segments, uniform, Along, Arrival, LitRule, Notch, Out, RayPlane, Segments, Visit};
 use crate::occupancy::FrustumTest;
 use crate::units::{Coord, Depth};
 
@@ -678,6 +678,9 @@ struct Fate<'s, F: FracBits> {
     keep: Option<BeamMsg<F>>,
     /// The sub-beams leave an empty voxel (plane rule): they carry [`Beam::after_empty`].
     after_empty: bool,
+    /// The sub-beams leave on the outside of their voxel's plane (plane rule): those going to
+    /// another column carry [`Beam::after_outside`].
+    after_outside: bool,
 }
 
 /// A beam's sub-beams and where each goes (at most nine).
@@ -685,7 +688,17 @@ type SubList<F> = heapless::Vec<(Target, BeamMsg<F>), 9>;
 
 impl<'s, F: FracBits> Fate<'s, F> {
     fn new(subs: &'s mut SubList<F>) -> Self {
-        Fate { absorbed: 0, lit: false, visible: false, subs, exited: 0, skipped: 0, keep: None, after_empty: false }
+        Fate {
+            absorbed: 0,
+            lit: false,
+            visible: false,
+            subs,
+            exited: 0,
+            skipped: 0,
+            keep: None,
+            after_empty: false,
+            after_outside: false,
+        }
     }
 
     fn reset(&mut self) {
@@ -697,6 +710,7 @@ impl<'s, F: FracBits> Fate<'s, F> {
         self.skipped = 0;
         self.keep = None;
         self.after_empty = false;
+        self.after_outside = false;
     }
 }
 
@@ -1053,8 +1067,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     ) {
         let dir = beam.direction();
         let (pos, at) = self.at(dir, z);
-        let Fate { subs, exited, skipped, absorbed, after_empty, .. } = f;
-        let after_empty = *after_empty;
+        let Fate { subs, exited, skipped, absorbed, after_empty, after_outside, .. } = f;
+        let (after_empty, after_outside) = (*after_empty, *after_outside);
         debug_assert_eq!(env.bounds, SubBeamBounds::new(env.n, env.depth, env.skip, env.source));
         let bounds = &env.bounds;
         let split = beam.split_each(env.source, env.far, at, env.order, |sb| {
@@ -1072,7 +1086,10 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                     Some(p) => Target::Out(p),
                     None => Target::SelfFifo,
                 };
-                let beam = sb.beam.with_terminal(terminal).with_after_empty(after_empty);
+                // A ray staying in its column meets the same dexel's plane, or another dexel
+                // (the column rule), or an empty voxel next: it carries no outside flag.
+                let outside = after_outside && target != Target::SelfFifo;
+                let beam = sb.beam.with_terminal(terminal).with_after_empty(after_empty).with_after_outside(outside);
                 let msg = BeamMsg { local, ..BeamMsg::new(beam, to[2] as Depth) };
                 // At most nine sub-beams: never full.
                 let _ = subs.push((target, msg));
@@ -1108,8 +1125,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             .visible
             .filter(|v| v.brackets(m.z as i64))
             .map(|v| RayPlane::new(&v.plane, [x, y, v.z_v as i64], env.source, dir, env.far));
-        let visit = Visit::new(k, b.is_terminal(), b.after_empty(), own.map(plane), state, visible, other);
+        let visit = Visit::new(k, Arrival::of(b), own.map(plane), state, visible, other);
         f.after_empty = own.is_none();
+        f.after_outside = false;
         if visit.is_plain() {
             // Nothing happens at this voxel: the thesis's path (a notched beam is not plain).
             if m.local == Local::NONE && self.frustum_skips(m, env, f) {
@@ -1123,6 +1141,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         if let Some(bits) = uniform(&visit.tests, u, v) {
             let out = visit.verdict(bits, false);
             let stays = visit.verdict(bits, true);
+            f.after_outside = visit.outside(bits);
             f.lit = out.lit;
             f.visible = out.visible;
             match out.out {
@@ -1131,7 +1150,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 Out::Continue | Out::Terminal => {
                     let send = out.out == Out::Terminal;
                     let stay_sub = match stays.out {
-                        Out::Continue => Sub::Send(false, self.carried(m, own.map(|d| d.span), k)),
+                        Out::Continue => Sub::Send(false, self.carried(m, own.map(|d| d.span), k, &visit)),
                         Out::Terminal => Sub::Send(true, Local::NONE),
                         _ => Sub::Absorb,
                     };
@@ -1155,15 +1174,15 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     /// staying rays were not absorbed by the column rule), a fresh notch of that dexel's plane
     /// (extending the beam's own when it is the same dexel); after an empty voxel, the beam's
     /// notch without its terminal rays, which died there.
-    fn carried(&self, m: &BeamMsg<F>, own: Option<crate::units::Span>, k: i64) -> Local {
+    fn carried(&self, m: &BeamMsg<F>, own: Option<crate::units::Span>, k: i64, visit: &Visit) -> Local {
         let notch = m.local.notch();
         match own {
             Some(span) => {
                 // A new notch excludes, besides the rays that crossed, those the visit absorbed
-                // for coming from an empty voxel into the back of the plane.
+                // for arriving behind the plane (rule 4).
                 let (t1, front) = match notch {
                     Some(n) if span.contains(n.state) => (n.t1, n.front),
-                    _ => ((k - 1).max(0) as u16, m.beam.after_empty()),
+                    _ => ((k - 1).max(0) as u16, visit.absorbs_behind()),
                 };
                 Local::notched(Notch { state: m.z, t1, t2: k as u16, fresh: true, front })
             }
@@ -1184,8 +1203,14 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         };
         let (x, y) = (self.x as i64, self.y as i64);
         let plane = RayPlane::new(&d.plane, [x, y, d.span.lo as i64], env.source, b.direction(), env.far);
-        let visit =
-            Visit::new(b.layer().0 as i64, false, false, None, Some((plane, Notch { fresh: false, ..n })), None, false);
+        let visit = Visit::new(
+            b.layer().0 as i64,
+            Arrival::NONE,
+            None,
+            Some((plane, Notch { fresh: false, ..n })),
+            None,
+            false,
+        );
         let (u, v) = (lattice(b.u()), lattice(b.v()));
         let mut seg = Segments::new();
         let (mut line, mut present) = (u.0, 0u64);
@@ -1278,18 +1303,19 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 }
                 if matches!(v.out, Out::Continue | Out::Terminal) {
                     if count == piece {
-                        emit = Some((start, stop, v.out == Out::Terminal));
+                        emit = Some((start, stop, v.out == Out::Terminal, visit.outside(bits)));
                     }
                     count += 1;
                     sent += rays;
                 }
             }
-            if let Some((start, stop, terminal)) = emit {
+            if let Some((start, stop, terminal, outside)) = emit {
                 let (u, v) = match along {
                     Along::V => (lines, (start, stop)),
                     Along::U => ((start, stop), lines),
                 };
                 let rect = beam.with_rays(range::<F>(u), range::<F>(v));
+                f.after_outside = outside;
                 self.route(&rect, m.z, env, f, |_| Sub::Send(terminal, Local::NONE));
                 piece += 1;
                 if piece < count {
@@ -1359,7 +1385,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         }
         f.absorbed += present - going;
         if going > 0 {
-            let carry = self.carried(m, own, beam.layer().0 as i64);
+            let carry = self.carried(m, own, beam.layer().0 as i64, visit);
             let mut decide = |_| Sub::Send(false, carry);
             self.route_counted(&beam, m.z, env, f, &mut decide, &mut |_, _| (going, dying));
         }

@@ -16,7 +16,7 @@
 //! | kind | message | payload | bytes on the wire |
 //! |---|---|---|---|
 //! | `0x10` | [`Message::Row`] (a facet row packet, §3.9) | seq u8, facet u32, material u16, normal u16, plane (id u32, nx i16, ny i16, nz i32, m u64), box 6×u16, a c t u 4×i64, edge count u8, edges (a i32, c i32, g i64, off i32) | 81 + 20·edges |
-//! | `0x20` | [`Message::Beam`] (§4.4) | seq u8, frac bits u8, source u16, direction u8 (bit 7: terminal, bit 6: after an empty voxel, [`crate::lit`]), layer u32, u_lo u_hi v_lo v_hi 4×i32, z u16 | 27 + 7 = 34 |
+//! | `0x20` | [`Message::Beam`] (§4.4) | seq u8, frac bits u8, source u16, direction u8 (bit 7: terminal, bit 6: after an empty voxel, bit 5: after the outside of a plane, [`crate::lit`]), layer u32, u_lo u_hi v_lo v_hi 4×i32, z u16 | 27 + 7 = 34 |
 //! | `0x30` | [`Message::Ack`] | seq u8 | 1 + 7 = 8 |
 //!
 //! `seq` is the link-level sequence number (for acknowledgement and retransmission); a trace
@@ -427,7 +427,10 @@ pub fn put_beam<F: FracBits, S: ByteSink + ?Sized>(w: &mut S, m: &BeamMsg<F>) ->
     let b = &m.beam;
     w.u8(F::U32 as u8)?;
     w.u16(b.source().0)?;
-    w.u8(b.direction().index() | (b.is_terminal() as u8) << 7 | (b.after_empty() as u8) << 6)?;
+    w.u8(b.direction().index()
+        | (b.is_terminal() as u8) << 7
+        | (b.after_empty() as u8) << 6
+        | (b.after_outside() as u8) << 5)?;
     w.u32(b.layer().0)?;
     for v in [b.u().lo(), b.u().hi(), b.v().lo(), b.v().hi()] {
         w.i32(v.to_bits())?;
@@ -443,7 +446,7 @@ pub fn get_beam<F: FracBits>(r: &mut Reader<'_>, far: FarDistance<F>) -> Result<
     }
     let source = SourceId(r.u16()?);
     let d = r.u8()?;
-    let dir = Direction::from_index(d & 0x3f).ok_or(DecodeError::BadValue("beam direction"))?;
+    let dir = Direction::from_index(d & 0x1f).ok_or(DecodeError::BadValue("beam direction"))?;
     let layer = Layer(r.u32()?);
     let mut v4 = [FarOffset::<F>::ZERO; 4];
     for v in v4.iter_mut() {
@@ -454,7 +457,8 @@ pub fn get_beam<F: FracBits>(r: &mut Reader<'_>, far: FarDistance<F>) -> Result<
     let beam = Beam::new(source, dir, layer, u, v, far)
         .map_err(|_| DecodeError::BadValue("beam outside D"))?
         .with_terminal(d & 0x80 != 0)
-        .with_after_empty(d & 0x40 != 0);
+        .with_after_empty(d & 0x40 != 0)
+        .with_after_outside(d & 0x20 != 0);
     Ok(BeamMsg::new(beam, r.u16()?))
 }
 

@@ -30,13 +30,16 @@
 //!    its plane faces the source and σ_k or σ₋ holds; it is absorbed;
 //! 3. in an empty V goes on;
 //! 4. in an occupied V: lights V if V's plane faces the source and σ_k or σ₋; is absorbed if
-//!    σ₋ ≠ σ_k (it crossed the plane between the two layers); is absorbed if it was in an empty
-//!    voxel at layer k − 1 and is behind V's plane at both layers (σ₋ = σ_k = 0: it came from
-//!    empty space into the back of a surface — it crossed a surface between the two layers,
-//!    in a voxel the 26-connected step skipped, [`crate::beam::Beam::after_empty`]); is
-//!    absorbed if it is a ±z ray that stays in its column at layer k + 1 and has passed another
-//!    dexel of this column while staying in it (the *column rule*, see below); becomes terminal
-//!    if σ_k ≠ σ_{k+1} (it will cross before the next layer: one more step, act there, die);
+//!    σ₋ ≠ σ_k (it crossed the plane between the two layers); is absorbed if it is behind V's
+//!    plane at both layers (σ₋ = σ_k = 0) and came from empty space (its voxel at layer k − 1
+//!    was empty, [`crate::beam::Beam::after_empty`]) or from the outside of another column's
+//!    surface (its voxel at k − 1 was occupied, in another column, and the ray was on the
+//!    outside of that voxel's plane, [`crate::beam::Beam::after_outside`]) into a plane facing
+//!    the source: either way it crossed a surface between the two layers, in a voxel the
+//!    26-connected step skipped or in a voxel whose plane is another facet's; is absorbed if it
+//!    is a ±z ray that stays in its column at layer k + 1 and has passed another dexel of this
+//!    column while staying in it (the *column rule*, see below); becomes terminal if
+//!    σ_k ≠ σ_{k+1} (it will cross before the next layer: one more step, act there, die);
 //!    otherwise goes on.
 //!
 //! The terminal step lights the voxel the crossing point may lie in at the next layer. Planes
@@ -48,6 +51,13 @@
 //! the crossing point may lie in a voxel neither layer visits; the ray then reaches a surface
 //! voxel from empty space already behind its plane, and is stopped there (rule 4). Without
 //! that, light went through the thin parts of real meshes (the teapot's lid knob at n = 64).
+//! A voxel keeps one facet's plane: in the thin parts of a mesh a ray may enter through a
+//! voxel owned by a facet it does not cross and go on behind the next voxel's plane; coming
+//! from the outside of one plane into the back of another that faces the source, it is
+//! stopped (thin parts of the cow at n = 256). Into the back of a plane facing away it goes on: that
+//! is a ray passing a convex edge (over a box's top, beyond its far side). What stays open is
+//! a voxel holding two surfaces (open parts passing through each other, the teapot's spout in
+//! its body): it knows one plane, and a ray crossing only the other one there is not stopped.
 //!
 //! # Beams under the plane rule
 //!
@@ -286,8 +296,8 @@ pub struct Notch {
     pub t2: u16,
     /// The rays crossing between t2 and t2 + 1 are terminal at this layer.
     pub fresh: bool,
-    /// The rays behind the plane at both t1 and t2 are excluded too (they came into the back
-    /// of the plane from an empty voxel and were absorbed, rule 4).
+    /// The rays behind the plane at both t1 and t2 are excluded too (rule 4 absorbed them for
+    /// the way they arrived, [`Visit::absorbs_behind`]).
     pub front: bool,
 }
 
@@ -315,6 +325,29 @@ pub struct Verdict {
     pub visible: bool,
 }
 
+/// How a beam's rays arrive at a voxel: the plane rule's flags it carries
+/// ([`crate::beam::Beam`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Arrival {
+    /// The rays are terminal: they act at this voxel and die.
+    pub terminal: bool,
+    /// The rays were in an empty voxel at the previous layer.
+    pub after_empty: bool,
+    /// The rays were in an occupied voxel of another column at the previous layer, on the
+    /// outside of its plane.
+    pub after_outside: bool,
+}
+
+impl Arrival {
+    /// A plain beam: none of the flags.
+    pub const NONE: Arrival = Arrival { terminal: false, after_empty: false, after_outside: false };
+
+    /// The flags `beam` carries.
+    pub const fn of<F: FracBits>(beam: &crate::beam::Beam<F>) -> Self {
+        Arrival { terminal: beam.is_terminal(), after_empty: beam.after_empty(), after_outside: beam.after_outside() }
+    }
+}
+
 /// Everything the plane rule needs about one beam at one voxel, and the tests it reads.
 #[derive(Clone, Debug)]
 pub struct Visit {
@@ -326,24 +359,20 @@ pub struct Visit {
     notch: Option<(usize, bool, bool)>,
     /// Index of the visible surface's σ₋, σ_k (when the voxel brackets it and it faces the source).
     visible: Option<usize>,
-    /// The beam arrived terminal.
-    terminal: bool,
-    /// The beam's rays were in an empty voxel at the previous layer.
-    after_empty: bool,
+    /// How the beam arrived.
+    arrival: Arrival,
     /// Staying rays meet another dexel than their state's: the column rule absorbs them.
     other_dexel: bool,
 }
 
 impl Visit {
-    /// A visit at layer `k` of a beam (`terminal`: it arrived terminal; `after_empty`: its rays
-    /// were in an empty voxel at layer k − 1), in a voxel whose dexel's plane is `own` (None:
-    /// empty), with `notch` (plane and notch) and the visible surface's plane when the voxel
-    /// brackets it; `other_dexel`: the beam has a column state and the voxel is occupied by
-    /// another dexel.
+    /// A visit at layer `k` of a beam that arrived as `arrival`, in a voxel whose dexel's
+    /// plane is `own` (None: empty), with `notch` (plane and notch) and the visible surface's
+    /// plane when the voxel brackets it; `other_dexel`: the beam has a column state and the
+    /// voxel is occupied by another dexel.
     pub fn new(
         k: i64,
-        terminal: bool,
-        after_empty: bool,
+        arrival: Arrival,
         own: Option<RayPlane>,
         notch: Option<(RayPlane, Notch)>,
         visible: Option<RayPlane>,
@@ -372,13 +401,28 @@ impl Visit {
             }
             i
         });
-        Visit { tests, own, notch, visible, terminal, after_empty, other_dexel }
+        Visit { tests, own, notch, visible, arrival, other_dexel }
     }
 
     /// Whether the visit needs no test at all: an empty voxel that does not bracket the visible
     /// surface, for a plain beam (the fast path of the thesis's machine).
     pub fn is_plain(&self) -> bool {
-        self.tests.is_empty() && !self.terminal
+        self.tests.is_empty() && !self.arrival.terminal
+    }
+
+    /// Whether the rays behind the voxel's plane at both layers (σ₋ = σ_k = 0) are absorbed
+    /// for the way they arrived (rule 4): after an empty voxel, or after the outside of
+    /// another column's plane into a plane facing the source.
+    pub fn absorbs_behind(&self) -> bool {
+        let faces = self.own.is_some_and(|(_, front)| front);
+        self.arrival.after_empty || (self.arrival.after_outside && faces)
+    }
+
+    /// Whether rays with test bits `bits` are on the outside of the voxel's plane at this
+    /// layer (σ_k; false in an empty voxel): what [`Arrival::after_outside`] records for the
+    /// next voxel.
+    pub fn outside(&self, bits: u8) -> bool {
+        self.own.is_some_and(|(i, _)| bits >> (i + 1) & 1 == 1)
     }
 
     /// The verdict on rays whose test bits are `bits`; `stays`: they stay in the column (a ±z
@@ -386,7 +430,7 @@ impl Visit {
     pub fn verdict(&self, bits: u8, stays: bool) -> Verdict {
         let bit = |i: usize| bits >> i & 1 == 1;
         let mut v = Verdict { out: Out::Continue, lit: false, visible: false };
-        let mut terminal = self.terminal;
+        let mut terminal = self.arrival.terminal;
         if let Some((i, fresh, front)) = self.notch {
             if bit(i) != bit(i + 1) || (front && !bit(i) && !bit(i + 1)) {
                 v.out = Out::Absent;
@@ -408,7 +452,7 @@ impl Visit {
         let Some((prev, now, next, _)) = own else {
             return v;
         };
-        v.out = if prev != now || (stays && self.other_dexel) || (self.after_empty && !prev && !now) {
+        v.out = if prev != now || (stays && self.other_dexel) || (self.absorbs_behind() && !prev && !now) {
             Out::Absorbed
         } else if now != next {
             Out::Terminal
@@ -532,7 +576,7 @@ mod tests {
     fn verdicts_by_hand() {
         let p = RayPlane { k0: 1, k1: 0, cb: 0, cg: 0 };
         // Own plane only: bits (σ₋, σ_k, σ_{k+1}).
-        let v = Visit::new(3, false, false, Some(p), None, None, false);
+        let v = Visit::new(3, Arrival::NONE, Some(p), None, None, false);
         let out = |bits, stays| v.verdict(bits, stays).out;
         assert_eq!(out(0b111, false), Out::Continue);
         assert_eq!(out(0b000, false), Out::Continue);
@@ -541,37 +585,44 @@ mod tests {
         assert!(v.verdict(0b001, false).lit && v.verdict(0b110, false).lit && !v.verdict(0b000, false).lit);
         // From an empty voxel into the back of the plane (crossed in a voxel the layers skipped):
         // absorbed; from a surface voxel, or in front of the plane, not.
-        let e = Visit::new(3, false, true, Some(p), None, None, false);
+        let e = Visit::new(3, Arrival { after_empty: true, ..Arrival::NONE }, Some(p), None, None, false);
         assert_eq!(e.verdict(0b000, false).out, Out::Absorbed);
         assert_eq!(e.verdict(0b111, false).out, Out::Continue);
         assert_eq!(e.verdict(0b011, false).out, Out::Terminal);
+        // From the outside of another column's plane into the back of one facing the source:
+        // absorbed; into the back of a plane facing away (beyond a convex edge), not.
+        let o = Arrival { after_outside: true, ..Arrival::NONE };
+        assert_eq!(Visit::new(3, o, Some(p), None, None, false).verdict(0b000, false).out, Out::Absorbed);
+        assert_eq!(Visit::new(3, o, Some(p), None, None, false).verdict(0b111, false).out, Out::Continue);
+        let away = RayPlane { k0: -1, ..p };
+        assert_eq!(Visit::new(3, o, Some(away), None, None, false).verdict(0b000, false).out, Out::Continue);
         // The column rule: staying rays meeting another dexel are absorbed.
-        let w = Visit::new(3, false, false, Some(p), None, None, true);
+        let w = Visit::new(3, Arrival::NONE, Some(p), None, None, true);
         assert_eq!(w.verdict(0b111, true).out, Out::Absorbed);
         assert_eq!(w.verdict(0b111, false).out, Out::Continue);
         // A terminal beam acts and dies; an empty voxel lets everything go on.
-        let t = Visit::new(3, true, false, Some(p), None, None, false);
+        let t = Visit::new(3, Arrival { terminal: true, ..Arrival::NONE }, Some(p), None, None, false);
         assert_eq!(t.verdict(0b111, false), Verdict { out: Out::Absorbed, lit: true, visible: false });
-        assert_eq!(Visit::new(3, false, false, None, None, None, false).verdict(0, false).out, Out::Continue);
-        assert!(Visit::new(3, false, false, None, None, None, false).is_plain());
+        assert_eq!(Visit::new(3, Arrival::NONE, None, None, None, false).verdict(0, false).out, Out::Continue);
+        assert!(Visit::new(3, Arrival::NONE, None, None, None, false).is_plain());
         // A notch: bits 3.. are σ_{t1}, σ_{t2}, σ_{t2+1}.
         let n = Notch { state: 4, t1: 1, t2: 2, fresh: true, front: false };
-        let v = Visit::new(3, false, false, None, Some((p, n)), None, false);
+        let v = Visit::new(3, Arrival::NONE, None, Some((p, n)), None, false);
         assert_eq!(v.verdict(0b010, false).out, Out::Absent);
         assert_eq!(v.verdict(0b011, false).out, Out::Absorbed); // terminal: crossed between 2 and 3
         assert_eq!(v.verdict(0b111, false).out, Out::Continue);
         assert_eq!(v.verdict(0b000, false).out, Out::Continue);
-        let v = Visit::new(3, false, false, None, Some((p, Notch { front: true, ..n })), None, false);
+        let v = Visit::new(3, Arrival::NONE, None, Some((p, Notch { front: true, ..n })), None, false);
         assert_eq!(v.verdict(0b000, false).out, Out::Absent);
         assert_eq!(v.verdict(0b111, false).out, Out::Continue);
         // The visible surface's bits come after.
         let back = RayPlane { k0: -1, ..p };
         assert_eq!(
-            Visit::new(3, false, false, None, None, Some(back), false).tests.len(),
+            Visit::new(3, Arrival::NONE, None, None, Some(back), false).tests.len(),
             0,
             "a back face is never lit"
         );
-        let v = Visit::new(3, false, false, None, None, Some(p), false);
+        let v = Visit::new(3, Arrival::NONE, None, None, Some(p), false);
         assert!(v.verdict(0b10, false).visible && !v.verdict(0b00, false).visible);
         let _ = Layer(0);
     }

@@ -332,7 +332,18 @@ where
             }
         }
     }
-    mesh.rewound = crate::meshops::orient(&mut mesh).rewound;
+    let o = crate::meshops::orient(&mut mesh);
+    if o.rewound > 0 {
+        // The plane lit rule reads a facet's winding as its outer side (docs/LIGHTING.md).
+        eprintln!(
+            "note: {name}: {} of {} faces rewound to agree with their neighbours ({} of {} surfaces closed, turned outward)",
+            o.rewound,
+            mesh.faces.len(),
+            o.closed,
+            o.components
+        );
+    }
+    mesh.rewound = o.rewound;
     Ok(mesh)
 }
 

@@ -115,7 +115,23 @@ fn render<F: FracBits>(mesh: &Mesh, n: u32, setup: &Setup) -> (Image, host_sim::
     let rcfg = RenderConfig { light, normals: cell_core::shade::NormalMode::Facet };
     let r =
         host_sim::render::render::<F>(mesh, &loaded, &lights, &rcfg, Some(&reference), 0.0, 0.0, |_, _| {}).unwrap();
-    (r.image, reference, behind_solids(mesh, &loaded.fit, n, &lights))
+    let mut behind = behind_solids(mesh, &loaded.fit, n, &lights);
+    // A silhouette pixel the reference sees the floor through but the machine shades the
+    // mesh at (its contour is conservative; the thesis's rule shows the first voxel) shows
+    // the mesh's light, not the floor's.
+    let floor = mesh.materials.iter().position(|m| m.name == "floor");
+    for (i, b) in behind.iter_mut().enumerate() {
+        let (x, y) = (i as u32 % n, i as u32 / n);
+        let cell = loaded.grid.cell(x, y);
+        let shown = match setup.rule {
+            LitRule::Plane => cell.visible.as_ref().map(|v| v.material as usize),
+            LitRule::Thesis => cell.store.dexels().first().map(|d| d.material as usize),
+        };
+        if shown != floor {
+            *b = 0;
+        }
+    }
+    (r.image, reference, behind)
 }
 
 /// Grid sides (`RC2_LEAK_SIZES=64,128,256` for a longer run; default 64 and 128).
@@ -124,16 +140,34 @@ fn sizes() -> Vec<u32> {
     s.split(',').map(|v| v.trim().parse().expect("RC2_LEAK_SIZES: grid sides, comma-separated")).collect()
 }
 
+/// A built-in closed mesh on a floor: the cow, and the fandisk (a CAD part: flat faces and
+/// sharp creases).
+fn closed_on_floor(name: &str) -> Mesh {
+    let mut mesh = host_sim::scene::load(name).unwrap();
+    let o = host_sim::meshops::orient(&mut mesh.clone());
+    assert!(o.components > 0 && o.closed == o.components, "{name} is closed: {o:?}");
+    host_sim::scene::add_floor(&mut mesh);
+    mesh
+}
+
 #[test]
 fn no_light_through_closed_meshes() {
-    for scene in ["teapot-floor", "cow-floor"] {
-        let mesh = host_sim::scene::load(scene).unwrap();
+    // Only closed meshes: where open parts pass through each other (the teapot's spout and
+    // handle through its body) a voxel holds two surfaces and keeps one plane, and a ray may
+    // cross the other surface there unseen (docs/LIGHTING.md, junctions).
+    for scene in ["cow", "fandisk"] {
+        let mesh = closed_on_floor(scene);
         for n in sizes() {
             let (image, _, behind) = render::<U1>(&mesh, n, &DEFAULT);
             let (lit, total) = leaks(&image, &behind);
-            println!("{scene} n = {n}: {lit} lit of {total} pixels behind a solid");
+            println!("{scene} on a floor, n = {n}: {lit} lit of {total} pixels behind a solid");
             assert!(total > (n * n / 50) as usize, "{scene} n = {n}: the mesh casts a real shadow ({total} pixels)");
-            assert_eq!(lit, 0, "{scene} n = {n}: light through the mesh");
+            let at: Vec<_> = (0..behind.len())
+                .filter(|&i| behind[i] & image.lit[i] != 0)
+                .take(8)
+                .map(|i| (i % n as usize, i / n as usize))
+                .collect();
+            assert_eq!(lit, 0, "{scene} n = {n}: light through the mesh at pixels (x, y) {at:?}");
         }
     }
 }

@@ -43,8 +43,9 @@
 //!    holds; it is absorbed;
 //! 3. in an empty V it goes on;
 //! 4. in an occupied V: it lights V if σ₀ and (σ_k or σ₋); it is absorbed if σ₋ ≠ σ_k; it is
-//!    absorbed if its voxel at layer k − 1 was empty and σ₋ = σ_k = 0; it is
-//!    absorbed if it is a ±z ray whose voxel at layer k + 1 is in this column and whose column
+//!    absorbed if σ₋ = σ_k = 0 and its voxel at layer k − 1 was empty, or was occupied, in
+//!    another column, with the ray on the outside of that voxel's plane at k − 1 while V's
+//!    plane faces the source (σ₀); it is absorbed if it is a ±z ray whose voxel at layer k + 1 is in this column and whose column
 //!    state is another dexel than V's; it becomes terminal if σ_k ≠ σ_{k+1}; a ±z ray staying in
 //!    the column takes V's dexel as its state.
 //!
@@ -132,11 +133,14 @@ struct Ray {
     f: u32,
     terminal: bool,
     column: Option<i64>,
+    /// After its last step: it goes on from an occupied voxel, on the outside of its plane at
+    /// that layer, to another column.
+    outside: bool,
 }
 
 impl Ray {
     fn new(src: [i64; 3], dir: usize, a: i64, b: i64, d: i64, f: u32) -> Self {
-        Ray { src, dir, a, b, d, f, terminal: false, column: None }
+        Ray { src, dir, a, b, d, f, terminal: false, column: None, outside: false }
     }
 
     /// σ_t of plane `s` in column (x, y).
@@ -146,7 +150,9 @@ impl Ray {
 
     /// The rule at layer k in voxel `p` (occupied by `own`, with the column's visible surface
     /// `vis`), `stays`: the ray's voxel at k + 1 is in the same column (±z rays only),
-    /// `from_empty`: its voxel at layer k − 1 was empty (false at layer 0). Sets
+    /// `from_empty`: its voxel at layer k − 1 was empty (false at layer 0), `from_outside`: its
+    /// voxel at layer k − 1 was occupied, in another column, and it was on the outside of that
+    /// voxel's plane there ([`Ray::outside`] after that step). Sets
     /// `lit` / `lit_visible` when the ray lights V / the visible surface; returns whether it
     /// goes on.
     #[allow(clippy::too_many_arguments)]
@@ -158,6 +164,7 @@ impl Ray {
         vis: Option<Visible>,
         stays: bool,
         from_empty: bool,
+        from_outside: bool,
         lit: &mut bool,
         lit_visible: &mut bool,
     ) -> bool {
@@ -179,6 +186,7 @@ impl Ray {
             return false;
         }
         let z_ray = self.dir >= 4;
+        self.outside = false;
         let Some(s) = own else {
             if z_ray && !stays {
                 self.column = None;
@@ -187,7 +195,10 @@ impl Ray {
         };
         *lit = lights(self, &s);
         let (was, now, next) = (self.sigma(&s, x, y, prev), self.sigma(&s, x, y, k), self.sigma(&s, x, y, k + 1));
-        if was != now || (from_empty && !was && !now) {
+        // Behind the plane at both layers, having come from empty space, or from the outside
+        // of another column's plane into one facing the source: it crossed a surface unseen.
+        let faces = self.sigma(&s, x, y, 0);
+        if was != now || ((from_empty || (from_outside && faces)) && !was && !now) {
             return false;
         }
         if z_ray && stays && self.column.is_some_and(|c| c != s.lo) {
@@ -195,6 +206,7 @@ impl Ray {
         }
         self.terminal = now != next;
         self.column = (z_ray && stays).then_some(s.lo);
+        self.outside = now && !stays;
         true
     }
 }
@@ -238,7 +250,18 @@ pub fn trace_ray_plane(
         let next = ray_voxel(n, src, dir, a, b, d, f, k + 1);
         let (mut l, mut lv) = (false, false);
         let own = surfaces(p[0], p[1], p[2]);
-        let goes = ray.step(p, k, own, columns(p[0], p[1]), stays_in_column(dir, p, next), from_empty, &mut l, &mut lv);
+        let from_outside = ray.outside;
+        let goes = ray.step(
+            p,
+            k,
+            own,
+            columns(p[0], p[1]),
+            stays_in_column(dir, p, next),
+            from_empty,
+            from_outside,
+            &mut l,
+            &mut lv,
+        );
         from_empty = own.is_none();
         if l {
             lit.push(p);
@@ -356,8 +379,7 @@ pub fn trace_all_plane(
                         last += 1;
                     }
                     let len = (last + 1) as usize;
-                    let own: Vec<Option<Surface>> =
-                        (0..len).map(&voxel).map(|p| surfaces(p[0], p[1], p[2])).collect();
+                    let own: Vec<Option<Surface>> = (0..len).map(&voxel).map(|p| surfaces(p[0], p[1], p[2])).collect();
                     let vis: Vec<Option<Visible>> = (0..len)
                         .map(|k| {
                             let p = voxel(k);
@@ -390,7 +412,20 @@ pub fn trace_all_plane(
                                 let p = voxel(k);
                                 let (mut l, mut lv) = (false, false);
                                 let from_empty = k > 0 && own[k - 1].is_none();
-                                let goes = ray.step(p, k as i64, own[k], vis[k], stays[k], from_empty, &mut l, &mut lv);
+                                // The outside flag of the ray's step at k − 1, if it made one
+                                // there (an occupied voxel is always visited).
+                                let from_outside = k > 0 && own[k - 1].is_some() && ray.outside;
+                                let goes = ray.step(
+                                    p,
+                                    k as i64,
+                                    own[k],
+                                    vis[k],
+                                    stays[k],
+                                    from_empty,
+                                    from_outside,
+                                    &mut l,
+                                    &mut lv,
+                                );
                                 if l {
                                     *out.rays.lit.entry(p).or_insert(0) |= mask;
                                 }
@@ -482,19 +517,27 @@ mod tests {
         assert!(vis.is_empty());
     }
 
-    /// A ray passing on the far side of a plane it does not cross there goes on: the plane of a
-    /// facet says nothing about rays that pass beside the facet.
+    /// A ray passing a plane it does not cross there goes on: the plane of a facet says nothing
+    /// about rays that pass beside the facet. Unless it comes from empty space into the back of
+    /// it: then it crossed a surface in a voxel its steps skipped (rule 4).
     #[test]
     fn a_plane_not_crossed_there_does_not_stop_the_ray() {
         let n = 12;
         let src = [80, 80, 16 * 9];
-        // The voxels z = 3 ..= 5 of column (5, 5) hold a plane z = 7.5 facing +z: the −z ray is
-        // below it all along those voxels (it crossed it at t = 1.5, in empty voxels).
-        let sheet = |x: i64, y: i64, z: i64| ((x, y) == (5, 5) && (3..=5).contains(&z)).then(|| z_plane(7.5, true, 3));
+        // The voxels z = 3 ..= 5 of column (5, 5) hold a plane z = 7.5 facing −z, away from the
+        // source: the −z ray crossed it at t = 1.5, in empty voxels, and is on its outer side
+        // all along those voxels. It goes on, lighting nothing (the facet faces away).
+        let away = |x: i64, y: i64, z: i64| ((x, y) == (5, 5) && (3..=5).contains(&z)).then(|| z_plane(7.5, false, 3));
         let (mut lit, mut vis) = (Vec::new(), Vec::new());
-        let fate = trace_ray_plane(n, &sheet, &none_visible, src, 5, 0, 0, 11, 0, &mut lit, &mut vis);
+        let fate = trace_ray_plane(n, &away, &none_visible, src, 5, 0, 0, 11, 0, &mut lit, &mut vis);
         assert_eq!(fate, Fate::Exited { k: 10 });
-        assert!(lit.is_empty(), "below a plane facing the source: not lit");
+        assert!(lit.is_empty(), "a plane facing away is not lit");
+        // The same plane facing +z: the ray arrives from an empty voxel behind it at both
+        // layers and is absorbed there, unlit.
+        let sheet = |x: i64, y: i64, z: i64| ((x, y) == (5, 5) && (3..=5).contains(&z)).then(|| z_plane(7.5, true, 3));
+        let fate = trace_ray_plane(n, &sheet, &none_visible, src, 5, 0, 0, 11, 0, &mut lit, &mut vis);
+        assert_eq!(fate, Fate::Absorbed { voxel: [5, 5, 5], k: 4 });
+        assert!(lit.is_empty(), "behind a plane facing the source: not lit");
     }
 
     /// The visible surface is lit by rays in the two voxels that bracket it, on its own plane.
