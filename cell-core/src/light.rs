@@ -38,7 +38,7 @@ use crate::beam::{
 };
 use crate::cell::Cell;
 use crate::dexel::{Dexel, DexelStore};
-use crate::lit::{run_end, segments, uniform, Along, Arrival, LitRule, Notch, Out, RayPlane, Segments, Visit};
+use crate::lit::{run_end, segments, spans, uniform, Along, Arrival, LitRule, Notch, Out, RayPlane, Segments, Visit};
 use crate::occupancy::FrustumTest;
 use crate::units::{Coord, Depth};
 
@@ -1217,8 +1217,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         while line <= u.1 {
             let end = run_end(&visit.tests, Along::V, line, u.1, v.0, v.1);
             segments(&visit.tests, Along::V, line, v.0, v.1, &mut seg);
-            for (i, &(start, bits)) in seg.iter().enumerate() {
-                let stop = seg.get(i + 1).map_or(v.1, |s| s.0 - 1);
+            for (start, stop, bits) in spans(&seg, v.1) {
                 if visit.verdict(bits, false).out != Out::Absent {
                     present += (end - line + 1) as u64 * (stop - start + 1) as u64;
                 }
@@ -1292,8 +1291,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             segments(&visit.tests, along, from, cross.0, cross.1, &mut seg);
             let (mut present, mut sent, mut count) = (0u64, 0u64, 0u8);
             let mut emit = None;
-            for (i, &(start, bits)) in seg.iter().enumerate() {
-                let stop = seg.get(i + 1).map_or(cross.1, |s| s.0 - 1);
+            for (start, stop, bits) in spans(&seg, cross.1) {
                 let v = visit.verdict(bits, false);
                 f.lit |= v.lit;
                 f.visible |= v.visible;
@@ -1365,8 +1363,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             let end = run_end(&visit.tests, Along::V, line, u.1, v.0, v.1);
             let width = (end - line + 1) as u64;
             segments(&visit.tests, Along::V, line, v.0, v.1, &mut seg);
-            for (i, &(start, bits)) in seg.iter().enumerate() {
-                let stop = seg.get(i + 1).map_or(v.1, |s| s.0 - 1);
+            for (start, stop, bits) in spans(&seg, v.1) {
                 let verdict = visit.verdict(bits, true);
                 f.lit |= verdict.lit;
                 f.visible |= verdict.visible;

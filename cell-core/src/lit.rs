@@ -240,6 +240,12 @@ pub fn segments(tests: &[Test], along: Along, fixed: i64, lo: i64, hi: i64, out:
     }
 }
 
+/// The segments of [`segments`] as `(start, stop, bits)`, inclusive, the last ending at `hi`
+/// (the `hi` that split them).
+pub fn spans(seg: &Segments, hi: i64) -> impl Iterator<Item = (i64, i64, u8)> + '_ {
+    seg.iter().enumerate().map(move |(i, &(start, bits))| (start, seg.get(i + 1).map_or(hi, |s| s.0 - 1), bits))
+}
+
 /// Whether every test in `tests` has the same value on the whole rectangle `[a0, a1] × [b0, b1]`
 /// (a test holds on a half-plane: it is constant on a rectangle iff it agrees on the corners).
 pub fn uniform(tests: &[Test], a: (i64, i64), b: (i64, i64)) -> Option<u8> {
@@ -535,8 +541,7 @@ mod tests {
                 let mut seg = Segments::new();
                 segments(&tests, along, fixed, lo, hi, &mut seg);
                 assert_eq!(seg[0].0, lo);
-                for (i, &(start, bits)) in seg.iter().enumerate() {
-                    let end = seg.get(i + 1).map_or(hi, |n| n.0 - 1);
+                for (start, end, bits) in spans(&seg, hi) {
                     assert!(start <= end);
                     for x in start..=end {
                         let (a, b) = at(x);

@@ -60,19 +60,16 @@ pub fn wave_and_oracle_voxels(
     (got, want)
 }
 
+/// A dexel plane as the plane-rule oracle reads it, referred to depth `lo`.
+fn surface(lo: i64, p: &cell_core::plane::DexelPlane) -> rc2_tests::oracle::lit::Surface {
+    rc2_tests::oracle::lit::Surface { lo, nx: p.nx as i64, ny: p.ny as i64, nz: p.nz as i64, e: p.e as i64 }
+}
+
 /// The plane rule's oracle view of a loaded grid: each occupied voxel's dexel plane.
 pub fn surfaces_of<const D: usize>(
     g: &host_sim::grid::Grid<D>,
 ) -> impl Fn(i64, i64, i64) -> Option<rc2_tests::oracle::lit::Surface> + '_ {
-    move |x, y, z| {
-        g.cell(x as u32, y as u32).store.occupied(z as u16).map(|d| rc2_tests::oracle::lit::Surface {
-            lo: d.span.lo as i64,
-            nx: d.plane.nx as i64,
-            ny: d.plane.ny as i64,
-            nz: d.plane.nz as i64,
-            e: d.plane.e as i64,
-        })
-    }
+    move |x, y, z| g.cell(x as u32, y as u32).store.occupied(z as u16).map(|d| surface(d.span.lo as i64, &d.plane))
 }
 
 /// The plane rule's oracle view of a loaded grid: each column's visible surface.
@@ -80,16 +77,9 @@ pub fn columns_of<const D: usize>(
     g: &host_sim::grid::Grid<D>,
 ) -> impl Fn(i64, i64) -> Option<rc2_tests::oracle::lit::Visible> + '_ {
     move |x, y| {
-        g.cell(x as u32, y as u32).visible.map(|v| rc2_tests::oracle::lit::Visible {
-            z_v: v.z_v as i64,
-            plane: rc2_tests::oracle::lit::Surface {
-                lo: v.z_v as i64,
-                nx: v.plane.nx as i64,
-                ny: v.plane.ny as i64,
-                nz: v.plane.nz as i64,
-                e: v.plane.e as i64,
-            },
-        })
+        g.cell(x as u32, y as u32)
+            .visible
+            .map(|v| rc2_tests::oracle::lit::Visible { z_v: v.z_v as i64, plane: surface(v.z_v as i64, &v.plane) })
     }
 }
 
