@@ -1228,10 +1228,11 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     }
 
     /// For a ±z beam, the lattice rays of each axis that stay in this column at the next layer
-    /// (`None` for the other directions, whose sub-beams all change column).
+    /// (`None` for the other directions, whose sub-beams all change column, and at the far plane
+    /// k = D, past which every ray leaves).
     fn staying(&self, b: &Beam<F>, env: &LightEnv<'_, F>) -> Option<((i64, i64), (i64, i64))> {
         let dir = b.direction();
-        if dir.principal() != crate::beam::Axis::Z {
+        if dir.principal() != crate::beam::Axis::Z || b.layer().0 >= env.far.get() {
             return None;
         }
         let (ua, va) = dir.transverse();

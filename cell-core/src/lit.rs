@@ -37,10 +37,10 @@
 //!    outside of that voxel's plane, [`crate::beam::Beam::after_outside`]) into a plane facing
 //!    the source: either way it crossed a surface between the two layers, in a voxel the
 //!    26-connected step skipped or in a voxel whose plane is another facet's; is absorbed if it
-//!    is a ±z ray that stays in its column at layer k + 1 and has passed another dexel of this
-//!    column while staying in it (the *column rule*, see below); becomes terminal if
-//!    σ_k ≠ σ_{k+1} (it will cross before the next layer: one more step, act there, die);
-//!    otherwise goes on.
+//!    is a ±z ray that stays in its column at layer k + 1 (k < D: at the far plane every ray
+//!    leaves) and has passed another dexel of this column while staying in it (the *column
+//!    rule*, see below); becomes terminal if σ_k ≠ σ_{k+1} (it will cross before the next
+//!    layer: one more step, act there, die); otherwise goes on.
 //!
 //! The terminal step lights the voxel the crossing point may lie in at the next layer. Planes
 //! stop rays from both sides (an open sheet is opaque both ways), but only facets facing the

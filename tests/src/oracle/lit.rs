@@ -45,7 +45,7 @@
 //! 4. in an occupied V: it lights V if σ₀ and (σ_k or σ₋); it is absorbed if σ₋ ≠ σ_k; it is
 //!    absorbed if σ₋ = σ_k = 0 and its voxel at layer k − 1 was empty, or was occupied, in
 //!    another column, with the ray on the outside of that voxel's plane at k − 1 while V's
-//!    plane faces the source (σ₀); it is absorbed if it is a ±z ray whose voxel at layer k + 1 is in this column and whose column
+//!    plane faces the source (σ₀); it is absorbed if it is a ±z ray whose voxel at layer k + 1 (k < D) is in this column and whose column
 //!    state is another dexel than V's; it becomes terminal if σ_k ≠ σ_{k+1}; a ±z ray staying in
 //!    the column takes V's dexel as its state.
 //!
@@ -215,9 +215,10 @@ fn in_grid(n: i64, p: [i64; 3]) -> bool {
     p.iter().all(|&c| (0..n).contains(&c))
 }
 
-/// Whether a ±z ray's voxel at layer k + 1 has the same (x, y) as at layer k.
-fn stays_in_column(dir: usize, now: [i64; 3], next: [i64; 3]) -> bool {
-    dir >= 4 && now[0] == next[0] && now[1] == next[1]
+/// Whether a ±z ray at layer k has a voxel at layer k + 1 (k < D: past layer D it exits) with
+/// the same (x, y) as at layer k.
+fn stays_in_column(dir: usize, k: i64, d: i64, now: [i64; 3], next: [i64; 3]) -> bool {
+    dir >= 4 && k < d && now[0] == next[0] && now[1] == next[1]
 }
 
 /// Walks one ray by the rule, one [`ray_voxel`] per layer; the voxels it lit and the columns
@@ -256,7 +257,7 @@ pub fn trace_ray_plane(
             k,
             own,
             columns(p[0], p[1]),
-            stays_in_column(dir, p, next),
+            stays_in_column(dir, k, d, p, next),
             from_empty,
             from_outside,
             &mut l,
@@ -386,7 +387,8 @@ pub fn trace_all_plane(
                             columns(p[0], p[1]).filter(|v| p[2] == v.z_v || p[2] == v.z_v + 1)
                         })
                         .collect();
-                    let stays: Vec<bool> = (0..len).map(|k| stays_in_column(dir, voxel(k), voxel(k + 1))).collect();
+                    let stays: Vec<bool> =
+                        (0..len).map(|k| stays_in_column(dir, k as i64, d, voxel(k), voxel(k + 1))).collect();
                     let visits: Vec<usize> = (0..len).filter(|&k| own[k].is_some() || vis[k].is_some()).collect();
                     let weight = ((ahi - alo + 1) as u128) * ((bhi - blo + 1) as u128);
                     if !visits.iter().any(|&k| own[k].is_some()) {
