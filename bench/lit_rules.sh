@@ -3,7 +3,8 @@
 # with the plane rule (the default) and the thesis's rule, by beam diffusion and by classic
 # shadow rays, and collect shadow disagreement, PSNR, cycles, beams and wall time.
 # Configurations (METHODS, default all):
-#   plane           the defaults: plane rule, standard + conservative surfaces, f = 1, radial
+#   plane           the defaults: plane rule, standard + conservative surfaces, f = 0, radial
+#   plane-f1        the same with --frac-bits 1 (twice the rays per axis: the accuracy knob)
 #   thesis          --lit-rule thesis on the same surfaces, f and policy (the rule alone)
 #   thesis-thin     --lit-rule thesis with the former defaults (naive + projected, f = 0,
 #                   wavefront): the figures the project used to quote
@@ -15,7 +16,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 NS=${NS:-"128 256"}
 SCENES=${SCENES:-"cornell teapot-floor cow-floor bureau1"}
-METHODS=${METHODS:-"plane thesis thesis-thin classic-plane classic-thesis"}
+METHODS=${METHODS:-"plane plane-f1 thesis thesis-thin classic-plane classic-thesis"}
 mkdir -p bench-out
 cargo build --release -q -p host-sim
 B=./target/release/host-sim
@@ -26,6 +27,7 @@ for n in $NS; do
     for m in $METHODS; do
       case $m in
         plane) opts=() ;;
+        plane-f1) opts=(--frac-bits 1) ;;
         thesis) opts=(--lit-rule thesis) ;;
         thesis-thin) opts=(--lit-rule thesis --sigma naive --contour projected --frac-bits 0 --policy wavefront) ;;
         classic-plane) opts=(--lighting classic) ;;

@@ -25,7 +25,7 @@ mod wires;
 use core::cell::RefCell;
 use core::panic::PanicInfo;
 
-use cell_core::beam::frac::U1;
+use cell_core::beam::frac::U0;
 use cell_core::light::Port;
 use cell_core::link::DecodeError;
 use cell_core::trace::{Event, Parser, ReplayError, ReplayStats, Replayer, BEAM_FRAME};
@@ -41,8 +41,8 @@ use defmt_semihosting as _;
 include!(concat!(env!("OUT_DIR"), "/traces.rs"));
 
 /// The cell this firmware is: the host's capacities (64 dexels, FIFO 64, output buffers of 3,
-/// 64 lit runs) and the default ray lattice (f = 1). A trace recorded with others is refused.
-type Cell = Replayer<U1, 64, 64, 3, 64>;
+/// 64 lit runs) and the default ray lattice (f = 0). A trace recorded with others is refused.
+type Cell = Replayer<U0, 64, 64, 3, 64>;
 
 /// The cell, shared between the main loop and the link interrupt.
 static CELL: Mutex<RefCell<Option<Cell>>> = Mutex::new(RefCell::new(None));
@@ -89,7 +89,7 @@ fn with_cell<R>(f: impl FnOnce(&mut Cell) -> Result<R, ReplayError>) -> Result<R
 fn replay(bytes: &[u8]) -> Result<((u16, u16), ReplayStats, u64), ReplayError> {
     critical_section::with(|cs| *CELL.borrow_ref_mut(cs) = Some(Cell::new()));
     let mut links = wires::links();
-    let mut parser = Parser::<U1>::new(bytes);
+    let mut parser = Parser::<U0>::new(bytes);
     while let Some(ev) = parser.next_event() {
         match ev? {
             Event::Recv { port, frame } => wire_receive(port, frame)?,

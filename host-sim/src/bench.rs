@@ -1,5 +1,5 @@
-//! `host-sim bench`: run time against error (issue 4). Sweeps the knobs that trade speed for
-//! accuracy — fraction bits f, thickness, contour, normals, FIFO size, policy — renders each
+//! `host-sim bench`: run time against error. Sweeps the knobs that trade speed for accuracy —
+//! fraction bits f, thickness, contour, the lit rule, normals, FIFO size, policy — renders each
 //! configuration, compares it with the f64 reference (ray-cast once per scene and n), and keeps
 //! machine cycles, wall time, bytes per cell, shadow disagreement and PSNR. The Pareto front is
 //! error against machine cycles.
@@ -10,6 +10,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use cell_core::light::Policy;
+use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
 
 use crate::diffuse::LightConfig;
@@ -32,25 +33,42 @@ pub struct Knobs {
     pub normals: NormalMode,
     /// FIFO size.
     pub fa: usize,
-    /// Scheduling policy (merging follows it: on for wavefront).
+    /// Scheduling policy (merging follows it: on for wavefront and radial).
     pub policy: Policy,
+    /// The lit rule.
+    pub rule: LitRule,
 }
 
 impl Knobs {
     /// The configuration `render` runs with no options.
     pub const DEFAULT: Knobs = Knobs {
-        f: crate::cli::DEFAULT_FRAC_BITS,
-        thickness: Thickness::Naive,
-        contour: Contour::Projected,
+        f: crate::lightjob::DEFAULT_FRAC_BITS,
+        thickness: Thickness::Standard,
+        contour: Contour::Conservative,
         normals: NormalMode::Facet,
         fa: 16,
+        policy: Policy::Radial,
+        rule: LitRule::Plane,
+    };
+
+    /// What `render` ran with no options before the plane rule: the thesis's rule on thin
+    /// surfaces, f = 0, the wavefront policy.
+    pub const THESIS_FORMER: Knobs = Knobs {
+        f: 0,
+        thickness: Thickness::Naive,
+        contour: Contour::Projected,
         policy: Policy::Wavefront,
+        rule: LitRule::Thesis,
+        ..Knobs::DEFAULT
     };
 
     /// The knobs that differ from the default, as a short label.
     pub fn label(&self) -> String {
         let d = Knobs::DEFAULT;
         let mut parts = vec![format!("f={}", self.f)];
+        if self.rule != d.rule {
+            parts.push(format!("{:?} rule", self.rule).to_lowercase());
+        }
         if self.thickness != d.thickness {
             parts.push(format!("{:?}", self.thickness).to_lowercase());
         }
@@ -70,25 +88,35 @@ impl Knobs {
     }
 }
 
-/// The sweep: every (f, thickness, contour) combination at the default normals, FIFO and
-/// policy, then each remaining knob varied alone around the default.
+/// The sweep: every (f, thickness, contour) combination under each lit rule at the default
+/// normals, FIFO and policy, the former default, then each remaining knob varied alone around
+/// the default.
 pub fn sweep(fs: &[u32]) -> Vec<Knobs> {
     let d = Knobs::DEFAULT;
     let mut v = Vec::new();
-    for &f in fs {
-        for thickness in [Thickness::Naive, Thickness::Thesis, Thickness::Standard] {
-            for contour in [Contour::Projected, Contour::Conservative] {
-                v.push(Knobs { f, thickness, contour, ..d });
+    for rule in [LitRule::Plane, LitRule::Thesis] {
+        for &f in fs {
+            for thickness in [Thickness::Naive, Thickness::Thesis, Thickness::Standard] {
+                for contour in [Contour::Projected, Contour::Conservative] {
+                    v.push(Knobs { f, thickness, contour, rule, ..d });
+                }
             }
         }
     }
+    v.push(Knobs::THESIS_FORMER);
     v.push(Knobs { normals: NormalMode::Face, ..d });
     for fa in [4, 64] {
         v.push(Knobs { fa, ..d });
     }
     v.push(Knobs { policy: Policy::Thesis, ..d });
-    v.push(Knobs { policy: Policy::Radial, ..d });
-    v.dedup();
+    v.push(Knobs { policy: Policy::Wavefront, ..d });
+    let mut seen = Vec::new();
+    v.retain(|k| {
+        !seen.contains(k) && {
+            seen.push(*k);
+            true
+        }
+    });
     v
 }
 
@@ -109,7 +137,7 @@ pub fn run_bench(
     );
     writeln!(
         csv,
-        "scene,n,f,thickness,contour,normals,fa,policy,is_default,load_cycles,light_cycles,shade_cycles,cycles,t_over_lb,beams,bytes_per_cell,wall_seconds,shadow_disagreement_pct,coverage_disagreement_pct,psnr_db,pareto"
+        "scene,n,f,thickness,contour,normals,fa,policy,rule,is_default,load_cycles,light_cycles,shade_cycles,cycles,t_over_lb,beams,bytes_per_cell,wall_seconds,shadow_disagreement_pct,coverage_disagreement_pct,psnr_db,pareto"
     )?;
     let knobs = sweep(fs);
     let names: Vec<&str> = meshes.iter().map(|m| m.name.as_str()).collect();
@@ -133,6 +161,7 @@ pub fn run_bench(
                         policy: k.policy,
                         merge: k.policy.by_layer(),
                         record_visits: false,
+                        rule: k.rule,
                         ..Default::default()
                     },
                     normals: k.normals,
@@ -157,7 +186,7 @@ pub fn run_bench(
                 }
                 writeln!(
                     csv,
-                    "{},{n},{},{:?},{:?},{:?},{},{},{},{},{},{},{},{:.4},{},{},{:.4},{:.4},{:.4},{:.4},",
+                    "{},{n},{},{:?},{:?},{:?},{},{},{:?},{},{},{},{},{},{:.4},{},{},{:.4},{:.4},{:.4},{:.4},",
                     mesh.name,
                     k.f,
                     k.thickness,
@@ -165,6 +194,7 @@ pub fn run_bench(
                     k.normals,
                     k.fa,
                     policy_name(k.policy),
+                    k.rule,
                     *k == Knobs::DEFAULT,
                     st.light.load_cycles,
                     st.light.totals.cycles,
@@ -203,13 +233,14 @@ pub fn run_bench(
         for (i, (k, a)) in knobs.iter().zip(&agg).enumerate() {
             writeln!(
                 csv,
-                "all,{n},{},{:?},{:?},{:?},{},{},{},,,,{:.1},,,{},{:.4},{:.4},{:.4},{:.4},{}",
+                "all,{n},{},{:?},{:?},{:?},{},{},{:?},{},,,,{:.1},,,{},{:.4},{:.4},{:.4},{:.4},{}",
                 k.f,
                 k.thickness,
                 k.contour,
                 k.normals,
                 k.fa,
                 policy_name(k.policy),
+                k.rule,
                 *k == Knobs::DEFAULT,
                 a.0 / m,
                 a.2,
@@ -223,11 +254,8 @@ pub fn run_bench(
         let path = if ns.len() == 1 {
             plot_path.to_path_buf()
         } else {
-            let stem = plot_path.with_extension("");
-            stem.with_file_name(format!(
-                "{}-n{n}.png",
-                stem.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
-            ))
+            let stem = plot_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+            plot_path.with_file_name(format!("{stem}-n{n}.png"))
         };
         let title = format!("{}, n = {n}: shadow error against machine cycles (mean over scenes)", names.join(" + "));
         plot_pareto(&points, &title, &path)?;

@@ -13,6 +13,11 @@ use crate::grid::Grid;
 use crate::precompute::{Fit, LoadConfig};
 use crate::scene::{Mesh, SceneLight};
 
+/// Fraction bits the lighting jobs use unless told otherwise: under the plane rule f = 0 meets
+/// the accuracy goals at a quarter to four fifths of the former default's cycles; f = 1 is the
+/// accuracy knob for faces lit at extreme grazing angles (BENCHMARKS.md, "Is the light right?").
+pub const DEFAULT_FRAC_BITS: u32 = 0;
+
 /// The grid type the lighting jobs load into.
 pub type LightGrid = Grid<DEFAULT_DEXELS>;
 

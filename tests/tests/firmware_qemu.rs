@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use cell_core::beam::frac::U1;
+use cell_core::beam::frac::U0;
 use host_sim::diffuse::{FrustumBlocks, LightConfig};
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
 use host_sim::trace::{record, TraceJob};
@@ -125,7 +125,7 @@ fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
     }
     let (mesh, load, light, cells) = cornell_job_cells(64);
     let job = TraceJob { mesh: &mesh, load, light, lights: Vec::new(), cells, busiest: true };
-    let traces = record::<U1>(&job).expect("record traces");
+    let traces = record::<U0>(&job).expect("record traces");
     assert!(traces.len() >= 4, "corner, centre, source and busiest cells");
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("qemu-traces");
     let _ = std::fs::remove_dir_all(&dir);
@@ -137,7 +137,7 @@ fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
     let mid = flipped.len() / 2;
     flipped[mid] ^= 0x10;
     std::fs::write(dir.join("z_flipped.rc2t"), &flipped).unwrap();
-    let changed = mutate_row_material::<U1>(&corner.bytes).expect("the corner cell received a row packet");
+    let changed = mutate_row_material::<U0>(&corner.bytes).expect("the corner cell received a row packet");
     std::fs::write(dir.join("z_changed.rc2t"), &changed).unwrap();
     // The sibling wait and the empty-frustum skip on the MCU: an open scene's busiest cell and
     // its source cell, recorded with both on. Thin surfaces: with conservative contours every
@@ -154,7 +154,7 @@ fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
         cells: vec![[16, 16]],
         busiest: true,
     };
-    let waits = record::<U1>(&tjob).expect("record traces with the wait and the frustum skip");
+    let waits = record::<U0>(&tjob).expect("record traces with the wait and the frustum skip");
     for t in &waits {
         std::fs::write(dir.join(format!("w_cell_{}_{}.rc2t", t.x, t.y)), &t.bytes).unwrap();
     }
