@@ -1218,7 +1218,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             let end = run_end(&visit.tests, Along::V, line, u.1, v.0, v.1);
             segments(&visit.tests, Along::V, line, v.0, v.1, &mut seg);
             for (start, stop, bits) in spans(&seg, v.1) {
-                if visit.verdict(bits, false).out != Out::Absent {
+                if visit.verdict(bits, false).out.present() {
                     present += (end - line + 1) as u64 * (stop - start + 1) as u64;
                 }
             }
@@ -1297,10 +1297,10 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 f.lit |= v.lit;
                 f.visible |= v.visible;
                 let rays = width * (stop - start + 1) as u64;
-                if v.out != Out::Absent {
+                if v.out.present() {
                     present += rays;
                 }
-                if matches!(v.out, Out::Continue | Out::Terminal) {
+                if v.out.goes_on() {
                     if count == piece {
                         emit = Some((start, stop, v.out == Out::Terminal, visit.outside(bits)));
                     }
@@ -1369,10 +1369,10 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 f.lit |= verdict.lit;
                 f.visible |= verdict.visible;
                 let rays = width * (stop - start + 1) as u64;
-                if verdict.out != Out::Absent {
+                if verdict.out.present() {
                     present += rays;
                 }
-                if matches!(verdict.out, Out::Continue | Out::Terminal) {
+                if verdict.out.goes_on() {
                     going += rays;
                 }
                 if verdict.out == Out::Terminal {

@@ -320,6 +320,18 @@ pub enum Out {
     Terminal,
 }
 
+impl Out {
+    /// The rays are in the beam (no notch cut them out).
+    pub fn present(self) -> bool {
+        self != Out::Absent
+    }
+
+    /// The rays leave the voxel for the next layer (terminal or not).
+    pub fn goes_on(self) -> bool {
+        matches!(self, Out::Continue | Out::Terminal)
+    }
+}
+
 /// The verdict on rays with the same test bits.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Verdict {

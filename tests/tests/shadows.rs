@@ -10,7 +10,7 @@
 //! an occluder's edge is within a voxel of some path and a voxel grid can only be right to a
 //! voxel, are the shadow disagreement's business, not this test's.
 
-use cell_core::beam::frac::{U0, U1};
+use cell_core::beam::frac::U0;
 use cell_core::beam::FracBits;
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
@@ -159,8 +159,7 @@ fn no_light_through_closed_meshes() {
         let mesh = closed_on_floor(scene);
         // The default lattice (f = 0) and the finer one the accuracy knob gives (f = 1).
         for (n, f) in sizes().into_iter().flat_map(|n| [(n, 0), (n, 1)]) {
-            let (image, _, behind) =
-                if f == 0 { render::<U0>(&mesh, n, &DEFAULT) } else { render::<U1>(&mesh, n, &DEFAULT) };
+            let (image, _, behind) = cell_core::with_frac_bits!(f, F => render::<F>(&mesh, n, &DEFAULT)).unwrap();
             let (lit, total) = leaks(&image, &behind);
             println!("{scene} on a floor, n = {n}, f = {f}: {lit} lit of {total} pixels behind a solid");
             assert!(total > (n * n / 50) as usize, "{scene} n = {n}: the mesh casts a real shadow ({total} pixels)");
