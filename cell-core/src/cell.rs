@@ -7,7 +7,20 @@ use crate::dexel::DexelStore;
 use crate::units::Coord;
 
 /// Dexel capacity a host build uses unless told otherwise.
+///
+/// This constant and the three below are the capacities of the cell that host-sim simulates and
+/// the firmware runs: they are set here and only here.
 pub const DEFAULT_DEXELS: usize = 64;
+
+/// FIFO capacity compiled into a cell (the run-time FIFO limit FA may be smaller).
+pub const FA_CAP: usize = 64;
+
+/// Messages an output buffer holds: a ±x/±y beam sends up to 3 sub-beams through one link.
+pub const OB_CAP: usize = 3;
+
+/// Lit runs per column: 64 since the office scene `bureau2` at n = 128 needed more than 32 in
+/// two columns running along a wall (a lit-store overflow there is an error, never a loss).
+pub const LIT_CAP: usize = 64;
 
 /// Per-cell counters of the loading phase.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

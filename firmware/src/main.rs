@@ -26,6 +26,7 @@ use core::cell::RefCell;
 use core::panic::PanicInfo;
 
 use cell_core::beam::frac::U0;
+use cell_core::cell::{DEFAULT_DEXELS, FA_CAP, LIT_CAP, OB_CAP};
 use cell_core::light::Port;
 use cell_core::link::DecodeError;
 use cell_core::trace::{Event, Parser, ReplayError, ReplayStats, Replayer, BEAM_FRAME};
@@ -42,7 +43,7 @@ include!(concat!(env!("OUT_DIR"), "/traces.rs"));
 
 /// The cell this firmware is: the host's capacities (64 dexels, FIFO 64, output buffers of 3,
 /// 64 lit runs) and the default ray lattice (f = 0). A trace recorded with others is refused.
-type Cell = Replayer<U0, 64, 64, 3, 64>;
+type Cell = Replayer<U0, DEFAULT_DEXELS, FA_CAP, OB_CAP, LIT_CAP>;
 
 /// The cell, shared between the main loop and the link interrupt.
 static CELL: Mutex<RefCell<Option<Cell>>> = Mutex::new(RefCell::new(None));

@@ -19,7 +19,7 @@ pub fn obj_load(data: &[u8]) {
     let Ok(prepared) = prepare(&mesh, &cfg) else {
         return;
     };
-    let mut grid = host_sim::grid::Grid::<8>::new(16, 16);
+    let mut grid = host_sim::machine::grid::Grid::<8>::new(16, 16);
     grid.load_wave(&prepared.packets, |_| {});
     let _ = grid.summary();
 }

@@ -12,9 +12,9 @@ use cell_core::beam::frac;
 use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::light::Policy;
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
-use host_sim::diffuse::{diffuse, source_at, LightConfig};
-use host_sim::grid::Grid;
-use host_sim::lightjob::{load_scene, resolve_lights};
+use host_sim::machine::diffuse::{diffuse, source_at, LightConfig};
+use host_sim::machine::grid::Grid;
+use host_sim::machine::loaded::{load_scene, resolve_lights};
 use host_sim::precompute::{prepare, Contour, LoadConfig, Thickness};
 use host_sim::scene;
 

@@ -1,41 +1,27 @@
 //! # host-sim — the std host of the RC² machine
 //!
-//! Builds an n × n grid of [`cell_core`] cells, loads scenes into it, and reports.
+//! Builds an n × n grid of [`cell_core`] cells, loads scenes into it, runs every phase, and
+//! reports. One folder per concern, each layer importing only the layers below it:
 //!
-//! * [`scene`] — OBJ meshes (via `tobj`) and built-in scenes.
-//! * [`precompute`] — fit, lattice quantisation and exact facet packets (§3.9 host side).
-//! * [`grid`] — the grid and the cycle-stepped loading wave.
-//! * [`load`] — the `voxelize` job and its statistics.
-//! * [`binvox`] — the `.binvox` voxel file format.
-//! * [`meshops`] — mesh utilities (subdivision for benchmarks).
-//! * [`trace`] — recording cell traces for the firmware replay (issue 5).
-//! * [`cli`] — the command line.
+//! * [`scene`] — meshes, OBJ/MTL, built-in scenes, offices, binvox, mesh operations.
+//! * [`precompute`] — fit, lattice quantisation and exact facet packets (§3.9, host side).
+//! * [`machine`] — the grid and its schedulers: loading, diffusion, classic shadow rays,
+//!   reflections, shading, link faults, trace tap; the cell capacities in one place.
+//! * [`truth`] — the f64 reference: exact visibility, the reference image, comparisons.
+//! * [`jobs`] — what a user runs: render, light, accuracy, trace, audit, bench, dump.
+//! * [`report`] — PNG and plots.
+//! * [`cli`] — the command line (the only place that knows clap).
+//!
+//! `tests/architecture.rs` checks the layering: no import circles between modules, nothing in
+//! `machine/` or `truth/` importing `jobs/`, `report/` or `cli/`, clap only in `cli/`.
 // No unsafe code, except one audited intrinsic call: the cache prefetch hint in `tiles::prefetch`.
 #![deny(unsafe_code)]
 
-pub mod audit;
-pub mod bench;
-pub mod binvox;
-pub mod classic;
 pub mod cli;
-pub mod diffuse;
-pub mod dump;
-pub mod faults;
-pub mod grid;
-pub mod lightjob;
-pub mod limits;
-pub mod load;
-pub mod meshops;
-pub mod network;
-pub mod office;
-pub mod plot;
+pub mod jobs;
+pub mod machine;
 pub mod precompute;
-pub mod reference;
-pub mod reflect;
-pub mod refrender;
-pub mod render;
+pub mod report;
 pub mod rng;
 pub mod scene;
-pub mod tiles;
-pub mod trace;
-pub mod wave_ref;
+pub mod truth;

@@ -31,7 +31,7 @@ pub const Q: i64 = 16;
 pub const MARGIN_VOXELS: f64 = 1.0;
 
 /// Plane thickness (§3.5, §3.8).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Thickness {
     /// σ = ½: the thinnest hole-free plane; stops 6-connected rays only.
@@ -43,7 +43,7 @@ pub enum Thickness {
 }
 
 /// Contour of a facet (§3.6, §3.8).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Contour {
     /// The thesis's projected contour: the voxel centre's projection lies in the facet's.

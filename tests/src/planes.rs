@@ -2,7 +2,7 @@
 //! real wave. Shared by `tests/topology.rs` (tunnels) and `tests/rays.rs` (rays through them).
 
 use cell_core::dexel::FacetTag;
-use host_sim::grid::Grid;
+use host_sim::machine::grid::Grid;
 use host_sim::precompute::{facet_packet, Contour, LoadConfig, Thickness};
 
 /// Grid side of the fixture.

@@ -4,7 +4,7 @@
 use cell_core::beam::FracBits;
 use cell_core::light::Policy;
 use cell_core::trace::{write_event, Event, Parser};
-use host_sim::diffuse::{source_at, LightConfig};
+use host_sim::machine::diffuse::{source_at, LightConfig};
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
 use host_sim::scene::Mesh;
 
@@ -15,8 +15,8 @@ pub fn cornell_job_cells(n: u32) -> (Mesh, LoadConfig, LightConfig, Vec<[u32; 2]
     let load = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
     let light =
         LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, record_visits: false, ..Default::default() };
-    let scene = host_sim::lightjob::load_scene(&mesh, &load).unwrap();
-    let lights = host_sim::lightjob::resolve_lights(&mesh, &scene, &[]).unwrap();
+    let scene = host_sim::machine::loaded::load_scene(&mesh, &load).unwrap();
+    let lights = host_sim::machine::loaded::resolve_lights(&mesh, &scene, &[]).unwrap();
     let s = source_at(0, lights[0], n).unwrap().voxel();
     (mesh, load, light, vec![[3, 3], [n / 2, n / 2], [s[0] as u32, s[1] as u32]])
 }

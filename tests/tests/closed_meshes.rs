@@ -3,7 +3,7 @@
 //! reaches no voxel whose centre is inside the mesh, at n = 64, 128, 256 (SPEC §2). The same
 //! measure for the thesis's own modes is printed (run with `--nocapture`).
 
-use host_sim::grid::Grid;
+use host_sim::machine::grid::Grid;
 use host_sim::precompute::{prepare, Contour, LoadConfig, Thickness, Q};
 use host_sim::scene;
 use rc2_tests::oracle::flood::leaks;

@@ -7,8 +7,8 @@
 use cell_core::beam::{FracBits, Source, SourceCoord, SourceId};
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
-use host_sim::diffuse::{diffuse, LightConfig, Lighting};
-use host_sim::grid::Grid;
+use host_sim::machine::diffuse::{diffuse, LightConfig, Lighting};
+use host_sim::machine::grid::Grid;
 use host_sim::precompute::{Contour, LoadConfig, Thickness, Q};
 use proptest::prelude::*;
 use rc2_tests::oracle::lit::trace_all_plane;
@@ -251,12 +251,12 @@ fn thesis_shape_and_our_policy() {
 
     let mesh = host_sim::scene::load("cornell").unwrap();
     let cfg = LoadConfig { n: 32, thickness: Thickness::Standard, contour: Contour::Conservative };
-    let loaded = host_sim::lightjob::load_scene(&mesh, &cfg).unwrap();
-    let lights = host_sim::lightjob::resolve_lights(&mesh, &loaded, &[]).unwrap();
+    let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
+    let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
     let lit = |policy, merge| {
         let lcfg = LightConfig { fa: 4, policy, merge, record_visits: false, ..Default::default() };
         let (l, _) =
-            host_sim::lightjob::run_diffusion::<cell_core::beam::frac::U2>(&mesh, &loaded, &lights, &lcfg, |_, _| {})
+            host_sim::machine::lighting::run_diffusion::<cell_core::beam::frac::U2>(&mesh, &loaded, &lights, &lcfg, |_, _| {})
                 .unwrap();
         l.lit_voxels().collect::<Vec<_>>()
     };

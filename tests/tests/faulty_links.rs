@@ -6,11 +6,12 @@
 use cell_core::beam::frac::U0;
 use cell_core::light::Policy;
 use cell_core::shade::NormalMode;
-use host_sim::diffuse::LightConfig;
-use host_sim::faults::LinkFaults;
-use host_sim::lightjob::{load_scene, resolve_lights, run_diffusion};
+use host_sim::machine::diffuse::LightConfig;
+use host_sim::machine::faults::LinkFaults;
+use host_sim::machine::loaded::{load_scene, resolve_lights};
+use host_sim::machine::lighting::run_diffusion;
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
-use host_sim::render::{point_lights, shade_grid};
+use host_sim::machine::shade::{point_lights, shade_grid};
 
 #[test]
 fn faulty_links_light_exactly_what_clean_links_light() {

@@ -17,9 +17,9 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use cell_core::beam::frac::U0;
-use host_sim::diffuse::{FrustumBlocks, LightConfig};
+use host_sim::machine::diffuse::{FrustumBlocks, LightConfig};
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
-use host_sim::trace::{record, TraceJob};
+use host_sim::jobs::trace::{record, TraceJob};
 use rc2_tests::traces::{cornell_job_cells, mutate_row_material};
 
 const TARGET: &str = "thumbv7em-none-eabihf";
@@ -129,7 +129,7 @@ fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
     assert!(traces.len() >= 4, "corner, centre, source and busiest cells");
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("qemu-traces");
     let _ = std::fs::remove_dir_all(&dir);
-    host_sim::trace::write_traces(&dir, &traces).unwrap();
+    host_sim::jobs::trace::write_traces(&dir, &traces).unwrap();
     // Two altered copies of the corner cell's trace (the first one recorded; small, so that the
     // firmware's flash holds them too).
     let corner = traces.first().unwrap();

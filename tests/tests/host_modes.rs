@@ -8,10 +8,12 @@ use cell_core::beam::frac::U0;
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
-use host_sim::diffuse::{FrustumBlocks, LightConfig, SourceReport, Stepping};
-use host_sim::lightjob::{load_scene, resolve_lights, run_diffusion, LoadedScene};
+use host_sim::machine::diffuse::{FrustumBlocks, LightConfig, SourceReport, Stepping};
+use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
+use host_sim::machine::lighting::run_diffusion;
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
-use host_sim::render::{point_lights, shade_grid, write_png};
+use host_sim::machine::shade::{point_lights, shade_grid};
+use host_sim::report::png::write_png;
 use host_sim::scene::Mesh;
 
 /// Everything a run produces that must not depend on the host: per-source reports (cycles and
@@ -150,8 +152,8 @@ fn loading_wave_all_cells_equals_active_cells() {
         let mesh = host_sim::scene::load(scene).unwrap();
         let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
         let packets = host_sim::precompute::prepare(&mesh, &cfg).unwrap().packets;
-        let mut a = host_sim::grid::Grid::<64>::new(n, n);
-        let mut b = host_sim::grid::Grid::<64>::new(n, n);
+        let mut a = host_sim::machine::grid::Grid::<64>::new(n, n);
+        let mut b = host_sim::machine::grid::Grid::<64>::new(n, n);
         let ra = a.load_wave(&packets, |_| {});
         let rb = b.load_wave_all_cells(&packets);
         assert_eq!(ra, rb, "{scene}: cycles and message counts");

@@ -8,15 +8,16 @@ use cell_core::ray::{Connectivity, Q};
 use cell_core::reflect::{combine, hit_normal, reflected_dir, to_answer, toward_origin, Answer, ReflectNormal};
 use cell_core::route::RoutePolicy;
 use cell_core::shade::{encode, facing_mask, shade_linear_toward, NormalMode};
-use host_sim::lightjob::{load_scene, resolve_lights, LoadedScene};
+use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
-use host_sim::reflect::{ray_span, reflect, render_reflect, ReflectConfig, ShadeEnv};
-use host_sim::render::RenderConfig;
+use host_sim::machine::reflect::{ray_span, reflect, ReflectConfig, ShadeEnv};
+use host_sim::jobs::render::render_reflect;
+use host_sim::jobs::render::RenderConfig;
 use host_sim::scene::{Mesh, SceneLight};
 use rc2_tests::oracle::lines::{walk18, walk26, walk6};
 
 fn render_cfg() -> RenderConfig {
-    RenderConfig { light: host_sim::diffuse::LightConfig { fa: 16, ..Default::default() }, normals: NormalMode::Facet }
+    RenderConfig { light: host_sim::machine::diffuse::LightConfig { fa: 16, ..Default::default() }, normals: NormalMode::Facet }
 }
 
 fn load(mesh: &Mesh, n: u32) -> (LoadedScene, Vec<[f64; 3]>) {
@@ -127,9 +128,9 @@ fn grid_trees_match_a_per_ray_oracle() {
     for (mesh, n, depth) in [(host_sim::scene::load("cornell-mirror").unwrap(), 32, 3), (hall_of_mirrors(), 20, 4)] {
         let (s, lights) = load(&mesh, n);
         let (lighting, _) =
-            host_sim::lightjob::run_diffusion::<U0>(&mesh, &s, &lights, &render_cfg().light, |_, _| {}).unwrap();
+            host_sim::machine::lighting::run_diffusion::<U0>(&mesh, &s, &lights, &render_cfg().light, |_, _| {}).unwrap();
         let mask = |x, y, z| lighting.mask(x, y, z);
-        let pl = host_sim::render::point_lights(&lights);
+        let pl = host_sim::machine::shade::point_lights(&lights);
         let env = ShadeEnv::new(&mesh, &pl, NormalMode::Facet, &mask);
         for conn in Connectivity::ALL {
             let cfg0 = config(depth, conn, 1, RoutePolicy::DiagonalFirst);
@@ -178,12 +179,12 @@ fn depth_zero_is_the_plain_render_and_reflections_only_touch_mirrors() {
     let mesh = host_sim::scene::load("cornell-mirror").unwrap();
     let (s, lights) = load(&mesh, 64);
     let rc = render_cfg();
-    let plain = host_sim::render::render::<U0>(&mesh, &s, &lights, &rc, None, 0.0, 0.0, |_, _| {}).unwrap();
+    let plain = host_sim::jobs::render::render::<U0>(&mesh, &s, &lights, &rc, None, 0.0, 0.0, |_, _| {}).unwrap();
     let cfg = config(0, Connectivity::Six, 4, RoutePolicy::Adaptive);
     let (r0, k0) = render_reflect::<U0>(&mesh, &s, &lights, &rc, &cfg, None, [0.0; 2], |_, _| {}).unwrap();
     assert_eq!(r0.image.rgb, plain.image.rgb);
     assert_eq!(k0.rays, 0);
-    let reference = host_sim::reflect::reference_image(&mesh, &s, &lights, 2, 0.01).unwrap();
+    let reference = host_sim::jobs::render::reflect_reference_image(&mesh, &s, &lights, 2, 0.01).unwrap();
     let cfg = config(2, Connectivity::Six, 4, RoutePolicy::Adaptive);
     let (r2, k2) = render_reflect::<U0>(&mesh, &s, &lights, &rc, &cfg, Some(&reference), [0.0; 2], |_, _| {}).unwrap();
     let mirror_mat = mesh.materials.iter().position(|m| m.kr > 0.0).unwrap() as u16;

@@ -4,7 +4,7 @@
 
 use cell_core::shade::{shade, Material as CellMaterial, NormalMode, PointLight, ShadeParams};
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
-use host_sim::refrender::{shade_f64, RefLight};
+use host_sim::truth::refrender::{shade_f64, RefLight};
 use host_sim::scene::Material;
 use proptest::prelude::*;
 
@@ -47,14 +47,14 @@ proptest! {
     }
 }
 
-fn render_once(scene: &str, n: u32) -> (host_sim::render::Image, host_sim::render::RenderStats) {
+fn render_once(scene: &str, n: u32) -> (host_sim::machine::shade::Image, host_sim::jobs::render::RenderStats) {
     let mesh = host_sim::scene::load(scene).unwrap();
     let cfg = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
-    let loaded = host_sim::lightjob::load_scene(&mesh, &cfg).unwrap();
-    let lights = host_sim::lightjob::resolve_lights(&mesh, &loaded, &[]).unwrap();
-    let reference = host_sim::render::reference_image(&mesh, &loaded, &lights).unwrap();
-    let rcfg = host_sim::render::RenderConfig {
-        light: host_sim::diffuse::LightConfig {
+    let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
+    let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
+    let reference = host_sim::jobs::render::reference_image(&mesh, &loaded, &lights).unwrap();
+    let rcfg = host_sim::jobs::render::RenderConfig {
+        light: host_sim::machine::diffuse::LightConfig {
             fa: 16,
             policy: cell_core::light::Policy::Wavefront,
             merge: true,
@@ -63,7 +63,7 @@ fn render_once(scene: &str, n: u32) -> (host_sim::render::Image, host_sim::rende
         },
         normals: NormalMode::Facet,
     };
-    let r = host_sim::render::render::<cell_core::beam::frac::U0>(
+    let r = host_sim::jobs::render::render::<cell_core::beam::frac::U0>(
         &mesh,
         &loaded,
         &lights,
@@ -85,8 +85,8 @@ fn render_is_deterministic_and_close_to_the_reference() {
     let dir = std::env::temp_dir().join(format!("rc2-render-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let (p, q) = (dir.join("a.png"), dir.join("b.png"));
-    host_sim::render::write_png(&p, a.n, &a.rgb).unwrap();
-    host_sim::render::write_png(&q, b.n, &b.rgb).unwrap();
+    host_sim::report::png::write_png(&p, a.n, &a.rgb).unwrap();
+    host_sim::report::png::write_png(&q, b.n, &b.rgb).unwrap();
     assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(&q).unwrap(), "same bytes");
     // The cell's arithmetic against f64 on every pixel, same inputs.
     assert!(sa.shading_max_err_levels <= TOLERANCE_LEVELS, "{}", sa.shading_max_err_levels);

@@ -1,10 +1,10 @@
-//! Destination-addressed routing (§1.3, §4.1.3; `cell_core::route`, `host_sim::network`):
+//! Destination-addressed routing (§1.3, §4.1.3; `cell_core::route`, `host_sim::machine::network`):
 //! random all-to-all and adversarial traffic on grids with 2-message buffers is delivered
 //! exactly once, to the right cell, in bounded cycles, and the stall detector never fires —
 //! under both routing policies.
 
 use cell_core::route::{RoutePolicy, Routed};
-use host_sim::network::Network;
+use host_sim::machine::network::Network;
 
 mod common;
 
@@ -131,15 +131,15 @@ fn hotspot_and_transpose_traffic() {
 fn classic_answers_match_a_per_ray_oracle() {
     use cell_core::lit::LitRule;
     use cell_core::ray::{Connectivity, Q};
-    use host_sim::classic::{classic, ClassicConfig};
+    use host_sim::machine::classic::{classic, ClassicConfig};
     use host_sim::precompute::{Contour, LoadConfig, Thickness};
     use rc2_tests::oracle::lines::{walk18, walk26, walk6};
 
     let mesh = host_sim::scene::load("cornell").unwrap();
     let n = 32;
     let cfg = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
-    let loaded = host_sim::lightjob::load_scene(&mesh, &cfg).unwrap();
-    let mut lights = host_sim::lightjob::resolve_lights(&mesh, &loaded, &[]).unwrap();
+    let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
+    let mut lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
     lights.push([3.0, 20.0, 9.5]); // a second source, low and to the side
     let grid = &loaded.grid;
     for (conn, bias) in Connectivity::ALL.into_iter().map(|c| (c, 0u8)).chain([(Connectivity::Six, 2)]) {
@@ -231,15 +231,15 @@ fn classic_answers_match_a_per_ray_oracle() {
 fn classic_plane_answers_match_the_segment_oracle() {
     use cell_core::lit::LitRule;
     use cell_core::ray::{Connectivity, Q};
-    use host_sim::classic::{classic, ClassicConfig};
+    use host_sim::machine::classic::{classic, ClassicConfig};
     use host_sim::precompute::{Contour, LoadConfig, Thickness};
 
     for (scene, extra) in [("cornell", [3.0, 20.0, 9.5]), ("teapot-floor", [30.0, 2.0, 4.0])] {
         let mesh = host_sim::scene::load(scene).unwrap();
         let n = 32;
         let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
-        let loaded = host_sim::lightjob::load_scene(&mesh, &cfg).unwrap();
-        let mut lights = host_sim::lightjob::resolve_lights(&mesh, &loaded, &[]).unwrap();
+        let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
+        let mut lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
         lights.push(extra);
         let grid = &loaded.grid;
         let occ = common::occupants_of(grid);
@@ -303,7 +303,7 @@ mod random_sources {
     use cell_core::lit::LitRule;
     use cell_core::ray::{Connectivity, Q};
     use cell_core::route::RoutePolicy;
-    use host_sim::classic::{classic, ClassicConfig};
+    use host_sim::machine::classic::{classic, ClassicConfig};
     use host_sim::precompute::{Contour, LoadConfig, Thickness};
     use proptest::prelude::*;
 
@@ -318,7 +318,7 @@ mod random_sources {
             let mesh = host_sim::scene::load(scene).unwrap();
             let n = 16;
             let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
-            let loaded = host_sim::lightjob::load_scene(&mesh, &cfg).unwrap();
+            let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
             let lights: Vec<[f64; 3]> = lights16.iter().map(|l| l.map(|c| c as f64 / Q as f64)).collect();
             let grid = &loaded.grid;
             let occ = common::occupants_of(grid);

@@ -1,4 +1,4 @@
-//! Shadows against the exact f64 reference (`host_sim::refrender`): no light passes through a
+//! Shadows against the exact f64 reference (`host_sim::truth::refrender`): no light passes through a
 //! closed mesh, and the image does not depend on which way the facets are wound.
 //!
 //! *Behind a solid*: a floor pixel that faces a source while every path to the source from the
@@ -14,9 +14,10 @@ use cell_core::beam::frac::U0;
 use cell_core::beam::FracBits;
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
-use host_sim::diffuse::LightConfig;
+use host_sim::machine::diffuse::LightConfig;
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
-use host_sim::render::{Image, RenderConfig};
+use host_sim::machine::shade::Image;
+use host_sim::jobs::render::RenderConfig;
 use host_sim::scene::Mesh;
 
 /// Voxels of a closed mesh every path from a pixel's neighbourhood to a source must cross for
@@ -25,7 +26,7 @@ const SOLID_VOXELS: f64 = 1.0;
 
 /// Length (voxels) of the segment from `p` to `l` inside the meshes it crosses: the parts
 /// between its entering and leaving crossings, the start outside (`own` ignored).
-fn inside_length(r: &host_sim::reference::Reference, p: [f64; 3], l: [f64; 3], own: u32, voxel: f64) -> f64 {
+fn inside_length(r: &host_sim::truth::visibility::Reference, p: [f64; 3], l: [f64; 3], own: u32, voxel: f64) -> f64 {
     let d = [0, 1, 2].map(|k| l[k] - p[k]);
     let mut ignore = vec![own];
     let mut ts: Vec<f64> = Vec::new();
@@ -44,10 +45,10 @@ fn inside_length(r: &host_sim::reference::Reference, p: [f64; 3], l: [f64; 3], o
 /// the source, and the segments to the source from every corner of the pixel's footprint on
 /// the floor, and from the same corners one voxel in front of it — the region whose rays the
 /// machine may count for the pixel — all run at least [`SOLID_VOXELS`] inside the mesh
-/// (exact f64 ray casts, `host_sim::reference`).
+/// (exact f64 ray casts, `host_sim::truth::visibility`).
 fn behind_solids(mesh: &Mesh, fit: &host_sim::precompute::Fit, n: u32, lights: &[[f64; 3]]) -> Vec<u32> {
-    let (tris, facets) = host_sim::refrender::mesh_triangles(mesh).unwrap();
-    let r = host_sim::reference::Reference::new(tris, facets).unwrap();
+    let (tris, facets) = host_sim::truth::refrender::mesh_triangles(mesh).unwrap();
+    let r = host_sim::truth::visibility::Reference::new(tris, facets).unwrap();
     let mut out = vec![0u32; (n * n) as usize];
     let Some(floor) = mesh.faces.iter().position(|f| mesh.materials[f.material as usize].name == "floor") else {
         return out;
@@ -100,11 +101,11 @@ const DEFAULT: Setup = Setup { thickness: Thickness::Standard, contour: Contour:
 
 /// `render` with the job's defaults for `setup` (visible-only lit store, hidden-voxel skip),
 /// the reference image and which pixels face which source.
-fn render<F: FracBits>(mesh: &Mesh, n: u32, setup: &Setup) -> (Image, host_sim::refrender::RefImage, Vec<u32>) {
+fn render<F: FracBits>(mesh: &Mesh, n: u32, setup: &Setup) -> (Image, host_sim::truth::refrender::RefImage, Vec<u32>) {
     let cfg = LoadConfig { n, thickness: setup.thickness, contour: setup.contour };
-    let loaded = host_sim::lightjob::load_scene(mesh, &cfg).unwrap();
-    let lights = host_sim::lightjob::resolve_lights(mesh, &loaded, &[]).unwrap();
-    let reference = host_sim::render::reference_image(mesh, &loaded, &lights).unwrap();
+    let loaded = host_sim::machine::loaded::load_scene(mesh, &cfg).unwrap();
+    let lights = host_sim::machine::loaded::resolve_lights(mesh, &loaded, &[]).unwrap();
+    let reference = host_sim::jobs::render::reference_image(mesh, &loaded, &lights).unwrap();
     let light = LightConfig {
         rule: setup.rule,
         policy: if setup.rule == LitRule::Plane { Policy::Radial } else { Policy::Wavefront },
@@ -114,7 +115,7 @@ fn render<F: FracBits>(mesh: &Mesh, n: u32, setup: &Setup) -> (Image, host_sim::
     };
     let rcfg = RenderConfig { light, normals: cell_core::shade::NormalMode::Facet };
     let r =
-        host_sim::render::render::<F>(mesh, &loaded, &lights, &rcfg, Some(&reference), 0.0, 0.0, |_, _| {}).unwrap();
+        host_sim::jobs::render::render::<F>(mesh, &loaded, &lights, &rcfg, Some(&reference), 0.0, 0.0, |_, _| {}).unwrap();
     let mut behind = behind_solids(mesh, &loaded.fit, n, &lights);
     // A silhouette pixel the reference sees the floor through but the machine shades the
     // mesh at (its contour is conservative; the thesis's rule shows the first voxel) shows
@@ -144,7 +145,7 @@ fn sizes() -> Vec<u32> {
 /// sharp creases).
 fn closed_on_floor(name: &str) -> Mesh {
     let mut mesh = host_sim::scene::load(name).unwrap();
-    let o = host_sim::meshops::orient(&mut mesh.clone());
+    let o = host_sim::scene::meshops::orient(&mut mesh.clone());
     assert!(o.components > 0 && o.closed == o.components, "{name} is closed: {o:?}");
     host_sim::scene::add_floor(&mut mesh);
     mesh
@@ -188,7 +189,7 @@ fn leaky_modes_do_leak() {
 #[test]
 fn stray_or_inverted_windings_do_not_change_the_light() {
     // The lit rule reads a facet's winding as the side light travels on; the loader makes
-    // every surface consistent and closed ones outward (`host_sim::meshops::orient`). The cow
+    // every surface consistent and closed ones outward (`host_sim::scene::meshops::orient`). The cow
     // written inside out, or with one face in three reversed, and loaded from the file renders
     // exactly as the built-in cow.
     let cow = host_sim::scene::load("cow").unwrap();
@@ -201,7 +202,7 @@ fn stray_or_inverted_windings_do_not_change_the_light() {
             f.verts.reverse();
         }
         let path = dir.join(format!("cow-{every}.obj"));
-        host_sim::meshops::write_obj(&bad, std::fs::File::create(&path).unwrap()).unwrap();
+        host_sim::scene::meshops::write_obj(&bad, std::fs::File::create(&path).unwrap()).unwrap();
         let mut loaded = host_sim::scene::load(path.to_str().unwrap()).unwrap();
         assert_eq!(loaded.rewound, cow.faces.len().div_ceil(every), "every {every}");
         loaded.lights = cow.lights.clone();

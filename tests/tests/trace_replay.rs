@@ -8,9 +8,10 @@ use cell_core::beam::frac::{U0, U2};
 use cell_core::beam::FracBits;
 use cell_core::light::Policy;
 use cell_core::trace::{write_event, Parser};
-use host_sim::diffuse::{FrustumBlocks, LightConfig, FA_CAP, LIT_CAP, OB_CAP};
+use host_sim::machine::diffuse::{FrustumBlocks, LightConfig};
+use host_sim::machine::capacity::{FA_CAP, LIT_CAP, OB_CAP};
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
-use host_sim::trace::{record, CellTrace, TraceJob};
+use host_sim::jobs::trace::{record, CellTrace, TraceJob};
 use rc2_tests::traces::mutate_row_material;
 
 type Replay = fn(&[u8]) -> Result<(u64, cell_core::trace::ReplayStats), cell_core::trace::ReplayError>;
@@ -130,9 +131,9 @@ fn peak_link_load_equals_the_busiest_link_in_the_traces() {
     let mut best = (0u64, u32::MAX);
     let mesh = host_sim::scene::load("cornell").unwrap();
     let load = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
-    let scene = host_sim::lightjob::load_scene(&mesh, &load).unwrap();
-    let lights = host_sim::lightjob::resolve_lights(&mesh, &scene, &[]).unwrap();
-    let s = host_sim::diffuse::source_at(0, lights[0], n).unwrap().voxel();
+    let scene = host_sim::machine::loaded::load_scene(&mesh, &load).unwrap();
+    let lights = host_sim::machine::loaded::resolve_lights(&mesh, &scene, &[]).unwrap();
+    let s = host_sim::machine::diffuse::source_at(0, lights[0], n).unwrap().voxel();
     for t in &traces {
         let mut per_port = [0u64; 8];
         let mut p = Parser::<U0>::new(&t.bytes);
@@ -149,7 +150,7 @@ fn peak_link_load_equals_the_busiest_link_in_the_traces() {
         }
     }
     let cfg = LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, ..Default::default() };
-    let (_, stats) = host_sim::lightjob::run_diffusion::<U0>(&mesh, &scene, &lights, &cfg, |_, _| {}).unwrap();
+    let (_, stats) = host_sim::machine::lighting::run_diffusion::<U0>(&mesh, &scene, &lights, &cfg, |_, _| {}).unwrap();
     let c = &stats.sources[0].counts;
     assert!(best.0 > 0);
     assert_eq!(c.peak_link_load, best.0, "peak link load");
@@ -171,8 +172,8 @@ fn light_records_carry_the_wait_and_the_summary() {
     for (scene, n) in [("teapot-floor", 24), ("cow-floor", 21), ("cornell", 16)] {
         let mesh = host_sim::scene::load(scene).unwrap();
         let load = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
-        let loaded = host_sim::lightjob::load_scene(&mesh, &load).unwrap();
-        let summary = host_sim::diffuse::occupancy_summary(&loaded.grid, cell_core::lit::LitRule::Thesis);
+        let loaded = host_sim::machine::loaded::load_scene(&mesh, &load).unwrap();
+        let summary = host_sim::machine::diffuse::occupancy_summary(&loaded.grid, cell_core::lit::LitRule::Thesis);
         assert!(!summary.is_empty());
         let setup = LightSetup {
             source: Source::at_voxel(SourceId(0), [3, 4, 5]).unwrap(),

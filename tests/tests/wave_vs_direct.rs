@@ -3,7 +3,7 @@
 
 mod common;
 
-use host_sim::grid::Grid;
+use host_sim::machine::grid::Grid;
 use host_sim::precompute::{prepare, Contour, LoadConfig, Thickness};
 use host_sim::scene;
 

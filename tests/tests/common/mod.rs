@@ -40,7 +40,7 @@ pub fn wave_and_oracle_voxels(
 ) -> (Vec<[i64; 3]>, Vec<[i64; 3]>) {
     use host_sim::precompute::{facet_packet, LoadConfig, Q};
     let cfg = LoadConfig { n, thickness, contour };
-    let mut grid = host_sim::grid::Grid::<64>::new(n, n);
+    let mut grid = host_sim::machine::grid::Grid::<64>::new(n, n);
     if let Ok(pkt) = facet_packet(piece, cell_core::dexel::FacetTag::default(), &cfg).expect("in budget") {
         grid.load_wave(std::slice::from_ref(&pkt), |_| {});
     }
@@ -67,14 +67,14 @@ fn surface(lo: i64, p: &cell_core::plane::DexelPlane) -> rc2_tests::oracle::lit:
 
 /// The plane rule's oracle view of a loaded grid: each occupied voxel's dexel plane.
 pub fn surfaces_of<const D: usize>(
-    g: &host_sim::grid::Grid<D>,
+    g: &host_sim::machine::grid::Grid<D>,
 ) -> impl Fn(i64, i64, i64) -> Option<rc2_tests::oracle::lit::Surface> + '_ {
     move |x, y, z| g.cell(x as u32, y as u32).store.occupied(z as u16).map(|d| surface(d.span.lo as i64, &d.plane))
 }
 
 /// The plane rule's oracle view of a loaded grid: each column's visible surface.
 pub fn columns_of<const D: usize>(
-    g: &host_sim::grid::Grid<D>,
+    g: &host_sim::machine::grid::Grid<D>,
 ) -> impl Fn(i64, i64) -> Option<rc2_tests::oracle::lit::Visible> + '_ {
     move |x, y| {
         g.cell(x as u32, y as u32)
@@ -86,7 +86,7 @@ pub fn columns_of<const D: usize>(
 /// The classic shadow-ray oracle's view of a loaded grid: each occupied voxel's plane id and
 /// plane.
 pub fn occupants_of<const D: usize>(
-    g: &host_sim::grid::Grid<D>,
+    g: &host_sim::machine::grid::Grid<D>,
 ) -> impl Fn(i64, i64, i64) -> Option<rc2_tests::oracle::shadow::Occupant> + '_ {
     let planes = surfaces_of(g);
     move |x, y, z| {
@@ -100,7 +100,7 @@ pub fn occupants_of<const D: usize>(
 
 /// The emitting surface of column (x, y) for the classic shadow-ray oracle.
 pub fn emitter_of<const D: usize>(
-    g: &host_sim::grid::Grid<D>,
+    g: &host_sim::machine::grid::Grid<D>,
     x: u32,
     y: u32,
 ) -> Option<rc2_tests::oracle::shadow::Emitter> {

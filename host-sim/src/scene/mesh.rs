@@ -1,11 +1,11 @@
-//! Scenes: OBJ meshes (through `tobj`) and the built-in scenes.
+//! Meshes: the polygons, materials and lights of a scene, and the OBJ/MTL reader (through `tobj`).
 //!
 //! A [`Mesh`] keeps the polygons as the file gives them (no triangulation here: the host
 //! precompute keeps planar convex polygons and splits the rest) with world coordinates in
 //! `f64` and one material per face — wound consistently, closed surfaces outward
-//! ([`crate::meshops::orient`]: the lit rule reads the winding).
+//! ([`crate::scene::meshops::orient`]: the lit rule reads the winding).
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use std::io::BufReader;
 use std::path::Path;
 
@@ -68,100 +68,8 @@ pub struct Mesh {
     /// The scene's own lights (built-ins); `--light` replaces them.
     pub lights: Vec<SceneLight>,
     /// Faces whose winding the loader reversed to make each surface consistent, closed ones
-    /// outward ([`crate::meshops::orient`]).
+    /// outward ([`crate::scene::meshops::orient`]).
     pub rewound: usize,
-}
-
-/// Built-in scenes: name, one-line description.
-pub const BUILTINS: &[(&str, &str)] = &[
-    ("cornell", "the Cornell box (published geometry: 5 walls, ceiling light, two blocks)"),
-    ("cornell-mirror", "the Cornell box with the tall block a mirror (Kr 0.85): for --reflections"),
-    ("empty", "nothing: an empty grid with one light at the centre (the thesis's diffusion experiment)"),
-    ("facet", "a single triangle in general position"),
-    ("teapot", "Utah teapot, 6 320 triangles (open surface)"),
-    ("cow", "cow, 5 804 triangles (closed)"),
-    ("fandisk", "fandisk CAD part, 12 946 triangles (closed)"),
-    ("suzanne", "Blender's Suzanne, 500 polygons (open)"),
-    ("teapot-floor", "the teapot on a floor (the plane behind it, facing the camera), lit from the front"),
-    ("cow-floor", "the cow on a floor (the plane behind it, facing the camera), lit from the front"),
-    ("bureau1", "procedural office (thesis's Bureau1): desk, CRT, chair, bookshelf; 8 038 facets, 1 light"),
-    (
-        "bureau2",
-        "procedural office for three (thesis's Bureau2): desks, meeting table, shelves; 17 289 facets, 2 lights",
-    ),
-    ("classe", "procedural classroom (thesis's Classe): 20 desks, 40 chairs, blackboard; 38 603 facets, 26 lights"),
-];
-
-const CORNELL_OBJ: &str = include_str!("../scenes/cornell.obj");
-const CORNELL_MTL: &str = include_str!("../scenes/cornell.mtl");
-const CORNELL_MIRROR_OBJ: &str = include_str!("../scenes/cornell-mirror.obj");
-const CORNELL_MIRROR_MTL: &str = include_str!("../scenes/cornell-mirror.mtl");
-const FACET_OBJ: &str = "# rc2 built-in: one triangle in general position\n\
-v 0.10 0.20 0.30\nv 0.90 0.35 0.60\nv 0.40 0.85 0.15\nf 1 2 3\n";
-
-fn builtin_source(name: &str) -> Option<(&'static str, Option<&'static str>)> {
-    Some(match name {
-        "cornell" => (CORNELL_OBJ, Some(CORNELL_MTL)),
-        "cornell-mirror" => (CORNELL_MIRROR_OBJ, Some(CORNELL_MIRROR_MTL)),
-        "facet" => (FACET_OBJ, None),
-        "teapot" => (include_str!("../scenes/teapot.obj"), None),
-        "cow" => (include_str!("../scenes/cow.obj"), None),
-        "fandisk" => (include_str!("../scenes/fandisk.obj"), None),
-        "suzanne" => (include_str!("../scenes/suzanne.obj"), None),
-        _ => return None,
-    })
-}
-
-/// Load a scene: a built-in name (see [`BUILTINS`]) or a path to an `.obj` file.
-pub fn load(scene: &str) -> Result<Mesh> {
-    if scene == "empty" {
-        return Ok(Mesh {
-            name: "empty".into(),
-            materials: vec![Material::default()],
-            lights: vec![SceneLight::Grid([0.5; 3])],
-            ..Default::default()
-        });
-    }
-    if matches!(scene, "bureau1" | "bureau2" | "classe") {
-        return crate::office::generate(scene);
-    }
-    if let Some(base) = scene.strip_suffix("-floor").filter(|b| matches!(*b, "teapot" | "cow")) {
-        let mut mesh = load(base)?;
-        add_floor(&mut mesh);
-        mesh.name = scene.to_string();
-        return Ok(mesh);
-    }
-    if let Some((obj, mtl)) = builtin_source(scene) {
-        let mut mesh = parse_obj(scene, obj, |_| match mtl {
-            Some(m) => load_mtl_bytes(scene, m.as_bytes()),
-            None => Err(tobj::LoadError::OpenFileFailed),
-        })?;
-        mesh.lights = match scene {
-            // The centre of the published light quad (213..343 × 227..332 at y = 548.8).
-            "cornell" | "cornell-mirror" => vec![SceneLight::World([278.0, 548.8, 279.5])],
-            "facet" => vec![SceneLight::Grid([0.5, 0.5, 0.05])],
-            _ => vec![SceneLight::Grid([0.5, 0.95, 0.05])],
-        };
-        return Ok(mesh);
-    }
-    let path = Path::new(scene);
-    if !path.exists() {
-        let names: Vec<_> = BUILTINS.iter().map(|b| b.0).collect();
-        bail!("scene '{scene}' is neither a file nor a built-in scene (built-ins: {})", names.join(", "));
-    }
-    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let text = obj_text(&path.display().to_string(), &bytes)?;
-    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let mesh = parse_obj(&name, text, |mtl| {
-        let path = dir.join(mtl);
-        let bytes = std::fs::read(&path).map_err(|_| tobj::LoadError::OpenFileFailed)?;
-        load_mtl_bytes(&path.display().to_string(), &bytes)
-    })?;
-    if mesh.faces.is_empty() {
-        bail!("{name}: the mesh has no faces: nothing to load (only the built-in 'empty' scene may be empty)");
-    }
-    Ok(mesh)
 }
 
 fn convert_material(m: &tobj::Material) -> Material {
@@ -222,7 +130,7 @@ pub fn add_floor(mesh: &mut Mesh) {
 }
 
 /// OBJ bytes as text: invalid UTF-8 is refused (binary junk, wrong format).
-fn obj_text<'a>(what: &str, bytes: &'a [u8]) -> Result<&'a str> {
+pub(super) fn obj_text<'a>(what: &str, bytes: &'a [u8]) -> Result<&'a str> {
     std::str::from_utf8(bytes)
         .map_err(|e| anyhow::anyhow!("{what}: not a text OBJ file (invalid UTF-8 at byte {})", e.valid_up_to()))
 }
@@ -241,7 +149,7 @@ pub fn load_obj_bytes(name: &str, obj: &[u8], mtl: Option<&[u8]>) -> Result<Mesh
 /// statement (`Ka`, `Kd`, `Ks`, `Ke`) with fewer than three numbers (found by the `obj_load`
 /// fuzz target; regression input `fuzz/regressions/obj_load/crash-short-ke`). The refusal is a
 /// warning naming the line; the scene then uses the default material, like any unreadable MTL.
-fn load_mtl_bytes(what: &str, bytes: &[u8]) -> tobj::MTLLoadResult {
+pub(super) fn load_mtl_bytes(what: &str, bytes: &[u8]) -> tobj::MTLLoadResult {
     if let Some((line, key, k)) = short_colour(bytes) {
         eprintln!("warning: {what}: line {line}: '{key}' needs 3 numbers, found {k}");
         return Err(tobj::LoadError::MaterialParseError);
@@ -332,7 +240,7 @@ where
             }
         }
     }
-    let o = crate::meshops::orient(&mut mesh);
+    let o = crate::scene::meshops::orient(&mut mesh);
     if o.rewound > 0 {
         // The plane lit rule reads a facet's winding as its outer side (docs/LIGHTING.md).
         eprintln!(
@@ -350,6 +258,7 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::builtin::{load, BUILTINS};
 
     #[test]
     fn short_colour_lines_in_mtl_are_refused_not_panicked_on() {

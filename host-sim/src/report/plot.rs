@@ -117,7 +117,7 @@ pub const THESIS_T_UNBOUNDED: &[(u32 /*N*/, u32 /*FA*/, u64 /*T*/)] = &[
 pub const PLOT_SIZE: (u32, u32) = (1600, 700);
 
 /// DejaVu Sans (Bitstream Vera licence, see `assets/DejaVuSans-LICENSE.txt`).
-const FONT_BYTES: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+const FONT_BYTES: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 /// The family name plotters' default styles ask for; the embedded font is registered under it.
 const FONT: &str = "sans-serif";
 

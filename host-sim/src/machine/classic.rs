@@ -17,7 +17,7 @@
 //!    An answer goes to the cell's router, addressed to the emitter. If the buffer or the router
 //!    channel is full the ray is not processed (no loss, §4.4.2), goes to the FIFO's tail, and
 //!    the cell is blocked for the cycle (the thesis's policy).
-//! 2. **links**: answers first ([`crate::network`]: routers, virtual channels, credits), then
+//! 2. **links**: answers first ([`crate::machine::network`]: routers, virtual channels, credits), then
 //!    rays (output buffer → neighbour FIFO when it has room); one message per link, direction
 //!    and cycle, whatever its kind.
 //! 3. each router hands at most one answer per cycle to its cell, which records it.
@@ -39,9 +39,12 @@ use cell_core::lit::LitRule;
 use cell_core::ray::{Connectivity, RayStep, ShadowRay};
 use cell_core::route::{RoutePolicy, Routed};
 
-use crate::diffuse::{DiffusionCounts, SourceReport, FA_CAP};
-use crate::lightjob::{LightStats, LoadedScene};
-use crate::network::Network;
+use crate::machine::diffuse::{DiffusionCounts, SourceReport};
+
+use crate::machine::capacity::FA_CAP;
+use crate::machine::lighting::LightStats;
+use crate::machine::loaded::LoadedScene;
+use crate::machine::network::Network;
 use crate::scene::Mesh;
 
 /// Classic-phase settings.
@@ -168,7 +171,7 @@ pub fn classic(
         bail!("--fa {} is out of range: 1 ..= {FA_CAP}", cfg.fa);
     }
     for (i, &l) in lights.iter().enumerate() {
-        crate::diffuse::source_at(i, l, n)?;
+        crate::machine::diffuse::source_at(i, l, n)?;
     }
     if cfg.rule == LitRule::Plane && cfg.connectivity != Connectivity::Six {
         bail!(
@@ -456,94 +459,13 @@ pub fn run_classic<F: FracBits>(
         bytes_beam_message: std::mem::size_of::<ShadowRay>(),
         bytes_light_cell: cfg.fa * std::mem::size_of::<ShadowRay>()
             + 8 * std::mem::size_of::<Option<ShadowRay>>()
-            + std::mem::size_of::<crate::network::HostRouter<bool>>(),
+            + std::mem::size_of::<crate::machine::network::HostRouter<bool>>(),
         sources,
         wall_seconds: wall,
-        peak_rss_mib: crate::load::peak_rss_mib(),
+        peak_rss_mib: crate::machine::load::peak_rss_mib(),
         link_faults: None,
     };
     Ok((cl, stats))
-}
-
-/// How the lighting jobs compute the lit state.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum LightingArg {
-    /// Beam diffusion from each source (§4.3).
-    Diffusion,
-    /// One shadow ray per visible voxel and source, answers routed back (§4.1.2).
-    Classic,
-}
-
-/// Answer routing of the classic phase.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum RouteArg {
-    /// Diagonal first, then straight.
-    Dor,
-    /// The minimal move with the most free buffer space.
-    Adaptive,
-}
-
-/// Command-line options of the classic phase (flattened into the lighting options).
-#[derive(clap::Args, Debug, Clone)]
-pub struct ClassicOpts {
-    /// Lighting method: diffusion (beams) or classic (shadow rays, answers routed back).
-    #[arg(long, value_enum, default_value_t = LightingArg::Diffusion)]
-    pub lighting: LightingArg,
-    /// Connectivity of classic shadow rays: 6 (Amanatides–Woo; no surface thickness lets it
-    /// through), 18, or 26 (DDA; passes through naive surfaces).
-    #[arg(long, default_value_t = 6, value_parser = parse_connectivity)]
-    pub ray_connectivity: u8,
-    /// Routing of classic answers.
-    #[arg(long, value_enum, default_value_t = RouteArg::Adaptive)]
-    pub route: RouteArg,
-    /// Which voxels send classic shadow rays: the visible ones (what the image needs) or all
-    /// occupied voxels (the thesis's count, §4.1.6).
-    #[arg(long, value_enum, default_value_t = EmittersArg::Visible)]
-    pub emitters: EmittersArg,
-    /// Shadow bias of classic rays: the first K voxels after the emitter's are not tested, so
-    /// a ray ignores the neighbouring facets of its own object (shadow acne) but misses shadows
-    /// cast within K voxels. 0 (default) = only the emitter's own facet is ignored.
-    #[arg(long, default_value_t = 0)]
-    pub shadow_bias: u8,
-}
-
-/// Emitters of classic shadow rays.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum EmittersArg {
-    /// The first occupied voxel of each column.
-    Visible,
-    /// Every occupied voxel.
-    All,
-}
-
-fn parse_connectivity(s: &str) -> std::result::Result<u8, String> {
-    match s {
-        "6" => Ok(6),
-        "18" => Ok(18),
-        "26" => Ok(26),
-        _ => Err(format!("'{s}' is not a ray connectivity: 6, 18 or 26")),
-    }
-}
-
-impl ClassicOpts {
-    /// The classic configuration with FIFO limit `fa` and lit rule `rule`.
-    pub fn config(&self, fa: usize, rule: LitRule) -> ClassicConfig {
-        ClassicConfig {
-            fa,
-            connectivity: match self.ray_connectivity {
-                18 => Connectivity::Eighteen,
-                26 => Connectivity::TwentySix,
-                _ => Connectivity::Six,
-            },
-            route: match self.route {
-                RouteArg::Dor => RoutePolicy::DiagonalFirst,
-                RouteArg::Adaptive => RoutePolicy::Adaptive,
-            },
-            all_voxels: self.emitters == EmittersArg::All,
-            bias: self.shadow_bias,
-            rule,
-        }
-    }
 }
 
 /// One line of classic counters for the job summaries.
@@ -562,37 +484,4 @@ pub fn summary(c: &ClassicCounts) -> String {
         c.peak_link_distance,
         c.peak_fifo
     )
-}
-
-/// `render --lighting classic`: the classic phase, then the same shading and report as
-/// diffusion ([`crate::render::finish_render`]).
-#[allow(clippy::too_many_arguments)]
-pub fn render_classic<F: FracBits>(
-    mesh: &Mesh,
-    scene: &LoadedScene,
-    lights: &[[f64; 3]],
-    cfg: &crate::render::RenderConfig,
-    classic_cfg: &ClassicConfig,
-    reference: Option<&crate::refrender::RefImage>,
-    load_seconds: f64,
-    reference_seconds: f64,
-    progress: impl FnMut(usize, u64),
-) -> Result<(crate::render::Rendered, ClassicCounts)> {
-    let t0 = Instant::now();
-    let (cl, stats) = run_classic::<F>(mesh, scene, lights, classic_cfg, progress)?;
-    let times = [load_seconds, t0.elapsed().as_secs_f64(), reference_seconds];
-    let r = crate::render::finish_render(
-        mesh,
-        scene,
-        lights,
-        cfg,
-        reference,
-        &match classic_cfg.rule {
-            LitRule::Thesis => crate::render::Seen::FirstVoxel(Box::new(|x, y, _| cl.mask(x, y))),
-            LitRule::Plane => crate::render::Seen::Surface(Box::new(|x, y| cl.mask(x, y))),
-        },
-        stats,
-        times,
-    );
-    Ok((r, cl.totals))
 }

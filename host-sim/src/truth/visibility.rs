@@ -743,7 +743,7 @@ mod tests {
     }
 
     fn scene_triangles(name: &str) -> (Vec<[V3; 3]>, Vec<u32>) {
-        let mesh = crate::meshops::triangulated(&crate::scene::load(name).unwrap());
+        let mesh = crate::scene::meshops::triangulated(&crate::scene::load(name).unwrap());
         let mut tris = Vec::new();
         let mut facets = Vec::new();
         for (i, f) in mesh.faces.iter().enumerate() {

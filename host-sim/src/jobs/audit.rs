@@ -14,13 +14,16 @@ use cell_core::facet::{PipelinePacket, RowPacket};
 use cell_core::light::{BeamMsg, LitRun, LitRuns, OutBuffers};
 use cell_core::link::{BEAM_PAYLOAD, HEADER, MAX_FRAME, ROW_PAYLOAD_BASE, TRAILER};
 
-use crate::diffuse::{FrustumBlocks, LightConfig, FA_CAP, LIT_CAP, OB_CAP};
-use crate::lightjob::{load_scene, resolve_lights, run_diffusion};
+use crate::machine::diffuse::{FrustumBlocks, LightConfig};
+
+use crate::machine::capacity::{FA_CAP, LIT_CAP, OB_CAP};
+use crate::machine::loaded::{load_scene, resolve_lights};
+use crate::machine::lighting::run_diffusion;
 use crate::precompute::LoadConfig;
 use crate::scene::Mesh;
 
 /// The per-cell RAM budget: the RAM `LENGTH` of the top-level `memory.x`.
-pub const MEMORY_X: &str = include_str!("../../memory.x");
+pub const MEMORY_X: &str = include_str!("../../../memory.x");
 
 /// Bytes of the `RAM` region in a linker memory script (`LENGTH = 64K`, `0x10000`, `65536`).
 pub fn ram_budget(memory_x: &str) -> Option<usize> {
@@ -185,7 +188,7 @@ pub fn audit(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig, elf: Option<&st
             runs_cell = [c.x as u32, c.y as u32];
         }
     }
-    type Light = crate::diffuse::HostLightCell<U0>;
+    type Light = crate::machine::capacity::HostLightCell<U0>;
     let (b_dexel, b_msg, b_run) = (size_of::<Dexel>(), size_of::<BeamMsg<U0>>(), size_of::<LitRun>());
     let static_fifo = size_of::<heapless::Vec<BeamMsg<U0>, FA_CAP>>();
     let static_out = size_of::<OutBuffers<U0, OB_CAP>>();

@@ -1264,7 +1264,7 @@ pub fn build(kind: Kind) -> Office {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::load::{voxelize, Engine};
+    use crate::machine::load::{voxelize, Engine};
     use crate::precompute::{Contour, LoadConfig, Thickness};
 
     fn cfg(n: u32) -> LoadConfig {

@@ -12,7 +12,7 @@ use cell_core::cell::Cell;
 use cell_core::facet::{PipelinePacket, RowPacket};
 use cell_core::voxelize::{row_span, PipelineCell};
 
-use crate::trace::Tap;
+use crate::machine::tap::Tap;
 
 /// Counters of one loading run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -30,6 +30,9 @@ pub struct LoadReport {
     /// Packets processed by row cells.
     pub row_steps: u64,
 }
+
+/// The grid type the lighting jobs load into.
+pub type LightGrid = Grid<{ super::capacity::DEFAULT_DEXELS }>;
 
 /// The grid: n × n cells, each with room for `D` dexels.
 pub struct Grid<const D: usize> {

@@ -5,7 +5,7 @@
 //! Used by `bench/compare.py` to cast exact shadow rays with Embree from the same voxels toward
 //! the same lights. Voxel (x, y, z) (binvox indexing) has its centre at world
 //! `origin + (v + ½)·voxel` on each axis, and a light at voxel-unit position p is at world
-//! `origin + (p + ½)·voxel` ([`crate::lightjob::voxel_to_world`]). Polygons are written as
+//! `origin + (p + ½)·voxel` ([`crate::machine::loaded::voxel_to_world`]). Polygons are written as
 //! triangle fans over their original vertices.
 
 use std::io::Write;
@@ -13,8 +13,10 @@ use std::io::Write;
 use anyhow::Result;
 use cell_core::beam::FracBits;
 
-use crate::diffuse::Lighting;
-use crate::lightjob::{voxel_to_world, LightGrid, LightStats};
+use crate::machine::diffuse::Lighting;
+use crate::machine::loaded::voxel_to_world;
+use crate::machine::grid::LightGrid;
+use crate::machine::lighting::LightStats;
 use crate::precompute::Fit;
 use crate::scene::Mesh;
 

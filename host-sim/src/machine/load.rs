@@ -7,13 +7,13 @@ use cell_core::cell::Cell;
 use cell_core::dexel::Dexel;
 use cell_core::facet::{PipelinePacket, RowPacket};
 
-use crate::binvox::Voxels;
-use crate::grid::{Grid, LoadReport};
+use crate::scene::binvox::Voxels;
+use crate::machine::grid::{Grid, LoadReport};
 use crate::precompute::{prepare, Contour, LoadConfig, Prepared, Thickness};
 use crate::scene::Mesh;
 
 /// How the grid is loaded.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Engine {
     /// The RC² wave, cycle by cycle (the machine).
@@ -195,12 +195,12 @@ pub fn voxelize_tapped<const D: usize>(
     mesh: &Mesh,
     cfg: &LoadConfig,
     engine: Engine,
-    tap: Option<&mut crate::trace::Tap>,
+    tap: Option<&mut crate::machine::tap::Tap>,
     mut progress: impl FnMut(u64, u64),
 ) -> Result<Voxelized<D>> {
     let t0 = Instant::now();
     cfg.validate()?;
-    crate::limits::check_grid_memory("grid of loading cells", cfg.n, std::mem::size_of::<Cell<D>>())?;
+    crate::machine::limits::check_grid_memory("grid of loading cells", cfg.n, std::mem::size_of::<Cell<D>>())?;
     let prepared = prepare(mesh, cfg)?;
     let t1 = Instant::now();
     let mut grid = Grid::<D>::new(cfg.n, cfg.n);

@@ -1,5 +1,7 @@
 //! The `host-sim` command line.
 
+pub mod phase_args;
+pub mod value_args;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::PathBuf;
@@ -8,8 +10,10 @@ use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::load::{voxelize, Engine, VoxelizeStats};
+use crate::machine::load::{voxelize, VoxelizeStats};
+use crate::machine::diffuse::FrustumBlocks;
 use crate::precompute::{Contour, LoadConfig, Thickness};
+use value_args::{ContourArg, EngineArg, FrustumBlocksArg, ThicknessArg};
 use crate::scene;
 
 /// RC² cellular ray-tracing machine — host simulator.
@@ -67,8 +71,8 @@ pub struct VoxelizeArgs {
     pub load: LoadArgs,
     /// wave: the RC² loading wave stepped cycle by cycle; direct: the same integer formulas
     /// evaluated directly on the host (reference, no cycles).
-    #[arg(long, value_enum, default_value_t = Engine::Wave)]
-    pub engine: Engine,
+    #[arg(long, value_enum, default_value_t = EngineArg::Wave)]
+    pub engine: EngineArg,
     /// Dexels a cell can hold (a compile-time capacity; one of 8, 16, 32, 64, 128).
     #[arg(long, default_value_t = cell_core::cell::DEFAULT_DEXELS, value_parser = parse_capacity)]
     pub dexel_capacity: usize,
@@ -118,12 +122,12 @@ pub struct LoadArgs {
     pub n: u32,
     /// Plane thickness: naive (σ = ½, stops 6-connected rays), thesis (§3.8's σ), standard
     /// (|a|+|b|+|c|, provably free of 26-tunnels).
-    #[arg(long, value_enum, default_value_t = Thickness::Standard)]
-    pub sigma: Thickness,
+    #[arg(long, value_enum, default_value_t = ThicknessArg::Standard)]
+    pub sigma: ThicknessArg,
     /// Facet contour: projected (the thesis's) or conservative (closes gaps between facets and
     /// holes in thin facets).
-    #[arg(long, value_enum, default_value_t = Contour::Conservative)]
-    pub contour: Contour,
+    #[arg(long, value_enum, default_value_t = ContourArg::Conservative)]
+    pub contour: ContourArg,
 }
 
 /// Options of `light`.
@@ -164,7 +168,7 @@ pub struct LightOpts {
     /// bounded by D·2^f < 2^31). More bits: more rays, fewer missed voxels, more beams. Default
     /// 0; 1 lights faces the light grazes at a degree or two right too (Cornell n = 512: 0.56 →
     /// 0.09 % of pixels wrong) for 2–4× the cycles.
-    #[arg(long, default_value_t = crate::lightjob::DEFAULT_FRAC_BITS)]
+    #[arg(long, default_value_t = crate::jobs::light::DEFAULT_FRAC_BITS)]
     pub frac_bits: u32,
     /// Which beam a cell processes first. Default: radial (fewest cycles measured on every
     /// scene; `wavefront` was the default before).
@@ -191,11 +195,11 @@ pub struct LightOpts {
     /// 0 ..= 1 summing to at most 1; a delayed frame is held 1 ..= delay-cycles cycles, default
     /// 8), and delivered by acknowledgement and retransmission. Same lit voxels and image, more
     /// cycles.
-    #[arg(long, value_parser = clap::value_parser!(crate::faults::LinkFaults))]
-    pub link_faults: Option<crate::faults::LinkFaults>,
+    #[arg(long, value_parser = clap::value_parser!(crate::machine::faults::LinkFaults))]
+    pub link_faults: Option<crate::machine::faults::LinkFaults>,
     /// Stop with a stall report (the blocked cells and their queues) after this many cycles in
     /// a row without progress while beams are in flight: a deadlock, or a dead link.
-    #[arg(long, default_value_t = crate::diffuse::DEFAULT_STALL_CYCLES)]
+    #[arg(long, default_value_t = crate::machine::diffuse::DEFAULT_STALL_CYCLES)]
     pub stall_cycles: u64,
     /// Cells keep lit marks only for the voxels their pixel reads: the same image, a lit set
     /// (`--lit-out`, stats) restricted to those voxels, and no lit-store overflow in columns lit
@@ -219,7 +223,7 @@ pub struct LightOpts {
     /// 32: 9 384 B). Same lit voxels and image with any. Default: 32; 8 for `trace` (a cell
     /// trace carries the 8 × 8 × 8 summary).
     #[arg(long, value_enum)]
-    pub frustum_blocks: Option<crate::diffuse::FrustumBlocks>,
+    pub frustum_blocks: Option<FrustumBlocksArg>,
     /// The sibling wait: a beam that does not yet hold every ray its voxel can receive waits
     /// up to this many cycles (while its FIFO has room) for the pieces from its other parent
     /// voxels to merge into it: fewer beams and messages, same lit voxels. 0: off. Wavefront
@@ -236,7 +240,7 @@ pub struct LightOpts {
     pub lit_rule: LitRuleArg,
     /// Classic shadow rays instead of diffusion.
     #[command(flatten)]
-    pub classic: crate::classic::ClassicOpts,
+    pub classic: crate::cli::phase_args::ClassicOpts,
 }
 
 /// The lit rule ([`cell_core::lit`]).
@@ -269,7 +273,7 @@ pub enum SteppingArg {
 impl LightOpts {
     /// The configuration, with the visible-only lit store and the hidden-voxel skip on by
     /// default when `visible_only` (what `render` needs), unless given.
-    fn config_for(&self, visible_only: bool) -> Result<crate::diffuse::LightConfig> {
+    fn config_for(&self, visible_only: bool) -> Result<crate::machine::diffuse::LightConfig> {
         let lit_visible_only = self.lit_visible_only.unwrap_or(visible_only);
         let skip_hidden = self.skip_hidden.unwrap_or(lit_visible_only && visible_only);
         if skip_hidden && !lit_visible_only {
@@ -278,19 +282,19 @@ impl LightOpts {
                  (--lit-visible-only)"
             );
         }
-        Ok(crate::diffuse::LightConfig { lit_visible_only, skip_hidden, ..self.config() })
+        Ok(crate::machine::diffuse::LightConfig { lit_visible_only, skip_hidden, ..self.config() })
     }
 
     /// The configuration with the full lit store (the `light` and `trace` jobs' default).
-    fn config(&self) -> crate::diffuse::LightConfig {
-        crate::diffuse::LightConfig {
+    fn config(&self) -> crate::machine::diffuse::LightConfig {
+        crate::machine::diffuse::LightConfig {
             fa: self.fa,
             policy: self.policy.into(),
             merge: self.merge.resolve(self.policy),
             record_visits: false,
             stepping: match self.stepping {
-                SteppingArg::Active => crate::diffuse::Stepping::Active,
-                SteppingArg::AllCells => crate::diffuse::Stepping::AllCells,
+                SteppingArg::Active => crate::machine::diffuse::Stepping::Active,
+                SteppingArg::AllCells => crate::machine::diffuse::Stepping::AllCells,
             },
             skip_receding: self.skip_receding,
             skip_dead_directions: self.skip_dead_directions,
@@ -300,7 +304,7 @@ impl LightOpts {
             hold: self.hold,
             skip_frustum: self.skip_frustum,
             skip_hidden: self.skip_hidden.unwrap_or(false),
-            frustum_blocks: self.frustum_blocks.unwrap_or_default(),
+            frustum_blocks: self.frustum_blocks.map_or(FrustumBlocks::default(), Into::into),
             rule: self.lit_rule.into(),
         }
     }
@@ -326,12 +330,12 @@ pub struct RenderArgs {
     pub n: u32,
     /// Plane thickness (naive, thesis, standard; see `voxelize --help`). Default: standard, the
     /// tunnel-free surface (as every job): no light passes through a closed mesh.
-    #[arg(long, value_enum, default_value_t = Thickness::Standard)]
-    pub sigma: Thickness,
+    #[arg(long, value_enum, default_value_t = ThicknessArg::Standard)]
+    pub sigma: ThicknessArg,
     /// Facet contour (see `voxelize --help`). Default: conservative, the watertight one (the
     /// pixel still shows the exact facet its centre line meets, not the fatter voxels).
-    #[arg(long, value_enum, default_value_t = Contour::Conservative)]
-    pub contour: Contour,
+    #[arg(long, value_enum, default_value_t = ContourArg::Conservative)]
+    pub contour: ContourArg,
     /// Lighting options.
     #[command(flatten)]
     pub light: LightOpts,
@@ -340,7 +344,7 @@ pub struct RenderArgs {
     pub normals: NormalArg,
     /// Reflection options.
     #[command(flatten)]
-    pub reflect: crate::reflect::ReflectOpts,
+    pub reflect: crate::cli::phase_args::ReflectOpts,
     /// Output PNG.
     #[arg(long, default_value = "render.png")]
     pub out: PathBuf,
@@ -495,11 +499,11 @@ pub struct TraceArgs {
     #[arg(long, default_value_t = 32)]
     pub n: u32,
     /// Plane thickness (as `render`).
-    #[arg(long, value_enum, default_value_t = Thickness::Standard)]
-    pub sigma: Thickness,
+    #[arg(long, value_enum, default_value_t = ThicknessArg::Standard)]
+    pub sigma: ThicknessArg,
     /// Facet contour (as `render`).
-    #[arg(long, value_enum, default_value_t = Contour::Conservative)]
-    pub contour: Contour,
+    #[arg(long, value_enum, default_value_t = ContourArg::Conservative)]
+    pub contour: ContourArg,
     /// Lighting options (the firmware is built for the default --frac-bits 0).
     #[command(flatten)]
     pub light: LightOpts,
@@ -569,26 +573,26 @@ fn dispatch(command: Command) -> Result<()> {
         Command::LightAccuracy(a) => run_accuracy(&a),
         Command::Bench(a) => {
             let meshes = a.scene.iter().map(|s| scene::load(s)).collect::<Result<Vec<_>>>()?;
-            crate::bench::run_bench(&meshes, &a.n, &a.frac_bits, &a.out, &a.plot, a.quiet)
+            crate::jobs::bench::run_bench(&meshes, &a.n, &a.frac_bits, &a.out, &a.plot, a.quiet)
         }
         Command::Audit(a) => {
             let l = &a.load;
-            let cfg = LoadConfig { n: l.n, thickness: l.sigma, contour: l.contour };
+            let cfg = LoadConfig { n: l.n, thickness: l.sigma.into(), contour: l.contour.into() };
             cfg.validate()?;
             let mesh = scene::load(&l.scene)?;
-            let lcfg = crate::diffuse::LightConfig {
+            let lcfg = crate::machine::diffuse::LightConfig {
                 fa: a.fa,
                 policy: cell_core::light::Policy::Wavefront,
                 merge: true,
                 record_visits: false,
                 ..Default::default()
             };
-            let default_elf = PathBuf::from(crate::audit::FIRMWARE_ELF);
+            let default_elf = PathBuf::from(crate::jobs::audit::FIRMWARE_ELF);
             let elf = a.elf.clone().or_else(|| default_elf.exists().then_some(default_elf));
-            let audit = crate::audit::audit(&mesh, &cfg, &lcfg, elf.as_deref())?;
-            crate::audit::print(&audit);
+            let audit = crate::jobs::audit::audit(&mesh, &cfg, &lcfg, elf.as_deref())?;
+            crate::jobs::audit::print(&audit);
             if let Some(p) = &a.json {
-                crate::audit::write_json(&audit, p)?;
+                crate::jobs::audit::write_json(&audit, p)?;
             }
             Ok(())
         }
@@ -602,9 +606,9 @@ fn dispatch(command: Command) -> Result<()> {
         }
         Command::Subdivide(a) => {
             let mesh = scene::load(&a.scene)?;
-            let sub = crate::meshops::subdivide_to(&mesh, a.target);
+            let sub = crate::scene::meshops::subdivide_to(&mesh, a.target);
             let f = File::create(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
-            crate::meshops::write_obj(&sub, BufWriter::new(f))?;
+            crate::scene::meshops::write_obj(&sub, BufWriter::new(f))?;
             eprintln!(
                 "{}: {} → {} triangles, written to {}",
                 mesh.name,
@@ -671,11 +675,11 @@ fn print_summary(s: &VoxelizeStats) {
 
 fn run_voxelize<const D: usize>(a: &VoxelizeArgs) -> Result<()> {
     let l = &a.load;
-    let cfg = LoadConfig { n: l.n, thickness: l.sigma, contour: l.contour };
+    let cfg = LoadConfig { n: l.n, thickness: l.sigma.into(), contour: l.contour.into() };
     cfg.validate()?;
     let mesh = scene::load(&l.scene)?;
     let pb = progress_bar(a.quiet, "load");
-    let v = voxelize::<D>(&mesh, &cfg, a.engine, |pos, len| {
+    let v = voxelize::<D>(&mesh, &cfg, a.engine.into(), |pos, len| {
         pb.set_length(len.max(pos));
         pb.set_position(pos);
     })?;
@@ -694,16 +698,18 @@ fn run_voxelize<const D: usize>(a: &VoxelizeArgs) -> Result<()> {
 }
 
 fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
-    use crate::lightjob::{load_scene, resolve_lights, run_diffusion, write_lit_csv};
+    use crate::machine::loaded::{load_scene, resolve_lights};
+    use crate::machine::lighting::run_diffusion;
+    use crate::jobs::light::write_lit_csv;
     let l = &a.load;
-    let cfg = LoadConfig { n: l.n, thickness: l.sigma, contour: l.contour };
+    let cfg = LoadConfig { n: l.n, thickness: l.sigma.into(), contour: l.contour.into() };
     cfg.validate()?;
     let mesh = scene::load(&l.scene)?;
     let loaded = load_scene(&mesh, &cfg)?;
     let lights = resolve_lights(&mesh, &loaded, &a.light.lights)?;
     let lcfg = a.light.config_for(false)?;
     let pb = progress_bar(a.quiet, "light");
-    if a.light.classic.lighting == crate::classic::LightingArg::Classic {
+    if a.light.classic.lighting == crate::cli::phase_args::LightingArg::Classic {
         return run_light_classic::<F>(a, &mesh, &loaded, &lights, pb);
     }
     let (lighting, stats) = run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, light_progress(&pb))?;
@@ -717,8 +723,8 @@ fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
     }
     if let Some(p) = &a.dump_lit {
         let f = File::create(p).with_context(|| format!("cannot create {}", p.display()))?;
-        let d = crate::dump::lit_dump(&mesh, &loaded.grid, &loaded.fit, &lighting, &stats);
-        crate::dump::write_lit_dump(&d, BufWriter::new(f))?;
+        let d = crate::jobs::dump::lit_dump(&mesh, &loaded.grid, &loaded.fit, &lighting, &stats);
+        crate::jobs::dump::write_lit_dump(&d, BufWriter::new(f))?;
     }
     eprintln!(
         "{}: n = {}, {} facets, {} light(s), FA = {}, f = {}, policy {}, merge {}",
@@ -759,14 +765,15 @@ fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
         anyhow::bail!(
             "{} lit marks did not fit a cell's lit store ({} runs per column)",
             stats.lit_overflows,
-            crate::diffuse::LIT_CAP
+            crate::machine::capacity::LIT_CAP
         );
     }
     Ok(())
 }
 
 fn run_table<F: cell_core::beam::FracBits>(a: &TableArgs) -> Result<()> {
-    use crate::lightjob::{load_scene, resolve_lights, run_diffusion};
+    use crate::machine::loaded::{load_scene, resolve_lights};
+    use crate::machine::lighting::run_diffusion;
     use std::io::Write;
     let mut rows = Vec::new();
     let mut csv = BufWriter::new(File::create(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?);
@@ -782,7 +789,7 @@ fn run_table<F: cell_core::beam::FracBits>(a: &TableArgs) -> Result<()> {
         let lights = resolve_lights(&mesh, &loaded, &[])?.iter().map(|_| [c, c, c]).collect::<Vec<_>>();
         for &policy in &a.policy {
             for &fa in &a.fa {
-                let lcfg = crate::diffuse::LightConfig {
+                let lcfg = crate::machine::diffuse::LightConfig {
                     fa,
                     policy: policy.into(),
                     merge: a.merge.resolve(policy),
@@ -811,7 +818,7 @@ fn run_table<F: cell_core::beam::FracBits>(a: &TableArgs) -> Result<()> {
                     r.counts.blocked_cell_cycles,
                     s.wall_seconds
                 )?;
-                rows.push(crate::plot::DiffusionRow {
+                rows.push(crate::report::plot::DiffusionRow {
                     n,
                     fa: fa as u32,
                     policy: s.policy.clone(),
@@ -824,7 +831,7 @@ fn run_table<F: cell_core::beam::FracBits>(a: &TableArgs) -> Result<()> {
     }
     pb.finish_and_clear();
     csv.flush()?;
-    crate::plot::plot_diffusion(&rows, &a.plot)?;
+    crate::report::plot::plot_diffusion(&rows, &a.plot)?;
     eprintln!("| N | FA | policy | T | LB | T/LB |");
     eprintln!("|---|---|---|---|---|---|");
     for r in &rows {
@@ -843,7 +850,9 @@ fn run_table<F: cell_core::beam::FracBits>(a: &TableArgs) -> Result<()> {
 }
 
 fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
-    use crate::lightjob::{accuracy, load_scene, resolve_lights, run_diffusion};
+    use crate::jobs::accuracy::accuracy;
+    use crate::machine::loaded::{load_scene, resolve_lights};
+    use crate::machine::lighting::run_diffusion;
     use std::io::Write;
     let mesh = scene::load(&a.scene)?;
     let mut csv = BufWriter::new(File::create(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?);
@@ -855,7 +864,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
         let loaded = load_scene(&mesh, &cfg)?;
         let lights = resolve_lights(&mesh, &loaded, &a.lights)?;
         for &f in &a.frac_bits {
-            let lcfg = crate::diffuse::LightConfig {
+            let lcfg = crate::machine::diffuse::LightConfig {
                 fa: a.fa,
                 policy: a.policy.into(),
                 merge: MergeArg::Auto.resolve(a.policy),
@@ -900,7 +909,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     Ok(())
 }
 
-fn print_link_faults(s: &crate::lightjob::LightStats) {
+fn print_link_faults(s: &crate::machine::lighting::LightStats) {
     if let Some(f) = &s.link_faults {
         eprintln!(
             "  links: {} data frames ({} retransmissions): {} corrupted + {} dropped data frames, {} acks lost, {} refused by CRC, {} duplicates discarded; {} frames delayed ({} link-cycles held)",
@@ -918,25 +927,25 @@ fn print_link_faults(s: &crate::lightjob::LightStats) {
 }
 
 fn run_trace<F: cell_core::beam::FracBits>(a: &TraceArgs) -> Result<()> {
-    let load = LoadConfig { n: a.n, thickness: a.sigma, contour: a.contour };
+    let load = LoadConfig { n: a.n, thickness: a.sigma.into(), contour: a.contour.into() };
     load.validate()?;
     let mesh = scene::load(&a.scene)?;
-    let job = crate::trace::TraceJob {
+    let job = crate::jobs::trace::TraceJob {
         mesh: &mesh,
         load,
-        light: crate::diffuse::LightConfig {
-            frustum_blocks: a.light.frustum_blocks.unwrap_or(crate::diffuse::FrustumBlocks::B8),
+        light: crate::machine::diffuse::LightConfig {
+            frustum_blocks: a.light.frustum_blocks.map_or(FrustumBlocks::B8, Into::into),
             ..a.light.config()
         },
         lights: a.light.lights.clone(),
         cells: a.cells.clone(),
         busiest: a.busiest,
     };
-    let traces = crate::trace::record::<F>(&job)?;
-    crate::trace::write_traces(&a.out, &traces)?;
+    let traces = crate::jobs::trace::record::<F>(&job)?;
+    crate::jobs::trace::write_traces(&a.out, &traces)?;
     for t in &traces {
         // The host's own build of cell-core replays it: the same digest, or the trace is wrong.
-        let (d, st) = crate::trace::replay::<F>(&t.bytes)?;
+        let (d, st) = crate::jobs::trace::replay::<F>(&t.bytes)?;
         let ok = if d == t.digest { "replay ok" } else { "REPLAY MISMATCH" };
         println!(
             "cell ({:>3}, {:>3}): {:>6} bytes, {:>5} records ({} rows, {} beams in, {} cycles, {} sent), digest {:016x}, {ok}",
@@ -962,13 +971,13 @@ fn light_progress(pb: &ProgressBar) -> impl FnMut(usize, u64) + '_ {
 fn run_light_classic<F: cell_core::beam::FracBits>(
     a: &LightArgs,
     mesh: &scene::Mesh,
-    loaded: &crate::lightjob::LoadedScene,
+    loaded: &crate::machine::loaded::LoadedScene,
     lights: &[[f64; 3]],
     pb: ProgressBar,
 ) -> Result<()> {
     use std::io::Write;
     let ccfg = a.light.classic.config(a.light.fa, a.light.lit_rule.into());
-    let (cl, stats) = crate::classic::run_classic::<F>(mesh, loaded, lights, &ccfg, light_progress(&pb))?;
+    let (cl, stats) = crate::machine::classic::run_classic::<F>(mesh, loaded, lights, &ccfg, light_progress(&pb))?;
     pb.finish_and_clear();
     let stats_out = a.stats.as_ref().map(|p| write_json(p, &stats));
     stats_out.transpose()?;
@@ -995,7 +1004,7 @@ fn run_light_classic<F: cell_core::beam::FracBits>(
         stats.lit_voxels,
         stats.wall_seconds
     );
-    eprintln!("  {}", crate::classic::summary(&cl.totals));
+    eprintln!("  {}", crate::machine::classic::summary(&cl.totals));
     Ok(())
 }
 
@@ -1007,9 +1016,10 @@ fn beside(out: &std::path::Path, ext: &str) -> std::path::PathBuf {
 }
 
 fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
-    use crate::lightjob::{load_scene, resolve_lights};
-    use crate::render::{reference_image, render, write_png, RenderConfig};
-    let cfg = LoadConfig { n: a.n, thickness: a.sigma, contour: a.contour };
+    use crate::machine::loaded::{load_scene, resolve_lights};
+    use crate::jobs::render::{reference_image, render, RenderConfig};
+    use crate::report::png::write_png;
+    let cfg = LoadConfig { n: a.n, thickness: a.sigma.into(), contour: a.contour.into() };
     cfg.validate()?;
     a.reflect.validate(a.light.classic.lighting, a.n, a.light.fa)?;
     let reflecting = a.reflect.reflections > 0;
@@ -1043,7 +1053,7 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
         }
         if a.reflect.reflections > 0 {
             let (d, t) = (a.reflect.reflections, a.reflect.reflect_threshold);
-            Some(crate::reflect::reference_image(&mesh, &loaded, &lights, d, t)?)
+            Some(crate::jobs::render::reflect_reference_image(&mesh, &loaded, &lights, d, t)?)
         } else {
             Some(reference_image(&mesh, &loaded, &lights)?)
         }
@@ -1057,7 +1067,7 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     let (r, classic) = if a.reflect.reflections > 0 {
         let refl = a.reflect.config(a.light.fa, &a.light.classic.config(a.light.fa, a.light.lit_rule.into()));
         let times = [load_seconds, reference_seconds];
-        let (r, c) = crate::reflect::render_reflect::<F>(
+        let (r, c) = crate::jobs::render::render_reflect::<F>(
             &mesh,
             &loaded,
             &lights,
@@ -1069,9 +1079,9 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
         )?;
         reflections = Some(c);
         (r, None)
-    } else if a.light.classic.lighting == crate::classic::LightingArg::Classic {
+    } else if a.light.classic.lighting == crate::cli::phase_args::LightingArg::Classic {
         let ccfg = a.light.classic.config(a.light.fa, a.light.lit_rule.into());
-        let (r, c) = crate::classic::render_classic::<F>(
+        let (r, c) = crate::jobs::render::render_classic::<F>(
             &mesh,
             &loaded,
             &lights,
@@ -1095,13 +1105,13 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     if let Some(reference) = &reference {
         let (rp, dp) = (beside(&a.out, "reference.png"), beside(&a.out, "diff.png"));
         write_png(&rp, reference.n, &reference.rgb)?;
-        let diff = crate::refrender::difference_image(&r.image.rgb, &r.image.covered, reference);
+        let diff = crate::truth::compare::difference_image(&r.image.rgb, &r.image.covered, reference);
         write_png(&dp, reference.n, &diff)?;
         written.push(rp.display().to_string());
         written.push(dp.display().to_string());
     }
     match (&a.stats, &reflections) {
-        (Some(p), Some(c)) => write_json(p, &crate::reflect::with_counts(&r.stats, c)?)?,
+        (Some(p), Some(c)) => write_json(p, &crate::jobs::render::with_counts(&r.stats, c)?)?,
         (Some(p), None) => write_json(p, &r.stats)?,
         _ => {}
     }
@@ -1130,10 +1140,10 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
         s.shading_max_err_levels, s.shading_mean_err_levels
     );
     if let Some(c) = &classic {
-        eprintln!("  {}", crate::classic::summary(c));
+        eprintln!("  {}", crate::machine::classic::summary(c));
     }
     if let Some(c) = &reflections {
-        eprintln!("  {}", crate::reflect::summary(c));
+        eprintln!("  {}", crate::machine::reflect::summary(c));
     }
     if let Some(c) = &s.reference {
         eprintln!(

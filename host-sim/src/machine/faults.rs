@@ -30,7 +30,7 @@ use cell_core::beam::{FarDistance, FracBits};
 use cell_core::light::{BeamMsg, BeamTally, Port};
 use cell_core::link::{decode, encode, Message, HEADER, MAX_FRAME, TRAILER};
 
-use crate::diffuse::HostLightCell;
+use crate::machine::capacity::HostLightCell;
 
 /// Fault rates, in parts per million, and the seed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -13,11 +13,12 @@ use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
 
-use crate::diffuse::LightConfig;
-use crate::lightjob::{load_scene, policy_name, resolve_lights};
-use crate::plot::{pareto_front, plot_pareto, ParetoPoint};
+use crate::machine::diffuse::LightConfig;
+use crate::machine::loaded::{load_scene, resolve_lights};
+use crate::machine::lighting::policy_name;
+use crate::report::plot::{pareto_front, plot_pareto, ParetoPoint};
 use crate::precompute::{Contour, LoadConfig, Thickness};
-use crate::render::{reference_image, render, RenderConfig};
+use crate::jobs::render::{reference_image, render, RenderConfig};
 use crate::scene::Mesh;
 
 /// One point of the sweep.
@@ -42,7 +43,7 @@ pub struct Knobs {
 impl Knobs {
     /// The configuration `render` runs with no options.
     pub const DEFAULT: Knobs = Knobs {
-        f: crate::lightjob::DEFAULT_FRAC_BITS,
+        f: crate::jobs::light::DEFAULT_FRAC_BITS,
         thickness: Thickness::Standard,
         contour: Contour::Conservative,
         normals: NormalMode::Facet,
@@ -172,7 +173,7 @@ pub fn run_bench(
                 let c = st.reference.expect("compared with the reference");
                 let cycles = st.light.load_cycles + st.light.totals.cycles + st.shade_cycles;
                 // A cell compiled for this FIFO size (the host compiles FA_CAP, limits at run time).
-                let bytes = st.bytes_per_cell - (crate::diffuse::FA_CAP - k.fa) * st.light.bytes_beam_message;
+                let bytes = st.bytes_per_cell - (crate::machine::capacity::FA_CAP - k.fa) * st.light.bytes_beam_message;
                 if !quiet {
                     eprintln!(
                         "{:>13} n = {n} {:36} cycles {:>8}  shadow {:6.2} %  PSNR {:6.2} dB  wall {:.2} s",

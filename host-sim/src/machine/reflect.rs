@@ -3,7 +3,7 @@
 //! After the light phase every voxel's lit state is known. Each cell whose visible voxel is
 //! reflective (`Kr > 0`, and `Kr` ≥ the threshold) emits a [`ReflectRay`] (the view direction
 //! mirrored about its normal, [`cell_core::reflect`]) and waits. A ray walks voxel by voxel with
-//! the same cycle model as classic shadow rays ([`crate::classic`]): one voxel step per cell and
+//! the same cycle model as classic shadow rays ([`crate::machine::classic`]): one voxel step per cell and
 //! cycle, FIFOs of `fa` rays, one output buffer per link, one message per link and cycle, the
 //! no-loss rule (a ray that cannot leave waits, the cell is blocked for the cycle). The cell
 //! owning the first occupied voxel the ray meets shades it for the ray's direction; if that
@@ -11,7 +11,7 @@
 //! `--reflect-threshold`: Hall's adaptive depth, §1.2.5.1) it opens a **wait-table entry** and
 //! emits its own reflected ray, and answers its parent only when that answer came back (§1.3.2);
 //! otherwise it answers at once. Answers (linear RGB, Q12) are routed to the waiting cell on
-//! [`crate::network`]; a ray leaving the grid answers black. A root combines
+//! [`crate::machine::network`]; a ray leaving the grid answers black. A root combines
 //! `local + Kr · answer` (§5.5.5) and encodes its pixel.
 //!
 //! Per cycle: 1. compute — each cell takes the head of one of its 4 FIFOs (round robin) and does
@@ -51,9 +51,9 @@ use cell_core::shade::{
     ShadeParams, VIEW,
 };
 
-use crate::diffuse::FA_CAP;
-use crate::lightjob::LoadedScene;
-use crate::network::Network;
+use crate::machine::capacity::FA_CAP;
+use crate::machine::loaded::LoadedScene;
+use crate::machine::network::Network;
 use crate::scene::Mesh;
 
 /// Reflection-phase settings.
@@ -139,23 +139,6 @@ pub struct ReflectCounts {
     pub mirror_psnr_without_db: Option<f64>,
     /// Those pixels.
     pub mirror_pixels: u64,
-}
-
-/// PSNR (dB, MAX 255, 3 channels) of `a` against `b` over the pixels where `keep` is set.
-pub fn psnr(a: &[[u8; 3]], b: &[[u8; 3]], keep: &[bool]) -> f64 {
-    let (mut sq, mut cnt) = (0u64, 0u64);
-    for ((pa, pb), _) in a.iter().zip(b).zip(keep).filter(|(_, &k)| k) {
-        for c in 0..3 {
-            let d = pa[c].abs_diff(pb[c]) as u64;
-            sq += d * d;
-            cnt += 1;
-        }
-    }
-    if sq == 0 {
-        f64::INFINITY
-    } else {
-        10.0 * (255.0f64 * 255.0 / (sq as f64 / cnt as f64)).log10()
-    }
 }
 
 impl ReflectCounts {
@@ -244,10 +227,10 @@ impl<'a> ShadeEnv<'a> {
         mask: &'a dyn Fn(u32, u32, u16) -> SourceMask,
     ) -> Self {
         ShadeEnv {
-            mats: mesh.materials.iter().map(crate::render::cell_material).collect(),
+            mats: mesh.materials.iter().map(crate::machine::shade::cell_material).collect(),
             kr: mesh.materials.iter().map(|m| m.kr).collect(),
             lights,
-            params: ShadeParams { ambient: [crate::render::AMBIENT; 3], normal_mode: normals },
+            params: ShadeParams { ambient: [crate::machine::shade::AMBIENT; 3], normal_mode: normals },
             mask,
         }
     }
@@ -572,151 +555,4 @@ pub fn summary(c: &ReflectCounts) -> String {
         ),
         _ => String::new(),
     }
-}
-
-/// `render --reflections D` (D ≥ 1): diffusion lighting, shading, then the reflection phase;
-/// reflective visible voxels get `local + Kr · answer`, every other pixel is the plain render's.
-/// Compared with `reference` when given (make it with [`reference_image`]).
-#[allow(clippy::too_many_arguments)]
-pub fn render_reflect<F: cell_core::beam::FracBits>(
-    mesh: &Mesh,
-    scene: &LoadedScene,
-    light_positions: &[[f64; 3]],
-    cfg: &crate::render::RenderConfig,
-    rcfg: &ReflectConfig,
-    reference: Option<&crate::refrender::RefImage>,
-    times: [f64; 2],
-    progress: impl FnMut(usize, u64),
-) -> Result<(crate::render::Rendered, ReflectCounts)> {
-    let t0 = std::time::Instant::now();
-    let (lighting, lstats) = crate::lightjob::run_diffusion::<F>(mesh, scene, light_positions, &cfg.light, progress)?;
-    let mask = |x, y, z| lighting.mask(x, y, z);
-    let light_seconds = t0.elapsed().as_secs_f64();
-    let mut r = crate::render::finish_render(
-        mesh,
-        scene,
-        light_positions,
-        cfg,
-        None,
-        &crate::render::seen(&lighting),
-        lstats,
-        [times[0], light_seconds, times[1]],
-    );
-    let t1 = std::time::Instant::now();
-    let lights = crate::render::point_lights(light_positions);
-    let env = ShadeEnv::new(mesh, &lights, cfg.normals, &mask);
-    let refl = reflect(scene, &env, rcfg)?;
-    let local_only = r.image.rgb.clone();
-    for (px, v) in r.image.rgb.iter_mut().zip(&refl.rgb) {
-        if let Some(v) = v {
-            *px = *v;
-        }
-    }
-    let mut counts = refl.counts;
-    if let Some(rf) = reference {
-        let mirror: Vec<bool> = rf
-            .facet
-            .iter()
-            .map(|&f| mesh.faces.get(f as usize).is_some_and(|fc| mesh.materials[fc.material as usize].kr > 0.0))
-            .collect();
-        let all = vec![true; mirror.len()];
-        counts.psnr_db = Some(psnr(&r.image.rgb, &rf.rgb, &all));
-        counts.psnr_without_db = Some(psnr(&local_only, &rf.rgb, &all));
-        counts.mirror_psnr_db = Some(psnr(&r.image.rgb, &rf.rgb, &mirror));
-        counts.mirror_psnr_without_db = Some(psnr(&local_only, &rf.rgb, &mirror));
-        counts.mirror_pixels = mirror.iter().filter(|&&m| m).count() as u64;
-    }
-    r.stats.shade_seconds += t1.elapsed().as_secs_f64();
-    r.stats.wall_seconds += t1.elapsed().as_secs_f64();
-    r.stats.reference = reference.map(|rf| crate::refrender::compare(&r.image.rgb, &r.image.covered, &r.image.lit, rf));
-    Ok((r, counts))
-}
-
-/// The f64 reference with the same reflections (depth, threshold; exact normals and hits).
-pub fn reference_image(
-    mesh: &Mesh,
-    scene: &LoadedScene,
-    light_positions: &[[f64; 3]],
-    depth: u8,
-    threshold: f32,
-) -> Result<crate::refrender::RefImage> {
-    let rl = crate::render::ref_lights(&crate::render::point_lights(light_positions));
-    let refl = crate::refrender::RefReflect { depth: depth as u32, threshold: threshold as f64 };
-    let ambient = [crate::render::AMBIENT as f64; 3];
-    crate::refrender::render_reference_reflect(mesh, &scene.fit, scene.grid.n, &rl, ambient, &refl)
-}
-
-/// Normal that mirrors reflected rays (§5.2).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum ReflectNormalArg {
-    /// The facet normal stored in each dexel (§5.2.1).
-    Facet,
-    /// The face of the voxel the ray entered: flip that component (§5.2.2, the face flip of §5.5.4).
-    Face,
-}
-
-/// Command-line options of the reflection phase (`render`).
-#[derive(clap::Args, Debug, Clone)]
-pub struct ReflectOpts {
-    /// Mirror reflections: largest depth of the distributed ray tree (reflections per path);
-    /// 0 = off. Needs `--lighting diffusion` (the lit state of every voxel).
-    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=32))]
-    pub reflections: u8,
-    /// Hall's adaptive depth (§1.2.5.1): a voxel reflects only while the product of the Kr along
-    /// the path is at least this.
-    #[arg(long, default_value_t = 0.01)]
-    pub reflect_threshold: f32,
-    /// Normal that mirrors the reflected rays: facet (stored normal) or face (face flip, §5.5.4).
-    #[arg(long, value_enum, default_value_t = ReflectNormalArg::Facet)]
-    pub reflect_normal: ReflectNormalArg,
-    /// Let reflected rays hit the voxels of the facet they left (shows the §5.5.2 self-collision).
-    #[arg(long)]
-    pub reflect_self_hits: bool,
-}
-
-impl ReflectOpts {
-    /// Check the options before any work (with reflections on): diffusion lighting, a valid
-    /// configuration for a grid of side `n` and FIFO limit `fa`.
-    pub fn validate(&self, lighting: crate::classic::LightingArg, n: u32, fa: usize) -> Result<()> {
-        if self.reflections == 0 {
-            return Ok(());
-        }
-        if lighting == crate::classic::LightingArg::Classic {
-            bail!("--reflections needs --lighting diffusion (the lit state of every voxel, not only the visible ones)");
-        }
-        let classic = crate::classic::ClassicConfig {
-            fa,
-            connectivity: Connectivity::Six,
-            route: RoutePolicy::Adaptive,
-            all_voxels: false,
-            bias: 0,
-            rule: cell_core::lit::LitRule::Thesis,
-        };
-        self.config(fa, &classic).validate(n)
-    }
-
-    /// The configuration (rays use the classic options' connectivity and routing).
-    pub fn config(&self, fa: usize, classic: &crate::classic::ClassicConfig) -> ReflectConfig {
-        ReflectConfig {
-            depth: self.reflections,
-            threshold: self.reflect_threshold,
-            normal: match self.reflect_normal {
-                ReflectNormalArg::Facet => ReflectNormal::Facet,
-                ReflectNormalArg::Face => ReflectNormal::Face,
-            },
-            skip_own_facet: !self.reflect_self_hits,
-            connectivity: classic.connectivity,
-            fa,
-            route: classic.route,
-        }
-    }
-}
-
-/// The render statistics with the reflection counters added under `"reflections"`.
-pub fn with_counts(stats: &crate::render::RenderStats, c: &ReflectCounts) -> Result<serde_json::Value> {
-    let mut v = serde_json::to_value(stats)?;
-    if let serde_json::Value::Object(m) = &mut v {
-        m.insert("reflections".into(), serde_json::to_value(c)?);
-    }
-    Ok(v)
 }

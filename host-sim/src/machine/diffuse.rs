@@ -26,25 +26,16 @@ use cell_core::occupancy::{BlockRow, FrustumTest, Occupancy16, Occupancy32, Occu
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Relaxed};
 
-use crate::faults::{FaultCounts, FaultyLinks, LinkFaults};
-use crate::grid::Grid;
-use crate::tiles::{merge_sorted, prefetch, prefetch_ends, tiles};
-use crate::trace::Tap;
+use crate::machine::capacity::{HostLightCell, FA_CAP};
+use crate::machine::faults::{FaultCounts, FaultyLinks, LinkFaults};
+use crate::machine::grid::Grid;
+use crate::machine::tiles::{merge_sorted, prefetch, prefetch_ends, tiles};
+use crate::machine::tap::Tap;
 
 /// Default of [`LightConfig::stall_cycles`]: a fault-free machine that cannot move for one
 /// cycle is deadlocked; under link faults a few cycles of bad luck are normal.
 pub const DEFAULT_STALL_CYCLES: u64 = 64;
 
-/// FIFO capacity compiled into the host's cells (the run-time `--fa` may be smaller).
-pub const FA_CAP: usize = 64;
-/// Messages an output buffer holds: a ±x/±y beam sends up to 3 sub-beams through one link.
-pub const OB_CAP: usize = 3;
-/// Lit runs per column: 64 since the office scene `bureau2` at n = 128 needed more than 32 in
-/// two columns running along a wall (a lit-store overflow there is an error, never a loss).
-pub const LIT_CAP: usize = 64;
-
-/// The host's lighting cell type.
-pub type HostLightCell<F> = LightCell<F, FA_CAP, OB_CAP, LIT_CAP>;
 
 /// Lighting-phase settings.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -66,7 +57,7 @@ pub struct LightConfig {
     /// from the occupied box (its rays are counted as skipped).
     pub skip_dead_directions: bool,
     /// Send every link transfer through the codec and a fault injector, with acknowledgement
-    /// and retransmission ([`crate::faults`]); `None`: perfect links.
+    /// and retransmission ([`crate::machine::faults`]); `None`: perfect links.
     pub faults: Option<LinkFaults>,
     /// Cycles in a row without progress (no beam processed, delivered or acknowledged) while
     /// beams are in flight before the run stops with a stall report (deadlock, dead link).
@@ -95,17 +86,14 @@ pub struct LightConfig {
 /// Blocks per axis of the summary the empty-frustum and hidden-voxel skips test beams against
 /// ([`cell_core::occupancy`]): finer blocks drop more beams (the test is exact only with
 /// one-voxel blocks) for more memory per cell. Same lit voxels and image whichever is chosen.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum FrustumBlocks {
     /// 8 × 8 × 8 blocks, `u8` rows: 232 bytes per cell (what a cell trace carries).
-    #[value(name = "8")]
     B8,
     /// 16 × 16 × 16 blocks, `u16` rows: 1 348 bytes per cell.
-    #[value(name = "16")]
     B16,
     /// 32 × 32 × 32 blocks, `u32` rows: 9 384 bytes per cell.
     #[default]
-    #[value(name = "32")]
     B32,
 }
 
@@ -362,7 +350,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             FarDistance::<F>::MAX
         )
     })?;
-    crate::limits::check_grid_memory("grid of lighting cells", n, std::mem::size_of::<HostLightCell<F>>())?;
+    crate::machine::limits::check_grid_memory("grid of lighting cells", n, std::mem::size_of::<HostLightCell<F>>())?;
     let mut cells: Vec<HostLightCell<F>> = Vec::with_capacity((n * n) as usize);
     for y in 0..n {
         for x in 0..n {

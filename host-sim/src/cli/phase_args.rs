@@ -1,0 +1,157 @@
+//! Command-line options of the classic and reflection phases (flattened into `light`/`render`).
+
+use anyhow::{bail, Result};
+use cell_core::lit::LitRule;
+use cell_core::ray::Connectivity;
+use cell_core::reflect::ReflectNormal;
+use cell_core::route::RoutePolicy;
+
+use crate::machine::classic::ClassicConfig;
+use crate::machine::reflect::ReflectConfig;
+
+/// How the lighting jobs compute the lit state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum LightingArg {
+    /// Beam diffusion from each source (§4.3).
+    Diffusion,
+    /// One shadow ray per visible voxel and source, answers routed back (§4.1.2).
+    Classic,
+}
+
+/// Answer routing of the classic phase.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum RouteArg {
+    /// Diagonal first, then straight.
+    Dor,
+    /// The minimal move with the most free buffer space.
+    Adaptive,
+}
+
+/// Command-line options of the classic phase (flattened into the lighting options).
+#[derive(clap::Args, Debug, Clone)]
+pub struct ClassicOpts {
+    /// Lighting method: diffusion (beams) or classic (shadow rays, answers routed back).
+    #[arg(long, value_enum, default_value_t = LightingArg::Diffusion)]
+    pub lighting: LightingArg,
+    /// Connectivity of classic shadow rays: 6 (Amanatides–Woo; no surface thickness lets it
+    /// through), 18, or 26 (DDA; passes through naive surfaces).
+    #[arg(long, default_value_t = 6, value_parser = parse_connectivity)]
+    pub ray_connectivity: u8,
+    /// Routing of classic answers.
+    #[arg(long, value_enum, default_value_t = RouteArg::Adaptive)]
+    pub route: RouteArg,
+    /// Which voxels send classic shadow rays: the visible ones (what the image needs) or all
+    /// occupied voxels (the thesis's count, §4.1.6).
+    #[arg(long, value_enum, default_value_t = EmittersArg::Visible)]
+    pub emitters: EmittersArg,
+    /// Shadow bias of classic rays: the first K voxels after the emitter's are not tested, so
+    /// a ray ignores the neighbouring facets of its own object (shadow acne) but misses shadows
+    /// cast within K voxels. 0 (default) = only the emitter's own facet is ignored.
+    #[arg(long, default_value_t = 0)]
+    pub shadow_bias: u8,
+}
+
+/// Emitters of classic shadow rays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum EmittersArg {
+    /// The first occupied voxel of each column.
+    Visible,
+    /// Every occupied voxel.
+    All,
+}
+
+fn parse_connectivity(s: &str) -> std::result::Result<u8, String> {
+    match s {
+        "6" => Ok(6),
+        "18" => Ok(18),
+        "26" => Ok(26),
+        _ => Err(format!("'{s}' is not a ray connectivity: 6, 18 or 26")),
+    }
+}
+
+impl ClassicOpts {
+    /// The classic configuration with FIFO limit `fa` and lit rule `rule`.
+    pub fn config(&self, fa: usize, rule: LitRule) -> ClassicConfig {
+        ClassicConfig {
+            fa,
+            connectivity: match self.ray_connectivity {
+                18 => Connectivity::Eighteen,
+                26 => Connectivity::TwentySix,
+                _ => Connectivity::Six,
+            },
+            route: match self.route {
+                RouteArg::Dor => RoutePolicy::DiagonalFirst,
+                RouteArg::Adaptive => RoutePolicy::Adaptive,
+            },
+            all_voxels: self.emitters == EmittersArg::All,
+            bias: self.shadow_bias,
+            rule,
+        }
+    }
+}
+
+/// Normal that mirrors reflected rays (§5.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ReflectNormalArg {
+    /// The facet normal stored in each dexel (§5.2.1).
+    Facet,
+    /// The face of the voxel the ray entered: flip that component (§5.2.2, the face flip of §5.5.4).
+    Face,
+}
+
+/// Command-line options of the reflection phase (`render`).
+#[derive(clap::Args, Debug, Clone)]
+pub struct ReflectOpts {
+    /// Mirror reflections: largest depth of the distributed ray tree (reflections per path);
+    /// 0 = off. Needs `--lighting diffusion` (the lit state of every voxel).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=32))]
+    pub reflections: u8,
+    /// Hall's adaptive depth (§1.2.5.1): a voxel reflects only while the product of the Kr along
+    /// the path is at least this.
+    #[arg(long, default_value_t = 0.01)]
+    pub reflect_threshold: f32,
+    /// Normal that mirrors the reflected rays: facet (stored normal) or face (face flip, §5.5.4).
+    #[arg(long, value_enum, default_value_t = ReflectNormalArg::Facet)]
+    pub reflect_normal: ReflectNormalArg,
+    /// Let reflected rays hit the voxels of the facet they left (shows the §5.5.2 self-collision).
+    #[arg(long)]
+    pub reflect_self_hits: bool,
+}
+
+impl ReflectOpts {
+    /// Check the options before any work (with reflections on): diffusion lighting, a valid
+    /// configuration for a grid of side `n` and FIFO limit `fa`.
+    pub fn validate(&self, lighting: crate::cli::phase_args::LightingArg, n: u32, fa: usize) -> Result<()> {
+        if self.reflections == 0 {
+            return Ok(());
+        }
+        if lighting == crate::cli::phase_args::LightingArg::Classic {
+            bail!("--reflections needs --lighting diffusion (the lit state of every voxel, not only the visible ones)");
+        }
+        let classic = crate::machine::classic::ClassicConfig {
+            fa,
+            connectivity: Connectivity::Six,
+            route: RoutePolicy::Adaptive,
+            all_voxels: false,
+            bias: 0,
+            rule: cell_core::lit::LitRule::Thesis,
+        };
+        self.config(fa, &classic).validate(n)
+    }
+
+    /// The configuration (rays use the classic options' connectivity and routing).
+    pub fn config(&self, fa: usize, classic: &crate::machine::classic::ClassicConfig) -> ReflectConfig {
+        ReflectConfig {
+            depth: self.reflections,
+            threshold: self.reflect_threshold,
+            normal: match self.reflect_normal {
+                ReflectNormalArg::Facet => ReflectNormal::Facet,
+                ReflectNormalArg::Face => ReflectNormal::Face,
+            },
+            skip_own_facet: !self.reflect_self_hits,
+            connectivity: classic.connectivity,
+            fa,
+            route: classic.route,
+        }
+    }
+}

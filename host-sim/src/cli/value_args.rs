@@ -1,0 +1,88 @@
+//! Command-line mirrors of the domain's option enums: the domain types stay free of clap; each
+//! mirror carries the `--help` text of its values and converts into the domain type.
+
+use crate::machine::diffuse::FrustumBlocks;
+use crate::machine::load::Engine;
+use crate::precompute::{Contour, Thickness};
+
+/// Plane thickness (§3.5, §3.8).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ThicknessArg {
+    /// σ = ½: the thinnest hole-free plane; stops 6-connected rays only.
+    Naive,
+    /// The thesis's σ = max σ_ij, σ_ij = ½(1 + min/max) (§3.8): chosen from experiments.
+    Thesis,
+    /// Kσ = (|a|+|b|+|c|)/2: the standard arithmetic plane, provably free of 26-tunnels.
+    Standard,
+}
+
+impl From<ThicknessArg> for Thickness {
+    fn from(a: ThicknessArg) -> Self {
+        match a {
+            ThicknessArg::Naive => Thickness::Naive,
+            ThicknessArg::Thesis => Thickness::Thesis,
+            ThicknessArg::Standard => Thickness::Standard,
+        }
+    }
+}
+
+/// Contour of a facet (§3.6, §3.8).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ContourArg {
+    /// The thesis's projected contour: the voxel centre's projection lies in the facet's.
+    Projected,
+    /// Edges pushed out by the voxel's half-extent: every voxel whose square touches the
+    /// projected facet is kept; closes gaps between facets and holes in thin facets.
+    Conservative,
+}
+
+impl From<ContourArg> for Contour {
+    fn from(a: ContourArg) -> Self {
+        match a {
+            ContourArg::Projected => Contour::Projected,
+            ContourArg::Conservative => Contour::Conservative,
+        }
+    }
+}
+
+/// How the grid is loaded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum EngineArg {
+    /// The RC² wave, cycle by cycle (the machine).
+    Wave,
+    /// The direct host evaluation of the same integer formulas (reference and baseline).
+    Direct,
+}
+
+impl From<EngineArg> for Engine {
+    fn from(a: EngineArg) -> Self {
+        match a {
+            EngineArg::Wave => Engine::Wave,
+            EngineArg::Direct => Engine::Direct,
+        }
+    }
+}
+
+/// Blocks per axis of the occupancy summary the beam skips test against.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum FrustumBlocksArg {
+    /// 8 × 8 × 8 blocks, `u8` rows: 232 bytes per cell (what a cell trace carries).
+    #[value(name = "8")]
+    B8,
+    /// 16 × 16 × 16 blocks, `u16` rows: 1 348 bytes per cell.
+    #[value(name = "16")]
+    B16,
+    /// 32 × 32 × 32 blocks, `u32` rows: 9 384 bytes per cell.
+    #[value(name = "32")]
+    B32,
+}
+
+impl From<FrustumBlocksArg> for FrustumBlocks {
+    fn from(a: FrustumBlocksArg) -> Self {
+        match a {
+            FrustumBlocksArg::B8 => FrustumBlocks::B8,
+            FrustumBlocksArg::B16 => FrustumBlocks::B16,
+            FrustumBlocksArg::B32 => FrustumBlocks::B32,
+        }
+    }
+}

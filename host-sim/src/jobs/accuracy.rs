@@ -1,0 +1,127 @@
+//! The `light-accuracy` job: the lit state of surface voxels against exact f64 visibility.
+
+use anyhow::Result;
+use cell_core::beam::FracBits;
+
+use crate::machine::diffuse::Lighting;
+use crate::machine::loaded::{voxel_to_world, LoadedScene};
+use crate::scene::Mesh;
+
+/// Lit state of surface voxels against exact continuous visibility (SPEC §7).
+///
+/// A *surface voxel* for a light is an occupied voxel with an empty 6-neighbour whose centre
+/// lies on the light's side of the voxel's own face (the face's plane separates them): the
+/// voxels a beam from that light can enter first. Voxels of a thick wall's back layer are not
+/// surface voxels for a light in front of it (their centres see the light only through their
+/// own face, which the measure ignores).
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct Accuracy {
+    /// Surface voxels, summed over lights.
+    pub surface_voxels: u64,
+    /// Of those, lit by beam diffusion.
+    pub lit_discrete: u64,
+    /// Of those, whose centre sees the light in the continuous scene (ignoring its own face).
+    pub lit_continuous: u64,
+    /// Lit by diffusion, dark in the continuous scene.
+    pub false_lit: u64,
+    /// Dark by diffusion, lit in the continuous scene.
+    pub false_dark: u64,
+    /// (false_lit + false_dark) / surface_voxels, in percent.
+    pub disagreement_pct: f64,
+}
+
+/// Compare the discrete lit state of every surface voxel with f64 visibility of its centre
+/// from each light, ignoring the voxel's own face (SPEC §7, issue 3).
+pub fn accuracy<F: FracBits>(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    lights: &[[f64; 3]],
+    lighting: &Lighting<F>,
+) -> Result<Accuracy> {
+    let mut tris = Vec::new();
+    let mut ids = Vec::new();
+    for (fi, f) in mesh.faces.iter().enumerate() {
+        for k in 1..f.verts.len().saturating_sub(1) {
+            let p = |i: usize| mesh.positions[f.verts[i] as usize];
+            tris.push([p(0), p(k), p(k + 1)]);
+            ids.push(fi as u32);
+        }
+    }
+    // Each face's plane (normal from its first non-degenerate corner, through its first vertex).
+    let planes: Vec<([f64; 3], [f64; 3])> = mesh
+        .faces
+        .iter()
+        .map(|f| {
+            let p = |i: usize| mesh.positions[f.verts[i] as usize];
+            let o = p(0);
+            let mut nrm = [0.0; 3];
+            for k in 2..f.verts.len() {
+                let (a, b) = (sub3(p(k - 1), o), sub3(p(k), o));
+                let c = [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+                if dot3(c, c) > 0.0 {
+                    nrm = c;
+                    break;
+                }
+            }
+            (nrm, o)
+        })
+        .collect();
+    let reference = crate::truth::visibility::Reference::new(tris, ids)?;
+    let g = &scene.grid;
+    let n = g.n;
+    let occ = |x: i64, y: i64, z: i64| -> bool {
+        x >= 0
+            && y >= 0
+            && z >= 0
+            && x < n as i64
+            && y < n as i64
+            && z < n as i64
+            && g.cell(x as u32, y as u32).store.occupied(z as u16).is_some()
+    };
+    let world_lights: Vec<[f64; 3]> = lights.iter().map(|l| voxel_to_world(&scene.fit, *l)).collect();
+    let mut a = Accuracy::default();
+    for c in &g.cells {
+        for d in c.store.dexels() {
+            let face = scene.source_face.get(d.facet as usize).copied().unwrap_or(u32::MAX);
+            for z in d.span.lo..=d.span.hi {
+                let (x, y, zz) = (c.x as i64, c.y as i64, z as i64);
+                let empty: Vec<[f64; 3]> = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
+                    .iter()
+                    .filter(|&&(dx, dy, dz)| !occ(x + dx, y + dy, zz + dz))
+                    .map(|&(dx, dy, dz)| {
+                        voxel_to_world(&scene.fit, [(x + dx) as f64, (y + dy) as f64, (zz + dz) as f64])
+                    })
+                    .collect();
+                if empty.is_empty() {
+                    continue;
+                }
+                let (nrm, o) = planes.get(face as usize).copied().unwrap_or(([0.0; 3], [0.0; 3]));
+                let centre = voxel_to_world(&scene.fit, [x as f64, y as f64, zz as f64]);
+                let mask = lighting.mask(c.x as u32, c.y as u32, z);
+                for (si, l) in world_lights.iter().enumerate() {
+                    let side = dot3(nrm, sub3(*l, o)).signum();
+                    if side == 0.0 || !empty.iter().any(|q| dot3(nrm, sub3(*q, o)).signum() == side) {
+                        continue;
+                    }
+                    let disc = mask >> si & 1 == 1;
+                    let cont = reference.visible(centre, *l, &[face]);
+                    a.surface_voxels += 1;
+                    a.lit_discrete += disc as u64;
+                    a.lit_continuous += cont as u64;
+                    a.false_lit += (disc && !cont) as u64;
+                    a.false_dark += (!disc && cont) as u64;
+                }
+            }
+        }
+    }
+    a.disagreement_pct = 100.0 * (a.false_lit + a.false_dark) as f64 / a.surface_voxels.max(1) as f64;
+    Ok(a)
+}
+
+fn sub3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn dot3(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}

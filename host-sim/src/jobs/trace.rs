@@ -1,0 +1,129 @@
+//! Recording cell traces from a grid run (issue 5): for chosen cells, every message they
+//! receive, every compute cycle, every message a neighbour takes from them, in order, as
+//! `cell_core::trace` records; and the digest of what they output and end up holding, computed
+//! from the grid itself. A firmware (or [`cell_core::trace::replay`]) drives a fresh cell
+//! through the records and must reach the same digest.
+
+use std::path::Path;
+
+use anyhow::{bail, Context, Result};
+use cell_core::beam::FracBits;
+use cell_core::cell::DEFAULT_DEXELS;
+use cell_core::shade::{cell_pixel, NormalMode, ShadeParams};
+use cell_core::trace::{
+    Event, ShadeSetup, MAX_LIGHTS, MAX_MATERIALS,
+};
+
+use crate::machine::tap::Tap;
+use crate::machine::diffuse::{diffuse_tapped, source_at, LightConfig};
+
+use crate::machine::capacity::{FA_CAP, LIT_CAP, OB_CAP};
+use crate::machine::loaded::LoadedScene;
+use crate::precompute::LoadConfig;
+use crate::machine::shade::{cell_material, point_lights, AMBIENT};
+use crate::scene::Mesh;
+
+/// A recorded trace and the digest the grid run gives.
+#[derive(Clone, Debug)]
+pub struct CellTrace {
+    /// Column.
+    pub x: u32,
+    /// Row.
+    pub y: u32,
+    /// The records.
+    pub bytes: Vec<u8>,
+    /// Records written.
+    pub records: u64,
+    /// Digest of the outputs and final state, from the grid.
+    pub digest: u64,
+}
+
+/// What `record` needs to know.
+pub struct TraceJob<'a> {
+    /// Scene.
+    pub mesh: &'a Mesh,
+    /// Loading settings.
+    pub load: LoadConfig,
+    /// Lighting settings.
+    pub light: LightConfig,
+    /// Lights at grid-normalised positions (empty: the scene's own, as `render` does).
+    pub lights: Vec<[f64; 3]>,
+    /// Cells to record; `busiest` adds the cell that processed the most beams.
+    pub cells: Vec<[u32; 2]>,
+    /// Also record the busiest cell (found by a first, untraced run).
+    pub busiest: bool,
+}
+
+/// Run loading and lighting on the grid, recording the chosen cells.
+pub fn record<F: FracBits>(job: &TraceJob<'_>) -> Result<Vec<CellTrace>> {
+    let n = job.load.n;
+    if job.mesh.materials.len() > MAX_MATERIALS {
+        bail!("{} materials: a trace carries at most {MAX_MATERIALS}", job.mesh.materials.len());
+    }
+    let sources_of = |scene: &LoadedScene| -> Result<(Vec<[f64; 3]>, Vec<cell_core::beam::Source>)> {
+        let lights = crate::machine::loaded::resolve_lights(job.mesh, scene, &job.lights)?;
+        let sources = lights.iter().enumerate().map(|(i, p)| source_at(i, *p, n)).collect::<Result<Vec<_>>>()?;
+        Ok((lights, sources))
+    };
+    let mut cells = job.cells.clone();
+    if job.busiest {
+        let scene = crate::machine::loaded::load_scene(job.mesh, &job.load)?;
+        let (_, sources) = sources_of(&scene)?;
+        let l = crate::machine::diffuse::diffuse::<F, DEFAULT_DEXELS>(&scene.grid, &sources, &job.light, |_, _| {})?;
+        let b = l.reports.iter().max_by_key(|r| r.counts.lb_cell_load).map(|r| r.busiest_cell);
+        cells.extend(b);
+    }
+    if cells.is_empty() {
+        bail!("no cell to record: give --cell X,Y or --busiest");
+    }
+    let mut tap = Tap::new::<F>(n, n, &cells)?;
+    let scene: LoadedScene = crate::machine::loaded::load_scene_tapped(job.mesh, &job.load, Some(&mut tap))?;
+    let (lights, sources) = sources_of(&scene)?;
+    if lights.len() > MAX_LIGHTS {
+        bail!("{} lights: a trace carries at most {MAX_LIGHTS}", lights.len());
+    }
+    let lighting = diffuse_tapped::<F, DEFAULT_DEXELS>(&scene.grid, &sources, &job.light, Some(&mut tap), |_, _| {})?;
+    let shade = ShadeSetup {
+        params: ShadeParams { ambient: [AMBIENT; 3], normal_mode: NormalMode::Facet },
+        lights: point_lights(&lights).into_iter().collect(),
+        materials: job.mesh.materials.iter().map(cell_material).collect(),
+    };
+    let mut out = Vec::new();
+    for mut r in tap.into_recorders() {
+        let idx = (r.y * n + r.x) as usize;
+        let (cell, light) = (&scene.grid.cells[idx], &lighting.cells[idx]);
+        let (lit, visible) = (&light.lit, light.visible_lit);
+        let (mats, lights) = (&shade.materials, &shade.lights);
+        let px = cell_pixel(job.light.rule, cell, |z| lit.mask_at(z), visible, mats, lights, &shade.params);
+        r.push::<F>(&Event::Shade(shade.clone()));
+        r.push::<F>(&Event::End);
+        let (x, y) = (r.x, r.y);
+        let (bytes, records, mut digest) = r.into_parts();
+        digest.state(cell, light, px);
+        out.push(CellTrace { x, y, records, digest: digest.finish(), bytes });
+    }
+    Ok(out)
+}
+
+/// Replay a trace with the host's build of `cell_core` (the same code the firmware runs).
+pub fn replay<F: FracBits>(bytes: &[u8]) -> Result<(u64, cell_core::trace::ReplayStats)> {
+    cell_core::trace::replay::<F, DEFAULT_DEXELS, FA_CAP, OB_CAP, LIT_CAP>(bytes)
+        .map_err(|e| anyhow::anyhow!("trace replay failed: {e:?}"))
+}
+
+/// Write each trace as `cell_X_Y.rc2t` and a `digests.json` listing them.
+pub fn write_traces(dir: &Path, traces: &[CellTrace]) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mut list = Vec::new();
+    for t in traces {
+        let name = format!("cell_{}_{}.rc2t", t.x, t.y);
+        std::fs::write(dir.join(&name), &t.bytes).with_context(|| format!("cannot write {name}"))?;
+        list.push(serde_json::json!({
+            "file": name, "x": t.x, "y": t.y, "bytes": t.bytes.len(), "records": t.records,
+            "digest": format!("{:016x}", t.digest),
+        }));
+    }
+    let json = serde_json::to_string_pretty(&serde_json::json!({ "traces": list }))?;
+    std::fs::write(dir.join("digests.json"), json).context("cannot write digests.json")?;
+    Ok(())
+}

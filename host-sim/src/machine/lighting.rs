@@ -1,0 +1,127 @@
+//! A whole lighting run: beam diffusion from every source, its lit-store check and its statistics.
+
+use std::time::Instant;
+
+use anyhow::{bail, Result};
+use cell_core::beam::FracBits;
+use cell_core::cell::DEFAULT_DEXELS;
+use cell_core::light::{BeamMsg, Policy};
+
+use crate::machine::loaded::LoadedScene;
+use crate::machine::diffuse::{diffuse, source_at, DiffusionCounts, LightConfig, Lighting, SourceReport};
+
+use crate::machine::capacity::HostLightCell;
+use crate::scene::Mesh;
+
+/// Everything `light --stats` reports.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct LightStats {
+    /// Scene name.
+    pub scene: String,
+    /// Grid side.
+    pub n: u32,
+    /// FIFO limit.
+    pub fa: usize,
+    /// Fraction bits of the far-plane offsets.
+    pub frac_bits: u32,
+    /// Scheduling policy.
+    pub policy: String,
+    /// Beam merging on arrival.
+    pub merge: bool,
+    /// Facets loaded.
+    pub facets: usize,
+    /// Loading cycles.
+    pub load_cycles: u64,
+    /// Counters summed over sources (cycles and lower bounds add up: sources run one after
+    /// another).
+    #[serde(flatten)]
+    pub totals: DiffusionCounts,
+    /// totals.cycles / totals.lower_bound.
+    pub t_over_lb: f64,
+    /// Voxels lit by at least one source.
+    pub lit_voxels: u64,
+    /// Lit marks lost to a full lit store (non-zero is an error).
+    pub lit_overflows: u64,
+    /// `size_of` a beam message.
+    pub bytes_beam_message: usize,
+    /// `size_of` a cell's lighting state (FIFO, output buffers, lit runs, counters).
+    pub bytes_light_cell: usize,
+    /// Per-source reports.
+    pub sources: Vec<SourceReport>,
+    /// Wall time of the diffusion.
+    pub wall_seconds: f64,
+    /// Peak resident memory (MiB).
+    pub peak_rss_mib: Option<f64>,
+    /// What the faulty links did (`--link-faults`).
+    pub link_faults: Option<crate::machine::faults::FaultCounts>,
+}
+
+/// Fail, naming the first cell and the capacity to raise, when a lit store overflowed (a lit
+/// mark lost is a wrong image, never a silent loss).
+pub fn check_lit_overflow<F: FracBits>(lighting: &Lighting<F>) -> Result<()> {
+    let full: Vec<_> = lighting.cells.iter().filter(|c| c.counters.lit_overflows > 0).collect();
+    if let Some(c) = full.first() {
+        bail!(
+            "lit store overflow in {} cell(s), first at cell ({}, {}): more than {} lit runs per column needed, \
+             {} lit marks lost; raise LIT_CAP in cell-core/src/cell.rs, or pass --lit-visible-only \
+             (keeps only the marks shading needs: same image)",
+            full.len(),
+            c.x,
+            c.y,
+            crate::machine::capacity::LIT_CAP,
+            lighting.lit_overflows()
+        );
+    }
+    Ok(())
+}
+
+/// Diffuse and summarise.
+pub fn run_diffusion<F: FracBits>(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    lights: &[[f64; 3]],
+    cfg: &LightConfig,
+    progress: impl FnMut(usize, u64),
+) -> Result<(Lighting<F>, LightStats)> {
+    let n = scene.grid.n;
+    let sources = lights.iter().enumerate().map(|(i, p)| source_at(i, *p, n)).collect::<Result<Vec<_>>>()?;
+    let t0 = Instant::now();
+    let lighting = diffuse::<F, DEFAULT_DEXELS>(&scene.grid, &sources, cfg, progress)?;
+    check_lit_overflow(&lighting)?;
+    let wall = t0.elapsed().as_secs_f64();
+    let r = &lighting.reports;
+    let mut totals = DiffusionCounts::default();
+    for s in r {
+        totals.add(&s.counts);
+    }
+    let stats = LightStats {
+        scene: mesh.name.clone(),
+        n,
+        fa: cfg.fa,
+        frac_bits: F::U32,
+        policy: policy_name(cfg.policy).into(),
+        merge: cfg.merge,
+        facets: scene.facets,
+        load_cycles: scene.load_cycles,
+        t_over_lb: totals.t_over_lb(),
+        totals,
+        lit_voxels: lighting.lit_voxels().count() as u64,
+        lit_overflows: lighting.lit_overflows(),
+        bytes_beam_message: std::mem::size_of::<BeamMsg<F>>(),
+        bytes_light_cell: std::mem::size_of::<HostLightCell<F>>(),
+        sources: r.clone(),
+        wall_seconds: wall,
+        peak_rss_mib: crate::machine::load::peak_rss_mib(),
+        link_faults: lighting.link_faults,
+    };
+    Ok((lighting, stats))
+}
+
+/// The CLI name of a policy.
+pub fn policy_name(p: Policy) -> &'static str {
+    match p {
+        Policy::Thesis => "thesis",
+        Policy::Wavefront => "wavefront",
+        Policy::Radial => "radial",
+    }
+}

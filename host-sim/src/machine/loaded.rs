@@ -1,0 +1,126 @@
+//! A scene loaded into the grid: the voxelized cells, the world ↔ grid mapping, where its lights are.
+
+
+use anyhow::{bail, Result};
+use cell_core::cell::DEFAULT_DEXELS;
+
+use crate::machine::grid::LightGrid;
+
+use crate::machine::grid::Grid;
+use crate::precompute::{Fit, LoadConfig};
+use crate::scene::{Mesh, SceneLight};
+
+/// A loaded scene: its grid and the world ↔ grid mapping.
+pub struct LoadedScene {
+    /// The voxelized grid.
+    pub grid: LightGrid,
+    /// World ↔ grid mapping (unit cube for the empty scene).
+    pub fit: Fit,
+    /// Facets loaded.
+    pub facets: usize,
+    /// Loading cycles.
+    pub load_cycles: u64,
+    /// Source face of each facet id (packet order).
+    pub source_face: Vec<u32>,
+}
+
+/// Voxelize a scene with the wave (an empty scene gives an empty grid).
+pub fn load_scene(mesh: &Mesh, cfg: &LoadConfig) -> Result<LoadedScene> {
+    load_scene_tapped(mesh, cfg, None)
+}
+
+/// [`load_scene`], recording the cells watched by `tap`.
+pub fn load_scene_tapped(mesh: &Mesh, cfg: &LoadConfig, tap: Option<&mut crate::machine::tap::Tap>) -> Result<LoadedScene> {
+    cfg.validate()?;
+    if mesh.faces.is_empty() {
+        crate::machine::limits::check_grid_memory(
+            "grid of loading cells",
+            cfg.n,
+            std::mem::size_of::<cell_core::cell::Cell<DEFAULT_DEXELS>>(),
+        )?;
+        let fit = Fit { origin: [0.0; 3], voxel: 1.0 / cfg.n as f64 };
+        return Ok(LoadedScene {
+            grid: Grid::new(cfg.n, cfg.n),
+            fit,
+            facets: 0,
+            load_cycles: 0,
+            source_face: Vec::new(),
+        });
+    }
+    let v = crate::machine::load::voxelize_tapped::<DEFAULT_DEXELS>(mesh, cfg, crate::machine::load::Engine::Wave, tap, |_, _| {})?;
+    v.check_overflow()?;
+    Ok(LoadedScene {
+        facets: v.stats.facets,
+        load_cycles: v.stats.load_cycles,
+        fit: v.prepared.fit.expect("fitted"),
+        source_face: v.prepared.source_face,
+        grid: v.grid,
+    })
+}
+
+/// World position of a voxel-unit point.
+pub fn voxel_to_world(fit: &Fit, v: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|i| fit.origin[i] + (v[i] + 0.5) * fit.voxel)
+}
+
+/// Voxel-unit position of a world point (voxel centres at integers).
+pub fn world_to_voxel(fit: &Fit, p: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|i| (p[i] - fit.origin[i]) / fit.voxel - 0.5)
+}
+
+/// Voxel-unit position of a grid-normalised point (0..1 spans the grid's faces).
+pub fn normalised_to_voxel(t: [f64; 3], n: u32) -> [f64; 3] {
+    t.map(|c| (c * n as f64 - 0.5).clamp(0.0, n as f64 - 1.0))
+}
+
+/// Where a scene without lights (an OBJ file) gets its light: above, in front, a little left.
+pub const DEFAULT_LIGHT: [f64; 3] = [0.3, 0.95, 0.1];
+
+/// Light positions in voxel units: `--light` values (normalised, validated) if any, else the
+/// scene's own lights.
+pub fn resolve_lights(mesh: &Mesh, scene: &LoadedScene, cli: &[[f64; 3]]) -> Result<Vec<[f64; 3]>> {
+    let n = scene.grid.n;
+    if !cli.is_empty() {
+        return cli
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                if t.iter().any(|c| !c.is_finite() || *c < 0.0 || *c > 1.0) {
+                    bail!("--light {} = {:?} is outside the grid: coordinates are grid-normalised, 0 ..= 1", i + 1, t);
+                }
+                Ok(normalised_to_voxel(*t, n))
+            })
+            .collect();
+    }
+    let default_light = [SceneLight::Grid(DEFAULT_LIGHT)];
+    let scene_lights: &[SceneLight] = if mesh.lights.is_empty() {
+        eprintln!(
+            "note: scene '{}' has no lights; using one at grid-normalised {:?} (give your own with --light X,Y,Z)",
+            mesh.name, DEFAULT_LIGHT
+        );
+        &default_light
+    } else {
+        &mesh.lights
+    };
+    let mut out = Vec::new();
+    for l in scene_lights {
+        let p = match *l {
+            SceneLight::Grid(t) => normalised_to_voxel(t, n),
+            SceneLight::World(w) => {
+                let mut p = world_to_voxel(&scene.fit, w);
+                // Step down (−y) out of the occupied voxels the light's own quad sits in.
+                for _ in 0..n {
+                    let v = p.map(|c| (c + 0.5).floor());
+                    let inside = v.iter().all(|&c| c >= 0.0 && c < n as f64);
+                    if !inside || scene.grid.cell(v[0] as u32, v[1] as u32).store.occupied(v[2] as u16).is_none() {
+                        break;
+                    }
+                    p[1] -= 1.0;
+                }
+                p
+            }
+        };
+        out.push(p);
+    }
+    Ok(out)
+}

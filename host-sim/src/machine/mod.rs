@@ -1,0 +1,31 @@
+//! The machine: an n × n grid of `cell_core` cells and the host code that steps them, cycle by
+//! cycle, through every phase. Nothing here knows about jobs, reports or the command line.
+//!
+//! * [`capacity`] — the cell capacities (from `cell_core::cell`, shared with the firmware) and
+//!   the cell and grid types built from them.
+//! * [`grid`], [`load`], [`wave_ref`] — the loading wave (§3.9), its engines and its check.
+//! * [`loaded`] — a scene loaded into the grid, the world ↔ grid mapping, light placement.
+//! * [`diffuse`] — the beam-diffusion scheduler (§4.3–4.4), [`tiles`] its memory layout.
+//! * [`lighting`] — a whole lighting run and its statistics.
+//! * [`classic`] — classic shadow rays (§4.1.2) on the same cycle model; [`network`] routes
+//!   their answers.
+//! * [`reflect`] — the reflection phase (§5.2).
+//! * [`shade`] — the cells' shading of their pixels.
+//! * [`faults`] — link fault injection; [`tap`] — recording cell traces.
+//! * [`limits`] — host memory checks before allocating a grid.
+
+pub mod capacity;
+pub mod classic;
+pub mod diffuse;
+pub mod faults;
+pub mod grid;
+pub mod lighting;
+pub mod limits;
+pub mod load;
+pub mod loaded;
+pub mod network;
+pub mod reflect;
+pub mod shade;
+pub mod tap;
+pub mod tiles;
+pub mod wave_ref;

@@ -1,0 +1,171 @@
+//! The trace tap: records, for chosen cells of a grid run, every message they receive, every
+//! compute cycle and every message a neighbour takes from them (`cell_core::trace` records), as the
+//! schedulers run. The `trace` job writes what it recorded; the firmware replays it.
+
+use std::collections::HashMap;
+
+use anyhow::{bail, Result};
+use cell_core::beam::FracBits;
+use cell_core::cell::DEFAULT_DEXELS;
+use cell_core::facet::RowPacket;
+use cell_core::light::{BeamMsg, FrustumSummary, LightEnv, Port, Step};
+use cell_core::link::{self, Message};
+use cell_core::trace::{
+    write_event, Digester, Event, Header, LightSetup, Replayer,
+};
+
+use super::capacity::{FA_CAP, LIT_CAP, OB_CAP};
+
+/// Records one cell.
+pub struct CellRecorder {
+    /// Column.
+    pub x: u32,
+    /// Row.
+    pub y: u32,
+    bytes: Vec<u8>,
+    digest: Digester,
+    steps: u32,
+    records: u64,
+}
+
+impl CellRecorder {
+    /// The record bytes so far, the records written, and the digest of the cell's outputs so far
+    /// (the job adds its final state with [`Digester::state`] before finishing it).
+    pub fn into_parts(self) -> (Vec<u8>, u64, Digester) {
+        (self.bytes, self.records, self.digest)
+    }
+
+    fn new(x: u32, y: u32) -> Self {
+        CellRecorder { x, y, bytes: Vec::new(), digest: Digester::new(), steps: 0, records: 0 }
+    }
+
+    /// Append one record (the job adds the shading setup and the end record).
+    pub fn push<F: FracBits>(&mut self, ev: &Event<'_, F>) {
+        if !matches!(ev, Event::Step(_)) {
+            self.flush_steps::<F>();
+        }
+        let mut buf = [0u8; 2048];
+        // Cannot fail: the largest record (shading with 8 lights and 16 materials) is < 1 KiB.
+        let len = write_event(ev, &mut buf).expect("trace record fits its buffer");
+        self.bytes.extend_from_slice(&buf[..len]);
+        self.records += 1;
+    }
+
+    fn flush_steps<F: FracBits>(&mut self) {
+        if self.steps > 0 {
+            let n = std::mem::take(&mut self.steps);
+            self.push::<F>(&Event::Step(n));
+        }
+    }
+
+    /// A row packet arrives (before the cell processes it).
+    pub fn row(&mut self, p: &RowPacket) {
+        self.push::<cell_core::beam::frac::U0>(&Event::Row(p.clone()));
+    }
+
+    /// The cell forwarded the (stepped) packet east.
+    pub fn forwarded(&mut self, p: &RowPacket) {
+        self.digest.forwarded(p);
+    }
+
+    /// The source emitter hands the cell a beam.
+    pub fn inject<F: FracBits>(&mut self, m: &BeamMsg<F>) {
+        self.push(&Event::Inject(*m));
+    }
+
+    /// One compute cycle and its result.
+    pub fn step(&mut self, r: Step) {
+        self.steps += 1;
+        self.digest.step(r);
+    }
+
+    fn frame<F: FracBits>(m: &BeamMsg<F>) -> ([u8; cell_core::trace::BEAM_FRAME], usize) {
+        let mut buf = [0u8; cell_core::trace::BEAM_FRAME];
+        // Cannot fail: a beam frame has a fixed size.
+        let len = link::encode(0, &Message::Beam(*m), &mut buf).expect("beam frame fits");
+        (buf, len)
+    }
+
+    fn recv<F: FracBits>(&mut self, port: Port, m: &BeamMsg<F>) {
+        let (buf, len) = Self::frame(m);
+        self.push::<F>(&Event::Recv { port, frame: &buf[..len] });
+    }
+
+    fn grant<F: FracBits>(&mut self, port: Port, m: &BeamMsg<F>) {
+        self.push::<F>(&Event::Grant(port));
+        let (buf, len) = Self::frame(m);
+        self.digest.sent(port, &buf[..len]);
+    }
+}
+
+/// The cells being recorded, by grid index.
+pub struct Tap {
+    recorders: Vec<CellRecorder>,
+    by_index: HashMap<usize, usize>,
+}
+
+impl Tap {
+    /// Watch cells `cells` of an n × n grid with `depth` voxels per column; writes each header.
+    pub fn new<F: FracBits>(n: u32, depth: u32, cells: &[[u32; 2]]) -> Result<Self> {
+        let mut t = Tap { recorders: Vec::new(), by_index: HashMap::new() };
+        for &[x, y] in cells {
+            if x >= n || y >= n {
+                bail!("cell ({x}, {y}) is outside the {n} × {n} grid");
+            }
+            let idx = (y * n + x) as usize;
+            if t.by_index.contains_key(&idx) {
+                continue;
+            }
+            let mut r = CellRecorder::new(x, y);
+            let h: Header = Replayer::<F, DEFAULT_DEXELS, FA_CAP, OB_CAP, LIT_CAP>::header(x as u16, y as u16, depth);
+            r.push::<F>(&Event::Header(h));
+            t.by_index.insert(idx, t.recorders.len());
+            t.recorders.push(r);
+        }
+        Ok(t)
+    }
+
+    /// The recorders, in the order the cells were given.
+    pub fn into_recorders(self) -> Vec<CellRecorder> {
+        self.recorders
+    }
+
+    /// The recorder of cell `idx`, if watched.
+    pub fn get(&mut self, idx: usize) -> Option<&mut CellRecorder> {
+        let i = *self.by_index.get(&idx)?;
+        self.recorders.get_mut(i)
+    }
+
+    /// A source's diffusion starts.
+    pub fn light<F: FracBits>(&mut self, env: &LightEnv<'_, F>, frustum: Option<&FrustumSummary>) {
+        let s = LightSetup {
+            source: *env.source,
+            n: env.n,
+            depth: env.depth,
+            far: env.far.get(),
+            policy: env.policy,
+            fa: env.fa as u16,
+            merge: env.merge,
+            source_bit: env.source_bit,
+            skip: env.skip,
+            hold: env.hold,
+            frustum: frustum.copied(),
+            rule: env.rule,
+        };
+        for r in &mut self.recorders {
+            r.push::<F>(&Event::Light(s));
+        }
+    }
+
+    /// Cell `from` sent `m` through its port `port` to cell `to`.
+    pub fn transfer<F: FracBits>(&mut self, from: usize, to: usize, port: Port, m: &BeamMsg<F>) {
+        if let Some(r) = self.get(from) {
+            r.grant(port, m);
+        }
+        if let Some(r) = self.get(to) {
+            let (dx, dy) = port.delta();
+            // Cannot fail: the opposite of a unit step is a unit step.
+            r.recv(Port::from_delta(-dx, -dy).expect("opposite port"), m);
+        }
+    }
+}

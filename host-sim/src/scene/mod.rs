@@ -1,0 +1,19 @@
+//! Scenes: what the host loads before the machine runs.
+//!
+//! * [`mesh`] — polygons, materials, lights; the OBJ/MTL reader.
+//! * [`builtin`] — the built-in scenes and [`load`], by name or path.
+//! * [`office`] — the procedural offices of the radiosity thesis (bureau1, bureau2, classe).
+//! * [`meshops`] — winding orientation, subdivision.
+//! * [`binvox`] — the `.binvox` voxel file format.
+//!
+//! Modules of this folder import each other by `super::…`, never through this file: the
+//! re-exports below are for the rest of the crate.
+
+pub mod binvox;
+pub mod builtin;
+pub mod mesh;
+pub mod meshops;
+pub mod office;
+
+pub use builtin::{load, BUILTINS};
+pub use mesh::{add_floor, load_obj_bytes, parse_obj, Face, Material, Mesh, SceneLight};

@@ -1,0 +1,11 @@
+//! The truth the machine is measured against: continuous `f64` geometry, independent of the
+//! cells' integer arithmetic (it never imports the machine).
+//!
+//! * [`visibility`] — exact ray–triangle visibility over a BVH.
+//! * [`refrender`] — the f64 reference image (same camera, lights and shading formula).
+//! * [`compare`] — the machine's image against the reference: shadow and coverage
+//!   disagreement, PSNR, difference image.
+
+pub mod compare;
+pub mod refrender;
+pub mod visibility;

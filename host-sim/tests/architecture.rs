@@ -1,0 +1,239 @@
+//! The layering of host-sim, read from its source: no import circles between modules, the
+//! machine and the truth below the jobs, reports and command line, clap only in `cli/`.
+//!
+//! A module is a source file (`machine/grid.rs` is `machine::grid`, `scene/mod.rs` is `scene`).
+//! A module depends on another when its non-test code names a `crate::…` or `super::…` path into
+//! it (a path is resolved to the longest module it names: `crate::scene::Mesh` is `scene`, the
+//! folder's `mod.rs`, which re-exports its children). Comments and `#[cfg(test)]` modules are
+//! left out: a doc link or a unit test that looks upward is not an import.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+fn source_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            source_files(&p, out);
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+/// `machine/grid.rs` → ["machine", "grid"]; `scene/mod.rs` → ["scene"]; `lib.rs` → [].
+fn module_of(src: &Path, file: &Path) -> Vec<String> {
+    let rel = file.strip_prefix(src).unwrap().with_extension("");
+    let mut parts: Vec<String> = rel.iter().map(|c| c.to_string_lossy().into_owned()).collect();
+    if matches!(parts.last().map(String::as_str), Some("mod" | "lib" | "main")) {
+        parts.pop();
+    }
+    parts
+}
+
+/// The code of a file without comments and without its `#[cfg(test)]` module.
+fn code_of(text: &str) -> String {
+    let text = match text.find("#[cfg(test)]") {
+        Some(i) => &text[..i],
+        None => text,
+    };
+    text.lines().map(|l| l.split("//").next().unwrap_or("")).collect::<Vec<_>>().join("\n")
+}
+
+/// Every `crate::a::b…` and `super::a…` path of `code` (groups `{…}` expanded one level), as
+/// absolute segment lists.
+fn paths_in(code: &str, module: &[String], is_folder_root: bool) -> Vec<Vec<String>> {
+    let ident = |c: char| c.is_alphanumeric() || c == '_';
+    let mut out = Vec::new();
+    for start in ["crate::", "super::"] {
+        let mut rest = code;
+        while let Some(i) = rest.find(start) {
+            let before = rest[..i].chars().last();
+            rest = &rest[i..];
+            if before.is_some_and(ident) {
+                rest = &rest[start.len()..];
+                continue;
+            }
+            let mut segs: Vec<String> = Vec::new();
+            let mut s = &rest[start.len()..];
+            loop {
+                let end = s.find(|c: char| !ident(c)).unwrap_or(s.len());
+                if end == 0 {
+                    break;
+                }
+                segs.push(s[..end].to_string());
+                s = &s[end..];
+                if let Some(t) = s.strip_prefix("::") {
+                    s = t;
+                } else {
+                    break;
+                }
+            }
+            // `use crate::a::{b, c::d}`: one path per member.
+            let mut members = vec![Vec::new()];
+            if let Some(t) = s.strip_prefix('{') {
+                let body = &t[..t.find('}').unwrap_or(t.len())];
+                members = body
+                    .split(',')
+                    .map(|m| m.trim().split("::").map(|x| x.trim().to_string()).filter(|x| !x.is_empty()).collect())
+                    .collect();
+            }
+            let base: Vec<String> = if start == "crate::" {
+                Vec::new()
+            } else {
+                // `super` of a folder's `mod.rs` is the folder's parent; of a file, its folder.
+                let up = if is_folder_root { 2 } else { 1 };
+                module[..module.len().saturating_sub(up)].to_vec()
+            };
+            for m in members {
+                let mut p = base.clone();
+                p.extend(segs.iter().cloned());
+                p.extend(m);
+                out.push(p);
+            }
+            rest = &rest[start.len()..];
+        }
+    }
+    out
+}
+
+struct Crate {
+    /// Module → the modules it depends on.
+    deps: BTreeMap<Vec<String>, BTreeSet<Vec<String>>>,
+    /// Module → its code.
+    code: BTreeMap<Vec<String>, String>,
+}
+
+fn read_crate() -> Crate {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    source_files(&src, &mut files);
+    let mut code = BTreeMap::new();
+    let mut roots = BTreeSet::new();
+    for f in &files {
+        let m = module_of(&src, f);
+        if f.file_name().is_some_and(|n| n == "mod.rs") {
+            roots.insert(m.clone());
+        }
+        if !m.is_empty() {
+            code.insert(m, code_of(&std::fs::read_to_string(f).unwrap()));
+        }
+    }
+    let modules: BTreeSet<Vec<String>> = code.keys().cloned().collect();
+    let mut deps = BTreeMap::new();
+    for (m, c) in &code {
+        let mut d = BTreeSet::new();
+        for p in paths_in(c, m, roots.contains(m)) {
+            // The longest prefix of the path that is a module.
+            if let Some(target) = (1..=p.len()).rev().map(|k| p[..k].to_vec()).find(|q| modules.contains(q)) {
+                // A folder's mod.rs declaring its children is structure, not an import.
+                let declares = target.len() == m.len() + 1 && target.starts_with(m) && roots.contains(m);
+                if &target != m && !declares {
+                    d.insert(target);
+                }
+            }
+        }
+        deps.insert(m.clone(), d);
+    }
+    Crate { deps, code }
+}
+
+fn name(m: &[String]) -> String {
+    m.join("::")
+}
+
+#[test]
+fn the_parser_sees_imports_grouped_nested_and_through_super() {
+    let m = |s: &str| s.split("::").map(String::from).collect::<Vec<_>>();
+    let code = "use crate::machine::{grid::Grid, diffuse};\nfn f() { super::office::generate(); crate::truth::compare::psnr(); }";
+    let got = paths_in(code, &m("scene::builtin"), false);
+    assert!(got.contains(&m("machine::grid::Grid")), "{got:?}");
+    assert!(got.contains(&m("machine::diffuse")), "{got:?}");
+    assert!(got.contains(&m("scene::office::generate")), "{got:?}");
+    assert!(got.contains(&m("truth::compare::psnr")), "{got:?}");
+    // `super` from a folder's mod.rs goes above the folder.
+    assert_eq!(paths_in("super::precompute::Fit", &m("scene"), true), vec![m("precompute::Fit")]);
+    // Comments and unit tests are not imports.
+    assert_eq!(code_of("// crate::jobs::x\nfn a() {}\n#[cfg(test)]\nmod tests { use crate::cli::y; }").trim(), "fn a() {}");
+}
+
+#[test]
+fn the_crate_is_read() {
+    let c = read_crate();
+    for m in ["machine::diffuse", "machine::grid", "jobs::render", "truth::refrender", "cli", "scene::mesh"] {
+        let m: Vec<String> = m.split("::").map(String::from).collect();
+        assert!(c.code.contains_key(&m), "module {} not found: the layout changed, update this test", name(&m));
+    }
+    let diffuse = &c.deps[&vec!["machine".to_string(), "diffuse".to_string()]];
+    assert!(diffuse.contains(&vec!["machine".to_string(), "grid".to_string()]), "{diffuse:?}");
+}
+
+#[test]
+fn no_import_circles_between_modules() {
+    let c = read_crate();
+    // Depth-first search for a back edge; report the circle it closes.
+    fn visit(
+        m: &Vec<String>,
+        deps: &BTreeMap<Vec<String>, BTreeSet<Vec<String>>>,
+        state: &mut BTreeMap<Vec<String>, u8>,
+        stack: &mut Vec<Vec<String>>,
+    ) -> Option<Vec<Vec<String>>> {
+        state.insert(m.clone(), 1);
+        stack.push(m.clone());
+        for d in deps.get(m).into_iter().flatten() {
+            match state.get(d).copied().unwrap_or(0) {
+                1 => {
+                    let i = stack.iter().position(|x| x == d).unwrap();
+                    let mut circle = stack[i..].to_vec();
+                    circle.push(d.clone());
+                    return Some(circle);
+                }
+                0 => {
+                    if let Some(c) = visit(d, deps, state, stack) {
+                        return Some(c);
+                    }
+                }
+                _ => {}
+            }
+        }
+        stack.pop();
+        state.insert(m.clone(), 2);
+        None
+    }
+    let mut state = BTreeMap::new();
+    for m in c.deps.keys() {
+        if state.get(m).copied().unwrap_or(0) == 0 {
+            let mut stack = Vec::new();
+            if let Some(circle) = visit(m, &c.deps, &mut state, &mut stack) {
+                let names: Vec<String> = circle.iter().map(|m| name(m)).collect();
+                panic!("import circle: {}", names.join(" → "));
+            }
+        }
+    }
+}
+
+#[test]
+fn the_machine_and_the_truth_never_import_jobs_reports_or_the_cli() {
+    let c = read_crate();
+    let mut bad = Vec::new();
+    for (m, deps) in &c.deps {
+        let below = matches!(m[0].as_str(), "machine" | "truth" | "scene" | "precompute" | "rng");
+        for d in deps {
+            let above = matches!(d[0].as_str(), "jobs" | "report" | "cli");
+            // The truth is independent of the machine it judges.
+            let judged = m[0] == "truth" && d[0] == "machine";
+            if (below && above) || judged {
+                bad.push(format!("{} imports {}", name(m), name(d)));
+            }
+        }
+    }
+    assert!(bad.is_empty(), "layering broken:\n{}", bad.join("\n"));
+}
+
+#[test]
+fn clap_only_in_the_cli() {
+    let c = read_crate();
+    let bad: Vec<String> =
+        c.code.iter().filter(|(m, code)| m[0] != "cli" && code.contains("clap")).map(|(m, _)| name(m)).collect();
+    assert!(bad.is_empty(), "clap outside cli/: {bad:?}");
+}
