@@ -604,6 +604,143 @@ mod tests {
         }
     }
 
+    // Known answers: frames written out by hand from the layout in the module doc (kind u8,
+    // len u16 LE, payload, CRC-32 LE over kind, len and payload), one field per line. The CRCs
+    // were computed independently of this crate, with Python's `zlib.crc32` over the same bytes
+    // (`struct.pack('<BH', kind, len) + payload`), not with `CRC32`.
+
+    /// An acknowledgement of sequence number 0x5a.
+    const ACK_5A: [u8; 8] = [
+        0x30, 0x01, 0x00, // kind ACK, len 1
+        0x5a, // seq
+        0x60, 0xf5, 0x13, 0x5b, // CRC-32 0x5b13f560
+    ];
+
+    /// A beam at f = 0: seq 7, source 0x0203, direction −y (3) terminal (bit 7) and after the
+    /// outside of a plane (bit 5), layer 17, u −5 ..= 12, v 0 ..= 127, z 320.
+    const BEAM_F0: [u8; 34] = [
+        0x20, 0x1b, 0x00, // kind BEAM, len 27
+        0x07, // seq
+        0x00, // fraction bits
+        0x03, 0x02, // source 0x0203
+        0xa3, // direction 3 | 0x80 | 0x20
+        0x11, 0x00, 0x00, 0x00, // layer 17
+        0xfb, 0xff, 0xff, 0xff, // u_lo −5
+        0x0c, 0x00, 0x00, 0x00, // u_hi 12
+        0x00, 0x00, 0x00, 0x00, // v_lo 0
+        0x7f, 0x00, 0x00, 0x00, // v_hi 127
+        0x40, 0x01, // z 320
+        0xfa, 0xc6, 0x3b, 0x57, // CRC-32 0x573bc6fa
+    ];
+
+    /// A beam at f = 4 (offsets in sixteenths): seq 0xc8, source 0xffff, direction +z (4) after
+    /// an empty voxel (bit 6), layer 126, u −1.5 ..= 2.25, v −127 ..= −126.5, z 0.
+    const BEAM_F4: [u8; 34] = [
+        0x20, 0x1b, 0x00, // kind BEAM, len 27
+        0xc8, // seq
+        0x04, // fraction bits
+        0xff, 0xff, // source 0xffff
+        0x44, // direction 4 | 0x40
+        0x7e, 0x00, 0x00, 0x00, // layer 126
+        0xe8, 0xff, 0xff, 0xff, // u_lo −1.5 = −24/16
+        0x24, 0x00, 0x00, 0x00, // u_hi 2.25 = 36/16
+        0x10, 0xf8, 0xff, 0xff, // v_lo −127 = −2032/16
+        0x18, 0xf8, 0xff, 0xff, // v_hi −126.5 = −2024/16
+        0x00, 0x00, // z 0
+        0x47, 0x5c, 0xe9, 0x42, // CRC-32 0x42e95c47
+    ];
+
+    /// A row packet with two contour edges, seq 0.
+    const ROW_2_EDGES: [u8; 121] = [
+        0x10, 0x72, 0x00, // kind ROW, len 114 = 74 + 2·20
+        0x00, // seq
+        0x04, 0x03, 0x02, 0x01, // facet 0x01020304
+        0x06, 0x05, // material 0x0506
+        0x08, 0x07, // normal code 0x0708
+        0x0d, 0x0c, 0x0b, 0x0a, // plane id 0x0a0b0c0d
+        0x00, 0xc0, // nx −16384
+        0x4d, 0x00, // ny 77
+        0x00, 0x00, 0x00, 0xc0, // nz −2³⁰
+        0x00, 0x00, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, // m 2⁴¹
+        0x01, 0x00, 0x09, 0x00, // box x 1 ..= 9
+        0x02, 0x00, 0x02, 0x00, // box y 2 ..= 2
+        0x00, 0x00, 0x64, 0x00, // box z 0 ..= 100
+        0xfd, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, // a −3
+        0xe8, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, // c 1000
+        0x15, 0xcd, 0x5b, 0x07, 0x00, 0x00, 0x00, 0x00, // t 123 456 789
+        0x4f, 0x97, 0x21, 0xc5, 0xff, 0xff, 0xff, 0xff, // u −987 654 321
+        0x02, // edge count
+        0x10, 0x00, 0x00, 0x00, // edge 0: a 16
+        0xf0, 0xff, 0xff, 0xff, //         c −16
+        0x00, 0xf0, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, //         g −4096
+        0x08, 0x00, 0x00, 0x00, //         off 8
+        0xff, 0xff, 0xff, 0xff, // edge 1: a −1
+        0x00, 0x00, 0x00, 0x00, //         c 0
+        0x00, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, //         g 2⁴⁰
+        0x00, 0x00, 0x00, 0x00, //         off 0
+        0xb5, 0xe3, 0x05, 0x3d, // CRC-32 0x3d05e3b5
+    ];
+
+    fn beam_msg<F: FracBits>(
+        source: u16,
+        dir: Direction,
+        flags: [bool; 3],
+        layer: u32,
+        uv: [i32; 4],
+        z: u16,
+    ) -> BeamMsg<F> {
+        let r = |lo: i32, hi: i32| RayRange::new(FarOffset::<F>::from_bits(lo), FarOffset::<F>::from_bits(hi)).unwrap();
+        let beam = Beam::new(SourceId(source), dir, Layer(layer), r(uv[0], uv[1]), r(uv[2], uv[3]), far())
+            .unwrap()
+            .with_terminal(flags[0])
+            .with_after_empty(flags[1])
+            .with_after_outside(flags[2]);
+        BeamMsg::new(beam, z)
+    }
+
+    fn row_2_edges() -> RowPacket {
+        let plane = FacetPlane { id: 0x0a0b_0c0d, nx: -16384, ny: 77, nz: -(1 << 30), m: 1 << 41 };
+        RowPacket {
+            tag: FacetTag { facet: 0x0102_0304, material: 0x0506, normal: NormalCode(0x0708), plane },
+            bbox: FacetBox { x_min: 1, x_max: 9, y_min: 2, y_max: 2, z_min: 0, z_max: 100 },
+            a: -3,
+            c: 1000,
+            t: 123_456_789,
+            u: -987_654_321,
+            edges: [RowEdge { a: 16, c: -16, g: -4096, off: 8 }, RowEdge { a: -1, c: 0, g: 1 << 40, off: 0 }]
+                .into_iter()
+                .collect(),
+        }
+    }
+
+    /// Encode a known message, compare with the literal frame, decode the literal back.
+    fn known_answer<F: FracBits>(seq: u8, msg: Message<F>, literal: &[u8]) {
+        let mut buf = [0u8; MAX_FRAME];
+        let n = encode(seq, &msg, &mut buf).unwrap();
+        assert_eq!(&buf[..n], literal, "encoded frame");
+        // The CRC trailer alone, against the independent computation.
+        let crc = u32::from_le_bytes(literal[literal.len() - TRAILER..].try_into().unwrap());
+        assert_eq!(CRC32.checksum(&literal[..literal.len() - TRAILER]), crc);
+        let (f, used) = decode::<F>(literal, far()).unwrap();
+        assert_eq!((f.seq, f.msg, used), (seq, msg, literal.len()), "decoded literal");
+    }
+
+    #[test]
+    fn frames_equal_hand_written_bytes() {
+        known_answer::<U0>(0x5a, Message::Ack, &ACK_5A);
+        let m = beam_msg::<U0>(0x0203, Direction::NegY, [true, false, true], 17, [-5, 12, 0, 127], 320);
+        known_answer::<U0>(7, Message::Beam(m), &BEAM_F0);
+        let m = beam_msg::<U4>(0xffff, Direction::PosZ, [false, true, false], 126, [-24, 36, -2032, -2024], 0);
+        known_answer::<U4>(0xc8, Message::Beam(m), &BEAM_F4);
+        known_answer::<U0>(0, Message::Row(row_2_edges()), &ROW_2_EDGES);
+        // The literal frames with their last CRC byte changed are refused.
+        for lit in [&ACK_5A[..], &BEAM_F0[..], &ROW_2_EDGES[..]] {
+            let mut b = lit.to_vec();
+            *b.last_mut().unwrap() ^= 0x01;
+            assert_eq!(decode::<U0>(&b, far()).unwrap_err(), DecodeError::BadCrc);
+        }
+    }
+
     #[test]
     fn every_single_bit_flip_is_caught() {
         let s = Source::at_voxel(SourceId(0), [5, 5, 5]).unwrap();
