@@ -2,16 +2,18 @@
 //! run and replayed through a fresh `cell_core` cell (the code the firmware runs); the digest of
 //! outputs and final state must equal the one the grid computed, for both scheduling policies,
 //! with and without merging, with integer and fractional rays. Altered traces must fail: any
-//! flipped byte, any truncation, a re-encoded changed value, a dropped record.
+//! flipped byte, any truncation, a re-encoded changed value, a dropped record. The traces
+//! committed for the firmware (`firmware/traces/`) replay to their recorded digests and are
+//! exactly what their documented command records today.
 
 use cell_core::beam::frac::{U0, U2};
 use cell_core::beam::FracBits;
 use cell_core::light::Policy;
 use cell_core::trace::{write_event, Parser};
-use host_sim::machine::diffuse::{FrustumBlocks, LightConfig};
-use host_sim::machine::capacity::{FA_CAP, LIT_CAP, OB_CAP};
-use host_sim::precompute::{Contour, LoadConfig, Thickness};
 use host_sim::jobs::trace::{record, CellTrace, TraceJob};
+use host_sim::machine::capacity::{FA_CAP, LIT_CAP, OB_CAP};
+use host_sim::machine::diffuse::{FrustumBlocks, LightConfig};
+use host_sim::precompute::{Contour, LoadConfig, Thickness};
 use rc2_tests::traces::mutate_row_material;
 
 type Replay = fn(&[u8]) -> Result<(u64, cell_core::trace::ReplayStats), cell_core::trace::ReplayError>;
@@ -198,5 +200,76 @@ fn light_records_carry_the_wait_and_the_summary() {
         assert_eq!(p.next_event().unwrap().unwrap(), Event::Header(header));
         assert_eq!(p.next_event().unwrap().unwrap(), Event::Light(setup), "{scene}");
         assert!(p.next_event().is_none());
+    }
+}
+
+/// The traces committed in `firmware/traces/` (what the firmware embeds when no
+/// `RC2_TRACE_DIR` is given), read from disk: each one replays on the host (the cell code the
+/// firmware runs) to the digest `digests.json` lists for it, with the header's cell and the
+/// listed size and record count; and recording again with the command that made them
+/// (`host-sim trace --n 32 --cell 5,7 --cell 16,16 --busiest --out firmware/traces`, parsed and
+/// run as the `host-sim` binary does) writes the same files, byte for byte, `digests.json`
+/// included. A change to the machine that alters these traces fails here until they are
+/// re-recorded.
+#[test]
+fn committed_firmware_traces_replay_and_re_record_byte_identically() {
+    use clap::Parser as _;
+    use std::collections::BTreeMap;
+    use std::path::Path;
+
+    let files_of = |dir: &Path| -> BTreeMap<String, Vec<u8>> {
+        std::fs::read_dir(dir)
+            .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.is_file())
+            .map(|p| (p.file_name().unwrap().to_string_lossy().into_owned(), std::fs::read(&p).unwrap()))
+            .collect()
+    };
+    let committed_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware/traces");
+    let committed = files_of(&committed_dir);
+    let json: serde_json::Value = serde_json::from_slice(&committed["digests.json"]).expect("digests.json parses");
+    let listed = json["traces"].as_array().expect("digests.json: a list under \"traces\"");
+    let traces: Vec<&String> = committed.keys().filter(|f| f.ends_with(".rc2t")).collect();
+    assert!(!traces.is_empty(), "no committed trace");
+    let mut listed_files: Vec<&str> = listed.iter().map(|t| t["file"].as_str().expect("file")).collect();
+    listed_files.sort_unstable();
+    assert_eq!(listed_files, traces, "digests.json lists exactly the committed traces");
+
+    for t in listed {
+        let file = t["file"].as_str().unwrap();
+        let bytes = &committed[file];
+        let field = |k: &str| t[k].as_u64().unwrap_or_else(|| panic!("{file}: {k}"));
+        assert_eq!(bytes.len() as u64, field("bytes"), "{file}: size");
+        let want = u64::from_str_radix(t["digest"].as_str().expect("digest"), 16).expect("hex digest");
+        let (digest, stats) = replay_fn::<U0>()(bytes).unwrap_or_else(|e| panic!("{file}: {e:?}"));
+        assert_eq!(digest, want, "{file}: host replay {digest:016x}, digests.json {want:016x}");
+        assert_eq!(stats.records as u64, field("records"), "{file}: records");
+        assert!(stats.received > 0 && stats.steps > 0, "{file}: the light reached the cell ({stats:?})");
+        match Parser::<U0>::new(bytes).next_event() {
+            Some(Ok(cell_core::trace::Event::Header(h))) => {
+                assert_eq!((h.x as u64, h.y as u64), (field("x"), field("y")), "{file}: header cell");
+                assert_eq!(file, format!("cell_{}_{}.rc2t", h.x, h.y));
+            }
+            other => panic!("{file}: does not start with a header: {other:?}"),
+        }
+    }
+
+    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("firmware-traces-rerecorded");
+    let _ = std::fs::remove_dir_all(&out);
+    let args = ["host-sim", "trace", "--n", "32", "--cell", "5,7", "--cell", "16,16", "--busiest", "--out"];
+    let cli = host_sim::cli::Cli::try_parse_from(args.iter().copied().chain([out.to_str().unwrap()]))
+        .expect("the documented command line parses");
+    host_sim::cli::run(cli).expect("host-sim trace runs");
+    let fresh = files_of(&out);
+    assert_eq!(fresh.keys().collect::<Vec<_>>(), committed.keys().collect::<Vec<_>>(), "same files");
+    for (name, bytes) in &fresh {
+        assert!(
+            bytes == &committed[name],
+            "{name}: re-recorded ({} bytes) differs from the committed file ({} bytes); re-record \
+             with `cargo run --release -p host-sim -- trace --n 32 --cell 5,7 --cell 16,16 --busiest \
+             --out firmware/traces` if the change is intended",
+            bytes.len(),
+            committed[name].len()
+        );
     }
 }
