@@ -154,7 +154,10 @@ fn the_parser_sees_imports_grouped_nested_and_through_super() {
     // `super` from a folder's mod.rs goes above the folder.
     assert_eq!(paths_in("super::precompute::Fit", &m("scene"), true), vec![m("precompute::Fit")]);
     // Comments and unit tests are not imports.
-    assert_eq!(code_of("// crate::jobs::x\nfn a() {}\n#[cfg(test)]\nmod tests { use crate::cli::y; }").trim(), "fn a() {}");
+    assert_eq!(
+        code_of("// crate::jobs::x\nfn a() {}\n#[cfg(test)]\nmod tests { use crate::cli::y; }").trim(),
+        "fn a() {}"
+    );
 }
 
 #[test]

@@ -5,10 +5,10 @@
 
 use cell_core::beam::frac::U0;
 use cell_core::light::Policy;
-use host_sim::machine::diffuse::LightConfig;
 use host_sim::jobs::dump::{lit_dump, write_lit_dump};
-use host_sim::machine::loaded::{load_scene, resolve_lights};
+use host_sim::machine::diffuse::LightConfig;
 use host_sim::machine::lighting::run_diffusion;
+use host_sim::machine::loaded::{load_scene, resolve_lights};
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
 use serde_json::Value;
 

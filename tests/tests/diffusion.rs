@@ -255,9 +255,14 @@ fn thesis_shape_and_our_policy() {
     let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
     let lit = |policy, merge| {
         let lcfg = LightConfig { fa: 4, policy, merge, record_visits: false, ..Default::default() };
-        let (l, _) =
-            host_sim::machine::lighting::run_diffusion::<cell_core::beam::frac::U2>(&mesh, &loaded, &lights, &lcfg, |_, _| {})
-                .unwrap();
+        let (l, _) = host_sim::machine::lighting::run_diffusion::<cell_core::beam::frac::U2>(
+            &mesh,
+            &loaded,
+            &lights,
+            &lcfg,
+            |_, _| {},
+        )
+        .unwrap();
         l.lit_voxels().collect::<Vec<_>>()
     };
     let a = lit(Policy::Thesis, false);

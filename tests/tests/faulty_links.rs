@@ -8,10 +8,10 @@ use cell_core::light::Policy;
 use cell_core::shade::NormalMode;
 use host_sim::machine::diffuse::LightConfig;
 use host_sim::machine::faults::LinkFaults;
-use host_sim::machine::loaded::{load_scene, resolve_lights};
 use host_sim::machine::lighting::run_diffusion;
-use host_sim::precompute::{Contour, LoadConfig, Thickness};
+use host_sim::machine::loaded::{load_scene, resolve_lights};
 use host_sim::machine::shade::{point_lights, shade_grid};
+use host_sim::precompute::{Contour, LoadConfig, Thickness};
 
 #[test]
 fn faulty_links_light_exactly_what_clean_links_light() {

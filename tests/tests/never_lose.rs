@@ -8,8 +8,8 @@
 use cell_core::beam::frac::U0;
 use cell_core::dexel::FacetTag;
 use cell_core::units::Span;
-use host_sim::machine::diffuse::{diffuse, source_at, LightConfig};
 use host_sim::machine::capacity::LIT_CAP;
+use host_sim::machine::diffuse::{diffuse, source_at, LightConfig};
 use host_sim::machine::grid::Grid;
 use host_sim::machine::lighting::check_lit_overflow;
 

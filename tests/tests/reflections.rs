@@ -8,16 +8,19 @@ use cell_core::ray::{Connectivity, Q};
 use cell_core::reflect::{combine, hit_normal, reflected_dir, to_answer, toward_origin, Answer, ReflectNormal};
 use cell_core::route::RoutePolicy;
 use cell_core::shade::{encode, facing_mask, shade_linear_toward, NormalMode};
-use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
-use host_sim::precompute::{Contour, LoadConfig, Thickness};
-use host_sim::machine::reflect::{ray_span, reflect, ReflectConfig, ShadeEnv};
 use host_sim::jobs::render::render_reflect;
 use host_sim::jobs::render::RenderConfig;
+use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
+use host_sim::machine::reflect::{ray_span, reflect, ReflectConfig, ShadeEnv};
+use host_sim::precompute::{Contour, LoadConfig, Thickness};
 use host_sim::scene::{Mesh, SceneLight};
 use rc2_tests::oracle::lines::{walk18, walk26, walk6};
 
 fn render_cfg() -> RenderConfig {
-    RenderConfig { light: host_sim::machine::diffuse::LightConfig { fa: 16, ..Default::default() }, normals: NormalMode::Facet }
+    RenderConfig {
+        light: host_sim::machine::diffuse::LightConfig { fa: 16, ..Default::default() },
+        normals: NormalMode::Facet,
+    }
 }
 
 fn load(mesh: &Mesh, n: u32) -> (LoadedScene, Vec<[f64; 3]>) {
@@ -128,7 +131,8 @@ fn grid_trees_match_a_per_ray_oracle() {
     for (mesh, n, depth) in [(host_sim::scene::load("cornell-mirror").unwrap(), 32, 3), (hall_of_mirrors(), 20, 4)] {
         let (s, lights) = load(&mesh, n);
         let (lighting, _) =
-            host_sim::machine::lighting::run_diffusion::<U0>(&mesh, &s, &lights, &render_cfg().light, |_, _| {}).unwrap();
+            host_sim::machine::lighting::run_diffusion::<U0>(&mesh, &s, &lights, &render_cfg().light, |_, _| {})
+                .unwrap();
         let mask = |x, y, z| lighting.mask(x, y, z);
         let pl = host_sim::machine::shade::point_lights(&lights);
         let env = ShadeEnv::new(&mesh, &pl, NormalMode::Facet, &mask);

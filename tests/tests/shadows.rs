@@ -14,10 +14,10 @@ use cell_core::beam::frac::U0;
 use cell_core::beam::FracBits;
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
-use host_sim::machine::diffuse::LightConfig;
-use host_sim::precompute::{Contour, LoadConfig, Thickness};
-use host_sim::machine::shade::Image;
 use host_sim::jobs::render::RenderConfig;
+use host_sim::machine::diffuse::LightConfig;
+use host_sim::machine::shade::Image;
+use host_sim::precompute::{Contour, LoadConfig, Thickness};
 use host_sim::scene::Mesh;
 
 /// Voxels of a closed mesh every path from a pixel's neighbourhood to a source must cross for
@@ -114,8 +114,8 @@ fn render<F: FracBits>(mesh: &Mesh, n: u32, setup: &Setup) -> (Image, host_sim::
         ..LightConfig::default()
     };
     let rcfg = RenderConfig { light, normals: cell_core::shade::NormalMode::Facet };
-    let r =
-        host_sim::jobs::render::render::<F>(mesh, &loaded, &lights, &rcfg, Some(&reference), 0.0, 0.0, |_, _| {}).unwrap();
+    let r = host_sim::jobs::render::render::<F>(mesh, &loaded, &lights, &rcfg, Some(&reference), 0.0, 0.0, |_, _| {})
+        .unwrap();
     let mut behind = behind_solids(mesh, &loaded.fit, n, &lights);
     // A silhouette pixel the reference sees the floor through but the machine shades the
     // mesh at (its contour is conservative; the thesis's rule shows the first voxel) shows

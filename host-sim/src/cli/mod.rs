@@ -10,11 +10,11 @@ use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::machine::load::{voxelize, VoxelizeStats};
 use crate::machine::diffuse::FrustumBlocks;
+use crate::machine::load::{voxelize, VoxelizeStats};
 use crate::precompute::{Contour, LoadConfig, Thickness};
-use value_args::{ContourArg, EngineArg, FrustumBlocksArg, ThicknessArg};
 use crate::scene;
+use value_args::{ContourArg, EngineArg, FrustumBlocksArg, ThicknessArg};
 
 /// RC² cellular ray-tracing machine — host simulator.
 ///
@@ -111,23 +111,44 @@ impl From<PolicyArg> for cell_core::light::Policy {
     }
 }
 
-/// Loading options shared by the jobs that voxelize first (`voxelize`, `light`).
+/// Scene and loading options, the same for every job that loads a scene.
 #[derive(Args, Debug, Clone)]
 pub struct LoadArgs {
     /// An .obj file, or a built-in scene name (see `host-sim scenes`).
     #[arg(default_value = "cornell")]
     pub scene: String,
-    /// Grid side: n × n cells, each owning a column of n voxels (4 ..= 65536).
-    #[arg(long, default_value_t = 128)]
-    pub n: u32,
+    /// Grid side: n × n cells (and pixels), each owning a column of n voxels (4 ..= 65536).
+    /// Default: 128; `trace`: 32 (a trace must fit the firmware's flash: keep n small).
+    #[arg(long)]
+    pub n: Option<u32>,
     /// Plane thickness: naive (σ = ½, stops 6-connected rays), thesis (§3.8's σ), standard
-    /// (|a|+|b|+|c|, provably free of 26-tunnels).
+    /// (|a|+|b|+|c|, provably free of 26-tunnels). Default: standard in every job, the
+    /// tunnel-free surface: no light passes through a closed mesh.
     #[arg(long, value_enum, default_value_t = ThicknessArg::Standard)]
     pub sigma: ThicknessArg,
     /// Facet contour: projected (the thesis's) or conservative (closes gaps between facets and
-    /// holes in thin facets).
+    /// holes in thin facets). Default: conservative in every job, the watertight one (the
+    /// pixel still shows the exact facet its centre line meets, not the fatter voxels).
     #[arg(long, value_enum, default_value_t = ContourArg::Conservative)]
     pub contour: ContourArg,
+}
+
+impl LoadArgs {
+    /// The loading configuration, with grid side `default_n` unless `--n` is given.
+    pub fn config(&self, default_n: u32) -> LoadConfig {
+        LoadConfig { n: self.n.unwrap_or(default_n), thickness: self.sigma.into(), contour: self.contour.into() }
+    }
+}
+
+/// Default grid side of every job but `trace`.
+const DEFAULT_N: u32 = 128;
+
+/// Default grid side of `trace`.
+const TRACE_N: u32 = 32;
+
+/// The geometry a summary line names: thickness and contour.
+fn geometry(cfg: &LoadConfig) -> String {
+    format!("{:?} + {:?} surfaces", cfg.thickness, cfg.contour).to_lowercase()
 }
 
 /// Options of `light`.
@@ -322,20 +343,9 @@ pub enum NormalArg {
 /// Options of `render`.
 #[derive(Args, Debug)]
 pub struct RenderArgs {
-    /// An .obj file, or a built-in scene name (see `host-sim scenes`).
-    #[arg(default_value = "cornell")]
-    pub scene: String,
-    /// Grid side: n × n cells (and pixels), each owning a column of n voxels.
-    #[arg(long, default_value_t = 128)]
-    pub n: u32,
-    /// Plane thickness (naive, thesis, standard; see `voxelize --help`). Default: standard, the
-    /// tunnel-free surface (as every job): no light passes through a closed mesh.
-    #[arg(long, value_enum, default_value_t = ThicknessArg::Standard)]
-    pub sigma: ThicknessArg,
-    /// Facet contour (see `voxelize --help`). Default: conservative, the watertight one (the
-    /// pixel still shows the exact facet its centre line meets, not the fatter voxels).
-    #[arg(long, value_enum, default_value_t = ContourArg::Conservative)]
-    pub contour: ContourArg,
+    /// Scene and loading options.
+    #[command(flatten)]
+    pub load: LoadArgs,
     /// Lighting options.
     #[command(flatten)]
     pub light: LightOpts,
@@ -492,18 +502,9 @@ pub struct AuditArgs {
 /// Options of `trace`.
 #[derive(Args, Debug)]
 pub struct TraceArgs {
-    /// An .obj file, or a built-in scene name (see `host-sim scenes`).
-    #[arg(default_value = "cornell")]
-    pub scene: String,
-    /// Grid side (the traces must fit the firmware's flash: keep n small, e.g. 16..64).
-    #[arg(long, default_value_t = 32)]
-    pub n: u32,
-    /// Plane thickness (as `render`).
-    #[arg(long, value_enum, default_value_t = ThicknessArg::Standard)]
-    pub sigma: ThicknessArg,
-    /// Facet contour (as `render`).
-    #[arg(long, value_enum, default_value_t = ContourArg::Conservative)]
-    pub contour: ContourArg,
+    /// Scene and loading options.
+    #[command(flatten)]
+    pub load: LoadArgs,
     /// Lighting options (the firmware is built for the default --frac-bits 0).
     #[command(flatten)]
     pub light: LightOpts,
@@ -577,7 +578,7 @@ fn dispatch(command: Command) -> Result<()> {
         }
         Command::Audit(a) => {
             let l = &a.load;
-            let cfg = LoadConfig { n: l.n, thickness: l.sigma.into(), contour: l.contour.into() };
+            let cfg = l.config(DEFAULT_N);
             cfg.validate()?;
             let mesh = scene::load(&l.scene)?;
             let lcfg = crate::machine::diffuse::LightConfig {
@@ -675,7 +676,7 @@ fn print_summary(s: &VoxelizeStats) {
 
 fn run_voxelize<const D: usize>(a: &VoxelizeArgs) -> Result<()> {
     let l = &a.load;
-    let cfg = LoadConfig { n: l.n, thickness: l.sigma.into(), contour: l.contour.into() };
+    let cfg = l.config(DEFAULT_N);
     cfg.validate()?;
     let mesh = scene::load(&l.scene)?;
     let pb = progress_bar(a.quiet, "load");
@@ -698,11 +699,11 @@ fn run_voxelize<const D: usize>(a: &VoxelizeArgs) -> Result<()> {
 }
 
 fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
-    use crate::machine::loaded::{load_scene, resolve_lights};
-    use crate::machine::lighting::run_diffusion;
     use crate::jobs::light::write_lit_csv;
+    use crate::machine::lighting::run_diffusion;
+    use crate::machine::loaded::{load_scene, resolve_lights};
     let l = &a.load;
-    let cfg = LoadConfig { n: l.n, thickness: l.sigma.into(), contour: l.contour.into() };
+    let cfg = l.config(DEFAULT_N);
     cfg.validate()?;
     let mesh = scene::load(&l.scene)?;
     let loaded = load_scene(&mesh, &cfg)?;
@@ -727,10 +728,11 @@ fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
         crate::jobs::dump::write_lit_dump(&d, BufWriter::new(f))?;
     }
     eprintln!(
-        "{}: n = {}, {} facets, {} light(s), FA = {}, f = {}, policy {}, merge {}",
+        "{}: n = {}, {} facets ({}), {} light(s), FA = {}, f = {}, policy {}, merge {}",
         stats.scene,
         stats.n,
         stats.facets,
+        geometry(&cfg),
         stats.sources.len(),
         stats.fa,
         stats.frac_bits,
@@ -772,8 +774,8 @@ fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
 }
 
 fn run_table<F: cell_core::beam::FracBits>(a: &TableArgs) -> Result<()> {
-    use crate::machine::loaded::{load_scene, resolve_lights};
     use crate::machine::lighting::run_diffusion;
+    use crate::machine::loaded::{load_scene, resolve_lights};
     use std::io::Write;
     let mut rows = Vec::new();
     let mut csv = BufWriter::new(File::create(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?);
@@ -851,8 +853,8 @@ fn run_table<F: cell_core::beam::FracBits>(a: &TableArgs) -> Result<()> {
 
 fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     use crate::jobs::accuracy::accuracy;
-    use crate::machine::loaded::{load_scene, resolve_lights};
     use crate::machine::lighting::run_diffusion;
+    use crate::machine::loaded::{load_scene, resolve_lights};
     use std::io::Write;
     let mesh = scene::load(&a.scene)?;
     let mut csv = BufWriter::new(File::create(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?);
@@ -927,9 +929,9 @@ fn print_link_faults(s: &crate::machine::lighting::LightStats) {
 }
 
 fn run_trace<F: cell_core::beam::FracBits>(a: &TraceArgs) -> Result<()> {
-    let load = LoadConfig { n: a.n, thickness: a.sigma.into(), contour: a.contour.into() };
+    let load = a.load.config(TRACE_N);
     load.validate()?;
-    let mesh = scene::load(&a.scene)?;
+    let mesh = scene::load(&a.load.scene)?;
     let job = crate::jobs::trace::TraceJob {
         mesh: &mesh,
         load,
@@ -993,10 +995,11 @@ fn run_light_classic<F: cell_core::beam::FracBits>(
         }
     }
     eprintln!(
-        "{}: n = {}, {} facets, {} light(s), FA = {}, {}: T = {} cycles, {} lit visible voxels, wall {:.3} s",
+        "{}: n = {}, {} facets ({}), {} light(s), FA = {}, {}: T = {} cycles, {} lit visible voxels, wall {:.3} s",
         stats.scene,
         stats.n,
         stats.facets,
+        geometry(&a.load.config(DEFAULT_N)),
         lights.len(),
         stats.fa,
         stats.policy,
@@ -1016,12 +1019,12 @@ fn beside(out: &std::path::Path, ext: &str) -> std::path::PathBuf {
 }
 
 fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
-    use crate::machine::loaded::{load_scene, resolve_lights};
     use crate::jobs::render::{reference_image, render, RenderConfig};
+    use crate::machine::loaded::{load_scene, resolve_lights};
     use crate::report::png::write_png;
-    let cfg = LoadConfig { n: a.n, thickness: a.sigma.into(), contour: a.contour.into() };
+    let cfg = a.load.config(DEFAULT_N);
     cfg.validate()?;
-    a.reflect.validate(a.light.classic.lighting, a.n, a.light.fa)?;
+    a.reflect.validate(a.light.classic.lighting, cfg.n, a.light.fa)?;
     let reflecting = a.reflect.reflections > 0;
     if reflecting && a.light.lit_visible_only == Some(true) {
         anyhow::bail!(
@@ -1031,7 +1034,7 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     }
     // The image needs only what its pixels read; reflected rays read hidden voxels too.
     let light = a.light.config_for(!reflecting)?;
-    let mesh = scene::load(&a.scene)?;
+    let mesh = scene::load(&a.load.scene)?;
     let t0 = std::time::Instant::now();
     let pb = progress_bar(a.quiet, "load");
     pb.set_length(1);
@@ -1118,10 +1121,11 @@ fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
     let s = &r.stats;
     let t = &s.light.totals;
     eprintln!(
-        "{}: n = {}, {} facets, {} light(s), f = {}, FA = {}, {} policy{}, {} normals",
+        "{}: n = {}, {} facets ({}), {} light(s), f = {}, FA = {}, {} policy{}, {} normals",
         s.light.scene,
         s.light.n,
         s.light.facets,
+        geometry(&cfg),
         s.light.sources.len(),
         s.light.frac_bits,
         s.light.fa,

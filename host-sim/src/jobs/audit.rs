@@ -17,8 +17,8 @@ use cell_core::link::{BEAM_PAYLOAD, HEADER, MAX_FRAME, ROW_PAYLOAD_BASE, TRAILER
 use crate::machine::diffuse::{FrustumBlocks, LightConfig};
 
 use crate::machine::capacity::{FA_CAP, LIT_CAP, OB_CAP};
-use crate::machine::loaded::{load_scene, resolve_lights};
 use crate::machine::lighting::run_diffusion;
+use crate::machine::loaded::{load_scene, resolve_lights};
 use crate::precompute::LoadConfig;
 use crate::scene::Mesh;
 

@@ -13,12 +13,12 @@ use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
 
-use crate::machine::diffuse::LightConfig;
-use crate::machine::loaded::{load_scene, resolve_lights};
-use crate::machine::lighting::policy_name;
-use crate::report::plot::{pareto_front, plot_pareto, ParetoPoint};
-use crate::precompute::{Contour, LoadConfig, Thickness};
 use crate::jobs::render::{reference_image, render, RenderConfig};
+use crate::machine::diffuse::LightConfig;
+use crate::machine::lighting::policy_name;
+use crate::machine::loaded::{load_scene, resolve_lights};
+use crate::precompute::{Contour, LoadConfig, Thickness};
+use crate::report::plot::{pareto_front, plot_pareto, ParetoPoint};
 use crate::scene::Mesh;
 
 /// One point of the sweep.

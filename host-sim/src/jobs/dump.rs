@@ -14,9 +14,9 @@ use anyhow::Result;
 use cell_core::beam::FracBits;
 
 use crate::machine::diffuse::Lighting;
-use crate::machine::loaded::voxel_to_world;
 use crate::machine::grid::LightGrid;
 use crate::machine::lighting::LightStats;
+use crate::machine::loaded::voxel_to_world;
 use crate::precompute::Fit;
 use crate::scene::Mesh;
 

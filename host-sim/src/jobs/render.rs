@@ -153,7 +153,6 @@ pub fn finish_render(
     Rendered { image, stats }
 }
 
-
 /// `render --lighting classic`: the classic phase, then the same shading and report as
 /// diffusion ([`crate::jobs::render::finish_render`]).
 #[allow(clippy::too_many_arguments)]
@@ -187,7 +186,6 @@ pub fn render_classic<F: FracBits>(
     Ok((r, cl.totals))
 }
 
-
 /// `render --reflections D` (D ≥ 1): diffusion lighting, shading, then the reflection phase;
 /// reflective visible voxels get `local + Kr · answer`, every other pixel is the plain render's.
 /// Compared with `reference` when given (make it with [`reflect_reference_image`]).
@@ -203,7 +201,8 @@ pub fn render_reflect<F: cell_core::beam::FracBits>(
     progress: impl FnMut(usize, u64),
 ) -> Result<(crate::jobs::render::Rendered, ReflectCounts)> {
     let t0 = std::time::Instant::now();
-    let (lighting, lstats) = crate::machine::lighting::run_diffusion::<F>(mesh, scene, light_positions, &cfg.light, progress)?;
+    let (lighting, lstats) =
+        crate::machine::lighting::run_diffusion::<F>(mesh, scene, light_positions, &cfg.light, progress)?;
     let mask = |x, y, z| lighting.mask(x, y, z);
     let light_seconds = t0.elapsed().as_secs_f64();
     let mut r = crate::jobs::render::finish_render(
@@ -242,7 +241,8 @@ pub fn render_reflect<F: cell_core::beam::FracBits>(
     }
     r.stats.shade_seconds += t1.elapsed().as_secs_f64();
     r.stats.wall_seconds += t1.elapsed().as_secs_f64();
-    r.stats.reference = reference.map(|rf| crate::truth::compare::compare(&r.image.rgb, &r.image.covered, &r.image.lit, rf));
+    r.stats.reference =
+        reference.map(|rf| crate::truth::compare::compare(&r.image.rgb, &r.image.covered, &r.image.lit, rf));
     Ok((r, counts))
 }
 

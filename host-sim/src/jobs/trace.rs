@@ -10,17 +10,15 @@ use anyhow::{bail, Context, Result};
 use cell_core::beam::FracBits;
 use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::shade::{cell_pixel, NormalMode, ShadeParams};
-use cell_core::trace::{
-    Event, ShadeSetup, MAX_LIGHTS, MAX_MATERIALS,
-};
+use cell_core::trace::{Event, ShadeSetup, MAX_LIGHTS, MAX_MATERIALS};
 
-use crate::machine::tap::Tap;
 use crate::machine::diffuse::{diffuse_tapped, source_at, LightConfig};
+use crate::machine::tap::Tap;
 
 use crate::machine::capacity::{FA_CAP, LIT_CAP, OB_CAP};
 use crate::machine::loaded::LoadedScene;
-use crate::precompute::LoadConfig;
 use crate::machine::shade::{cell_material, point_lights, AMBIENT};
+use crate::precompute::LoadConfig;
 use crate::scene::Mesh;
 
 /// A recorded trace and the digest the grid run gives.

@@ -29,13 +29,12 @@ use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Re
 use crate::machine::capacity::{HostLightCell, FA_CAP};
 use crate::machine::faults::{FaultCounts, FaultyLinks, LinkFaults};
 use crate::machine::grid::Grid;
-use crate::machine::tiles::{merge_sorted, prefetch, prefetch_ends, tiles};
 use crate::machine::tap::Tap;
+use crate::machine::tiles::{merge_sorted, prefetch, prefetch_ends, tiles};
 
 /// Default of [`LightConfig::stall_cycles`]: a fault-free machine that cannot move for one
 /// cycle is deadlocked; under link faults a few cycles of bad luck are normal.
 pub const DEFAULT_STALL_CYCLES: u64 = 64;
-
 
 /// Lighting-phase settings.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -7,8 +7,8 @@ use cell_core::beam::FracBits;
 use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::light::{BeamMsg, Policy};
 
-use crate::machine::loaded::LoadedScene;
 use crate::machine::diffuse::{diffuse, source_at, DiffusionCounts, LightConfig, Lighting, SourceReport};
+use crate::machine::loaded::LoadedScene;
 
 use crate::machine::capacity::HostLightCell;
 use crate::scene::Mesh;

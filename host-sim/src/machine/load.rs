@@ -7,9 +7,9 @@ use cell_core::cell::Cell;
 use cell_core::dexel::Dexel;
 use cell_core::facet::{PipelinePacket, RowPacket};
 
-use crate::scene::binvox::Voxels;
 use crate::machine::grid::{Grid, LoadReport};
 use crate::precompute::{prepare, Contour, LoadConfig, Prepared, Thickness};
+use crate::scene::binvox::Voxels;
 use crate::scene::Mesh;
 
 /// How the grid is loaded.

@@ -1,6 +1,5 @@
 //! A scene loaded into the grid: the voxelized cells, the world ↔ grid mapping, where its lights are.
 
-
 use anyhow::{bail, Result};
 use cell_core::cell::DEFAULT_DEXELS;
 
@@ -30,7 +29,11 @@ pub fn load_scene(mesh: &Mesh, cfg: &LoadConfig) -> Result<LoadedScene> {
 }
 
 /// [`load_scene`], recording the cells watched by `tap`.
-pub fn load_scene_tapped(mesh: &Mesh, cfg: &LoadConfig, tap: Option<&mut crate::machine::tap::Tap>) -> Result<LoadedScene> {
+pub fn load_scene_tapped(
+    mesh: &Mesh,
+    cfg: &LoadConfig,
+    tap: Option<&mut crate::machine::tap::Tap>,
+) -> Result<LoadedScene> {
     cfg.validate()?;
     if mesh.faces.is_empty() {
         crate::machine::limits::check_grid_memory(
@@ -47,7 +50,13 @@ pub fn load_scene_tapped(mesh: &Mesh, cfg: &LoadConfig, tap: Option<&mut crate::
             source_face: Vec::new(),
         });
     }
-    let v = crate::machine::load::voxelize_tapped::<DEFAULT_DEXELS>(mesh, cfg, crate::machine::load::Engine::Wave, tap, |_, _| {})?;
+    let v = crate::machine::load::voxelize_tapped::<DEFAULT_DEXELS>(
+        mesh,
+        cfg,
+        crate::machine::load::Engine::Wave,
+        tap,
+        |_, _| {},
+    )?;
     v.check_overflow()?;
     Ok(LoadedScene {
         facets: v.stats.facets,

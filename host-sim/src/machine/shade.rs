@@ -6,7 +6,6 @@
 //! 1/√(number of lights), ambient 0.2. With `--reference` the same scene is ray-cast in f64
 //! (`refrender`) with the same camera, resolution and shading formula, and compared.
 
-
 use cell_core::beam::FracBits;
 use cell_core::light::SourceMask;
 use cell_core::lit::LitRule;

@@ -10,9 +10,7 @@ use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::facet::RowPacket;
 use cell_core::light::{BeamMsg, FrustumSummary, LightEnv, Port, Step};
 use cell_core::link::{self, Message};
-use cell_core::trace::{
-    write_event, Digester, Event, Header, LightSetup, Replayer,
-};
+use cell_core::trace::{write_event, Digester, Event, Header, LightSetup, Replayer};
 
 use super::capacity::{FA_CAP, LIT_CAP, OB_CAP};
 

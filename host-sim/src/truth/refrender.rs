@@ -20,8 +20,8 @@
 use anyhow::{bail, Context, Result};
 
 use crate::precompute::Fit;
-use crate::truth::visibility::Reference;
 use crate::scene::{Material, Mesh};
+use crate::truth::visibility::Reference;
 
 /// A point light for the reference renderer.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -346,8 +346,8 @@ pub fn render_reference_reflect(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::truth::compare::{compare, difference_image};
     use crate::scene::Face;
+    use crate::truth::compare::{compare, difference_image};
 
     fn mat(ka: [f32; 3], kd: [f32; 3], ks: [f32; 3], ns: f32, ke: [f32; 3]) -> Material {
         Material { name: "m".into(), ka, kd, ks, ns, ke, kr: 0.0 }
