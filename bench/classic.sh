@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Classic shadow rays against beam diffusion (thesis §4.1.6–4.1.7, issue 8): for each scene and
+# Classic shadow rays against beam diffusion (thesis §4.1.6–4.1.7): for each scene and
 # n, render with both methods against the f64 reference, and run the classic phase once more
 # with every occupied voxel emitting (the thesis's ray count ΣS_i) to estimate the occupancy at
 # which diffusion starts to win on messages. Writes bench-out/classic.csv and prints a table.

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Plot bench-out/classic.csv (written by bench/classic.sh): classic shadow rays against beam
-diffusion (thesis §4.1.6-4.1.7, issue 8).
+diffusion (thesis §4.1.6–4.1.7).
 
 Three panels against the grid side n, one colour per scene:
   1. link messages: diffusion (solid), classic with visible emitters (dashed), classic with

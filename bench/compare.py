@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""rc2 against outside tools, in one run (issue 7). Called by bench/compare.sh.
+"""rc2 against outside tools, in one run. Called by bench/compare.sh.
 
 voxel   — `host-sim voxelize` against trimesh's `mesh.voxelized(pitch)` and Open3D's
           `VoxelGrid.create_from_triangle_mesh_within_bounds` on the same mesh, same grid:

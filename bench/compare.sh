@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# rc2 against outside tools in one run (issue 7): voxelization against trimesh and Open3D,
+# rc2 against outside tools in one run: voxelization against trimesh and Open3D,
 # lighting against exact shadow rays with Embree (embreex). Creates a Python venv under
 # bench-out/venv (gitignored) and installs trimesh, numpy, open3d, embreex from PyPI.
 # Writes bench-out/compare/{voxelize,light}.csv; see bench/compare.py for what is measured.

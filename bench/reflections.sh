@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Mirror reflections on the grid (issue 8 item 4): cornell-mirror at each n and tree depth against
+# Mirror reflections on the grid: cornell-mirror at each n and tree depth against
 # the f64 reference with the same reflections, then the discrete-space defects of thesis §5.5 at
 # n = 64 (face-flip normals, self-collisions on thick surfaces, 26-connected rays through naive
 # walls). Writes bench-out/reflections.csv, prints a markdown table, and with PICTURES=1 writes the

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 7: the simulator at scale. Renders each scene at each n (default configuration: f = 0,
+# The simulator at scale. Renders each scene at each n (default configuration: f = 0,
 # FA = 16, wavefront + merge, skips on, no f64 reference) and records wall time per phase,
 # simulated cycles per phase, peak RSS; then fits the growth exponent of wall time in n.
 # Writes bench-out/scale.csv and prints one markdown table per scene.

@@ -1,4 +1,4 @@
-//! Criterion benchmarks of what one cell does per step (issue 7): the loading wave's row cell
+//! Criterion benchmarks of what one cell does per step: the loading wave's row cell
 //! (`row_span`, `Cell::load_step`, `DexelStore::insert`), the beam split at several layers and
 //! fraction bits, the tests of the sibling wait and the empty-frustum skip, the lighting FIFO
 //! (`LightCell::accept` with and without merging, `step`), and the shading of one pixel.

@@ -1,4 +1,4 @@
-//! Error of the shading math against libm, in 8-bit output levels (issue 4).
+//! Error of the shading math against libm, in 8-bit output levels.
 //!
 //! `cargo run --release -p cell-core --example micromath_error`
 //!

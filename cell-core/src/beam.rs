@@ -6,13 +6,13 @@
 //! the per-ray oracle). Hence ray counts are conserved: `beam.ray_count()` equals the sum of
 //! its sub-beams' counts.
 //!
-//! # Geometry (SPEC §3 "Rays, beams and the split")
+//! # Geometry (thesis §4.3: rays, beams and the split)
 //!
 //! * A [`Direction`] is a principal axis w with a sign s. Its transverse axes — the *u-axis*
 //!   and *v-axis* — are the other two axes in increasing order: ±z → (x, y), ±y → (x, z),
 //!   ±x → (y, z).
 //! * A [`Source`] S has a position on a lattice of [`SOURCE_FRAC_BITS`] = g = 4 fraction bits
-//!   (1/16 voxel, the loading lattice of SPEC §2); an integer source is the thesis's case.
+//!   (1/16 voxel, the loading lattice of [`crate::voxelize`]); an integer source is the thesis's case.
 //!   Its voxel is the one whose centre is nearest (round half up, `⌊p + ½⌋` per axis).
 //! * [`Layer`] k = 0, 1, 2, … is the voxel slab w = w₀ + s·k, where w₀ is the source voxel's
 //!   principal coordinate (layer 0 holds the source voxel).

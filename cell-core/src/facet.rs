@@ -12,7 +12,7 @@
 //!   `a_i·x + b_i·y + c_i·z + d_i ≥ 0` becomes `g_i + c_i·z ≥ 0`.
 //!
 //! Each packet also carries the facet's bounding box: rows outside it are not fed, a row stops
-//! forwarding past `x_max` (SPEC §2, "skip what a facet does not need"), and the cell clips its
+//! forwarding past `x_max` (skip what a facet does not need), and the cell clips its
 //! span to `z_min ..= z_max` (which also trims the spikes that pushed-out edges grow at acute
 //! corners in conservative mode).
 

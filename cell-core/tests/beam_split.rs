@@ -1,7 +1,7 @@
 //! §4.3 beam split against independent oracles.
 //!
 //! * The per-ray oracle `trace_ray_voxel` (i128, direct rounding) is itself checked against a
-//!   brute-force "nearest voxel centre, ties up" search written here from SPEC §3.
+//!   brute-force "nearest voxel centre, ties up" search written here from the definition of thesis §4.3.
 //! * Exhaustive: D ∈ 1..=8, f ∈ {0, 1, 2, 3}, integer and fractional sources, all six
 //!   directions, every beam reachable from the initial beams, every ray of every beam.
 //! * proptest: D up to `FarDistance::<F>::MAX` for f up to 30, random consistent beams whose
@@ -41,7 +41,7 @@ fn sources() -> Vec<Source> {
     ]
 }
 
-/// Brute-force SPEC §3 rounding: the x whose centre is nearest to x_s + u·k/D, ties up,
+/// Brute-force rounding (thesis §4.3): the x whose centre is nearest to x_s + u·k/D, ties up,
 /// i.e. the unique x with −½ ≤ value − x < ½, found by search.
 fn spec_voxel(b: i64, a: i64, f: u32, d: i64, k: i64) -> i64 {
     // value = b/16 + a·k/(2^f·D) = num/den

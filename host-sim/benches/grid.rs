@@ -1,4 +1,4 @@
-//! Criterion benchmarks of the whole grid (issue 7): loading a small scene with the RC² wave
+//! Criterion benchmarks of the whole grid: loading a small scene with the RC² wave
 //! (`Grid::load_wave`, beside the direct host path `Grid::load_direct`) and a whole diffusion
 //! of one light over a small Cornell box (`diffuse`), from which the cost of one grid cycle
 //! and of one processed beam follow (the bench prints cycles and beams per run).

@@ -1,4 +1,4 @@
-//! The bad-input catalogue (issue 6, item 2): every malformed scene in `tests/fixtures/bad/`
+//! The bad-input catalogue: every malformed scene in `tests/fixtures/bad/`
 //! and every bad argument below, through the real binary, gives a one-line `error: …` naming
 //! the problem and a non-zero exit, never a panic or an allocator abort. The README's
 //! "Troubleshooting" section lists these messages.

@@ -55,7 +55,7 @@ pub enum Command {
     Audit(AuditArgs),
     /// Record, for chosen cells of a load + light run, every message they receive and every
     /// cycle, as binary traces (`cell_X_Y.rc2t`) plus the digest of their outputs and final
-    /// state (`digests.json`); the firmware replays them (issue 5).
+    /// state (`digests.json`); the firmware replays them.
     Trace(TraceArgs),
     /// List the built-in scenes.
     Scenes,

@@ -7,7 +7,7 @@ use crate::machine::diffuse::Lighting;
 use crate::machine::loaded::{voxel_to_world, LoadedScene};
 use crate::scene::Mesh;
 
-/// Lit state of surface voxels against exact continuous visibility (SPEC §7).
+/// Lit state of surface voxels against exact continuous visibility (docs/LIGHTING.md, "light-accuracy").
 ///
 /// A *surface voxel* for a light is an occupied voxel with an empty 6-neighbour whose centre
 /// lies on the light's side of the voxel's own face (the face's plane separates them): the
@@ -31,7 +31,7 @@ pub struct Accuracy {
 }
 
 /// Compare the discrete lit state of every surface voxel with f64 visibility of its centre
-/// from each light, ignoring the voxel's own face (SPEC §7, issue 3).
+/// from each light, ignoring the voxel's own face (docs/LIGHTING.md, "light-accuracy").
 pub fn accuracy<F: FracBits>(
     mesh: &Mesh,
     scene: &LoadedScene,

@@ -1,5 +1,5 @@
 //! `host-sim audit`: what one cell costs in RAM for a scene, against the per-cell budget in
-//! `memory.x` (issue 5). Static sizes are `size_of` of the cell's types with the host's
+//! `memory.x`. Static sizes are `size_of` of the cell's types with the host's
 //! compile-time capacities; used sizes come from a real load + light run (peak dexels, peak FIFO,
 //! peak lit runs over all cells, with the cell that needs the most); "needed" is a cell compiled
 //! with exactly the capacities the scene used.

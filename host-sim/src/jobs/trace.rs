@@ -1,4 +1,4 @@
-//! Recording cell traces from a grid run (issue 5): for chosen cells, every message they
+//! Recording cell traces from a grid run: for chosen cells, every message they
 //! receive, every compute cycle, every message a neighbour takes from them, in order, as
 //! `cell_core::trace` records; and the digest of what they output and end up holding, computed
 //! from the grid itself. A firmware (or [`cell_core::trace::replay`]) drives a fresh cell

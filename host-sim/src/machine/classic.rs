@@ -1,4 +1,4 @@
-//! Classic shadow rays on the grid (thesis §4.1.2–4.1.3, SPEC §3 "Classic shadow rays"): the
+//! Classic shadow rays on the grid (thesis §4.1.2–4.1.3): the
 //! method beam diffusion replaces, simulated with the same cycle model so both can be compared.
 //!
 //! For each source in turn (like diffusion, the next starts when the grid is quiescent): every

@@ -1,7 +1,7 @@
 //! The lighting phase on the whole grid (thesis ch. 4): sources diffused one after another by
 //! beam subdivision, cycle by cycle.
 //!
-//! Cycle model (SPEC §1): in each cycle
+//! Cycle model (docs/ARCHITECTURE.md; thesis §4.4): in each cycle
 //! 1. the source emitter hands the next of the source's six initial beams (x and y first, then
 //!    z, §4.4.3) to the source cell if its FIFO has room;
 //! 2. **compute**: every cell with a beam runs [`LightCell::step`] — at most one beam each;
@@ -186,7 +186,7 @@ pub enum Stepping {
     AllCells,
 }
 
-/// Counters of a diffusion run (SPEC §7): one source's, or the sum over sources.
+/// Counters of a diffusion run (docs/LIGHTING.md, "light-accuracy"): one source's, or the sum over sources.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct DiffusionCounts {
     /// Cycles until the last beam was consumed (the thesis's T).

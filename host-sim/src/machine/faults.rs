@@ -1,4 +1,4 @@
-//! Faulty links (issue 6): every transfer of the lighting phase's link phase goes through the
+//! Faulty links: every transfer of the lighting phase's link phase goes through the
 //! real link codec (`cell_core::link`: frame + CRC-32), and a seeded fault injector in the
 //! spirit of smoltcp's `FaultInjector` corrupts or drops frames at given rates.
 //!
@@ -20,7 +20,7 @@
 //!
 //! A beam is therefore applied exactly once, and the no-loss rule holds: nothing leaves an
 //! output buffer before the neighbour holds it. The lit voxels do not depend on when a beam
-//! arrives (beam merging is exact, SPEC §3), so a faulty run lights exactly what a clean run
+//! arrives (beam merging is exact, see `cell_core::light`), so a faulty run lights exactly what a clean run
 //! lights, in more cycles. Fault decisions are a hash of (seed, cycle, link, frame kind), so a
 //! run is reproducible whatever the thread count.
 

@@ -1,6 +1,6 @@
 //! The n × n grid of cells plus the vertical loading pipeline, stepped cycle by cycle.
 //!
-//! Cycle model of the loading phase (SPEC §1): the host injects at most one facet packet per
+//! Cycle model of the loading phase (thesis §3.9): the host injects at most one facet packet per
 //! cycle into pipeline cell 0; a link carries one packet per cycle; a cell processes one packet
 //! per cycle. A packet processed by a cell in cycle t is processed by the next cell in cycle
 //! t + 1. In this phase every cell has exactly one upstream neighbour (north for the pipeline,

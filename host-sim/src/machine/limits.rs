@@ -1,4 +1,4 @@
-//! Resource limits checked before a grid is allocated (issue 6): a grid of n × n cells that
+//! Resource limits checked before a grid is allocated: a grid of n × n cells that
 //! cannot fit in memory is refused with a one-line error instead of aborting in the allocator
 //! (`memory allocation of … bytes failed`) or being killed by the kernel half-way.
 //!

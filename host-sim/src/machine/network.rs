@@ -1,7 +1,7 @@
 //! The routers of the whole grid (§1.3, §4.1.3): destination-addressed messages moving cycle by
 //! cycle through [`cell_core::route::Router`]s, with per-link load counts.
 //!
-//! Cycle model (SPEC §1): a link carries at most one message per cycle and direction (shared
+//! Cycle model (docs/ARCHITECTURE.md; thesis §4.4): a link carries at most one message per cycle and direction (shared
 //! with the other traffic of the phase through `link_used`); a message moves only into free
 //! space (credits); it makes at most one hop per cycle (the moves of a cycle are chosen from the
 //! fronts of the channels as they were at its start); a router hands at most one delivered

@@ -1,4 +1,4 @@
-//! Mirror reflections on the grid: the distributed ray tree (thesis §1.1, §1.3.2, ch. 5; issue 8).
+//! Mirror reflections on the grid: the distributed ray tree (thesis §1.1, §1.3.2, ch. 5).
 //!
 //! After the light phase every voxel's lit state is known. Each cell whose visible voxel is
 //! reflective (`Kr > 0`, and `Kr` ≥ the threshold) emits a [`ReflectRay`] (the view direction

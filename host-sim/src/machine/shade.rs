@@ -1,10 +1,9 @@
-//! The main job (issue 4): load, light, shade — the whole RC² pipeline — and write a PNG.
+//! Shading: every cell shades its pixel with `cell_core::shade` (thesis §1.1, §5.2).
 //!
-//! Every cell shades the first occupied voxel of its column (near end z = 0, orthographic view
-//! along +z, image y up, +x to the left as a camera looking along +z sees it) with
-//! `cell_core::shade`. Lights are white, each of intensity
-//! 1/√(number of lights), ambient 0.2. With `--reference` the same scene is ray-cast in f64
-//! (`refrender`) with the same camera, resolution and shading formula, and compared.
+//! The pixel shows the column's visible voxel or surface (by lit rule, [`Seen`]): orthographic
+//! view along +z, image y up, +x to the left as a camera looking along +z sees it. Lights are
+//! white, each of intensity 1/√(number of lights), ambient 0.2. The image also carries the
+//! cells' shading error against the same formula in f64 with the same inputs.
 
 use cell_core::beam::FracBits;
 use cell_core::light::SourceMask;

@@ -48,7 +48,7 @@ pub struct DiffusionRow {
 /// (Vidal 1992, RC² thesis, §4.4.3 "Résultats de simulation de RC²": the tables
 /// "Réseau de taille 64", "Réseau de taille 128", "Réseau de taille 32", and "Temps de
 /// diffusion en fonction de la taille du réseau (N) en utilisant des files d'attente de
-/// longueur 1" for FA = 1, N = 2…79; also SPEC.md §3). Sorted by (N, FA), one entry per
+/// longueur 1" for FA = 1, N = 2…79). Sorted by (N, FA), one entry per
 /// (N, FA) (the FA = 1 table repeats its N = 79 line; kept once). The thesis's N = 16
 /// activity snapshots (FA = 1 and 16) are figure frames, not tabled T, and are not here.
 #[rustfmt::skip]
@@ -856,7 +856,7 @@ mod tests {
                 assert!((w[0].0, w[0].1) < (w[1].0, w[1].1), "{:?} then {:?}", w[0], w[1]);
             }
         }
-        // SPEC.md §3's table.
+        // The thesis's §4.4.3 table.
         for (n, fa, t) in [
             (16, 1, 345),
             (32, 1, 1315),
