@@ -2,6 +2,7 @@
 
 pub mod phase_args;
 pub mod value_args;
+
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::PathBuf;
@@ -711,7 +712,7 @@ fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
     let lcfg = a.light.config_for(false)?;
     let pb = progress_bar(a.quiet, "light");
     if a.light.classic.lighting == crate::cli::phase_args::LightingArg::Classic {
-        return run_light_classic::<F>(a, &mesh, &loaded, &lights, pb);
+        return run_light_classic::<F>(a, &cfg, &mesh, &loaded, &lights, pb);
     }
     let (lighting, stats) = run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, light_progress(&pb))?;
     pb.finish_and_clear();
@@ -972,6 +973,7 @@ fn light_progress(pb: &ProgressBar) -> impl FnMut(usize, u64) + '_ {
 
 fn run_light_classic<F: cell_core::beam::FracBits>(
     a: &LightArgs,
+    cfg: &LoadConfig,
     mesh: &scene::Mesh,
     loaded: &crate::machine::loaded::LoadedScene,
     lights: &[[f64; 3]],
@@ -999,7 +1001,7 @@ fn run_light_classic<F: cell_core::beam::FracBits>(
         stats.scene,
         stats.n,
         stats.facets,
-        geometry(&a.load.config(DEFAULT_N)),
+        geometry(cfg),
         lights.len(),
         stats.fa,
         stats.policy,
