@@ -1446,115 +1446,148 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
 
     /// One compute cycle (§4.4.1): pick a beam by `env.policy`, process it if the no-loss rule
     /// allows, else wait. `activity` counts beams in flight machine-wide.
+    ///
+    /// Phases: [`Self::unchanged_wait`] (nothing changed since the last refusal),
+    /// [`Self::choose`] (the first beam whose sub-beams fit), [`Self::wait`] (none fits) or
+    /// [`Self::commit`] (take it, count it, mark what it lit, send its sub-beams).
     pub fn step<const D: usize>(&mut self, cell: &Cell<D>, env: &LightEnv<'_, F>, activity: &impl BeamTally) -> Step {
         if self.fifo.is_empty() {
             return Step::Idle;
         }
         self.ticks = self.ticks.wrapping_add(1);
         let wave = env.policy.by_layer();
-        if wave && self.still_blocked() {
-            // Unchanged since the last step, and no waiting beam's sibling wait has ended yet.
-            match self.held_until {
-                None => {
-                    self.counters.blocked_cycles += 1;
-                    return Step::Blocked;
-                }
-                Some(t) if (t.wrapping_sub(self.ticks) as i16) > 0 => {
-                    self.counters.held_cycles += 1;
-                    return Step::Held;
-                }
-                Some(_) => {}
+        if wave {
+            if let Some(step) = self.unchanged_wait() {
+                return step;
             }
         }
         let mut subs = SubList::new();
         let mut fate = Fate::new(&mut subs);
-        let hold = env.hold.min(MAX_HOLD);
-        // Cycles until the first waiting beam's sibling wait ends (`hold`: none is waiting).
-        let mut wait = hold;
-        let mut held = false;
-        // Whether a beam was refused for lack of room (then the output lengths matter).
-        let mut refused = false;
-        let chosen = match env.policy {
+        let choice = self.choose(cell, env, &mut fate);
+        let Some(i) = choice.chosen else {
+            return self.wait(wave, &choice);
+        };
+        #[cfg(debug_assertions)]
+        self.check_conservation(i, &fate, cell, env);
+        self.commit(i, fate, cell, env, activity)
+    }
+
+    /// A wave policy's shortcut: when nothing changed since the last step found nothing
+    /// processable and no waiting beam's sibling wait has ended, the step is the same refusal.
+    #[inline(always)]
+    fn unchanged_wait(&mut self) -> Option<Step> {
+        if !self.still_blocked() {
+            return None;
+        }
+        match self.held_until {
+            None => {
+                self.counters.blocked_cycles += 1;
+                Some(Step::Blocked)
+            }
+            Some(t) if (t.wrapping_sub(self.ticks) as i16) > 0 => {
+                self.counters.held_cycles += 1;
+                Some(Step::Held)
+            }
+            Some(_) => None,
+        }
+    }
+
+    /// The FIFO slot to process this step (its fate in `fate`), by `env.policy`.
+    #[inline(always)]
+    fn choose<const D: usize>(&mut self, cell: &Cell<D>, env: &LightEnv<'_, F>, fate: &mut Fate<'_, F>) -> Choice {
+        match env.policy {
             Policy::Thesis => {
-                self.fate(&self.fifo[0], cell, env, &mut fate);
-                if self.fits(&fate, env.fa) {
-                    Some(0)
+                self.fate(&self.fifo[0], cell, env, fate);
+                if self.fits(fate, env.fa) {
+                    Choice { chosen: Some(0), ..Choice::NONE }
                 } else {
                     // Put it back at the tail.
                     let head = self.fifo.remove(0);
                     let _ = self.fifo.push(head);
-                    None
+                    Choice::NONE
                 }
             }
-            Policy::Wavefront | Policy::Radial => {
-                // Candidates by (layer, position), or (layer, distance to the axis, position)
-                // for radial; the first that fits goes. Keys are layer << 27 | distance << 6 |
-                // position (FA ≤ 64, asserted; layer < 2^31; the distance |z·16 − z_s·16|, z_s
-                // in 1/16 voxel, is < 2^21 for a source inside the grid and clamped there for
-                // one outside): the smallest is found by one scan, and the rest are listed and
-                // sorted only if it cannot go.
-                let mut best: Option<usize> = None;
-                let radial = env.policy == Policy::Radial;
-                let zs = env.source.pos[2].to_bits() as i64;
-                let key = |i: usize| {
-                    let m = &self.fifo[i];
-                    let d = if radial { (((m.z as i64) << 4) - zs).unsigned_abs().min((1 << 21) - 1) } else { 0 };
-                    (m.beam.layer().0 as u64) << 27 | d << 6 | i as u64
-                };
-                let first = (0..self.fifo.len()).map(key).min().unwrap_or(0);
-                // Built when the first candidate cannot go (rare without a sibling wait).
-                let mut rest: Option<Vec<u64, FA>> = None;
-                // A full FIFO takes no sibling: nothing is worth waiting for.
-                let may_hold = hold > 0 && self.fifo.len() < env.fa.min(FA);
-                for c in 0..self.fifo.len() {
-                    let i = if c == 0 {
-                        (first & 63) as usize
-                    } else {
-                        let rest = rest.get_or_insert_with(|| {
-                            let mut r: Vec<u64, FA> = Vec::new();
-                            // Insertion sort: a few keys, and no general sort in a firmware.
-                            for k in (0..self.fifo.len()).map(key).filter(|&k| k != first) {
-                                let at = r.iter().position(|&x| x > k).unwrap_or(r.len());
-                                // Cannot fail: FA keys at most.
-                                let _ = r.insert(at, k);
-                            }
-                            r
-                        });
-                        (rest[c - 1] & 63) as usize
-                    };
-                    let age = self.ticks.wrapping_sub(self.fifo[i].since);
-                    if may_hold && age < hold && !self.complete(&self.fifo[i], env) {
-                        held = true;
-                        wait = wait.min(hold - age);
-                        continue;
-                    }
-                    self.fate(&self.fifo[i], cell, env, &mut fate);
-                    if self.fits(&fate, env.fa) {
-                        best = Some(i);
-                        break;
-                    }
-                    refused = true;
-                }
-                best
-            }
+            Policy::Wavefront | Policy::Radial => self.choose_by_key(cell, env, fate),
+        }
+    }
+
+    /// The wave policies: candidates by (layer, position), or (layer, distance to the axis,
+    /// position) for radial; the first that fits goes. Keys are layer << 27 | distance << 6 |
+    /// position (FA ≤ 64, asserted; layer < 2^31; the distance |z·16 − z_s·16|, z_s in 1/16
+    /// voxel, is < 2^21 for a source inside the grid and clamped there for one outside): the
+    /// smallest is found by one scan, and the rest are listed and sorted only if it cannot go.
+    #[inline(always)]
+    fn choose_by_key<const D: usize>(&self, cell: &Cell<D>, env: &LightEnv<'_, F>, fate: &mut Fate<'_, F>) -> Choice {
+        let hold = env.hold.min(MAX_HOLD);
+        // `wait`: cycles until the first waiting beam's sibling wait ends (`hold`: none is
+        // waiting); `refused`: a beam was refused for lack of room (then the output lengths
+        // matter).
+        let mut choice = Choice { wait: hold, ..Choice::NONE };
+        let radial = env.policy == Policy::Radial;
+        let zs = env.source.pos[2].to_bits() as i64;
+        let key = |i: usize| {
+            let m = &self.fifo[i];
+            let d = if radial { (((m.z as i64) << 4) - zs).unsigned_abs().min((1 << 21) - 1) } else { 0 };
+            (m.beam.layer().0 as u64) << 27 | d << 6 | i as u64
         };
-        let Some(i) = chosen else {
-            if wave {
-                let lengths = if refused { self.out.lengths() } else { ANY_LENGTHS };
-                self.blocked_on = Some((lengths, self.fifo_generation));
-                self.held_until = held.then(|| self.ticks.wrapping_add(wait));
+        let first = (0..self.fifo.len()).map(key).min().unwrap_or(0);
+        // Built when the first candidate cannot go (rare without a sibling wait).
+        let mut rest: Option<Vec<u64, FA>> = None;
+        // A full FIFO takes no sibling: nothing is worth waiting for.
+        let may_hold = hold > 0 && self.fifo.len() < env.fa.min(FA);
+        for c in 0..self.fifo.len() {
+            let i = if c == 0 {
+                (first & 63) as usize
+            } else {
+                let rest = rest.get_or_insert_with(|| {
+                    let mut r: Vec<u64, FA> = Vec::new();
+                    // Insertion sort: a few keys, and no general sort in a firmware.
+                    for k in (0..self.fifo.len()).map(key).filter(|&k| k != first) {
+                        let at = r.iter().position(|&x| x > k).unwrap_or(r.len());
+                        // Cannot fail: FA keys at most.
+                        let _ = r.insert(at, k);
+                    }
+                    r
+                });
+                (rest[c - 1] & 63) as usize
+            };
+            let age = self.ticks.wrapping_sub(self.fifo[i].since);
+            if may_hold && age < hold && !self.complete(&self.fifo[i], env) {
+                choice.held = true;
+                choice.wait = choice.wait.min(hold - age);
+                continue;
             }
-            if held {
-                // Waiting by choice, for a bounded time.
-                self.counters.held_cycles += 1;
-                return Step::Held;
+            self.fate(&self.fifo[i], cell, env, fate);
+            if self.fits(fate, env.fa) {
+                choice.chosen = Some(i);
+                break;
             }
-            self.counters.blocked_cycles += 1;
-            return Step::Blocked;
-        };
-        // Conservation per step, for steps that start and end at a run boundary (mid-run the
-        // entry still holds the rectangle of pieces already sent).
-        #[cfg(debug_assertions)]
+            choice.refused = true;
+        }
+        choice
+    }
+
+    /// No beam can go this step: remember what would change that (wave policies) and report
+    /// a held or a blocked cycle.
+    fn wait(&mut self, wave: bool, choice: &Choice) -> Step {
+        if wave {
+            let lengths = if choice.refused { self.out.lengths() } else { ANY_LENGTHS };
+            self.blocked_on = Some((lengths, self.fifo_generation));
+            self.held_until = choice.held.then(|| self.ticks.wrapping_add(choice.wait));
+        }
+        if choice.held {
+            // Waiting by choice, for a bounded time.
+            self.counters.held_cycles += 1;
+            return Step::Held;
+        }
+        self.counters.blocked_cycles += 1;
+        Step::Blocked
+    }
+
+    /// Conservation per step, for steps that start and end at a run boundary (mid-run the
+    /// entry still holds the rectangle of pieces already sent).
+    #[cfg(debug_assertions)]
+    fn check_conservation<const D: usize>(&self, i: usize, fate: &Fate<'_, F>, cell: &Cell<D>, env: &LightEnv<'_, F>) {
         if env.rule == LitRule::Plane && self.fifo[i].local.piece == 0 && fate.keep.is_none_or(|k| k.local.piece == 0) {
             let before = self.present_rays(&self.fifo[i], cell, env);
             let subs: u64 = fate.subs.iter().map(|(_, s)| self.present_rays(s, cell, env)).sum();
@@ -1574,6 +1607,19 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 kept
             );
         }
+    }
+
+    /// Process FIFO slot `i` whose fate is `fate`: take it (or keep the rest of a peeled beam
+    /// in its slot), count it, mark what it lit and send its sub-beams.
+    #[inline(always)]
+    fn commit<const D: usize>(
+        &mut self,
+        i: usize,
+        fate: Fate<'_, F>,
+        cell: &Cell<D>,
+        env: &LightEnv<'_, F>,
+        activity: &impl BeamTally,
+    ) -> Step {
         self.blocked_on = None;
         self.fifo_generation = self.fifo_generation.wrapping_add(1);
         let m = match fate.keep {
@@ -1588,50 +1634,14 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         self.counters.rays_exited += fate.exited;
         self.counters.rays_skipped += fate.skipped;
         if fate.lit {
-            let shown = match env.rule {
-                LitRule::Thesis => {
-                    !env.lit_visible_only || cell.store.dexels().first().is_some_and(|d| d.span.lo == m.z)
-                }
-                // The image reads the visible surface's mark; the lit store is for the lit set,
-                // restricted to the two voxels bracketing the visible surface.
-                LitRule::Plane => !env.lit_visible_only || cell.visible.is_some_and(|v| v.brackets(m.z as i64)),
-            };
-            if shown && !self.lit.mark(m.z, env.source_bit) {
-                self.counters.lit_overflows += 1;
-            }
+            self.mark_lit(m.z, cell, env);
         }
         if fate.visible {
             self.visible_lit |= env.source_bit;
         }
         activity.add(fate.subs.len() as u64);
         for &(t, sub) in fate.subs.iter() {
-            // Cannot fail: `fits` checked every destination.
-            match t {
-                Target::SelfFifo => {
-                    let _ = self.accept(sub, env.merge, activity);
-                }
-                Target::Out(p) => {
-                    // A head already on the wire (sent, not yet acknowledged) must not
-                    // change: a retransmission has to carry the same beam.
-                    let skip_head = (self.head_in_flight >> p.index() & 1) as usize;
-                    // Same neighbour voxel, side by side: join the waiting message.
-                    let joined = env.merge
-                        && self.out.waiting_mut(p).iter_mut().skip(skip_head).any(|w| {
-                            let j = (w.z == sub.z).then(|| w.beam.merged(&sub.beam)).flatten();
-                            if let Some(b) = j {
-                                w.beam = b;
-                            }
-                            j.is_some()
-                        });
-                    if joined {
-                        activity.consume();
-                        self.counters.merged += 1;
-                    } else {
-                        let _ = self.out.push_back(p, sub);
-                        self.counters.sent += 1;
-                    }
-                }
-            }
+            self.send(t, sub, env, activity);
         }
         if fate.keep.is_some() {
             return Step::Processed;
@@ -1639,6 +1649,69 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         activity.consume();
         Step::Processed
     }
+
+    /// Mark voxel `z` lit by this source, where the lit store keeps it.
+    #[inline(always)]
+    fn mark_lit<const D: usize>(&mut self, z: Depth, cell: &Cell<D>, env: &LightEnv<'_, F>) {
+        let shown = match env.rule {
+            LitRule::Thesis => !env.lit_visible_only || cell.store.dexels().first().is_some_and(|d| d.span.lo == z),
+            // The image reads the visible surface's mark; the lit store is for the lit set,
+            // restricted to the two voxels bracketing the visible surface.
+            LitRule::Plane => !env.lit_visible_only || cell.visible.is_some_and(|v| v.brackets(z as i64)),
+        };
+        if shown && !self.lit.mark(z, env.source_bit) {
+            self.counters.lit_overflows += 1;
+        }
+    }
+
+    /// Put a sub-beam where it goes: this cell's FIFO, or an output buffer (joining a waiting
+    /// message for the same neighbour voxel when merging). `fits` checked every destination.
+    #[inline(always)]
+    fn send(&mut self, t: Target, sub: BeamMsg<F>, env: &LightEnv<'_, F>, activity: &impl BeamTally) {
+        match t {
+            Target::SelfFifo => {
+                let _ = self.accept(sub, env.merge, activity);
+            }
+            Target::Out(p) => {
+                // A head already on the wire (sent, not yet acknowledged) must not
+                // change: a retransmission has to carry the same beam.
+                let skip_head = (self.head_in_flight >> p.index() & 1) as usize;
+                // Same neighbour voxel, side by side: join the waiting message.
+                let joined = env.merge
+                    && self.out.waiting_mut(p).iter_mut().skip(skip_head).any(|w| {
+                        let j = (w.z == sub.z).then(|| w.beam.merged(&sub.beam)).flatten();
+                        if let Some(b) = j {
+                            w.beam = b;
+                        }
+                        j.is_some()
+                    });
+                if joined {
+                    activity.consume();
+                    self.counters.merged += 1;
+                } else {
+                    let _ = self.out.push_back(p, sub);
+                    self.counters.sent += 1;
+                }
+            }
+        }
+    }
+}
+
+/// What [`LightCell::choose`] found: the slot to process, or why none goes.
+#[derive(Clone, Copy, Debug)]
+struct Choice {
+    /// The FIFO slot whose beam goes this step.
+    chosen: Option<usize>,
+    /// A beam was held back to wait for its siblings.
+    held: bool,
+    /// Cycles until the first held beam's sibling wait ends.
+    wait: u16,
+    /// A beam was refused for lack of room.
+    refused: bool,
+}
+
+impl Choice {
+    const NONE: Choice = Choice { chosen: None, held: false, wait: 0, refused: false };
 }
 
 #[cfg(test)]
