@@ -14,6 +14,7 @@ pub mod builtin;
 pub mod mesh;
 pub mod meshops;
 pub mod office;
+pub mod patches;
 
 pub use builtin::{load, BUILTINS};
 pub use mesh::{add_floor, load_obj_bytes, parse_obj, Face, Material, Mesh, SceneLight};

@@ -7,5 +7,7 @@
 //!   disagreement, PSNR, difference image.
 
 pub mod compare;
+pub mod formfactor;
+pub mod radiosity;
 pub mod refrender;
 pub mod visibility;
