@@ -18,7 +18,9 @@ use host_sim::truth::formfactor::{
 use host_sim::truth::radiosity::{
     ambient, balance, displayed, jacobi, progressive, reflected, rms_relative_error, solve, ShootConfig, Stop,
 };
+use parry3d_f64::math::Vector;
 
+/// A mesh position.
 type V3 = [f64; 3];
 
 /// A quad of the box `lo..hi` on side `side` (0 = low, 1 = high) of `axis`, wound so that its
@@ -123,19 +125,19 @@ fn the_closed_forms_agree_with_the_literature_and_with_each_other() {
     }
     assert!((avg - parallel_rectangles(1.0, 1.0, 1.0)).abs() < 1e-9, "{avg}");
     // The contour integral (Eq. 2.2) against B-3, the point above, beside and outside the square.
-    let square = [[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, 1.0, 1.0], [1.0, 0.0, 1.0]]; // facing −z
-    for x in [[0.5, 0.5, 0.0], [0.1, 0.8, 0.0], [-0.4, 1.7, 0.3], [2.0, -1.0, -3.0]] {
-        let c = 1.0 - x[2];
-        let want = point_to_parallel_rectangle(-x[0], 1.0 - x[0], -x[1], 1.0 - x[1], c);
-        let got = point_to_polygon(x, [0.0, 0.0, 1.0], &square, [0.0, 0.0, -1.0]);
+    let square = [[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, 1.0, 1.0], [1.0, 0.0, 1.0]].map(Vector::from); // facing −z
+    for x in [[0.5, 0.5, 0.0], [0.1, 0.8, 0.0], [-0.4, 1.7, 0.3], [2.0, -1.0, -3.0]].map(Vector::from) {
+        let c = 1.0 - x.z;
+        let want = point_to_parallel_rectangle(-x.x, 1.0 - x.x, -x.y, 1.0 - x.y, c);
+        let got = point_to_polygon(x, Vector::Z, &square, Vector::NEG_Z);
         assert!((got - want).abs() < 1e-13, "{x:?}: {got} vs {want}");
     }
     // Behind the square, or in its plane: nothing. Half below the horizon: the clipped half.
-    assert_eq!(point_to_polygon([0.5, 0.5, 2.0], [0.0, 0.0, -1.0], &square, [0.0, 0.0, -1.0]), 0.0);
-    assert_eq!(point_to_polygon([3.0, 0.5, 1.0], [-1.0, 0.0, 0.0], &square, [0.0, 0.0, -1.0]), 0.0);
-    let half = [[0.0, 0.5, 1.0], [0.0, 1.0, 1.0], [1.0, 1.0, 1.0], [1.0, 0.5, 1.0]]; // the part at y > 0.5
-    let tilted = point_to_polygon([0.5, 0.5, 0.0], [0.0, 1.0, 0.0], &square, [0.0, 0.0, -1.0]);
-    let upper_half = point_to_polygon([0.5, 0.5, 0.0], [0.0, 1.0, 0.0], &half, [0.0, 0.0, -1.0]);
+    assert_eq!(point_to_polygon(Vector::new(0.5, 0.5, 2.0), Vector::NEG_Z, &square, Vector::NEG_Z), 0.0);
+    assert_eq!(point_to_polygon(Vector::new(3.0, 0.5, 1.0), Vector::NEG_X, &square, Vector::NEG_Z), 0.0);
+    let half = [[0.0, 0.5, 1.0], [0.0, 1.0, 1.0], [1.0, 1.0, 1.0], [1.0, 0.5, 1.0]].map(Vector::from); // the part at y > 0.5
+    let tilted = point_to_polygon(Vector::new(0.5, 0.5, 0.0), Vector::Y, &square, Vector::NEG_Z);
+    let upper_half = point_to_polygon(Vector::new(0.5, 0.5, 0.0), Vector::Y, &half, Vector::NEG_Z);
     assert!(tilted > 0.0 && (tilted - upper_half).abs() < 1e-14, "{tilted} vs {upper_half}");
 }
 
@@ -228,7 +230,7 @@ fn near_field_perpendicular_unit_squares_sharing_an_edge() {
 
 /// The i.i.d. standard error of `(1/A_i) Σ_k w_k g(x_k)` from its own terms: an upper bound of
 /// the stratified estimator's (stratification never increases the variance).
-fn iid_se(ff: &FormFactors, i: usize, g: impl Fn(V3) -> f64) -> f64 {
+fn iid_se(ff: &FormFactors, i: usize, g: impl Fn(Vector) -> f64) -> f64 {
     let x = ff.samples(i);
     let v: Vec<f64> = x.iter().map(|s| g(s.point)).collect();
     mean_se(&v).1
@@ -302,18 +304,15 @@ fn rho0(q: &Patch, strata: usize) -> f64 {
 
 /// A room patch's edges lying on the room's edges (where a perpendicular wall starts): both
 /// ends have two coordinates on the room's faces (0 or 1). The block's edges have none.
-fn room_edges(q: &Patch) -> Vec<(V3, V3)> {
-    let on_edge = |v: &V3| v.iter().filter(|c| **c == 0.0 || **c == 1.0).count() >= 2;
+fn room_edges(q: &Patch) -> Vec<(Vector, Vector)> {
+    let on_edge = |v: &Vector| v.to_array().iter().filter(|c| **c == 0.0 || **c == 1.0).count() >= 2;
     let n = q.polygon.len();
     (0..n).map(|k| (q.polygon[k], q.polygon[(k + 1) % n])).filter(|(a, b)| on_edge(a) && on_edge(b)).collect()
 }
 
 /// The point-to-point estimator's expected deficit of `Σ_j F_ij` along the room's edges.
 fn edge_deficit(q: &Patch, strata: usize) -> f64 {
-    let length: f64 = room_edges(q)
-        .iter()
-        .map(|(a, b)| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt())
-        .sum();
+    let length: f64 = room_edges(q).iter().map(|(a, b)| a.distance(*b)).sum();
     length * 4.0 * rho0(q, strata) / (9.0 * PI) / q.area
 }
 
@@ -321,7 +320,7 @@ fn edge_deficit(q: &Patch, strata: usize) -> f64 {
 /// within ρ₀ of a corner the capped region is cut off. The deficit per unit edge length is
 /// 4ρ₀/(9π); the cut affects at most ρ₀ of edge at each end lying on a room corner.
 fn corner_allowance(q: &Patch, strata: usize) -> f64 {
-    let corner = |v: &V3| v.iter().all(|c| *c == 0.0 || *c == 1.0);
+    let corner = |v: &Vector| v.to_array().iter().all(|c| *c == 0.0 || *c == 1.0);
     let ends: usize = room_edges(q).iter().map(|(a, b)| corner(a) as usize + corner(b) as usize).sum();
     let r = rho0(q, strata);
     ends as f64 * 4.0 * r * r / (9.0 * PI) / q.area
@@ -334,7 +333,7 @@ fn lit_room() -> (Patches, FormFactors) {
     for q in &mut p.patches {
         q.reflectance = kd[q.face];
     }
-    let ceiling = p.patches.iter().position(|q| q.normal[2] < -0.5).unwrap();
+    let ceiling = p.patches.iter().position(|q| q.normal.z < -0.5).unwrap();
     p.patches[ceiling].emission = [10.0, 8.0, 6.0];
     let f = ff(&p, 3, 5, Estimator::Contour);
     (p, f)

@@ -24,62 +24,17 @@
 //! ray between two patches can ignore the two planes it starts and ends on.
 
 use anyhow::{bail, Result};
+use parry3d_f64::math::Vector;
 
 use super::mesh::Mesh;
 
-/// Small `f64` vector helpers shared by the radiosity code (`truth::formfactor`, `truth::radiosity`).
-pub mod vec3 {
-    /// A point or vector in world coordinates.
-    pub type V3 = [f64; 3];
-
-    /// `a − b`.
-    #[inline(always)]
-    pub fn sub(a: V3, b: V3) -> V3 {
-        [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-    }
-    /// `a + b`.
-    #[inline(always)]
-    pub fn add(a: V3, b: V3) -> V3 {
-        [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-    }
-    /// `s · a`.
-    #[inline(always)]
-    pub fn scale(a: V3, s: f64) -> V3 {
-        [a[0] * s, a[1] * s, a[2] * s]
-    }
-    /// `a · b`.
-    #[inline(always)]
-    pub fn dot(a: V3, b: V3) -> f64 {
-        a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-    }
-    /// `a × b`.
-    #[inline(always)]
-    pub fn cross(a: V3, b: V3) -> V3 {
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-    }
-    /// `|a|`.
-    #[inline(always)]
-    pub fn norm(a: V3) -> f64 {
-        dot(a, a).sqrt()
-    }
-    /// `a + t·(b − a)`.
-    #[inline(always)]
-    pub fn lerp(a: V3, b: V3, t: f64) -> V3 {
-        [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])]
-    }
-    /// Newell's area vector of a polygon: its direction is the winding normal, its length the
-    /// area (exact for a planar polygon).
-    pub fn area_vector(poly: &[V3]) -> V3 {
-        let mut s = [0.0; 3];
-        for k in 1..poly.len().saturating_sub(1) {
-            let n = cross(sub(poly[k], poly[0]), sub(poly[k + 1], poly[0]));
-            s = add(s, n);
-        }
-        scale(s, 0.5)
-    }
+/// Newell's area vector of a polygon: its direction is the winding normal, its length the area
+/// (exact for a planar polygon). Half the sum of the cross products of its fan from the first
+/// vertex; zero for fewer than three vertices.
+pub fn area_vector(poly: &[Vector]) -> Vector {
+    let fan = (1..poly.len().saturating_sub(1)).map(|k| (poly[k] - poly[0]).cross(poly[k + 1] - poly[0]));
+    fan.sum::<Vector>() * 0.5
 }
-
-use vec3::{add, area_vector, cross, dot, lerp, norm, scale, sub, V3};
 
 /// A face is zero-area when twice its area is at most this fraction of its perimeter squared.
 pub const DEGENERATE_RATIO: f64 = 1e-12;
@@ -88,19 +43,20 @@ pub const DEGENERATE_RATIO: f64 = 1e-12;
 /// plane through its first vertex with its Newell normal.
 pub const PLANARITY_TOL: f64 = 1e-9;
 
-/// One radiosity patch.
+/// One radiosity patch. Positions and directions are [`Vector`]s (glam's `DVec3`, the vector type
+/// of parry3d-f64, which the exact-visibility reference is built on).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Patch {
     /// The polygon (3 or 4 vertices, planar and convex, wound like its face), world coordinates.
-    pub polygon: Vec<V3>,
+    pub polygon: Vec<Vector>,
     /// The polygon as a fan of 1 or 2 triangles from its first vertex.
-    pub triangles: Vec<[V3; 3]>,
+    pub triangles: Vec<[Vector; 3]>,
     /// Area (world units²).
     pub area: f64,
     /// Unit normal: the face's (its piece's) normal, the side the patch emits and receives on.
-    pub normal: V3,
-    /// Area centroid.
-    pub centroid: V3,
+    pub normal: Vector,
+    /// Area centroid (world coordinates).
+    pub centroid: Vector,
     /// Diffuse reflectance ρ per channel: the material's `Kd`.
     pub reflectance: [f64; 3],
     /// Emission per channel: the material's `Ke`, taken as emitted radiosity (radiant
@@ -118,9 +74,9 @@ pub struct Piece {
     /// Index of the source face in [`Mesh::faces`].
     pub face: usize,
     /// Unit normal.
-    pub normal: V3,
-    /// Triangles covering it exactly (for the visibility reference).
-    pub triangles: Vec<[V3; 3]>,
+    pub normal: Vector,
+    /// Triangles covering it exactly (for the visibility reference), world coordinates.
+    pub triangles: Vec<[Vector; 3]>,
 }
 
 /// What [`subdivide`] did.
@@ -159,15 +115,15 @@ pub struct Patches {
 /// How one planar piece of a face is cut.
 enum Cut {
     /// A convex quadrilateral into an m × n grid.
-    Grid { quad: [V3; 4], m: usize, n: usize },
+    Grid { quad: [Vector; 4], m: usize, n: usize },
     /// Triangles, each into k² (k per triangle).
-    Triangles(Vec<([V3; 3], usize)>),
+    Triangles(Vec<([Vector; 3], usize)>),
 }
 
 /// One planar piece of a face before cutting.
 struct Plan {
     face: usize,
-    normal: V3,
+    normal: Vector,
     cut: Cut,
 }
 
@@ -218,11 +174,10 @@ pub fn subdivide_voxels(mesh: &Mesh, voxels: f64, voxel_world: f64, max_patches:
 /// Split a triangle into k² similar triangles: each edge cut into k equal parts (k ≥ 1), rows
 /// from the first vertex; every edge of a piece is 1/k of the parallel edge of the triangle, the
 /// pieces have equal areas and the winding of the triangle. k = 0 gives nothing.
-pub fn split_triangle(tri: [V3; 3], k: usize) -> Vec<[V3; 3]> {
+pub fn split_triangle(tri: [Vector; 3], k: usize) -> Vec<[Vector; 3]> {
     let kf = k as f64;
-    let e1 = sub(tri[1], tri[0]);
-    let e2 = sub(tri[2], tri[0]);
-    let p = |i: usize, j: usize| add(tri[0], add(scale(e1, i as f64 / kf), scale(e2, j as f64 / kf)));
+    let (e1, e2) = (tri[1] - tri[0], tri[2] - tri[0]);
+    let p = |i: usize, j: usize| tri[0] + (e1 * (i as f64 / kf) + e2 * (j as f64 / kf));
     let mut out = Vec::with_capacity(k * k);
     for i in 0..k {
         for j in 0..k - i {
@@ -236,12 +191,12 @@ pub fn split_triangle(tri: [V3; 3], k: usize) -> Vec<[V3; 3]> {
 }
 
 /// The face's vertices (consecutive repeats removed), checked.
-fn face_polygon(mesh: &Mesh, fi: usize) -> Result<Vec<V3>> {
+fn face_polygon(mesh: &Mesh, fi: usize) -> Result<Vec<Vector>> {
     let f = &mesh.faces[fi];
     if f.material as usize >= mesh.materials.len() {
         bail!("patches: face {fi} uses material {} but the mesh has {}", f.material, mesh.materials.len());
     }
-    let mut poly: Vec<V3> = Vec::with_capacity(f.verts.len());
+    let mut poly: Vec<Vector> = Vec::with_capacity(f.verts.len());
     for &v in &f.verts {
         let Some(&p) = mesh.positions.get(v as usize) else {
             bail!("patches: face {fi} refers to vertex {v} but the mesh has {}", mesh.positions.len());
@@ -249,6 +204,7 @@ fn face_polygon(mesh: &Mesh, fi: usize) -> Result<Vec<V3>> {
         if !p.iter().all(|c| c.is_finite()) {
             bail!("patches: face {fi} uses vertex {v} with a non-finite coordinate {p:?}");
         }
+        let p = Vector::from(p);
         if poly.last() != Some(&p) {
             poly.push(p);
         }
@@ -260,15 +216,15 @@ fn face_polygon(mesh: &Mesh, fi: usize) -> Result<Vec<V3>> {
 }
 
 /// Classify one face and push its planar pieces' plans (or count it as degenerate).
-fn plan_face(fi: usize, poly: Vec<V3>, size: f64, plans: &mut Vec<Plan>, summary: &mut PatchSummary) {
+fn plan_face(fi: usize, poly: Vec<Vector>, size: f64, plans: &mut Vec<Plan>, summary: &mut PatchSummary) {
     let av = area_vector(&poly);
-    let perimeter: f64 = (0..poly.len()).map(|i| norm(sub(poly[(i + 1) % poly.len()], poly[i]))).sum();
-    let twice_area = 2.0 * norm(av);
+    let perimeter: f64 = (0..poly.len()).map(|i| poly[(i + 1) % poly.len()].distance(poly[i])).sum();
+    let twice_area = 2.0 * av.length();
     if poly.len() < 3 || twice_area.is_nan() || twice_area <= DEGENERATE_RATIO * perimeter * perimeter {
         summary.degenerate_faces += 1;
         return;
     }
-    let normal = scale(av, 1.0 / norm(av));
+    let normal = av.normalize();
     let planar = is_planar(&poly, normal);
     if poly.len() == 3 {
         let tri = [poly[0], poly[1], poly[2]];
@@ -277,8 +233,8 @@ fn plan_face(fi: usize, poly: Vec<V3>, size: f64, plans: &mut Vec<Plan>, summary
     }
     if poly.len() == 4 && planar && is_convex(&poly, normal) {
         let quad = [poly[0], poly[1], poly[2], poly[3]];
-        let m = edge_divisions(norm(sub(quad[1], quad[0])).max(norm(sub(quad[2], quad[3]))), size);
-        let n = edge_divisions(norm(sub(quad[3], quad[0])).max(norm(sub(quad[2], quad[1]))), size);
+        let m = edge_divisions(quad[1].distance(quad[0]).max(quad[2].distance(quad[3])), size);
+        let n = edge_divisions(quad[3].distance(quad[0]).max(quad[2].distance(quad[1])), size);
         plans.push(Plan { face: fi, normal, cut: Cut::Grid { quad, m, n } });
         return;
     }
@@ -290,15 +246,14 @@ fn plan_face(fi: usize, poly: Vec<V3>, size: f64, plans: &mut Vec<Plan>, summary
             (1..poly.len() - 1).map(|k| [poly[0], poly[k], poly[k + 1]]).collect()
         }
     };
-    let nonzero = |t: &[V3; 3]| norm(cross(sub(t[1], t[0]), sub(t[2], t[0]))) > 0.0;
+    let nonzero = |t: &[Vector; 3]| area_vector(t).length() > 0.0;
     if planar {
         let cut = tris.iter().filter(|t| nonzero(t)).map(|t| (*t, divisions(t, size))).collect();
         plans.push(Plan { face: fi, normal, cut: Cut::Triangles(cut) });
     } else {
         summary.non_planar_faces += 1;
         for t in tris.into_iter().filter(nonzero) {
-            let n = cross(sub(t[1], t[0]), sub(t[2], t[0]));
-            let normal = scale(n, 1.0 / norm(n));
+            let normal = area_vector(&t).normalize();
             plans.push(Plan { face: fi, normal, cut: Cut::Triangles(vec![(t, divisions(&t, size))]) });
         }
     }
@@ -315,8 +270,8 @@ fn edge_divisions(length: f64, size: f64) -> usize {
 }
 
 /// Divisions per edge of a triangle: by its longest edge.
-fn divisions(t: &[V3; 3], size: f64) -> usize {
-    let longest = (0..3).map(|i| norm(sub(t[(i + 1) % 3], t[i]))).fold(0.0, f64::max);
+fn divisions(t: &[Vector; 3], size: f64) -> usize {
+    let longest = (0..3).map(|i| t[(i + 1) % 3].distance(t[i])).fold(0.0, f64::max);
     edge_divisions(longest, size)
 }
 
@@ -328,24 +283,24 @@ fn cut_count(cut: &Cut) -> u128 {
     }
 }
 
-fn is_planar(poly: &[V3], normal: V3) -> bool {
-    let diameter = poly.iter().flat_map(|a| poly.iter().map(move |b| norm(sub(*a, *b)))).fold(0.0, f64::max);
-    poly.iter().all(|p| dot(sub(*p, poly[0]), normal).abs() <= PLANARITY_TOL * diameter)
+fn is_planar(poly: &[Vector], normal: Vector) -> bool {
+    let diameter = poly.iter().flat_map(|a| poly.iter().map(move |b| a.distance(*b))).fold(0.0, f64::max);
+    poly.iter().all(|p| (*p - poly[0]).dot(normal).abs() <= PLANARITY_TOL * diameter)
 }
 
 /// Strictly convex, turning the way of `normal` at every vertex.
-fn is_convex(poly: &[V3], normal: V3) -> bool {
+fn is_convex(poly: &[Vector], normal: Vector) -> bool {
     let n = poly.len();
     (0..n).all(|i| {
         let (a, b, c) = (poly[i], poly[(i + 1) % n], poly[(i + 2) % n]);
-        dot(cross(sub(b, a), sub(c, b)), normal) > 0.0
+        (b - a).cross(c - b).dot(normal) > 0.0
     })
 }
 
 /// Ear clipping in the plane of `normal` (the polygon wound counter-clockwise about it);
 /// `None` when no ear is found (a self-intersecting outline).
-fn ear_clip(poly: &[V3], normal: V3) -> Option<Vec<[V3; 3]>> {
-    let area2 = |a: V3, b: V3, c: V3| dot(cross(sub(b, a), sub(c, a)), normal);
+fn ear_clip(poly: &[Vector], normal: Vector) -> Option<Vec<[Vector; 3]>> {
+    let area2 = |a: Vector, b: Vector, c: Vector| (b - a).cross(c - a).dot(normal);
     let mut idx: Vec<usize> = (0..poly.len()).collect();
     let mut out = Vec::with_capacity(poly.len() - 2);
     while idx.len() > 3 {
@@ -374,7 +329,7 @@ fn build_piece(mesh: &Mesh, plan: Plan, out: &mut Patches) {
     let reflectance = mat.kd.map(f64::from);
     let emission = mat.ke.map(f64::from);
     let piece = out.pieces.len();
-    let make = |polygon: Vec<V3>| patch(polygon, plan.normal, reflectance, emission, plan.face, piece);
+    let make = |polygon: Vec<Vector>| patch(polygon, plan.normal, reflectance, emission, plan.face, piece);
     let triangles = match &plan.cut {
         Cut::Grid { quad, m, n } => {
             out.patches.extend(grid_cells(quad, *m, *n).into_iter().map(make));
@@ -391,10 +346,10 @@ fn build_piece(mesh: &Mesh, plan: Plan, out: &mut Patches) {
 }
 
 /// The m × n cells of a convex planar quadrilateral (bilinear in its corners).
-fn grid_cells(q: &[V3; 4], m: usize, n: usize) -> Vec<Vec<V3>> {
+fn grid_cells(q: &[Vector; 4], m: usize, n: usize) -> Vec<Vec<Vector>> {
     let at = |a: usize, b: usize| {
         let (s, t) = (a as f64 / m as f64, b as f64 / n as f64);
-        lerp(lerp(q[0], q[1], s), lerp(q[3], q[2], s), t)
+        q[0].lerp(q[1], s).lerp(q[3].lerp(q[2], s), t)
     };
     let mut cells = Vec::with_capacity(m * n);
     for b in 0..n {
@@ -405,16 +360,24 @@ fn grid_cells(q: &[V3; 4], m: usize, n: usize) -> Vec<Vec<V3>> {
     cells
 }
 
-fn patch(polygon: Vec<V3>, normal: V3, reflectance: [f64; 3], emission: [f64; 3], face: usize, piece: usize) -> Patch {
-    let triangles: Vec<[V3; 3]> = (1..polygon.len() - 1).map(|k| [polygon[0], polygon[k], polygon[k + 1]]).collect();
+fn patch(
+    polygon: Vec<Vector>,
+    normal: Vector,
+    reflectance: [f64; 3],
+    emission: [f64; 3],
+    face: usize,
+    piece: usize,
+) -> Patch {
+    let triangles: Vec<[Vector; 3]> =
+        (1..polygon.len() - 1).map(|k| [polygon[0], polygon[k], polygon[k + 1]]).collect();
     let mut area = 0.0;
-    let mut moment = [0.0; 3];
+    let mut moment = Vector::ZERO;
     for t in &triangles {
-        let a = dot(cross(sub(t[1], t[0]), sub(t[2], t[0])), normal) / 2.0;
+        let a = area_vector(t).dot(normal);
         area += a;
-        moment = add(moment, scale(add(add(t[0], t[1]), t[2]), a / 3.0));
+        moment += (t[0] + t[1] + t[2]) * (a / 3.0);
     }
-    let centroid = if area > 0.0 { scale(moment, 1.0 / area) } else { polygon[0] };
+    let centroid = if area > 0.0 { moment / area } else { polygon[0] };
     Patch { polygon, triangles, area, normal, centroid, reflectance, emission, face, piece }
 }
 
@@ -423,7 +386,7 @@ mod tests {
     use super::*;
     use crate::scene::{Face, Material};
 
-    fn mesh(positions: Vec<V3>, faces: Vec<Vec<u32>>) -> Mesh {
+    fn mesh(positions: Vec<[f64; 3]>, faces: Vec<Vec<u32>>) -> Mesh {
         let faces = faces.into_iter().map(|verts| Face { verts, material: 1 }).collect();
         let lamp = Material { name: "lamp".into(), kd: [0.5, 0.25, 0.125], ke: [3.0, 2.0, 1.0], ..Material::default() };
         Mesh { name: "t".into(), positions, faces, materials: vec![Material::default(), lamp], ..Default::default() }
@@ -431,13 +394,14 @@ mod tests {
 
     /// Independent area of a planar polygon: half the norm of the sum of its edges' cross
     /// products about the origin (the shoelace formula in 3-D).
-    fn shoelace(poly: &[V3]) -> (f64, V3) {
-        let mut s = [0.0; 3];
-        for i in 0..poly.len() {
-            let c = cross(poly[i], poly[(i + 1) % poly.len()]);
-            s = [s[0] + c[0], s[1] + c[1], s[2] + c[2]];
-        }
-        (norm(s) / 2.0, scale(s, 1.0 / norm(s)))
+    fn shoelace(poly: &[Vector]) -> (f64, Vector) {
+        let s: Vector = (0..poly.len()).map(|i| poly[i].cross(poly[(i + 1) % poly.len()])).sum();
+        (s.length() / 2.0, s.normalize())
+    }
+
+    /// The face's vertices as vectors.
+    fn face_vertices(m: &Mesh, fi: usize) -> Vec<Vector> {
+        m.faces[fi].verts.iter().map(|&v| Vector::from(m.positions[v as usize])).collect()
     }
 
     /// A mesh of every kind of face: triangle, rectangle, skewed convex quad, non-convex hexagon
@@ -468,8 +432,8 @@ mod tests {
         let m = assorted();
         for size in [0.3, 0.77, 1.0, 2.5, 100.0] {
             let p = subdivide(&m, size, 1_000_000).unwrap();
-            for (fi, f) in m.faces.iter().enumerate() {
-                let poly: Vec<V3> = f.verts.iter().map(|&v| m.positions[v as usize]).collect();
+            for fi in 0..m.faces.len() {
+                let poly = face_vertices(&m, fi);
                 let got: f64 = p.patches.iter().filter(|q| q.face == fi).map(|q| q.area).sum();
                 let want = if fi == 5 {
                     // non-planar: the two triangles of the diagonal the ear clipping takes (1–3)
@@ -482,7 +446,7 @@ mod tests {
             for q in &p.patches {
                 assert!(q.polygon.len() == 3 || q.polygon.len() == 4);
                 for k in 0..q.polygon.len() {
-                    let e = norm(sub(q.polygon[(k + 1) % q.polygon.len()], q.polygon[k]));
+                    let e = q.polygon[(k + 1) % q.polygon.len()].distance(q.polygon[k]);
                     assert!(e <= size * (1.0 + 1e-12), "size {size}: edge {e} of a patch of face {}", q.face);
                 }
                 assert!((q.area - shoelace(&q.polygon).0).abs() <= 1e-9 * q.area);
@@ -497,26 +461,26 @@ mod tests {
         let m = assorted();
         let p = subdivide(&m, 0.6, 1_000_000).unwrap();
         for q in &p.patches {
-            let poly: Vec<V3> = m.faces[q.face].verts.iter().map(|&v| m.positions[v as usize]).collect();
+            let poly = face_vertices(&m, q.face);
             let own = shoelace(&q.polygon).1;
-            assert!(dot(own, q.normal) > 1.0 - 1e-12, "patch of face {} wound against its normal", q.face);
+            assert!(own.dot(q.normal) > 1.0 - 1e-12, "patch of face {} wound against its normal", q.face);
             assert!(is_convex(&q.polygon, q.normal));
             assert_eq!(q.normal, p.pieces[q.piece].normal);
             if q.face != 5 {
                 let n = shoelace(&poly).1;
-                assert!(norm(sub(q.normal, n)) < 1e-12, "face {}: {:?} vs {:?}", q.face, q.normal, n);
+                assert!(q.normal.distance(n) < 1e-12, "face {}: {:?} vs {:?}", q.face, q.normal, n);
                 for v in &q.polygon {
-                    assert!(dot(sub(*v, poly[0]), n).abs() < 1e-12 * 10.0);
+                    assert!((*v - poly[0]).dot(n).abs() < 1e-12 * 10.0);
                 }
             }
             assert_eq!(q.emission, [3.0, 2.0, 1.0]);
             assert_eq!(q.reflectance, [0.5, 0.25, 0.125]);
-            let c = q.polygon.iter().fold([0.0; 3], |s, v| add(s, scale(*v, 1.0 / q.polygon.len() as f64)));
-            assert!(norm(sub(c, q.centroid)) < 0.6, "centroid inside the patch's neighbourhood");
+            let c = q.polygon.iter().sum::<Vector>() / q.polygon.len() as f64;
+            assert!(c.distance(q.centroid) < 0.6, "centroid inside the patch's neighbourhood");
         }
         // The L's patches lie inside the L (not in its notch [1,4]×[1,3]).
         for q in p.patches.iter().filter(|q| q.face == 3) {
-            assert!(!(q.centroid[0] > 1.0 && q.centroid[1] > 1.0), "{:?}", q.centroid);
+            assert!(!(q.centroid.x > 1.0 && q.centroid.y > 1.0), "{:?}", q.centroid);
         }
     }
 
@@ -573,13 +537,14 @@ mod tests {
         assert!((300..400).contains(&a.patches.len()), "{}", a.patches.len());
         // The light (face 1, material "light") becomes emitting patches facing down.
         let light: Vec<&Patch> = a.patches.iter().filter(|p| p.face == 1).collect();
-        assert!(!light.is_empty() && light.iter().all(|p| p.emission == [17.0, 12.0, 4.0] && p.normal[1] < -0.999));
+        assert!(!light.is_empty() && light.iter().all(|p| p.emission == [17.0, 12.0, 4.0] && p.normal.y < -0.999));
     }
 
     #[test]
     fn split_triangle_makes_similar_equal_pieces() {
-        let t = [[0.0, 0.0, 0.0], [3.0, 0.5, 0.0], [1.0, 2.0, 1.0]];
-        let area = |t: &[V3; 3]| norm(cross(sub(t[1], t[0]), sub(t[2], t[0]))) / 2.0;
+        let t = [Vector::new(0.0, 0.0, 0.0), Vector::new(3.0, 0.5, 0.0), Vector::new(1.0, 2.0, 1.0)];
+        let twice_area = |t: &[Vector; 3]| (t[1] - t[0]).cross(t[2] - t[0]);
+        let area = |t: &[Vector; 3]| twice_area(t).length() / 2.0;
         for k in 1..7 {
             let s = split_triangle(t, k);
             assert_eq!(s.len(), k * k);
@@ -587,8 +552,7 @@ mod tests {
             assert!((total - area(&t)).abs() < 1e-12);
             for p in &s {
                 assert!((area(p) - area(&t) / (k * k) as f64).abs() < 1e-12);
-                let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
-                assert!(dot(n, cross(sub(t[1], t[0]), sub(t[2], t[0]))) > 0.0, "winding kept");
+                assert!(twice_area(p).dot(twice_area(&t)) > 0.0, "winding kept");
             }
         }
         assert!(split_triangle(t, 0).is_empty());

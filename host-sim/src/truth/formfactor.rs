@@ -35,12 +35,12 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use anyhow::{bail, Result};
+use parry3d_f64::math::Vector;
 use rayon::prelude::*;
 
 use super::visibility::Reference;
 use crate::rng::Rng;
-use crate::scene::patches::vec3::{add, cross, dot, norm, scale, sub, V3};
-use crate::scene::patches::{split_triangle, Patch, Patches};
+use crate::scene::patches::{area_vector, split_triangle, Patch, Patches};
 
 use std::f64::consts::PI;
 
@@ -85,12 +85,12 @@ pub fn point_to_parallel_rectangle(x0: f64, x1: f64, y0: f64, y1: f64, c: f64) -
 /// polygon is clipped to `x`'s hemisphere and the contour integral of thesis Eq. 2.2 is
 /// summed, `1/(2π) Σ_edges γ_g n · (R_g × R_{g+1})/|R_g × R_{g+1}|` (γ_g the angle the edge
 /// subtends at `x`).
-pub fn point_to_polygon(x: V3, n: V3, polygon: &[V3], pn: V3) -> f64 {
+pub fn point_to_polygon(x: Vector, n: Vector, polygon: &[Vector], pn: Vector) -> f64 {
     let Some(&first) = polygon.first() else {
         return 0.0;
     };
-    let span = norm(sub(x, first)) + polygon.iter().map(|p| norm(sub(*p, first))).fold(0.0, f64::max);
-    let height = dot(sub(x, first), pn);
+    let span = x.distance(first) + polygon.iter().map(|p| p.distance(first)).fold(0.0, f64::max);
+    let height = (x - first).dot(pn);
     if height.is_nan() || height <= 1e-10 * span {
         return 0.0; // behind, or in the plane (cos θ_j = 0 everywhere)
     }
@@ -99,8 +99,8 @@ pub fn point_to_polygon(x: V3, n: V3, polygon: &[V3], pn: V3) -> f64 {
 }
 
 /// The part of `poly` with `(p − x) · n > tol` (Sutherland–Hodgman against one plane).
-fn clip_front(poly: &[V3], x: V3, n: V3, tol: f64) -> Vec<V3> {
-    let h: Vec<f64> = poly.iter().map(|p| dot(sub(*p, x), n) - tol).collect();
+fn clip_front(poly: &[Vector], x: Vector, n: Vector, tol: f64) -> Vec<Vector> {
+    let h: Vec<f64> = poly.iter().map(|p| (*p - x).dot(n) - tol).collect();
     if h.iter().all(|&d| d > 0.0) {
         return poly.to_vec();
     }
@@ -112,26 +112,26 @@ fn clip_front(poly: &[V3], x: V3, n: V3, tol: f64) -> Vec<V3> {
         }
         if (h[i] > 0.0) != (h[j] > 0.0) {
             let t = h[i] / (h[i] - h[j]);
-            out.push(add(poly[i], scale(sub(poly[j], poly[i]), t)));
+            out.push(poly[i] + (poly[j] - poly[i]) * t);
         }
     }
     out
 }
 
 /// Eq. 2.2 on a polygon wholly in front of `x`.
-fn contour(x: V3, n: V3, poly: &[V3]) -> f64 {
+fn contour(x: Vector, n: Vector, poly: &[Vector]) -> f64 {
     if poly.len() < 3 {
         return 0.0;
     }
     let mut sum = 0.0;
     for i in 0..poly.len() {
-        let a = sub(poly[i], x);
-        let b = sub(poly[(i + 1) % poly.len()], x);
-        let c = cross(a, b);
-        let cl = norm(c);
+        let a = poly[i] - x;
+        let b = poly[(i + 1) % poly.len()] - x;
+        let c = a.cross(b);
+        let cl = c.length();
         if cl > 0.0 {
-            let gamma = cl.atan2(dot(a, b));
-            sum += gamma * dot(n, c) / cl;
+            let gamma = cl.atan2(a.dot(b));
+            sum += gamma * n.dot(c) / cl;
         }
     }
     (sum / (2.0 * PI)).abs()
@@ -169,7 +169,7 @@ impl Default for Sampling {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sample {
     /// World position (on the patch).
-    pub point: V3,
+    pub point: Vector,
     /// Stratum area: the samples' weights sum to the patch's area.
     pub weight: f64,
 }
@@ -177,8 +177,8 @@ pub struct Sample {
 /// The geometry of a patch the estimators need.
 #[derive(Clone, Debug)]
 struct Geom {
-    polygon: Vec<V3>,
-    normal: V3,
+    polygon: Vec<Vector>,
+    normal: Vector,
     area: f64,
     piece: u32,
 }
@@ -212,7 +212,7 @@ impl FormFactors {
         let mut tris = Vec::new();
         let mut ids = Vec::new();
         for (k, piece) in patches.pieces.iter().enumerate() {
-            tris.extend_from_slice(&piece.triangles);
+            tris.extend(piece.triangles.iter().map(|t| t.map(<[f64; 3]>::from)));
             ids.extend(std::iter::repeat_n(k as u32, piece.triangles.len()));
         }
         let reference = Reference::new(tris, ids)?;
@@ -292,9 +292,9 @@ impl FormFactors {
             return f * seen / all;
         }
         // No sample point of j is in front of x (a sliver of j is): one ray to that sliver.
-        let span = norm(sub(x, gj.polygon[0])).max(f64::MIN_POSITIVE);
+        let span = x.distance(gj.polygon[0]).max(f64::MIN_POSITIVE);
         let part = clip_front(&gj.polygon, x, gi.normal, 1e-12 * span);
-        let c = scale(part.iter().fold([0.0; 3], |s, p| add(s, *p)), 1.0 / part.len().max(1) as f64);
+        let c = part.iter().sum::<Vector>() / part.len().max(1) as f64;
         if self.visible(i, x, j, c) {
             f
         } else {
@@ -317,31 +317,28 @@ impl FormFactors {
 
     /// Exact visibility between a point of patch i and a point of patch j, cast from the
     /// lower-numbered patch, ignoring both patches' pieces.
-    fn visible(&self, i: usize, x: V3, j: usize, y: V3) -> bool {
+    fn visible(&self, i: usize, x: Vector, j: usize, y: Vector) -> bool {
         self.rays.fetch_add(1, Ordering::Relaxed);
         let ignore = [self.geoms[i].piece, self.geoms[j].piece];
-        if i < j {
-            self.reference.visible(x, y, &ignore)
-        } else {
-            self.reference.visible(y, x, &ignore)
-        }
+        let (from, to) = if i < j { (x, y) } else { (y, x) };
+        self.reference.visible(from.into(), to.into(), &ignore)
     }
 }
 
 /// `cosθ_x cosθ_y / max(π r², eps)`, 0 unless each point is in front of the other's plane.
-fn capped_kernel(x: V3, nx: V3, y: V3, ny: V3, eps: f64) -> f64 {
-    let d = sub(y, x);
-    let (cx, cy) = (dot(d, nx), -dot(d, ny));
+fn capped_kernel(x: Vector, nx: Vector, y: Vector, ny: Vector, eps: f64) -> f64 {
+    let d = y - x;
+    let (cx, cy) = (d.dot(nx), -d.dot(ny));
     if cx <= 0.0 || cy <= 0.0 {
         return 0.0;
     }
-    let r2 = dot(d, d);
+    let r2 = d.length_squared();
     cx * cy / (r2 * (PI * r2).max(eps))
 }
 
 /// Whether some point of j is in front of i's plane and some point of i in front of j's.
 fn faces_toward(gi: &Geom, gj: &Geom) -> bool {
-    let front = |poly: &[V3], p0: V3, n: V3| poly.iter().any(|p| dot(sub(*p, p0), n) > 0.0);
+    let front = |poly: &[Vector], p0: Vector, n: Vector| poly.iter().any(|p| (*p - p0).dot(n) > 0.0);
     front(&gj.polygon, gi.polygon[0], gi.normal) && front(&gi.polygon, gj.polygon[0], gj.normal)
 }
 
@@ -349,7 +346,7 @@ fn geom(i: usize, p: &Patch, patches: &Patches) -> Result<Geom> {
     if !(p.area.is_finite() && p.area > 0.0) {
         bail!("form factors: patch {i} (face {}) has area {}", p.face, p.area);
     }
-    let off = (norm(p.normal) - 1.0).abs();
+    let off = (p.normal.length() - 1.0).abs();
     if off.is_nan() || off >= 1e-9 || p.polygon.len() < 3 {
         bail!("form factors: patch {i} (face {}) has no unit normal or fewer than 3 vertices", p.face);
     }
@@ -365,10 +362,10 @@ fn sample_patch(p: &Patch, strata: usize, seed: u64, index: u64) -> Vec<Sample> 
     rng.next_u64();
     let mut out = Vec::with_capacity(p.triangles.len() * strata * strata);
     for t in &p.triangles {
-        let w = dot(cross(sub(t[1], t[0]), sub(t[2], t[0])), p.normal) / 2.0 / (strata * strata) as f64;
+        let w = area_vector(t).dot(p.normal) / (strata * strata) as f64;
         for s in split_triangle(*t, strata) {
             let (r1, r2) = (rng.f().sqrt(), rng.f());
-            let point = add(s[0], add(scale(sub(s[1], s[0]), r1 * (1.0 - r2)), scale(sub(s[2], s[0]), r1 * r2)));
+            let point = s[0] + ((s[1] - s[0]) * (r1 * (1.0 - r2)) + (s[2] - s[0]) * (r1 * r2));
             out.push(Sample { point, weight: w });
         }
     }
