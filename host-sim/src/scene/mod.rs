@@ -5,6 +5,8 @@
 //! * [`office`] — the procedural offices of the radiosity thesis (bureau1, bureau2, classe).
 //! * [`meshops`] — winding orientation, subdivision.
 //! * [`binvox`] — the `.binvox` voxel file format.
+//! * [`patches`] — radiosity patches: a mesh cut into small planar convex polygons
+//!   (Renaud 1993, §1.3.3).
 //!
 //! Modules of this folder import each other by `super::…`, never through this file: the
 //! re-exports below are for the rest of the crate.
@@ -14,6 +16,7 @@ pub mod builtin;
 pub mod mesh;
 pub mod meshops;
 pub mod office;
+pub mod patches;
 
 pub use builtin::{load, BUILTINS};
 pub use mesh::{add_floor, load_obj_bytes, parse_obj, Face, Material, Mesh, SceneLight};

@@ -2,10 +2,16 @@
 //! cells' integer arithmetic (it never imports the machine).
 //!
 //! * [`visibility`] — exact ray–triangle visibility over a BVH.
+//! * [`formfactor`] — form factors between radiosity patches, sampled with exact visibility,
+//!   and closed forms (Renaud 1993, ch. 2 and §3.1).
+//! * [`radiosity`] — progressive-refinement radiosity, the reference solution, and a direct
+//!   solve of the same system (Renaud 1993, §1.3).
 //! * [`refrender`] — the f64 reference image (same camera, lights and shading formula).
 //! * [`compare`] — the machine's image against the reference: shadow and coverage
 //!   disagreement, PSNR, difference image.
 
 pub mod compare;
+pub mod formfactor;
+pub mod radiosity;
 pub mod refrender;
 pub mod visibility;
