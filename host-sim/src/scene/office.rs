@@ -1265,11 +1265,7 @@ pub fn build(kind: Kind) -> Office {
 mod tests {
     use super::*;
     use crate::machine::load::{voxelize, Engine};
-    use crate::precompute::{Contour, LoadConfig, Thickness};
-
-    fn cfg(n: u32) -> LoadConfig {
-        LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative }
-    }
+    use crate::precompute::LoadConfig;
 
     #[test]
     fn facet_and_light_counts_match_the_thesis() {
@@ -1388,9 +1384,9 @@ mod tests {
     fn voxelizes_at_64_and_fits_the_dexel_store_at_128() {
         for k in Kind::ALL {
             let mesh = build(k).mesh;
-            let v = voxelize::<64>(&mesh, &cfg(64), Engine::Direct, |_, _| {}).unwrap();
+            let v = voxelize::<64>(&mesh, &LoadConfig::watertight(64), Engine::Direct, |_, _| {}).unwrap();
             v.check_overflow().unwrap();
-            let v = voxelize::<64>(&mesh, &cfg(128), Engine::Direct, |_, _| {}).unwrap();
+            let v = voxelize::<64>(&mesh, &LoadConfig::watertight(128), Engine::Direct, |_, _| {}).unwrap();
             eprintln!(
                 "{}: n = 128: {} packets, {} skipped, {} split, dexels max {} mean/occupied {:.2}",
                 k.name(),
