@@ -792,20 +792,4 @@ mod tests {
         };
         assert_eq!(img.rows_top_down(), vec![[3; 3], [4; 3], [1; 3], [2; 3]]);
     }
-
-    /// Timing (release): `cargo test --release -p host-sim --lib refrender::tests::cornell_timing -- --ignored --nocapture`.
-    #[test]
-    #[ignore]
-    fn cornell_timing() {
-        let mesh = crate::scene::load("cornell").unwrap();
-        let n = 512;
-        let fit = crate::precompute::fit(&mesh, n).unwrap();
-        let light = cornell_light(&fit);
-        let t0 = std::time::Instant::now();
-        let img = render_reference(&mesh, &fit, n, &[light], [0.1; 3]).unwrap();
-        let dt = t0.elapsed().as_secs_f64();
-        let covered = img.covered.iter().filter(|&&c| c).count();
-        let lit = img.lit.iter().filter(|&&l| l != 0).count();
-        println!("cornell n = {n}: {dt:.3} s, {covered} covered, {lit} lit, light at {:?} (voxel units)", light.pos);
-    }
 }
