@@ -18,17 +18,12 @@ use host_sim::machine::loaded::{load_scene, resolve_lights};
 use host_sim::precompute::{prepare, Contour, LoadConfig, Thickness};
 use host_sim::scene;
 
-/// The `voxelize` defaults (standard + conservative) at grid side n.
-fn voxelize_cfg(n: u32) -> LoadConfig {
-    LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative }
-}
-
 fn bench_load(c: &mut Criterion) {
     let mut g = c.benchmark_group("load");
     g.sample_size(20).measurement_time(Duration::from_secs(4));
     for (name, n) in [("cornell", 64u32), ("teapot", 64), ("teapot", 128)] {
         let mesh = scene::load(name).expect("built-in scene");
-        let cfg = voxelize_cfg(n);
+        let cfg = LoadConfig::watertight(n);
         let prepared = prepare(&mesh, &cfg).expect("prepares");
         let packets = &prepared.packets;
         g.throughput(Throughput::Elements(packets.len() as u64));

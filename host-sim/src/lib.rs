@@ -8,9 +8,11 @@
 //! * [`machine`] — the grid and its schedulers: loading, diffusion, classic shadow rays,
 //!   reflections, shading, link faults, trace tap; the cell capacities in one place.
 //! * [`truth`] — the f64 reference: exact visibility, the reference image, comparisons.
-//! * [`jobs`] — what a user runs: render, light, accuracy, trace, audit, bench, dump.
-//! * [`report`] — PNG and plots.
-//! * [`cli`] — the command line (the only place that knows clap).
+//! * [`jobs`] — what a user runs, each job behind a plain options struct: render, light,
+//!   light-accuracy, diffusion-table, voxelize, trace, audit, bench, scenes; lit-voxel dumps.
+//! * [`report`] — PNG, plots, progress bars, output files.
+//! * [`cli`] — the command line (the only place that knows clap): it parses the arguments,
+//!   converts them into the jobs' options and calls the job.
 //!
 //! `tests/architecture.rs` checks the layering: no import circles between modules, nothing in
 //! `machine/` or `truth/` importing `jobs/`, `report/` or `cli/`, clap only in `cli/`.

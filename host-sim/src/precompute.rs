@@ -65,6 +65,12 @@ pub struct LoadConfig {
 }
 
 impl LoadConfig {
+    /// The watertight surfaces every job loads unless told otherwise, at grid side `n`: standard
+    /// thickness (free of 26-tunnels) and conservative contours (no gaps between facets).
+    pub const fn watertight(n: u32) -> LoadConfig {
+        LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative }
+    }
+
     /// Validate the grid size against the cell's bit budget.
     pub fn validate(&self) -> Result<()> {
         if self.n < 4 {

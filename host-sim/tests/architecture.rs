@@ -1,5 +1,6 @@
 //! The layering of host-sim, read from its source: no import circles between modules, the
-//! machine and the truth below the jobs, reports and command line, clap only in `cli/`.
+//! machine and the truth below the jobs, reports and command line, nothing but the command line
+//! importing it, clap only in `cli/`.
 //!
 //! A module is a source file (`machine/grid.rs` is `machine::grid`, `scene/mod.rs` is `scene`).
 //! A module depends on another when its non-test code names a `crate::…` or `super::…` path into
@@ -231,6 +232,18 @@ fn the_machine_and_the_truth_never_import_jobs_reports_or_the_cli() {
         }
     }
     assert!(bad.is_empty(), "layering broken:\n{}", bad.join("\n"));
+}
+
+#[test]
+fn only_the_cli_imports_the_cli() {
+    let c = read_crate();
+    let bad: Vec<String> = c
+        .deps
+        .iter()
+        .filter(|(m, deps)| m[0] != "cli" && deps.iter().any(|d| d[0] == "cli"))
+        .map(|(m, _)| name(m))
+        .collect();
+    assert!(bad.is_empty(), "the jobs take plain options, never the command line's types: {bad:?} import cli/");
 }
 
 #[test]

@@ -9,7 +9,7 @@ use host_sim::jobs::dump::{lit_dump, write_lit_dump};
 use host_sim::machine::diffuse::LightConfig;
 use host_sim::machine::lighting::run_diffusion;
 use host_sim::machine::loaded::{load_scene, resolve_lights};
-use host_sim::precompute::{Contour, LoadConfig, Thickness};
+use host_sim::precompute::LoadConfig;
 use serde_json::Value;
 
 type V3 = [f64; 3];
@@ -58,7 +58,7 @@ fn ints(v: &Value) -> Vec<u64> {
 fn dump_matches_the_grid_the_lights_and_the_geometry() {
     let n = 24u32;
     let mesh = host_sim::scene::load("cornell").unwrap();
-    let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
+    let cfg = LoadConfig::watertight(n);
     let loaded = load_scene(&mesh, &cfg).unwrap();
     let lights = resolve_lights(&mesh, &loaded, &[]).unwrap();
     let lcfg =

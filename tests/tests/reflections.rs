@@ -8,8 +8,7 @@ use cell_core::ray::{Connectivity, Q};
 use cell_core::reflect::{combine, hit_normal, reflected_dir, to_answer, toward_origin, Answer, ReflectNormal};
 use cell_core::route::RoutePolicy;
 use cell_core::shade::{encode, facing_mask, shade_linear_toward, NormalMode};
-use host_sim::jobs::render::render_reflect;
-use host_sim::jobs::render::RenderConfig;
+use host_sim::jobs::render::{reference_image, render, RenderConfig, RenderInput, RenderLighting, Rendered};
 use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
 use host_sim::machine::reflect::{ray_span, reflect, ReflectConfig, ShadeEnv};
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
@@ -17,10 +16,22 @@ use host_sim::scene::{Mesh, SceneLight};
 use rc2_tests::oracle::lines::{walk18, walk26, walk6};
 
 fn render_cfg() -> RenderConfig {
-    RenderConfig {
-        light: host_sim::machine::diffuse::LightConfig { fa: 16, ..Default::default() },
-        normals: NormalMode::Facet,
-    }
+    RenderConfig::diffusion(host_sim::machine::diffuse::LightConfig { fa: 16, ..Default::default() }, NormalMode::Facet)
+}
+
+/// The plain render with the reflection phase `cfg` after it.
+fn with_reflections(cfg: ReflectConfig) -> RenderConfig {
+    RenderConfig { lighting: RenderLighting::Reflections(cfg), ..render_cfg() }
+}
+
+/// Render with reflections; the image and the reflection counters.
+fn render_reflect(
+    input: &RenderInput<'_>,
+    cfg: ReflectConfig,
+) -> (Rendered, host_sim::machine::reflect::ReflectCounts) {
+    let mut r = render::<U0>(input, &with_reflections(cfg), |_, _| {}).unwrap();
+    let counts = r.reflections.take().expect("a render with reflections counts them");
+    (r, counts)
 }
 
 fn load(mesh: &Mesh, n: u32) -> (LoadedScene, Vec<[f64; 3]>) {
@@ -182,15 +193,14 @@ fn grid_trees_match_a_per_ray_oracle() {
 fn depth_zero_is_the_plain_render_and_reflections_only_touch_mirrors() {
     let mesh = host_sim::scene::load("cornell-mirror").unwrap();
     let (s, lights) = load(&mesh, 64);
-    let rc = render_cfg();
-    let plain = host_sim::jobs::render::render::<U0>(&mesh, &s, &lights, &rc, None, 0.0, 0.0, |_, _| {}).unwrap();
-    let cfg = config(0, Connectivity::Six, 4, RoutePolicy::Adaptive);
-    let (r0, k0) = render_reflect::<U0>(&mesh, &s, &lights, &rc, &cfg, None, [0.0; 2], |_, _| {}).unwrap();
+    let input = RenderInput::new(&mesh, &s, &lights);
+    let plain = render::<U0>(&input, &render_cfg(), |_, _| {}).unwrap();
+    let (r0, k0) = render_reflect(&input, config(0, Connectivity::Six, 4, RoutePolicy::Adaptive));
     assert_eq!(r0.image.rgb, plain.image.rgb);
     assert_eq!(k0.rays, 0);
-    let reference = host_sim::jobs::render::reflect_reference_image(&mesh, &s, &lights, 2, 0.01).unwrap();
     let cfg = config(2, Connectivity::Six, 4, RoutePolicy::Adaptive);
-    let (r2, k2) = render_reflect::<U0>(&mesh, &s, &lights, &rc, &cfg, Some(&reference), [0.0; 2], |_, _| {}).unwrap();
+    let reference = reference_image(&mesh, &s, &lights, &with_reflections(cfg)).unwrap();
+    let (r2, k2) = render_reflect(&input.compared_with(&reference), cfg);
     let mirror_mat = mesh.materials.iter().position(|m| m.kr > 0.0).unwrap() as u16;
     let mut changed = 0;
     for (i, c) in s.grid.cells.iter().enumerate() {
@@ -228,9 +238,8 @@ usemtl mirror\nf 1 2 3 4\nusemtl patch\nf 5 6 7 8\nusemtl mirror\nf 9 10 11\nf 1
     mesh.lights = vec![SceneLight::Grid([0.5, 0.2, 0.05])];
     let n = 40;
     let (s, lights) = load(&mesh, n);
-    let rc = render_cfg();
     let cfg = config(1, Connectivity::Six, 2, RoutePolicy::Adaptive);
-    let (r, k) = render_reflect::<U0>(&mesh, &s, &lights, &rc, &cfg, None, [0.0; 2], |_, _| {}).unwrap();
+    let (r, k) = render_reflect(&RenderInput::new(&mesh, &s, &lights), cfg);
     assert!(k.roots > 100, "{} roots; materials {:?}", k.roots, mesh.materials);
     let mirror_mat = mesh.materials.iter().position(|m| m.name == "mirror").unwrap() as u16;
     let (mut shown, mut dark, mut checked) = (0, 0, 0);

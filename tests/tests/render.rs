@@ -24,7 +24,7 @@ use cell_core::beam::FracBits;
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use cell_core::shade::{shade, Material as CellMaterial, NormalMode, PointLight, ShadeParams};
-use host_sim::jobs::render::RenderConfig;
+use host_sim::jobs::render::{RenderConfig, RenderInput};
 use host_sim::machine::diffuse::LightConfig;
 use host_sim::machine::loaded::LoadedScene;
 use host_sim::machine::shade::{Image, Seen};
@@ -89,8 +89,9 @@ fn render<F: FracBits>(
     light: LightConfig,
     reference: Option<&host_sim::truth::refrender::RefImage>,
 ) -> host_sim::jobs::render::Rendered {
-    let rcfg = RenderConfig { light, normals: NormalMode::Facet };
-    host_sim::jobs::render::render::<F>(mesh, loaded, lights, &rcfg, reference, 0.0, 0.0, |_, _| {}).unwrap()
+    let rcfg = RenderConfig::diffusion(light, NormalMode::Facet);
+    let input = RenderInput { reference, ..RenderInput::new(mesh, loaded, lights) };
+    host_sim::jobs::render::render::<F>(&input, &rcfg, |_, _| {}).unwrap()
 }
 
 /// Sources in sixteenths of a voxel, as the oracles take them: the lattice positions the
@@ -228,8 +229,9 @@ fn coverage_differs_from_the_f64_reference_only_at_projected_edges() {
     for (scene, n) in [("cow", 64u32), ("teapot", 48), ("suzanne", 48)] {
         let (mesh, loaded) = load(scene, n, Thickness::Standard, Contour::Conservative);
         let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
-        let reference = host_sim::jobs::render::reference_image(&mesh, &loaded, &lights).unwrap();
         let cfg = LightConfig { lit_visible_only: true, skip_hidden: true, ..Default::default() };
+        let rcfg = RenderConfig::diffusion(cfg, NormalMode::Facet);
+        let reference = host_sim::jobs::render::reference_image(&mesh, &loaded, &lights, &rcfg).unwrap();
         let r = render::<cell_core::beam::frac::U0>(&mesh, &loaded, &lights, cfg, Some(&reference));
         // Triangles projected on the image plane, in voxel units from the grid's low corner
         // (pixel (x, y) has its centre at (x + ½, y + ½)).

@@ -14,7 +14,7 @@ use cell_core::beam::frac::U0;
 use cell_core::beam::FracBits;
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
-use host_sim::jobs::render::RenderConfig;
+use host_sim::jobs::render::{RenderConfig, RenderInput};
 use host_sim::machine::diffuse::LightConfig;
 use host_sim::machine::shade::Image;
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
@@ -105,7 +105,6 @@ fn render<F: FracBits>(mesh: &Mesh, n: u32, setup: &Setup) -> (Image, host_sim::
     let cfg = LoadConfig { n, thickness: setup.thickness, contour: setup.contour };
     let loaded = host_sim::machine::loaded::load_scene(mesh, &cfg).unwrap();
     let lights = host_sim::machine::loaded::resolve_lights(mesh, &loaded, &[]).unwrap();
-    let reference = host_sim::jobs::render::reference_image(mesh, &loaded, &lights).unwrap();
     let light = LightConfig {
         rule: setup.rule,
         policy: if setup.rule == LitRule::Plane { Policy::Radial } else { Policy::Wavefront },
@@ -113,9 +112,10 @@ fn render<F: FracBits>(mesh: &Mesh, n: u32, setup: &Setup) -> (Image, host_sim::
         skip_hidden: true,
         ..LightConfig::default()
     };
-    let rcfg = RenderConfig { light, normals: cell_core::shade::NormalMode::Facet };
-    let r = host_sim::jobs::render::render::<F>(mesh, &loaded, &lights, &rcfg, Some(&reference), 0.0, 0.0, |_, _| {})
-        .unwrap();
+    let rcfg = RenderConfig::diffusion(light, cell_core::shade::NormalMode::Facet);
+    let reference = host_sim::jobs::render::reference_image(mesh, &loaded, &lights, &rcfg).unwrap();
+    let input = RenderInput::new(mesh, &loaded, &lights).compared_with(&reference);
+    let r = host_sim::jobs::render::render::<F>(&input, &rcfg, |_, _| {}).unwrap();
     let mut behind = behind_solids(mesh, &loaded.fit, n, &lights);
     // A silhouette pixel the reference sees the floor through but the machine shades the
     // mesh at (its contour is conservative; the thesis's rule shows the first voxel) shows

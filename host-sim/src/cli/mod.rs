@@ -1,20 +1,16 @@
 //! The `host-sim` command line.
 
+mod options;
 pub mod phase_args;
 pub mod value_args;
 
-use std::fs::File;
-use std::io::BufWriter;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::machine::diffuse::FrustumBlocks;
-use crate::machine::load::{voxelize, VoxelizeStats};
-use crate::precompute::{Contour, LoadConfig, Thickness};
-use crate::scene;
+use crate::jobs;
+use crate::precompute::LoadConfig;
 use value_args::{ContourArg, EngineArg, FrustumBlocksArg, ThicknessArg};
 
 /// RC² cellular ray-tracing machine — host simulator.
@@ -146,11 +142,6 @@ const DEFAULT_N: u32 = 128;
 
 /// Default grid side of `trace`.
 const TRACE_N: u32 = 32;
-
-/// The geometry a summary line names: thickness and contour.
-fn geometry(cfg: &LoadConfig) -> String {
-    format!("{:?} + {:?} surfaces", cfg.thickness, cfg.contour).to_lowercase()
-}
 
 /// Options of `light`.
 #[derive(Args, Debug)]
@@ -292,42 +283,11 @@ pub enum SteppingArg {
     AllCells,
 }
 
-impl LightOpts {
-    /// The configuration, with the visible-only lit store and the hidden-voxel skip on by
-    /// default when `visible_only` (what `render` needs), unless given.
-    fn config_for(&self, visible_only: bool) -> Result<crate::machine::diffuse::LightConfig> {
-        let lit_visible_only = self.lit_visible_only.unwrap_or(visible_only);
-        let skip_hidden = self.skip_hidden.unwrap_or(lit_visible_only && visible_only);
-        if skip_hidden && !lit_visible_only {
-            anyhow::bail!(
-                "--skip-hidden drops the light of hidden voxels: it needs the visible-only lit store \
-                 (--lit-visible-only)"
-            );
-        }
-        Ok(crate::machine::diffuse::LightConfig { lit_visible_only, skip_hidden, ..self.config() })
-    }
-
-    /// The configuration with the full lit store (the `light` and `trace` jobs' default).
-    fn config(&self) -> crate::machine::diffuse::LightConfig {
-        crate::machine::diffuse::LightConfig {
-            fa: self.fa,
-            policy: self.policy.into(),
-            merge: self.merge.resolve(self.policy),
-            record_visits: false,
-            stepping: match self.stepping {
-                SteppingArg::Active => crate::machine::diffuse::Stepping::Active,
-                SteppingArg::AllCells => crate::machine::diffuse::Stepping::AllCells,
-            },
-            skip_receding: self.skip_receding,
-            skip_dead_directions: self.skip_dead_directions,
-            faults: self.link_faults,
-            stall_cycles: self.stall_cycles,
-            lit_visible_only: self.lit_visible_only.unwrap_or(false),
-            hold: self.hold,
-            skip_frustum: self.skip_frustum,
-            skip_hidden: self.skip_hidden.unwrap_or(false),
-            frustum_blocks: self.frustum_blocks.map_or(FrustumBlocks::default(), Into::into),
-            rule: self.lit_rule.into(),
+impl From<SteppingArg> for crate::machine::diffuse::Stepping {
+    fn from(a: SteppingArg) -> Self {
+        match a {
+            SteppingArg::Active => crate::machine::diffuse::Stepping::Active,
+            SteppingArg::AllCells => crate::machine::diffuse::Stepping::AllCells,
         }
     }
 }
@@ -339,6 +299,15 @@ pub enum NormalArg {
     Facet,
     /// The voxel face the view ray crossed; no normal stored (§5.2.2).
     Face,
+}
+
+impl From<NormalArg> for cell_core::shade::NormalMode {
+    fn from(a: NormalArg) -> Self {
+        match a {
+            NormalArg::Facet => cell_core::shade::NormalMode::Facet,
+            NormalArg::Face => cell_core::shade::NormalMode::Face,
+        }
+    }
 }
 
 /// Options of `render`.
@@ -412,12 +381,18 @@ pub enum MergeArg {
 }
 
 impl MergeArg {
-    fn resolve(self, p: PolicyArg) -> bool {
+    /// On or off as given; `None` for auto.
+    fn choice(self) -> Option<bool> {
         match self {
-            MergeArg::Auto => p != PolicyArg::Thesis,
-            MergeArg::On => true,
-            MergeArg::Off => false,
+            MergeArg::Auto => None,
+            MergeArg::On => Some(true),
+            MergeArg::Off => Some(false),
         }
+    }
+
+    /// On or off under policy `p` (auto: on for wavefront and radial, off for the thesis's).
+    fn resolve(self, p: PolicyArg) -> bool {
+        self.choice().unwrap_or(p != PolicyArg::Thesis)
     }
 }
 
@@ -543,7 +518,6 @@ pub struct SubdivideArgs {
     #[arg(long)]
     pub out: PathBuf,
 }
-
 /// Run a parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
     // The command runs on a thread of the pool, so that the lighting loop's parallel passes
@@ -557,74 +531,23 @@ pub fn run(cli: Cli) -> Result<()> {
     pool.install(|| dispatch(cli.command))
 }
 
+/// Each command's job, with its arguments converted into the job's options ([`options`]).
 fn dispatch(command: Command) -> Result<()> {
     match command {
-        Command::Voxelize(a) => match a.dexel_capacity {
-            8 => run_voxelize::<8>(&a),
-            16 => run_voxelize::<16>(&a),
-            32 => run_voxelize::<32>(&a),
-            64 => run_voxelize::<64>(&a),
-            _ => run_voxelize::<128>(&a),
-        },
-        Command::Render(a) => cell_core::with_frac_bits!(a.light.frac_bits, F => run_render::<F>(&a))
-            .unwrap_or_else(|| Err(unsupported_f(a.light.frac_bits))),
-        Command::Light(a) => cell_core::with_frac_bits!(a.light.frac_bits, F => run_light::<F>(&a))
-            .unwrap_or_else(|| Err(unsupported_f(a.light.frac_bits))),
-        Command::DiffusionTable(a) => cell_core::with_frac_bits!(a.frac_bits, F => run_table::<F>(&a))
-            .unwrap_or_else(|| Err(unsupported_f(a.frac_bits))),
-        Command::LightAccuracy(a) => run_accuracy(&a),
-        Command::Bench(a) => {
-            let meshes = a.scene.iter().map(|s| scene::load(s)).collect::<Result<Vec<_>>>()?;
-            crate::jobs::bench::run_bench(&meshes, &a.n, &a.frac_bits, &a.out, &a.plot, a.quiet)
-        }
-        Command::Audit(a) => {
-            let l = &a.load;
-            let cfg = l.config(DEFAULT_N);
-            cfg.validate()?;
-            let mesh = scene::load(&l.scene)?;
-            let lcfg = crate::machine::diffuse::LightConfig {
-                fa: a.fa,
-                policy: cell_core::light::Policy::Wavefront,
-                merge: true,
-                record_visits: false,
-                ..Default::default()
-            };
-            let default_elf = PathBuf::from(crate::jobs::audit::FIRMWARE_ELF);
-            let elf = a.elf.clone().or_else(|| default_elf.exists().then_some(default_elf));
-            let audit = crate::jobs::audit::audit(&mesh, &cfg, &lcfg, elf.as_deref())?;
-            crate::jobs::audit::print(&audit);
-            if let Some(p) = &a.json {
-                crate::jobs::audit::write_json(&audit, p)?;
-            }
-            Ok(())
-        }
-        Command::Trace(a) => cell_core::with_frac_bits!(a.light.frac_bits, F => run_trace::<F>(&a))
-            .unwrap_or_else(|| Err(unsupported_f(a.light.frac_bits))),
+        Command::Voxelize(a) => jobs::voxelize::run(&(&a).into()),
+        Command::Render(a) => jobs::render::run(&(&a).into()),
+        Command::Light(a) => jobs::light::run(&(&a).into()),
+        Command::DiffusionTable(a) => jobs::table::run(&(&a).into()),
+        Command::LightAccuracy(a) => jobs::accuracy::run(&(&a).into()),
+        Command::Bench(a) => jobs::bench::run(&(&a).into()),
+        Command::Audit(a) => jobs::audit::run(&(&a).into()),
+        Command::Trace(a) => jobs::trace::run(&(&a).into()),
         Command::Scenes => {
-            for (name, what) in scene::BUILTINS {
-                println!("{name:13} {what}");
-            }
+            jobs::scenes::list();
             Ok(())
         }
-        Command::Subdivide(a) => {
-            let mesh = scene::load(&a.scene)?;
-            let sub = crate::scene::meshops::subdivide_to(&mesh, a.target);
-            let f = File::create(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
-            crate::scene::meshops::write_obj(&sub, BufWriter::new(f))?;
-            eprintln!(
-                "{}: {} → {} triangles, written to {}",
-                mesh.name,
-                mesh.faces.len(),
-                sub.faces.len(),
-                a.out.display()
-            );
-            Ok(())
-        }
+        Command::Subdivide(a) => jobs::scenes::subdivide(&(&a).into()),
     }
-}
-
-fn unsupported_f(f: u32) -> anyhow::Error {
-    anyhow::anyhow!("--frac-bits {f} is not supported (0..=8, 10, 12, 16, 20, 24)")
 }
 
 fn parse_capacity(s: &str) -> std::result::Result<usize, String> {
@@ -632,539 +555,4 @@ fn parse_capacity(s: &str) -> std::result::Result<usize, String> {
         Ok(v @ (8 | 16 | 32 | 64 | 128)) => Ok(v),
         _ => Err(format!("'{s}' is not a compiled dexel capacity (8, 16, 32, 64 or 128)")),
     }
-}
-
-fn progress_bar(quiet: bool, what: &str) -> ProgressBar {
-    if quiet {
-        return ProgressBar::hidden();
-    }
-    let pb = ProgressBar::new(1);
-    pb.set_style(
-        ProgressStyle::with_template("{msg:>8} [{bar:40}] {pos}/{len} ({elapsed})")
-            .expect("static template")
-            .progress_chars("=> "),
-    );
-    pb.set_message(what.to_string());
-    pb
-}
-
-fn write_json(path: &PathBuf, value: &impl serde::Serialize) -> Result<()> {
-    let f = File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-    serde_json::to_writer_pretty(BufWriter::new(f), value)?;
-    Ok(())
-}
-
-fn print_summary(s: &VoxelizeStats) {
-    let g = &s.grid;
-    eprintln!(
-        "{}: n = {}, {} facets ({} skipped, {} polygons split), {:?}/{:?}, engine {:?}",
-        s.scene, s.n, s.facets, s.facets_skipped, s.polygons_split, s.thickness, s.contour, s.engine
-    );
-    eprintln!(
-        "  voxels {}  dexels/cell max {} (cell {:?}) mean {:.3} (occupied {:.2})",
-        g.voxels, g.dexels_max_per_cell, g.dexels_max_cell, g.dexels_mean_per_cell, g.dexels_mean_per_occupied_cell
-    );
-    eprintln!(
-        "  load cycles {}  bytes/cell static {} peak {}  wall {:.3} s (precompute {:.3} s, load {:.3} s)",
-        s.load_cycles,
-        s.bytes_per_cell_static,
-        s.bytes_per_cell_peak,
-        s.wall_seconds,
-        s.precompute_seconds,
-        s.load_seconds
-    );
-}
-
-fn run_voxelize<const D: usize>(a: &VoxelizeArgs) -> Result<()> {
-    let l = &a.load;
-    let cfg = l.config(DEFAULT_N);
-    cfg.validate()?;
-    let mesh = scene::load(&l.scene)?;
-    let pb = progress_bar(a.quiet, "load");
-    let v = voxelize::<D>(&mesh, &cfg, a.engine.into(), |pos, len| {
-        pb.set_length(len.max(pos));
-        pb.set_position(pos);
-    })?;
-    pb.finish_and_clear();
-    if let Some(p) = &a.stats {
-        write_json(p, &v.stats)?;
-    }
-    print_summary(&v.stats);
-    v.check_overflow()?;
-    let out = a.out.clone().unwrap_or_else(|| PathBuf::from(format!("{}.binvox", mesh.name)));
-    let vox = v.grid.to_voxels(v.stats.translate, v.stats.scale);
-    let f = File::create(&out).with_context(|| format!("cannot create {}", out.display()))?;
-    vox.write(BufWriter::new(f))?;
-    eprintln!("  wrote {}", out.display());
-    Ok(())
-}
-
-fn run_light<F: cell_core::beam::FracBits>(a: &LightArgs) -> Result<()> {
-    use crate::jobs::light::write_lit_csv;
-    use crate::machine::lighting::run_diffusion;
-    use crate::machine::loaded::{load_scene, resolve_lights};
-    let l = &a.load;
-    let cfg = l.config(DEFAULT_N);
-    cfg.validate()?;
-    let mesh = scene::load(&l.scene)?;
-    let loaded = load_scene(&mesh, &cfg)?;
-    let lights = resolve_lights(&mesh, &loaded, &a.light.lights)?;
-    let lcfg = a.light.config_for(false)?;
-    let pb = progress_bar(a.quiet, "light");
-    if a.light.classic.lighting == crate::cli::phase_args::LightingArg::Classic {
-        return run_light_classic::<F>(a, &cfg, &mesh, &loaded, &lights, pb);
-    }
-    let (lighting, stats) = run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, light_progress(&pb))?;
-    pb.finish_and_clear();
-    if let Some(p) = &a.stats {
-        write_json(p, &stats)?;
-    }
-    if let Some(p) = &a.lit_out {
-        let f = File::create(p).with_context(|| format!("cannot create {}", p.display()))?;
-        write_lit_csv(&lighting, BufWriter::new(f))?;
-    }
-    if let Some(p) = &a.dump_lit {
-        let f = File::create(p).with_context(|| format!("cannot create {}", p.display()))?;
-        let d = crate::jobs::dump::lit_dump(&mesh, &loaded.grid, &loaded.fit, &lighting, &stats);
-        crate::jobs::dump::write_lit_dump(&d, BufWriter::new(f))?;
-    }
-    eprintln!(
-        "{}: n = {}, {} facets ({}), {} light(s), FA = {}, f = {}, policy {}, merge {}",
-        stats.scene,
-        stats.n,
-        stats.facets,
-        geometry(&cfg),
-        stats.sources.len(),
-        stats.fa,
-        stats.frac_bits,
-        stats.policy,
-        stats.merge
-    );
-    print_link_faults(&stats);
-    for s in &stats.sources {
-        eprintln!(
-            "  light {} at {:?}: T = {} cycles, LB = {} (T/LB {:.2}), {} beams, {} messages, peak FIFO {}, peak link load {} at distance {}",
-            s.source + 1,
-            s.position,
-            s.counts.cycles,
-            s.counts.lower_bound,
-            s.counts.cycles as f64 / s.counts.lower_bound.max(1) as f64,
-            s.counts.beams_processed,
-            s.counts.messages,
-            s.counts.peak_fifo,
-            s.counts.peak_link_load,
-            s.counts.peak_link_distance
-        );
-    }
-    eprintln!(
-        "  lit voxels {}  rays emitted {} = absorbed {} + exited {}  wall {:.3} s",
-        stats.lit_voxels,
-        stats.totals.rays_emitted,
-        stats.totals.rays_absorbed,
-        stats.totals.rays_exited,
-        stats.wall_seconds
-    );
-    if stats.lit_overflows > 0 {
-        anyhow::bail!(
-            "{} lit marks did not fit a cell's lit store ({} runs per column)",
-            stats.lit_overflows,
-            crate::machine::capacity::LIT_CAP
-        );
-    }
-    Ok(())
-}
-
-fn run_table<F: cell_core::beam::FracBits>(a: &TableArgs) -> Result<()> {
-    use crate::machine::lighting::run_diffusion;
-    use crate::machine::loaded::{load_scene, resolve_lights};
-    use std::io::Write;
-    let mut rows = Vec::new();
-    let mut csv = BufWriter::new(File::create(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?);
-    writeln!(csv, "n,fa,policy,frac_bits,cycles,lower_bound,t_over_lb,lb_distance,lb_cell_load,beams_processed,messages,peak_fifo,blocked_cell_cycles,wall_seconds")?;
-    let mesh = scene::load("empty")?;
-    let pb = progress_bar(a.quiet, "table");
-    pb.set_length((a.n.len() * a.fa.len() * a.policy.len()) as u64);
-    for &n in &a.n {
-        let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
-        let loaded = load_scene(&mesh, &cfg)?;
-        // The thesis's source at the centre: voxel (n/2, n/2, n/2).
-        let c = (n / 2) as f64;
-        let lights = resolve_lights(&mesh, &loaded, &[])?.iter().map(|_| [c, c, c]).collect::<Vec<_>>();
-        for &policy in &a.policy {
-            for &fa in &a.fa {
-                let lcfg = crate::machine::diffuse::LightConfig {
-                    fa,
-                    policy: policy.into(),
-                    merge: a.merge.resolve(policy),
-                    record_visits: false,
-                    // The thesis's experiment measures diffusion through an empty scene, which
-                    // the skips would drop entirely.
-                    skip_receding: false,
-                    skip_dead_directions: false,
-                    ..Default::default()
-                };
-                let (_, s) = run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, |_, _| {})?;
-                let r = &s.sources[0];
-                writeln!(
-                    csv,
-                    "{n},{fa},{},{},{},{},{:.4},{},{},{},{},{},{},{:.4}",
-                    s.policy,
-                    s.frac_bits,
-                    r.counts.cycles,
-                    r.counts.lower_bound,
-                    s.t_over_lb,
-                    r.counts.lb_distance,
-                    r.counts.lb_cell_load,
-                    r.counts.beams_processed,
-                    r.counts.messages,
-                    r.counts.peak_fifo,
-                    r.counts.blocked_cell_cycles,
-                    s.wall_seconds
-                )?;
-                rows.push(crate::report::plot::DiffusionRow {
-                    n,
-                    fa: fa as u32,
-                    policy: s.policy.clone(),
-                    cycles: r.counts.cycles,
-                    lower_bound: r.counts.lower_bound,
-                });
-                pb.inc(1);
-            }
-        }
-    }
-    pb.finish_and_clear();
-    csv.flush()?;
-    crate::report::plot::plot_diffusion(&rows, &a.plot)?;
-    eprintln!("| N | FA | policy | T | LB | T/LB |");
-    eprintln!("|---|---|---|---|---|---|");
-    for r in &rows {
-        eprintln!(
-            "| {} | {} | {} | {} | {} | {:.2} |",
-            r.n,
-            r.fa,
-            r.policy,
-            r.cycles,
-            r.lower_bound,
-            r.cycles as f64 / r.lower_bound.max(1) as f64
-        );
-    }
-    eprintln!("wrote {} and {}", a.out.display(), a.plot.display());
-    Ok(())
-}
-
-fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
-    use crate::jobs::accuracy::accuracy;
-    use crate::machine::lighting::run_diffusion;
-    use crate::machine::loaded::{load_scene, resolve_lights};
-    use std::io::Write;
-    let mesh = scene::load(&a.scene)?;
-    let mut csv = BufWriter::new(File::create(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?);
-    writeln!(csv, "scene,n,frac_bits,surface_voxels,lit_discrete,lit_continuous,false_lit,false_dark,disagreement_pct,cycles,lower_bound,beams_processed,wall_seconds")?;
-    eprintln!("| n | f | surface voxels | false lit | false dark | disagreement % | cycles | beams | wall s |");
-    eprintln!("|---|---|---|---|---|---|---|---|---|");
-    for &n in &a.n {
-        let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
-        let loaded = load_scene(&mesh, &cfg)?;
-        let lights = resolve_lights(&mesh, &loaded, &a.lights)?;
-        for &f in &a.frac_bits {
-            let lcfg = crate::machine::diffuse::LightConfig {
-                fa: a.fa,
-                policy: a.policy.into(),
-                merge: MergeArg::Auto.resolve(a.policy),
-                record_visits: false,
-                ..Default::default()
-            };
-            let row = cell_core::with_frac_bits!(f, F => {
-                run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, |_, _| {})
-                    .and_then(|(l, s)| Ok((accuracy(&mesh, &loaded, &lights, &l)?, s)))
-            })
-            .unwrap_or_else(|| Err(anyhow::anyhow!("--frac-bits {f} is not supported")))?;
-            let (acc, s) = row;
-            writeln!(
-                csv,
-                "{},{n},{f},{},{},{},{},{},{:.4},{},{},{},{:.4}",
-                mesh.name,
-                acc.surface_voxels,
-                acc.lit_discrete,
-                acc.lit_continuous,
-                acc.false_lit,
-                acc.false_dark,
-                acc.disagreement_pct,
-                s.totals.cycles,
-                s.totals.lower_bound,
-                s.totals.beams_processed,
-                s.wall_seconds
-            )?;
-            eprintln!(
-                "| {n} | {f} | {} | {} | {} | {:.2} | {} | {} | {:.2} |",
-                acc.surface_voxels,
-                acc.false_lit,
-                acc.false_dark,
-                acc.disagreement_pct,
-                s.totals.cycles,
-                s.totals.beams_processed,
-                s.wall_seconds
-            );
-        }
-    }
-    csv.flush()?;
-    eprintln!("wrote {}", a.out.display());
-    Ok(())
-}
-
-fn print_link_faults(s: &crate::machine::lighting::LightStats) {
-    if let Some(f) = &s.link_faults {
-        eprintln!(
-            "  links: {} data frames ({} retransmissions): {} corrupted + {} dropped data frames, {} acks lost, {} refused by CRC, {} duplicates discarded; {} frames delayed ({} link-cycles held)",
-            f.data_frames,
-            f.retransmissions,
-            f.data_corrupted,
-            f.data_dropped,
-            f.acks_lost,
-            f.crc_rejected,
-            f.duplicates,
-            f.data_delayed,
-            f.delay_cycles
-        );
-    }
-}
-
-fn run_trace<F: cell_core::beam::FracBits>(a: &TraceArgs) -> Result<()> {
-    let load = a.load.config(TRACE_N);
-    load.validate()?;
-    let mesh = scene::load(&a.load.scene)?;
-    let job = crate::jobs::trace::TraceJob {
-        mesh: &mesh,
-        load,
-        light: crate::machine::diffuse::LightConfig {
-            frustum_blocks: a.light.frustum_blocks.map_or(FrustumBlocks::B8, Into::into),
-            ..a.light.config()
-        },
-        lights: a.light.lights.clone(),
-        cells: a.cells.clone(),
-        busiest: a.busiest,
-    };
-    let traces = crate::jobs::trace::record::<F>(&job)?;
-    crate::jobs::trace::write_traces(&a.out, &traces)?;
-    for t in &traces {
-        // The host's own build of cell-core replays it: the same digest, or the trace is wrong.
-        let (d, st) = crate::jobs::trace::replay::<F>(&t.bytes)?;
-        let ok = if d == t.digest { "replay ok" } else { "REPLAY MISMATCH" };
-        println!(
-            "cell ({:>3}, {:>3}): {:>6} bytes, {:>5} records ({} rows, {} beams in, {} cycles, {} sent), digest {:016x}, {ok}",
-            t.x, t.y, t.bytes.len(), t.records, st.rows, st.received, st.steps, st.sent, t.digest
-        );
-        if d != t.digest {
-            anyhow::bail!("replaying the trace of cell ({}, {}) gave digest {d:016x}", t.x, t.y);
-        }
-    }
-    println!("traces written to {}", a.out.display());
-    Ok(())
-}
-
-/// Progress of the lighting phase: source and cycle.
-fn light_progress(pb: &ProgressBar) -> impl FnMut(usize, u64) + '_ {
-    |s, c| {
-        pb.set_message(format!("light {}", s + 1));
-        pb.set_length(c.max(1));
-        pb.set_position(c);
-    }
-}
-
-fn run_light_classic<F: cell_core::beam::FracBits>(
-    a: &LightArgs,
-    cfg: &LoadConfig,
-    mesh: &scene::Mesh,
-    loaded: &crate::machine::loaded::LoadedScene,
-    lights: &[[f64; 3]],
-    pb: ProgressBar,
-) -> Result<()> {
-    use std::io::Write;
-    let ccfg = a.light.classic.config(a.light.fa, a.light.lit_rule.into());
-    let (cl, stats) = crate::machine::classic::run_classic::<F>(mesh, loaded, lights, &ccfg, light_progress(&pb))?;
-    pb.finish_and_clear();
-    let stats_out = a.stats.as_ref().map(|p| write_json(p, &stats));
-    stats_out.transpose()?;
-    if let Some(p) = &a.lit_out {
-        let mut w = BufWriter::new(File::create(p).with_context(|| format!("cannot create {}", p.display()))?);
-        writeln!(w, "x,y,z,source_mask")?;
-        for (i, c) in loaded.grid.cells.iter().enumerate() {
-            if let (Some(d), m) = (c.store.dexels().first(), cl.masks[i]) {
-                if m != 0 {
-                    writeln!(w, "{},{},{},{m}", c.x, c.y, d.span.lo)?;
-                }
-            }
-        }
-    }
-    eprintln!(
-        "{}: n = {}, {} facets ({}), {} light(s), FA = {}, {}: T = {} cycles, {} lit visible voxels, wall {:.3} s",
-        stats.scene,
-        stats.n,
-        stats.facets,
-        geometry(cfg),
-        lights.len(),
-        stats.fa,
-        stats.policy,
-        stats.totals.cycles,
-        stats.lit_voxels,
-        stats.wall_seconds
-    );
-    eprintln!("  {}", crate::machine::classic::summary(&cl.totals));
-    Ok(())
-}
-
-/// `F.EXT` beside the image `F.png`: its extension replaced, dots in the stem kept
-/// (`shot-0.5.png` gives `shot-0.5.diff.png`).
-fn beside(out: &std::path::Path, ext: &str) -> std::path::PathBuf {
-    let stem = out.file_stem().unwrap_or_default().to_string_lossy();
-    out.with_file_name(format!("{stem}.{ext}"))
-}
-
-fn run_render<F: cell_core::beam::FracBits>(a: &RenderArgs) -> Result<()> {
-    use crate::jobs::render::{reference_image, render, RenderConfig};
-    use crate::machine::loaded::{load_scene, resolve_lights};
-    use crate::report::png::write_png;
-    let cfg = a.load.config(DEFAULT_N);
-    cfg.validate()?;
-    a.reflect.validate(a.light.classic.lighting, cfg.n, a.light.fa)?;
-    let reflecting = a.reflect.reflections > 0;
-    if reflecting && a.light.lit_visible_only == Some(true) {
-        anyhow::bail!(
-            "--reflections reads the lit state of the voxels reflected rays hit, hidden ones included: \
-             run without --lit-visible-only (and --skip-hidden)"
-        );
-    }
-    // The image needs only what its pixels read; reflected rays read hidden voxels too.
-    let light = a.light.config_for(!reflecting)?;
-    let mesh = scene::load(&a.load.scene)?;
-    let t0 = std::time::Instant::now();
-    let pb = progress_bar(a.quiet, "load");
-    pb.set_length(1);
-    let loaded = load_scene(&mesh, &cfg)?;
-    pb.finish_and_clear();
-    let load_seconds = t0.elapsed().as_secs_f64();
-    let lights = resolve_lights(&mesh, &loaded, &a.light.lights)?;
-    let rcfg = RenderConfig {
-        light,
-        normals: match a.normals {
-            NormalArg::Facet => cell_core::shade::NormalMode::Facet,
-            NormalArg::Face => cell_core::shade::NormalMode::Face,
-        },
-    };
-    let t1 = std::time::Instant::now();
-    let reference = if a.reference {
-        if mesh.faces.is_empty() {
-            anyhow::bail!("--reference needs a scene with geometry ('{}' has none)", mesh.name);
-        }
-        if a.reflect.reflections > 0 {
-            let (d, t) = (a.reflect.reflections, a.reflect.reflect_threshold);
-            Some(crate::jobs::render::reflect_reference_image(&mesh, &loaded, &lights, d, t)?)
-        } else {
-            Some(reference_image(&mesh, &loaded, &lights)?)
-        }
-    } else {
-        None
-    };
-    let reference_seconds = t1.elapsed().as_secs_f64();
-    let pb = progress_bar(a.quiet, "light 1");
-    let progress = light_progress(&pb);
-    let mut reflections = None;
-    let (r, classic) = if a.reflect.reflections > 0 {
-        let refl = a.reflect.config(a.light.fa, &a.light.classic.config(a.light.fa, a.light.lit_rule.into()));
-        let times = [load_seconds, reference_seconds];
-        let (r, c) = crate::jobs::render::render_reflect::<F>(
-            &mesh,
-            &loaded,
-            &lights,
-            &rcfg,
-            &refl,
-            reference.as_ref(),
-            times,
-            progress,
-        )?;
-        reflections = Some(c);
-        (r, None)
-    } else if a.light.classic.lighting == crate::cli::phase_args::LightingArg::Classic {
-        let ccfg = a.light.classic.config(a.light.fa, a.light.lit_rule.into());
-        let (r, c) = crate::jobs::render::render_classic::<F>(
-            &mesh,
-            &loaded,
-            &lights,
-            &rcfg,
-            &ccfg,
-            reference.as_ref(),
-            load_seconds,
-            reference_seconds,
-            progress,
-        )?;
-        (r, Some(c))
-    } else {
-        (
-            render::<F>(&mesh, &loaded, &lights, &rcfg, reference.as_ref(), load_seconds, reference_seconds, progress)?,
-            None,
-        )
-    };
-    pb.finish_and_clear();
-    write_png(&a.out, r.image.n, &r.image.rgb)?;
-    let mut written = vec![a.out.display().to_string()];
-    if let Some(reference) = &reference {
-        let (rp, dp) = (beside(&a.out, "reference.png"), beside(&a.out, "diff.png"));
-        write_png(&rp, reference.n, &reference.rgb)?;
-        let diff = crate::truth::compare::difference_image(&r.image.rgb, &r.image.covered, reference);
-        write_png(&dp, reference.n, &diff)?;
-        written.push(rp.display().to_string());
-        written.push(dp.display().to_string());
-    }
-    match (&a.stats, &reflections) {
-        (Some(p), Some(c)) => write_json(p, &crate::jobs::render::with_counts(&r.stats, c)?)?,
-        (Some(p), None) => write_json(p, &r.stats)?,
-        _ => {}
-    }
-    let s = &r.stats;
-    let t = &s.light.totals;
-    eprintln!(
-        "{}: n = {}, {} facets ({}), {} light(s), f = {}, FA = {}, {} policy{}, {} normals",
-        s.light.scene,
-        s.light.n,
-        s.light.facets,
-        geometry(&cfg),
-        s.light.sources.len(),
-        s.light.frac_bits,
-        s.light.fa,
-        s.light.policy,
-        if s.light.merge { " + merge" } else { "" },
-        s.normals
-    );
-    eprintln!(
-        "  cycles: load {}  light {} (T/LB {:.2}, {} beams)  shade {}",
-        s.light.load_cycles, t.cycles, s.light.t_over_lb, t.beams_processed, s.shade_cycles
-    );
-    print_link_faults(&s.light);
-    eprintln!(
-        "  pixels: {} covered, {} lit   bytes/cell {} (dexels {} + light {})   shading vs f64: max {} mean {:.3} levels",
-        s.covered_pixels, s.lit_pixels, s.bytes_per_cell, s.bytes_per_cell_load, s.light.bytes_light_cell,
-        s.shading_max_err_levels, s.shading_mean_err_levels
-    );
-    if let Some(c) = &classic {
-        eprintln!("  {}", crate::machine::classic::summary(c));
-    }
-    if let Some(c) = &reflections {
-        eprintln!("  {}", crate::machine::reflect::summary(c));
-    }
-    if let Some(c) = &s.reference {
-        eprintln!(
-            "  reference: shadow disagreement {:.2} %, coverage disagreement {:.2} %, PSNR {:.2} dB",
-            c.shadow_disagreement_pct, c.coverage_disagreement_pct, c.psnr_db
-        );
-    }
-    eprintln!(
-        "  wall {:.2} s (load {:.2}, light {:.2}, shade {:.2}, reference {:.2})   wrote {}",
-        s.wall_seconds,
-        s.load_seconds,
-        s.light_seconds,
-        s.shade_seconds,
-        s.reference_seconds,
-        written.join(", ")
-    );
-    Ok(())
 }

@@ -1,6 +1,5 @@
 //! Command-line options of the classic and reflection phases (flattened into `light`/`render`).
 
-use anyhow::{bail, Result};
 use cell_core::lit::LitRule;
 use cell_core::ray::Connectivity;
 use cell_core::reflect::ReflectNormal;
@@ -119,26 +118,6 @@ pub struct ReflectOpts {
 }
 
 impl ReflectOpts {
-    /// Check the options before any work (with reflections on): diffusion lighting, a valid
-    /// configuration for a grid of side `n` and FIFO limit `fa`.
-    pub fn validate(&self, lighting: crate::cli::phase_args::LightingArg, n: u32, fa: usize) -> Result<()> {
-        if self.reflections == 0 {
-            return Ok(());
-        }
-        if lighting == crate::cli::phase_args::LightingArg::Classic {
-            bail!("--reflections needs --lighting diffusion (the lit state of every voxel, not only the visible ones)");
-        }
-        let classic = crate::machine::classic::ClassicConfig {
-            fa,
-            connectivity: Connectivity::Six,
-            route: RoutePolicy::Adaptive,
-            all_voxels: false,
-            bias: 0,
-            rule: cell_core::lit::LitRule::Thesis,
-        };
-        self.config(fa, &classic).validate(n)
-    }
-
     /// The configuration (rays use the classic options' connectivity and routing).
     pub fn config(&self, fa: usize, classic: &crate::machine::classic::ClassicConfig) -> ReflectConfig {
         ReflectConfig {

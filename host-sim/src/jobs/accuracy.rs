@@ -1,11 +1,100 @@
-//! The `light-accuracy` job: the lit state of surface voxels against exact f64 visibility.
+//! The `light-accuracy` job: the lit state of surface voxels against exact f64 visibility, for
+//! several grid sizes and fraction bits, against the lighting phase's run time (CSV).
+
+use std::io::Write;
+use std::path::PathBuf;
 
 use anyhow::Result;
 use cell_core::beam::FracBits;
+use cell_core::light::Policy;
+use parry3d_f64::math::Vector;
 
-use crate::machine::diffuse::Lighting;
-use crate::machine::loaded::{voxel_to_world, LoadedScene};
+use crate::machine::diffuse::{LightConfig, Lighting};
+use crate::machine::lighting::{run_diffusion, LightStats};
+use crate::machine::loaded::{load_scene, resolve_lights, voxel_to_world, LoadedScene};
+use crate::precompute::LoadConfig;
+use crate::report::files::create;
 use crate::scene::Mesh;
+
+/// What the `light-accuracy` job measures and writes.
+#[derive(Clone, Debug)]
+pub struct AccuracyOptions {
+    /// An .obj file or a built-in scene name.
+    pub scene: String,
+    /// Grid sizes (watertight surfaces).
+    pub n: Vec<u32>,
+    /// Fraction bits f to compare.
+    pub frac_bits: Vec<u32>,
+    /// FIFO size.
+    pub fa: usize,
+    /// Scheduling policy (merging on for the policies that pick by layer).
+    pub policy: Policy,
+    /// Lights at grid-normalised positions (empty: the scene's own).
+    pub lights: Vec<[f64; 3]>,
+    /// Output CSV.
+    pub out: PathBuf,
+}
+
+/// Run the `light-accuracy` job: one CSV row and one Markdown row (stderr) per n and f.
+pub fn run(o: &AccuracyOptions) -> Result<()> {
+    let mesh = crate::scene::load(&o.scene)?;
+    let mut csv = create(&o.out)?;
+    writeln!(csv, "scene,n,frac_bits,surface_voxels,lit_discrete,lit_continuous,false_lit,false_dark,disagreement_pct,cycles,lower_bound,beams_processed,wall_seconds")?;
+    eprintln!("| n | f | surface voxels | false lit | false dark | disagreement % | cycles | beams | wall s |");
+    eprintln!("|---|---|---|---|---|---|---|---|---|");
+    let lcfg = LightConfig {
+        fa: o.fa,
+        policy: o.policy,
+        merge: o.policy.by_layer(),
+        record_visits: false,
+        ..Default::default()
+    };
+    for &n in &o.n {
+        let loaded = load_scene(&mesh, &LoadConfig::watertight(n))?;
+        let lights = resolve_lights(&mesh, &loaded, &o.lights)?;
+        for &f in &o.frac_bits {
+            let (acc, s) = cell_core::with_frac_bits!(f, F => {
+                run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, |_, _| {})
+                    .and_then(|(l, s)| Ok((accuracy(&mesh, &loaded, &lights, &l)?, s)))
+            })
+            .unwrap_or_else(|| Err(anyhow::anyhow!("--frac-bits {f} is not supported")))?;
+            write_row(&mut csv, &mesh.name, n, f, &acc, &s)?;
+        }
+    }
+    csv.flush()?;
+    eprintln!("wrote {}", o.out.display());
+    Ok(())
+}
+
+/// One row of the CSV and of the Markdown table.
+fn write_row(csv: &mut impl Write, scene: &str, n: u32, f: u32, acc: &Accuracy, s: &LightStats) -> Result<()> {
+    writeln!(
+        csv,
+        "{},{n},{f},{},{},{},{},{},{:.4},{},{},{},{:.4}",
+        scene,
+        acc.surface_voxels,
+        acc.lit_discrete,
+        acc.lit_continuous,
+        acc.false_lit,
+        acc.false_dark,
+        acc.disagreement_pct,
+        s.totals.cycles,
+        s.totals.lower_bound,
+        s.totals.beams_processed,
+        s.wall_seconds
+    )?;
+    eprintln!(
+        "| {n} | {f} | {} | {} | {} | {:.2} | {} | {} | {:.2} |",
+        acc.surface_voxels,
+        acc.false_lit,
+        acc.false_dark,
+        acc.disagreement_pct,
+        s.totals.cycles,
+        s.totals.beams_processed,
+        s.wall_seconds
+    );
+    Ok(())
+}
 
 /// Lit state of surface voxels against exact continuous visibility (docs/LIGHTING.md, "light-accuracy").
 ///
@@ -38,34 +127,8 @@ pub fn accuracy<F: FracBits>(
     lights: &[[f64; 3]],
     lighting: &Lighting<F>,
 ) -> Result<Accuracy> {
-    let mut tris = Vec::new();
-    let mut ids = Vec::new();
-    for (fi, f) in mesh.faces.iter().enumerate() {
-        for k in 1..f.verts.len().saturating_sub(1) {
-            let p = |i: usize| mesh.positions[f.verts[i] as usize];
-            tris.push([p(0), p(k), p(k + 1)]);
-            ids.push(fi as u32);
-        }
-    }
-    // Each face's plane (normal from its first non-degenerate corner, through its first vertex).
-    let planes: Vec<([f64; 3], [f64; 3])> = mesh
-        .faces
-        .iter()
-        .map(|f| {
-            let p = |i: usize| mesh.positions[f.verts[i] as usize];
-            let o = p(0);
-            let mut nrm = [0.0; 3];
-            for k in 2..f.verts.len() {
-                let (a, b) = (sub3(p(k - 1), o), sub3(p(k), o));
-                let c = [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
-                if dot3(c, c) > 0.0 {
-                    nrm = c;
-                    break;
-                }
-            }
-            (nrm, o)
-        })
-        .collect();
+    let (tris, ids) = crate::truth::refrender::mesh_triangles(mesh)?;
+    let planes = face_planes(mesh);
     let reference = crate::truth::visibility::Reference::new(tris, ids)?;
     let g = &scene.grid;
     let n = g.n;
@@ -78,33 +141,32 @@ pub fn accuracy<F: FracBits>(
             && z < n as i64
             && g.cell(x as u32, y as u32).store.occupied(z as u16).is_some()
     };
-    let world_lights: Vec<[f64; 3]> = lights.iter().map(|l| voxel_to_world(&scene.fit, *l)).collect();
+    let world = |v: [f64; 3]| Vector::from(voxel_to_world(&scene.fit, v));
+    let world_lights: Vec<Vector> = lights.iter().map(|l| world(*l)).collect();
     let mut a = Accuracy::default();
     for c in &g.cells {
         for d in c.store.dexels() {
             let face = scene.source_face.get(d.facet as usize).copied().unwrap_or(u32::MAX);
             for z in d.span.lo..=d.span.hi {
                 let (x, y, zz) = (c.x as i64, c.y as i64, z as i64);
-                let empty: Vec<[f64; 3]> = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
+                let empty: Vec<Vector> = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
                     .iter()
                     .filter(|&&(dx, dy, dz)| !occ(x + dx, y + dy, zz + dz))
-                    .map(|&(dx, dy, dz)| {
-                        voxel_to_world(&scene.fit, [(x + dx) as f64, (y + dy) as f64, (zz + dz) as f64])
-                    })
+                    .map(|&(dx, dy, dz)| world([(x + dx) as f64, (y + dy) as f64, (zz + dz) as f64]))
                     .collect();
                 if empty.is_empty() {
                     continue;
                 }
-                let (nrm, o) = planes.get(face as usize).copied().unwrap_or(([0.0; 3], [0.0; 3]));
+                let (nrm, o) = planes.get(face as usize).copied().unwrap_or((Vector::ZERO, Vector::ZERO));
                 let centre = voxel_to_world(&scene.fit, [x as f64, y as f64, zz as f64]);
                 let mask = lighting.mask(c.x as u32, c.y as u32, z);
                 for (si, l) in world_lights.iter().enumerate() {
-                    let side = dot3(nrm, sub3(*l, o)).signum();
-                    if side == 0.0 || !empty.iter().any(|q| dot3(nrm, sub3(*q, o)).signum() == side) {
+                    let side = nrm.dot(*l - o).signum();
+                    if side == 0.0 || !empty.iter().any(|q| nrm.dot(*q - o).signum() == side) {
                         continue;
                     }
                     let disc = mask >> si & 1 == 1;
-                    let cont = reference.visible(centre, *l, &[face]);
+                    let cont = reference.visible(centre, l.to_array(), &[face]);
                     a.surface_voxels += 1;
                     a.lit_discrete += disc as u64;
                     a.lit_continuous += cont as u64;
@@ -118,10 +180,15 @@ pub fn accuracy<F: FracBits>(
     Ok(a)
 }
 
-fn sub3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn dot3(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+/// Each face's plane: the normal of its first non-degenerate corner, and its first vertex.
+fn face_planes(mesh: &Mesh) -> Vec<(Vector, Vector)> {
+    mesh.faces
+        .iter()
+        .map(|f| {
+            let p = |i: usize| Vector::from(mesh.positions[f.verts[i] as usize]);
+            let o = p(0);
+            let nrm = (2..f.verts.len()).map(|k| (p(k - 1) - o).cross(p(k) - o)).find(|c| c.dot(*c) > 0.0);
+            (nrm.unwrap_or(Vector::ZERO), o)
+        })
+        .collect()
 }

@@ -5,13 +5,14 @@
 //! with exactly the capacities the scene used.
 
 use std::mem::size_of;
+use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use cell_core::beam::frac::U0;
 use cell_core::cell::{Cell, DEFAULT_DEXELS};
 use cell_core::dexel::{Dexel, DexelStore};
 use cell_core::facet::{PipelinePacket, RowPacket};
-use cell_core::light::{BeamMsg, LitRun, LitRuns, OutBuffers};
+use cell_core::light::{BeamMsg, LitRun, LitRuns, OutBuffers, Policy};
 use cell_core::link::{BEAM_PAYLOAD, HEADER, MAX_FRAME, ROW_PAYLOAD_BASE, TRAILER};
 
 use crate::machine::diffuse::{FrustumBlocks, LightConfig};
@@ -294,10 +295,35 @@ pub fn print(a: &Audit) {
     }
 }
 
-/// Write the audit as JSON.
-pub fn write_json(a: &Audit, path: &std::path::Path) -> Result<()> {
-    let f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-    serde_json::to_writer_pretty(std::io::BufWriter::new(f), a)?;
+/// What the `audit` job measures and writes.
+#[derive(Clone, Debug)]
+pub struct AuditOptions {
+    /// An .obj file or a built-in scene name.
+    pub scene: String,
+    /// Grid side and surfaces.
+    pub load: LoadConfig,
+    /// FIFO size of the lighting run.
+    pub fa: usize,
+    /// Write the audit as JSON here.
+    pub json: Option<PathBuf>,
+    /// The firmware ELF to report (default: [`FIRMWARE_ELF`], if it exists).
+    pub elf: Option<PathBuf>,
+}
+
+/// Run the `audit` job: a load + light run (wavefront policy with merging), the cell's sizes,
+/// printed and optionally written as JSON.
+pub fn run(o: &AuditOptions) -> Result<()> {
+    o.load.validate()?;
+    let mesh = crate::scene::load(&o.scene)?;
+    let lcfg =
+        LightConfig { fa: o.fa, policy: Policy::Wavefront, merge: true, record_visits: false, ..Default::default() };
+    let default_elf = PathBuf::from(FIRMWARE_ELF);
+    let elf = o.elf.clone().or_else(|| default_elf.exists().then_some(default_elf));
+    let a = audit(&mesh, &o.load, &lcfg, elf.as_deref())?;
+    print(&a);
+    if let Some(p) = &o.json {
+        crate::report::files::write_json(p, &a)?;
+    }
     Ok(())
 }
 

@@ -5,15 +5,15 @@
 //! error against machine cycles.
 
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
 
-use crate::jobs::render::{reference_image, render, RenderConfig};
+use crate::jobs::render::{reference_image, render, RenderConfig, RenderInput};
 use crate::machine::diffuse::LightConfig;
 use crate::machine::lighting::policy_name;
 use crate::machine::loaded::{load_scene, resolve_lights};
@@ -121,6 +121,29 @@ pub fn sweep(fs: &[u32]) -> Vec<Knobs> {
     v
 }
 
+/// What the `bench` job sweeps and writes.
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    /// Scenes (.obj files or built-in names); errors are averaged over them.
+    pub scenes: Vec<String>,
+    /// Grid sizes.
+    pub n: Vec<u32>,
+    /// Fraction bits swept.
+    pub frac_bits: Vec<u32>,
+    /// Output CSV.
+    pub out: PathBuf,
+    /// Output Pareto plot (one per n: `<stem>-n<N>.png` when several).
+    pub plot: PathBuf,
+    /// No progress lines.
+    pub quiet: bool,
+}
+
+/// Run the `bench` job on its scenes ([`run_bench`]).
+pub fn run(o: &BenchOptions) -> Result<()> {
+    let meshes = o.scenes.iter().map(|s| crate::scene::load(s)).collect::<Result<Vec<_>>>()?;
+    run_bench(&meshes, &o.n, &o.frac_bits, &o.out, &o.plot, o.quiet)
+}
+
 /// Run the sweep on several scenes at each n; write the CSV (one row per scene and
 /// configuration, plus an `all` row per configuration: error and cycles averaged over the scenes,
 /// bytes the largest) and one Pareto plot per n over the averaged rows
@@ -133,9 +156,7 @@ pub fn run_bench(
     plot_path: &Path,
     quiet: bool,
 ) -> Result<()> {
-    let mut csv = std::io::BufWriter::new(
-        std::fs::File::create(csv_path).with_context(|| format!("cannot create {}", csv_path.display()))?,
-    );
+    let mut csv = crate::report::files::create(csv_path)?;
     writeln!(
         csv,
         "scene,n,f,thickness,contour,normals,fa,policy,rule,is_default,load_cycles,light_cycles,shade_cycles,cycles,t_over_lb,beams,bytes_per_cell,wall_seconds,shadow_disagreement_pct,coverage_disagreement_pct,psnr_db,pareto"
@@ -153,11 +174,8 @@ pub fn run_bench(
                 let loaded = load_scene(mesh, &cfg)?;
                 let load_seconds = t0.elapsed().as_secs_f64();
                 let lights = resolve_lights(mesh, &loaded, &[])?;
-                if reference.is_none() {
-                    reference = Some(reference_image(mesh, &loaded, &lights)?);
-                }
-                let rcfg = RenderConfig {
-                    light: LightConfig {
+                let rcfg = RenderConfig::diffusion(
+                    LightConfig {
                         fa: k.fa,
                         policy: k.policy,
                         merge: k.policy.by_layer(),
@@ -165,9 +183,17 @@ pub fn run_bench(
                         rule: k.rule,
                         ..Default::default()
                     },
-                    normals: k.normals,
+                    k.normals,
+                );
+                if reference.is_none() {
+                    reference = Some(reference_image(mesh, &loaded, &lights, &rcfg)?);
+                }
+                let input = RenderInput {
+                    reference: reference.as_ref(),
+                    load_seconds,
+                    ..RenderInput::new(mesh, &loaded, &lights)
                 };
-                let r = cell_core::with_frac_bits!(k.f, F => render::<F>(mesh, &loaded, &lights, &rcfg, reference.as_ref(), load_seconds, 0.0, |_, _| {}))
+                let r = cell_core::with_frac_bits!(k.f, F => render::<F>(&input, &rcfg, |_, _| {}))
                     .unwrap_or_else(|| Err(anyhow::anyhow!("--frac-bits {} is not supported", k.f)))?;
                 let st = r.stats;
                 let c = st.reference.expect("compared with the reference");

@@ -1,16 +1,135 @@
-//! The `light` job's defaults and outputs.
+//! The `light` job: diffuse light from the scene's sources (or shoot classic shadow rays), write
+//! what is lit and summarise the run; and the lighting options `render` and `trace` share.
 
 use std::io::Write;
+use std::path::PathBuf;
 
-use anyhow::Result;
+use anyhow::{bail, Result};
 use cell_core::beam::FracBits;
 
-use crate::machine::diffuse::Lighting;
+use crate::machine::classic::{run_classic, ClassicConfig, ClassicLighting};
+use crate::machine::diffuse::{FrustumBlocks, LightConfig, Lighting};
+use crate::machine::lighting::{run_diffusion, LightStats};
+use crate::machine::loaded::{load_scene, resolve_lights, LoadedScene};
+use crate::precompute::LoadConfig;
+use crate::report::files::{create, write_json};
+use crate::report::progress;
+use crate::scene::{self, Mesh};
 
 /// Fraction bits the lighting jobs use unless told otherwise: under the plane rule f = 0 meets
 /// the accuracy goals at a quarter to four fifths of the former default's cycles; f = 1 is the
 /// accuracy knob for faces lit at extreme grazing angles (BENCHMARKS.md, "Is the light right?").
 pub const DEFAULT_FRAC_BITS: u32 = 0;
+
+/// Lighting options shared by `light`, `render` and `trace`. Three of the diffusion settings
+/// default differently per job; `None` leaves them to the job.
+#[derive(Clone, Debug)]
+pub struct LightingOptions {
+    /// Point lights at grid-normalised positions in 0..1 (empty: the scene's own).
+    pub lights: Vec<[f64; 3]>,
+    /// Fraction bits f of the far-plane ray offsets (a compile-time type: see
+    /// [`cell_core::with_frac_bits`]).
+    pub frac_bits: u32,
+    /// Every diffusion setting but `lit_visible_only`, `skip_hidden` and `frustum_blocks`,
+    /// which the three fields below set.
+    pub diffusion: LightConfig,
+    /// Keep lit marks only for the voxels pixels read. Default: on in `render` without
+    /// reflections, off elsewhere.
+    pub lit_visible_only: Option<bool>,
+    /// Drop beams that can reach no voxel a pixel reads. Default: on wherever the visible-only
+    /// lit store is on by default (`render`).
+    pub skip_hidden: Option<bool>,
+    /// Blocks per axis of the occupancy summary the beam skips test against. Default: 32; 8 in
+    /// `trace` (a cell trace carries the 8 × 8 × 8 summary).
+    pub frustum_blocks: Option<FrustumBlocks>,
+    /// Classic shadow rays instead of diffusion (`render`, `light`; `trace` records diffusion).
+    pub classic: Option<ClassicConfig>,
+}
+
+impl LightingOptions {
+    /// The diffusion configuration with the full lit store unless told otherwise (the `light`
+    /// and `trace` jobs' default).
+    pub fn config(&self) -> LightConfig {
+        LightConfig {
+            lit_visible_only: self.lit_visible_only.unwrap_or(false),
+            skip_hidden: self.skip_hidden.unwrap_or(false),
+            frustum_blocks: self.frustum_blocks.unwrap_or_default(),
+            ..self.diffusion
+        }
+    }
+
+    /// The configuration, with the visible-only lit store and the hidden-voxel skip on by
+    /// default when `visible_only` (what `render` needs), unless given.
+    pub fn config_for(&self, visible_only: bool) -> Result<LightConfig> {
+        let lit_visible_only = self.lit_visible_only.unwrap_or(visible_only);
+        let skip_hidden = self.skip_hidden.unwrap_or(lit_visible_only && visible_only);
+        if skip_hidden && !lit_visible_only {
+            bail!(
+                "--skip-hidden drops the light of hidden voxels: it needs the visible-only lit store \
+                 (--lit-visible-only)"
+            );
+        }
+        Ok(LightConfig { lit_visible_only, skip_hidden, ..self.config() })
+    }
+}
+
+/// What the `light` job runs and writes.
+#[derive(Clone, Debug)]
+pub struct LightOptions {
+    /// An .obj file or a built-in scene name.
+    pub scene: String,
+    /// Grid side and surfaces.
+    pub load: LoadConfig,
+    /// Lights and lighting settings.
+    pub light: LightingOptions,
+    /// Write the statistics as JSON here.
+    pub stats: Option<PathBuf>,
+    /// Write every lit voxel as CSV `x,y,z,source_mask` here.
+    pub lit_out: Option<PathBuf>,
+    /// Write the scene, mapping, lights and occupied voxels as JSON here ([`crate::jobs::dump`]).
+    pub dump_lit: Option<PathBuf>,
+    /// No progress bars.
+    pub quiet: bool,
+}
+
+/// The error for fraction bits no type was compiled for.
+pub fn unsupported_frac_bits(f: u32) -> anyhow::Error {
+    anyhow::anyhow!("--frac-bits {f} is not supported (0..=8, 10, 12, 16, 20, 24)")
+}
+
+/// Run the `light` job.
+pub fn run(o: &LightOptions) -> Result<()> {
+    let f = o.light.frac_bits;
+    cell_core::with_frac_bits!(f, F => run_with::<F>(o)).unwrap_or_else(|| Err(unsupported_frac_bits(f)))
+}
+
+fn run_with<F: FracBits>(o: &LightOptions) -> Result<()> {
+    o.load.validate()?;
+    let mesh = scene::load(&o.scene)?;
+    let loaded = load_scene(&mesh, &o.load)?;
+    let lights = resolve_lights(&mesh, &loaded, &o.light.lights)?;
+    let lcfg = o.light.config_for(false)?;
+    let pb = progress::bar(o.quiet, "light");
+    if let Some(ccfg) = &o.light.classic {
+        let (cl, stats) = run_classic::<F>(&mesh, &loaded, &lights, ccfg, progress::light(&pb))?;
+        pb.finish_and_clear();
+        write_classic_outputs(o, &loaded, &cl, &stats)?;
+        print_classic_summary(&o.load, lights.len(), &cl, &stats);
+        return Ok(());
+    }
+    let (lighting, stats) = run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, progress::light(&pb))?;
+    pb.finish_and_clear();
+    write_outputs(o, &mesh, &loaded, &lighting, &stats)?;
+    print_summary(&o.load, &stats);
+    if stats.lit_overflows > 0 {
+        bail!(
+            "{} lit marks did not fit a cell's lit store ({} runs per column)",
+            stats.lit_overflows,
+            crate::machine::capacity::LIT_CAP
+        );
+    }
+    Ok(())
+}
 
 /// Write `x,y,z,source_mask` for every lit voxel.
 pub fn write_lit_csv<F: FracBits>(l: &Lighting<F>, mut w: impl Write) -> Result<()> {
@@ -19,4 +138,128 @@ pub fn write_lit_csv<F: FracBits>(l: &Lighting<F>, mut w: impl Write) -> Result<
         writeln!(w, "{x},{y},{z},{m}")?;
     }
     Ok(())
+}
+
+/// The statistics, the lit voxels and the lit dump, as asked.
+fn write_outputs<F: FracBits>(
+    o: &LightOptions,
+    mesh: &Mesh,
+    loaded: &LoadedScene,
+    lighting: &Lighting<F>,
+    stats: &LightStats,
+) -> Result<()> {
+    if let Some(p) = &o.stats {
+        write_json(p, stats)?;
+    }
+    if let Some(p) = &o.lit_out {
+        write_lit_csv(lighting, create(p)?)?;
+    }
+    if let Some(p) = &o.dump_lit {
+        let d = crate::jobs::dump::lit_dump(mesh, &loaded.grid, &loaded.fit, lighting, stats);
+        crate::jobs::dump::write_lit_dump(&d, create(p)?)?;
+    }
+    Ok(())
+}
+
+/// The geometry a summary line names: thickness and contour (`standard + conservative surfaces`).
+pub fn surfaces(cfg: &LoadConfig) -> String {
+    format!("{:?} + {:?} surfaces", cfg.thickness, cfg.contour).to_lowercase()
+}
+
+/// The link counters of a run over faulty links (nothing without link faults).
+pub fn print_link_faults(s: &LightStats) {
+    if let Some(f) = &s.link_faults {
+        eprintln!(
+            "  links: {} data frames ({} retransmissions): {} corrupted + {} dropped data frames, {} acks lost, {} refused by CRC, {} duplicates discarded; {} frames delayed ({} link-cycles held)",
+            f.data_frames,
+            f.retransmissions,
+            f.data_corrupted,
+            f.data_dropped,
+            f.acks_lost,
+            f.crc_rejected,
+            f.duplicates,
+            f.data_delayed,
+            f.delay_cycles
+        );
+    }
+}
+
+fn print_summary(load: &LoadConfig, stats: &LightStats) {
+    eprintln!(
+        "{}: n = {}, {} facets ({}), {} light(s), FA = {}, f = {}, policy {}, merge {}",
+        stats.scene,
+        stats.n,
+        stats.facets,
+        surfaces(load),
+        stats.sources.len(),
+        stats.fa,
+        stats.frac_bits,
+        stats.policy,
+        stats.merge
+    );
+    print_link_faults(stats);
+    for s in &stats.sources {
+        eprintln!(
+            "  light {} at {:?}: T = {} cycles, LB = {} (T/LB {:.2}), {} beams, {} messages, peak FIFO {}, peak link load {} at distance {}",
+            s.source + 1,
+            s.position,
+            s.counts.cycles,
+            s.counts.lower_bound,
+            s.counts.cycles as f64 / s.counts.lower_bound.max(1) as f64,
+            s.counts.beams_processed,
+            s.counts.messages,
+            s.counts.peak_fifo,
+            s.counts.peak_link_load,
+            s.counts.peak_link_distance
+        );
+    }
+    eprintln!(
+        "  lit voxels {}  rays emitted {} = absorbed {} + exited {}  wall {:.3} s",
+        stats.lit_voxels,
+        stats.totals.rays_emitted,
+        stats.totals.rays_absorbed,
+        stats.totals.rays_exited,
+        stats.wall_seconds
+    );
+}
+
+/// `light --lighting classic`: the statistics and the lit visible voxels, as asked.
+fn write_classic_outputs(
+    o: &LightOptions,
+    loaded: &LoadedScene,
+    cl: &ClassicLighting,
+    stats: &LightStats,
+) -> Result<()> {
+    if let Some(p) = &o.stats {
+        write_json(p, stats)?;
+    }
+    if let Some(p) = &o.lit_out {
+        let mut w = create(p)?;
+        writeln!(w, "x,y,z,source_mask")?;
+        for (i, c) in loaded.grid.cells.iter().enumerate() {
+            if let (Some(d), m) = (c.store.dexels().first(), cl.masks[i]) {
+                if m != 0 {
+                    writeln!(w, "{},{},{},{m}", c.x, c.y, d.span.lo)?;
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn print_classic_summary(load: &LoadConfig, lights: usize, cl: &ClassicLighting, stats: &LightStats) {
+    eprintln!(
+        "{}: n = {}, {} facets ({}), {} light(s), FA = {}, {}: T = {} cycles, {} lit visible voxels, wall {:.3} s",
+        stats.scene,
+        stats.n,
+        stats.facets,
+        surfaces(load),
+        lights,
+        stats.fa,
+        stats.policy,
+        stats.totals.cycles,
+        stats.lit_voxels,
+        stats.wall_seconds
+    );
+    eprintln!("  {}", crate::machine::classic::summary(&cl.totals));
 }

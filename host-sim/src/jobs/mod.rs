@@ -1,8 +1,12 @@
 //! The jobs a user runs, one module each, built on [`crate::machine`] and measured against
-//! [`crate::truth`]. The command line ([`crate::cli`]) only parses options and calls these.
+//! [`crate::truth`]. Each job takes a plain options struct (no clap) and has a `run`; the command
+//! line ([`crate::cli`]) only parses arguments, converts them into those options and calls it.
 //!
-//! * [`render`] — the main job: load, light (diffusion or classic), shade, reflect, compare.
-//! * [`light`] — the `light` job's defaults and outputs; [`accuracy`] — `light-accuracy`.
+//! * [`render`] — the main job: load, light (diffusion or classic), shade, reflect, compare; its
+//!   [`render::render`] is the one entry point of a render on a loaded scene.
+//! * [`light`] — the `light` job and the lighting options `render` and `trace` share;
+//!   [`accuracy`] — `light-accuracy`; [`table`] — `diffusion-table`.
+//! * [`voxelize`] — load a scene and write a .binvox; [`scenes`] — list, subdivide.
 //! * [`trace`] — record cell traces for the firmware; [`audit`] — a cell's RAM and flash.
 //! * [`bench`] — the speed/accuracy sweep and its Pareto front; [`dump`] — lit-voxel dumps.
 
@@ -12,4 +16,7 @@ pub mod bench;
 pub mod dump;
 pub mod light;
 pub mod render;
+pub mod scenes;
+pub mod table;
 pub mod trace;
+pub mod voxelize;

@@ -3,25 +3,35 @@
 //!
 //! Every cell shades its pixel ([`crate::machine::shade`]): orthographic view along +z, image y
 //! up, +x to the left as a camera looking along +z sees it. Lights are white, each of intensity
-//! 1/√(number of lights), ambient 0.2. With `--reference` the same scene is ray-cast in f64
+//! 1/√(number of lights), ambient 0.2. With a reference the same scene is ray-cast in f64
 //! ([`crate::truth::refrender`]) with the same camera, resolution and shading formula, and
 //! compared ([`crate::truth::compare`]).
+//!
+//! [`render`] is the one entry point of a render on a loaded scene ([`RenderConfig`] says how
+//! it is lit); [`run`] is the `render` job around it: load, reference, render, write, summarise.
 
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::Result;
+use anyhow::{bail, Result};
 use cell_core::beam::FracBits;
 use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
 
+use crate::jobs::light::{print_link_faults, surfaces, unsupported_frac_bits, LightingOptions};
 use crate::machine::classic::{run_classic, ClassicConfig, ClassicCounts};
 use crate::machine::diffuse::LightConfig;
 use crate::machine::lighting::{run_diffusion, LightStats};
-use crate::machine::loaded::LoadedScene;
+use crate::machine::loaded::{load_scene, resolve_lights, LoadedScene};
 use crate::machine::reflect::{reflect, ReflectConfig, ReflectCounts, ShadeEnv};
 use crate::machine::shade::{point_lights, ref_lights, seen, shade_grid_with, Image, Seen, AMBIENT};
-use crate::scene::Mesh;
+use crate::precompute::LoadConfig;
+use crate::report::files::write_json;
+use crate::report::png::write_png;
+use crate::report::progress;
+use crate::scene::{self, Mesh};
 use crate::truth::compare::psnr;
+use crate::truth::refrender::{RefImage, RefReflect};
 
 /// Everything `render --stats` reports.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -60,23 +70,80 @@ pub struct RenderStats {
     pub peak_rss_mib: Option<f64>,
 }
 
-/// Render options.
+/// How a render computes the lit state.
+#[derive(Clone, Copy, Debug)]
+pub enum RenderLighting {
+    /// Beam diffusion from each source (§4.3), with [`RenderConfig::light`].
+    Diffusion,
+    /// One classic shadow ray per visible voxel and source, answers routed back (§4.1.2).
+    Classic(ClassicConfig),
+    /// Beam diffusion, then the reflection phase (§5.2): reflective visible voxels get
+    /// `local + Kr · answer`, every other pixel is the plain render's.
+    Reflections(ReflectConfig),
+}
+
+/// How to render a loaded scene.
 #[derive(Clone, Copy, Debug)]
 pub struct RenderConfig {
-    /// Lighting.
+    /// Diffusion settings (diffusion and reflections).
     pub light: LightConfig,
     /// Normals.
     pub normals: NormalMode,
+    /// How the lit state is computed.
+    pub lighting: RenderLighting,
 }
 
-/// Ray-cast the f64 reference of a loaded scene with the same camera, resolution and lights.
+impl RenderConfig {
+    /// Diffusion lighting with `light`, shading with `normals`.
+    pub fn diffusion(light: LightConfig, normals: NormalMode) -> RenderConfig {
+        RenderConfig { light, normals, lighting: RenderLighting::Diffusion }
+    }
+}
+
+/// What a render works on: a scene loaded on the grid, its lights, and optionally the reference
+/// to compare with; the times spent making them go into the statistics.
+#[derive(Clone, Copy)]
+pub struct RenderInput<'a> {
+    /// The scene.
+    pub mesh: &'a Mesh,
+    /// The scene loaded on the grid.
+    pub scene: &'a LoadedScene,
+    /// Light positions in voxel units ([`resolve_lights`]).
+    pub lights: &'a [[f64; 3]],
+    /// The f64 reference to compare with ([`reference_image`]).
+    pub reference: Option<&'a RefImage>,
+    /// Wall time of the loading.
+    pub load_seconds: f64,
+    /// Wall time of the reference.
+    pub reference_seconds: f64,
+}
+
+impl<'a> RenderInput<'a> {
+    /// The scene and its lights, with no reference and no time spent before.
+    pub fn new(mesh: &'a Mesh, scene: &'a LoadedScene, lights: &'a [[f64; 3]]) -> RenderInput<'a> {
+        RenderInput { mesh, scene, lights, reference: None, load_seconds: 0.0, reference_seconds: 0.0 }
+    }
+
+    /// The same, compared with `reference`.
+    pub fn compared_with(self, reference: &'a RefImage) -> RenderInput<'a> {
+        RenderInput { reference: Some(reference), ..self }
+    }
+}
+
+/// Ray-cast the f64 reference of a loaded scene with the same camera, resolution and lights,
+/// and the same reflections (depth, threshold; exact normals and hits) when `cfg` has them.
 pub fn reference_image(
     mesh: &Mesh,
     scene: &LoadedScene,
     light_positions: &[[f64; 3]],
-) -> Result<crate::truth::refrender::RefImage> {
+    cfg: &RenderConfig,
+) -> Result<RefImage> {
     let rl = ref_lights(&point_lights(light_positions));
-    crate::truth::refrender::render_reference(mesh, &scene.fit, scene.grid.n, &rl, [AMBIENT as f64; 3])
+    let refl = match &cfg.lighting {
+        RenderLighting::Reflections(r) => RefReflect { depth: r.depth as u32, threshold: r.threshold as f64 },
+        RenderLighting::Diffusion | RenderLighting::Classic(_) => RefReflect { depth: 0, threshold: 0.0 },
+    };
+    crate::truth::refrender::render_reference_reflect(mesh, &scene.fit, scene.grid.n, &rl, [AMBIENT as f64; 3], &refl)
 }
 
 /// Outputs of a render.
@@ -85,48 +152,126 @@ pub struct Rendered {
     pub image: Image,
     /// Statistics.
     pub stats: RenderStats,
+    /// Counters of the classic phase (classic lighting).
+    pub classic: Option<ClassicCounts>,
+    /// Counters of the reflection phase (with reflections), PSNRs against the reference included.
+    pub reflections: Option<ReflectCounts>,
 }
 
-/// Light and shade a loaded scene; compare with `reference` when given (the time to make it is
-/// `reference_seconds`).
-#[allow(clippy::too_many_arguments)]
+/// Light and shade a loaded scene as `cfg` says; compare with the input's reference when given.
+/// `progress` hears the lighting phase's source and cycle.
 pub fn render<F: FracBits>(
-    mesh: &Mesh,
-    scene: &LoadedScene,
-    light_positions: &[[f64; 3]],
+    input: &RenderInput<'_>,
     cfg: &RenderConfig,
-    reference: Option<&crate::truth::refrender::RefImage>,
-    load_seconds: f64,
-    reference_seconds: f64,
+    progress: impl FnMut(usize, u64),
+) -> Result<Rendered> {
+    match &cfg.lighting {
+        RenderLighting::Diffusion => render_diffusion::<F>(input, cfg, progress),
+        RenderLighting::Classic(c) => render_classic::<F>(input, cfg, c, progress),
+        RenderLighting::Reflections(r) => render_reflect::<F>(input, cfg, r, progress),
+    }
+}
+
+fn render_diffusion<F: FracBits>(
+    input: &RenderInput<'_>,
+    cfg: &RenderConfig,
     progress: impl FnMut(usize, u64),
 ) -> Result<Rendered> {
     let t0 = Instant::now();
-    let (lighting, lstats) = run_diffusion::<F>(mesh, scene, light_positions, &cfg.light, progress)?;
-    let t1 = Instant::now();
-    let times = [load_seconds, (t1 - t0).as_secs_f64(), reference_seconds];
-    let rendered = finish_render(mesh, scene, light_positions, cfg, reference, &seen(&lighting), lstats, times);
+    let (lighting, lstats) = run_diffusion::<F>(input.mesh, input.scene, input.lights, &cfg.light, progress)?;
+    let light_seconds = t0.elapsed().as_secs_f64();
+    let rendered = shade(input, cfg, &seen(&lighting), lstats, light_seconds);
     Ok(rendered)
 }
 
-/// Shade with the given lit state and assemble the statistics; `times` = load, light and
-/// reference seconds.
-#[allow(clippy::too_many_arguments)]
-pub fn finish_render(
-    mesh: &Mesh,
-    scene: &LoadedScene,
-    light_positions: &[[f64; 3]],
+/// Classic shadow rays, then the same shading and report as diffusion.
+fn render_classic<F: FracBits>(
+    input: &RenderInput<'_>,
     cfg: &RenderConfig,
-    reference: Option<&crate::truth::refrender::RefImage>,
-    seen: &Seen<'_>,
-    lstats: LightStats,
-    times: [f64; 3],
-) -> Rendered {
-    let [load_seconds, light_seconds, reference_seconds] = times;
+    classic_cfg: &ClassicConfig,
+    progress: impl FnMut(usize, u64),
+) -> Result<Rendered> {
+    let t0 = Instant::now();
+    let (cl, stats) = run_classic::<F>(input.mesh, input.scene, input.lights, classic_cfg, progress)?;
+    let light_seconds = t0.elapsed().as_secs_f64();
+    let r = {
+        let seen = match classic_cfg.rule {
+            LitRule::Thesis => Seen::FirstVoxel(Box::new(|x, y, _| cl.mask(x, y))),
+            LitRule::Plane => Seen::Surface(Box::new(|x, y| cl.mask(x, y))),
+        };
+        shade(input, cfg, &seen, stats, light_seconds)
+    };
+    Ok(Rendered { classic: Some(cl.totals), ..r })
+}
+
+/// Diffusion lighting, shading, then the reflection phase; compared with the input's reference
+/// (make it with the same reflections: [`reference_image`]) after the reflections.
+fn render_reflect<F: FracBits>(
+    input: &RenderInput<'_>,
+    cfg: &RenderConfig,
+    rcfg: &ReflectConfig,
+    progress: impl FnMut(usize, u64),
+) -> Result<Rendered> {
+    let (mesh, light_positions) = (input.mesh, input.lights);
+    let t0 = Instant::now();
+    let (lighting, lstats) = run_diffusion::<F>(mesh, input.scene, light_positions, &cfg.light, progress)?;
+    let mask = |x, y, z| lighting.mask(x, y, z);
+    let light_seconds = t0.elapsed().as_secs_f64();
+    let unreferenced = RenderInput { reference: None, ..*input };
+    let mut r = shade(&unreferenced, cfg, &seen(&lighting), lstats, light_seconds);
     let t1 = Instant::now();
     let lights = point_lights(light_positions);
-    let image = shade_grid_with(mesh, scene, &lights, seen, cfg.normals);
+    let env = ShadeEnv::new(mesh, &lights, cfg.normals, &mask);
+    let refl = reflect(input.scene, &env, rcfg)?;
+    let local_only = r.image.rgb.clone();
+    for (px, v) in r.image.rgb.iter_mut().zip(&refl.rgb) {
+        if let Some(v) = v {
+            *px = *v;
+        }
+    }
+    let mut counts = refl.counts;
+    if let Some(rf) = input.reference {
+        compare_reflections(mesh, &r.image.rgb, &local_only, rf, &mut counts);
+    }
+    r.stats.shade_seconds += t1.elapsed().as_secs_f64();
+    r.stats.wall_seconds += t1.elapsed().as_secs_f64();
+    r.stats.reference =
+        input.reference.map(|rf| crate::truth::compare::compare(&r.image.rgb, &r.image.covered, &r.image.lit, rf));
+    r.reflections = Some(counts);
+    Ok(r)
+}
+
+/// PSNR of the image with and without its reflections against the reference, over the whole
+/// image and over the pixels where the reference sees a mirror.
+fn compare_reflections(mesh: &Mesh, rgb: &[[u8; 3]], local_only: &[[u8; 3]], rf: &RefImage, c: &mut ReflectCounts) {
+    let mirror: Vec<bool> = rf
+        .facet
+        .iter()
+        .map(|&f| mesh.faces.get(f as usize).is_some_and(|fc| mesh.materials[fc.material as usize].kr > 0.0))
+        .collect();
+    let all = vec![true; mirror.len()];
+    c.psnr_db = Some(psnr(rgb, &rf.rgb, &all));
+    c.psnr_without_db = Some(psnr(local_only, &rf.rgb, &all));
+    c.mirror_psnr_db = Some(psnr(rgb, &rf.rgb, &mirror));
+    c.mirror_psnr_without_db = Some(psnr(local_only, &rf.rgb, &mirror));
+    c.mirror_pixels = mirror.iter().filter(|&&m| m).count() as u64;
+}
+
+/// Shade with the given lit state, compare with the input's reference and assemble the
+/// statistics.
+fn shade(
+    input: &RenderInput<'_>,
+    cfg: &RenderConfig,
+    seen: &Seen<'_>,
+    lstats: LightStats,
+    light_seconds: f64,
+) -> Rendered {
+    let (load_seconds, reference_seconds) = (input.load_seconds, input.reference_seconds);
+    let t1 = Instant::now();
+    let lights = point_lights(input.lights);
+    let image = shade_grid_with(input.mesh, input.scene, &lights, seen, cfg.normals);
     let t2 = Instant::now();
-    let cmp = reference.map(|r| crate::truth::compare::compare(&image.rgb, &image.covered, &image.lit, r));
+    let cmp = input.reference.map(|r| crate::truth::compare::compare(&image.rgb, &image.covered, &image.lit, r));
     let load_cell = std::mem::size_of::<cell_core::cell::Cell<{ cell_core::cell::DEFAULT_DEXELS }>>()
         + std::mem::size_of::<cell_core::facet::RowPacket>();
     let stats = RenderStats {
@@ -134,7 +279,7 @@ pub fn finish_render(
             NormalMode::Facet => "facet".into(),
             NormalMode::Face => "face".into(),
         },
-        shade_cycles: light_positions.len().max(1) as u64,
+        shade_cycles: input.lights.len().max(1) as u64,
         covered_pixels: image.covered.iter().filter(|&&c| c).count() as u64,
         lit_pixels: image.lit.iter().filter(|&&l| l != 0).count() as u64,
         bytes_per_cell_load: load_cell,
@@ -150,121 +295,181 @@ pub fn finish_render(
         peak_rss_mib: crate::machine::load::peak_rss_mib(),
         light: lstats,
     };
-    Rendered { image, stats }
-}
-
-/// `render --lighting classic`: the classic phase, then the same shading and report as
-/// diffusion ([`crate::jobs::render::finish_render`]).
-#[allow(clippy::too_many_arguments)]
-pub fn render_classic<F: FracBits>(
-    mesh: &Mesh,
-    scene: &LoadedScene,
-    lights: &[[f64; 3]],
-    cfg: &crate::jobs::render::RenderConfig,
-    classic_cfg: &ClassicConfig,
-    reference: Option<&crate::truth::refrender::RefImage>,
-    load_seconds: f64,
-    reference_seconds: f64,
-    progress: impl FnMut(usize, u64),
-) -> Result<(crate::jobs::render::Rendered, ClassicCounts)> {
-    let t0 = Instant::now();
-    let (cl, stats) = run_classic::<F>(mesh, scene, lights, classic_cfg, progress)?;
-    let times = [load_seconds, t0.elapsed().as_secs_f64(), reference_seconds];
-    let r = crate::jobs::render::finish_render(
-        mesh,
-        scene,
-        lights,
-        cfg,
-        reference,
-        &match classic_cfg.rule {
-            LitRule::Thesis => crate::machine::shade::Seen::FirstVoxel(Box::new(|x, y, _| cl.mask(x, y))),
-            LitRule::Plane => crate::machine::shade::Seen::Surface(Box::new(|x, y| cl.mask(x, y))),
-        },
-        stats,
-        times,
-    );
-    Ok((r, cl.totals))
-}
-
-/// `render --reflections D` (D ≥ 1): diffusion lighting, shading, then the reflection phase;
-/// reflective visible voxels get `local + Kr · answer`, every other pixel is the plain render's.
-/// Compared with `reference` when given (make it with [`reflect_reference_image`]).
-#[allow(clippy::too_many_arguments)]
-pub fn render_reflect<F: cell_core::beam::FracBits>(
-    mesh: &Mesh,
-    scene: &LoadedScene,
-    light_positions: &[[f64; 3]],
-    cfg: &crate::jobs::render::RenderConfig,
-    rcfg: &ReflectConfig,
-    reference: Option<&crate::truth::refrender::RefImage>,
-    times: [f64; 2],
-    progress: impl FnMut(usize, u64),
-) -> Result<(crate::jobs::render::Rendered, ReflectCounts)> {
-    let t0 = std::time::Instant::now();
-    let (lighting, lstats) =
-        crate::machine::lighting::run_diffusion::<F>(mesh, scene, light_positions, &cfg.light, progress)?;
-    let mask = |x, y, z| lighting.mask(x, y, z);
-    let light_seconds = t0.elapsed().as_secs_f64();
-    let mut r = crate::jobs::render::finish_render(
-        mesh,
-        scene,
-        light_positions,
-        cfg,
-        None,
-        &crate::machine::shade::seen(&lighting),
-        lstats,
-        [times[0], light_seconds, times[1]],
-    );
-    let t1 = std::time::Instant::now();
-    let lights = crate::machine::shade::point_lights(light_positions);
-    let env = ShadeEnv::new(mesh, &lights, cfg.normals, &mask);
-    let refl = reflect(scene, &env, rcfg)?;
-    let local_only = r.image.rgb.clone();
-    for (px, v) in r.image.rgb.iter_mut().zip(&refl.rgb) {
-        if let Some(v) = v {
-            *px = *v;
-        }
-    }
-    let mut counts = refl.counts;
-    if let Some(rf) = reference {
-        let mirror: Vec<bool> = rf
-            .facet
-            .iter()
-            .map(|&f| mesh.faces.get(f as usize).is_some_and(|fc| mesh.materials[fc.material as usize].kr > 0.0))
-            .collect();
-        let all = vec![true; mirror.len()];
-        counts.psnr_db = Some(psnr(&r.image.rgb, &rf.rgb, &all));
-        counts.psnr_without_db = Some(psnr(&local_only, &rf.rgb, &all));
-        counts.mirror_psnr_db = Some(psnr(&r.image.rgb, &rf.rgb, &mirror));
-        counts.mirror_psnr_without_db = Some(psnr(&local_only, &rf.rgb, &mirror));
-        counts.mirror_pixels = mirror.iter().filter(|&&m| m).count() as u64;
-    }
-    r.stats.shade_seconds += t1.elapsed().as_secs_f64();
-    r.stats.wall_seconds += t1.elapsed().as_secs_f64();
-    r.stats.reference =
-        reference.map(|rf| crate::truth::compare::compare(&r.image.rgb, &r.image.covered, &r.image.lit, rf));
-    Ok((r, counts))
-}
-
-/// The f64 reference with the same reflections (depth, threshold; exact normals and hits).
-pub fn reflect_reference_image(
-    mesh: &Mesh,
-    scene: &LoadedScene,
-    light_positions: &[[f64; 3]],
-    depth: u8,
-    threshold: f32,
-) -> Result<crate::truth::refrender::RefImage> {
-    let rl = crate::jobs::render::ref_lights(&crate::machine::shade::point_lights(light_positions));
-    let refl = crate::truth::refrender::RefReflect { depth: depth as u32, threshold: threshold as f64 };
-    let ambient = [crate::machine::shade::AMBIENT as f64; 3];
-    crate::truth::refrender::render_reference_reflect(mesh, &scene.fit, scene.grid.n, &rl, ambient, &refl)
+    Rendered { image, stats, classic: None, reflections: None }
 }
 
 /// The render statistics with the reflection counters added under `"reflections"`.
-pub fn with_counts(stats: &crate::jobs::render::RenderStats, c: &ReflectCounts) -> Result<serde_json::Value> {
+pub fn with_counts(stats: &RenderStats, c: &ReflectCounts) -> Result<serde_json::Value> {
     let mut v = serde_json::to_value(stats)?;
     if let serde_json::Value::Object(m) = &mut v {
         m.insert("reflections".into(), serde_json::to_value(c)?);
     }
     Ok(v)
+}
+
+/// What the `render` job runs and writes.
+#[derive(Clone, Debug)]
+pub struct RenderOptions {
+    /// An .obj file or a built-in scene name.
+    pub scene: String,
+    /// Grid side and surfaces.
+    pub load: LoadConfig,
+    /// Lights and lighting settings.
+    pub light: LightingOptions,
+    /// Normal used for shading.
+    pub normals: NormalMode,
+    /// The reflection phase (needs diffusion lighting); `None`: no reflections.
+    pub reflections: Option<ReflectConfig>,
+    /// Output PNG.
+    pub out: PathBuf,
+    /// Also ray-cast the f64 reference and compare: `F.reference.png` and `F.diff.png` beside
+    /// the image `F`.
+    pub reference: bool,
+    /// Write the statistics as JSON here.
+    pub stats: Option<PathBuf>,
+    /// No progress bars.
+    pub quiet: bool,
+}
+
+impl RenderOptions {
+    /// Check the options before any work and say how to render.
+    pub fn config(&self) -> Result<RenderConfig> {
+        self.load.validate()?;
+        let lighting = match (&self.reflections, &self.light.classic) {
+            (Some(_), Some(_)) => bail!(
+                "--reflections needs --lighting diffusion (the lit state of every voxel, not only the visible ones)"
+            ),
+            (Some(r), None) => {
+                r.validate(self.load.n)?;
+                RenderLighting::Reflections(*r)
+            }
+            (None, Some(c)) => RenderLighting::Classic(*c),
+            (None, None) => RenderLighting::Diffusion,
+        };
+        let reflecting = self.reflections.is_some();
+        if reflecting && self.light.lit_visible_only == Some(true) {
+            bail!(
+                "--reflections reads the lit state of the voxels reflected rays hit, hidden ones included: \
+                 run without --lit-visible-only (and --skip-hidden)"
+            );
+        }
+        // The image needs only what its pixels read; reflected rays read hidden voxels too.
+        let light = self.light.config_for(!reflecting)?;
+        Ok(RenderConfig { light, normals: self.normals, lighting })
+    }
+}
+
+/// Run the `render` job.
+pub fn run(o: &RenderOptions) -> Result<()> {
+    let f = o.light.frac_bits;
+    cell_core::with_frac_bits!(f, F => run_with::<F>(o)).unwrap_or_else(|| Err(unsupported_frac_bits(f)))
+}
+
+fn run_with<F: FracBits>(o: &RenderOptions) -> Result<()> {
+    let cfg = o.config()?;
+    let mesh = scene::load(&o.scene)?;
+    let t0 = Instant::now();
+    let pb = progress::bar(o.quiet, "load");
+    pb.set_length(1);
+    let loaded = load_scene(&mesh, &o.load)?;
+    pb.finish_and_clear();
+    let load_seconds = t0.elapsed().as_secs_f64();
+    let lights = resolve_lights(&mesh, &loaded, &o.light.lights)?;
+    let t1 = Instant::now();
+    let reference = if o.reference {
+        if mesh.faces.is_empty() {
+            bail!("--reference needs a scene with geometry ('{}' has none)", mesh.name);
+        }
+        Some(reference_image(&mesh, &loaded, &lights, &cfg)?)
+    } else {
+        None
+    };
+    let input = RenderInput {
+        reference: reference.as_ref(),
+        load_seconds,
+        reference_seconds: t1.elapsed().as_secs_f64(),
+        ..RenderInput::new(&mesh, &loaded, &lights)
+    };
+    let pb = progress::bar(o.quiet, "light 1");
+    let r = render::<F>(&input, &cfg, progress::light(&pb))?;
+    pb.finish_and_clear();
+    let written = write_outputs(o, &r, reference.as_ref())?;
+    print_summary(&o.load, &r, &written);
+    Ok(())
+}
+
+/// `F.EXT` beside the image `F.png`: its extension replaced, dots in the stem kept
+/// (`shot-0.5.png` gives `shot-0.5.diff.png`).
+fn beside(out: &Path, ext: &str) -> PathBuf {
+    let stem = out.file_stem().unwrap_or_default().to_string_lossy();
+    out.with_file_name(format!("{stem}.{ext}"))
+}
+
+/// The image, the reference and difference images, the statistics; the files written.
+fn write_outputs(o: &RenderOptions, r: &Rendered, reference: Option<&RefImage>) -> Result<Vec<String>> {
+    write_png(&o.out, r.image.n, &r.image.rgb)?;
+    let mut written = vec![o.out.display().to_string()];
+    if let Some(reference) = reference {
+        let (rp, dp) = (beside(&o.out, "reference.png"), beside(&o.out, "diff.png"));
+        write_png(&rp, reference.n, &reference.rgb)?;
+        let diff = crate::truth::compare::difference_image(&r.image.rgb, &r.image.covered, reference);
+        write_png(&dp, reference.n, &diff)?;
+        written.push(rp.display().to_string());
+        written.push(dp.display().to_string());
+    }
+    match (&o.stats, &r.reflections) {
+        (Some(p), Some(c)) => write_json(p, &with_counts(&r.stats, c)?)?,
+        (Some(p), None) => write_json(p, &r.stats)?,
+        _ => {}
+    }
+    Ok(written)
+}
+
+fn print_summary(load: &LoadConfig, r: &Rendered, written: &[String]) {
+    let s = &r.stats;
+    let t = &s.light.totals;
+    eprintln!(
+        "{}: n = {}, {} facets ({}), {} light(s), f = {}, FA = {}, {} policy{}, {} normals",
+        s.light.scene,
+        s.light.n,
+        s.light.facets,
+        surfaces(load),
+        s.light.sources.len(),
+        s.light.frac_bits,
+        s.light.fa,
+        s.light.policy,
+        if s.light.merge { " + merge" } else { "" },
+        s.normals
+    );
+    eprintln!(
+        "  cycles: load {}  light {} (T/LB {:.2}, {} beams)  shade {}",
+        s.light.load_cycles, t.cycles, s.light.t_over_lb, t.beams_processed, s.shade_cycles
+    );
+    print_link_faults(&s.light);
+    eprintln!(
+        "  pixels: {} covered, {} lit   bytes/cell {} (dexels {} + light {})   shading vs f64: max {} mean {:.3} levels",
+        s.covered_pixels, s.lit_pixels, s.bytes_per_cell, s.bytes_per_cell_load, s.light.bytes_light_cell,
+        s.shading_max_err_levels, s.shading_mean_err_levels
+    );
+    if let Some(c) = &r.classic {
+        eprintln!("  {}", crate::machine::classic::summary(c));
+    }
+    if let Some(c) = &r.reflections {
+        eprintln!("  {}", crate::machine::reflect::summary(c));
+    }
+    if let Some(c) = &s.reference {
+        eprintln!(
+            "  reference: shadow disagreement {:.2} %, coverage disagreement {:.2} %, PSNR {:.2} dB",
+            c.shadow_disagreement_pct, c.coverage_disagreement_pct, c.psnr_db
+        );
+    }
+    eprintln!(
+        "  wall {:.2} s (load {:.2}, light {:.2}, shade {:.2}, reference {:.2})   wrote {}",
+        s.wall_seconds,
+        s.load_seconds,
+        s.light_seconds,
+        s.shade_seconds,
+        s.reference_seconds,
+        written.join(", ")
+    );
 }

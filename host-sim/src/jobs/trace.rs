@@ -4,7 +4,7 @@
 //! from the grid itself. A firmware (or [`cell_core::trace::replay`]) drives a fresh cell
 //! through the records and must reach the same digest.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use cell_core::beam::FracBits;
@@ -12,7 +12,8 @@ use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::shade::{cell_pixel, NormalMode, ShadeParams};
 use cell_core::trace::{Event, ShadeSetup, MAX_LIGHTS, MAX_MATERIALS};
 
-use crate::machine::diffuse::{diffuse_tapped, source_at, LightConfig};
+use crate::jobs::light::{unsupported_frac_bits, LightingOptions};
+use crate::machine::diffuse::{diffuse_tapped, source_at, FrustumBlocks, LightConfig};
 use crate::machine::tap::Tap;
 
 use crate::machine::capacity::{FA_CAP, LIT_CAP, OB_CAP};
@@ -123,5 +124,57 @@ pub fn write_traces(dir: &Path, traces: &[CellTrace]) -> Result<()> {
     }
     let json = serde_json::to_string_pretty(&serde_json::json!({ "traces": list }))?;
     std::fs::write(dir.join("digests.json"), json).context("cannot write digests.json")?;
+    Ok(())
+}
+
+/// What the `trace` job records and where.
+#[derive(Clone, Debug)]
+pub struct TraceOptions {
+    /// An .obj file or a built-in scene name.
+    pub scene: String,
+    /// Grid side and surfaces (keep n small: a trace must fit the firmware's flash).
+    pub load: LoadConfig,
+    /// Lights and diffusion settings (classic lighting is not traced).
+    pub light: LightingOptions,
+    /// Cells to record, `[x, y]`.
+    pub cells: Vec<[u32; 2]>,
+    /// Also record the cell that processes the most beams.
+    pub busiest: bool,
+    /// Directory for the traces and `digests.json`.
+    pub out: PathBuf,
+}
+
+/// Run the `trace` job: record, write, and replay every trace with the host's build of
+/// `cell-core` (the same digest, or the trace is wrong).
+pub fn run(o: &TraceOptions) -> Result<()> {
+    let f = o.light.frac_bits;
+    cell_core::with_frac_bits!(f, F => run_with::<F>(o)).unwrap_or_else(|| Err(unsupported_frac_bits(f)))
+}
+
+fn run_with<F: FracBits>(o: &TraceOptions) -> Result<()> {
+    o.load.validate()?;
+    let mesh = crate::scene::load(&o.scene)?;
+    let job = TraceJob {
+        mesh: &mesh,
+        load: o.load,
+        light: LightConfig { frustum_blocks: o.light.frustum_blocks.unwrap_or(FrustumBlocks::B8), ..o.light.config() },
+        lights: o.light.lights.clone(),
+        cells: o.cells.clone(),
+        busiest: o.busiest,
+    };
+    let traces = record::<F>(&job)?;
+    write_traces(&o.out, &traces)?;
+    for t in &traces {
+        let (d, st) = replay::<F>(&t.bytes)?;
+        let ok = if d == t.digest { "replay ok" } else { "REPLAY MISMATCH" };
+        println!(
+            "cell ({:>3}, {:>3}): {:>6} bytes, {:>5} records ({} rows, {} beams in, {} cycles, {} sent), digest {:016x}, {ok}",
+            t.x, t.y, t.bytes.len(), t.records, st.rows, st.received, st.steps, st.sent, t.digest
+        );
+        if d != t.digest {
+            bail!("replaying the trace of cell ({}, {}) gave digest {d:016x}", t.x, t.y);
+        }
+    }
+    println!("traces written to {}", o.out.display());
     Ok(())
 }

@@ -1,16 +1,16 @@
 //! PNG output of the machine's images.
 
-use std::io::BufWriter;
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
+
+use crate::report::files::create;
 
 /// Write an n × n RGB image (index y·n + x, y up) as PNG, top row first, seen from the camera:
 /// looking along +z with y up, +x points to the viewer's left (so the Cornell box shows its red
 /// wall on the left, as in the published pictures).
 pub fn write_png(path: &Path, n: u32, rgb: &[[u8; 3]]) -> Result<()> {
-    let f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-    let mut enc = png::Encoder::new(BufWriter::new(f), n, n);
+    let mut enc = png::Encoder::new(create(path)?, n, n);
     enc.set_color(png::ColorType::Rgb);
     enc.set_depth(png::BitDepth::Eight);
     let mut w = enc.write_header()?;

@@ -5,6 +5,7 @@ use std::collections::HashMap;
 use std::io::Write;
 
 use anyhow::Result;
+use parry3d_f64::math::Vector;
 
 use crate::scene::{Face, Mesh};
 
@@ -185,43 +186,33 @@ pub fn orient(mesh: &mut Mesh) -> Orientation {
     out
 }
 
-fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
-    [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
-}
-
 /// The polygon's area vector (Newell: half the sum of its fan's cross products).
-fn area_vector(mesh: &Mesh, f: &Face) -> [f64; 3] {
-    let p = |i: usize| mesh.positions[f.verts[i] as usize];
-    let mut s = [0.0; 3];
+fn area_vector(mesh: &Mesh, f: &Face) -> Vector {
+    let p = |i: usize| Vector::from(mesh.positions[f.verts[i] as usize]);
+    let mut s = Vector::ZERO;
     for k in 1..f.verts.len().saturating_sub(1) {
         let (a, b, c) = (p(0), p(k), p(k + 1));
-        let n = cross([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
-        s = [0, 1, 2].map(|i| s[i] + n[i] / 2.0);
+        s += (b - a).cross(c - a) / 2.0;
     }
     s
 }
 
 fn area(mesh: &Mesh, f: &Face) -> f64 {
-    let a = area_vector(mesh, f);
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+    area_vector(mesh, f).length()
 }
 
 /// Signed volume of a closed surface, each face wound as `flip` says (about its first vertex,
 /// to keep the terms small).
 fn signed_volume(mesh: &Mesh, members: &[usize], flip: &[Option<bool>]) -> f64 {
-    let o = mesh.positions[mesh.faces[members[0]].verts[0] as usize];
-    let rel = |v: u32| {
-        let p = mesh.positions[v as usize];
-        [p[0] - o[0], p[1] - o[1], p[2] - o[2]]
-    };
+    let o = Vector::from(mesh.positions[mesh.faces[members[0]].verts[0] as usize]);
+    let rel = |v: u32| Vector::from(mesh.positions[v as usize]) - o;
     let mut vol = 0.0;
     for &fi in members {
         let f = &mesh.faces[fi];
         let mut t = 0.0;
         for k in 1..f.verts.len().saturating_sub(1) {
             let (a, b, c) = (rel(f.verts[0]), rel(f.verts[k]), rel(f.verts[k + 1]));
-            let n = cross(b, c);
-            t += (a[0] * n[0] + a[1] * n[1] + a[2] * n[2]) / 6.0;
+            t += a.dot(b.cross(c)) / 6.0;
         }
         vol += if flip[fi] == Some(true) { -t } else { t };
     }

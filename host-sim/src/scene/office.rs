@@ -23,32 +23,13 @@
 
 use crate::rng::Rng;
 use anyhow::{bail, Result};
+use parry3d_f64::math::Vector;
 
 use crate::scene::{Face, Material, Mesh, SceneLight};
 
-type V = [f64; 3];
-
-fn add(a: V, b: V) -> V {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-fn sub(a: V, b: V) -> V {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn mul(a: V, s: f64) -> V {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-fn dot(a: V, b: V) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: V, b: V) -> V {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-fn norm(a: V) -> f64 {
-    dot(a, a).sqrt()
-}
-fn unit(a: V) -> V {
-    mul(a, 1.0 / norm(a))
-}
+/// The generator's vectors (glam's `DVec3`, through parry3d-f64). Furniture is written with
+/// `[f64; 3]` literals in local coordinates; the builder takes anything `Into<V>`.
+type V = Vector;
 
 /// An axis-aligned box (room bounds, bounding boxes of generated solids).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -72,8 +53,7 @@ impl Aabb {
 
     /// Euclidean distance from a point to the box (0 inside).
     pub fn distance(&self, p: [f64; 3]) -> f64 {
-        let d: V = [0, 1, 2].map(|i| (self.lo[i] - p[i]).max(p[i] - self.hi[i]).max(0.0));
-        norm(d)
+        V::from([0, 1, 2].map(|i| (self.lo[i] - p[i]).max(p[i] - self.hi[i]).max(0.0))).length()
     }
 
     /// Whether the point lies inside or on the box.
@@ -243,11 +223,12 @@ struct Frame {
 
 impl Frame {
     /// Front facing world −z.
-    fn at(o: V) -> Frame {
-        Frame { o, c: 1.0, s: 0.0 }
+    fn at(o: impl Into<V>) -> Frame {
+        Frame { o: o.into(), c: 1.0, s: 0.0 }
     }
     /// Rotated by `q` quarter turns about +y (exact): q = 1 faces −x, 2 faces +z, 3 faces +x.
-    fn quarter(o: V, q: i32) -> Frame {
+    fn quarter(o: impl Into<V>, q: i32) -> Frame {
+        let o = o.into();
         let (c, s) = match q.rem_euclid(4) {
             0 => (1.0, 0.0),
             1 => (0.0, 1.0),
@@ -257,19 +238,20 @@ impl Frame {
         Frame { o, c, s }
     }
     /// Rotated by an angle (radians) about +y, relative to this frame, at local point `p`.
-    fn child(&self, p: V, a: f64) -> Frame {
+    fn child(&self, p: impl Into<V>, a: f64) -> Frame {
         let (sa, ca) = a.sin_cos();
         Frame { o: self.pt(p), c: self.c * ca - self.s * sa, s: self.s * ca + self.c * sa }
     }
     /// Translated to local point `p`, same rotation.
-    fn at_local(&self, p: V) -> Frame {
+    fn at_local(&self, p: impl Into<V>) -> Frame {
         Frame { o: self.pt(p), ..*self }
     }
-    fn dir(&self, l: V) -> V {
-        [self.c * l[0] + self.s * l[2], l[1], -self.s * l[0] + self.c * l[2]]
+    fn dir(&self, l: impl Into<V>) -> V {
+        let l = l.into();
+        V::new(self.c * l.x + self.s * l.z, l.y, -self.s * l.x + self.c * l.z)
     }
-    fn pt(&self, l: V) -> V {
-        add(self.o, self.dir(l))
+    fn pt(&self, l: impl Into<V>) -> V {
+        self.o + self.dir(l)
     }
 }
 
@@ -295,7 +277,7 @@ fn refine(bps: &[f64], len: f64, patch: f64) -> Vec<f64> {
 
 #[derive(Default)]
 struct Builder {
-    positions: Vec<V>,
+    positions: Vec<[f64; 3]>,
     faces: Vec<Face>,
     orient: Vec<Orient>,
     solids: Vec<Aabb>,
@@ -305,26 +287,26 @@ struct Builder {
 
 impl Builder {
     fn vert(&mut self, p: V) -> u32 {
-        self.positions.push(p);
+        self.positions.push(p.to_array());
         (self.positions.len() - 1) as u32
     }
 
     /// Push a face, reversing it if its normal does not agree with `o`.
     fn face(&mut self, mut idx: Vec<u32>, m: u16, o: Orient) {
-        let p: Vec<V> = idx.iter().map(|&i| self.positions[i as usize]).collect();
-        let mut n = [0.0; 3];
+        let p: Vec<V> = idx.iter().map(|&i| V::from(self.positions[i as usize])).collect();
+        let mut n = V::ZERO;
         for i in 0..p.len() {
             let (a, b) = (p[i], p[(i + 1) % p.len()]);
             n[0] += (a[1] - b[1]) * (a[2] + b[2]);
             n[1] += (a[2] - b[2]) * (a[0] + b[0]);
             n[2] += (a[0] - b[0]) * (a[1] + b[1]);
         }
-        let c = mul(p.iter().fold([0.0; 3], |s, &q| add(s, q)), 1.0 / p.len() as f64);
+        let c = p.iter().fold(V::ZERO, |s, &q| s + q) * (1.0 / p.len() as f64);
         let away = match o {
-            Orient::Outward(k) => sub(c, k),
-            Orient::Inward(k) => sub(k, c),
+            Orient::Outward(k) => c - V::from(k),
+            Orient::Inward(k) => V::from(k) - c,
         };
-        if dot(n, away) < 0.0 {
+        if n.dot(away) < 0.0 {
             idx.reverse();
         }
         self.faces.push(Face { verts: idx, material: m });
@@ -346,13 +328,12 @@ impl Builder {
         mat: &dyn Fn(f64, f64) -> Option<u16>,
         or: Orient,
     ) {
-        let uf = refine(us, norm(u), patch);
-        let vf = refine(vs, norm(v), patch);
+        let uf = refine(us, u.length(), patch);
+        let vf = refine(vs, v.length(), patch);
         let base = self.positions.len() as u32;
         for &b in &vf {
             for &a in &uf {
-                let p = add(o, add(mul(u, a), mul(v, b)));
-                self.vert(p);
+                self.vert(o + (u * a + v * b));
             }
         }
         let nu = uf.len() as u32;
@@ -368,48 +349,54 @@ impl Builder {
     /// A parallelepiped `o + a·ex + b·ey + c·ez` (a, b, c ∈ [0, 1]; orthogonal edges), faces
     /// split into patches; materials per face in the order −x, +x, −y, +y, −z, +z.
     fn block(&mut self, o: V, ex: V, ey: V, ez: V, mats: [u16; 6]) {
-        let c = add(o, mul(add(ex, add(ey, ez)), 0.5));
-        let sides =
-            [(o, ez, ey), (add(o, ex), ey, ez), (o, ex, ez), (add(o, ey), ez, ex), (o, ey, ex), (add(o, ez), ex, ey)];
+        let c = o + (ex + (ey + ez)) * 0.5;
+        let sides = [(o, ez, ey), (o + ex, ey, ez), (o, ex, ez), (o + ey, ez, ex), (o, ey, ex), (o + ez, ex, ey)];
         let patch = self.patch;
         for (k, &(p, u, v)) in sides.iter().enumerate() {
             let m = mats[k];
-            self.grid(p, u, v, &[0.0, 1.0], &[0.0, 1.0], patch, &|_, _| Some(m), Orient::Outward(c));
+            self.grid(p, u, v, &[0.0, 1.0], &[0.0, 1.0], patch, &|_, _| Some(m), Orient::Outward(c.to_array()));
         }
         let corners: Vec<V> = (0..8)
-            .map(|i| {
-                add(
-                    o,
-                    add(mul(ex, (i & 1) as f64), add(mul(ey, ((i >> 1) & 1) as f64), mul(ez, ((i >> 2) & 1) as f64))),
-                )
-            })
+            .map(|i| o + (ex * (i & 1) as f64 + (ey * ((i >> 1) & 1) as f64 + ez * ((i >> 2) & 1) as f64)))
             .collect();
         self.solids.push(Aabb::of(&corners));
     }
 
     /// A box in a frame, between local corners `lo` and `hi`.
-    fn lbox6(&mut self, f: &Frame, lo: V, hi: V, mats: [u16; 6]) {
-        let d = sub(hi, lo);
-        debug_assert!(d.iter().all(|&x| x > 0.0), "empty box {lo:?} {hi:?}");
-        self.block(f.pt(lo), f.dir([d[0], 0.0, 0.0]), [0.0, d[1], 0.0], f.dir([0.0, 0.0, d[2]]), mats);
+    fn lbox6(&mut self, f: &Frame, lo: impl Into<V>, hi: impl Into<V>, mats: [u16; 6]) {
+        let (lo, hi) = (lo.into(), hi.into());
+        let d = hi - lo;
+        debug_assert!(d.min_element() > 0.0, "empty box {lo:?} {hi:?}");
+        self.block(f.pt(lo), f.dir([d.x, 0.0, 0.0]), V::new(0.0, d.y, 0.0), f.dir([0.0, 0.0, d.z]), mats);
     }
-    fn lbox(&mut self, f: &Frame, lo: V, hi: V, m: u16) {
+    fn lbox(&mut self, f: &Frame, lo: impl Into<V>, hi: impl Into<V>, m: u16) {
         self.lbox6(f, lo, hi, [m; 6]);
     }
 
     /// A closed frustum (cylinder when r0 = r1) from `base` along the unit `axis` over `h`,
     /// radius `r0` at the base and `r1` at the top, `seg` sides; caps are triangle fans.
     #[allow(clippy::too_many_arguments)]
-    fn frustum(&mut self, base: V, axis: V, h: f64, r0: f64, r1: f64, seg: usize, side: u16, caps: u16) {
-        let axis = unit(axis);
-        let helper = if axis[1].abs() < 0.9 { [0.0, 1.0, 0.0] } else { [1.0, 0.0, 0.0] };
-        let e1 = unit(cross(axis, helper));
-        let e2 = cross(axis, e1);
-        let top = add(base, mul(axis, h));
-        let centre = add(base, mul(axis, h / 2.0));
+    fn frustum(
+        &mut self,
+        base: impl Into<V>,
+        axis: impl Into<V>,
+        h: f64,
+        r0: f64,
+        r1: f64,
+        seg: usize,
+        side: u16,
+        caps: u16,
+    ) {
+        // glam's normalize multiplies by 1 / length, as the former helper did.
+        let (base, axis) = (base.into(), axis.into().normalize());
+        let helper = if axis.y.abs() < 0.9 { V::Y } else { V::X };
+        let e1 = axis.cross(helper).normalize();
+        let e2 = axis.cross(e1);
+        let top = base + axis * h;
+        let centre = base + axis * (h / 2.0);
         let ring = |c: V, r: f64, k: usize| {
             let t = std::f64::consts::TAU * k as f64 / seg as f64;
-            add(c, add(mul(e1, r * t.cos()), mul(e2, r * t.sin())))
+            c + (e1 * (r * t.cos()) + e2 * (r * t.sin()))
         };
         let mut pts = Vec::new();
         let b0 = self.positions.len() as u32;
@@ -426,7 +413,7 @@ impl Builder {
         }
         let cb = self.vert(base);
         let ct = self.vert(top);
-        let o = Orient::Outward(centre);
+        let o = Orient::Outward(centre.to_array());
         for k in 0..seg as u32 {
             let k1 = (k + 1) % seg as u32;
             self.face(vec![b0 + k, b0 + k1, t0 + k1, t0 + k], side, o);
@@ -440,22 +427,22 @@ impl Builder {
 
     /// A vertical cylinder standing at local point `p` of a frame.
     #[allow(clippy::too_many_arguments)]
-    fn lcyl(&mut self, f: &Frame, p: V, h: f64, r: f64, seg: usize, side: u16, caps: u16) {
+    fn lcyl(&mut self, f: &Frame, p: impl Into<V>, h: f64, r: f64, seg: usize, side: u16, caps: u16) {
         self.frustum(f.pt(p), [0.0, 1.0, 0.0], h, r, r, seg, side, caps);
     }
 
     /// A UV sphere (`nlat` bands, `nlon` sectors); quads between rings, triangles at the poles.
     fn sphere(&mut self, c: V, r: f64, nlat: usize, nlon: usize, m: u16) {
-        let o = Orient::Outward(c);
-        let north = self.vert(add(c, [0.0, r, 0.0]));
-        let south = self.vert(add(c, [0.0, -r, 0.0]));
+        let o = Orient::Outward(c.to_array());
+        let north = self.vert(c + V::new(0.0, r, 0.0));
+        let south = self.vert(c + V::new(0.0, -r, 0.0));
         let mut rings = Vec::new();
         for i in 1..nlat {
             let phi = std::f64::consts::PI * i as f64 / nlat as f64;
             let start = self.positions.len() as u32;
             for j in 0..nlon {
                 let th = std::f64::consts::TAU * j as f64 / nlon as f64;
-                self.vert(add(c, [r * phi.sin() * th.cos(), r * phi.cos(), r * phi.sin() * th.sin()]));
+                self.vert(c + V::new(r * phi.sin() * th.cos(), r * phi.cos(), r * phi.sin() * th.sin()));
             }
             rings.push(start);
         }
@@ -469,7 +456,7 @@ impl Builder {
                 self.face(vec![w[0] + j, w[0] + j1, w[1] + j1, w[1] + j], m, o);
             }
         }
-        self.solids.push(Aabb { lo: sub(c, [r; 3]), hi: add(c, [r; 3]) });
+        self.solids.push(Aabb { lo: (c - V::splat(r)).to_array(), hi: (c + V::splat(r)).to_array() });
     }
 
     /// Append another builder's faces (index offset).
@@ -533,45 +520,45 @@ impl Room {
         let (w, h, d) = (self.w, self.h, self.d);
         let mut out = vec![
             Surface {
-                o: [0.0; 3],
-                u: [w, 0.0, 0.0],
-                v: [0.0, 0.0, d],
+                o: V::ZERO,
+                u: V::new(w, 0.0, 0.0),
+                v: V::new(0.0, 0.0, d),
                 us: vec![],
                 vs: vec![],
                 mat: mat::FLOOR,
                 wall: None,
             },
             Surface {
-                o: [0.0, h, 0.0],
-                u: [w, 0.0, 0.0],
-                v: [0.0, 0.0, d],
+                o: V::new(0.0, h, 0.0),
+                u: V::new(w, 0.0, 0.0),
+                v: V::new(0.0, 0.0, d),
                 us: vec![],
                 vs: vec![],
                 mat: mat::CEILING,
                 wall: None,
             },
             Surface {
-                o: [0.0, 0.0, d],
-                u: [w, 0.0, 0.0],
-                v: [0.0, h, 0.0],
+                o: V::new(0.0, 0.0, d),
+                u: V::new(w, 0.0, 0.0),
+                v: V::new(0.0, h, 0.0),
                 us: vec![],
                 vs: vec![],
                 mat: mat::WALL,
                 wall: Some(Wall::Back),
             },
             Surface {
-                o: [0.0; 3],
-                u: [0.0, 0.0, d],
-                v: [0.0, h, 0.0],
+                o: V::ZERO,
+                u: V::new(0.0, 0.0, d),
+                v: V::new(0.0, h, 0.0),
                 us: vec![],
                 vs: vec![],
                 mat: mat::WALL,
                 wall: Some(Wall::Left),
             },
             Surface {
-                o: [w, 0.0, 0.0],
-                u: [0.0, 0.0, d],
-                v: [0.0, h, 0.0],
+                o: V::new(w, 0.0, 0.0),
+                u: V::new(0.0, 0.0, d),
+                v: V::new(0.0, h, 0.0),
                 us: vec![],
                 vs: vec![],
                 mat: mat::WALL,
@@ -579,7 +566,7 @@ impl Room {
             },
         ];
         for s in &mut out {
-            let (lu, lv) = (norm(s.u), norm(s.v));
+            let (lu, lv) = (s.u.length(), s.v.length());
             let mut us = vec![0.0, 1.0];
             let mut vs = vec![0.0, 1.0];
             for op in self.openings.iter().filter(|op| Some(op.wall) == s.wall) {
@@ -600,14 +587,14 @@ impl Room {
     fn count(&self, tile: f64) -> usize {
         self.surfaces()
             .iter()
-            .map(|s| (refine(&s.us, norm(s.u), tile).len() - 1) * (refine(&s.vs, norm(s.v), tile).len() - 1))
+            .map(|s| (refine(&s.us, s.u.length(), tile).len() - 1) * (refine(&s.vs, s.v.length(), tile).len() - 1))
             .sum()
     }
 
     fn build(&self, b: &mut Builder, tile: f64) {
         let centre = [self.w / 2.0, self.h / 2.0, self.d / 2.0];
         for s in self.surfaces() {
-            let (lu, lv) = (norm(s.u), norm(s.v));
+            let (lu, lv) = (s.u.length(), s.v.length());
             let ops: Vec<Opening> = self.openings.iter().copied().filter(|op| Some(op.wall) == s.wall).collect();
             let base = s.mat;
             let mat = move |a: f64, c: f64| {
@@ -625,7 +612,7 @@ impl Room {
 struct Scene {
     b: Builder,
     rng: Rng,
-    lights: Vec<V>,
+    lights: Vec<[f64; 3]>,
 }
 
 impl Scene {
@@ -1265,11 +1252,7 @@ pub fn build(kind: Kind) -> Office {
 mod tests {
     use super::*;
     use crate::machine::load::{voxelize, Engine};
-    use crate::precompute::{Contour, LoadConfig, Thickness};
-
-    fn cfg(n: u32) -> LoadConfig {
-        LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative }
-    }
+    use crate::precompute::LoadConfig;
 
     #[test]
     fn facet_and_light_counts_match_the_thesis() {
@@ -1305,34 +1288,34 @@ mod tests {
             assert!(m.materials.iter().any(|x| x.ke.iter().any(|&e| e > 0.0)), "an emitter material");
             assert!(m.materials.iter().filter(|x| x.ks[0] > 0.0 && (20.0..=60.0).contains(&x.ns)).count() >= 2);
             for (fi, f) in m.faces.iter().enumerate() {
-                let p: Vec<V> = f.verts.iter().map(|&v| m.positions[v as usize]).collect();
+                let p: Vec<V> = f.verts.iter().map(|&v| V::from(m.positions[v as usize])).collect();
                 assert!(p.len() == 3 || p.len() == 4, "{} face {fi}: {} vertices", k.name(), p.len());
                 assert!((f.material as usize) < m.materials.len() && f.material != 0);
-                let diam = p.iter().flat_map(|a| p.iter().map(move |b| norm(sub(*a, *b)))).fold(0.0, f64::max);
+                let diam = p.iter().flat_map(|a| p.iter().map(move |b| (*a - *b).length())).fold(0.0, f64::max);
                 for i in 0..p.len() {
-                    let e = norm(sub(p[(i + 1) % p.len()], p[i]));
+                    let e = (p[(i + 1) % p.len()] - p[i]).length();
                     assert!(e > 1e-4, "{} face {fi}: edge of {e} m", k.name());
                 }
-                let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
-                assert!(norm(n) > 1e-6 * diam * diam, "{} face {fi}: degenerate", k.name());
-                let nu = unit(n);
+                let n = (p[1] - p[0]).cross(p[2] - p[0]);
+                assert!(n.length() > 1e-6 * diam * diam, "{} face {fi}: degenerate", k.name());
+                let nu = n.normalize();
                 for q in &p[3..] {
-                    let off = dot(nu, sub(*q, p[0])).abs();
+                    let off = nu.dot(*q - p[0]).abs();
                     assert!(off <= 1e-9 * diam, "{} face {fi}: vertex {off:e} off the plane", k.name());
                 }
                 // Convex, all turns agreeing with the normal.
                 for i in 0..p.len() {
                     let (a, b, c) = (p[i], p[(i + 1) % p.len()], p[(i + 2) % p.len()]);
-                    assert!(dot(cross(sub(b, a), sub(c, b)), nu) > 0.0, "{} face {fi}: not strictly convex", k.name());
+                    assert!((b - a).cross(c - b).dot(nu) > 0.0, "{} face {fi}: not strictly convex", k.name());
                 }
-                let centroid = mul(p.iter().fold([0.0; 3], |s, &q| add(s, q)), 1.0 / p.len() as f64);
+                let centroid = p.iter().fold(V::ZERO, |s, &q| s + q) * (1.0 / p.len() as f64);
                 let away = match o.orient[fi] {
-                    Orient::Outward(c) => sub(centroid, c),
-                    Orient::Inward(c) => sub(c, centroid),
+                    Orient::Outward(c) => centroid - V::from(c),
+                    Orient::Inward(c) => V::from(c) - centroid,
                 };
-                assert!(dot(nu, away) > 0.0, "{} face {fi}: normal {nu:?} points the wrong way", k.name());
+                assert!(nu.dot(away) > 0.0, "{} face {fi}: normal {nu:?} points the wrong way", k.name());
                 for q in &p {
-                    assert!(o.room.contains(*q), "{} face {fi}: vertex {q:?} outside the room", k.name());
+                    assert!(o.room.contains(q.to_array()), "{} face {fi}: vertex {q:?} outside the room", k.name());
                 }
             }
             // The room surfaces face into the room.
@@ -1388,9 +1371,9 @@ mod tests {
     fn voxelizes_at_64_and_fits_the_dexel_store_at_128() {
         for k in Kind::ALL {
             let mesh = build(k).mesh;
-            let v = voxelize::<64>(&mesh, &cfg(64), Engine::Direct, |_, _| {}).unwrap();
+            let v = voxelize::<64>(&mesh, &LoadConfig::watertight(64), Engine::Direct, |_, _| {}).unwrap();
             v.check_overflow().unwrap();
-            let v = voxelize::<64>(&mesh, &cfg(128), Engine::Direct, |_, _| {}).unwrap();
+            let v = voxelize::<64>(&mesh, &LoadConfig::watertight(128), Engine::Direct, |_, _| {}).unwrap();
             eprintln!(
                 "{}: n = 128: {} packets, {} skipped, {} split, dexels max {} mean/occupied {:.2}",
                 k.name(),

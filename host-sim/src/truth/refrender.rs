@@ -18,6 +18,7 @@
 //! zero through `N·L ≤ 0`). Emitters (`max(ke) > 0`) get their lit mask the same way.
 
 use anyhow::{bail, Context, Result};
+use parry3d_f64::math::Vector;
 
 use crate::precompute::Fit;
 use crate::scene::{Material, Mesh};
@@ -62,18 +63,11 @@ impl RefImage {
     }
 }
 
-type V3 = [f64; 3];
-
-fn sub(a: V3, b: V3) -> V3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: V3, b: V3) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-/// `None` for a zero (or non-finite-length) vector.
-fn normalize(a: V3) -> Option<V3> {
-    let l = dot(a, a).sqrt();
-    (l > 0.0 && l.is_finite()).then(|| a.map(|x| x / l))
+/// `None` for a zero (or non-finite-length) vector. Divides by the length (glam's `normalize`
+/// multiplies by its reciprocal, which rounds differently).
+fn normalize(a: Vector) -> Option<Vector> {
+    let l = a.length();
+    (l > 0.0 && l.is_finite()).then(|| a / l)
 }
 
 /// Gamma 2.2 encoding of a linear value: `round(255 · clamp(c, 0, 1)^(1/2.2))`.
@@ -106,6 +100,7 @@ pub fn shade_linear_view_f64(
     lit_mask: u32,
     ambient: [f64; 3],
 ) -> [f64; 3] {
+    let (p_vox, n, v) = (Vector::from(p_vox), Vector::from(n), Vector::from(v));
     let ke = m.ke.map(f64::from);
     let kmax = ke[0].max(ke[1]).max(ke[2]);
     if kmax > 0.0 {
@@ -120,16 +115,16 @@ pub fn shade_linear_view_f64(
         if s >= 32 || lit_mask & (1u32 << s) == 0 {
             continue;
         }
-        let Some(ld) = normalize(sub(light.pos, p_vox)) else {
+        let Some(ld) = normalize(Vector::from(light.pos) - p_vox) else {
             continue;
         };
-        let ndl = dot(n, ld);
+        let ndl = n.dot(ld);
         if ndl > 0.0 {
             for i in 0..3 {
                 c[i] += kd[i] * light.color[i] * ndl;
             }
-            let nh = match normalize([ld[0] + v[0], ld[1] + v[1], ld[2] + v[2]]) {
-                Some(h) => dot(n, h).max(0.0),
+            let nh = match normalize(ld + v) {
+                Some(h) => n.dot(h).max(0.0),
                 None => 0.0,
             };
             let spec = nh.powf(ns);
@@ -230,9 +225,9 @@ struct RefScene<'a> {
     mesh: &'a Mesh,
     reference: Reference,
     lights: &'a [RefLight],
-    lights_world: Vec<V3>,
+    lights_world: Vec<Vector>,
     ambient: [f64; 3],
-    origin: V3,
+    origin: Vector,
     voxel: f64,
     max_t: f64,
     reflect: RefReflect,
@@ -240,11 +235,11 @@ struct RefScene<'a> {
 
 impl RefScene<'_> {
     /// Lit: the surface faces the light (no attached shadow) and sees it.
-    fn lit_mask(&self, p: V3, normal: V3, facet: u32) -> u32 {
+    fn lit_mask(&self, p: Vector, normal: Vector, facet: u32) -> u32 {
         let mut mask = 0u32;
         for (s, lw) in self.lights_world.iter().enumerate() {
-            let to_light = sub(*lw, p);
-            if dot(normal, to_light) > 0.0 && self.reference.visible(p, *lw, &[facet]) {
+            let to_light = *lw - p;
+            if normal.dot(to_light) > 0.0 && self.reference.visible(p.to_array(), lw.to_array(), &[facet]) {
                 mask |= 1 << s;
             }
         }
@@ -254,22 +249,23 @@ impl RefScene<'_> {
     /// The linear colour at world point `p` of `facet` (unit normal facing the eye, `v` toward
     /// the eye), reflections included from tree level `level` (1 for a visible point) with
     /// contribution weight `weight` of the ray that reached it. Also the lit mask.
-    fn colour(&self, p: V3, normal: V3, facet: u32, v: V3, level: u32, weight: f64) -> ([f64; 3], u32) {
+    fn colour(&self, p: Vector, normal: Vector, facet: u32, v: Vector, level: u32, weight: f64) -> ([f64; 3], u32) {
         let (o, vx) = (self.origin, self.voxel);
         let mask = self.lit_mask(p, normal, facet);
-        let p_vox = [0, 1, 2].map(|i| (p[i] - o[i]) / vx - 0.5);
+        let p_vox = (p - o) / vx - Vector::splat(0.5);
         let m = &self.mesh.materials[self.mesh.faces[facet as usize].material as usize];
-        let mut c = shade_linear_view_f64(p_vox, normal, v, m, self.lights, mask, self.ambient);
+        let (p_vox, n, v_arr) = (p_vox.to_array(), normal.to_array(), v.to_array());
+        let mut c = shade_linear_view_f64(p_vox, n, v_arr, m, self.lights, mask, self.ambient);
         let kr = f64::from(m.kr);
         let w = weight * kr;
         if kr > 0.0 && level <= self.reflect.depth && w >= self.reflect.threshold {
             // R = I − 2(I·N)N with I = −v.
-            let vn = dot(v, normal);
-            let r = [0, 1, 2].map(|k| 2.0 * vn * normal[k] - v[k]);
-            if let Some((t, f2, n2)) = self.reference.first_hit(p, r, self.max_t, &[facet]) {
-                let p2 = [0, 1, 2].map(|k| p[k] + t * r[k]);
-                let back = normalize(r.map(|x| -x)).unwrap_or([0.0, 0.0, -1.0]);
-                let (c2, _) = self.colour(p2, n2, f2, back, level + 1, w);
+            let vn = v.dot(normal);
+            let r = 2.0 * vn * normal - v;
+            if let Some((t, f2, n2)) = self.reference.first_hit(p.to_array(), r.to_array(), self.max_t, &[facet]) {
+                let p2 = p + t * r;
+                let back = normalize(-r).unwrap_or(Vector::new(0.0, 0.0, -1.0));
+                let (c2, _) = self.colour(p2, Vector::from(n2), f2, back, level + 1, w);
                 for k in 0..3 {
                     c[k] += kr * c2[k];
                 }
@@ -300,14 +296,14 @@ pub fn render_reference_reflect(
     }
     let (tris, facets) = mesh_triangles(mesh)?;
     let reference = Reference::new(tris, facets).with_context(|| format!("refrender: scene {}", mesh.name))?;
-    let (o, vx) = (fit.origin, fit.voxel);
-    let to_world = |p: V3| [0, 1, 2].map(|i| o[i] + (p[i] + 0.5) * vx);
+    let (o, vx) = (Vector::from(fit.origin), fit.voxel);
+    let to_world = |p: Vector| o + (p + Vector::splat(0.5)) * vx;
     let max_t = (n as f64 + 2.0) * vx;
     let scene = RefScene {
         mesh,
         reference,
         lights,
-        lights_world: lights.iter().map(|l| to_world(l.pos)).collect(),
+        lights_world: lights.iter().map(|l| to_world(Vector::from(l.pos))).collect(),
         ambient,
         origin: o,
         voxel: vx,
@@ -327,12 +323,12 @@ pub fn render_reference_reflect(
     let dir = [0.0, 0.0, 1.0];
     for y in 0..n {
         for x in 0..n {
-            let origin = [o[0] + (x as f64 + 0.5) * vx, o[1] + (y as f64 + 0.5) * vx, o[2] - vx];
-            let Some((t, facet, normal)) = scene.reference.first_hit(origin, dir, max_t, &[]) else {
+            let origin = Vector::new(o.x + (x as f64 + 0.5) * vx, o.y + (y as f64 + 0.5) * vx, o.z - vx);
+            let Some((t, facet, normal)) = scene.reference.first_hit(origin.to_array(), dir, max_t, &[]) else {
                 continue;
             };
-            let p = [origin[0], origin[1], origin[2] + t];
-            let (c, mask) = scene.colour(p, normal, facet, [0.0, 0.0, -1.0], 1, 1.0);
+            let p = Vector::new(origin.x, origin.y, origin.z + t);
+            let (c, mask) = scene.colour(p, Vector::from(normal), facet, Vector::new(0.0, 0.0, -1.0), 1, 1.0);
             let i = y as usize * n as usize + x as usize;
             img.rgb[i] = c.map(encode_gamma);
             img.covered[i] = true;
@@ -348,6 +344,8 @@ mod tests {
     use super::*;
     use crate::scene::Face;
     use crate::truth::compare::{compare, difference_image};
+
+    type V3 = [f64; 3];
 
     fn mat(ka: [f32; 3], kd: [f32; 3], ks: [f32; 3], ns: f32, ke: [f32; 3]) -> Material {
         Material { name: "m".into(), ka, kd, ks, ns, ke, kr: 0.0 }
@@ -793,21 +791,5 @@ mod tests {
             facet: vec![0; 4],
         };
         assert_eq!(img.rows_top_down(), vec![[3; 3], [4; 3], [1; 3], [2; 3]]);
-    }
-
-    /// Timing (release): `cargo test --release -p host-sim --lib refrender::tests::cornell_timing -- --ignored --nocapture`.
-    #[test]
-    #[ignore]
-    fn cornell_timing() {
-        let mesh = crate::scene::load("cornell").unwrap();
-        let n = 512;
-        let fit = crate::precompute::fit(&mesh, n).unwrap();
-        let light = cornell_light(&fit);
-        let t0 = std::time::Instant::now();
-        let img = render_reference(&mesh, &fit, n, &[light], [0.1; 3]).unwrap();
-        let dt = t0.elapsed().as_secs_f64();
-        let covered = img.covered.iter().filter(|&&c| c).count();
-        let lit = img.lit.iter().filter(|&&l| l != 0).count();
-        println!("cornell n = {n}: {dt:.3} s, {covered} covered, {lit} lit, light at {:?} (voxel units)", light.pos);
     }
 }

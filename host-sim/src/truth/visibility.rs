@@ -40,42 +40,23 @@ pub const SEGMENT_END_TOL: f64 = 1e-9;
 /// when the sine of its angle at the first vertex is at most 10⁻¹² (an exact zero included).
 pub const DEGENERATE_SIN: f64 = 1e-12;
 
-type V3 = [f64; 3];
-
-#[inline(always)]
-fn sub(a: V3, b: V3) -> V3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-#[inline(always)]
-fn cross(a: V3, b: V3) -> V3 {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-#[inline(always)]
-fn dot(a: V3, b: V3) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-#[inline(always)]
-fn finite(a: V3) -> bool {
-    a.iter().all(|x| x.is_finite())
-}
-#[inline(always)]
-fn vec(a: V3) -> Vector {
-    Vector::new(a[0], a[1], a[2])
-}
+// Vector arithmetic is parry3d-f64's `Vector` (glam's `DVec3`): its `dot` sums x, y, z in
+// that order and its `cross` is the textbook formula, so every result is the one the former
+// hand-written `[f64; 3]` helpers gave, bit for bit.
 
 /// One kept (non-degenerate) triangle.
 #[derive(Clone, Copy, Debug)]
 struct Tri {
-    v: [V3; 3],
+    v: [Vector; 3],
     /// Unit geometric normal, `(v1 − v0) × (v2 − v0)` normalised.
-    normal: V3,
+    normal: Vector,
     facet: u32,
 }
 
 /// A ray prepared for the watertight test (shear constants and axis permutation).
 #[derive(Clone, Copy, Debug)]
 struct ShearRay {
-    o: V3,
+    o: Vector,
     kx: usize,
     ky: usize,
     kz: usize,
@@ -86,15 +67,16 @@ struct ShearRay {
 
 impl ShearRay {
     /// `None` for a zero direction (no hit possible).
-    fn new(o: V3, d: V3) -> Option<ShearRay> {
-        let a = [d[0].abs(), d[1].abs(), d[2].abs()];
-        let kz = if a[0] >= a[1] && a[0] >= a[2] {
+    fn new(o: Vector, d: Vector) -> Option<ShearRay> {
+        let a = d.abs();
+        let kz = if a.x >= a.y && a.x >= a.z {
             0
-        } else if a[1] >= a[2] {
+        } else if a.y >= a.z {
             1
         } else {
             2
         };
+        let d = d.to_array();
         if d[kz] == 0.0 {
             return None;
         }
@@ -112,9 +94,10 @@ impl ShearRay {
     #[inline]
     fn hit(&self, tri: &Tri) -> Option<f64> {
         let (kx, ky, kz) = (self.kx, self.ky, self.kz);
-        let a = sub(tri.v[0], self.o);
-        let b = sub(tri.v[1], self.o);
-        let c = sub(tri.v[2], self.o);
+        // Arrays: the permuted axes index them directly.
+        let a = (tri.v[0] - self.o).to_array();
+        let b = (tri.v[1] - self.o).to_array();
+        let c = (tri.v[2] - self.o).to_array();
         let ax = a[kx] - self.sx * a[kz];
         let ay = a[ky] - self.sy * a[kz];
         let bx = b[kx] - self.sx * b[kz];
@@ -173,14 +156,15 @@ impl Reference {
         let mut skipped = 0;
         let mut scale: f64 = 0.0;
         for (i, (v, &facet)) in triangles.iter().zip(&facet_of_triangle).enumerate() {
-            if !v.iter().all(|p| finite(*p)) {
+            let p = v.map(Vector::from);
+            if !p.iter().all(|p| p.is_finite()) {
                 bail!("reference: triangle {i} (facet {facet}) has a non-finite coordinate: {v:?}");
             }
-            let e1 = sub(v[1], v[0]);
-            let e2 = sub(v[2], v[0]);
-            let n = cross(e1, e2);
-            let n2 = dot(n, n);
-            let lim = DEGENERATE_SIN * DEGENERATE_SIN * dot(e1, e1) * dot(e2, e2);
+            let e1 = p[1] - p[0];
+            let e2 = p[2] - p[0];
+            let n = e1.cross(e2);
+            let n2 = n.dot(n);
+            let lim = DEGENERATE_SIN * DEGENERATE_SIN * e1.dot(e1) * e2.dot(e2);
             if !(n2.is_finite() && n2 > lim) {
                 skipped += 1;
                 continue;
@@ -191,7 +175,7 @@ impl Reference {
                     scale = scale.max(x.abs());
                 }
             }
-            tris.push(Tri { v: *v, normal: [n[0] * inv, n[1] * inv, n[2] * inv], facet });
+            tris.push(Tri { v: p, normal: n * inv, facet });
         }
         if tris.is_empty() {
             bail!("reference: no triangle with a non-zero area ({} given, {} zero-area)", triangles.len(), skipped);
@@ -201,17 +185,9 @@ impl Reference {
         let aabbs: Vec<Aabb> = tris
             .iter()
             .map(|t| {
-                let mut lo = t.v[0];
-                let mut hi = t.v[0];
-                for p in &t.v[1..] {
-                    for k in 0..3 {
-                        lo[k] = lo[k].min(p[k]);
-                        hi[k] = hi[k].max(p[k]);
-                    }
-                }
-                let lo = lo.map(|x| x - margin);
-                let hi = hi.map(|x| x + margin);
-                Aabb::new(vec(lo), vec(hi))
+                let lo = t.v[0].min(t.v[1]).min(t.v[2]);
+                let hi = t.v[0].max(t.v[1]).max(t.v[2]);
+                Aabb::new(lo - Vector::splat(margin), hi + Vector::splat(margin))
             })
             .collect();
         let bvh = Bvh::from_leaves(BvhBuildStrategy::Binned, &aabbs);
@@ -238,17 +214,18 @@ impl Reference {
     /// point; hits at parameter `t ∈ (0, 1)` count, except within [`SEGMENT_END_TOL`] of either
     /// end). Non-finite input answers `false`; a zero-length segment is visible.
     pub fn visible(&self, from: [f64; 3], to: [f64; 3], ignore: &[u32]) -> bool {
-        if !finite(from) || !finite(to) {
+        let (from, to) = (Vector::from(from), Vector::from(to));
+        if !from.is_finite() || !to.is_finite() {
             return false;
         }
-        let d = sub(to, from);
-        if !finite(d) {
+        let d = to - from;
+        if !d.is_finite() {
             return false;
         }
         let Some(sr) = ShearRay::new(from, d) else {
             return true; // from == to: the open segment is empty
         };
-        let ray = Ray::new(vec(from), vec(d));
+        let ray = Ray::new(from, d);
         let lo = SEGMENT_END_TOL;
         let hi = 1.0 - SEGMENT_END_TOL;
         for leaf in self.bvh.leaves(|node| node.cast_ray(&ray, 1.0) <= 1.0) {
@@ -275,11 +252,12 @@ impl Reference {
         max_t: f64,
         ignore: &[u32],
     ) -> Option<(f64, u32, [f64; 3])> {
-        if !finite(origin) || !finite(dir) || max_t.is_nan() || max_t <= 0.0 {
+        let (origin, dir) = (Vector::from(origin), Vector::from(dir));
+        if !origin.is_finite() || !dir.is_finite() || max_t.is_nan() || max_t <= 0.0 {
             return None;
         }
         let sr = ShearRay::new(origin, dir)?;
-        let ray = Ray::new(vec(origin), vec(dir));
+        let ray = Ray::new(origin, dir);
         // Best-first traversal: nodes whose entry parameter is not below the best hit so far
         // are pruned; a leaf's value is accepted only when strictly below the best so far.
         let (leaf, t) = self.bvh.cast_ray(&ray, max_t, |leaf, best| {
@@ -292,8 +270,8 @@ impl Reference {
         })?;
         let tri = &self.tris[leaf as usize];
         let n = tri.normal;
-        let n = if dot(n, dir) > 0.0 { [-n[0], -n[1], -n[2]] } else { n };
-        Some((t, tri.facet, n))
+        let n = if n.dot(dir) > 0.0 { -n } else { n };
+        Some((t, tri.facet, n.to_array()))
     }
 }
 
@@ -302,6 +280,21 @@ mod tests {
     use super::*;
 
     use crate::rng::Rng;
+
+    // The oracle's own arithmetic, independent of the code under test.
+    type V3 = [f64; 3];
+
+    fn sub(a: V3, b: V3) -> V3 {
+        [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+    }
+
+    fn cross(a: V3, b: V3) -> V3 {
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    }
+
+    fn dot(a: V3, b: V3) -> f64 {
+        a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    }
 
     fn point(rng: &mut Rng, lo: f64, hi: f64) -> V3 {
         [rng.range(lo, hi), rng.range(lo, hi), rng.range(lo, hi)]
@@ -740,66 +733,5 @@ mod tests {
         assert_eq!(r.first_hit([0.2, 0.2, -1.0], [0.0, 0.0, 1.0], f64::NAN, &[]), None);
         assert_eq!(r.first_hit([0.2, 0.2, -1.0], [0.0; 3], 10.0, &[]), None);
         assert_eq!(r.first_hit([0.2, 0.2, -1.0], [0.0, 0.0, 1.0], -1.0, &[]), None);
-    }
-
-    fn scene_triangles(name: &str) -> (Vec<[V3; 3]>, Vec<u32>) {
-        let mesh = crate::scene::meshops::triangulated(&crate::scene::load(name).unwrap());
-        let mut tris = Vec::new();
-        let mut facets = Vec::new();
-        for (i, f) in mesh.faces.iter().enumerate() {
-            tris.push([0, 1, 2].map(|k| mesh.positions[f.verts[k] as usize]));
-            facets.push(i as u32);
-        }
-        (tris, facets)
-    }
-
-    /// Timing (run in release): `cargo test --release -p host-sim --lib reference::tests::timing -- --ignored --nocapture`.
-    #[test]
-    #[ignore]
-    fn timing() {
-        for (name, queries) in [("cornell", 1_000_000usize), ("fandisk", 100_000)] {
-            let (tris, facets) = scene_triangles(name);
-            let t0 = std::time::Instant::now();
-            let r = Reference::new(tris.clone(), facets.clone()).unwrap();
-            let build = t0.elapsed();
-            let mut lo = [f64::INFINITY; 3];
-            let mut hi = [f64::NEG_INFINITY; 3];
-            for t in &tris {
-                for p in t {
-                    for k in 0..3 {
-                        lo[k] = lo[k].min(p[k]);
-                        hi[k] = hi[k].max(p[k]);
-                    }
-                }
-            }
-            let mut rng = Rng(9);
-            let pts: Vec<(V3, V3)> = (0..queries)
-                .map(|_| {
-                    let p = |r: &mut Rng| [0, 1, 2].map(|k| r.range(lo[k], hi[k]));
-                    (p(&mut rng), p(&mut rng))
-                })
-                .collect();
-            let t0 = std::time::Instant::now();
-            let vis = pts.iter().filter(|(a, b)| r.visible(*a, *b, &[])).count();
-            let dt = t0.elapsed().as_secs_f64();
-            let t1 = std::time::Instant::now();
-            let hits = pts.iter().filter(|(a, b)| r.first_hit(*a, sub(*b, *a), f64::INFINITY, &[]).is_some()).count();
-            let dt1 = t1.elapsed().as_secs_f64();
-            // brute force on a sample, for scale
-            let sample = queries.min(20_000);
-            let t2 = std::time::Instant::now();
-            let bvis = pts[..sample].iter().filter(|(a, b)| brute_visible(&tris, &facets, *a, *b, &[])).count();
-            let dt2 = t2.elapsed().as_secs_f64();
-            println!(
-                "{name}: {} triangles, build {:.1} ms; visible: {queries} queries in {dt:.3} s = {:.2} M/s ({vis} visible); \
-                 first_hit: {:.3} s = {:.2} M/s ({hits} hits); brute-force visible: {:.3} M/s ({bvis}/{sample} visible)",
-                r.triangle_count(),
-                build.as_secs_f64() * 1e3,
-                queries as f64 / dt / 1e6,
-                dt1,
-                queries as f64 / dt1 / 1e6,
-                sample as f64 / dt2 / 1e6,
-            );
-        }
     }
 }

@@ -1,0 +1,166 @@
+//! The parsed arguments converted into the jobs' plain options: the one place where the
+//! command line's types meet the jobs'. The grid side's default per job is filled in here.
+
+use super::phase_args::LightingArg;
+use super::{
+    AccuracyArgs, AuditArgs, BenchArgs, LightArgs, LightOpts, RenderArgs, SubdivideArgs, TableArgs, TraceArgs,
+    VoxelizeArgs, DEFAULT_N, TRACE_N,
+};
+use crate::jobs::accuracy::AccuracyOptions;
+use crate::jobs::audit::AuditOptions;
+use crate::jobs::bench::BenchOptions;
+use crate::jobs::light::{LightOptions, LightingOptions};
+use crate::jobs::render::RenderOptions;
+use crate::jobs::scenes::SubdivideOptions;
+use crate::jobs::table::TableOptions;
+use crate::jobs::trace::TraceOptions;
+use crate::jobs::voxelize::VoxelizeOptions;
+use crate::machine::diffuse::{FrustumBlocks, LightConfig};
+
+impl From<&LightOpts> for LightingOptions {
+    fn from(a: &LightOpts) -> Self {
+        LightingOptions {
+            lights: a.lights.clone(),
+            frac_bits: a.frac_bits,
+            diffusion: LightConfig {
+                fa: a.fa,
+                policy: a.policy.into(),
+                merge: a.merge.resolve(a.policy),
+                record_visits: false,
+                stepping: a.stepping.into(),
+                skip_receding: a.skip_receding,
+                skip_dead_directions: a.skip_dead_directions,
+                faults: a.link_faults,
+                stall_cycles: a.stall_cycles,
+                lit_visible_only: false,
+                hold: a.hold,
+                skip_frustum: a.skip_frustum,
+                skip_hidden: false,
+                frustum_blocks: FrustumBlocks::default(),
+                rule: a.lit_rule.into(),
+            },
+            lit_visible_only: a.lit_visible_only,
+            skip_hidden: a.skip_hidden,
+            frustum_blocks: a.frustum_blocks.map(Into::into),
+            classic: (a.classic.lighting == LightingArg::Classic).then(|| a.classic.config(a.fa, a.lit_rule.into())),
+        }
+    }
+}
+
+impl From<&RenderArgs> for RenderOptions {
+    fn from(a: &RenderArgs) -> Self {
+        let (fa, rule) = (a.light.fa, a.light.lit_rule.into());
+        RenderOptions {
+            scene: a.load.scene.clone(),
+            load: a.load.config(DEFAULT_N),
+            light: (&a.light).into(),
+            normals: a.normals.into(),
+            reflections: (a.reflect.reflections > 0).then(|| a.reflect.config(fa, &a.light.classic.config(fa, rule))),
+            out: a.out.clone(),
+            reference: a.reference,
+            stats: a.stats.clone(),
+            quiet: a.quiet,
+        }
+    }
+}
+
+impl From<&LightArgs> for LightOptions {
+    fn from(a: &LightArgs) -> Self {
+        LightOptions {
+            scene: a.load.scene.clone(),
+            load: a.load.config(DEFAULT_N),
+            light: (&a.light).into(),
+            stats: a.stats.clone(),
+            lit_out: a.lit_out.clone(),
+            dump_lit: a.dump_lit.clone(),
+            quiet: a.quiet,
+        }
+    }
+}
+
+impl From<&TraceArgs> for TraceOptions {
+    fn from(a: &TraceArgs) -> Self {
+        TraceOptions {
+            scene: a.load.scene.clone(),
+            load: a.load.config(TRACE_N),
+            light: (&a.light).into(),
+            cells: a.cells.clone(),
+            busiest: a.busiest,
+            out: a.out.clone(),
+        }
+    }
+}
+
+impl From<&VoxelizeArgs> for VoxelizeOptions {
+    fn from(a: &VoxelizeArgs) -> Self {
+        VoxelizeOptions {
+            scene: a.load.scene.clone(),
+            load: a.load.config(DEFAULT_N),
+            engine: a.engine.into(),
+            dexel_capacity: a.dexel_capacity,
+            out: a.out.clone(),
+            stats: a.stats.clone(),
+            quiet: a.quiet,
+        }
+    }
+}
+
+impl From<&AuditArgs> for AuditOptions {
+    fn from(a: &AuditArgs) -> Self {
+        AuditOptions {
+            scene: a.load.scene.clone(),
+            load: a.load.config(DEFAULT_N),
+            fa: a.fa,
+            json: a.json.clone(),
+            elf: a.elf.clone(),
+        }
+    }
+}
+
+impl From<&TableArgs> for TableOptions {
+    fn from(a: &TableArgs) -> Self {
+        TableOptions {
+            n: a.n.clone(),
+            fa: a.fa.clone(),
+            policies: a.policy.iter().map(|&p| p.into()).collect(),
+            merge: a.merge.choice(),
+            frac_bits: a.frac_bits,
+            out: a.out.clone(),
+            plot: a.plot.clone(),
+            quiet: a.quiet,
+        }
+    }
+}
+
+impl From<&AccuracyArgs> for AccuracyOptions {
+    fn from(a: &AccuracyArgs) -> Self {
+        AccuracyOptions {
+            scene: a.scene.clone(),
+            n: a.n.clone(),
+            frac_bits: a.frac_bits.clone(),
+            fa: a.fa,
+            policy: a.policy.into(),
+            lights: a.lights.clone(),
+            out: a.out.clone(),
+        }
+    }
+}
+
+impl From<&BenchArgs> for BenchOptions {
+    fn from(a: &BenchArgs) -> Self {
+        BenchOptions {
+            scenes: a.scene.clone(),
+            n: a.n.clone(),
+            frac_bits: a.frac_bits.clone(),
+            out: a.out.clone(),
+            plot: a.plot.clone(),
+            quiet: a.quiet,
+        }
+    }
+}
+
+impl From<&SubdivideArgs> for SubdivideOptions {
+    fn from(a: &SubdivideArgs) -> Self {
+        SubdivideOptions { scene: a.scene.clone(), target: a.target, out: a.out.clone() }
+    }
+}
