@@ -130,54 +130,62 @@ pub fn accuracy<F: FracBits>(
     let (tris, ids) = crate::truth::refrender::mesh_triangles(mesh)?;
     let planes = face_planes(mesh);
     let reference = crate::truth::visibility::Reference::new(tris, ids)?;
-    let g = &scene.grid;
-    let n = g.n;
-    let occ = |x: i64, y: i64, z: i64| -> bool {
-        x >= 0
-            && y >= 0
-            && z >= 0
-            && x < n as i64
-            && y < n as i64
-            && z < n as i64
-            && g.cell(x as u32, y as u32).store.occupied(z as u16).is_some()
-    };
-    let world = |v: [f64; 3]| Vector::from(voxel_to_world(&scene.fit, v));
-    let world_lights: Vec<Vector> = lights.iter().map(|l| world(*l)).collect();
+    let world_lights: Vec<Vector> = lights.iter().map(|l| Vector::from(voxel_to_world(&scene.fit, *l))).collect();
     let mut a = Accuracy::default();
-    for c in &g.cells {
+    for c in &scene.grid.cells {
         for d in c.store.dexels() {
             let face = scene.source_face.get(d.facet as usize).copied().unwrap_or(u32::MAX);
+            let (nrm, o) = planes.get(face as usize).copied().unwrap_or((Vector::ZERO, Vector::ZERO));
             for z in d.span.lo..=d.span.hi {
-                let (x, y, zz) = (c.x as i64, c.y as i64, z as i64);
-                let empty: Vec<Vector> = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
-                    .iter()
-                    .filter(|&&(dx, dy, dz)| !occ(x + dx, y + dy, zz + dz))
-                    .map(|&(dx, dy, dz)| world([(x + dx) as f64, (y + dy) as f64, (zz + dz) as f64]))
-                    .collect();
+                let v = [c.x as i64, c.y as i64, z as i64];
+                let empty = empty_neighbours(scene, v);
                 if empty.is_empty() {
                     continue;
                 }
-                let (nrm, o) = planes.get(face as usize).copied().unwrap_or((Vector::ZERO, Vector::ZERO));
-                let centre = voxel_to_world(&scene.fit, [x as f64, y as f64, zz as f64]);
+                let centre = voxel_to_world(&scene.fit, v.map(|k| k as f64));
                 let mask = lighting.mask(c.x as u32, c.y as u32, z);
                 for (si, l) in world_lights.iter().enumerate() {
+                    // A surface voxel for this light: an empty neighbour on the light's side.
                     let side = nrm.dot(*l - o).signum();
                     if side == 0.0 || !empty.iter().any(|q| nrm.dot(*q - o).signum() == side) {
                         continue;
                     }
-                    let disc = mask >> si & 1 == 1;
-                    let cont = reference.visible(centre, l.to_array(), &[face]);
-                    a.surface_voxels += 1;
-                    a.lit_discrete += disc as u64;
-                    a.lit_continuous += cont as u64;
-                    a.false_lit += (disc && !cont) as u64;
-                    a.false_dark += (!disc && cont) as u64;
+                    a.count(mask >> si & 1 == 1, reference.visible(centre, l.to_array(), &[face]));
                 }
             }
         }
     }
     a.disagreement_pct = 100.0 * (a.false_lit + a.false_dark) as f64 / a.surface_voxels.max(1) as f64;
     Ok(a)
+}
+
+impl Accuracy {
+    /// One surface voxel and light: lit by diffusion (`disc`), visible in f64 (`cont`).
+    fn count(&mut self, disc: bool, cont: bool) {
+        self.surface_voxels += 1;
+        self.lit_discrete += disc as u64;
+        self.lit_continuous += cont as u64;
+        self.false_lit += (disc && !cont) as u64;
+        self.false_dark += (!disc && cont) as u64;
+    }
+}
+
+/// World centres of the empty 6-neighbours of voxel `v` (outside the grid counts as empty).
+fn empty_neighbours(scene: &LoadedScene, v: [i64; 3]) -> Vec<Vector> {
+    let g = &scene.grid;
+    let n = g.n as i64;
+    let occupied = |[x, y, z]: [i64; 3]| {
+        (0..n).contains(&x)
+            && (0..n).contains(&y)
+            && (0..n).contains(&z)
+            && g.cell(x as u32, y as u32).store.occupied(z as u16).is_some()
+    };
+    [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]
+        .iter()
+        .map(|d: &[i64; 3]| [v[0] + d[0], v[1] + d[1], v[2] + d[2]])
+        .filter(|&q| !occupied(q))
+        .map(|q| Vector::from(voxel_to_world(&scene.fit, q.map(|k| k as f64))))
+        .collect()
 }
 
 /// Each face's plane: the normal of its first non-degenerate corner, and its first vertex.

@@ -13,13 +13,15 @@ use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
 
-use crate::jobs::render::{reference_image, render, RenderConfig, RenderInput};
+use crate::jobs::render::{reference_image, render, RenderConfig, RenderInput, RenderStats};
 use crate::machine::diffuse::LightConfig;
 use crate::machine::lighting::policy_name;
 use crate::machine::loaded::{load_scene, resolve_lights};
 use crate::precompute::{Contour, LoadConfig, Thickness};
 use crate::report::plot::{pareto_front, plot_pareto, ParetoPoint};
 use crate::scene::Mesh;
+use crate::truth::compare::Comparison;
+use crate::truth::refrender::RefImage;
 
 /// One point of the sweep.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -62,6 +64,21 @@ impl Knobs {
         rule: LitRule::Thesis,
         ..Knobs::DEFAULT
     };
+
+    /// The CSV columns `f,thickness,contour,normals,fa,policy,rule,is_default`.
+    fn csv(&self) -> String {
+        format!(
+            "{},{:?},{:?},{:?},{},{},{:?},{}",
+            self.f,
+            self.thickness,
+            self.contour,
+            self.normals,
+            self.fa,
+            policy_name(self.policy),
+            self.rule,
+            *self == Knobs::DEFAULT
+        )
+    }
 
     /// The knobs that differ from the default, as a short label.
     pub fn label(&self) -> String {
@@ -164,147 +181,191 @@ pub fn run_bench(
     let knobs = sweep(fs);
     let names: Vec<&str> = meshes.iter().map(|m| m.name.as_str()).collect();
     for &n in ns {
-        // Per configuration: (cycles, error, bytes, psnr, coverage, wall) summed over scenes.
-        let mut agg = vec![(0f64, 0f64, 0usize, 0f64, 0f64, 0f64); knobs.len()];
+        let mut sums = vec![Sums::default(); knobs.len()];
         for mesh in meshes {
             let mut reference = None;
-            for (ki, k) in knobs.iter().enumerate() {
-                let cfg = LoadConfig { n, thickness: k.thickness, contour: k.contour };
-                let t0 = Instant::now();
-                let loaded = load_scene(mesh, &cfg)?;
-                let load_seconds = t0.elapsed().as_secs_f64();
-                let lights = resolve_lights(mesh, &loaded, &[])?;
-                let rcfg = RenderConfig::diffusion(
-                    LightConfig {
-                        fa: k.fa,
-                        policy: k.policy,
-                        merge: k.policy.by_layer(),
-                        record_visits: false,
-                        rule: k.rule,
-                        ..Default::default()
-                    },
-                    k.normals,
-                );
-                if reference.is_none() {
-                    reference = Some(reference_image(mesh, &loaded, &lights, &rcfg)?);
-                }
-                let input = RenderInput {
-                    reference: reference.as_ref(),
-                    load_seconds,
-                    ..RenderInput::new(mesh, &loaded, &lights)
-                };
-                let r = cell_core::with_frac_bits!(k.f, F => render::<F>(&input, &rcfg, |_, _| {}))
-                    .unwrap_or_else(|| Err(anyhow::anyhow!("--frac-bits {} is not supported", k.f)))?;
-                let st = r.stats;
-                let c = st.reference.expect("compared with the reference");
-                let cycles = st.light.load_cycles + st.light.totals.cycles + st.shade_cycles;
-                // A cell compiled for this FIFO size (the host compiles FA_CAP, limits at run time).
-                let bytes = st.bytes_per_cell - (crate::machine::capacity::FA_CAP - k.fa) * st.light.bytes_beam_message;
+            for (k, sum) in knobs.iter().zip(&mut sums) {
+                let r = measure(mesh, n, k, &mut reference)?;
                 if !quiet {
                     eprintln!(
                         "{:>13} n = {n} {:36} cycles {:>8}  shadow {:6.2} %  PSNR {:6.2} dB  wall {:.2} s",
                         mesh.name,
                         k.label(),
-                        cycles,
-                        c.shadow_disagreement_pct,
-                        c.psnr_db,
-                        st.wall_seconds
+                        r.cycles,
+                        r.cmp.shadow_disagreement_pct,
+                        r.cmp.psnr_db,
+                        r.stats.wall_seconds
                     );
                 }
-                writeln!(
-                    csv,
-                    "{},{n},{},{:?},{:?},{:?},{},{},{:?},{},{},{},{},{},{:.4},{},{},{:.4},{:.4},{:.4},{:.4},",
-                    mesh.name,
-                    k.f,
-                    k.thickness,
-                    k.contour,
-                    k.normals,
-                    k.fa,
-                    policy_name(k.policy),
-                    k.rule,
-                    *k == Knobs::DEFAULT,
-                    st.light.load_cycles,
-                    st.light.totals.cycles,
-                    st.shade_cycles,
-                    cycles,
-                    st.light.t_over_lb,
-                    st.light.totals.beams_processed,
-                    bytes,
-                    st.wall_seconds,
-                    c.shadow_disagreement_pct,
-                    c.coverage_disagreement_pct,
-                    c.psnr_db
-                )?;
-                let a = &mut agg[ki];
-                a.0 += cycles as f64;
-                a.1 += c.shadow_disagreement_pct;
-                a.2 = a.2.max(bytes);
-                a.3 += c.psnr_db;
-                a.4 += c.coverage_disagreement_pct;
-                a.5 += st.wall_seconds;
+                write_row(&mut csv, &mesh.name, n, k, &r)?;
+                sum.add(&r);
             }
         }
         let m = meshes.len().max(1) as f64;
-        let points: Vec<ParetoPoint> = knobs
-            .iter()
-            .zip(&agg)
-            .map(|(k, a)| ParetoPoint {
-                label: k.label(),
-                cycles: a.0 / m,
-                error: a.1 / m,
-                bytes: a.2 as f64,
-                is_default: *k == Knobs::DEFAULT,
-            })
-            .collect();
+        let points: Vec<ParetoPoint> = knobs.iter().zip(&sums).map(|(k, a)| a.point(k, m)).collect();
         let front = pareto_front(&points);
-        for (i, (k, a)) in knobs.iter().zip(&agg).enumerate() {
-            writeln!(
-                csv,
-                "all,{n},{},{:?},{:?},{:?},{},{},{:?},{},,,,{:.1},,,{},{:.4},{:.4},{:.4},{:.4},{}",
-                k.f,
-                k.thickness,
-                k.contour,
-                k.normals,
-                k.fa,
-                policy_name(k.policy),
-                k.rule,
-                *k == Knobs::DEFAULT,
-                a.0 / m,
-                a.2,
-                a.5,
-                a.1 / m,
-                a.4 / m,
-                a.3 / m,
-                front.contains(&i)
-            )?;
-        }
-        let path = if ns.len() == 1 {
-            plot_path.to_path_buf()
-        } else {
-            let stem = plot_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-            plot_path.with_file_name(format!("{stem}-n{n}.png"))
-        };
+        write_mean_rows(&mut csv, n, &knobs, &sums, m, &front)?;
+        let path = plot_path_for(plot_path, ns.len(), n);
         let title = format!("{}, n = {n}: shadow error against machine cycles (mean over scenes)", names.join(" + "));
         plot_pareto(&points, &title, &path)?;
         if !quiet {
-            let on = points.iter().position(|p| p.is_default).is_some_and(|i| front.contains(&i));
-            eprintln!("n = {n}: default configuration on the Pareto front: {on}; plot {}", path.display());
-            eprintln!("| knobs | mean cycles | mean shadow disagreement % | mean PSNR dB | bytes/cell | Pareto |");
-            eprintln!("|---|---|---|---|---|---|");
-            for (i, (p, a)) in points.iter().zip(&agg).enumerate() {
-                eprintln!(
-                    "| {}{} | {:.0} | {:.2} | {:.2} | {} | {} |",
-                    if p.is_default { "**default** " } else { "" },
-                    p.label,
-                    p.cycles,
-                    p.error,
-                    a.3 / m,
-                    p.bytes,
-                    if front.contains(&i) { "yes" } else { "" }
-                );
-            }
+            print_front(n, &points, &sums, m, &front, &path);
         }
     }
     csv.flush()?;
     Ok(())
+}
+
+/// One configuration rendered on one scene and compared with the reference.
+struct Measured {
+    stats: RenderStats,
+    cmp: Comparison,
+    /// Load + light + shade cycles.
+    cycles: u64,
+    /// Bytes of a cell compiled for this FIFO size.
+    bytes: usize,
+}
+
+/// Load, light and shade `mesh` at grid side `n` with the knobs `k`; the reference is ray-cast
+/// once per scene and n (the first call makes it).
+fn measure(mesh: &Mesh, n: u32, k: &Knobs, reference: &mut Option<RefImage>) -> Result<Measured> {
+    let cfg = LoadConfig { n, thickness: k.thickness, contour: k.contour };
+    let t0 = Instant::now();
+    let loaded = load_scene(mesh, &cfg)?;
+    let load_seconds = t0.elapsed().as_secs_f64();
+    let lights = resolve_lights(mesh, &loaded, &[])?;
+    let rcfg = RenderConfig::diffusion(
+        LightConfig {
+            fa: k.fa,
+            policy: k.policy,
+            merge: k.policy.by_layer(),
+            record_visits: false,
+            rule: k.rule,
+            ..Default::default()
+        },
+        k.normals,
+    );
+    if reference.is_none() {
+        *reference = Some(reference_image(mesh, &loaded, &lights, &rcfg)?);
+    }
+    let input = RenderInput { reference: reference.as_ref(), load_seconds, ..RenderInput::new(mesh, &loaded, &lights) };
+    let r = cell_core::with_frac_bits!(k.f, F => render::<F>(&input, &rcfg, |_, _| {}))
+        .unwrap_or_else(|| Err(anyhow::anyhow!("--frac-bits {} is not supported", k.f)))?;
+    let st = r.stats;
+    let cmp = st.reference.expect("compared with the reference");
+    let cycles = st.light.load_cycles + st.light.totals.cycles + st.shade_cycles;
+    // A cell compiled for this FIFO size (the host compiles FA_CAP, limits at run time).
+    let bytes = st.bytes_per_cell - (crate::machine::capacity::FA_CAP - k.fa) * st.light.bytes_beam_message;
+    Ok(Measured { stats: st, cmp, cycles, bytes })
+}
+
+/// The CSV row of one scene and configuration.
+fn write_row(csv: &mut impl Write, scene: &str, n: u32, k: &Knobs, r: &Measured) -> Result<()> {
+    let (st, c) = (&r.stats, &r.cmp);
+    writeln!(
+        csv,
+        "{scene},{n},{},{},{},{},{},{:.4},{},{},{:.4},{:.4},{:.4},{:.4},",
+        k.csv(),
+        st.light.load_cycles,
+        st.light.totals.cycles,
+        st.shade_cycles,
+        r.cycles,
+        st.light.t_over_lb,
+        st.light.totals.beams_processed,
+        r.bytes,
+        st.wall_seconds,
+        c.shadow_disagreement_pct,
+        c.coverage_disagreement_pct,
+        c.psnr_db
+    )?;
+    Ok(())
+}
+
+/// One configuration's results summed over the scenes (bytes: the largest).
+#[derive(Clone, Copy, Debug, Default)]
+struct Sums {
+    cycles: f64,
+    error: f64,
+    bytes: usize,
+    psnr: f64,
+    coverage: f64,
+    wall: f64,
+}
+
+impl Sums {
+    fn add(&mut self, r: &Measured) {
+        self.cycles += r.cycles as f64;
+        self.error += r.cmp.shadow_disagreement_pct;
+        self.bytes = self.bytes.max(r.bytes);
+        self.psnr += r.cmp.psnr_db;
+        self.coverage += r.cmp.coverage_disagreement_pct;
+        self.wall += r.stats.wall_seconds;
+    }
+
+    /// The configuration's point of the Pareto plot: means over `m` scenes.
+    fn point(&self, k: &Knobs, m: f64) -> ParetoPoint {
+        ParetoPoint {
+            label: k.label(),
+            cycles: self.cycles / m,
+            error: self.error / m,
+            bytes: self.bytes as f64,
+            is_default: *k == Knobs::DEFAULT,
+        }
+    }
+}
+
+/// The `all` rows: each configuration's means over `m` scenes, and whether it is on the front.
+fn write_mean_rows(
+    csv: &mut impl Write,
+    n: u32,
+    knobs: &[Knobs],
+    sums: &[Sums],
+    m: f64,
+    front: &[usize],
+) -> Result<()> {
+    for (i, (k, a)) in knobs.iter().zip(sums).enumerate() {
+        writeln!(
+            csv,
+            "all,{n},{},,,,{:.1},,,{},{:.4},{:.4},{:.4},{:.4},{}",
+            k.csv(),
+            a.cycles / m,
+            a.bytes,
+            a.wall,
+            a.error / m,
+            a.coverage / m,
+            a.psnr / m,
+            front.contains(&i)
+        )?;
+    }
+    Ok(())
+}
+
+/// The plot of grid side `n`: the plot path itself for a single n, `<stem>-n<N>.png` otherwise.
+fn plot_path_for(plot_path: &Path, sizes: usize, n: u32) -> PathBuf {
+    if sizes == 1 {
+        plot_path.to_path_buf()
+    } else {
+        let stem = plot_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        plot_path.with_file_name(format!("{stem}-n{n}.png"))
+    }
+}
+
+/// The front as a Markdown table on stderr.
+fn print_front(n: u32, points: &[ParetoPoint], sums: &[Sums], m: f64, front: &[usize], path: &Path) {
+    let on = points.iter().position(|p| p.is_default).is_some_and(|i| front.contains(&i));
+    eprintln!("n = {n}: default configuration on the Pareto front: {on}; plot {}", path.display());
+    eprintln!("| knobs | mean cycles | mean shadow disagreement % | mean PSNR dB | bytes/cell | Pareto |");
+    eprintln!("|---|---|---|---|---|---|");
+    for (i, (p, a)) in points.iter().zip(sums).enumerate() {
+        eprintln!(
+            "| {}{} | {:.0} | {:.2} | {:.2} | {} | {} |",
+            if p.is_default { "**default** " } else { "" },
+            p.label,
+            p.cycles,
+            p.error,
+            a.psnr / m,
+            p.bytes,
+            if front.contains(&i) { "yes" } else { "" }
+        );
+    }
 }
