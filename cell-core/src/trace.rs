@@ -31,7 +31,7 @@ use crate::light::{
 };
 use crate::link::{
     self, get_beam, get_row, put_beam, put_row, read_frame, write_frame, ByteSink, DecodeError, EncodeError, Link,
-    PutExt, Reader, HEADER, TRAILER,
+    PutExt, Reader, Sent, HEADER, TRAILER,
 };
 use crate::lit::LitRule;
 use crate::shade::{cell_pixel, Material, NormalMode, Pixel, PointLight, ShadeParams};
@@ -508,6 +508,15 @@ impl Digester {
         let _ = s.put(frame);
     }
 
+    /// The cell sent a beam on `port`: [`Digester::sent`] of its frame (sequence number 0).
+    pub fn sent_beam<F: FracBits>(&mut self, port: Port, m: &BeamMsg<F>) {
+        let mut buf = [0u8; BEAM_FRAME];
+        // Cannot fail: a beam frame has a fixed size.
+        if let Ok(len) = link::encode(0, &link::Message::Beam(*m), &mut buf) {
+            self.sent(port, &buf[..len]);
+        }
+    }
+
     /// One compute cycle's result.
     pub fn step(&mut self, r: Step) {
         let code = match r {
@@ -579,17 +588,18 @@ pub struct ReplayStats {
     pub sent: u32,
 }
 
-/// A [`Link`] whose neighbour is ready iff it is the granted one; sending is a no-op (the
-/// frame goes to the digest through `drain_outputs`'s callback).
+/// A [`Link`] whose neighbour is ready iff it is the granted one; a send is taken at once (its
+/// frame goes to the digest through [`link::drain_outputs`]'s callback).
 struct GrantLink(bool);
 
-impl Link for GrantLink {
+impl<F: FracBits> Link<F> for GrantLink {
     type Error = core::convert::Infallible;
-    fn ready(&mut self) -> Result<bool, Self::Error> {
+    const LOSSLESS: bool = true;
+    fn ready(&mut self, _: &()) -> Result<bool, Self::Error> {
         Ok(self.0)
     }
-    fn send(&mut self, _: &[u8]) -> Result<(), Self::Error> {
-        Ok(())
+    fn send(&mut self, _: u64, _: &BeamMsg<F>, _: &mut ()) -> Result<Sent, Self::Error> {
+        Ok(Sent::TAKEN)
     }
 }
 
@@ -688,14 +698,15 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
 
     /// A neighbour took the head of output buffer `port`: send it over `links` (only that
     /// link's neighbour is ready).
-    pub fn grant<K: Link>(&mut self, port: Port, links: &mut [K; 8]) -> Result<(), ReplayError> {
+    pub fn grant<K: Link<F>>(&mut self, port: Port, links: &mut [K; 8]) -> Result<(), ReplayError> {
         if self.light.out.is_empty(port) {
             return Err(ReplayError::NothingToSend);
         }
         let digest = &mut self.digest;
         let mut sent = 0;
-        link::drain_outputs(&mut self.light, links, |p, frame| {
-            digest.sent(p, frame);
+        // The link cycle: a trace carries no clock, the cell's step count stands in for it.
+        link::drain_outputs(&mut self.light, links, self.stats.steps as u64, |p, m| {
+            digest.sent_beam(p, m);
             sent += 1;
         })
         .map_err(|_| ReplayError::Link)?;

@@ -42,6 +42,7 @@ use cell_core::route::{RoutePolicy, Routed};
 use crate::machine::diffuse::{DiffusionCounts, SourceReport};
 
 use crate::machine::capacity::FA_CAP;
+use crate::machine::grid::LightGrid;
 use crate::machine::lighting::LightStats;
 use crate::machine::loaded::LoadedScene;
 use crate::machine::network::Network;
@@ -252,6 +253,7 @@ fn emit<const D: usize>(
     Ok(rays)
 }
 
+/// One source's classic run: the cycle loop over the phases of [`ClassicRun`].
 fn classic_one(
     scene: &LoadedScene,
     light: [f64; 3],
@@ -260,155 +262,247 @@ fn classic_one(
     masks: &mut [SourceMask],
     mut progress: impl FnMut(u64),
 ) -> Result<ClassicCounts> {
-    let grid = &scene.grid;
-    let n = grid.n as usize;
-    let src = lattice(light);
-    let src_col = [(light[0] + 0.5).floor() as i64, (light[1] + 0.5).floor() as i64];
-    let cheb = |i: usize| ((i % n) as i64 - src_col[0]).abs().max(((i / n) as i64 - src_col[1]).abs()) as u32;
-    let mut fifo: Vec<VecDeque<ShadowRay>> = vec![VecDeque::new(); n * n];
-    let mut out: Vec<[Option<ShadowRay>; 8]> = vec![[None; 8]; n * n];
-    let mut steps = vec![0u64; n * n];
-    let mut ray_link = vec![0u32; n * n * 8];
-    // Answer payload: bit 0 lit, bit 1 from the visible voxel.
-    let mut net: Network<u8> = Network::new(grid.n, cfg.route);
-    let mut k = ClassicCounts::default();
-    let mut active: Vec<u32> = Vec::new();
-    for (i, c) in grid.cells.iter().enumerate() {
-        let rays = emit(c, src, cfg, &mut k)?;
-        if !rays.is_empty() {
-            fifo[i] = rays;
-            active.push(i as u32);
+    let mut run = ClassicRun::new(scene, light, si, cfg)?;
+    while run.rays_in_flight > 0 || run.net.in_flight > 0 {
+        let mut moved = run.compute();
+        moved += run.answers(masks);
+        moved += run.ray_links();
+        run.cycle += 1;
+        run.next_active();
+        if moved == 0 {
+            return Err(run.deadlock());
+        }
+        if run.cycle % 256 == 0 {
+            progress(run.cycle);
         }
     }
-    k.voxels = grid.cells.iter().map(|c| c.store.voxel_count() as u64).sum();
-    let bit: SourceMask = 1 << si;
-    let mut rays_in_flight = k.rays;
-    let mut in_active = vec![false; n * n];
-    for &i in &active {
-        in_active[i as usize] = true;
-    }
-    let mut link_used = vec![false; n * n * 8];
-    let mut woken: Vec<u32> = Vec::new();
-    let mut cycle = 0u64;
-    while rays_in_flight > 0 || net.in_flight > 0 {
-        let mut moved = 0u64;
-        // 1. Compute.
+    progress(run.cycle);
+    Ok(run.finish())
+}
+
+/// The state of one source's classic run from cycle to cycle, and its phases (the module
+/// doc's cycle model).
+struct ClassicRun<'a> {
+    grid: &'a LightGrid,
+    cfg: &'a ClassicConfig,
+    si: usize,
+    n: usize,
+    /// The source's column.
+    src_col: [i64; 2],
+    fifo: Vec<VecDeque<ShadowRay>>,
+    out: Vec<[Option<ShadowRay>; 8]>,
+    /// Voxel steps per cell, and ray messages per link (`cell·8 + port`, the sender's side).
+    steps: Vec<u64>,
+    ray_link: Vec<u32>,
+    /// The answer network. Answer payload: bit 0 lit, bit 1 from the visible voxel.
+    net: Network<u8>,
+    k: ClassicCounts,
+    /// This source's bit in the masks.
+    bit: SourceMask,
+    rays_in_flight: u64,
+    /// The cells with rays, in row-major order, and their flags.
+    active: Vec<u32>,
+    in_active: Vec<bool>,
+    link_used: Vec<bool>,
+    woken: Vec<u32>,
+    cycle: u64,
+}
+
+impl<'a> ClassicRun<'a> {
+    /// Every emitter's rays in its FIFO.
+    fn new(scene: &'a LoadedScene, light: [f64; 3], si: usize, cfg: &'a ClassicConfig) -> Result<Self> {
+        let grid = &scene.grid;
+        let n = grid.n as usize;
+        let src = lattice(light);
+        let mut fifo: Vec<VecDeque<ShadowRay>> = vec![VecDeque::new(); n * n];
+        let mut k = ClassicCounts::default();
+        let mut active: Vec<u32> = Vec::new();
+        for (i, c) in grid.cells.iter().enumerate() {
+            let rays = emit(c, src, cfg, &mut k)?;
+            if !rays.is_empty() {
+                fifo[i] = rays;
+                active.push(i as u32);
+            }
+        }
+        k.voxels = grid.cells.iter().map(|c| c.store.voxel_count() as u64).sum();
+        let mut in_active = vec![false; n * n];
         for &i in &active {
-            let i = i as usize;
-            let Some(head) = fifo[i].pop_front() else { continue };
+            in_active[i as usize] = true;
+        }
+        Ok(ClassicRun {
+            grid,
+            cfg,
+            si,
+            n,
+            src_col: [(light[0] + 0.5).floor() as i64, (light[1] + 0.5).floor() as i64],
+            fifo,
+            out: vec![[None; 8]; n * n],
+            steps: vec![0u64; n * n],
+            ray_link: vec![0u32; n * n * 8],
+            net: Network::new(grid.n, cfg.route),
+            rays_in_flight: k.rays,
+            k,
+            bit: 1 << si,
+            active,
+            in_active,
+            link_used: vec![false; n * n * 8],
+            woken: Vec::new(),
+            cycle: 0,
+        })
+    }
+
+    /// Chebyshev distance (cells) from cell `i` to the source's column.
+    fn cheb(&self, i: usize) -> u32 {
+        let n = self.n;
+        ((i % n) as i64 - self.src_col[0]).abs().max(((i / n) as i64 - self.src_col[1]).abs()) as u32
+    }
+
+    /// 1. Compute: every active cell takes its FIFO's head and does one voxel of work; a ray
+    ///    that cannot go on (full output buffer or router channel) goes back to the FIFO's
+    ///    tail and the cell is blocked. Returns the steps done.
+    fn compute(&mut self) -> u64 {
+        let mut moved = 0;
+        for a in 0..self.active.len() {
+            let i = self.active[a] as usize;
+            let Some(head) = self.fifo[i].pop_front() else { continue };
             let mut ray = head;
-            let step = ray.advance(&grid.cells[i].store);
+            let step = ray.advance(&self.grid.cells[i].store);
             let done = match step {
                 RayStep::Shadow | RayStep::Lit => {
                     let dest = ray.emitter;
                     let payload = (step == RayStep::Lit) as u8 | (ray.surface as u8) << 1;
-                    net.can_inject(i, dest) && net.inject(i, Routed { dest, payload })
+                    self.net.can_inject(i, dest) && self.net.inject(i, Routed { dest, payload })
                 }
                 RayStep::Stay => {
-                    fifo[i].push_back(ray);
+                    self.fifo[i].push_back(ray);
                     true
                 }
                 RayStep::Forward(p) => {
-                    let slot = &mut out[i][p.index()];
+                    let slot = &mut self.out[i][p.index()];
                     slot.is_none() && slot.replace(ray).is_none()
                 }
             };
             if done {
-                steps[i] += 1;
+                self.steps[i] += 1;
                 moved += 1;
                 if matches!(step, RayStep::Shadow | RayStep::Lit) {
-                    rays_in_flight -= 1;
-                    k.answers += 1;
+                    self.rays_in_flight -= 1;
+                    self.k.answers += 1;
                 }
             } else {
-                fifo[i].push_back(head);
-                k.blocked_cell_cycles += 1;
+                self.fifo[i].push_back(head);
+                self.k.blocked_cell_cycles += 1;
             }
         }
-        // 2. Links: answers first, then rays.
-        link_used.iter_mut().for_each(|u| *u = false);
-        moved += net.step(&mut link_used, |cell, m| {
+        moved
+    }
+
+    /// 2a. Links, answers first: the routers move them; an answer delivered to its emitter is
+    ///     recorded (a lit visible voxel's in `masks`). Returns the messages moved.
+    fn answers(&mut self, masks: &mut [SourceMask]) -> u64 {
+        self.link_used.iter_mut().for_each(|u| *u = false);
+        let (k, bit) = (&mut self.k, self.bit);
+        self.net.step(&mut self.link_used, |cell, m| {
             if m.payload & 1 == 1 {
                 k.lit += 1;
                 if m.payload & 2 == 2 {
                     masks[cell] |= bit;
                 }
             }
-        });
-        for &i in &active {
-            let i = i as usize;
+        })
+    }
+
+    /// 2b. Links, then rays: each output buffer's ray moves to the neighbour's FIFO if it has
+    ///     room and the link carried no answer this cycle. Returns the rays moved.
+    fn ray_links(&mut self) -> u64 {
+        let (n, mut moved) = (self.n, 0);
+        for a in 0..self.active.len() {
+            let i = self.active[a] as usize;
             for p in Port::ALL {
                 let link = i * 8 + p.index();
-                if link_used[link] {
+                if self.link_used[link] {
                     continue;
                 }
-                let Some(ray) = out[i][p.index()] else { continue };
+                let Some(ray) = self.out[i][p.index()] else { continue };
                 let (dx, dy) = p.delta();
                 let j = (i as i64 + dy as i64 * n as i64 + dx as i64) as usize;
-                if fifo[j].len() >= cfg.fa {
+                if self.fifo[j].len() >= self.cfg.fa {
                     continue;
                 }
-                out[i][p.index()] = None;
-                fifo[j].push_back(ray);
-                k.peak_fifo = k.peak_fifo.max(fifo[j].len() as u16);
-                link_used[link] = true;
-                ray_link[link] += 1;
-                k.ray_messages += 1;
+                self.out[i][p.index()] = None;
+                self.fifo[j].push_back(ray);
+                self.k.peak_fifo = self.k.peak_fifo.max(self.fifo[j].len() as u16);
+                self.link_used[link] = true;
+                self.ray_link[link] += 1;
+                self.k.ray_messages += 1;
                 moved += 1;
-                if !in_active[j] {
-                    in_active[j] = true;
-                    woken.push(j as u32);
+                if !self.in_active[j] {
+                    self.in_active[j] = true;
+                    self.woken.push(j as u32);
                 }
             }
         }
-        cycle += 1;
-        active.retain(|&i| {
+        moved
+    }
+
+    /// Next cycle's active list: the busy cells and those a ray reached, in row-major order.
+    fn next_active(&mut self) {
+        let (fifo, out, in_active) = (&self.fifo, &self.out, &mut self.in_active);
+        self.active.retain(|&i| {
             let busy = !fifo[i as usize].is_empty() || out[i as usize].iter().any(Option::is_some);
             in_active[i as usize] = busy;
             busy
         });
-        for &j in &woken {
-            in_active[j as usize] = true;
-            active.push(j);
+        for &j in &self.woken {
+            self.in_active[j as usize] = true;
+            self.active.push(j);
         }
-        woken.clear();
-        active.sort_unstable();
-        if moved == 0 {
-            let mut busy: Vec<String> = net.busy_cells().take(4).map(|(c, o)| format!("router {c}: {o}")).collect();
-            busy.extend(active.iter().take(8).map(|&i| {
-                let i = i as usize;
-                let outs: Vec<String> = (0..8)
-                    .filter_map(|p| out[i][p].map(|r| format!("{:?}→{:?}", Port::ALL[p], r.line.voxel())))
-                    .collect();
-                let heads: Vec<[i32; 3]> = fifo[i].iter().map(|r| r.line.voxel()).collect();
-                format!("cell ({}, {}) fifo {heads:?} out [{}]", i % n, i / n, outs.join(", "))
-            }));
-            bail!(
-                "deadlock in the classic phase at cycle {cycle} of source {si}: {rays_in_flight} rays and {} answers in flight, nothing can move ({})",
-                net.in_flight,
-                busy.join("; ")
-            );
+        self.woken.clear();
+        self.active.sort_unstable();
+    }
+
+    /// The error of a cycle with work in flight and nothing moving.
+    fn deadlock(&self) -> anyhow::Error {
+        let n = self.n;
+        let net = &self.net;
+        let mut busy: Vec<String> = net.busy_cells().take(4).map(|(c, o)| format!("router {c}: {o}")).collect();
+        busy.extend(self.active.iter().take(8).map(|&i| {
+            let i = i as usize;
+            let outs: Vec<String> = (0..8)
+                .filter_map(|p| self.out[i][p].map(|r| format!("{:?}→{:?}", Port::ALL[p], r.line.voxel())))
+                .collect();
+            let heads: Vec<[i32; 3]> = self.fifo[i].iter().map(|r| r.line.voxel()).collect();
+            format!("cell ({}, {}) fifo {heads:?} out [{}]", i % n, i / n, outs.join(", "))
+        }));
+        anyhow::anyhow!(
+            "deadlock in the classic phase at cycle {} of source {}: {} rays and {} answers in flight, nothing can move ({})",
+            self.cycle,
+            self.si,
+            self.rays_in_flight,
+            net.in_flight,
+            busy.join("; ")
+        )
+    }
+
+    /// The counters: cycles, steps, the busiest cell and link.
+    fn finish(mut self) -> ClassicCounts {
+        let n = self.n;
+        self.k.cycles = self.cycle;
+        self.k.ray_steps = self.steps.iter().sum();
+        if let Some((i, &s)) = self.steps.iter().enumerate().max_by_key(|&(i, s)| (*s, std::cmp::Reverse(i))) {
+            self.k.busiest_cell_steps = s;
+            self.k.busiest_cell_distance = self.cheb(i);
         }
-        if cycle % 256 == 0 {
-            progress(cycle);
+        self.k.answer_messages = self.net.hops;
+        if let Some((l, load)) = (0..n * n * 8)
+            .map(|l| (l, self.ray_link[l] as u64 + self.net.link_load[l] as u64))
+            .max_by_key(|&(l, v)| (v, std::cmp::Reverse(l)))
+        {
+            self.k.peak_link_load = load;
+            self.k.peak_link_distance = self.cheb(l / 8);
         }
+        self.k
     }
-    progress(cycle);
-    k.cycles = cycle;
-    k.ray_steps = steps.iter().sum();
-    if let Some((i, &s)) = steps.iter().enumerate().max_by_key(|&(i, s)| (*s, std::cmp::Reverse(i))) {
-        k.busiest_cell_steps = s;
-        k.busiest_cell_distance = cheb(i);
-    }
-    k.answer_messages = net.hops;
-    if let Some((l, load)) = (0..n * n * 8)
-        .map(|l| (l, ray_link[l] as u64 + net.link_load[l] as u64))
-        .max_by_key(|&(l, v)| (v, std::cmp::Reverse(l)))
-    {
-        k.peak_link_load = load;
-        k.peak_link_distance = cheb(l / 8);
-    }
-    Ok(k)
 }
 
 /// The classic phase as the `light`/`render` jobs report it: the lit state and a [`LightStats`]

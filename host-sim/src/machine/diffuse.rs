@@ -26,10 +26,13 @@ use cell_core::occupancy::{BlockRow, FrustumTest, Occupancy16, Occupancy32, Occu
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Relaxed};
 
+use cell_core::link::PerfectLink;
+
 use crate::machine::capacity::{HostLightCell, FA_CAP};
-use crate::machine::faults::{FaultCounts, FaultyLinks, LinkFaults};
+use crate::machine::faults::{fault_counts, FaultCounts, FaultInjector, FaultTally, LinkFaults};
 use crate::machine::grid::Grid;
-use crate::machine::tap::Tap;
+use crate::machine::links::{self, lossless, sure, CellInbox, GridLinks, HostLink, Took, BACK};
+use crate::machine::tap::{Tap, Tracer};
 use crate::machine::tiles::{merge_sorted, prefetch, prefetch_ends, tiles};
 
 /// Default of [`LightConfig::stall_cycles`]: a fault-free machine that cannot move for one
@@ -327,14 +330,47 @@ pub fn diffuse<F: FracBits, const D: usize>(
 }
 
 /// [`diffuse`], recording what the cells watched by `tap` receive and send.
+///
+/// The links are chosen here, once per run: perfect links, or each behind a fault injector
+/// (`cfg.faults`), each traced when `tap` records. Every source then runs the same scheduler,
+/// generic over the links ([`crate::machine::links`]).
 pub fn diffuse_tapped<F: FracBits, const D: usize>(
     grid: &Grid<D>,
     sources: &[Source],
     cfg: &LightConfig,
-    mut tap: Option<&mut Tap>,
-    mut progress: impl FnMut(usize, u64),
+    tap: Option<&mut Tap>,
+    progress: impl FnMut(usize, u64),
 ) -> Result<Lighting<F>> {
+    let far = check_light_run::<F>(grid.n, sources, cfg)?;
     let n = grid.n;
+    let mut cells: Vec<HostLightCell<F>> = Vec::with_capacity((n * n) as usize);
+    for y in 0..n {
+        for x in 0..n {
+            cells.push(LightCell::new(x as u16, y as u16));
+        }
+    }
+    let occupied = occupied_box(grid, cfg.rule);
+    let frustum = frustum_summary(grid, cfg, tap.is_some())?;
+    check_recording(cfg, tap.is_some())?;
+    let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref() };
+    let d = far.get();
+    match (cfg.faults, tap) {
+        (None, None) => run.diffuse(cells, GridLinks::new(n, |_| PerfectLink), None, progress),
+        (Some(f), None) => {
+            let links = GridLinks::new(n, |id| FaultInjector::new(PerfectLink, f, d, id));
+            run.diffuse(cells, links, None, progress)
+        }
+        (None, Some(t)) => run.diffuse(cells, GridLinks::new(n, |id| Tracer::new(PerfectLink, id)), Some(t), progress),
+        (Some(f), Some(t)) => {
+            let links = GridLinks::new(n, |id| Tracer::new(FaultInjector::new(PerfectLink, f, d, id), id));
+            run.diffuse(cells, links, Some(t), progress)
+        }
+    }
+}
+
+/// The far distance of an n × n grid, once the run's sources, FIFO limit and memory are
+/// checked.
+fn check_light_run<F: FracBits>(n: u32, sources: &[Source], cfg: &LightConfig) -> Result<FarDistance<F>> {
     if sources.len() > cell_core::light::MAX_SOURCES {
         bail!("{} light sources: at most {} are supported", sources.len(), cell_core::light::MAX_SOURCES);
     }
@@ -350,25 +386,25 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
         )
     })?;
     crate::machine::limits::check_grid_memory("grid of lighting cells", n, std::mem::size_of::<HostLightCell<F>>())?;
-    let mut cells: Vec<HostLightCell<F>> = Vec::with_capacity((n * n) as usize);
-    for y in 0..n {
-        for x in 0..n {
-            cells.push(LightCell::new(x as u16, y as u16));
-        }
-    }
-    let order = SplitOrder::default();
-    let occupied = occupied_box(grid, cfg.rule);
+    Ok(far)
+}
+
+/// The summary the empty-frustum and hidden-voxel skips test against, if either is on.
+fn frustum_summary<const D: usize>(grid: &Grid<D>, cfg: &LightConfig, tapped: bool) -> Result<Option<Summary>> {
     if cfg.skip_hidden && !cfg.lit_visible_only {
         bail!("the hidden-voxel skip drops the light of hidden voxels: use it with --lit-visible-only");
     }
     let frustum =
         (cfg.skip_hidden || cfg.skip_frustum).then(|| Summary::of(grid, cfg.frustum_blocks, cfg.skip_hidden, cfg.rule));
-    let traced = frustum.as_ref().map(Summary::traceable);
-    if tap.is_some() && traced == Some(None) {
+    if tapped && frustum.as_ref().is_some_and(|s| s.traceable().is_none()) {
         bail!("a cell trace carries the 8 × 8 × 8 frustum summary: record with --frustum-blocks 8");
     }
-    let mut reports = Vec::new();
-    let mut visited = cfg.record_visits.then(|| vec![false; (n * n * grid.depth) as usize]);
+    Ok(frustum)
+}
+
+/// Refuse link delays the stall detector would take for stalls, and traces of a partial lit
+/// store.
+fn check_recording(cfg: &LightConfig, tapped: bool) -> Result<()> {
     if let Some(f) = cfg.faults.filter(|f| f.delay_ppm > 0 && f.delay_cycles as u64 >= cfg.stall_cycles.max(1)) {
         bail!(
             "--link-faults delay-cycles={} must be below --stall-cycles {}: a frame held on the wire is not progress",
@@ -376,83 +412,124 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             cfg.stall_cycles
         );
     }
-    if cfg.lit_visible_only && tap.is_some() {
+    if cfg.lit_visible_only && tapped {
         bail!("a cell trace records the whole lit store: record without --lit-visible-only");
     }
-    let mut links = cfg.faults.map(|f| FaultyLinks::new(f, cells.len()));
-    for (si, src) in sources.iter().enumerate() {
-        let env = LightEnv {
+    Ok(())
+}
+
+/// What every source's diffusion of a run shares.
+struct AllSources<'a, F: FracBits, const D: usize> {
+    grid: &'a Grid<D>,
+    sources: &'a [Source],
+    cfg: &'a LightConfig,
+    far: FarDistance<F>,
+    occupied: OccupiedBox,
+    frustum: Option<&'a Summary>,
+}
+
+impl<F: FracBits, const D: usize> AllSources<'_, F, D> {
+    /// Diffuse the sources one after another over `cells`, through `links`.
+    fn diffuse<L: HostLink<F> + FaultTally>(
+        &self,
+        mut cells: Vec<HostLightCell<F>>,
+        mut links: GridLinks<L>,
+        mut tap: Option<&mut Tap>,
+        mut progress: impl FnMut(usize, u64),
+    ) -> Result<Lighting<F>> {
+        let (grid, cfg) = (self.grid, self.cfg);
+        let order = SplitOrder::default();
+        let traced = self.frustum.and_then(Summary::traceable);
+        let mut reports = Vec::new();
+        let mut visited = cfg.record_visits.then(|| vec![false; (grid.n * grid.n * grid.depth) as usize]);
+        for (si, src) in self.sources.iter().enumerate() {
+            let env = self.env(src, si, &order);
+            let before: Vec<LightCounters> = cells.iter().map(|c| c.counters).collect();
+            for c in cells.iter_mut() {
+                c.counters.max_layer = 0;
+                c.counters.peak_fifo = 0;
+            }
+            if let Some(t) = tap.as_deref_mut() {
+                t.light(&env, traced);
+            }
+            let dead = cfg.skip_dead_directions.then_some(self.occupied);
+            let rec = Recording { visited: visited.as_deref_mut(), tap: tap.as_deref_mut() };
+            let (links, cells) = (links.slots(), &mut cells[..]);
+            let mut rep = diffuse_one(grid, cells, links, src, si, &env, cfg, dead, rec, |c| progress(si, c))?;
+            rep.position = src.pos.map(|p| p.to_num::<f64>());
+            add_cell_counts(&mut rep, cells, &before);
+            check_conservation(si, &rep.counts)?;
+            reports.push(rep);
+        }
+        let link_faults = fault_counts(links.all());
+        Ok(Lighting { n: grid.n, cells, reports, visited, link_faults, rule: cfg.rule })
+    }
+
+    /// The lighting environment of source `si`.
+    fn env<'e>(&'e self, src: &'e Source, si: usize, order: &'e SplitOrder) -> LightEnv<'e, F> {
+        let (cfg, grid, occupied) = (self.cfg, self.grid, self.occupied);
+        LightEnv {
             source: src,
-            far,
-            n,
+            far: self.far,
+            n: grid.n,
             depth: grid.depth,
             policy: cfg.policy,
             rule: cfg.rule,
-            order: &order,
+            order,
             fa: cfg.fa,
             source_bit: 1 << si,
             merge: cfg.merge,
             skip: cfg.skip_receding.then_some(occupied),
-            bounds: SubBeamBounds::new(n, grid.depth, cfg.skip_receding.then_some(occupied), src),
+            bounds: SubBeamBounds::new(grid.n, grid.depth, cfg.skip_receding.then_some(occupied), src),
             lit_visible_only: cfg.lit_visible_only,
             hold: cfg.hold,
-            frustum: frustum.as_ref().map(Summary::test),
-        };
-        let before: Vec<LightCounters> = cells.iter().map(|c| c.counters).collect();
-        for c in cells.iter_mut() {
-            c.counters.max_layer = 0;
-            c.counters.peak_fifo = 0;
+            frustum: self.frustum.map(Summary::test),
         }
-        if let Some(t) = tap.as_deref_mut() {
-            t.light(&env, traced.flatten());
-        }
-        let dead = cfg.skip_dead_directions.then_some(occupied);
-        let rec = Recording { visited: visited.as_deref_mut(), tap: tap.as_deref_mut(), links: links.as_mut() };
-        let r = diffuse_one(grid, &mut cells, src, si, &env, cfg.stepping, dead, cfg.stall_cycles, rec, |c| {
-            progress(si, c)
-        })?;
-        let mut rep = r;
-        rep.position = src.pos.map(|p| p.to_num::<f64>());
-        for (c, b) in cells.iter().zip(&before) {
-            let k = &c.counters;
-            let processed = k.processed - b.processed;
-            rep.counts.beams_processed += processed;
-            rep.counts.beams_merged += k.merged - b.merged;
-            if processed > rep.counts.lb_cell_load {
-                rep.counts.lb_cell_load = processed;
-                rep.busiest_cell = [c.x as u32, c.y as u32];
-            }
-            rep.counts.rays_absorbed += (k.rays_absorbed - b.rays_absorbed) as u128;
-            rep.counts.rays_exited += (k.rays_exited - b.rays_exited) as u128;
-            rep.counts.rays_skipped += (k.rays_skipped - b.rays_skipped) as u128;
-            rep.counts.blocked_cell_cycles += k.blocked_cycles - b.blocked_cycles;
-            rep.counts.held_cell_cycles += k.held_cycles - b.held_cycles;
-            rep.counts.peak_fifo = rep.counts.peak_fifo.max(k.peak_fifo);
-            if processed > 0 {
-                rep.counts.lb_distance = rep.counts.lb_distance.max(k.max_layer as u64 + 1);
-            }
-        }
-        rep.counts.lower_bound = rep.counts.lb_distance.max(rep.counts.lb_cell_load);
-        let c = &rep.counts;
-        if c.rays_emitted != c.rays_absorbed + c.rays_exited + c.rays_skipped {
-            bail!(
-                "ray conservation violated for source {si}: emitted {} ≠ absorbed {} + exited {} + skipped {}",
-                c.rays_emitted,
-                c.rays_absorbed,
-                c.rays_exited,
-                c.rays_skipped
-            );
-        }
-        reports.push(rep);
     }
-    Ok(Lighting { n, cells, reports, visited, link_faults: links.map(|l| l.counts), rule: cfg.rule })
+}
+
+/// Add what the cells counted during one source's diffusion (since `before`) to its report.
+fn add_cell_counts<F: FracBits>(rep: &mut SourceReport, cells: &[HostLightCell<F>], before: &[LightCounters]) {
+    for (c, b) in cells.iter().zip(before) {
+        let k = &c.counters;
+        let processed = k.processed - b.processed;
+        rep.counts.beams_processed += processed;
+        rep.counts.beams_merged += k.merged - b.merged;
+        if processed > rep.counts.lb_cell_load {
+            rep.counts.lb_cell_load = processed;
+            rep.busiest_cell = [c.x as u32, c.y as u32];
+        }
+        rep.counts.rays_absorbed += (k.rays_absorbed - b.rays_absorbed) as u128;
+        rep.counts.rays_exited += (k.rays_exited - b.rays_exited) as u128;
+        rep.counts.rays_skipped += (k.rays_skipped - b.rays_skipped) as u128;
+        rep.counts.blocked_cell_cycles += k.blocked_cycles - b.blocked_cycles;
+        rep.counts.held_cell_cycles += k.held_cycles - b.held_cycles;
+        rep.counts.peak_fifo = rep.counts.peak_fifo.max(k.peak_fifo);
+        if processed > 0 {
+            rep.counts.lb_distance = rep.counts.lb_distance.max(k.max_layer as u64 + 1);
+        }
+    }
+    rep.counts.lower_bound = rep.counts.lb_distance.max(rep.counts.lb_cell_load);
+}
+
+/// Every ray emitted was absorbed, left the grid or was skipped.
+fn check_conservation(si: usize, c: &DiffusionCounts) -> Result<()> {
+    if c.rays_emitted != c.rays_absorbed + c.rays_exited + c.rays_skipped {
+        bail!(
+            "ray conservation violated for source {si}: emitted {} ≠ absorbed {} + exited {} + skipped {}",
+            c.rays_emitted,
+            c.rays_absorbed,
+            c.rays_exited,
+            c.rays_skipped
+        );
+    }
+    Ok(())
 }
 
 /// What a run records besides its results: visited voxels, cell traces.
 struct Recording<'a> {
     visited: Option<&'a mut [bool]>,
     tap: Option<&'a mut Tap>,
-    links: Option<&'a mut FaultyLinks>,
 }
 
 /// Active cells per piece of work handed to a thread (below it, splitting costs more than it
@@ -479,7 +556,7 @@ fn prefetch_cell<F: FracBits>(c: &HostLightCell<F>, fifo_lines: usize) {
 /// What a piece of the compute phase reports: its beam-count change, whether a beam was
 /// processed, (when visits are recorded) the cells and depths processed, (when cells are
 /// traced) every cell's step result, and the link offers of its cells; and what a piece of the
-/// link phase reports (`delta`, `taken`, `woke`, `roused`).
+/// link phase reports (`delta`, `any`, `taken`, `woke`, `roused`, `took`).
 ///
 /// One per piece lives for the whole diffusion and is cleared, not dropped, each cycle: lists
 /// allocated afresh every cycle went back to the kernel when the allocator trimmed its heap,
@@ -487,6 +564,8 @@ fn prefetch_cell<F: FracBits>(c: &HostLightCell<F>, fifo_lines: usize) {
 #[derive(Default)]
 struct PieceResult<F: FracBits> {
     delta: i64,
+    /// Compute phase: a beam was processed or held; link phase: a beam was delivered or
+    /// acknowledged.
     any: bool,
     seen: Vec<(usize, u16)>,
     steps: Vec<(usize, Step)>,
@@ -503,9 +582,12 @@ struct PieceResult<F: FracBits> {
     woke: Vec<u32>,
     /// Link phase: the piece's offers in link order ([`link_order`]).
     order: Vec<(u8, u32)>,
-    /// Link phase: messages taken, and sleeping cells a delivery woke.
+    /// Link phase: beams delivered, and sleeping cells a delivery woke.
     taken: u64,
     roused: usize,
+    /// Link phase: the journal of the piece's links (beams taken, in link order; only
+    /// recording links write it).
+    took: Vec<Took<F>>,
 }
 
 impl<F: FracBits> PieceResult<F> {
@@ -523,6 +605,7 @@ impl<F: FracBits> PieceResult<F> {
         self.order.clear();
         self.taken = 0;
         self.roused = 0;
+        self.took.clear();
     }
 }
 
@@ -545,7 +628,6 @@ struct Offer<F: FracBits> {
     from: u32,
     port: u8,
     msg: BeamMsg<F>,
-    taken: bool,
 }
 
 /// The offers of `lists` (list p: the offers on port p, in increasing receiver order) in link
@@ -602,15 +684,19 @@ fn whole<F: FracBits>(offers: &mut [Vec<Offer<F>>; 8]) -> [&mut [Offer<F>]; 8] {
     offers.each_mut().map(Vec::as_mut_slice)
 }
 
-/// Cut `cells` and the per-port offer lists together at the receiver indices `cuts`
-/// (increasing): `(cells of the piece, its first cell, its offers per port)`, pieces without
-/// offers left out. Every offer of a receiver lands in the piece that owns the receiver.
-#[allow(clippy::type_complexity)]
-fn by_receiver<'a, T, F: FracBits>(
+/// A piece of the link phase: its receiving cells, the index of the first, their offers per
+/// port, and their links (by receiving end, [`GridLinks`]).
+type LinkPiece<'a, T, F, L> = (&'a mut [T], usize, [&'a mut [Offer<F>]; 8], &'a mut [L]);
+
+/// Cut `cells`, their links (8 per cell, by receiving end) and the per-port offer lists
+/// together at the receiver indices `cuts` (increasing), pieces without offers left out. Every
+/// offer of a receiver lands in the piece that owns the receiver and its links.
+fn by_receiver<'a, T, F: FracBits, L>(
     mut cells: &'a mut [T],
+    mut links: &'a mut [L],
     offers: &'a mut [Vec<Offer<F>>; 8],
     cuts: &[u32],
-) -> Vec<(&'a mut [T], usize, [&'a mut [Offer<F>]; 8])> {
+) -> Vec<LinkPiece<'a, T, F, L>> {
     let mut rest = whole(offers);
     let mut out = Vec::with_capacity(cuts.len() + 1);
     let (mut base, total) = (0usize, cells.len());
@@ -623,18 +709,20 @@ fn by_receiver<'a, T, F: FracBits>(
             mine
         });
         let (tile, tail) = std::mem::take(&mut cells).split_at_mut(end - base);
+        let (tile_links, links_tail) = std::mem::take(&mut links).split_at_mut((end - base) * 8);
         if lists.iter().any(|l| !l.is_empty()) {
-            out.push((tile, base, lists));
+            out.push((tile, base, lists, tile_links));
         }
         cells = tail;
+        links = links_tail;
         base = end;
     }
     out
 }
 
-/// Drop the messages of cell `i` whose offers were taken (its `taken` bits, then cleared),
-/// counting each on its link with `bump`; whether there were any.
-fn pop_taken<F: FracBits>(c: &mut HostLightCell<F>, i: usize, taken: &[AtomicU8], bump: &impl Fn(usize)) -> bool {
+/// Drop the messages of cell `i` whose offers were taken (its `taken` bits, then cleared);
+/// whether there were any.
+fn pop_taken<F: FracBits>(c: &mut HostLightCell<F>, i: usize, taken: &[AtomicU8]) -> bool {
     let ports = taken[i].load(Relaxed);
     if ports == 0 {
         return false;
@@ -642,33 +730,67 @@ fn pop_taken<F: FracBits>(c: &mut HostLightCell<F>, i: usize, taken: &[AtomicU8]
     taken[i].store(0, Relaxed);
     for p in Port::each(ports) {
         c.out.pop_front(p);
-        bump(i * 8 + p.index());
     }
     true
 }
 
+/// Mark the heads of cell `i` that went on the wire this cycle and were not acknowledged (its
+/// `unacked` bits, then cleared), and unmark those acknowledged (its `taken` bits): a head on
+/// the wire is not merged into ([`LightCell::head_in_flight`]).
+fn mark_in_flight<F: FracBits>(c: &mut HostLightCell<F>, i: usize, taken: &[AtomicU8], unacked: &[AtomicU8]) {
+    let u = unacked[i].load(Relaxed);
+    if u != 0 {
+        unacked[i].store(0, Relaxed);
+    }
+    c.head_in_flight = (c.head_in_flight & !taken[i].load(Relaxed)) | u;
+}
+
+/// Not a sleeper (see [`Sleepers::asleep`]).
+const AWAKE: u64 = u64::MAX;
+
+/// One source's diffusion: the cycle loop over the phases of [`Run`].
 #[allow(clippy::too_many_arguments)]
-fn diffuse_one<F: FracBits, const D: usize>(
+fn diffuse_one<F: FracBits, const D: usize, L: HostLink<F>>(
     grid: &Grid<D>,
     cells: &mut [HostLightCell<F>],
+    links: &mut [L],
     src: &Source,
     si: usize,
     env: &LightEnv<'_, F>,
-    stepping: Stepping,
+    cfg: &LightConfig,
     dead: Option<OccupiedBox>,
-    stall_cycles: u64,
     rec: Recording<'_>,
     mut progress: impl FnMut(u64),
 ) -> Result<SourceReport> {
-    let Recording { mut visited, mut tap, mut links } = rec;
-    let n = grid.n as usize;
+    let mut run = Run::new(grid, cells, links, src, si, env, cfg, dead, rec);
+    while run.running() {
+        let mut moved = run.emit();
+        moved |= run.compute();
+        moved |= run.links();
+        run.pop();
+        run.cycle += 1;
+        let busy_now = run.next_active();
+        run.settle(busy_now, moved)?;
+        if run.cycle % 256 == 0 {
+            progress(run.cycle);
+        }
+    }
+    progress(run.cycle);
+    Ok(run.finish())
+}
+
+/// The six initial beams of `src` that the dead-direction skip keeps, their rays counted in
+/// `rep` (the skipped ones as skipped).
+fn initial_beams<F: FracBits>(
+    src: &Source,
+    far: FarDistance<F>,
+    dead: Option<OccupiedBox>,
+    rep: &mut SourceReport,
+) -> Vec<Beam<F>> {
     let sv = src.voxel();
-    let s_idx = sv[1] as usize * n + sv[0] as usize;
-    let activity = Activity::new();
-    let mut rep = SourceReport { source: si, ..Default::default() };
-    let mut initial: Vec<Beam<F>> = Vec::new();
+    let mut initial = Vec::new();
     for d in Direction::ALL {
-        let b = Beam::initial(src, d, env.far);
+        let b = Beam::initial(src, d, far);
         rep.counts.rays_emitted += b.ray_count() as u128;
         if dead.is_some_and(|bx| bx.receding(d, sv, sv.map(i64::from))) {
             rep.counts.rays_skipped += b.ray_count() as u128;
@@ -676,400 +798,625 @@ fn diffuse_one<F: FracBits, const D: usize>(
             initial.push(b);
         }
     }
-    activity.add(initial.len() as u64);
-    let mut pending = initial.into_iter();
-    let mut next_initial = pending.next();
-    let all: Vec<u32> = match stepping {
-        Stepping::AllCells => (0..cells.len() as u32).collect(),
-        Stepping::Active => Vec::new(),
-    };
-    let mut active: Vec<u32> = vec![s_idx as u32];
-    // Per-cell flags and counters that the parallel pieces of a phase write, each index from
-    // one piece only: relaxed atomics are plain loads and stores, and the phase's join orders
-    // them. `in_active`: the cell is (or, during a cycle, will be) in the active list.
-    let in_active: Vec<AtomicBool> =
-        (0..if stepping == Stepping::Active { cells.len() } else { 0 }).map(|_| AtomicBool::new(false)).collect();
-    if stepping == Stepping::Active {
-        in_active[s_idx].store(true, Relaxed);
+    initial
+}
+
+/// The state of one source's diffusion from cycle to cycle, and its phases (the module doc's
+/// cycle model). Per-cell flags and counters that the parallel pieces of a phase write, each
+/// index from one piece only, are relaxed atomics: plain loads and stores, and the phase's join
+/// orders them.
+struct Run<'a, 'e, F: FracBits, const D: usize, L> {
+    grid: &'a Grid<D>,
+    cells: &'a mut [HostLightCell<F>],
+    /// The grid's links, by receiving end ([`GridLinks`]).
+    links: &'a mut [L],
+    env: &'a LightEnv<'e, F>,
+    stepping: Stepping,
+    visited: Option<&'a mut [bool]>,
+    tap: Option<&'a mut Tap>,
+    si: usize,
+    /// The source's voxel and its cell.
+    sv: [i32; 3],
+    s_idx: usize,
+    activity: Activity,
+    rep: SourceReport,
+    /// The initial beams the emitter has not handed over yet.
+    pending: std::vec::IntoIter<Beam<F>>,
+    next_initial: Option<Beam<F>>,
+    /// Every cell (all-cells stepping), or the cells holding beams, in row-major order.
+    all: Vec<u32>,
+    active: Vec<u32>,
+    /// The cell is (or, during a cycle, will be) in the active list.
+    in_active: Vec<AtomicBool>,
+    /// Ports whose offer the receiver took this cycle, per sender (set by the receivers'
+    /// pieces, consumed by the senders' pieces); and (links that may not acknowledge at once)
+    /// ports whose offer went on the wire unacknowledged.
+    taken_ports: Vec<AtomicU8>,
+    unacked_ports: Vec<AtomicU8>,
+    /// The links acknowledge every delivery at once ([`cell_core::link::Link::LOSSLESS`]).
+    lossless: bool,
+    /// Deferred pops: a sender drops what was taken at the start of its next step, when the
+    /// compute pass has the cell in cache anyway, instead of in a pass of its own over every
+    /// sender (a third walk over scattered cells per cycle). Exact: between the link phase and
+    /// its next step a sender is touched only by deliveries into its FIFO (and by the emitter,
+    /// whose cell's pops are not deferred), which neither read nor change output buffers.
+    /// Every sender is in the next active list (its output was busy). The busy count a cycle
+    /// reports (`peak_active_cells`) is settled one cycle late: the cells the pops left idle
+    /// are subtracted then. The reference modes (all cells, links that acknowledge later) pop
+    /// in a pass.
+    defer_pops: bool,
+    /// Cells counted busy at the end of the last cycle, pending its deferred pops.
+    pending_busy: Option<u64>,
+    offers: [Vec<Offer<F>>; 8],
+    /// Where the compute pieces started (cell indices): the link phase cuts the receivers
+    /// there too.
+    cuts: Vec<u32>,
+    /// Per-piece results, kept from cycle to cycle (see `PieceResult`).
+    scratch: Vec<PieceResult<F>>,
+    /// Messages delivered per link, by receiving end ([`links::slot`]).
+    link_load: Vec<AtomicU32>,
+    woken: Vec<u32>,
+    merged: Vec<u32>,
+    cycle: u64,
+    sleepers: Sleepers,
+    /// With links that acknowledge later a message can sit in an output buffer, already
+    /// delivered, waiting for its acknowledgement after the last beam was consumed: run until
+    /// the buffers are empty.
+    unacked: bool,
+    /// Cycles in a row in which no beam was processed, delivered or acknowledged.
+    stalled: u64,
+    stall_limit: u64,
+}
+
+/// Held cells the host does not visit until their sibling wait ends or a beam arrives (exact:
+/// [`LightCell::skip_held`] gives them the steps they missed). Not while tracing (a trace
+/// records every step), not over links that acknowledge later.
+struct Sleepers {
+    /// Cells may sleep.
+    on: bool,
+    /// Per cell: the cycle it fell asleep ([`AWAKE`]: it did not).
+    asleep: Vec<AtomicU64>,
+    /// Per cycle modulo `hold + 1`: the sleepers whose wait ends then.
+    alarms: Vec<Vec<(u32, u64)>>,
+    /// Cells asleep.
+    count: usize,
+}
+
+impl Sleepers {
+    /// None asleep among `cells` cells (which may sleep if `on`), sibling wait `hold`.
+    fn new(on: bool, cells: usize, hold: u16) -> Self {
+        Sleepers {
+            on,
+            asleep: (0..if on { cells } else { 0 }).map(|_| AtomicU64::new(AWAKE)).collect(),
+            alarms: (0..hold as usize + 1).map(|_| Vec::new()).collect(),
+            count: 0,
+        }
     }
-    // Ports whose offer the receiver took this cycle, per sender (set by the receivers' pieces,
-    // consumed by the senders' pieces).
-    let taken_ports: Vec<AtomicU8> = (0..cells.len()).map(|_| AtomicU8::new(0)).collect();
-    // Deferred pops: a sender drops what was taken at the start of its next step, when the
-    // compute pass has the cell in cache anyway, instead of in a pass of its own over every
-    // sender (a third walk over scattered cells per cycle). Exact: between the link phase and
-    // its next step a sender is touched only by deliveries into its FIFO (and by the emitter,
-    // whose cell's pops are not deferred), which neither read nor change output buffers. Every
-    // sender is in the next active list (its output was busy). The busy count a cycle reports
-    // (`peak_active_cells`) is settled one cycle late: the cells the pops left idle are
-    // subtracted then. The reference modes (all cells, faulty links) pop in a pass.
-    let defer_pops = stepping == Stepping::Active && links.is_none();
-    // Cells counted busy at the end of the last cycle, pending its deferred pops.
-    let mut pending_busy: Option<u64> = None;
-    let mut offers: [Vec<Offer<F>>; 8] = Default::default();
-    // Where the compute pieces started (cell indices), and a link order (see `link_order`).
-    let mut cuts: Vec<u32> = Vec::new();
-    let mut order: Vec<(u8, u32)> = Vec::new();
-    // Per-piece results, kept from cycle to cycle (see `PieceResult`).
-    let mut scratch: Vec<PieceResult<F>> = Vec::new();
-    // Messages delivered per (sending cell, port).
-    let link_load: Vec<AtomicU32> = (0..cells.len() * 8).map(|_| AtomicU32::new(0)).collect();
-    let bump = |i: usize| link_load[i].store(link_load[i].load(Relaxed) + 1, Relaxed);
-    let mut woken: Vec<u32> = Vec::new();
-    let mut merged: Vec<u32> = Vec::new();
-    let record = visited.is_some();
-    let tapping = tap.is_some();
-    let mut cycle: u64 = 0;
-    // Held cells the host does not visit until their sibling wait ends or a beam arrives
-    // (exact: [`LightCell::skip_held`] gives them the steps they missed). Not while tracing
-    // (a trace records every step).
-    const AWAKE: u64 = u64::MAX;
-    let may_sleep = stepping == Stepping::Active && tap.is_none() && links.is_none() && env.hold > 0;
-    let asleep: Vec<AtomicU64> = (0..if may_sleep { cells.len() } else { 0 }).map(|_| AtomicU64::new(AWAKE)).collect();
-    let ring = env.hold as usize + 1;
-    let mut alarms: Vec<Vec<(u32, u64)>> = (0..ring).map(|_| Vec::new()).collect();
-    let mut sleeping: usize = 0;
-    // With faulty links a message can sit in an output buffer, already delivered, waiting for
-    // its acknowledgement after the last beam was consumed: run until the buffers are empty.
-    let mut unacked = false;
-    // Cycles in a row in which no beam was processed, delivered or acknowledged.
-    let mut stalled: u64 = 0;
-    let stall_limit = stall_cycles.max(1);
-    while !activity.is_quiescent() || unacked {
-        let mut moved = false;
-        // 1. Source emitter.
-        if let Some(b) = next_initial {
-            if cells[s_idx].can_accept(env.fa) {
-                let msg = BeamMsg::new(b, sv[2] as u16);
-                if let Some(r) = tap.as_deref_mut().and_then(|t| t.get(s_idx)) {
-                    r.inject(&msg);
-                }
-                if cells[s_idx].accept(msg, env.merge, &activity).is_ok() {
-                    next_initial = pending.next();
-                    moved = true;
-                }
-            }
+}
+
+/// Per-cell flags, `len` of them or none.
+fn flags<T: Default>(on: bool, len: usize) -> Vec<T> {
+    (0..if on { len } else { 0 }).map(|_| T::default()).collect()
+}
+
+impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        grid: &'a Grid<D>,
+        cells: &'a mut [HostLightCell<F>],
+        links: &'a mut [L],
+        src: &Source,
+        si: usize,
+        env: &'a LightEnv<'e, F>,
+        cfg: &LightConfig,
+        dead: Option<OccupiedBox>,
+        rec: Recording<'a>,
+    ) -> Self {
+        let (n, len, stepping) = (grid.n as usize, cells.len(), cfg.stepping);
+        let sv = src.voxel();
+        let s_idx = sv[1] as usize * n + sv[0] as usize;
+        let mut rep = SourceReport { source: si, ..Default::default() };
+        let initial = initial_beams(src, env.far, dead, &mut rep);
+        let activity = Activity::new();
+        activity.add(initial.len() as u64);
+        let mut pending = initial.into_iter();
+        let next_initial = pending.next();
+        let active_stepping = stepping == Stepping::Active;
+        let in_active: Vec<AtomicBool> = flags(active_stepping, len);
+        if active_stepping {
+            in_active[s_idx].store(true, Relaxed);
         }
-        let visit: &[u32] = if stepping == Stepping::AllCells { &all } else { &active };
-        let emitting = next_initial.is_some();
-        // 2. Compute: every visited cell steps on its own state and its own dexels, in parallel
-        //    over pieces of the (row-major) visit list; each piece counts beams in a local delta.
-        //    A cell's output buffers change only in its own step, so the piece also gathers its
-        //    cells' link offers (the message at the front of each busy output buffer) while the
-        //    cell is in cache: the same offers, in the same order, as a pass after all steps.
-        let wave = env.policy.by_layer();
-        let pieces = tiles(cells, visit, PIECE);
-        // Where the pieces start: the link phase cuts the receivers there too.
-        cuts.clear();
-        cuts.extend(pieces.iter().skip(1).map(|&(_, base, _)| base as u32));
-        let done = scratch_for(&mut scratch, pieces.len());
+        let lossless = lossless::<F, L>();
+        let may_sleep = active_stepping && rec.tap.is_none() && lossless && env.hold > 0;
+        Run {
+            grid,
+            cells,
+            links,
+            env,
+            stepping,
+            visited: rec.visited,
+            tap: rec.tap,
+            si,
+            sv,
+            s_idx,
+            activity,
+            rep,
+            pending,
+            next_initial,
+            all: if active_stepping { Vec::new() } else { (0..len as u32).collect() },
+            active: vec![s_idx as u32],
+            in_active,
+            taken_ports: flags(true, len),
+            unacked_ports: flags(!lossless, len),
+            lossless,
+            defer_pops: active_stepping && lossless,
+            pending_busy: None,
+            offers: Default::default(),
+            cuts: Vec::new(),
+            scratch: Vec::new(),
+            link_load: flags(true, len * 8),
+            woken: Vec::new(),
+            merged: Vec::new(),
+            cycle: 0,
+            sleepers: Sleepers::new(may_sleep, len, env.hold),
+            unacked: false,
+            stalled: 0,
+            stall_limit: cfg.stall_cycles.max(1),
+        }
+    }
+
+    /// Beams are in flight (or messages wait for their acknowledgement).
+    fn running(&self) -> bool {
+        !self.activity.is_quiescent() || self.unacked
+    }
+
+    /// 1. The source emitter hands the next initial beam to the source cell if its FIFO has
+    ///    room; whether it did.
+    fn emit(&mut self) -> bool {
+        let Some(b) = self.next_initial else { return false };
+        let s_idx = self.s_idx;
+        if !self.cells[s_idx].can_accept(self.env.fa) {
+            return false;
+        }
+        let msg = BeamMsg::new(b, self.sv[2] as u16);
+        if let Some(r) = self.tap.as_deref_mut().and_then(|t| t.get(s_idx)) {
+            r.inject(&msg);
+        }
+        if self.cells[s_idx].accept(msg, self.env.merge, &self.activity).is_ok() {
+            self.next_initial = self.pending.next();
+            return true;
+        }
+        false
+    }
+
+    /// 2. Compute: every visited cell steps on its own state and its own dexels, in parallel
+    ///    over pieces of the (row-major) visit list; each piece counts beams in a local delta.
+    ///    A cell's output buffers change only in its own step, so the piece also gathers its
+    ///    cells' link offers (the message at the front of each busy output buffer) while the
+    ///    cell is in cache: the same offers, in the same order, as a pass after all steps.
+    ///    Whether a beam was processed (or held).
+    fn compute(&mut self) -> bool {
+        let k = StepCtx {
+            grid: self.grid,
+            env: self.env,
+            taken_ports: &self.taken_ports,
+            defer_pops: self.defer_pops,
+            tapping: self.tap.is_some(),
+            record: self.visited.is_some(),
+            may_sleep: self.sleepers.on,
+            s_idx: self.s_idx,
+            emitting: self.next_initial.is_some(),
+            n: self.grid.n as usize,
+            wave: self.env.policy.by_layer(),
+        };
+        let visit = if self.stepping == Stepping::AllCells { &self.all } else { &self.active };
+        let pieces = tiles(self.cells, visit, PIECE);
+        self.cuts.clear();
+        self.cuts.extend(pieces.iter().skip(1).map(|&(_, base, _)| base as u32));
+        let count = pieces.len();
+        let done = scratch_for(&mut self.scratch, count);
         pieces.into_par_iter().zip(done.par_iter_mut()).for_each(|((tile, base, idx), r)| {
-            let delta = ActivityDelta::new();
-            for (k, &i) in idx.iter().enumerate() {
-                if let Some(&j) = idx.get(k + AHEAD) {
-                    let cj = &tile[j as usize - base];
-                    prefetch_cell(cj, 4);
-                    prefetch_ends(&grid.cells[j as usize].store);
-                    if defer_pops {
-                        // The buffers its pending pops will shift.
-                        let t = taken_ports[j as usize].load(Relaxed);
-                        for p in Port::each(t) {
-                            prefetch(cj.out.slots(p));
-                        }
-                    }
-                }
-                let c = &mut tile[i as usize - base];
-                if defer_pops && pop_taken(c, i as usize, &taken_ports, &bump) && !c.busy() {
-                    r.drained += 1;
-                }
-                let step = c.step(&grid.cells[i as usize], env, &delta);
-                if tapping {
-                    r.steps.push((i as usize, step));
-                }
-                // A sibling wait ends by itself within `hold` cycles: not a stall.
-                r.any |= step == Step::Held;
-                if step == Step::Processed {
-                    r.any = true;
-                    if record {
-                        r.seen.push((i as usize, c.last_z));
-                    }
-                }
-                if !c.busy() {
-                    r.quiet.push(i);
-                } else if may_sleep && step == Step::Held && !c.out.any() && (i as usize != s_idx || !emitting) {
-                    if let Some(w) = c.held_wait() {
-                        r.sleep.push((i, w));
-                    }
-                }
-                for p in c.out.busy_ports() {
-                    let m = &c.out.waiting(p)[0];
-                    let (dx, dy) = p.delta();
-                    let to = (i as i64 + dy as i64 * n as i64 + dx as i64) as u32;
-                    let key = if wave { m.beam.layer().0 } else { 0 };
-                    r.offers[p.index()].push(Offer { to, key, from: i, port: p.index() as u8, msg: *m, taken: false });
-                }
-            }
-            r.delta = delta.get();
+            k.step_piece(tile, base, idx, r);
         });
-        offers.iter_mut().for_each(Vec::clear);
+        self.gather_steps(count)
+    }
+
+    /// The compute pieces' results, in piece order: offers, idle and sleeping cells, beam
+    /// counts, trace steps, visits. Whether a beam was processed (or held).
+    fn gather_steps(&mut self, count: usize) -> bool {
+        self.offers.iter_mut().for_each(Vec::clear);
+        let done = &self.scratch[..count];
         let drained: u64 = done.iter().map(|r| r.drained).sum();
-        if let Some(b) = pending_busy.take() {
-            rep.counts.peak_active_cells = rep.counts.peak_active_cells.max(b - drained);
+        if let Some(b) = self.pending_busy.take() {
+            self.rep.counts.peak_active_cells = self.rep.counts.peak_active_cells.max(b - drained);
         }
+        let (cycle, ring, depth) = (self.cycle, self.sleepers.alarms.len(), self.grid.depth as usize);
+        let mut moved = false;
         for PieceResult { delta, any, seen, steps, offers: o, quiet, sleep, .. } in done.iter() {
-            let (delta, any) = (*delta, *any);
-            for (all, mine) in offers.iter_mut().zip(o) {
+            for (all, mine) in self.offers.iter_mut().zip(o) {
                 all.extend_from_slice(mine);
             }
-            if stepping == Stepping::Active {
+            if self.stepping == Stepping::Active {
                 // Marked idle now; a quiet cell that receives below is marked busy again.
                 for &q in quiet {
-                    in_active[q as usize].store(false, Relaxed);
+                    self.in_active[q as usize].store(false, Relaxed);
                 }
                 // Sleepers too, until their wait ends (or a beam arrives, below).
                 for &(q, w) in sleep {
-                    in_active[q as usize].store(false, Relaxed);
-                    asleep[q as usize].store(cycle, Relaxed);
-                    alarms[(cycle + w as u64) as usize % ring].push((q, cycle));
-                    sleeping += 1;
+                    self.in_active[q as usize].store(false, Relaxed);
+                    self.sleepers.asleep[q as usize].store(cycle, Relaxed);
+                    self.sleepers.alarms[(cycle + w as u64) as usize % ring].push((q, cycle));
+                    self.sleepers.count += 1;
                 }
             }
-            activity.apply(delta);
-            moved |= any;
-            if let Some(t) = tap.as_deref_mut() {
+            self.activity.apply(*delta);
+            moved |= *any;
+            if let Some(t) = self.tap.as_deref_mut() {
                 for &(i, step) in steps {
                     if let Some(r) = t.get(i) {
                         r.step(step);
                     }
                 }
             }
-            if let Some(v) = visited.as_deref_mut() {
+            if let Some(v) = self.visited.as_deref_mut() {
                 for &(i, z) in seen {
-                    v[i * grid.depth as usize + z as usize] = true;
+                    v[i * depth + z as usize] = true;
                 }
             }
         }
-        // 3. Links. Under the wavefront policy the oldest messages (smallest layer) claim FIFO
-        //    credits first; under the thesis's, senders in row-major order. A (sender, port)
-        //    feeds one receiver, and receivers interact only through their own FIFO, so each
-        //    receiver pulls its offers in (key, sender) order — the same outcome as one global
-        //    pass in (key, row-major sender) order — in parallel. Each port's offers are in
-        //    receiver order already (a port's receiver is its sender plus a constant): the
-        //    lists are merged ([`link_order`]), not sorted.
-        if let Some(fl) = links.as_deref_mut() {
-            // Faulty links: the same offers in the same order, one frame each through the codec
-            // and the injector; a message leaves its buffer only when acknowledged.
-            let lists = whole(&mut offers);
-            link_order(&lists, &mut order);
-            for &(p, j) in &order {
-                let o = &mut lists[p as usize][j as usize];
-                let to = o.to as usize;
-                if !cells[to].can_accept(env.fa) {
-                    continue;
-                }
-                let port = Port::ALL[o.port as usize];
-                let t = fl.transfer(
-                    cycle,
-                    o.from as usize,
-                    port,
-                    to,
-                    &o.msg,
-                    env.far,
-                    &mut cells[to],
-                    env.merge,
-                    &activity,
-                );
-                moved |= t.delivered || t.acked;
-                o.taken = t.acked;
-                if t.acked {
-                    taken_ports[o.from as usize].fetch_or(1 << o.port, Relaxed);
-                }
-                let bit = 1u8 << o.port;
-                let sender = &mut cells[o.from as usize];
-                sender.head_in_flight =
-                    if t.acked { sender.head_in_flight & !bit } else { sender.head_in_flight | bit };
-                if t.delivered {
-                    rep.counts.messages += 1;
-                    bump(o.from as usize * 8 + o.port as usize);
-                    if stepping == Stepping::Active && !in_active[to].swap(true, Relaxed) {
-                        woken.push(o.to);
-                    }
-                }
-            }
-        } else {
-            let groups = by_receiver(cells, &mut offers, &cuts);
-            let pulled = scratch_for(&mut scratch, groups.len());
-            groups.into_par_iter().zip(pulled.par_iter_mut()).for_each(|((tile, base, lists), r)| {
-                let delta = ActivityDelta::new();
-                let PieceResult { taken, woke, roused, order, .. } = r;
-                link_order(&lists, order);
-                for k in 0..order.len() {
-                    if let Some(&(p, j)) = order.get(k + AHEAD) {
-                        let a = &lists[p as usize][j as usize];
-                        prefetch_cell(&tile[a.to as usize - base], 1);
-                        prefetch(&taken_ports[a.from as usize]);
-                    }
-                    let (p, j) = order[k];
-                    let o = &mut lists[p as usize][j as usize];
-                    let c = &mut tile[o.to as usize - base];
-                    if !c.can_accept(env.fa) {
-                        continue;
-                    }
-                    if may_sleep {
-                        // A sleeper first takes the held steps it missed (cycles
-                        // c0 + 1 ..= cycle): the arrival is stamped with its true clock.
-                        let c0 = asleep[o.to as usize].load(Relaxed);
-                        if c0 != AWAKE {
-                            c.skip_held((cycle - c0) as u16);
-                            asleep[o.to as usize].store(AWAKE, Relaxed);
-                            *roused += 1;
-                        }
-                    }
-                    if c.accept(o.msg, env.merge, &delta).is_ok() {
-                        o.taken = true;
-                        *taken += 1;
-                        taken_ports[o.from as usize].fetch_or(1 << o.port, Relaxed);
-                        // Receivers are this piece's alone: a plain load and store.
-                        if stepping == Stepping::Active && !in_active[o.to as usize].load(Relaxed) {
-                            in_active[o.to as usize].store(true, Relaxed);
-                            woke.push(o.to);
-                        }
-                    }
-                }
-                r.delta = delta.get();
-            });
-            for r in pulled.iter() {
-                sleeping -= r.roused;
-                activity.apply(r.delta);
-                rep.counts.messages += r.taken;
-                moved |= r.taken > 0;
-                woken.extend_from_slice(&r.woke);
-            }
-        }
-        // Senders drop what was taken: deferred to their next step (see `defer_pops`) but for
-        // the emitting cell, whose room the emitter checks first; otherwise in parallel over the
-        // visited cells (every sender is one). A cell's last pop leaves its flag right
-        // (receptions came before the pops).
-        if defer_pops {
-            let c = &mut cells[s_idx];
-            if pop_taken(c, s_idx, &taken_ports, &bump) {
-                in_active[s_idx].store(c.busy(), Relaxed);
-            }
-        } else {
-            let count_load = links.is_none();
-            tiles(cells, visit, PIECE).into_par_iter().for_each(|(tile, base, idx)| {
-                for (k, &i) in idx.iter().enumerate() {
-                    if let Some(&j) = idx.get(k + AHEAD) {
-                        prefetch_cell(&tile[j as usize - base], 0);
-                    }
-                    let i = i as usize;
-                    let c = &mut tile[i - base];
-                    let popped = if count_load {
-                        pop_taken(c, i, &taken_ports, &bump)
-                    } else {
-                        pop_taken(c, i, &taken_ports, &|_| ())
-                    };
-                    if popped && stepping == Stepping::Active {
-                        in_active[i].store(c.busy(), Relaxed);
-                    }
-                }
-            });
-        }
-        if let Some(t) = tap.as_deref_mut() {
-            let lists = whole(&mut offers);
-            link_order(&lists, &mut order);
-            for o in order.iter().map(|&(p, j)| &lists[p as usize][j as usize]).filter(|o| o.taken) {
-                t.transfer(o.from as usize, o.to as usize, Port::ALL[o.port as usize], &o.msg);
-            }
-        }
-        cycle += 1;
-        let busy_now = match stepping {
-            Stepping::Active => {
-                // Sleepers whose wait ends next cycle, and sleepers a beam reached, wake up: they
-                // are owed the held steps they were not given (cycles c0 + 1 ..= cycle).
-                let due = std::mem::take(&mut alarms[(cycle as usize) % ring]);
-                for (q, c0) in due {
-                    if asleep[q as usize].load(Relaxed) == c0 {
-                        cells[q as usize].skip_held((cycle - 1 - c0) as u16);
-                        asleep[q as usize].store(AWAKE, Relaxed);
-                        sleeping -= 1;
-                        let was = in_active[q as usize].swap(true, Relaxed);
-                        debug_assert!(!was);
-                        woken.push(q);
-                    }
-                }
-                // Next cycle's active set: busy cells, in row-major order. `in_active` now says
-                // which cells are busy without reading them: a cell is idle after the link phase
-                // if its step left it quiet and it received nothing, or its last pop drained it;
-                // every receiver holds a beam. (A quiet receiver can be in both lists: the merge keeps one.)
-                active.retain(|&i| in_active[i as usize].load(Relaxed));
-                debug_assert!(woken.iter().all(|&j| cells[j as usize].busy()));
-                woken.sort_unstable();
-                merge_sorted(&mut active, &woken, &mut merged);
-                woken.clear();
-                debug_assert!(active
-                    .iter()
-                    .all(|&i| cells[i as usize].busy() || taken_ports[i as usize].load(Relaxed) != 0));
-                if next_initial.is_some() && !in_active[s_idx].swap(true, Relaxed) {
-                    active.push(s_idx as u32);
-                    active.sort_unstable();
-                }
-                active.len() as u64 + sleeping as u64
-            }
-            Stepping::AllCells => {
-                let busy = cells.par_iter().filter(|c| c.busy()).count() as u64;
-                busy + u64::from(next_initial.is_some() && !cells[s_idx].busy())
-            }
+        moved
+    }
+
+    /// 3. Links. Under the wavefront policy the oldest messages (smallest layer) claim FIFO
+    ///    credits first; under the thesis's, senders in row-major order. A (sender, port)
+    ///    feeds one receiver, and receivers interact only through their own FIFO (and their
+    ///    own links), so each receiver pulls its offers in (key, sender) order — the same
+    ///    outcome as one global pass in (key, row-major sender) order — in parallel. Each
+    ///    port's offers are in receiver order already (a port's receiver is its sender plus a
+    ///    constant): the lists are merged ([`link_order`]), not sorted. Every offer goes
+    ///    through its link ([`HostLink`]); whether a beam was delivered or acknowledged.
+    fn links(&mut self) -> bool {
+        let k = PullCtx {
+            env: self.env,
+            cycle: self.cycle,
+            stepping: self.stepping,
+            may_sleep: self.sleepers.on,
+            lossless: self.lossless,
+            taken_ports: &self.taken_ports,
+            unacked_ports: &self.unacked_ports,
+            in_active: &self.in_active,
+            asleep: &self.sleepers.asleep,
+            link_load: &self.link_load,
         };
-        if defer_pops {
-            pending_busy = Some(busy_now);
-        } else {
-            rep.counts.peak_active_cells = rep.counts.peak_active_cells.max(busy_now);
+        let groups = by_receiver(self.cells, self.links, &mut self.offers, &self.cuts);
+        let count = groups.len();
+        let pulled = scratch_for(&mut self.scratch, count);
+        groups.into_par_iter().zip(pulled.par_iter_mut()).for_each(|(piece, r)| k.pull_piece(piece, r));
+        let mut moved = false;
+        for r in &self.scratch[..count] {
+            self.sleepers.count -= r.roused;
+            self.activity.apply(r.delta);
+            self.rep.counts.messages += r.taken;
+            moved |= r.any;
+            self.woken.extend_from_slice(&r.woke);
+            if let Some(t) = self.tap.as_deref_mut() {
+                r.took.iter().for_each(|e| t.took(e));
+            }
         }
-        unacked = links.is_some() && busy_now > 0;
+        moved
+    }
+
+    /// Senders drop what was taken (and, over links that acknowledge later, mark what is on the
+    /// wire): deferred to their next step (see `defer_pops`) but for the emitting cell, whose
+    /// room the emitter checks first; otherwise in parallel over the visited cells (every
+    /// sender is one). A cell's last pop leaves its flag right (receptions came before the
+    /// pops).
+    fn pop(&mut self) {
+        let (taken, unacked, in_active) = (&self.taken_ports, &self.unacked_ports, &self.in_active);
+        if self.defer_pops {
+            let c = &mut self.cells[self.s_idx];
+            if pop_taken(c, self.s_idx, taken) {
+                in_active[self.s_idx].store(c.busy(), Relaxed);
+            }
+            return;
+        }
+        let (lossless, stepping) = (self.lossless, self.stepping);
+        let visit = if stepping == Stepping::AllCells { &self.all } else { &self.active };
+        tiles(self.cells, visit, PIECE).into_par_iter().for_each(|(tile, base, idx)| {
+            for (k, &i) in idx.iter().enumerate() {
+                if let Some(&j) = idx.get(k + AHEAD) {
+                    prefetch_cell(&tile[j as usize - base], 0);
+                }
+                let i = i as usize;
+                let c = &mut tile[i - base];
+                if !lossless {
+                    mark_in_flight(c, i, taken, unacked);
+                }
+                if pop_taken(c, i, taken) && stepping == Stepping::Active {
+                    in_active[i].store(c.busy(), Relaxed);
+                }
+            }
+        });
+    }
+
+    /// The cells busy at the start of the next cycle (`cycle` is its number), and (active
+    /// stepping) the next cycle's active list.
+    fn next_active(&mut self) -> u64 {
+        match self.stepping {
+            Stepping::Active => self.next_active_list(),
+            Stepping::AllCells => {
+                let busy = self.cells.par_iter().filter(|c| c.busy()).count() as u64;
+                busy + u64::from(self.next_initial.is_some() && !self.cells[self.s_idx].busy())
+            }
+        }
+    }
+
+    /// Sleepers whose wait ends next cycle, and sleepers a beam reached, wake up: they are owed
+    /// the held steps they were not given (cycles c0 + 1 ..= cycle). Next cycle's active set:
+    /// busy cells, in row-major order. `in_active` now says which cells are busy without
+    /// reading them: a cell is idle after the link phase if its step left it quiet and it
+    /// received nothing, or its last pop drained it; every receiver holds a beam. (A quiet
+    /// receiver can be in both lists: the merge keeps one.) Returns the busy count.
+    fn next_active_list(&mut self) -> u64 {
+        let (cycle, ring) = (self.cycle, self.sleepers.alarms.len());
+        let due = std::mem::take(&mut self.sleepers.alarms[(cycle as usize) % ring]);
+        for (q, c0) in due {
+            if self.sleepers.asleep[q as usize].load(Relaxed) == c0 {
+                self.cells[q as usize].skip_held((cycle - 1 - c0) as u16);
+                self.sleepers.asleep[q as usize].store(AWAKE, Relaxed);
+                self.sleepers.count -= 1;
+                let was = self.in_active[q as usize].swap(true, Relaxed);
+                debug_assert!(!was);
+                self.woken.push(q);
+            }
+        }
+        let in_active = &self.in_active;
+        self.active.retain(|&i| in_active[i as usize].load(Relaxed));
+        debug_assert!(self.woken.iter().all(|&j| self.cells[j as usize].busy()));
+        self.woken.sort_unstable();
+        merge_sorted(&mut self.active, &self.woken, &mut self.merged);
+        self.woken.clear();
+        debug_assert!(self
+            .active
+            .iter()
+            .all(|&i| self.cells[i as usize].busy() || self.taken_ports[i as usize].load(Relaxed) != 0));
+        if self.next_initial.is_some() && !self.in_active[self.s_idx].swap(true, Relaxed) {
+            self.active.push(self.s_idx as u32);
+            self.active.sort_unstable();
+        }
+        self.active.len() as u64 + self.sleepers.count as u64
+    }
+
+    /// The end of a cycle: the busy count (settled next cycle under deferred pops), whether
+    /// acknowledgements are awaited, and the stall detector.
+    fn settle(&mut self, busy_now: u64, moved: bool) -> Result<()> {
+        if self.defer_pops {
+            self.pending_busy = Some(busy_now);
+        } else {
+            self.rep.counts.peak_active_cells = self.rep.counts.peak_active_cells.max(busy_now);
+        }
+        self.unacked = !self.lossless && busy_now > 0;
         // A sleeping cell's wait ends by itself: not a stall.
-        stalled = if moved || sleeping > 0 { 0 } else { stalled + 1 };
-        if stalled >= stall_limit {
-            let blocked: Vec<String> = cells
+        self.stalled = if moved || self.sleepers.count > 0 { 0 } else { self.stalled + 1 };
+        if self.stalled >= self.stall_limit {
+            let blocked: Vec<String> = self
+                .cells
                 .iter()
                 .filter(|c| c.busy())
                 .take(8)
                 .map(|c| format!("({}, {}) fifo {} out {:?}", c.x, c.y, c.fifo.len(), Port::ALL.map(|p| c.out.len(p))))
                 .collect();
             bail!(
-                "stall at cycle {cycle} of source {si}: no progress for {stalled} cycle(s) with {} beams in flight \
-                 (deadlock or dead link; --stall-cycles {stall_limit}); blocked cells (fifo, output buffers): {}",
-                activity.get(),
+                "stall at cycle {} of source {}: no progress for {} cycle(s) with {} beams in flight \
+                 (deadlock or dead link; --stall-cycles {}); blocked cells (fifo, output buffers): {}",
+                self.cycle,
+                self.si,
+                self.stalled,
+                self.activity.get(),
+                self.stall_limit,
                 blocked.join("; ")
             );
         }
-        if cycle % 256 == 0 {
-            progress(cycle);
-        }
+        Ok(())
     }
-    progress(cycle);
-    if defer_pops {
-        // The last cycle's pops, and its busy count.
-        let mut drained = 0;
-        for &i in &active {
-            let c = &mut cells[i as usize];
-            if pop_taken(c, i as usize, &taken_ports, &bump) && !c.busy() {
-                drained += 1;
+
+    /// The last cycle's deferred pops and busy count; the cycle count and the busiest link.
+    fn finish(mut self) -> SourceReport {
+        if self.defer_pops {
+            let mut drained = 0;
+            for &i in &self.active {
+                let c = &mut self.cells[i as usize];
+                if pop_taken(c, i as usize, &self.taken_ports) && !c.busy() {
+                    drained += 1;
+                }
+            }
+            if let Some(b) = self.pending_busy {
+                self.rep.counts.peak_active_cells = self.rep.counts.peak_active_cells.max(b - drained);
             }
         }
-        if let Some(b) = pending_busy {
-            rep.counts.peak_active_cells = rep.counts.peak_active_cells.max(b - drained);
+        debug_assert!(self.cells.iter().all(|c| !c.busy()) && self.taken_ports.iter().all(|t| t.load(Relaxed) == 0));
+        self.rep.counts.cycles = self.cycle;
+        let n = self.grid.n as usize;
+        if let Some((i, load)) = busiest_link(n, &self.link_load) {
+            let (x, y) = ((i / 8) % n, (i / 8) / n);
+            self.rep.counts.peak_link_load = load as u64;
+            self.rep.counts.peak_link_distance =
+                (x.abs_diff(self.sv[0] as usize)).max(y.abs_diff(self.sv[1] as usize)) as u32;
+        }
+        self.rep
+    }
+}
+
+/// The busiest link, as (sender · 8 + port, messages): the first in that order among the
+/// busiest. `load` is by receiving end ([`links::slot`]); a port leading out of the grid
+/// carried nothing.
+fn busiest_link(n: usize, load: &[AtomicU32]) -> Option<(usize, u32)> {
+    (0..n * n * 8)
+        .map(|i| {
+            let (x, y) = ((i / 8 % n) as i64, (i / 8 / n) as i64);
+            let (dx, dy) = Port::ALL[i % 8].delta();
+            let (tx, ty) = (x + dx as i64, y + dy as i64);
+            let inside = (0..n as i64).contains(&tx) && (0..n as i64).contains(&ty);
+            let to = (ty * n as i64 + tx) as u32;
+            (i, if inside { load[links::slot(to, (i % 8) as u8)].load(Relaxed) } else { 0 })
+        })
+        .max_by_key(|&(i, l)| (l, std::cmp::Reverse(i)))
+}
+
+/// What every piece of the compute phase reads.
+struct StepCtx<'a, 'e, F: FracBits, const D: usize> {
+    grid: &'a Grid<D>,
+    env: &'a LightEnv<'e, F>,
+    taken_ports: &'a [AtomicU8],
+    defer_pops: bool,
+    tapping: bool,
+    record: bool,
+    may_sleep: bool,
+    s_idx: usize,
+    emitting: bool,
+    n: usize,
+    wave: bool,
+}
+
+impl<F: FracBits, const D: usize> StepCtx<'_, '_, F, D> {
+    /// Step the visited cells `idx` of one piece (`tile`, from cell `base`).
+    fn step_piece(&self, tile: &mut [HostLightCell<F>], base: usize, idx: &[u32], r: &mut PieceResult<F>) {
+        let delta = ActivityDelta::new();
+        for (k, &i) in idx.iter().enumerate() {
+            if let Some(&j) = idx.get(k + AHEAD) {
+                self.prefetch(&tile[j as usize - base], j as usize);
+            }
+            let c = &mut tile[i as usize - base];
+            if self.defer_pops && pop_taken(c, i as usize, self.taken_ports) && !c.busy() {
+                r.drained += 1;
+            }
+            let step = c.step(&self.grid.cells[i as usize], self.env, &delta);
+            self.note(c, i, step, r);
+            for p in c.out.busy_ports() {
+                let m = &c.out.waiting(p)[0];
+                let (dx, dy) = p.delta();
+                let to = (i as i64 + dy as i64 * self.n as i64 + dx as i64) as u32;
+                let key = if self.wave { m.beam.layer().0 } else { 0 };
+                r.offers[p.index()].push(Offer { to, key, from: i, port: p.index() as u8, msg: *m });
+            }
+        }
+        r.delta = delta.get();
+    }
+
+    /// Prefetch what stepping cell `j` (`cj`) reads first.
+    fn prefetch(&self, cj: &HostLightCell<F>, j: usize) {
+        prefetch_cell(cj, 4);
+        prefetch_ends(&self.grid.cells[j].store);
+        if self.defer_pops {
+            // The buffers its pending pops will shift.
+            let t = self.taken_ports[j].load(Relaxed);
+            for p in Port::each(t) {
+                prefetch(cj.out.slots(p));
+            }
         }
     }
-    debug_assert!(cells.iter().all(|c| !c.busy()) && taken_ports.iter().all(|t| t.load(Relaxed) == 0));
-    rep.counts.cycles = cycle;
-    let link_load: Vec<u32> = link_load.into_iter().map(AtomicU32::into_inner).collect();
-    if let Some((i, &load)) = link_load.iter().enumerate().max_by_key(|&(i, &l)| (l, std::cmp::Reverse(i))) {
-        let (x, y) = ((i / 8) % n, (i / 8) / n);
-        rep.counts.peak_link_load = load as u64;
-        rep.counts.peak_link_distance = (x.abs_diff(sv[0] as usize)).max(y.abs_diff(sv[1] as usize)) as u32;
+
+    /// Note cell `i`'s step: for the trace, the stall detector, the visits, and whether it is
+    /// idle or asleep now.
+    fn note(&self, c: &HostLightCell<F>, i: u32, step: Step, r: &mut PieceResult<F>) {
+        if self.tapping {
+            r.steps.push((i as usize, step));
+        }
+        // A sibling wait ends by itself within `hold` cycles: not a stall.
+        r.any |= step == Step::Held;
+        if step == Step::Processed {
+            r.any = true;
+            if self.record {
+                r.seen.push((i as usize, c.last_z));
+            }
+        }
+        if !c.busy() {
+            r.quiet.push(i);
+        } else if self.may_sleep && step == Step::Held && !c.out.any() && (i as usize != self.s_idx || !self.emitting) {
+            if let Some(w) = c.held_wait() {
+                r.sleep.push((i, w));
+            }
+        }
     }
-    Ok(rep)
+}
+
+/// What every piece of the link phase reads.
+struct PullCtx<'a, 'e, F: FracBits> {
+    env: &'a LightEnv<'e, F>,
+    cycle: u64,
+    stepping: Stepping,
+    may_sleep: bool,
+    lossless: bool,
+    taken_ports: &'a [AtomicU8],
+    unacked_ports: &'a [AtomicU8],
+    in_active: &'a [AtomicBool],
+    asleep: &'a [AtomicU64],
+    link_load: &'a [AtomicU32],
+}
+
+impl<F: FracBits> PullCtx<'_, '_, F> {
+    /// Offer every message of one piece of receivers to its link, in link order.
+    fn pull_piece<L: HostLink<F>>(&self, piece: LinkPiece<'_, HostLightCell<F>, F, L>, r: &mut PieceResult<F>) {
+        let (tile, base, lists, links) = piece;
+        let delta = ActivityDelta::new();
+        let PieceResult { taken, woke, roused, order, took, any, .. } = r;
+        link_order(&lists, order);
+        for k in 0..order.len() {
+            if let Some(&(p, j)) = order.get(k + AHEAD) {
+                let a = &lists[p as usize][j as usize];
+                prefetch_cell(&tile[a.to as usize - base], 1);
+                prefetch(&self.taken_ports[a.from as usize]);
+            }
+            let (p, j) = order[k];
+            let o = &lists[p as usize][j as usize];
+            let at = o.to as usize - base;
+            let link = &mut links[at * 8 + BACK[o.port as usize]];
+            let mut rx = CellInbox {
+                cell: &mut tile[at],
+                fa: self.env.fa,
+                merge: self.env.merge,
+                tally: &delta,
+                journal: &mut *took,
+            };
+            if !sure(link.ready(&rx)) {
+                continue;
+            }
+            if self.may_sleep {
+                *roused += self.rouse(rx.cell, o.to);
+            }
+            let sent = sure(link.send(self.cycle, &o.msg, &mut rx));
+            *any |= sent.delivered || sent.acked;
+            let bit = 1u8 << o.port;
+            if sent.acked {
+                self.taken_ports[o.from as usize].fetch_or(bit, Relaxed);
+            } else if !self.lossless {
+                self.unacked_ports[o.from as usize].fetch_or(bit, Relaxed);
+            }
+            if sent.delivered {
+                *taken += 1;
+                let l = &self.link_load[links::slot(o.to, o.port)];
+                l.store(l.load(Relaxed) + 1, Relaxed);
+                // Receivers are this piece's alone: a plain load and store.
+                if self.stepping == Stepping::Active && !self.in_active[o.to as usize].load(Relaxed) {
+                    self.in_active[o.to as usize].store(true, Relaxed);
+                    woke.push(o.to);
+                }
+            }
+        }
+        r.delta = delta.get();
+    }
+
+    /// A sleeper a beam reaches first takes the held steps it missed (cycles c0 + 1 ..= cycle):
+    /// the arrival is stamped with its true clock. 1 if `c` (cell `to`) was asleep.
+    fn rouse(&self, c: &mut HostLightCell<F>, to: u32) -> usize {
+        let c0 = self.asleep[to as usize].load(Relaxed);
+        if c0 == AWAKE {
+            return 0;
+        }
+        c.skip_held((self.cycle - c0) as u16);
+        self.asleep[to as usize].store(AWAKE, Relaxed);
+        1
+    }
 }
 
 /// The grid's 8-block occupancy summary for the empty-frustum skip (what the OR-reduction of
@@ -1181,7 +1528,7 @@ mod tests {
                     let to = (ty * n as i64 + tx) as u32;
                     // Keys from a few values, so that ties between senders are common.
                     let key = key.wrapping_mul(p.index() as u32 + 3) % 4;
-                    lists[p.index()].push(Offer { to, key, from, port: p.index() as u8, msg, taken: false });
+                    lists[p.index()].push(Offer { to, key, from, port: p.index() as u8, msg });
                 }
             }
         }
@@ -1217,9 +1564,12 @@ mod tests {
             prop_assert_eq!(&got, &expect);
 
             let mut cells: Vec<u32> = (0..n * n).collect();
+            let mut links: Vec<u32> = (0..n * n * 8).collect();
             let cuts: Vec<u32> = cut_picks.into_iter().collect();
             let mut seen = Vec::new();
-            for (tile, base, piece) in by_receiver(&mut cells, &mut lists, &cuts) {
+            for (tile, base, piece, tile_links) in by_receiver(&mut cells, &mut links, &mut lists, &cuts) {
+                prop_assert_eq!(tile_links.len(), tile.len() * 8);
+                prop_assert_eq!(tile_links.first().copied(), tile.first().map(|&c| c * 8));
                 for o in piece.iter().flat_map(|l| l.iter()) {
                     prop_assert_eq!(tile[o.to as usize - base], o.to);
                     seen.push((o.to, o.key, o.from, o.port));

@@ -1,9 +1,11 @@
-//! Faulty links: every transfer of the lighting phase's link phase goes through the
-//! real link codec (`cell_core::link`: frame + CRC-32), and a seeded fault injector in the
-//! spirit of smoltcp's `FaultInjector` corrupts or drops frames at given rates.
+//! Faulty links: [`FaultInjector`] wraps any link (`cell_core::link::Link`) with a lossy wire.
+//! Every send goes through the real link codec (`cell_core::link`: frame + CRC-32), and a
+//! seeded fault injector in the spirit of smoltcp's `FaultInjector` corrupts, drops or delays
+//! frames at given rates; what survives the wire is handed to the wrapped link (for the host
+//! grid a [`cell_core::link::PerfectLink`] into the neighbour's FIFO).
 //!
 //! The link protocol that survives it is stop-and-wait with an alternating sequence bit per
-//! (sender, port):
+//! link (sender, port):
 //!
 //! 1. the sender, when its neighbour has credit, sends the head of its output buffer as a data
 //!    frame carrying the link's current sequence bit; the message **stays** in the buffer;
@@ -22,15 +24,16 @@
 //! output buffer before the neighbour holds it. The lit voxels do not depend on when a beam
 //! arrives (beam merging is exact, see `cell_core::light`), so a faulty run lights exactly what a clean run
 //! lights, in more cycles. Fault decisions are a hash of (seed, cycle, link, frame kind), so a
-//! run is reproducible whatever the thread count.
+//! run is reproducible whatever the thread count. Each link keeps its own protocol state and
+//! counters; a run reports their sum.
 
 use std::str::FromStr;
 
 use cell_core::beam::{FarDistance, FracBits};
-use cell_core::light::{BeamMsg, BeamTally, Port};
-use cell_core::link::{decode, encode, Message, HEADER, MAX_FRAME, TRAILER};
+use cell_core::light::BeamMsg;
+use cell_core::link::{decode, encode, Link, Message, PerfectLink, Sent, HEADER, MAX_FRAME, TRAILER};
 
-use crate::machine::capacity::HostLightCell;
+use crate::machine::links::{LinkId, BACK};
 
 /// Fault rates, in parts per million, and the seed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -148,110 +151,99 @@ fn mix(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// Link state of the whole grid under fault injection.
-pub struct FaultyLinks {
+/// What happens to a frame sent by cell `from` through port `port` in `cycle` (`ack`: an
+/// acknowledgement; `len`: the frame's bytes).
+fn fate(faults: &LinkFaults, cycle: u64, from: u32, port: usize, ack: bool, len: usize) -> Fate {
+    let key = faults.seed ^ mix(cycle ^ mix((from as u64) << 4 | (port as u64) << 1 | ack as u64));
+    let r = mix(key);
+    let p = (r % 1_000_000) as u32;
+    if p < faults.drop_ppm {
+        Fate::Drop
+    } else if p < faults.drop_ppm + faults.corrupt_ppm {
+        let bits = (len * 8) as u64;
+        let r2 = mix(r);
+        Fate::Corrupt([r2 % bits, (r2 >> 32) % bits])
+    } else if !ack && p < faults.drop_ppm + faults.corrupt_ppm + faults.delay_ppm {
+        Fate::Delay(1 + (mix(r) % faults.delay_cycles as u64) as u32)
+    } else {
+        Fate::Deliver
+    }
+}
+
+/// Whether a frame of this fate reaches the far end (corrupted ones do, with bits flipped).
+fn carry(fate: &Fate, frame: &mut [u8]) -> bool {
+    match fate {
+        Fate::Deliver | Fate::Delay(_) => true,
+        Fate::Drop => false,
+        Fate::Corrupt(bits) => {
+            frame[(bits[0] / 8) as usize] ^= 1 << (bits[0] % 8);
+            if bits[1] != bits[0] {
+                frame[(bits[1] / 8) as usize] ^= 1 << (bits[1] % 8);
+            }
+            true
+        }
+    }
+}
+
+/// A link behind a faulty wire: a send is framed, may be corrupted, dropped or delayed on the
+/// way, is decoded at the far end (a frame failing its CRC is never applied), handed to the
+/// wrapped link `L` unless it is a duplicate, and acknowledged over the same faulty wire. The
+/// protocol state of the link (both ends) and its counters live here.
+pub struct FaultInjector<L> {
+    inner: L,
     faults: LinkFaults,
-    /// Per cell and outgoing port: the sequence bit of the head frame.
-    tx_seq: Vec<[u8; 8]>,
-    /// Per cell and outgoing port: the head frame was sent before (a resend is a retransmission).
-    tx_tried: Vec<[bool; 8]>,
-    /// Per cell and incoming port: the sequence bit last accepted (2: none yet).
-    rx_last: Vec<[u8; 8]>,
-    /// Per cell and outgoing port: the cycle a delayed frame arrives (0: none on the wire).
-    arrives: Vec<[u64; 8]>,
+    /// The grid's far distance, to decode beams (checked when the grid was set up).
+    far: u32,
+    /// Sending cell and port, receiving cell (the fault decisions hash them).
+    from: u32,
+    to: u32,
+    port: u8,
+    /// The sequence bit of the head frame.
+    tx_seq: u8,
+    /// The head frame was sent before (a resend is a retransmission).
+    tx_tried: bool,
+    /// The far end: the sequence bit last accepted (2: none yet).
+    rx_last: u8,
+    /// The cycle a delayed frame arrives (0: none on the wire).
+    arrives: u64,
     /// Counters.
     pub counts: FaultCounts,
 }
 
-/// Outcome of one link transfer.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Transfer {
-    /// The beam entered the receiver's FIFO now.
-    pub delivered: bool,
-    /// The sender got an intact acknowledgement: it pops the message.
-    pub acked: bool,
-}
-
-impl FaultyLinks {
-    /// Links for a grid of `cells` cells.
-    pub fn new(faults: LinkFaults, cells: usize) -> Self {
-        FaultyLinks {
+impl<L> FaultInjector<L> {
+    /// Link `id` (of a grid whose far distance is `far`) behind a wire with `faults`.
+    pub fn new(inner: L, faults: LinkFaults, far: u32, id: LinkId) -> Self {
+        FaultInjector {
+            inner,
             faults,
-            tx_seq: vec![[0; 8]; cells],
-            tx_tried: vec![[false; 8]; cells],
-            rx_last: vec![[2; 8]; cells],
-            arrives: vec![[0; 8]; cells],
+            far,
+            from: id.from,
+            to: id.to,
+            port: id.port.index() as u8,
+            tx_seq: 0,
+            tx_tried: false,
+            rx_last: 2,
+            arrives: 0,
             counts: FaultCounts::default(),
         }
     }
 
-    fn fate(&self, cycle: u64, from: usize, port: Port, ack: bool, len: usize) -> Fate {
-        let key = self.faults.seed ^ mix(cycle ^ mix((from as u64) << 4 | (port.index() as u64) << 1 | ack as u64));
-        let r = mix(key);
-        let p = (r % 1_000_000) as u32;
-        if p < self.faults.drop_ppm {
-            Fate::Drop
-        } else if p < self.faults.drop_ppm + self.faults.corrupt_ppm {
-            let bits = (len * 8) as u64;
-            let r2 = mix(r);
-            Fate::Corrupt([r2 % bits, (r2 >> 32) % bits])
-        } else if !ack && p < self.faults.drop_ppm + self.faults.corrupt_ppm + self.faults.delay_ppm {
-            Fate::Delay(1 + (mix(r) % self.faults.delay_cycles as u64) as u32)
-        } else {
-            Fate::Deliver
-        }
-    }
-
-    fn carry(fate: &Fate, frame: &mut [u8]) -> bool {
-        match fate {
-            Fate::Deliver | Fate::Delay(_) => true,
-            Fate::Drop => false,
-            Fate::Corrupt(bits) => {
-                frame[(bits[0] / 8) as usize] ^= 1 << (bits[0] % 8);
-                if bits[1] != bits[0] {
-                    frame[(bits[1] / 8) as usize] ^= 1 << (bits[1] % 8);
-                }
-                true
-            }
-        }
-    }
-
-    /// Send the head message `m` of cell `from`'s output `port` to cell `to` (which has credit)
-    /// in `cycle`, through the codec and the injector.
-    #[allow(clippy::too_many_arguments)]
-    pub fn transfer<F: FracBits>(
-        &mut self,
-        cycle: u64,
-        from: usize,
-        port: Port,
-        to: usize,
-        m: &BeamMsg<F>,
-        far: FarDistance<F>,
-        receiver: &mut HostLightCell<F>,
-        merge: bool,
-        tally: &impl BeamTally,
-    ) -> Transfer {
-        let p = port.index();
-        let (dx, dy) = port.delta();
-        // Cannot fail: the opposite of a unit step is a unit step.
-        let back = Port::from_delta(-dx, -dy).expect("opposite port").index();
-        let seq = self.tx_seq[from][p];
-        let mut buf = [0u8; MAX_FRAME];
-        // Cannot fail: a beam frame has a fixed size below MAX_FRAME.
-        let len = encode(seq, &Message::Beam(*m), &mut buf).expect("beam frame fits");
-        let fate = match self.arrives[from][p] {
+    /// The data frame's fate in `cycle` (first send, retransmission or arrival of a delayed
+    /// frame), counted; `None` while a delayed frame is still on the wire.
+    fn data_fate(&mut self, cycle: u64, len: usize) -> Option<Fate> {
+        let fate = match self.arrives {
             0 => {
                 self.counts.data_frames += 1;
-                if std::mem::replace(&mut self.tx_tried[from][p], true) {
+                if std::mem::replace(&mut self.tx_tried, true) {
                     self.counts.retransmissions += 1;
                 }
-                self.fate(cycle, from, port, false, len)
+                fate(&self.faults, cycle, self.from, self.port as usize, false, len)
             }
             // The delayed frame is still on the wire.
-            t if cycle < t => return Transfer { delivered: false, acked: false },
+            t if cycle < t => return None,
             // It arrives (intact) now.
             _ => {
-                self.arrives[from][p] = 0;
+                self.arrives = 0;
                 Fate::Deliver
             }
         };
@@ -261,56 +253,106 @@ impl FaultyLinks {
             Fate::Delay(k) => {
                 self.counts.data_delayed += 1;
                 self.counts.delay_cycles += k as u64;
-                self.arrives[from][p] = cycle + k as u64;
-                return Transfer { delivered: false, acked: false };
+                self.arrives = cycle + k as u64;
+                return None;
             }
             Fate::Deliver => {}
         }
-        if !Self::carry(&fate, &mut buf[..len]) {
-            return Transfer { delivered: false, acked: false };
-        }
-        // The receiving end.
-        let frame = match decode::<F>(&buf[..len], far) {
-            Ok((f, _)) => f,
-            Err(_) => {
-                self.counts.crc_rejected += 1;
-                return Transfer { delivered: false, acked: false };
-            }
-        };
-        let Message::Beam(got) = frame.msg else {
-            // A corrupted kind byte that still passed the CRC cannot happen with CRC-32 and ≤ 2
-            // flipped bits; refuse it all the same.
-            self.counts.crc_rejected += 1;
-            return Transfer { delivered: false, acked: false };
-        };
-        let delivered = if self.rx_last[to][back] == frame.seq {
-            self.counts.duplicates += 1;
-            false
-        } else {
-            // The sender checked the credit line: the FIFO has room.
-            let ok = receiver.accept(got, merge, tally).is_ok();
-            if ok {
-                self.rx_last[to][back] = frame.seq;
-            }
-            ok
-        };
-        // The acknowledgement travels back.
+        Some(fate)
+    }
+
+    /// The far end acknowledges `seq` in `cycle`; whether the acknowledgement of the sender's
+    /// `expect` came back intact (the sender then pops and flips its bit).
+    fn acknowledge<F: FracBits>(&mut self, cycle: u64, seq: u8, expect: u8, far: FarDistance<F>) -> bool {
         let mut ack = [0u8; HEADER + 1 + TRAILER];
         // Cannot fail: an ack frame has a fixed size.
-        let alen = encode::<F>(frame.seq, &Message::Ack, &mut ack).expect("ack frame fits");
-        let afate = self.fate(cycle, to, Port::ALL[back], true, alen);
-        let acked = Self::carry(&afate, &mut ack[..alen])
-            && matches!(decode::<F>(&ack[..alen], far), Ok((f, _)) if f.msg == Message::Ack && f.seq == seq);
+        let alen = encode::<F>(seq, &Message::Ack, &mut ack).expect("ack frame fits");
+        let afate = fate(&self.faults, cycle, self.to, BACK[self.port as usize], true, alen);
+        let acked = carry(&afate, &mut ack[..alen])
+            && matches!(decode::<F>(&ack[..alen], far), Ok((f, _)) if f.msg == Message::Ack && f.seq == expect);
         if !acked {
             self.counts.acks_lost += 1;
             if matches!(afate, Fate::Corrupt(_)) {
                 self.counts.crc_rejected += 1;
             }
         } else {
-            self.tx_seq[from][p] ^= 1;
-            self.tx_tried[from][p] = false;
+            self.tx_seq ^= 1;
+            self.tx_tried = false;
         }
-        Transfer { delivered, acked }
+        acked
+    }
+}
+
+impl<F: FracBits, Rx: ?Sized, L: Link<F, Rx>> Link<F, Rx> for FaultInjector<L> {
+    type Error = L::Error;
+    const LOSSLESS: bool = false;
+
+    fn ready(&mut self, rx: &Rx) -> Result<bool, L::Error> {
+        self.inner.ready(rx)
+    }
+
+    /// Send the head message `m` in `cycle` through the codec and the injector.
+    fn send(&mut self, cycle: u64, m: &BeamMsg<F>, rx: &mut Rx) -> Result<Sent, L::Error> {
+        let far = FarDistance::<F>::new(self.far).expect("the grid's far distance was checked");
+        let seq = self.tx_seq;
+        let mut buf = [0u8; MAX_FRAME];
+        // Cannot fail: a beam frame has a fixed size below MAX_FRAME.
+        let len = encode(seq, &Message::Beam(*m), &mut buf).expect("beam frame fits");
+        let Some(fate) = self.data_fate(cycle, len) else { return Ok(Sent::NOTHING) };
+        if !carry(&fate, &mut buf[..len]) {
+            return Ok(Sent::NOTHING);
+        }
+        // The receiving end.
+        let frame = match decode::<F>(&buf[..len], far) {
+            Ok((f, _)) => f,
+            Err(_) => {
+                self.counts.crc_rejected += 1;
+                return Ok(Sent::NOTHING);
+            }
+        };
+        let Message::Beam(got) = frame.msg else {
+            // A corrupted kind byte that still passed the CRC cannot happen with CRC-32 and ≤ 2
+            // flipped bits; refuse it all the same.
+            self.counts.crc_rejected += 1;
+            return Ok(Sent::NOTHING);
+        };
+        let delivered = if self.rx_last == frame.seq {
+            self.counts.duplicates += 1;
+            false
+        } else {
+            // The sender checked the credit line: the FIFO has room.
+            let ok = self.inner.send(cycle, &got, rx)?.delivered;
+            if ok {
+                self.rx_last = frame.seq;
+            }
+            ok
+        };
+        // The acknowledgement travels back.
+        let acked = self.acknowledge(cycle, frame.seq, seq, far);
+        Ok(Sent { delivered, acked })
+    }
+}
+
+/// What a link reports of the faults it met.
+pub trait FaultTally {
+    /// This link's counts added to `into` (left alone by a link that meets no faults).
+    fn add_counts(&self, into: &mut Option<FaultCounts>);
+}
+
+/// What `links` met, summed (`None` for links that meet no faults).
+pub fn fault_counts<L: FaultTally>(links: &[L]) -> Option<FaultCounts> {
+    let mut sum = None;
+    links.iter().for_each(|l| l.add_counts(&mut sum));
+    sum
+}
+
+impl FaultTally for PerfectLink {
+    fn add_counts(&self, _: &mut Option<FaultCounts>) {}
+}
+
+impl<L> FaultTally for FaultInjector<L> {
+    fn add_counts(&self, into: &mut Option<FaultCounts>) {
+        into.get_or_insert_with(FaultCounts::default).add(&self.counts);
     }
 }
 

@@ -11,7 +11,9 @@
 //!   their answers.
 //! * [`reflect`] — the reflection phase (§5.2).
 //! * [`shade`] — the cells' shading of their pixels.
-//! * [`faults`] — link fault injection; [`tap`] — recording cell traces.
+//! * [`links`] — the grid's links behind `cell_core::link::Link` (the link seam); [`faults`] —
+//!   the fault-injecting link wrapper; [`tap`] — recording cell traces (and the tracing link
+//!   wrapper).
 //! * [`limits`] — host memory checks before allocating a grid.
 
 pub mod capacity;
@@ -21,6 +23,7 @@ pub mod faults;
 pub mod grid;
 pub mod lighting;
 pub mod limits;
+pub mod links;
 pub mod load;
 pub mod loaded;
 pub mod network;

@@ -52,6 +52,7 @@ use cell_core::shade::{
 };
 
 use crate::machine::capacity::FA_CAP;
+use crate::machine::grid::LightGrid;
 use crate::machine::loaded::LoadedScene;
 use crate::machine::network::Network;
 use crate::scene::Mesh;
@@ -294,137 +295,110 @@ pub fn child_ray(
     Ok(Some(r))
 }
 
-/// Run the reflection phase over a lit grid.
+/// Run the reflection phase over a lit grid: the cycle loop over the phases of `ReflectRun`.
 pub fn reflect(scene: &LoadedScene, env: &ShadeEnv, cfg: &ReflectConfig) -> Result<Reflected> {
-    let grid = &scene.grid;
-    let (n, depth) = (grid.n, grid.depth);
-    cfg.validate(n.max(depth))?;
-    let nn = n as usize;
-    let span = ray_span(n, depth);
-    let mut cells: Vec<CellState> = (0..nn * nn).map(|_| CellState::default()).collect();
-    let mut out = Reflected { rgb: vec![None; nn * nn], root_answers: vec![None; nn * nn], counts: Default::default() };
-    let k = &mut out.counts;
-    let mut root_local = vec![([0f32; 3], 0f32); nn * nn];
-    let mut roots_left = 0u64;
-    if cfg.depth > 0 {
-        for (i, c) in grid.cells.iter().enumerate() {
+    let mut run = ReflectRun::new(scene, env, cfg)?;
+    while run.roots_left > 0 {
+        let mut moved = run.compute()?;
+        moved += run.answers();
+        moved += run.ray_links();
+        run.cycle += 1;
+        run.next_active();
+        if moved == 0 && run.roots_left > 0 {
+            return Err(run.deadlock());
+        }
+    }
+    run.out.counts.cycles = run.cycle;
+    run.out.counts.answer_messages = run.net.hops;
+    Ok(run.out)
+}
+
+/// The state of the reflection phase from cycle to cycle, and its phases (the module doc's
+/// per-cycle steps).
+struct ReflectRun<'a> {
+    grid: &'a LightGrid,
+    env: &'a ShadeEnv<'a>,
+    cfg: &'a ReflectConfig,
+    /// Span of a ray's line ([`ray_span`]).
+    span: i32,
+    cells: Vec<CellState>,
+    out: Reflected,
+    /// Trees whose root has no answer yet.
+    roots_left: u64,
+    net: Network<Msg>,
+    link_used: Vec<bool>,
+    /// The cells with work, in row-major order, and their flags.
+    active: Vec<usize>,
+    in_active: Vec<bool>,
+    woken: Vec<usize>,
+    cycle: u64,
+}
+
+impl<'a> ReflectRun<'a> {
+    /// The roots' rays ready to launch (or their black answers ready to send).
+    fn new(scene: &'a LoadedScene, env: &'a ShadeEnv<'a>, cfg: &'a ReflectConfig) -> Result<Self> {
+        let grid = &scene.grid;
+        let (n, depth) = (grid.n, grid.depth);
+        cfg.validate(n.max(depth))?;
+        let nn = n as usize;
+        let out = Reflected { rgb: vec![None; nn * nn], root_answers: vec![None; nn * nn], counts: Default::default() };
+        let mut run = ReflectRun {
+            grid,
+            env,
+            cfg,
+            span: ray_span(n, depth),
+            cells: (0..nn * nn).map(|_| CellState::default()).collect(),
+            out,
+            roots_left: 0,
+            net: Network::new(n, cfg.route),
+            link_used: vec![false; nn * nn * 8],
+            active: Vec::new(),
+            in_active: vec![false; nn * nn],
+            woken: Vec::new(),
+            cycle: 0,
+        };
+        if cfg.depth > 0 {
+            run.plant_roots()?;
+        }
+        run.active = (0..nn * nn).filter(|&i| !run.cells[i].idle()).collect();
+        let (active, in_active) = (&run.active, &mut run.in_active);
+        active.iter().for_each(|&i| in_active[i] = true);
+        Ok(run)
+    }
+
+    /// Each cell whose visible voxel reflects enough opens its root entry and queues its ray.
+    fn plant_roots(&mut self) -> Result<()> {
+        let (env, cfg) = (self.env, self.cfg);
+        for (i, c) in self.grid.cells.iter().enumerate() {
             let Some(d) = c.store.dexels().first() else { continue };
             let (local, kr) = env.visible_local(c.x, c.y, d);
             if !(kr > 0.0 && kr >= cfg.threshold) {
                 continue;
             }
             let (x, y) = (c.x, c.y);
-            let slot = cells[i].open(Node { parent: None, local, kr });
-            root_local[i] = (local, kr);
-            match child_ray([x, y, d.span.lo], d, [0, 0, 1], 0b100, cfg, span, ([x, y], slot), 1, kr)? {
-                Some(r) => cells[i].launch.push_back(r),
-                None => cells[i].send.push_back(Routed { dest: [x, y], payload: (slot, [0; 3]) }),
+            let slot = self.cells[i].open(Node { parent: None, local, kr });
+            match child_ray([x, y, d.span.lo], d, [0, 0, 1], 0b100, cfg, self.span, ([x, y], slot), 1, kr)? {
+                Some(r) => self.cells[i].launch.push_back(r),
+                None => self.cells[i].send.push_back(Routed { dest: [x, y], payload: (slot, [0; 3]) }),
             }
-            k.roots += 1;
-            roots_left += 1;
+            self.out.counts.roots += 1;
+            self.roots_left += 1;
         }
+        Ok(())
     }
-    let mut net: Network<Msg> = Network::new(n, cfg.route);
-    let mut link_used = vec![false; nn * nn * 8];
-    let mut active: Vec<usize> = (0..nn * nn).filter(|&i| !cells[i].idle()).collect();
-    let mut in_active = vec![false; nn * nn];
-    active.iter().for_each(|&i| in_active[i] = true);
-    let mut woken: Vec<usize> = Vec::new();
-    let mut cycle = 0u64;
-    while roots_left > 0 {
-        let mut moved = 0u64;
-        // 1. Compute, launch, send.
-        for &i in &active {
-            let cell = &grid.cells[i];
-            let st = &mut cells[i];
-            if let Some(c) = (0..4).map(|o| (st.rr + o) % 4).find(|&c| !st.fifo[c].is_empty()) {
-                st.rr = (c + 1) % 4;
-                let head = st.fifo[c].pop_front().expect("non-empty FIFO");
-                let mut ray = head;
-                match ray.advance(&cell.store, n, depth, cfg.skip_own_facet) {
-                    ReflectStep::Hit(d, z) => {
-                        k.hits += 1;
-                        let (local, kr) = env.hit_local(cell.x, cell.y, z, &d, &ray, cfg.normal);
-                        let w = ray.weight * kr;
-                        let parent = (ray.parent, ray.slot);
-                        let reflects = kr > 0.0 && ray.level < cfg.depth && w >= cfg.threshold;
-                        if kr > 0.0 && !reflects {
-                            if ray.level >= cfg.depth {
-                                k.cut_depth += 1;
-                            } else {
-                                k.cut_threshold += 1;
-                            }
-                        }
-                        let child = if reflects {
-                            let slot = st.open(Node { parent: Some(parent), local, kr });
-                            let at = [cell.x, cell.y, z];
-                            let r = child_ray(
-                                at,
-                                &d,
-                                ray.dir,
-                                ray.entry,
-                                cfg,
-                                span,
-                                ([cell.x, cell.y], slot),
-                                ray.level + 1,
-                                w,
-                            )?;
-                            if r.is_none() {
-                                st.table[slot as usize] = None;
-                                st.free.push(slot);
-                                st.open -= 1;
-                            }
-                            r
-                        } else {
-                            None
-                        };
-                        match child {
-                            Some(r) => {
-                                k.waits += 1;
-                                st.launch.push_back(r);
-                            }
-                            None => st.send.push_back(Routed { dest: parent.0, payload: (parent.1, to_answer(local)) }),
-                        }
-                        k.ray_steps += 1;
-                        moved += 1;
-                    }
-                    ReflectStep::Exit => {
-                        k.exits += 1;
-                        st.send.push_back(Routed { dest: ray.parent, payload: (ray.slot, [0; 3]) });
-                        k.ray_steps += 1;
-                        moved += 1;
-                    }
-                    ReflectStep::Stay => {
-                        st.fifo[c].push_back(ray);
-                        k.ray_steps += 1;
-                        moved += 1;
-                    }
-                    ReflectStep::Forward(p) => {
-                        if st.out[c][p.index()].is_none() {
-                            st.out[c][p.index()] = Some(ray);
-                            st.outs += 1;
-                            k.ray_steps += 1;
-                            moved += 1;
-                        } else {
-                            st.fifo[c].push_back(head);
-                            k.blocked_cell_cycles += 1;
-                        }
-                    }
-                }
-            }
-            if let Some(r) = st.launch.front() {
-                let c = r.class();
-                if st.fifo[c].len() < cfg.fa {
-                    let r = st.launch.pop_front().expect("non-empty launch queue");
-                    k.max_level = k.max_level.max(r.level);
-                    k.rays += 1;
-                    st.fifo[c].push_back(r);
-                    k.peak_fifo = k.peak_fifo.max(st.fifo[c].len() as u16);
-                    moved += 1;
-                }
-            }
+
+    /// 1. Compute, launch, send: every active cell does one voxel of work on the head of one
+    ///    of its FIFOs (round robin), may move one child ray from its launch queue into its
+    ///    class's FIFO, and may hand one answer to its router. Returns the moves made.
+    fn compute(&mut self) -> Result<u64> {
+        let mut moved = 0;
+        for a in 0..self.active.len() {
+            let i = self.active[a];
+            moved += self.work(i)?;
+            moved += self.launch(i);
+            let (k, st) = (&mut self.out.counts, &mut self.cells[i]);
             if let Some(m) = st.send.front() {
-                if net.can_inject(i, m.dest) && net.inject(i, *m) {
+                if self.net.can_inject(i, m.dest) && self.net.inject(i, *m) {
                     st.send.pop_front();
                     k.answers += 1;
                     moved += 1;
@@ -433,100 +407,214 @@ pub fn reflect(scene: &LoadedScene, env: &ShadeEnv, cfg: &ReflectConfig) -> Resu
             k.peak_wait = k.peak_wait.max(st.open);
             k.peak_send = k.peak_send.max(st.send.len() as u32);
         }
-        // 2. Links: answers first, then rays.
-        link_used.iter_mut().for_each(|u| *u = false);
+        Ok(moved)
+    }
+
+    /// Cell `i` advances the head ray of its next non-empty FIFO by one voxel; 1 if it moved.
+    fn work(&mut self, i: usize) -> Result<u64> {
+        let cell = &self.grid.cells[i];
+        let (n, depth) = (self.grid.n, self.grid.depth);
+        let st = &mut self.cells[i];
+        let Some(c) = (0..4).map(|o| (st.rr + o) % 4).find(|&c| !st.fifo[c].is_empty()) else { return Ok(0) };
+        st.rr = (c + 1) % 4;
+        let head = st.fifo[c].pop_front().expect("non-empty FIFO");
+        let mut ray = head;
+        let k = &mut self.out.counts;
+        match ray.advance(&cell.store, n, depth, self.cfg.skip_own_facet) {
+            ReflectStep::Hit(d, z) => {
+                k.hits += 1;
+                self.hit(i, &ray, &d, z)?;
+            }
+            ReflectStep::Exit => {
+                k.exits += 1;
+                st.send.push_back(Routed { dest: ray.parent, payload: (ray.slot, [0; 3]) });
+            }
+            ReflectStep::Stay => st.fifo[c].push_back(ray),
+            ReflectStep::Forward(p) if st.out[c][p.index()].is_none() => {
+                st.out[c][p.index()] = Some(ray);
+                st.outs += 1;
+            }
+            ReflectStep::Forward(_) => {
+                st.fifo[c].push_back(head);
+                k.blocked_cell_cycles += 1;
+                return Ok(0);
+            }
+        }
+        self.out.counts.ray_steps += 1;
+        Ok(1)
+    }
+
+    /// `ray` hit voxel z of cell `i` (dexel `d`): the voxel shades itself for the ray and either
+    /// reflects (opens a wait-table entry and queues its child ray) or answers at once.
+    fn hit(&mut self, i: usize, ray: &ReflectRay, d: &Dexel, z: u16) -> Result<()> {
+        let (cell, cfg, k) = (&self.grid.cells[i], self.cfg, &mut self.out.counts);
+        let st = &mut self.cells[i];
+        let (local, kr) = self.env.hit_local(cell.x, cell.y, z, d, ray, cfg.normal);
+        let w = ray.weight * kr;
+        let parent = (ray.parent, ray.slot);
+        let reflects = kr > 0.0 && ray.level < cfg.depth && w >= cfg.threshold;
+        if kr > 0.0 && !reflects {
+            if ray.level >= cfg.depth {
+                k.cut_depth += 1;
+            } else {
+                k.cut_threshold += 1;
+            }
+        }
+        let child = if reflects {
+            let slot = st.open(Node { parent: Some(parent), local, kr });
+            let (at, from) = ([cell.x, cell.y, z], ([cell.x, cell.y], slot));
+            let r = child_ray(at, d, ray.dir, ray.entry, cfg, self.span, from, ray.level + 1, w)?;
+            if r.is_none() {
+                st.table[slot as usize] = None;
+                st.free.push(slot);
+                st.open -= 1;
+            }
+            r
+        } else {
+            None
+        };
+        match child {
+            Some(r) => {
+                k.waits += 1;
+                st.launch.push_back(r);
+            }
+            None => st.send.push_back(Routed { dest: parent.0, payload: (parent.1, to_answer(local)) }),
+        }
+        Ok(())
+    }
+
+    /// Cell `i` moves its first waiting child ray into its class's FIFO if there is room; 1 if
+    /// it did.
+    fn launch(&mut self, i: usize) -> u64 {
+        let (k, st) = (&mut self.out.counts, &mut self.cells[i]);
+        let Some(r) = st.launch.front() else { return 0 };
+        let c = r.class();
+        if st.fifo[c].len() >= self.cfg.fa {
+            return 0;
+        }
+        let r = st.launch.pop_front().expect("non-empty launch queue");
+        k.max_level = k.max_level.max(r.level);
+        k.rays += 1;
+        st.fifo[c].push_back(r);
+        k.peak_fifo = k.peak_fifo.max(st.fifo[c].len() as u16);
+        1
+    }
+
+    /// 2a. Links, answers first: the routers move them; 3. each delivered answer fills its
+    ///     wait-table entry: a root encodes its pixel, another entry queues its combined answer
+    ///     for its parent. Returns the messages moved.
+    fn answers(&mut self) -> u64 {
+        self.link_used.iter_mut().for_each(|u| *u = false);
         let mut delivered: Vec<(usize, Msg)> = Vec::new();
-        moved += net.step(&mut link_used, |cell, m| delivered.push((cell, m.payload)));
+        let moved = self.net.step(&mut self.link_used, |cell, m| delivered.push((cell, m.payload)));
         for (i, (slot, answer)) in delivered {
-            let st = &mut cells[i];
+            let st = &mut self.cells[i];
             let node = st.table[slot as usize].take().expect("an answer for an open wait-table entry");
             st.free.push(slot);
             st.open -= 1;
             match node.parent {
                 None => {
-                    out.root_answers[i] = Some(answer);
-                    out.rgb[i] = Some(combine(node.local, node.kr, answer).map(encode));
-                    roots_left -= 1;
+                    self.out.root_answers[i] = Some(answer);
+                    self.out.rgb[i] = Some(combine(node.local, node.kr, answer).map(encode));
+                    self.roots_left -= 1;
                 }
                 Some((dest, pslot)) => {
                     st.send
                         .push_back(Routed { dest, payload: (pslot, to_answer(combine(node.local, node.kr, answer))) });
-                    if !in_active[i] {
-                        in_active[i] = true;
-                        woken.push(i);
+                    if !self.in_active[i] {
+                        self.in_active[i] = true;
+                        self.woken.push(i);
                     }
                 }
             }
         }
-        for &i in &active {
-            if cells[i].outs == 0 {
+        moved
+    }
+
+    /// 2b. Links, then rays: each output buffer's ray moves to the neighbour's FIFO of the
+    ///     same class if it has room and the link carried nothing else this cycle. Returns the
+    ///     rays moved.
+    fn ray_links(&mut self) -> u64 {
+        let (nn, fa, mut moved) = (self.grid.n as usize, self.cfg.fa, 0);
+        for a in 0..self.active.len() {
+            let i = self.active[a];
+            if self.cells[i].outs == 0 {
                 continue;
             }
             for c in 0..4 {
                 for p in Port::ALL {
                     let link = i * 8 + p.index();
-                    if link_used[link] {
+                    if self.link_used[link] {
                         continue;
                     }
-                    let Some(ray) = cells[i].out[c][p.index()] else { continue };
+                    let Some(ray) = self.cells[i].out[c][p.index()] else { continue };
                     let (dx, dy) = p.delta();
                     let j = (i as i64 + dy as i64 * nn as i64 + dx as i64) as usize;
-                    if cells[j].fifo[c].len() >= cfg.fa {
+                    if self.cells[j].fifo[c].len() >= fa {
                         continue;
                     }
-                    cells[i].out[c][p.index()] = None;
-                    cells[i].outs -= 1;
-                    cells[j].fifo[c].push_back(ray);
-                    k.peak_fifo = k.peak_fifo.max(cells[j].fifo[c].len() as u16);
-                    link_used[link] = true;
+                    self.cells[i].out[c][p.index()] = None;
+                    self.cells[i].outs -= 1;
+                    self.cells[j].fifo[c].push_back(ray);
+                    let k = &mut self.out.counts;
+                    k.peak_fifo = k.peak_fifo.max(self.cells[j].fifo[c].len() as u16);
+                    self.link_used[link] = true;
                     k.ray_messages += 1;
                     moved += 1;
-                    if !in_active[j] {
-                        in_active[j] = true;
-                        woken.push(j);
+                    if !self.in_active[j] {
+                        self.in_active[j] = true;
+                        self.woken.push(j);
                     }
                 }
             }
         }
-        cycle += 1;
-        active.retain(|&i| {
+        moved
+    }
+
+    /// Next cycle's active list: the busy cells and those a message reached, in row-major order.
+    fn next_active(&mut self) {
+        let (cells, in_active) = (&self.cells, &mut self.in_active);
+        self.active.retain(|&i| {
             let busy = !cells[i].idle();
             in_active[i] = busy;
             busy
         });
-        for &j in &woken {
-            in_active[j] = true;
-            active.push(j);
+        for &j in &self.woken {
+            self.in_active[j] = true;
+            self.active.push(j);
         }
-        woken.clear();
-        active.sort_unstable();
-        if moved == 0 && roots_left > 0 {
-            let busy: Vec<String> = active
-                .iter()
-                .take(6)
-                .map(|&i| {
-                    let s = &cells[i];
-                    format!(
-                        "cell ({}, {}): FIFOs {:?}, {} out, {} to launch, {} to send",
-                        i % nn,
-                        i / nn,
-                        s.fifo.iter().map(VecDeque::len).collect::<Vec<_>>(),
-                        s.outs,
-                        s.launch.len(),
-                        s.send.len()
-                    )
-                })
-                .collect();
-            bail!(
-                "deadlock in the reflection phase at cycle {cycle}: {roots_left} trees unanswered, {} answers in flight, nothing can move ({})",
-                net.in_flight,
-                busy.join("; ")
-            );
-        }
+        self.woken.clear();
+        self.active.sort_unstable();
     }
-    k.cycles = cycle;
-    k.answer_messages = net.hops;
-    Ok(out)
+
+    /// The error of a cycle with trees unanswered and nothing moving.
+    fn deadlock(&self) -> anyhow::Error {
+        let nn = self.grid.n as usize;
+        let busy: Vec<String> = self
+            .active
+            .iter()
+            .take(6)
+            .map(|&i| {
+                let s = &self.cells[i];
+                format!(
+                    "cell ({}, {}): FIFOs {:?}, {} out, {} to launch, {} to send",
+                    i % nn,
+                    i / nn,
+                    s.fifo.iter().map(VecDeque::len).collect::<Vec<_>>(),
+                    s.outs,
+                    s.launch.len(),
+                    s.send.len()
+                )
+            })
+            .collect();
+        anyhow::anyhow!(
+            "deadlock in the reflection phase at cycle {}: {} trees unanswered, {} answers in flight, nothing can move ({})",
+            self.cycle,
+            self.roots_left,
+            self.net.in_flight,
+            busy.join("; ")
+        )
+    }
 }
 
 /// One line of reflection counters for the job summaries.

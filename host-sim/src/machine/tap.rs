@@ -1,6 +1,10 @@
 //! The trace tap: records, for chosen cells of a grid run, every message they receive, every
 //! compute cycle and every message a neighbour takes from them (`cell_core::trace` records), as the
 //! schedulers run. The `trace` job writes what it recorded; the firmware replays it.
+//!
+//! The link events come from [`Tracer`], a wrapper around any grid link (`cell_core::link::Link`):
+//! it notes every beam its far end took in the link step's journal ([`Journal`]), and the
+//! scheduler hands the journal to [`Tap::took`] in link order.
 
 use std::collections::HashMap;
 
@@ -9,10 +13,12 @@ use cell_core::beam::FracBits;
 use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::facet::RowPacket;
 use cell_core::light::{BeamMsg, FrustumSummary, LightEnv, Port, Step};
-use cell_core::link::{self, Message};
+use cell_core::link::{self, Link, Message, Sent};
 use cell_core::trace::{write_event, Digester, Event, Header, LightSetup, Replayer};
 
 use super::capacity::{FA_CAP, LIT_CAP, OB_CAP};
+use super::faults::{FaultCounts, FaultTally};
+use super::links::{Journal, LinkId, Took, BACK};
 
 /// Records one cell.
 pub struct CellRecorder {
@@ -91,8 +97,7 @@ impl CellRecorder {
 
     fn grant<F: FracBits>(&mut self, port: Port, m: &BeamMsg<F>) {
         self.push::<F>(&Event::Grant(port));
-        let (buf, len) = Self::frame(m);
-        self.digest.sent(port, &buf[..len]);
+        self.digest.sent_beam(port, m);
     }
 }
 
@@ -155,15 +160,51 @@ impl Tap {
         }
     }
 
-    /// Cell `from` sent `m` through its port `port` to cell `to`.
-    pub fn transfer<F: FracBits>(&mut self, from: usize, to: usize, port: Port, m: &BeamMsg<F>) {
-        if let Some(r) = self.get(from) {
-            r.grant(port, m);
+    /// A link's far end took a beam ([`Tracer`]): the sender's grant, the receiver's frame.
+    pub fn took<F: FracBits>(&mut self, t: &Took<F>) {
+        let LinkId { from, port, to } = t.link;
+        if let Some(r) = self.get(from as usize) {
+            r.grant(port, &t.msg);
         }
-        if let Some(r) = self.get(to) {
-            let (dx, dy) = port.delta();
-            // Cannot fail: the opposite of a unit step is a unit step.
-            r.recv(Port::from_delta(-dx, -dy).expect("opposite port"), m);
+        if let Some(r) = self.get(to as usize) {
+            r.recv(Port::ALL[BACK[port.index()]], &t.msg);
         }
+    }
+}
+
+/// A link that records: every beam its far end took (the sender pops it) goes to the far end's
+/// [`Journal`], after the wrapped link `L` answered.
+pub struct Tracer<L> {
+    inner: L,
+    link: LinkId,
+}
+
+impl<L> Tracer<L> {
+    /// Trace link `link`.
+    pub fn new(inner: L, link: LinkId) -> Self {
+        Tracer { inner, link }
+    }
+}
+
+impl<F: FracBits, Rx: Journal<F> + ?Sized, L: Link<F, Rx>> Link<F, Rx> for Tracer<L> {
+    type Error = L::Error;
+    const LOSSLESS: bool = L::LOSSLESS;
+
+    fn ready(&mut self, rx: &Rx) -> Result<bool, L::Error> {
+        self.inner.ready(rx)
+    }
+
+    fn send(&mut self, now: u64, msg: &BeamMsg<F>, rx: &mut Rx) -> Result<Sent, L::Error> {
+        let s = self.inner.send(now, msg, rx)?;
+        if s.acked {
+            rx.took(Took { link: self.link, msg: *msg });
+        }
+        Ok(s)
+    }
+}
+
+impl<L: FaultTally> FaultTally for Tracer<L> {
+    fn add_counts(&self, into: &mut Option<FaultCounts>) {
+        self.inner.add_counts(into);
     }
 }
