@@ -29,7 +29,7 @@ use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Re
 use cell_core::link::PerfectLink;
 
 use crate::machine::capacity::{HostLightCell, FA_CAP};
-use crate::machine::faults::{fault_counts, FaultCounts, FaultInjector, FaultTally, LinkFaults};
+use crate::machine::faults::{fault_counts, FaultCounts, FaultInjector, FaultTally, LinkFaults, Wire};
 use crate::machine::grid::Grid;
 use crate::machine::links::{self, lossless, sure, CellInbox, GridLinks, HostLink, Took, BACK};
 use crate::machine::tap::{Tap, Tracer};
@@ -353,16 +353,15 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
     let frustum = frustum_summary(grid, cfg, tap.is_some())?;
     check_recording(cfg, tap.is_some())?;
     let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref() };
-    let d = far.get();
-    match (cfg.faults, tap) {
+    let wire = cfg.faults.map(|faults| Wire { faults, far: far.get() });
+    match (&wire, tap) {
         (None, None) => run.diffuse(cells, GridLinks::new(n, |_| PerfectLink), None, progress),
-        (Some(f), None) => {
-            let links = GridLinks::new(n, |id| FaultInjector::new(PerfectLink, f, d, id));
-            run.diffuse(cells, links, None, progress)
+        (Some(w), None) => {
+            run.diffuse(cells, GridLinks::new(n, |id| FaultInjector::new(PerfectLink, w, id)), None, progress)
         }
         (None, Some(t)) => run.diffuse(cells, GridLinks::new(n, |id| Tracer::new(PerfectLink, id)), Some(t), progress),
-        (Some(f), Some(t)) => {
-            let links = GridLinks::new(n, |id| Tracer::new(FaultInjector::new(PerfectLink, f, d, id), id));
+        (Some(w), Some(t)) => {
+            let links = GridLinks::new(n, |id| Tracer::new(FaultInjector::new(PerfectLink, w, id), id));
             run.diffuse(cells, links, Some(t), progress)
         }
     }

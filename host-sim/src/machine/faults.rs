@@ -97,42 +97,52 @@ impl LinkFaults {
     pub const NONE: LinkFaults = LinkFaults { corrupt_ppm: 0, drop_ppm: 0, delay_ppm: 0, delay_cycles: 8, seed: 1 };
 }
 
-/// What the faulty links did.
+/// What the faulty links did (`T = u32`: what one link did, see [`FaultInjector`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
-pub struct FaultCounts {
+pub struct FaultCounts<T = u64> {
     /// Data frames sent (first sends and retransmissions).
-    pub data_frames: u64,
+    pub data_frames: T,
     /// Data frames sent again because no intact acknowledgement came back.
-    pub retransmissions: u64,
+    pub retransmissions: T,
     /// Data frames corrupted on the way, all refused by the CRC.
-    pub data_corrupted: u64,
+    pub data_corrupted: T,
     /// Data frames lost.
-    pub data_dropped: u64,
+    pub data_dropped: T,
     /// Data frames held on the wire (they arrive intact, later).
-    pub data_delayed: u64,
+    pub data_delayed: T,
     /// Cycles links spent holding delayed frames.
-    pub delay_cycles: u64,
+    pub delay_cycles: T,
     /// Acknowledgements corrupted (refused by the CRC) or lost.
-    pub acks_lost: u64,
+    pub acks_lost: T,
     /// Frames whose CRC failed at the receiving end (never applied).
-    pub crc_rejected: u64,
+    pub crc_rejected: T,
     /// Intact data frames discarded as duplicates (their acknowledgement had been lost).
-    pub duplicates: u64,
+    pub duplicates: T,
 }
 
 impl FaultCounts {
-    /// Sum of two runs.
-    pub fn add(&mut self, o: &FaultCounts) {
-        self.data_frames += o.data_frames;
-        self.retransmissions += o.retransmissions;
-        self.data_corrupted += o.data_corrupted;
-        self.data_dropped += o.data_dropped;
-        self.data_delayed += o.data_delayed;
-        self.delay_cycles += o.delay_cycles;
-        self.acks_lost += o.acks_lost;
-        self.crc_rejected += o.crc_rejected;
-        self.duplicates += o.duplicates;
+    /// Sum of two runs (or links).
+    pub fn add<T: Copy + Into<u64>>(&mut self, o: &FaultCounts<T>) {
+        self.data_frames += o.data_frames.into();
+        self.retransmissions += o.retransmissions.into();
+        self.data_corrupted += o.data_corrupted.into();
+        self.data_dropped += o.data_dropped.into();
+        self.data_delayed += o.data_delayed.into();
+        self.delay_cycles += o.delay_cycles.into();
+        self.acks_lost += o.acks_lost.into();
+        self.crc_rejected += o.crc_rejected.into();
+        self.duplicates += o.duplicates.into();
     }
+}
+
+/// What every faulty link of a grid shares: the fault rates and seed, and the grid's far
+/// distance (to decode beams; checked when the grid was set up).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Wire {
+    /// Fault rates and seed.
+    pub faults: LinkFaults,
+    /// The far distance D.
+    pub far: u32,
 }
 
 /// What happens to one frame.
@@ -188,12 +198,17 @@ fn carry(fate: &Fate, frame: &mut [u8]) -> bool {
 /// A link behind a faulty wire: a send is framed, may be corrupted, dropped or delayed on the
 /// way, is decoded at the far end (a frame failing its CRC is never applied), handed to the
 /// wrapped link `L` unless it is a duplicate, and acknowledged over the same faulty wire. The
-/// protocol state of the link (both ends) and its counters live here.
-pub struct FaultInjector<L> {
+/// protocol state of the link (both ends) and its counters live here: one cache line with a
+/// perfect inner link (the grid holds one per directed link). The counters are `u32`: in a
+/// cycle a link sends at most one data frame and one acknowledgement and holds at most one
+/// frame, so none exceeds twice the run's cycle count (runs end long before 2³¹ cycles; the
+/// run's report sums them in `u64`).
+#[repr(align(64))]
+pub struct FaultInjector<'w, L> {
     inner: L,
-    faults: LinkFaults,
-    /// The grid's far distance, to decode beams (checked when the grid was set up).
-    far: u32,
+    wire: &'w Wire,
+    /// The cycle a delayed frame arrives (0: none on the wire).
+    arrives: u64,
     /// Sending cell and port, receiving cell (the fault decisions hash them).
     from: u32,
     to: u32,
@@ -204,19 +219,16 @@ pub struct FaultInjector<L> {
     tx_tried: bool,
     /// The far end: the sequence bit last accepted (2: none yet).
     rx_last: u8,
-    /// The cycle a delayed frame arrives (0: none on the wire).
-    arrives: u64,
     /// Counters.
-    pub counts: FaultCounts,
+    pub counts: FaultCounts<u32>,
 }
 
-impl<L> FaultInjector<L> {
-    /// Link `id` (of a grid whose far distance is `far`) behind a wire with `faults`.
-    pub fn new(inner: L, faults: LinkFaults, far: u32, id: LinkId) -> Self {
+impl<'w, L> FaultInjector<'w, L> {
+    /// Link `id` behind `wire`.
+    pub fn new(inner: L, wire: &'w Wire, id: LinkId) -> Self {
         FaultInjector {
             inner,
-            faults,
-            far,
+            wire,
             from: id.from,
             to: id.to,
             port: id.port.index() as u8,
@@ -237,7 +249,7 @@ impl<L> FaultInjector<L> {
                 if std::mem::replace(&mut self.tx_tried, true) {
                     self.counts.retransmissions += 1;
                 }
-                fate(&self.faults, cycle, self.from, self.port as usize, false, len)
+                fate(&self.wire.faults, cycle, self.from, self.port as usize, false, len)
             }
             // The delayed frame is still on the wire.
             t if cycle < t => return None,
@@ -252,7 +264,7 @@ impl<L> FaultInjector<L> {
             Fate::Corrupt(_) => self.counts.data_corrupted += 1,
             Fate::Delay(k) => {
                 self.counts.data_delayed += 1;
-                self.counts.delay_cycles += k as u64;
+                self.counts.delay_cycles += k;
                 self.arrives = cycle + k as u64;
                 return None;
             }
@@ -267,7 +279,7 @@ impl<L> FaultInjector<L> {
         let mut ack = [0u8; HEADER + 1 + TRAILER];
         // Cannot fail: an ack frame has a fixed size.
         let alen = encode::<F>(seq, &Message::Ack, &mut ack).expect("ack frame fits");
-        let afate = fate(&self.faults, cycle, self.to, BACK[self.port as usize], true, alen);
+        let afate = fate(&self.wire.faults, cycle, self.to, BACK[self.port as usize], true, alen);
         let acked = carry(&afate, &mut ack[..alen])
             && matches!(decode::<F>(&ack[..alen], far), Ok((f, _)) if f.msg == Message::Ack && f.seq == expect);
         if !acked {
@@ -283,7 +295,7 @@ impl<L> FaultInjector<L> {
     }
 }
 
-impl<F: FracBits, Rx: ?Sized, L: Link<F, Rx>> Link<F, Rx> for FaultInjector<L> {
+impl<F: FracBits, Rx: ?Sized, L: Link<F, Rx>> Link<F, Rx> for FaultInjector<'_, L> {
     type Error = L::Error;
     const LOSSLESS: bool = false;
 
@@ -293,7 +305,7 @@ impl<F: FracBits, Rx: ?Sized, L: Link<F, Rx>> Link<F, Rx> for FaultInjector<L> {
 
     /// Send the head message `m` in `cycle` through the codec and the injector.
     fn send(&mut self, cycle: u64, m: &BeamMsg<F>, rx: &mut Rx) -> Result<Sent, L::Error> {
-        let far = FarDistance::<F>::new(self.far).expect("the grid's far distance was checked");
+        let far = FarDistance::<F>::new(self.wire.far).expect("the grid's far distance was checked");
         let seq = self.tx_seq;
         let mut buf = [0u8; MAX_FRAME];
         // Cannot fail: a beam frame has a fixed size below MAX_FRAME.
@@ -350,7 +362,7 @@ impl FaultTally for PerfectLink {
     fn add_counts(&self, _: &mut Option<FaultCounts>) {}
 }
 
-impl<L> FaultTally for FaultInjector<L> {
+impl<L> FaultTally for FaultInjector<'_, L> {
     fn add_counts(&self, into: &mut Option<FaultCounts>) {
         into.get_or_insert_with(FaultCounts::default).add(&self.counts);
     }
@@ -359,6 +371,11 @@ impl<L> FaultTally for FaultInjector<L> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_faulty_perfect_link_is_one_cache_line() {
+        assert_eq!(std::mem::size_of::<FaultInjector<'_, PerfectLink>>(), 64);
+    }
 
     #[test]
     fn parses_fault_specs() {
