@@ -17,8 +17,9 @@
 //! * [`light`] — the lighting phase: FIFO, ports, back-pressure, lit voxels, quiescence (§4.4).
 //! * [`lit`] — the lit rules: the thesis's (§5.5.5) and the plane rule for grazing light (§5.5.6).
 //! * [`occupancy`] — a coarse block summary of the scene and the sound empty-frustum beam skip.
-//! * [`link`] — the bytes a link carries: framed messages with a CRC; the link seam (one `Link`
-//!   trait for the perfect link, the `embedded-hal` link and their wrappers).
+//! * [`wire`] — the bytes a link carries: framed messages with a CRC (parse and emit).
+//! * [`link`] — the link seam: one `Link` trait for the perfect link, the `embedded-hal` link
+//!   and their wrappers.
 //! * [`trace`] — cell traces (what a cell received, as frames) and their replay through the real cell.
 //! * [`ray`] — incremental 6/18/26-connected 3D lines for shadow and reflected rays (§2.3).
 //! * [`route`] — destination-addressed routers with virtual channels, deadlock-free (§1.3, §4.1.3).
@@ -46,3 +47,4 @@ pub mod trace;
 pub mod units;
 pub mod visible;
 pub mod voxelize;
+pub mod wire;

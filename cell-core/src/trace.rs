@@ -29,13 +29,14 @@ use crate::facet::RowPacket;
 use crate::light::{
     Activity, BeamMsg, FrustumSummary, LightCell, LightEnv, OccupiedBox, Policy, Port, SourceMask, Step, SubBeamBounds,
 };
-use crate::link::{
-    self, get_beam, get_row, put_beam, put_row, read_frame, write_frame, ByteSink, DecodeError, EncodeError, Link,
-    PutExt, Reader, Sent, HEADER, TRAILER,
-};
+use crate::link::{self, Link, Sent};
 use crate::lit::LitRule;
 use crate::shade::{cell_pixel, Material, NormalMode, Pixel, PointLight, ShadeParams};
 use crate::units::{Coord, Depth};
+use crate::wire::{
+    self, get_beam, get_row, put_beam, put_row, read_frame, write_frame, ByteSink, DecodeError, EncodeError, Frame,
+    PutExt, Reader, HEADER, TRAILER,
+};
 
 /// `RC2T`.
 pub const MAGIC: u32 = u32::from_le_bytes(*b"RC2T");
@@ -70,7 +71,7 @@ pub const MAX_LIGHTS: usize = 8;
 /// Most materials a shading record carries.
 pub const MAX_MATERIALS: usize = 16;
 /// Longest beam link frame.
-pub const BEAM_FRAME: usize = HEADER + link::BEAM_PAYLOAD + TRAILER;
+pub const BEAM_FRAME: usize = HEADER + wire::BEAM_PAYLOAD + TRAILER;
 
 /// The cell a trace is for and the capacities it was recorded with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -512,7 +513,7 @@ impl Digester {
     pub fn sent_beam<F: FracBits>(&mut self, port: Port, m: &BeamMsg<F>) {
         let mut buf = [0u8; BEAM_FRAME];
         // Cannot fail: a beam frame has a fixed size.
-        if let Ok(len) = link::encode(0, &link::Message::Beam(*m), &mut buf) {
+        if let Ok(len) = wire::Message::Beam(*m).emit(0, &mut buf) {
             self.sent(port, &buf[..len]);
         }
     }
@@ -689,9 +690,9 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
     /// On an MCU this runs in the link's receive interrupt.
     pub fn receive_frame(&mut self, _port: Port, frame: &[u8]) -> Result<(), ReplayError> {
         let far = FarDistance::new(self.setup.ok_or(ReplayError::NoLightSetup)?.far).ok_or(ReplayError::BadFar)?;
-        let (f, used) = link::decode::<F>(frame, far)?;
+        let (f, used) = Frame::<F>::parse(frame, far)?;
         match f.msg {
-            link::Message::Beam(m) if used == frame.len() => self.accept(m),
+            wire::Message::Beam(m) if used == frame.len() => self.accept(m),
             _ => Err(DecodeError::BadValue("not a single beam frame").into()),
         }
     }

@@ -3,8 +3,8 @@
 
 use cell_core::beam::{frac::U0, frac::U8, FarDistance, FracBits};
 use cell_core::cell::Cell;
-use cell_core::link::{decode, decode_payload, encode, Message, RawFrame, MAX_FRAME};
-use host_sim::precompute::{prepare, Contour, LoadConfig, Thickness};
+use cell_core::wire::{Frame, Message, RawFrame, MAX_FRAME};
+use host_sim::precompute::{prepare, LoadConfig};
 
 /// OBJ (and MTL after the first NUL) → mesh → packets → wave at n = 16.
 pub fn obj_load(data: &[u8]) {
@@ -15,7 +15,7 @@ pub fn obj_load(data: &[u8]) {
     let Ok(mesh) = host_sim::scene::load_obj_bytes("fuzz", obj, mtl) else {
         return;
     };
-    let cfg = LoadConfig { n: 16, thickness: Thickness::Standard, contour: Contour::Conservative };
+    let cfg = LoadConfig::watertight(16);
     let Ok(prepared) = prepare(&mesh, &cfg) else {
         return;
     };
@@ -27,19 +27,19 @@ pub fn obj_load(data: &[u8]) {
 fn decode_as<F: FracBits>(data: &[u8], d: u32) {
     let far = FarDistance::<F>::new(d).expect("valid D");
     let mut frames = vec![];
-    if let Ok((frame, used)) = decode::<F>(data, far) {
+    if let Ok((frame, used)) = Frame::<F>::parse(data, far) {
         assert!(used <= data.len());
         frames.push(frame);
     }
     if let Some((&kind, payload)) = data.split_first() {
-        if let Ok(frame) = decode_payload::<F>(RawFrame { kind, payload }, far) {
+        if let Ok(frame) = Frame::<F>::parse_payload(RawFrame { kind, payload }, far) {
             frames.push(frame);
         }
     }
     for f in frames {
         let mut buf = [0u8; MAX_FRAME];
-        let len = encode(f.seq, &f.msg, &mut buf).expect("a decoded message re-encodes");
-        let (again, used) = decode::<F>(&buf[..len], far).expect("its encoding decodes");
+        let len = f.emit(&mut buf).expect("a decoded message re-encodes");
+        let (again, used) = Frame::<F>::parse(&buf[..len], far).expect("its encoding decodes");
         assert_eq!((again, used), (f.clone(), len));
         match f.msg {
             Message::Row(mut p) => {

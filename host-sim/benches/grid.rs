@@ -15,7 +15,7 @@ use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criteri
 use host_sim::machine::diffuse::{diffuse, source_at, LightConfig};
 use host_sim::machine::grid::Grid;
 use host_sim::machine::loaded::{load_scene, resolve_lights};
-use host_sim::precompute::{prepare, Contour, LoadConfig, Thickness};
+use host_sim::precompute::{prepare, LoadConfig};
 use host_sim::scene;
 
 fn bench_load(c: &mut Criterion) {
@@ -53,7 +53,7 @@ fn bench_diffuse(c: &mut Criterion) {
     let mesh = scene::load("cornell").expect("built-in scene");
     for n in [32u32, 64] {
         // The render defaults: naive + projected surfaces, f = 0, FA = 16, wavefront + merge.
-        let cfg = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
+        let cfg = LoadConfig::thin(n);
         let loaded = load_scene(&mesh, &cfg).expect("loads");
         let lights = resolve_lights(&mesh, &loaded, &[]).expect("the Cornell box has its light");
         let sources: Vec<_> = lights.iter().enumerate().map(|(i, p)| source_at(i, *p, n).expect("inside")).collect();

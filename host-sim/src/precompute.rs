@@ -71,6 +71,12 @@ impl LoadConfig {
         LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative }
     }
 
+    /// The thin surfaces at grid side `n`: naive thickness (σ = ½) and projected contours, the
+    /// fewest voxels per facet; 26-connected beam steps can pass through them.
+    pub const fn thin(n: u32) -> LoadConfig {
+        LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected }
+    }
+
     /// Validate the grid size against the cell's bit budget.
     pub fn validate(&self) -> Result<()> {
         if self.n < 4 {

@@ -5,14 +5,14 @@ use cell_core::beam::FracBits;
 use cell_core::light::Policy;
 use cell_core::trace::{write_event, Event, Parser};
 use host_sim::machine::diffuse::{source_at, LightConfig};
-use host_sim::precompute::{Contour, LoadConfig, Thickness};
+use host_sim::precompute::LoadConfig;
 use host_sim::scene::Mesh;
 
 /// The Cornell box at side `n` (tunnel-free surfaces, the plane rule), and cells to record: near a corner, the
 /// centre, and the light's own cell (the one the source emitter feeds).
 pub fn cornell_job_cells(n: u32) -> (Mesh, LoadConfig, LightConfig, Vec<[u32; 2]>) {
     let mesh = host_sim::scene::load("cornell").unwrap();
-    let load = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
+    let load = LoadConfig::watertight(n);
     let light =
         LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, record_visits: false, ..Default::default() };
     let scene = host_sim::machine::loaded::load_scene(&mesh, &load).unwrap();

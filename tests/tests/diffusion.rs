@@ -9,7 +9,7 @@ use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use host_sim::machine::diffuse::{diffuse, LightConfig, Lighting};
 use host_sim::machine::grid::Grid;
-use host_sim::precompute::{Contour, LoadConfig, Thickness, Q};
+use host_sim::precompute::{LoadConfig, Q};
 use proptest::prelude::*;
 use rc2_tests::oracle::lit::trace_all_plane;
 use rc2_tests::oracle::rays::trace_all;
@@ -20,7 +20,7 @@ type G = Grid<64>;
 mod common;
 
 fn grid_with(n: u32, tris: &[[[i64; 3]; 3]]) -> G {
-    let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
+    let cfg = LoadConfig::watertight(n);
     let mut g = G::new(n, n);
     g.load_wave(&common::packets_of(tris, &cfg), |_| {});
     g
@@ -250,7 +250,7 @@ fn thesis_shape_and_our_policy() {
     assert!(t64 * 3 < t64_thesis, "ours {t64} vs thesis policy {t64_thesis}");
 
     let mesh = host_sim::scene::load("cornell").unwrap();
-    let cfg = LoadConfig { n: 32, thickness: Thickness::Standard, contour: Contour::Conservative };
+    let cfg = LoadConfig::watertight(32);
     let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
     let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
     let lit = |policy, merge| {

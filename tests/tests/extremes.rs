@@ -1,4 +1,4 @@
-//! Numerical stability at the edges (issue 6, item 1), against the independent i128 oracle
+//! Numerical stability at the edges, against the independent i128 oracle
 //! (`rc2_tests::oracle::brute`), with overflow checks on (the test profile keeps them on).
 //!
 //! * `extreme_facets_at_max_n_equal_the_oracle_column_by_column`: at n = `MAX_N` (65 536) the
@@ -174,7 +174,7 @@ fn exhaustive_tiny_triangles() {
 
 #[test]
 fn out_of_budget_input_is_rejected_not_wrapped() {
-    let cfg = |n| LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
+    let cfg = |n| LoadConfig::watertight(n);
     assert!(cfg(MAX_N).validate().is_ok());
     let err = cfg(MAX_N + 1).validate().unwrap_err().to_string();
     assert!(err.contains("exceeds the largest grid"), "{err}");
@@ -212,7 +212,7 @@ proptest! {
         w in prop::collection::vec([any::<i32>(), any::<i32>(), any::<i32>()], 3),
         scale in 0u32..24,
     ) {
-        let cfg = LoadConfig { n: MAX_N, thickness: Thickness::Standard, contour: Contour::Conservative };
+        let cfg = LoadConfig::watertight(MAX_N);
         prop_assert!(facet_packet(&v[..3], FacetTag::default(), &cfg).is_ok());
         let far: Vec<[i64; 3]> = w.iter().map(|p| p.map(|c| (c as i64) << scale)).collect();
         let _ = facet_packet(&far, FacetTag::default(), &cfg);

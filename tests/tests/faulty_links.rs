@@ -1,4 +1,4 @@
-//! Faulty links (issue 6): every transfer goes through the link codec (frame + CRC-32) and a
+//! Faulty links: every transfer goes through the wire codec (frame + CRC-32) and a
 //! seeded fault injector that corrupts and drops data frames and acknowledgements. Corrupted
 //! frames must never be applied, and with acknowledgement and retransmission a run must light
 //! exactly the voxels a clean run lights and give the same image bytes, in more cycles.
@@ -11,7 +11,7 @@ use host_sim::machine::faults::LinkFaults;
 use host_sim::machine::lighting::run_diffusion;
 use host_sim::machine::loaded::{load_scene, resolve_lights};
 use host_sim::machine::shade::{point_lights, shade_grid};
-use host_sim::precompute::{Contour, LoadConfig, Thickness};
+use host_sim::precompute::LoadConfig;
 
 #[test]
 fn faulty_links_light_exactly_what_clean_links_light() {
@@ -19,8 +19,7 @@ fn faulty_links_light_exactly_what_clean_links_light() {
         [("cornell", 32, Policy::Wavefront), ("teapot-floor", 24, Policy::Thesis), ("cornell", 24, Policy::Radial)]
     {
         let mesh = host_sim::scene::load(scene).unwrap();
-        let loaded =
-            load_scene(&mesh, &LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected }).unwrap();
+        let loaded = load_scene(&mesh, &LoadConfig::thin(n)).unwrap();
         let lights = resolve_lights(&mesh, &loaded, &[]).unwrap();
         let run = |faults: Option<LinkFaults>| {
             let cfg = LightConfig { fa: 4, policy, merge: policy.by_layer(), faults, ..Default::default() };
@@ -65,8 +64,7 @@ fn faulty_links_light_exactly_what_clean_links_light() {
 #[test]
 fn a_dead_link_is_reported_as_a_stall_and_perfect_links_never_stall() {
     let mesh = host_sim::scene::load("cornell").unwrap();
-    let loaded =
-        load_scene(&mesh, &LoadConfig { n: 24, thickness: Thickness::Naive, contour: Contour::Projected }).unwrap();
+    let loaded = load_scene(&mesh, &LoadConfig::thin(24)).unwrap();
     let lights = resolve_lights(&mesh, &loaded, &[]).unwrap();
     let dead = LinkFaults { drop_ppm: 1_000_000, ..LinkFaults::NONE };
     let cfg = LightConfig { fa: 4, faults: Some(dead), stall_cycles: 7, ..Default::default() };

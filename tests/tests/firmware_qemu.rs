@@ -1,4 +1,4 @@
-//! The cell on a microcontroller (issue 5): traces recorded from a host-sim run of the Cornell
+//! The cell on a microcontroller: traces recorded from a host-sim run of the Cornell
 //! box (loading + one light) for several cells — the busiest included — are embedded in the
 //! `firmware/` crate, which drives a real `cell_core` cell through them on an emulated
 //! Cortex-M4F (QEMU `mps2-an386`): frames arrive through the link interrupt, go out through
@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 use cell_core::beam::frac::U0;
 use host_sim::jobs::trace::{record, TraceJob};
 use host_sim::machine::diffuse::{FrustumBlocks, LightConfig};
-use host_sim::precompute::{Contour, LoadConfig, Thickness};
+use host_sim::precompute::LoadConfig;
 use rc2_tests::traces::{cornell_job_cells, mutate_row_material};
 
 const TARGET: &str = "thumbv7em-none-eabihf";
@@ -163,7 +163,7 @@ fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
     // one of the teapot's ~6 000 sub-voxel facets sends row packets through these cells, and
     // the traces would not fit the firmware's 256 KiB of flash.
     let teapot = host_sim::scene::load("teapot-floor").unwrap();
-    let tload = LoadConfig { n: 32, thickness: Thickness::Naive, contour: Contour::Projected };
+    let tload = LoadConfig::thin(32);
     let tlight = LightConfig { hold: 4, skip_frustum: true, frustum_blocks: FrustumBlocks::B8, ..light };
     let tjob = TraceJob {
         mesh: &teapot,

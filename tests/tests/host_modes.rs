@@ -1,4 +1,4 @@
-//! The host's ways of simulating the machine change nothing the machine computes (issue 7):
+//! The host's ways of simulating the machine change nothing the machine computes:
 //! event-driven (active-cell) stepping against visiting every cell every cycle, one thread
 //! against several, for the lighting phase and the loading wave; and the exact skips
 //! (receding beams, dead directions) leave lit voxels and images unchanged while their dropped
@@ -12,7 +12,7 @@ use host_sim::machine::diffuse::{FrustumBlocks, LightConfig, SourceReport, Stepp
 use host_sim::machine::lighting::run_diffusion;
 use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
 use host_sim::machine::shade::{point_lights, shade_grid};
-use host_sim::precompute::{Contour, LoadConfig, Thickness};
+use host_sim::precompute::LoadConfig;
 use host_sim::report::png::write_png;
 use host_sim::scene::Mesh;
 
@@ -28,7 +28,7 @@ struct Outcome {
 
 fn setup(scene: &str, n: u32) -> (Mesh, LoadedScene, Vec<[f64; 3]>) {
     let mesh = host_sim::scene::load(scene).unwrap();
-    let cfg = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
+    let cfg = LoadConfig::thin(n);
     let loaded = load_scene(&mesh, &cfg).unwrap();
     let lights = resolve_lights(&mesh, &loaded, &[]).unwrap();
     (mesh, loaded, lights)
@@ -150,7 +150,7 @@ fn frustum_skip_drops_beams_that_light_nothing() {
 fn loading_wave_all_cells_equals_active_cells() {
     for (scene, n) in [("cornell", 32), ("teapot", 48), ("cow-floor", 40)] {
         let mesh = host_sim::scene::load(scene).unwrap();
-        let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
+        let cfg = LoadConfig::watertight(n);
         let packets = host_sim::precompute::prepare(&mesh, &cfg).unwrap().packets;
         let mut a = host_sim::machine::grid::Grid::<64>::new(n, n);
         let mut b = host_sim::machine::grid::Grid::<64>::new(n, n);

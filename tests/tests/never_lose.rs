@@ -1,4 +1,4 @@
-//! Never lose (issue 6, item 3): a bounded lit store that fills is a counted event that fails
+//! Never lose: a bounded lit store that fills is a counted event that fails
 //! the run with a message naming the cell and the capacity to raise.
 //!
 //! The situation is built on purpose: one column holds every other voxel (z = 2, 4, 6, …), so

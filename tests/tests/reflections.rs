@@ -1,4 +1,4 @@
-//! Mirror reflections on the grid (issue 8 item 4, thesis §1.3.2, ch. 5): the distributed ray
+//! Mirror reflections on the grid (thesis §1.3.2, ch. 5): the distributed ray
 //! tree against a sequential per-ray oracle, a flat mirror against continuous geometry, and
 //! depth 0 against the plain render.
 
@@ -11,7 +11,7 @@ use cell_core::shade::{encode, facing_mask, shade_linear_toward, NormalMode};
 use host_sim::jobs::render::{reference_image, render, RenderConfig, RenderInput, RenderLighting, Rendered};
 use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
 use host_sim::machine::reflect::{ray_span, reflect, ReflectConfig, ShadeEnv};
-use host_sim::precompute::{Contour, LoadConfig, Thickness};
+use host_sim::precompute::LoadConfig;
 use host_sim::scene::{Mesh, SceneLight};
 use rc2_tests::oracle::lines::{walk18, walk26, walk6};
 
@@ -35,7 +35,7 @@ fn render_reflect(
 }
 
 fn load(mesh: &Mesh, n: u32) -> (LoadedScene, Vec<[f64; 3]>) {
-    let cfg = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
+    let cfg = LoadConfig::thin(n);
     let loaded = load_scene(mesh, &cfg).unwrap();
     let lights = resolve_lights(mesh, &loaded, &[]).unwrap();
     (loaded, lights)

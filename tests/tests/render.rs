@@ -1,4 +1,4 @@
-//! Shading and the rendered image (issue 4), each part against what justifies it:
+//! Shading and the rendered image, each part against what justifies it:
 //!
 //! * **Arithmetic.** The cell's micromath shading equals the f64 formula within one 8-bit level
 //!   on random inputs (f32 rounding can move a value across a rounding boundary).

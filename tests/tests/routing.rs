@@ -132,12 +132,12 @@ fn classic_answers_match_a_per_ray_oracle() {
     use cell_core::lit::LitRule;
     use cell_core::ray::{Connectivity, Q};
     use host_sim::machine::classic::{classic, ClassicConfig};
-    use host_sim::precompute::{Contour, LoadConfig, Thickness};
+    use host_sim::precompute::LoadConfig;
     use rc2_tests::oracle::lines::{walk18, walk26, walk6};
 
     let mesh = host_sim::scene::load("cornell").unwrap();
     let n = 32;
-    let cfg = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
+    let cfg = LoadConfig::thin(n);
     let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
     let mut lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
     lights.push([3.0, 20.0, 9.5]); // a second source, low and to the side
@@ -232,12 +232,12 @@ fn classic_plane_answers_match_the_segment_oracle() {
     use cell_core::lit::LitRule;
     use cell_core::ray::{Connectivity, Q};
     use host_sim::machine::classic::{classic, ClassicConfig};
-    use host_sim::precompute::{Contour, LoadConfig, Thickness};
+    use host_sim::precompute::LoadConfig;
 
     for (scene, extra) in [("cornell", [3.0, 20.0, 9.5]), ("teapot-floor", [30.0, 2.0, 4.0])] {
         let mesh = host_sim::scene::load(scene).unwrap();
         let n = 32;
-        let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
+        let cfg = LoadConfig::watertight(n);
         let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
         let mut lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
         lights.push(extra);
@@ -304,7 +304,7 @@ mod random_sources {
     use cell_core::ray::{Connectivity, Q};
     use cell_core::route::RoutePolicy;
     use host_sim::machine::classic::{classic, ClassicConfig};
-    use host_sim::precompute::{Contour, LoadConfig, Thickness};
+    use host_sim::precompute::LoadConfig;
     use proptest::prelude::*;
 
     proptest! {
@@ -317,7 +317,7 @@ mod random_sources {
         ) {
             let mesh = host_sim::scene::load(scene).unwrap();
             let n = 16;
-            let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
+            let cfg = LoadConfig::watertight(n);
             let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
             let lights: Vec<[f64; 3]> = lights16.iter().map(|l| l.map(|c| c as f64 / Q as f64)).collect();
             let grid = &loaded.grid;

@@ -1,4 +1,4 @@
-//! Cell traces (issue 5) on the host: every cell of small grids is recorded during a real grid
+//! Cell traces on the host: every cell of small grids is recorded during a real grid
 //! run and replayed through a fresh `cell_core` cell (the code the firmware runs); the digest of
 //! outputs and final state must equal the one the grid computed, for both scheduling policies,
 //! with and without merging, with integer and fractional rays. Altered traces must fail: any
@@ -13,7 +13,7 @@ use cell_core::trace::{write_event, Parser};
 use host_sim::jobs::trace::{record, CellTrace, TraceJob};
 use host_sim::machine::capacity::{FA_CAP, LIT_CAP, OB_CAP};
 use host_sim::machine::diffuse::{FrustumBlocks, LightConfig};
-use host_sim::precompute::{Contour, LoadConfig, Thickness};
+use host_sim::precompute::LoadConfig;
 use rc2_tests::traces::mutate_row_material;
 
 type Replay = fn(&[u8]) -> Result<(u64, cell_core::trace::ReplayStats), cell_core::trace::ReplayError>;
@@ -24,7 +24,7 @@ fn replay_fn<F: FracBits>() -> Replay {
 
 fn all_cells<F: FracBits>(scene: &str, n: u32, light: LightConfig) -> Vec<CellTrace> {
     let mesh = host_sim::scene::load(scene).unwrap();
-    let load = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
+    let load = LoadConfig::thin(n);
     let cells = (0..n).flat_map(|y| (0..n).map(move |x| [x, y])).collect();
     record::<F>(&TraceJob { mesh: &mesh, load, light, lights: Vec::new(), cells, busiest: false }).unwrap()
 }
@@ -69,7 +69,7 @@ fn every_cell_replays_with_the_sibling_wait_and_the_frustum_skip() {
 
 fn busiest_trace() -> CellTrace {
     let mesh = host_sim::scene::load("cornell").unwrap();
-    let load = LoadConfig { n: 24, thickness: Thickness::Naive, contour: Contour::Projected };
+    let load = LoadConfig::thin(24);
     let light =
         LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, record_visits: false, ..Default::default() };
     let job = TraceJob { mesh: &mesh, load, light, lights: Vec::new(), cells: Vec::new(), busiest: true };
@@ -132,7 +132,7 @@ fn peak_link_load_equals_the_busiest_link_in_the_traces() {
     let traces = all_cells::<U0>("cornell", n, light);
     let mut best = (0u64, u32::MAX);
     let mesh = host_sim::scene::load("cornell").unwrap();
-    let load = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
+    let load = LoadConfig::thin(n);
     let scene = host_sim::machine::loaded::load_scene(&mesh, &load).unwrap();
     let lights = host_sim::machine::loaded::resolve_lights(&mesh, &scene, &[]).unwrap();
     let s = host_sim::machine::diffuse::source_at(0, lights[0], n).unwrap().voxel();
@@ -173,7 +173,7 @@ fn light_records_carry_the_wait_and_the_summary() {
     use cell_core::trace::{Event, Header, LightSetup};
     for (scene, n) in [("teapot-floor", 24), ("cow-floor", 21), ("cornell", 16)] {
         let mesh = host_sim::scene::load(scene).unwrap();
-        let load = LoadConfig { n, thickness: Thickness::Naive, contour: Contour::Projected };
+        let load = LoadConfig::thin(n);
         let loaded = host_sim::machine::loaded::load_scene(&mesh, &load).unwrap();
         let summary = host_sim::machine::diffuse::occupancy_summary(&loaded.grid, cell_core::lit::LitRule::Thesis);
         assert!(!summary.is_empty());

@@ -4,7 +4,7 @@
 mod common;
 
 use host_sim::machine::grid::Grid;
-use host_sim::precompute::{prepare, Contour, LoadConfig, Thickness};
+use host_sim::precompute::{prepare, LoadConfig};
 use host_sim::scene;
 
 const CAP: usize = 128;
@@ -33,7 +33,7 @@ fn compare(name: &str, cfg: LoadConfig) {
 fn every_shipped_mesh_at_64_and_128() {
     for name in ["cornell", "cow", "fandisk", "suzanne", "teapot", "facet"] {
         for n in [64, 128] {
-            compare(name, LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative });
+            compare(name, LoadConfig::watertight(n));
         }
     }
 }

@@ -13,7 +13,7 @@ use cell_core::cell::{Cell, DEFAULT_DEXELS};
 use cell_core::dexel::{Dexel, DexelStore};
 use cell_core::facet::{PipelinePacket, RowPacket};
 use cell_core::light::{BeamMsg, LitRun, LitRuns, OutBuffers, Policy};
-use cell_core::link::{BEAM_PAYLOAD, HEADER, MAX_FRAME, ROW_PAYLOAD_BASE, TRAILER};
+use cell_core::wire::{BEAM_PAYLOAD, HEADER, MAX_FRAME, ROW_PAYLOAD_BASE, TRAILER};
 
 use crate::machine::diffuse::{FrustumBlocks, LightConfig};
 

@@ -1,5 +1,5 @@
 //! Faulty links: [`FaultInjector`] wraps any link (`cell_core::link::Link`) with a lossy wire.
-//! Every send goes through the real link codec (`cell_core::link`: frame + CRC-32), and a
+//! Every send goes through the real wire codec (`cell_core::wire`: frame + CRC-32), and a
 //! seeded fault injector in the spirit of smoltcp's `FaultInjector` corrupts, drops or delays
 //! frames at given rates; what survives the wire is handed to the wrapped link (for the host
 //! grid a [`cell_core::link::PerfectLink`] into the neighbour's FIFO).
@@ -31,7 +31,8 @@ use std::str::FromStr;
 
 use cell_core::beam::{FarDistance, FracBits};
 use cell_core::light::BeamMsg;
-use cell_core::link::{decode, encode, Link, Message, PerfectLink, Sent, HEADER, MAX_FRAME, TRAILER};
+use cell_core::link::{Link, PerfectLink, Sent};
+use cell_core::wire::{Frame, Message, HEADER, MAX_FRAME, TRAILER};
 
 use crate::machine::links::{LinkId, BACK};
 
@@ -278,10 +279,10 @@ impl<'w, L> FaultInjector<'w, L> {
     fn acknowledge<F: FracBits>(&mut self, cycle: u64, seq: u8, expect: u8, far: FarDistance<F>) -> bool {
         let mut ack = [0u8; HEADER + 1 + TRAILER];
         // Cannot fail: an ack frame has a fixed size.
-        let alen = encode::<F>(seq, &Message::Ack, &mut ack).expect("ack frame fits");
+        let alen = Message::<F>::Ack.emit(seq, &mut ack).expect("ack frame fits");
         let afate = fate(&self.wire.faults, cycle, self.to, BACK[self.port as usize], true, alen);
         let acked = carry(&afate, &mut ack[..alen])
-            && matches!(decode::<F>(&ack[..alen], far), Ok((f, _)) if f.msg == Message::Ack && f.seq == expect);
+            && matches!(Frame::<F>::parse(&ack[..alen], far), Ok((f, _)) if f.msg == Message::Ack && f.seq == expect);
         if !acked {
             self.counts.acks_lost += 1;
             if matches!(afate, Fate::Corrupt(_)) {
@@ -309,13 +310,13 @@ impl<F: FracBits, Rx: ?Sized, L: Link<F, Rx>> Link<F, Rx> for FaultInjector<'_, 
         let seq = self.tx_seq;
         let mut buf = [0u8; MAX_FRAME];
         // Cannot fail: a beam frame has a fixed size below MAX_FRAME.
-        let len = encode(seq, &Message::Beam(*m), &mut buf).expect("beam frame fits");
+        let len = Message::Beam(*m).emit(seq, &mut buf).expect("beam frame fits");
         let Some(fate) = self.data_fate(cycle, len) else { return Ok(Sent::NOTHING) };
         if !carry(&fate, &mut buf[..len]) {
             return Ok(Sent::NOTHING);
         }
         // The receiving end.
-        let frame = match decode::<F>(&buf[..len], far) {
+        let frame = match Frame::<F>::parse(&buf[..len], far) {
             Ok((f, _)) => f,
             Err(_) => {
                 self.counts.crc_rejected += 1;

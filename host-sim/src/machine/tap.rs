@@ -13,8 +13,9 @@ use cell_core::beam::FracBits;
 use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::facet::RowPacket;
 use cell_core::light::{BeamMsg, FrustumSummary, LightEnv, Port, Step};
-use cell_core::link::{self, Link, Message, Sent};
+use cell_core::link::{Link, Sent};
 use cell_core::trace::{write_event, Digester, Event, Header, LightSetup, Replayer};
+use cell_core::wire::Message;
 
 use super::capacity::{FA_CAP, LIT_CAP, OB_CAP};
 use super::faults::{FaultCounts, FaultTally};
@@ -86,7 +87,7 @@ impl CellRecorder {
     fn frame<F: FracBits>(m: &BeamMsg<F>) -> ([u8; cell_core::trace::BEAM_FRAME], usize) {
         let mut buf = [0u8; cell_core::trace::BEAM_FRAME];
         // Cannot fail: a beam frame has a fixed size.
-        let len = link::encode(0, &Message::Beam(*m), &mut buf).expect("beam frame fits");
+        let len = Message::Beam(*m).emit(0, &mut buf).expect("beam frame fits");
         (buf, len)
     }
 

@@ -1,0 +1,788 @@
+//! §3.9, §4.4 — the bytes a link carries: framed inter-cell messages with a CRC.
+//!
+//! # Frame layout (all integers little-endian)
+//!
+//! ```text
+//!   kind u8 | len u16 | payload (len bytes) | crc u32
+//! ```
+//!
+//! `crc` is CRC-32/ISO-HDLC (the `crc` crate's `CRC_32_ISO_HDLC`, the Ethernet/zlib one) over
+//! `kind`, `len` and the payload. A frame whose CRC does not match is never applied: decoding
+//! returns [`DecodeError::BadCrc`]. The same framing carries the inter-cell messages
+//! ([`Message`]) and the records of a cell trace ([`crate::trace`]).
+//!
+//! Message payloads:
+//!
+//! | kind | message | payload | bytes on the wire |
+//! |---|---|---|---|
+//! | `0x10` | [`Message::Row`] (a facet row packet, §3.9) | seq u8, facet u32, material u16, normal u16, plane (id u32, nx i16, ny i16, nz i32, m u64), box 6×u16, a c t u 4×i64, edge count u8, edges (a i32, c i32, g i64, off i32) | 81 + 20·edges |
+//! | `0x20` | [`Message::Beam`] (§4.4) | seq u8, frac bits u8, source u16, direction u8 (bit 7: terminal, bit 6: after an empty voxel, bit 5: after the outside of a plane, [`crate::lit`]), layer u32, u_lo u_hi v_lo v_hi 4×i32, z u16 | 27 + 7 = 34 |
+//! | `0x30` | [`Message::Ack`] | seq u8 | 1 + 7 = 8 |
+//!
+//! `seq` is the link-level sequence number (for acknowledgement and retransmission); a trace
+//! leaves it 0.
+//!
+//! # Representation, parse and emit
+//!
+//! As in smoltcp, a message has a high-level representation, [`Message`] (with its sequence
+//! number, [`Frame`]), that is parsed from bytes ([`Frame::parse`]: CRC, kind, length and
+//! every field checked) and emitted into bytes ([`Message::emit`], [`Frame::emit`];
+//! [`Message::buffer_len`] says how many). The field helpers ([`put_beam`], [`get_row`] …) and
+//! the framing ([`write_frame`], [`read_frame`]) are shared with the cell trace format.
+//! The [`crate::link`] seam decides who carries the bytes.
+//!
+//! ```
+//! use cell_core::beam::{frac::U0, Beam, Direction, FarDistance, Source, SourceId};
+//! use cell_core::light::BeamMsg;
+//! use cell_core::wire::{DecodeError, Frame, Message, MAX_FRAME};
+//!
+//! let source = Source::at_voxel(SourceId(3), [1, 2, 3]).unwrap();
+//! let far = FarDistance::<U0>::new(7).unwrap();
+//! let msg = Message::Beam(BeamMsg::new(Beam::initial(&source, Direction::PosZ, far), 1));
+//!
+//! let mut buf = [0u8; MAX_FRAME];
+//! let len = msg.emit(5, &mut buf).unwrap();
+//! assert_eq!(len, msg.buffer_len());
+//! assert_eq!(&buf[..3], &[0x20, 27, 0]); // kind, payload length (little-endian)
+//!
+//! let (frame, used) = Frame::parse(&buf[..len], far).unwrap();
+//! assert_eq!((frame.seq, &frame.msg, used), (5, &msg, len));
+//!
+//! buf[4] ^= 0x01; // one bit flipped on the wire
+//! assert_eq!(Frame::<U0>::parse(&buf[..len], far).unwrap_err(), DecodeError::BadCrc);
+//! ```
+//!
+//! # No panic on malformed input
+//!
+//! Every decoder returns a [`DecodeError`] value for truncated, over-long, corrupted or
+//! out-of-range input: a beam must satisfy [`Beam::new`] (ranges within the far square, layer
+//! ≤ D) and carry this build's fraction bits; a row packet's coefficients must lie within the
+//! bit budget of [`crate::voxelize`] (so that a cell's arithmetic on it stays in `i64`).
+
+use heapless::Vec;
+
+use crate::beam::{Beam, Direction, FarDistance, FarOffset, FracBits, Layer, RayRange, SourceId};
+use crate::dexel::FacetTag;
+use crate::facet::{FacetBox, RowEdge, RowPacket, MAX_EDGES};
+use crate::light::BeamMsg;
+use crate::normal::NormalCode;
+use crate::plane::FacetPlane;
+use crate::voxelize::{worst_case_g, worst_case_t, MAX_LATTICE_Q, MAX_LATTICE_SPAN};
+
+/// CRC-32/ISO-HDLC, table-driven (1 KiB of flash).
+pub const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+
+/// Bytes before the payload: kind and length.
+pub const HEADER: usize = 3;
+/// Bytes after the payload: the CRC.
+pub const TRAILER: usize = 4;
+/// Frame kind of a row packet.
+pub const KIND_ROW: u8 = 0x10;
+/// Frame kind of a beam.
+pub const KIND_BEAM: u8 = 0x20;
+/// Frame kind of an acknowledgement.
+pub const KIND_ACK: u8 = 0x30;
+/// Payload bytes of a beam message (with its `seq`).
+pub const BEAM_PAYLOAD: usize = 27;
+/// Payload bytes of a row packet without edges (with its `seq`).
+pub const ROW_PAYLOAD_BASE: usize = 74;
+/// Payload bytes per contour edge of a row packet.
+pub const ROW_EDGE_BYTES: usize = 20;
+/// The longest message frame (a row packet with [`MAX_EDGES`] edges).
+pub const MAX_FRAME: usize = HEADER + ROW_PAYLOAD_BASE + MAX_EDGES * ROW_EDGE_BYTES + TRAILER;
+
+/// Why bytes could not be encoded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum EncodeError {
+    /// The output buffer is too small.
+    BufferTooSmall,
+    /// The payload is longer than a frame's 16-bit length.
+    PayloadTooLong,
+}
+
+/// Why bytes could not be decoded (a value, never a panic).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum DecodeError {
+    /// Fewer bytes than the header, the length or a field announces.
+    Truncated,
+    /// The CRC does not match: a corrupted frame.
+    BadCrc,
+    /// A frame kind this decoder does not know (or not the one expected).
+    UnknownKind(u8),
+    /// The payload is longer or shorter than its kind requires.
+    BadLength,
+    /// A field is out of range (direction, ranges, layer, edge count, bit budget …).
+    BadValue(&'static str),
+    /// A beam encoded with another number of fraction bits than this build's.
+    FracBitsMismatch {
+        /// Fraction bits in the frame.
+        found: u8,
+        /// Fraction bits of this build.
+        expected: u8,
+    },
+}
+
+/// Where encoded bytes go: a buffer, a running digest, a wire.
+pub trait ByteSink {
+    /// Append bytes.
+    fn put(&mut self, bytes: &[u8]) -> Result<(), EncodeError>;
+}
+
+/// A [`ByteSink`] writing into a slice.
+pub struct SliceWriter<'a> {
+    buf: &'a mut [u8],
+    pos: usize,
+}
+
+impl<'a> SliceWriter<'a> {
+    /// Write from the start of `buf`.
+    pub fn new(buf: &'a mut [u8]) -> Self {
+        SliceWriter { buf, pos: 0 }
+    }
+
+    /// Bytes written so far.
+    pub fn len(&self) -> usize {
+        self.pos
+    }
+
+    /// Whether nothing was written.
+    pub fn is_empty(&self) -> bool {
+        self.pos == 0
+    }
+
+    /// What was written.
+    pub fn written(&self) -> &[u8] {
+        &self.buf[..self.pos]
+    }
+}
+
+impl ByteSink for SliceWriter<'_> {
+    fn put(&mut self, bytes: &[u8]) -> Result<(), EncodeError> {
+        let end = self.pos.checked_add(bytes.len()).ok_or(EncodeError::BufferTooSmall)?;
+        let dst = self.buf.get_mut(self.pos..end).ok_or(EncodeError::BufferTooSmall)?;
+        dst.copy_from_slice(bytes);
+        self.pos = end;
+        Ok(())
+    }
+}
+
+/// A [`ByteSink`] that only counts (sizes on the wire).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CountingSink(pub usize);
+
+impl ByteSink for CountingSink {
+    fn put(&mut self, bytes: &[u8]) -> Result<(), EncodeError> {
+        self.0 += bytes.len();
+        Ok(())
+    }
+}
+
+/// Little-endian field writers over any sink.
+pub trait PutExt: ByteSink {
+    /// One byte.
+    fn u8(&mut self, v: u8) -> Result<(), EncodeError> {
+        self.put(&[v])
+    }
+    /// u16 LE.
+    fn u16(&mut self, v: u16) -> Result<(), EncodeError> {
+        self.put(&v.to_le_bytes())
+    }
+    /// u32 LE.
+    fn u32(&mut self, v: u32) -> Result<(), EncodeError> {
+        self.put(&v.to_le_bytes())
+    }
+    /// u64 LE.
+    fn u64(&mut self, v: u64) -> Result<(), EncodeError> {
+        self.put(&v.to_le_bytes())
+    }
+    /// i32 LE.
+    fn i32(&mut self, v: i32) -> Result<(), EncodeError> {
+        self.put(&v.to_le_bytes())
+    }
+    /// i64 LE.
+    fn i64(&mut self, v: i64) -> Result<(), EncodeError> {
+        self.put(&v.to_le_bytes())
+    }
+    /// f32 LE (IEEE bits).
+    fn f32(&mut self, v: f32) -> Result<(), EncodeError> {
+        self.put(&v.to_bits().to_le_bytes())
+    }
+}
+
+impl<S: ByteSink + ?Sized> PutExt for S {}
+
+/// A bounds-checked little-endian reader.
+pub struct Reader<'a> {
+    bytes: &'a [u8],
+}
+
+impl<'a> Reader<'a> {
+    /// Read `bytes` from the start.
+    pub fn new(bytes: &'a [u8]) -> Self {
+        Reader { bytes }
+    }
+
+    /// Bytes not read yet.
+    pub fn remaining(&self) -> usize {
+        self.bytes.len()
+    }
+
+    /// The next `n` bytes.
+    pub fn take(&mut self, n: usize) -> Result<&'a [u8], DecodeError> {
+        if self.bytes.len() < n {
+            return Err(DecodeError::Truncated);
+        }
+        let (a, b) = self.bytes.split_at(n);
+        self.bytes = b;
+        Ok(a)
+    }
+
+    fn array<const K: usize>(&mut self) -> Result<[u8; K], DecodeError> {
+        let mut a = [0u8; K];
+        a.copy_from_slice(self.take(K)?);
+        Ok(a)
+    }
+
+    /// One byte.
+    pub fn u8(&mut self) -> Result<u8, DecodeError> {
+        Ok(self.array::<1>()?[0])
+    }
+    /// u16 LE.
+    pub fn u16(&mut self) -> Result<u16, DecodeError> {
+        Ok(u16::from_le_bytes(self.array()?))
+    }
+    /// u32 LE.
+    pub fn u32(&mut self) -> Result<u32, DecodeError> {
+        Ok(u32::from_le_bytes(self.array()?))
+    }
+    /// u64 LE.
+    pub fn u64(&mut self) -> Result<u64, DecodeError> {
+        Ok(u64::from_le_bytes(self.array()?))
+    }
+    /// i32 LE.
+    pub fn i32(&mut self) -> Result<i32, DecodeError> {
+        Ok(i32::from_le_bytes(self.array()?))
+    }
+    /// i64 LE.
+    pub fn i64(&mut self) -> Result<i64, DecodeError> {
+        Ok(i64::from_le_bytes(self.array()?))
+    }
+    /// f32 LE; NaN and infinities are rejected.
+    pub fn f32(&mut self) -> Result<f32, DecodeError> {
+        let v = f32::from_bits(self.u32()?);
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(DecodeError::BadValue("non-finite float"))
+        }
+    }
+
+    /// Fails unless every byte was read.
+    pub fn finish(&self) -> Result<(), DecodeError> {
+        if self.bytes.is_empty() {
+            Ok(())
+        } else {
+            Err(DecodeError::BadLength)
+        }
+    }
+}
+
+/// Write one frame of `kind` whose payload `body` writes, into `buf`; returns the frame's
+/// length. The payload is written in place, then the header and CRC around it.
+pub fn write_frame(
+    buf: &mut [u8],
+    kind: u8,
+    body: impl FnOnce(&mut SliceWriter<'_>) -> Result<(), EncodeError>,
+) -> Result<usize, EncodeError> {
+    if buf.len() < HEADER + TRAILER {
+        return Err(EncodeError::BufferTooSmall);
+    }
+    let cap = buf.len() - TRAILER;
+    let len = {
+        let mut w = SliceWriter::new(&mut buf[HEADER..cap]);
+        body(&mut w)?;
+        w.len()
+    };
+    let len16 = u16::try_from(len).map_err(|_| EncodeError::PayloadTooLong)?;
+    buf[0] = kind;
+    buf[1..3].copy_from_slice(&len16.to_le_bytes());
+    let end = HEADER + len;
+    let crc = CRC32.checksum(&buf[..end]);
+    buf[end..end + TRAILER].copy_from_slice(&crc.to_le_bytes());
+    Ok(end + TRAILER)
+}
+
+/// A frame as read off a link: its kind and its (CRC-checked) payload.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RawFrame<'a> {
+    /// Frame kind.
+    pub kind: u8,
+    /// Payload.
+    pub payload: &'a [u8],
+}
+
+/// Read the frame at the start of `bytes`: returns it and the number of bytes it took.
+pub fn read_frame(bytes: &[u8]) -> Result<(RawFrame<'_>, usize), DecodeError> {
+    if bytes.len() < HEADER {
+        return Err(DecodeError::Truncated);
+    }
+    let kind = bytes[0];
+    let len = u16::from_le_bytes([bytes[1], bytes[2]]) as usize;
+    let end = HEADER + len;
+    let total = end + TRAILER;
+    if bytes.len() < total {
+        return Err(DecodeError::Truncated);
+    }
+    let mut crc = [0u8; TRAILER];
+    crc.copy_from_slice(&bytes[end..total]);
+    if CRC32.checksum(&bytes[..end]) != u32::from_le_bytes(crc) {
+        return Err(DecodeError::BadCrc);
+    }
+    Ok((RawFrame { kind, payload: &bytes[HEADER..end] }, total))
+}
+
+/// An inter-cell message.
+// A decoded message lives on the stack for the time of one frame: no point boxing the row
+// packet (and no allocator on a cell).
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Message<F: FracBits> {
+    /// A facet row packet travelling east during loading.
+    Row(RowPacket),
+    /// A beam travelling to a neighbour during lighting.
+    Beam(BeamMsg<F>),
+    /// Acknowledges the data frame with this sequence number.
+    Ack,
+}
+
+/// A message with its link-level sequence number.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Frame<F: FracBits> {
+    /// Link sequence number (0 in traces).
+    pub seq: u8,
+    /// The message.
+    pub msg: Message<F>,
+}
+
+/// Write a row packet's fields (payload after `seq`).
+pub fn put_row<S: ByteSink + ?Sized>(w: &mut S, p: &RowPacket) -> Result<(), EncodeError> {
+    w.u32(p.tag.facet)?;
+    w.u16(p.tag.material)?;
+    w.u16(p.tag.normal.0)?;
+    let pl = p.tag.plane;
+    w.u32(pl.id)?;
+    w.put(&pl.nx.to_le_bytes())?;
+    w.put(&pl.ny.to_le_bytes())?;
+    w.i32(pl.nz)?;
+    w.u64(pl.m)?;
+    let b = p.bbox;
+    for v in [b.x_min, b.x_max, b.y_min, b.y_max, b.z_min, b.z_max] {
+        w.u16(v)?;
+    }
+    for v in [p.a, p.c, p.t, p.u] {
+        w.i64(v)?;
+    }
+    w.u8(p.edges.len() as u8)?;
+    for e in &p.edges {
+        w.i32(e.a)?;
+        w.i32(e.c)?;
+        w.i64(e.g)?;
+        w.i32(e.off)?;
+    }
+    Ok(())
+}
+
+fn within(v: i64, bound: i128, what: &'static str) -> Result<i64, DecodeError> {
+    if (v as i128).abs() <= bound {
+        Ok(v)
+    } else {
+        Err(DecodeError::BadValue(what))
+    }
+}
+
+/// Read a row packet's fields, checking the bit budget of [`crate::voxelize`].
+pub fn get_row(r: &mut Reader<'_>) -> Result<RowPacket, DecodeError> {
+    let (m, q) = (MAX_LATTICE_SPAN, MAX_LATTICE_Q);
+    let (facet, material, normal) = (r.u32()?, r.u16()?, NormalCode(r.u16()?));
+    let plane = FacetPlane { id: r.u32()?, nx: r.u16()? as i16, ny: r.u16()? as i16, nz: r.i32()?, m: r.u64()? };
+    if !plane.in_budget() {
+        return Err(DecodeError::BadValue("facet plane beyond the bit budget"));
+    }
+    let tag = FacetTag { facet, material, normal, plane };
+    let mut bx = [0u16; 6];
+    for v in bx.iter_mut() {
+        *v = r.u16()?;
+    }
+    let bbox = FacetBox { x_min: bx[0], x_max: bx[1], y_min: bx[2], y_max: bx[3], z_min: bx[4], z_max: bx[5] };
+    if bbox.x_min > bbox.x_max || bbox.y_min > bbox.y_max || bbox.z_min > bbox.z_max {
+        return Err(DecodeError::BadValue("empty facet box"));
+    }
+    let coef = 2 * q * m * m;
+    let a = within(r.i64()?, coef, "plane coefficient a beyond the bit budget")?;
+    let c = within(r.i64()?, coef, "plane coefficient c beyond the bit budget")?;
+    let t = within(r.i64()?, worst_case_t(m, q), "t beyond the bit budget")?;
+    let u = within(r.i64()?, worst_case_t(m, q), "u beyond the bit budget")?;
+    let count = r.u8()? as usize;
+    if count > MAX_EDGES {
+        return Err(DecodeError::BadValue("more contour edges than MAX_EDGES"));
+    }
+    let mut edges = Vec::new();
+    for _ in 0..count {
+        let ea = within(r.i32()? as i64, q * m, "edge coefficient beyond the bit budget")? as i32;
+        let ec = within(r.i32()? as i64, q * m, "edge coefficient beyond the bit budget")? as i32;
+        let g = within(r.i64()?, worst_case_g(m, q), "edge value beyond the bit budget")?;
+        let off = r.i32()?;
+        if !(0..=(q * m) as i32).contains(&off) {
+            return Err(DecodeError::BadValue("edge push beyond the bit budget"));
+        }
+        // Cannot fail: count ≤ MAX_EDGES was checked.
+        let _ = edges.push(RowEdge { a: ea, c: ec, g, off });
+    }
+    Ok(RowPacket { tag, bbox, a, c, t, u, edges })
+}
+
+/// Write a beam message's fields (payload after `seq`).
+pub fn put_beam<F: FracBits, S: ByteSink + ?Sized>(w: &mut S, m: &BeamMsg<F>) -> Result<(), EncodeError> {
+    let b = &m.beam;
+    w.u8(F::U32 as u8)?;
+    w.u16(b.source().0)?;
+    w.u8(b.direction().index()
+        | (b.is_terminal() as u8) << 7
+        | (b.after_empty() as u8) << 6
+        | (b.after_outside() as u8) << 5)?;
+    w.u32(b.layer().0)?;
+    for v in [b.u().lo(), b.u().hi(), b.v().lo(), b.v().hi()] {
+        w.i32(v.to_bits())?;
+    }
+    w.u16(m.z)
+}
+
+/// Read a beam message's fields, checking them against the far distance in use.
+pub fn get_beam<F: FracBits>(r: &mut Reader<'_>, far: FarDistance<F>) -> Result<BeamMsg<F>, DecodeError> {
+    let f = r.u8()?;
+    if f as u32 != F::U32 {
+        return Err(DecodeError::FracBitsMismatch { found: f, expected: F::U32 as u8 });
+    }
+    let source = SourceId(r.u16()?);
+    let d = r.u8()?;
+    let dir = Direction::from_index(d & 0x1f).ok_or(DecodeError::BadValue("beam direction"))?;
+    let layer = Layer(r.u32()?);
+    let mut v4 = [FarOffset::<F>::ZERO; 4];
+    for v in v4.iter_mut() {
+        *v = FarOffset::<F>::from_bits(r.i32()?);
+    }
+    let u = RayRange::new(v4[0], v4[1]).ok_or(DecodeError::BadValue("beam u range"))?;
+    let v = RayRange::new(v4[2], v4[3]).ok_or(DecodeError::BadValue("beam v range"))?;
+    let beam = Beam::new(source, dir, layer, u, v, far)
+        .map_err(|_| DecodeError::BadValue("beam outside D"))?
+        .with_terminal(d & 0x80 != 0)
+        .with_after_empty(d & 0x40 != 0)
+        .with_after_outside(d & 0x20 != 0);
+    Ok(BeamMsg::new(beam, r.u16()?))
+}
+
+impl<F: FracBits> Message<F> {
+    /// Bytes of this message's frame on the wire (header, payload with `seq`, CRC).
+    pub fn buffer_len(&self) -> usize {
+        HEADER
+            + TRAILER
+            + match self {
+                Message::Row(p) => ROW_PAYLOAD_BASE + p.edges.len() * ROW_EDGE_BYTES,
+                Message::Beam(_) => BEAM_PAYLOAD,
+                Message::Ack => 1,
+            }
+    }
+
+    /// Emit this message's frame with link sequence number `seq` into `buf`; returns its
+    /// length ([`Message::buffer_len`]).
+    pub fn emit(&self, seq: u8, buf: &mut [u8]) -> Result<usize, EncodeError> {
+        match self {
+            Message::Row(p) => write_frame(buf, KIND_ROW, |w| {
+                w.u8(seq)?;
+                put_row(w, p)
+            }),
+            Message::Beam(m) => write_frame(buf, KIND_BEAM, |w| {
+                w.u8(seq)?;
+                put_beam(w, m)
+            }),
+            Message::Ack => write_frame(buf, KIND_ACK, |w| w.u8(seq)),
+        }
+    }
+}
+
+impl<F: FracBits> Frame<F> {
+    /// Parse the message frame at the start of `bytes` (CRC, kind, length and every field
+    /// checked); returns it and the bytes it took.
+    pub fn parse(bytes: &[u8], far: FarDistance<F>) -> Result<(Self, usize), DecodeError> {
+        let (raw, used) = read_frame(bytes)?;
+        Ok((Self::parse_payload(raw, far)?, used))
+    }
+
+    /// Parse a CRC-checked frame's payload as a message.
+    pub fn parse_payload(raw: RawFrame<'_>, far: FarDistance<F>) -> Result<Self, DecodeError> {
+        let mut r = Reader::new(raw.payload);
+        let seq = r.u8()?;
+        let msg = match raw.kind {
+            KIND_ROW => Message::Row(get_row(&mut r)?),
+            KIND_BEAM => Message::Beam(get_beam(&mut r, far)?),
+            KIND_ACK => Message::Ack,
+            k => return Err(DecodeError::UnknownKind(k)),
+        };
+        r.finish()?;
+        Ok(Frame { seq, msg })
+    }
+
+    /// Emit this frame into `buf`; returns its length.
+    pub fn emit(&self, buf: &mut [u8]) -> Result<usize, EncodeError> {
+        self.msg.emit(self.seq, buf)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use crate::beam::Source;
+    use fixed::types::extra::{U0, U4};
+    use proptest::prelude::*;
+
+    fn far<F: FracBits>() -> FarDistance<F> {
+        FarDistance::new(127).unwrap()
+    }
+
+    #[test]
+    fn crc_is_the_standard_one() {
+        assert_eq!(CRC32.checksum(b"123456789"), 0xCBF4_3926);
+    }
+
+    #[test]
+    fn beam_round_trip_and_size() {
+        let s = Source::at_voxel(SourceId(3), [10, 20, 30]).unwrap();
+        for d in Direction::ALL {
+            let b = Beam::<U4>::initial(&s, d, far());
+            let parts = b.split(&s, far(), d.transverse_of([10, 20, 30])).unwrap();
+            for sb in parts {
+                let m = BeamMsg::new(sb.beam, 31);
+                let mut buf = [0u8; 64];
+                let n = Message::Beam(m).emit(9, &mut buf).unwrap();
+                assert_eq!(n, HEADER + BEAM_PAYLOAD + TRAILER);
+                let (f, used) = Frame::<U4>::parse(&buf[..n], far()).unwrap();
+                assert_eq!((f.seq, f.msg, used), (9, Message::Beam(m), n));
+            }
+        }
+    }
+
+    // Known answers: frames written out by hand from the layout in the module doc (kind u8,
+    // len u16 LE, payload, CRC-32 LE over kind, len and payload), one field per line. The CRCs
+    // were computed independently of this crate, with Python's `zlib.crc32` over the same bytes
+    // (`struct.pack('<BH', kind, len) + payload`), not with `CRC32`.
+
+    /// An acknowledgement of sequence number 0x5a.
+    const ACK_5A: [u8; 8] = [
+        0x30, 0x01, 0x00, // kind ACK, len 1
+        0x5a, // seq
+        0x60, 0xf5, 0x13, 0x5b, // CRC-32 0x5b13f560
+    ];
+
+    /// A beam at f = 0: seq 7, source 0x0203, direction −y (3) terminal (bit 7) and after the
+    /// outside of a plane (bit 5), layer 17, u −5 ..= 12, v 0 ..= 127, z 320.
+    const BEAM_F0: [u8; 34] = [
+        0x20, 0x1b, 0x00, // kind BEAM, len 27
+        0x07, // seq
+        0x00, // fraction bits
+        0x03, 0x02, // source 0x0203
+        0xa3, // direction 3 | 0x80 | 0x20
+        0x11, 0x00, 0x00, 0x00, // layer 17
+        0xfb, 0xff, 0xff, 0xff, // u_lo −5
+        0x0c, 0x00, 0x00, 0x00, // u_hi 12
+        0x00, 0x00, 0x00, 0x00, // v_lo 0
+        0x7f, 0x00, 0x00, 0x00, // v_hi 127
+        0x40, 0x01, // z 320
+        0xfa, 0xc6, 0x3b, 0x57, // CRC-32 0x573bc6fa
+    ];
+
+    /// A beam at f = 4 (offsets in sixteenths): seq 0xc8, source 0xffff, direction +z (4) after
+    /// an empty voxel (bit 6), layer 126, u −1.5 ..= 2.25, v −127 ..= −126.5, z 0.
+    const BEAM_F4: [u8; 34] = [
+        0x20, 0x1b, 0x00, // kind BEAM, len 27
+        0xc8, // seq
+        0x04, // fraction bits
+        0xff, 0xff, // source 0xffff
+        0x44, // direction 4 | 0x40
+        0x7e, 0x00, 0x00, 0x00, // layer 126
+        0xe8, 0xff, 0xff, 0xff, // u_lo −1.5 = −24/16
+        0x24, 0x00, 0x00, 0x00, // u_hi 2.25 = 36/16
+        0x10, 0xf8, 0xff, 0xff, // v_lo −127 = −2032/16
+        0x18, 0xf8, 0xff, 0xff, // v_hi −126.5 = −2024/16
+        0x00, 0x00, // z 0
+        0x47, 0x5c, 0xe9, 0x42, // CRC-32 0x42e95c47
+    ];
+
+    /// A row packet with two contour edges, seq 0.
+    const ROW_2_EDGES: [u8; 121] = [
+        0x10, 0x72, 0x00, // kind ROW, len 114 = 74 + 2·20
+        0x00, // seq
+        0x04, 0x03, 0x02, 0x01, // facet 0x01020304
+        0x06, 0x05, // material 0x0506
+        0x08, 0x07, // normal code 0x0708
+        0x0d, 0x0c, 0x0b, 0x0a, // plane id 0x0a0b0c0d
+        0x00, 0xc0, // nx −16384
+        0x4d, 0x00, // ny 77
+        0x00, 0x00, 0x00, 0xc0, // nz −2³⁰
+        0x00, 0x00, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, // m 2⁴¹
+        0x01, 0x00, 0x09, 0x00, // box x 1 ..= 9
+        0x02, 0x00, 0x02, 0x00, // box y 2 ..= 2
+        0x00, 0x00, 0x64, 0x00, // box z 0 ..= 100
+        0xfd, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, // a −3
+        0xe8, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, // c 1000
+        0x15, 0xcd, 0x5b, 0x07, 0x00, 0x00, 0x00, 0x00, // t 123 456 789
+        0x4f, 0x97, 0x21, 0xc5, 0xff, 0xff, 0xff, 0xff, // u −987 654 321
+        0x02, // edge count
+        0x10, 0x00, 0x00, 0x00, // edge 0: a 16
+        0xf0, 0xff, 0xff, 0xff, //         c −16
+        0x00, 0xf0, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, //         g −4096
+        0x08, 0x00, 0x00, 0x00, //         off 8
+        0xff, 0xff, 0xff, 0xff, // edge 1: a −1
+        0x00, 0x00, 0x00, 0x00, //         c 0
+        0x00, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, //         g 2⁴⁰
+        0x00, 0x00, 0x00, 0x00, //         off 0
+        0xb5, 0xe3, 0x05, 0x3d, // CRC-32 0x3d05e3b5
+    ];
+
+    fn beam_msg<F: FracBits>(
+        source: u16,
+        dir: Direction,
+        flags: [bool; 3],
+        layer: u32,
+        uv: [i32; 4],
+        z: u16,
+    ) -> BeamMsg<F> {
+        let r = |lo: i32, hi: i32| RayRange::new(FarOffset::<F>::from_bits(lo), FarOffset::<F>::from_bits(hi)).unwrap();
+        let beam = Beam::new(SourceId(source), dir, Layer(layer), r(uv[0], uv[1]), r(uv[2], uv[3]), far())
+            .unwrap()
+            .with_terminal(flags[0])
+            .with_after_empty(flags[1])
+            .with_after_outside(flags[2]);
+        BeamMsg::new(beam, z)
+    }
+
+    fn row_2_edges() -> RowPacket {
+        let plane = FacetPlane { id: 0x0a0b_0c0d, nx: -16384, ny: 77, nz: -(1 << 30), m: 1 << 41 };
+        RowPacket {
+            tag: FacetTag { facet: 0x0102_0304, material: 0x0506, normal: NormalCode(0x0708), plane },
+            bbox: FacetBox { x_min: 1, x_max: 9, y_min: 2, y_max: 2, z_min: 0, z_max: 100 },
+            a: -3,
+            c: 1000,
+            t: 123_456_789,
+            u: -987_654_321,
+            edges: [RowEdge { a: 16, c: -16, g: -4096, off: 8 }, RowEdge { a: -1, c: 0, g: 1 << 40, off: 0 }]
+                .into_iter()
+                .collect(),
+        }
+    }
+
+    /// Encode a known message, compare with the literal frame, decode the literal back.
+    fn known_answer<F: FracBits>(seq: u8, msg: Message<F>, literal: &[u8]) {
+        let mut buf = [0u8; MAX_FRAME];
+        let n = msg.emit(seq, &mut buf).unwrap();
+        assert_eq!(&buf[..n], literal, "encoded frame");
+        assert_eq!(msg.buffer_len(), literal.len(), "announced frame length");
+        // The CRC trailer alone, against the independent computation.
+        let crc = u32::from_le_bytes(literal[literal.len() - TRAILER..].try_into().unwrap());
+        assert_eq!(CRC32.checksum(&literal[..literal.len() - TRAILER]), crc);
+        let (f, used) = Frame::<F>::parse(literal, far()).unwrap();
+        assert_eq!((f.seq, f.msg, used), (seq, msg, literal.len()), "decoded literal");
+    }
+
+    #[test]
+    fn frames_equal_hand_written_bytes() {
+        known_answer::<U0>(0x5a, Message::Ack, &ACK_5A);
+        let m = beam_msg::<U0>(0x0203, Direction::NegY, [true, false, true], 17, [-5, 12, 0, 127], 320);
+        known_answer::<U0>(7, Message::Beam(m), &BEAM_F0);
+        let m = beam_msg::<U4>(0xffff, Direction::PosZ, [false, true, false], 126, [-24, 36, -2032, -2024], 0);
+        known_answer::<U4>(0xc8, Message::Beam(m), &BEAM_F4);
+        known_answer::<U0>(0, Message::Row(row_2_edges()), &ROW_2_EDGES);
+        // The literal frames with their last CRC byte changed are refused.
+        for lit in [&ACK_5A[..], &BEAM_F0[..], &ROW_2_EDGES[..]] {
+            let mut b = lit.to_vec();
+            *b.last_mut().unwrap() ^= 0x01;
+            assert_eq!(Frame::<U0>::parse(&b, far()).unwrap_err(), DecodeError::BadCrc);
+        }
+    }
+
+    #[test]
+    fn every_single_bit_flip_is_caught() {
+        let s = Source::at_voxel(SourceId(0), [5, 5, 5]).unwrap();
+        let m = BeamMsg::new(Beam::<U0>::initial(&s, Direction::ALL[2], far()), 5);
+        let mut buf = [0u8; 64];
+        let n = Message::Beam(m).emit(1, &mut buf).unwrap();
+        for i in 0..n * 8 {
+            let mut b = buf;
+            b[i / 8] ^= 1 << (i % 8);
+            assert!(Frame::<U0>::parse(&b[..n], far()).is_err(), "flip of bit {i} went through");
+        }
+        assert_eq!(
+            Frame::<U4>::parse(&buf[..n], far()).unwrap_err(),
+            DecodeError::FracBitsMismatch { found: 0, expected: 4 }
+        );
+    }
+
+    proptest! {
+        #[test]
+        fn row_round_trip(facet in any::<u32>(), a in -1000i64..1000, c in -1000i64..1000, t in any::<i32>(),
+                          edges in proptest::collection::vec((-5000i32..5000, -5000i32..5000, any::<i32>()), 0..=MAX_EDGES)) {
+            let p = RowPacket {
+                tag: FacetTag { facet, material: 3, normal: NormalCode(77), plane: FacetPlane { id: facet ^ 5, nx: -16384, ny: 77, nz: -(1 << 30), m: 1 << 41 } },
+                bbox: FacetBox { x_min: 1, x_max: 9, y_min: 2, y_max: 2, z_min: 0, z_max: 100 },
+                a, c, t: t as i64, u: t as i64 - 40,
+                edges: edges.iter().map(|&(a, c, g)| RowEdge { a, c, g: g as i64, off: (a.unsigned_abs() % 977) as i32 }).collect(),
+            };
+            let mut buf = [0u8; MAX_FRAME];
+            let n = Message::<U0>::Row(p.clone()).emit(0, &mut buf).unwrap();
+            prop_assert_eq!(n, HEADER + ROW_PAYLOAD_BASE + ROW_EDGE_BYTES * p.edges.len() + TRAILER);
+            let (f, used) = Frame::<U0>::parse(&buf[..n], far()).unwrap();
+            prop_assert_eq!(used, n);
+            prop_assert_eq!(f.msg, Message::Row(p));
+        }
+
+        #[test]
+        fn junk_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..300)) {
+            let _ = Frame::<U0>::parse(&bytes, far());
+            // Junk behind a valid header and CRC reaches the field checks.
+            let mut buf = [0u8; 512];
+            if let Ok(n) = write_frame(&mut buf, bytes.first().map_or(KIND_BEAM, |k| k & 0x30), |w| w.put(&bytes)) {
+                let _ = Frame::<U0>::parse(&buf[..n], far());
+            }
+        }
+    }
+
+    #[test]
+    fn out_of_budget_rows_are_rejected() {
+        // A plane coefficient beyond the loading budget, then a facet plane beyond its own.
+        let row = |a: i64, m: u64| {
+            let mut buf = [0u8; MAX_FRAME];
+            let n = write_frame(&mut buf, KIND_ROW, |w| {
+                w.u8(0)?;
+                w.put(&[0; 8])?;
+                w.put(&[0; 12])?;
+                w.u64(m)?;
+                for v in [0u16, 1, 0, 1, 0, 1] {
+                    w.u16(v)?;
+                }
+                w.i64(a)?;
+                w.put(&[0; 24])?;
+                w.u8(0)
+            })
+            .unwrap();
+            Frame::<U0>::parse(&buf[..n], far()).map(|_| ())
+        };
+        assert_eq!(row(0, 1), Ok(()));
+        assert_eq!(row(i64::MAX, 1), Err(DecodeError::BadValue("plane coefficient a beyond the bit budget")));
+        assert_eq!(row(0, 0), Err(DecodeError::BadValue("facet plane beyond the bit budget")));
+        assert_eq!(row(0, (1 << 41) + 1), Err(DecodeError::BadValue("facet plane beyond the bit budget")));
+    }
+}
