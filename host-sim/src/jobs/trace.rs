@@ -7,14 +7,14 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use cell_core::beam::FracBits;
+use cell_core::beam::{FracBits, Source};
 use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::shade::{cell_pixel, NormalMode, ShadeParams};
 use cell_core::trace::{Event, ShadeSetup, MAX_LIGHTS, MAX_MATERIALS};
 
 use crate::jobs::light::{unsupported_frac_bits, LightingOptions};
-use crate::machine::diffuse::{diffuse_tapped, source_at, FrustumBlocks, LightConfig};
-use crate::machine::tap::Tap;
+use crate::machine::diffuse::{diffuse_tapped, source_at, FrustumBlocks, LightConfig, Lighting};
+use crate::machine::tap::{CellRecorder, Tap};
 
 use crate::machine::capacity::{FA_CAP, LIT_CAP, OB_CAP};
 use crate::machine::loaded::LoadedScene;
@@ -59,25 +59,10 @@ pub fn record<F: FracBits>(job: &TraceJob<'_>) -> Result<Vec<CellTrace>> {
     if job.mesh.materials.len() > MAX_MATERIALS {
         bail!("{} materials: a trace carries at most {MAX_MATERIALS}", job.mesh.materials.len());
     }
-    let sources_of = |scene: &LoadedScene| -> Result<(Vec<[f64; 3]>, Vec<cell_core::beam::Source>)> {
-        let lights = crate::machine::loaded::resolve_lights(job.mesh, scene, &job.lights)?;
-        let sources = lights.iter().enumerate().map(|(i, p)| source_at(i, *p, n)).collect::<Result<Vec<_>>>()?;
-        Ok((lights, sources))
-    };
-    let mut cells = job.cells.clone();
-    if job.busiest {
-        let scene = crate::machine::loaded::load_scene(job.mesh, &job.load)?;
-        let (_, sources) = sources_of(&scene)?;
-        let l = crate::machine::diffuse::diffuse::<F, DEFAULT_DEXELS>(&scene.grid, &sources, &job.light, |_, _| {})?;
-        let b = l.reports.iter().max_by_key(|r| r.counts.lb_cell_load).map(|r| r.busiest_cell);
-        cells.extend(b);
-    }
-    if cells.is_empty() {
-        bail!("no cell to record: give --cell X,Y or --busiest");
-    }
+    let cells = cells_to_record::<F>(job)?;
     let mut tap = Tap::new::<F>(n, n, &cells)?;
     let scene: LoadedScene = crate::machine::loaded::load_scene_tapped(job.mesh, &job.load, Some(&mut tap))?;
-    let (lights, sources) = sources_of(&scene)?;
+    let (lights, sources) = lights_of(job, &scene)?;
     if lights.len() > MAX_LIGHTS {
         bail!("{} lights: a trace carries at most {MAX_LIGHTS}", lights.len());
     }
@@ -87,21 +72,52 @@ pub fn record<F: FracBits>(job: &TraceJob<'_>) -> Result<Vec<CellTrace>> {
         lights: point_lights(&lights).into_iter().collect(),
         materials: job.mesh.materials.iter().map(cell_material).collect(),
     };
-    let mut out = Vec::new();
-    for mut r in tap.into_recorders() {
-        let idx = (r.y * n + r.x) as usize;
-        let (cell, light) = (&scene.grid.cells[idx], &lighting.cells[idx]);
-        let (lit, visible) = (&light.lit, light.visible_lit);
-        let (mats, lights) = (&shade.materials, &shade.lights);
-        let px = cell_pixel(job.light.rule, cell, |z| lit.mask_at(z), visible, mats, lights, &shade.params);
-        r.push::<F>(&Event::Shade(shade.clone()));
-        r.push::<F>(&Event::End);
-        let (x, y) = (r.x, r.y);
-        let (bytes, records, mut digest) = r.into_parts();
-        digest.state(cell, light, px);
-        out.push(CellTrace { x, y, records, digest: digest.finish(), bytes });
+    Ok(tap.into_recorders().into_iter().map(|r| finish_trace::<F>(r, job, &scene, &lighting, &shade)).collect())
+}
+
+/// The job's lights (grid-normalised positions) and the cell sources at them.
+fn lights_of(job: &TraceJob<'_>, scene: &LoadedScene) -> Result<(Vec<[f64; 3]>, Vec<Source>)> {
+    let lights = crate::machine::loaded::resolve_lights(job.mesh, scene, &job.lights)?;
+    let sources = lights.iter().enumerate().map(|(i, p)| source_at(i, *p, job.load.n)).collect::<Result<_>>()?;
+    Ok((lights, sources))
+}
+
+/// The cells asked for, and the busiest one (found by a first, untraced run) if asked.
+fn cells_to_record<F: FracBits>(job: &TraceJob<'_>) -> Result<Vec<[u32; 2]>> {
+    let mut cells = job.cells.clone();
+    if job.busiest {
+        let scene = crate::machine::loaded::load_scene(job.mesh, &job.load)?;
+        let (_, sources) = lights_of(job, &scene)?;
+        let l = crate::machine::diffuse::diffuse::<F, DEFAULT_DEXELS>(&scene.grid, &sources, &job.light, |_, _| {})?;
+        let b = l.reports.iter().max_by_key(|r| r.counts.lb_cell_load).map(|r| r.busiest_cell);
+        cells.extend(b);
     }
-    Ok(out)
+    if cells.is_empty() {
+        bail!("no cell to record: give --cell X,Y or --busiest");
+    }
+    Ok(cells)
+}
+
+/// Close one cell's recording: its shading setup and end records, and the digest of what the
+/// grid left in the cell (state, lit store, pixel).
+fn finish_trace<F: FracBits>(
+    mut r: CellRecorder,
+    job: &TraceJob<'_>,
+    scene: &LoadedScene,
+    lighting: &Lighting<F>,
+    shade: &ShadeSetup,
+) -> CellTrace {
+    let idx = (r.y * job.load.n + r.x) as usize;
+    let (cell, light) = (&scene.grid.cells[idx], &lighting.cells[idx]);
+    let (lit, visible) = (&light.lit, light.visible_lit);
+    let (mats, lights) = (&shade.materials, &shade.lights);
+    let px = cell_pixel(job.light.rule, cell, |z| lit.mask_at(z), visible, mats, lights, &shade.params);
+    r.push::<F>(&Event::Shade(shade.clone()));
+    r.push::<F>(&Event::End);
+    let (x, y) = (r.x, r.y);
+    let (bytes, records, mut digest) = r.into_parts();
+    digest.state(cell, light, px);
+    CellTrace { x, y, records, digest: digest.finish(), bytes }
 }
 
 /// Replay a trace with the host's build of `cell_core` (the same code the firmware runs).

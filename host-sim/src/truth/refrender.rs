@@ -51,6 +51,19 @@ pub struct RefImage {
 }
 
 impl RefImage {
+    /// An image of side `n` with nothing covered.
+    fn empty(n: u32, lights: u32) -> RefImage {
+        let npix = n as usize * n as usize;
+        RefImage {
+            n,
+            rgb: vec![[0; 3]; npix],
+            covered: vec![false; npix],
+            lit: vec![0; npix],
+            lights,
+            facet: vec![u32::MAX; npix],
+        }
+    }
+
     /// Index of pixel `(x, y)` (`y` up).
     pub fn index(&self, x: u32, y: u32) -> usize {
         y as usize * self.n as usize + x as usize
@@ -229,6 +242,9 @@ struct RefScene<'a> {
     ambient: [f64; 3],
     origin: Vector,
     voxel: f64,
+    /// Length of a primary ray (world units).
+    primary_t: f64,
+    /// Length of a reflected ray.
     max_t: f64,
     reflect: RefReflect,
 }
@@ -284,59 +300,74 @@ pub fn render_reference_reflect(
     ambient: [f64; 3],
     reflect: &RefReflect,
 ) -> Result<RefImage> {
-    if n == 0 {
-        bail!("refrender: n must be positive");
-    }
-    if lights.len() > 32 {
-        bail!("refrender: at most 32 lights (lit masks are u32), got {}", lights.len());
-    }
-    let fit_ok = fit.voxel > 0.0 && fit.voxel.is_finite() && fit.origin.iter().all(|x| x.is_finite());
-    if !fit_ok {
-        bail!("refrender: invalid fit {fit:?}");
-    }
-    let (tris, facets) = mesh_triangles(mesh)?;
-    let reference = Reference::new(tris, facets).with_context(|| format!("refrender: scene {}", mesh.name))?;
-    let (o, vx) = (Vector::from(fit.origin), fit.voxel);
-    let to_world = |p: Vector| o + (p + Vector::splat(0.5)) * vx;
-    let max_t = (n as f64 + 2.0) * vx;
-    let scene = RefScene {
-        mesh,
-        reference,
-        lights,
-        lights_world: lights.iter().map(|l| to_world(Vector::from(l.pos))).collect(),
-        ambient,
-        origin: o,
-        voxel: vx,
-        // Reflected rays are unit vectors: far enough to leave the fitted cube from anywhere.
-        max_t: 2.0 * max_t,
-        reflect: *reflect,
-    };
-    let npix = n as usize * n as usize;
-    let mut img = RefImage {
-        n,
-        rgb: vec![[0; 3]; npix],
-        covered: vec![false; npix],
-        lit: vec![0; npix],
-        lights: lights.len() as u32,
-        facet: vec![u32::MAX; npix],
-    };
-    let dir = [0.0, 0.0, 1.0];
+    let scene = RefScene::new(mesh, fit, n, lights, ambient, reflect)?;
+    let mut img = RefImage::empty(n, lights.len() as u32);
     for y in 0..n {
         for x in 0..n {
-            let origin = Vector::new(o.x + (x as f64 + 0.5) * vx, o.y + (y as f64 + 0.5) * vx, o.z - vx);
-            let Some((t, facet, normal)) = scene.reference.first_hit(origin.to_array(), dir, max_t, &[]) else {
-                continue;
-            };
-            let p = Vector::new(origin.x, origin.y, origin.z + t);
-            let (c, mask) = scene.colour(p, Vector::from(normal), facet, Vector::new(0.0, 0.0, -1.0), 1, 1.0);
-            let i = y as usize * n as usize + x as usize;
-            img.rgb[i] = c.map(encode_gamma);
-            img.covered[i] = true;
-            img.lit[i] = mask;
-            img.facet[i] = facet;
+            scene.pixel(x, y, &mut img);
         }
     }
     Ok(img)
+}
+
+impl<'a> RefScene<'a> {
+    /// Check the inputs and build the exact visibility structure.
+    fn new(
+        mesh: &'a Mesh,
+        fit: &Fit,
+        n: u32,
+        lights: &'a [RefLight],
+        ambient: [f64; 3],
+        reflect: &RefReflect,
+    ) -> Result<Self> {
+        if n == 0 {
+            bail!("refrender: n must be positive");
+        }
+        if lights.len() > 32 {
+            bail!("refrender: at most 32 lights (lit masks are u32), got {}", lights.len());
+        }
+        let fit_ok = fit.voxel > 0.0 && fit.voxel.is_finite() && fit.origin.iter().all(|x| x.is_finite());
+        if !fit_ok {
+            bail!("refrender: invalid fit {fit:?}");
+        }
+        let (tris, facets) = mesh_triangles(mesh)?;
+        let reference = Reference::new(tris, facets).with_context(|| format!("refrender: scene {}", mesh.name))?;
+        let (o, vx) = (Vector::from(fit.origin), fit.voxel);
+        let to_world = |p: Vector| o + (p + Vector::splat(0.5)) * vx;
+        // A primary ray crosses the grid: n voxels and the one in front.
+        let primary_t = (n as f64 + 2.0) * vx;
+        Ok(RefScene {
+            mesh,
+            reference,
+            lights,
+            lights_world: lights.iter().map(|l| to_world(Vector::from(l.pos))).collect(),
+            ambient,
+            origin: o,
+            voxel: vx,
+            primary_t,
+            // Reflected rays are unit vectors: far enough to leave the fitted cube from anywhere.
+            max_t: 2.0 * primary_t,
+            reflect: *reflect,
+        })
+    }
+
+    /// Pixel (x, y): the primary ray along +z from one voxel in front of the grid.
+    fn pixel(&self, x: u32, y: u32, img: &mut RefImage) {
+        let (o, vx) = (self.origin, self.voxel);
+        let origin = Vector::new(o.x + (x as f64 + 0.5) * vx, o.y + (y as f64 + 0.5) * vx, o.z - vx);
+        let Some((t, facet, normal)) =
+            self.reference.first_hit(origin.to_array(), [0.0, 0.0, 1.0], self.primary_t, &[])
+        else {
+            return;
+        };
+        let p = Vector::new(origin.x, origin.y, origin.z + t);
+        let (c, mask) = self.colour(p, Vector::from(normal), facet, Vector::new(0.0, 0.0, -1.0), 1, 1.0);
+        let i = y as usize * img.n as usize + x as usize;
+        img.rgb[i] = c.map(encode_gamma);
+        img.covered[i] = true;
+        img.lit[i] = mask;
+        img.facet[i] = facet;
+    }
 }
 
 #[cfg(test)]
