@@ -321,7 +321,7 @@ fn bench_fifo(c: &mut Criterion) {
 }
 
 fn bench_shade(c: &mut Criterion) {
-    let params = ShadeParams { ambient: [0.2; 3], normal_mode: NormalMode::Facet };
+    let params = ShadeParams { ambient: [0.2; 3], normal_mode: NormalMode::Facet, eye: cell_core::shade::Eye::Grid };
     let plastic = Material { ka: [0.1; 3], kd: [0.6, 0.3, 0.2], ks: [0.3; 3], ns: 40.0, ke: [0.0; 3] };
     let matte = Material { ks: [0.0; 3], ..plastic };
     let lights: Vec<PointLight> =

@@ -69,7 +69,7 @@ fn reference(p: [f32; 3], n: [f32; 3], m: &Material, lights: &[PointLight], raw_
 
 fn main() {
     let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
-    let params = ShadeParams { ambient: [0.2; 3], normal_mode: NormalMode::Facet };
+    let params = ShadeParams { ambient: [0.2; 3], normal_mode: NormalMode::Facet, eye: cell_core::shade::Eye::Grid };
     let (mut raw_max, mut raw_sum, mut cell_max, mut cell_sum, mut count) = (0u8, 0u64, 0u8, 0u64, 0u64);
     let trials = 1_000_000;
     for _ in 0..trials {

@@ -71,6 +71,89 @@ pub struct ShadeParams {
     pub ambient: [f32; 3],
     /// Normal choice.
     pub normal_mode: NormalMode,
+    /// Where the eye is: the space a cell shades in.
+    pub eye: Eye,
+}
+
+/// Where the eye is, and so the space a cell shades in (§1.3: the geometry stage delivers the
+/// scene in screen space, where the grid looks along its own +z).
+///
+/// Screen space keeps planes and straight lines, so voxelization and beams are right there; a
+/// perspective transform does not keep angles, so a cell under a [`Eye::Camera`] maps its
+/// visible point back to view space and shades there, with the normal and lights the host
+/// gives in view space.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Eye {
+    /// The grid's own view (the scene fitted into the grid, seen along +z from z = −∞): voxel
+    /// units are the shading space, the direction to the eye is [`VIEW`].
+    #[default]
+    Grid,
+    /// A camera: voxel units are screen space, shading is in view space (eye at the origin,
+    /// looking along +z, x right, y up; the host's units).
+    Camera(CameraView),
+}
+
+/// The inverse of the host's screen transform, as a cell needs it: voxel (x, y, z) of an
+/// `n`-grid has screen coordinates s = (v + ½)/n in 0 ..= 1 on each axis, and view space is
+///
+/// * orthographic: `x = (s_x − ½)·width`, `y = (s_y − ½)·width`, `z = near + s_z·(far − near)`;
+/// * perspective: `z = near·far / (far − s_z·(far − near))` (s_z = 0 at `near`, 1 at `far`:
+///   depth resolution is finest near the eye), `x = (s_x − ½)·width·z`, `y = (s_y − ½)·width·z`
+///   with `width = 2·tan(fov/2)`.
+///
+/// f32 throughout: a shading point, not a voxel address (its relative error, ~1e−7 per
+/// operation, is far below the half voxel the point's depth is known to).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CameraView {
+    /// Grid side.
+    pub n: f32,
+    /// Perspective (else orthographic).
+    pub perspective: bool,
+    /// View width: at unit depth (perspective, 2·tan(fov/2)), or the window's (orthographic).
+    pub width: f32,
+    /// Depth of the near plane (s_z = 0).
+    pub near: f32,
+    /// Depth of the far plane (s_z = 1).
+    pub far: f32,
+}
+
+impl CameraView {
+    /// The view-space point of voxel-unit point `g`.
+    pub fn point(&self, g: [f32; 3]) -> [f32; 3] {
+        let s = g.map(|c| (c + 0.5) / self.n);
+        let z = if self.perspective {
+            self.near * self.far / (self.far - s[2] * (self.far - self.near))
+        } else {
+            self.near + s[2] * (self.far - self.near)
+        };
+        let k = if self.perspective { self.width * z } else { self.width };
+        [(s[0] - 0.5) * k, (s[1] - 0.5) * k, z]
+    }
+
+    /// The unit direction from view-space point `p` toward the eye.
+    pub fn toward_eye(&self, p: [f32; 3]) -> [f32; 3] {
+        if self.perspective {
+            normalise([-p[0], -p[1], -p[2]])
+        } else {
+            VIEW
+        }
+    }
+}
+
+impl Eye {
+    /// The shading point of voxel-unit point `g` and the unit direction toward the eye there.
+    #[inline]
+    pub fn shading_point(&self, g: [f32; 3]) -> ([f32; 3], [f32; 3]) {
+        match self {
+            Eye::Grid => (g, VIEW),
+            Eye::Camera(c) => {
+                let p = c.point(g);
+                (p, c.toward_eye(p))
+            }
+        }
+    }
 }
 
 /// `((L + ½)/255)^2.2` for L = 0..=254: a linear intensity c encodes to the number of
@@ -381,11 +464,17 @@ pub fn shading_normal(d: &Dexel, mode: NormalMode) -> [f32; 3] {
 
 /// [`shading_normal`] of a normal code.
 pub fn shading_normal_of(code: crate::normal::NormalCode, mode: NormalMode) -> [f32; 3] {
+    shading_normal_toward(code, mode, VIEW)
+}
+
+/// The unit normal of a normal code turned toward `v` (the unit direction to the eye); the
+/// voxel face the view ray crossed faces `v` itself.
+pub fn shading_normal_toward(code: crate::normal::NormalCode, mode: NormalMode, v: [f32; 3]) -> [f32; 3] {
     match mode {
-        NormalMode::Face => VIEW,
+        NormalMode::Face => v,
         NormalMode::Facet => {
             let n = normalise(code.decode());
-            if dot(n, VIEW) < 0.0 {
+            if dot(n, v) < 0.0 {
                 [-n[0], -n[1], -n[2]]
             } else {
                 n
@@ -488,11 +577,11 @@ pub fn pixel<const D: usize>(
 ) -> Option<Pixel> {
     let d = store.dexels().first()?;
     let z = d.span.lo;
-    let p = [x as f32, y as f32, z as f32];
-    let nrm = shading_normal(d, params.normal_mode);
+    let (p, v) = params.eye.shading_point([x as f32, y as f32, z as f32]);
+    let nrm = shading_normal_toward(d.normal, params.normal_mode, v);
     let m = materials.get(d.material as usize).copied().unwrap_or_default();
     let lit = facing_mask(p, nrm, lights, reached(z));
-    Some(Pixel { rgb: shade(p, nrm, &m, lights, lit, params), lit, z })
+    Some(Pixel { rgb: shade_linear_toward(p, nrm, v, &m, lights, lit, params).map(encode), lit, z })
 }
 
 /// The pixel of column (x, y) under the plane rule: the facet its centre line meets first
@@ -507,11 +596,15 @@ pub fn surface_pixel(
     lights: &[PointLight],
     params: &ShadeParams,
 ) -> Pixel {
-    let p = [x as f32, y as f32, surface.depth()];
-    let nrm = shading_normal_of(surface.normal, params.normal_mode);
+    let (p, v) = params.eye.shading_point([x as f32, y as f32, surface.depth()]);
+    let nrm = shading_normal_toward(surface.normal, params.normal_mode, v);
     let m = materials.get(surface.material as usize).copied().unwrap_or_default();
     let lit = facing_mask(p, nrm, lights, reached);
-    Pixel { rgb: shade(p, nrm, &m, lights, lit, params), lit, z: surface.z_v.clamp(0, u16::MAX as i32) as u16 }
+    Pixel {
+        rgb: shade_linear_toward(p, nrm, v, &m, lights, lit, params).map(encode),
+        lit,
+        z: surface.z_v.clamp(0, u16::MAX as i32) as u16,
+    }
 }
 
 /// The pixel a cell shows under `rule`: its first occupied voxel lit by `reached(z)` (the
@@ -542,7 +635,7 @@ mod tests {
 
     #[test]
     fn emitter_and_unlit() {
-        let params = ShadeParams { ambient: [0.0; 3], normal_mode: NormalMode::Facet };
+        let params = ShadeParams { ambient: [0.0; 3], normal_mode: NormalMode::Facet, eye: Eye::Grid };
         let lamp = Material { ke: [17.0, 12.0, 4.0], ..Default::default() };
         let c = shade([0.0; 3], VIEW, &lamp, &[], 0, &params);
         assert_eq!(c[0], 255);

@@ -12,7 +12,7 @@
 //! | `0x44` | [`Event::Recv`] | link `port` delivers a beam: port u8 + the link frame as on the wire (its own CRC) |
 //! | `0x45` | [`Event::Step`] | `count` u32 compute cycles |
 //! | `0x46` | [`Event::Grant`] | the neighbour on `port` took the head of that output buffer |
-//! | `0x47` | [`Event::Shade`] | ambient 3×f32, normal mode u8, lights (count u8, pos+colour 6×f32), materials (count u8, 13×f32) |
+//! | `0x47` | [`Event::Shade`] | ambient 3×f32, normal mode u8, lights (count u8, pos+colour 6×f32), materials (count u8, 13×f32), then for a camera ([`crate::shade::Eye::Camera`]) perspective u8, n width near far 4×f32 |
 //! | `0x48` | [`Event::End`] | end of the trace |
 //!
 //! The cell's *outputs* are what it sends (forwarded row packets, beam frames on each port) and
@@ -31,7 +31,7 @@ use crate::light::{
 };
 use crate::link::{self, Link, Sent};
 use crate::lit::LitRule;
-use crate::shade::{cell_pixel, Material, NormalMode, Pixel, PointLight, ShadeParams};
+use crate::shade::{cell_pixel, CameraView, Eye, Material, NormalMode, Pixel, PointLight, ShadeParams};
 use crate::units::{Coord, Depth};
 use crate::wire::{
     self, get_beam, get_row, put_beam, put_row, read_frame, write_frame, ByteSink, DecodeError, EncodeError, Frame,
@@ -284,7 +284,17 @@ pub fn write_event<F: FracBits>(ev: &Event<'_, F>, buf: &mut [u8]) -> Result<usi
                     w.f32(*v)?;
                 }
             }
-            Ok(())
+            match s.params.eye {
+                // The grid's own view writes nothing: traces recorded before cameras read the same.
+                Eye::Grid => Ok(()),
+                Eye::Camera(c) => {
+                    w.u8(c.perspective as u8)?;
+                    for v in [c.n, c.width, c.near, c.far] {
+                        w.f32(v)?;
+                    }
+                    Ok(())
+                }
+            }
         }),
         Event::End => write_frame(buf, kind::END, |_| Ok(())),
     }
@@ -451,7 +461,14 @@ impl<'a, F: FracBits> Parser<'a, F> {
                     };
                     materials.push(m).map_err(|_| DecodeError::BadValue("too many materials"))?;
                 }
-                Event::Shade(ShadeSetup { params: ShadeParams { ambient, normal_mode }, lights, materials })
+                let eye = if r.remaining() == 0 {
+                    Eye::Grid
+                } else {
+                    let perspective = r.u8()? == 1;
+                    let (n, width, near, far) = (r.f32()?, r.f32()?, r.f32()?, r.f32()?);
+                    Eye::Camera(CameraView { n, perspective, width, near, far })
+                };
+                Event::Shade(ShadeSetup { params: ShadeParams { ambient, normal_mode, eye }, lights, materials })
             }
             kind::END => Event::End,
             k => return Err(DecodeError::UnknownKind(k).into()),

@@ -143,8 +143,12 @@ pub struct Prepared {
     pub polygons_split: usize,
 }
 
-/// Fit the mesh's used vertices into an n-grid.
+/// Fit the mesh's used vertices into an n-grid. A mesh in screen space
+/// ([`crate::scene::camera`]) is not fitted: its unit cube is the grid.
 pub fn fit(mesh: &Mesh, n: u32) -> Result<Fit> {
+    if mesh.screen.is_some() {
+        return Ok(Fit { origin: [0.0; 3], voxel: 1.0 / n as f64 });
+    }
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     let mut used = 0usize;
@@ -461,6 +465,24 @@ pub fn facet_plane(poly: &[[i64; 3]], facet: u32, ids: &mut PlaneIds) -> FacetPl
     FacetPlane { id, nx, ny, nz, m }
 }
 
+/// The normal a facet is shaded with: its lattice normal, or for a mesh in screen space the
+/// normal of the same polygon mapped back to view space (where the cells shade).
+fn shading_normal(mesh: &Mesh, fit: &Fit, piece: &[[i64; 3]], lattice_normal: [i128; 3]) -> NormalCode {
+    let Some(screen) = &mesh.screen else {
+        return NormalCode::encode(lattice_normal.map(|v| v as f32));
+    };
+    let view: Vec<[f64; 3]> = piece.iter().map(|&l| screen.view.screen_to_view(fit.to_world(l))).collect();
+    // Newell's normal: exact for a planar polygon, an average for a slightly bent one.
+    let mut nv = [0.0f64; 3];
+    for (i, a) in view.iter().enumerate() {
+        let b = view[(i + 1) % view.len()];
+        nv[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        nv[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        nv[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    NormalCode::encode(nv.map(|v| v as f32))
+}
+
 /// Run the precompute for a whole mesh.
 pub fn prepare(mesh: &Mesh, cfg: &LoadConfig) -> Result<Prepared> {
     cfg.validate()?;
@@ -485,7 +507,7 @@ pub fn prepare(mesh: &Mesh, cfg: &LoadConfig) -> Result<Prepared> {
             let tag = FacetTag {
                 facet,
                 material: face.material,
-                normal: NormalCode::encode(nrm.map(|v| v as f32)),
+                normal: shading_normal(mesh, &fit, &piece, nrm),
                 plane: facet_plane(&piece, facet, &mut planes),
             };
             match facet_packet(&piece, tag, cfg)? {

@@ -67,7 +67,7 @@ proptest! {
         let cm = CellMaterial { ka, kd, ks, ns, ke: [0.0; 3] };
         let pl: Vec<PointLight> = lights.iter().map(|(pos, color)| PointLight { pos: *pos, color: *color }).collect();
         let rl: Vec<RefLight> = lights.iter().map(|(pos, color)| RefLight { pos: pos.map(|c| c as f64), color: color.map(|c| c as f64) }).collect();
-        let params = ShadeParams { ambient: [0.2; 3], normal_mode: NormalMode::Facet };
+        let params = ShadeParams { ambient: [0.2; 3], normal_mode: NormalMode::Facet, eye: cell_core::shade::Eye::Grid };
         let got = shade(p, nn, &cm, &pl, mask, &params);
         let want = shade_f64(p.map(|c| c as f64), nn.map(|c| c as f64), &m, &rl, mask, [0.2; 3]);
         for k in 0..3 {

@@ -7,10 +7,11 @@ pub mod value_args;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use clap::{Args, Parser, Subcommand};
+use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use crate::jobs;
 use crate::precompute::LoadConfig;
+use crate::scene::camera::{Camera, Projection, ViewChoice};
 use value_args::{ContourArg, EngineArg, FrustumBlocksArg, ThicknessArg};
 
 /// RC² cellular ray-tracing machine — host simulator.
@@ -128,6 +129,66 @@ pub struct LoadArgs {
     /// pixel still shows the exact facet its centre line meets, not the fatter voxels).
     #[arg(long, value_enum, default_value_t = ContourArg::Conservative)]
     pub contour: ContourArg,
+    /// Camera options.
+    #[command(flatten)]
+    pub camera: CameraArgs,
+}
+
+/// The camera: how the host maps the scene into the grid's screen space (thesis §1.3).
+#[derive(Args, Debug, Clone)]
+pub struct CameraArgs {
+    /// The view: `fitted` (no camera: the scene's bounding box fitted into the grid, seen along
+    /// +z), or `scene` (the scene's published camera: the Cornell box's eye (278, 273, −800),
+    /// 39.3°). `--eye` gives your own camera instead.
+    #[arg(long, value_enum, default_value_t = ViewArg::Fitted, conflicts_with = "eye")]
+    pub view: ViewArg,
+    /// Eye position X,Y,Z (world units): a camera of your own; needs --look-at.
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true, requires = "look_at")]
+    pub eye: Option<[f64; 3]>,
+    /// The point the camera looks at, X,Y,Z (world units).
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true, requires = "eye")]
+    pub look_at: Option<[f64; 3]>,
+    /// Up direction X,Y,Z.
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true, default_value = "0,1,0")]
+    pub up: [f64; 3],
+    /// Perspective field of view in degrees, in (0, 180) (default 40 with --eye).
+    #[arg(long, conflicts_with = "ortho", requires = "eye")]
+    pub fov: Option<f64>,
+    /// Orthographic view of this width (world units) instead of perspective.
+    #[arg(long, requires = "eye")]
+    pub ortho: Option<f64>,
+    /// Near-plane depth (world units from the eye). Default: just before the scene.
+    #[arg(long, requires = "eye")]
+    pub near: Option<f64>,
+    /// Far-plane depth. Default: just behind the scene.
+    #[arg(long, requires = "eye")]
+    pub far: Option<f64>,
+}
+
+/// `--view`.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ViewArg {
+    /// No camera: the scene fitted into the grid.
+    Fitted,
+    /// The scene's own camera.
+    Scene,
+}
+
+impl CameraArgs {
+    /// The view these options choose.
+    pub fn choice(&self) -> ViewChoice {
+        let (Some(eye), Some(look_at)) = (self.eye, self.look_at) else {
+            return match self.view {
+                ViewArg::Fitted => ViewChoice::Fitted,
+                ViewArg::Scene => ViewChoice::Scene,
+            };
+        };
+        let projection = match self.ortho {
+            Some(width) => Projection::Ortho { width },
+            None => Projection::Perspective { fov_deg: self.fov.unwrap_or(40.0) },
+        };
+        ViewChoice::Custom(Camera { eye, look_at, up: self.up, projection, near: self.near, far: self.far })
+    }
 }
 
 impl LoadArgs {

@@ -52,6 +52,7 @@ impl From<&RenderArgs> for RenderOptions {
         let (fa, rule) = (a.light.fa, a.light.lit_rule.into());
         RenderOptions {
             scene: a.load.scene.clone(),
+            view: a.load.camera.choice(),
             load: a.load.config(DEFAULT_N),
             light: (&a.light).into(),
             normals: a.normals.into(),
@@ -68,6 +69,7 @@ impl From<&LightArgs> for LightOptions {
     fn from(a: &LightArgs) -> Self {
         LightOptions {
             scene: a.load.scene.clone(),
+            view: a.load.camera.choice(),
             load: a.load.config(DEFAULT_N),
             light: (&a.light).into(),
             stats: a.stats.clone(),
@@ -82,6 +84,7 @@ impl From<&TraceArgs> for TraceOptions {
     fn from(a: &TraceArgs) -> Self {
         TraceOptions {
             scene: a.load.scene.clone(),
+            view: a.load.camera.choice(),
             load: a.load.config(TRACE_N),
             light: (&a.light).into(),
             cells: a.cells.clone(),
@@ -95,6 +98,7 @@ impl From<&VoxelizeArgs> for VoxelizeOptions {
     fn from(a: &VoxelizeArgs) -> Self {
         VoxelizeOptions {
             scene: a.load.scene.clone(),
+            view: a.load.camera.choice(),
             load: a.load.config(DEFAULT_N),
             engine: a.engine.into(),
             dexel_capacity: a.dexel_capacity,
@@ -109,6 +113,7 @@ impl From<&AuditArgs> for AuditOptions {
     fn from(a: &AuditArgs) -> Self {
         AuditOptions {
             scene: a.load.scene.clone(),
+            view: a.load.camera.choice(),
             load: a.load.config(DEFAULT_N),
             fa: a.fa,
             json: a.json.clone(),

@@ -300,6 +300,8 @@ pub fn print(a: &Audit) {
 pub struct AuditOptions {
     /// An .obj file or a built-in scene name.
     pub scene: String,
+    /// The view: fitted, the scene's camera, or a camera of the user's.
+    pub view: crate::scene::camera::ViewChoice,
     /// Grid side and surfaces.
     pub load: LoadConfig,
     /// FIFO size of the lighting run.
@@ -314,7 +316,7 @@ pub struct AuditOptions {
 /// printed and optionally written as JSON.
 pub fn run(o: &AuditOptions) -> Result<()> {
     o.load.validate()?;
-    let mesh = crate::scene::load(&o.scene)?;
+    let mesh = crate::scene::camera::apply(crate::scene::load(&o.scene)?, &o.view, o.load.n)?;
     let lcfg =
         LightConfig { fa: o.fa, policy: Policy::Wavefront, merge: true, record_visits: false, ..Default::default() };
     let default_elf = PathBuf::from(FIRMWARE_ELF);

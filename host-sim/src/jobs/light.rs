@@ -78,6 +78,8 @@ impl LightingOptions {
 pub struct LightOptions {
     /// An .obj file or a built-in scene name.
     pub scene: String,
+    /// The view: fitted, the scene's camera, or a camera of the user's.
+    pub view: crate::scene::camera::ViewChoice,
     /// Grid side and surfaces.
     pub load: LoadConfig,
     /// Lights and lighting settings.
@@ -105,7 +107,7 @@ pub fn run(o: &LightOptions) -> Result<()> {
 
 fn run_with<F: FracBits>(o: &LightOptions) -> Result<()> {
     o.load.validate()?;
-    let mesh = scene::load(&o.scene)?;
+    let mesh = crate::scene::camera::apply(scene::load(&o.scene)?, &o.view, o.load.n)?;
     let loaded = load_scene(&mesh, &o.load)?;
     let lights = resolve_lights(&mesh, &loaded, &o.light.lights)?;
     let lcfg = o.light.config_for(false)?;

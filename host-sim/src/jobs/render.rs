@@ -312,6 +312,8 @@ pub fn with_counts(stats: &RenderStats, c: &ReflectCounts) -> Result<serde_json:
 pub struct RenderOptions {
     /// An .obj file or a built-in scene name.
     pub scene: String,
+    /// The view: fitted, the scene's camera, or a camera of the user's.
+    pub view: crate::scene::camera::ViewChoice,
     /// Grid side and surfaces.
     pub load: LoadConfig,
     /// Lights and lighting settings.
@@ -367,7 +369,10 @@ pub fn run(o: &RenderOptions) -> Result<()> {
 
 fn run_with<F: FracBits>(o: &RenderOptions) -> Result<()> {
     let cfg = o.config()?;
-    let mesh = scene::load(&o.scene)?;
+    let mesh = crate::scene::camera::apply(scene::load(&o.scene)?, &o.view, o.load.n)?;
+    if mesh.screen.is_some() && o.reflections.is_some() {
+        bail!("--reflections needs the fitted view: reflected rays are not traced through a camera yet");
+    }
     let t0 = Instant::now();
     let pb = progress::bar(o.quiet, "load");
     pb.set_length(1);

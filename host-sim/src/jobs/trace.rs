@@ -18,7 +18,7 @@ use crate::machine::tap::{CellRecorder, Tap};
 
 use crate::machine::capacity::{FA_CAP, LIT_CAP, OB_CAP};
 use crate::machine::loaded::LoadedScene;
-use crate::machine::shade::{cell_material, point_lights, AMBIENT};
+use crate::machine::shade::{cell_material, eye_lights, point_lights, AMBIENT};
 use crate::precompute::LoadConfig;
 use crate::scene::Mesh;
 
@@ -68,8 +68,8 @@ pub fn record<F: FracBits>(job: &TraceJob<'_>) -> Result<Vec<CellTrace>> {
     }
     let lighting = diffuse_tapped::<F, DEFAULT_DEXELS>(&scene.grid, &sources, &job.light, Some(&mut tap), |_, _| {})?;
     let shade = ShadeSetup {
-        params: ShadeParams { ambient: [AMBIENT; 3], normal_mode: NormalMode::Facet },
-        lights: point_lights(&lights).into_iter().collect(),
+        params: ShadeParams { ambient: [AMBIENT; 3], normal_mode: NormalMode::Facet, eye: scene.eye },
+        lights: eye_lights(&scene.eye, &point_lights(&lights)).into_iter().collect(),
         materials: job.mesh.materials.iter().map(cell_material).collect(),
     };
     Ok(tap.into_recorders().into_iter().map(|r| finish_trace::<F>(r, job, &scene, &lighting, &shade)).collect())
@@ -148,6 +148,8 @@ pub fn write_traces(dir: &Path, traces: &[CellTrace]) -> Result<()> {
 pub struct TraceOptions {
     /// An .obj file or a built-in scene name.
     pub scene: String,
+    /// The view: fitted, the scene's camera, or a camera of the user's.
+    pub view: crate::scene::camera::ViewChoice,
     /// Grid side and surfaces (keep n small: a trace must fit the firmware's flash).
     pub load: LoadConfig,
     /// Lights and diffusion settings (classic lighting is not traced).
@@ -169,7 +171,7 @@ pub fn run(o: &TraceOptions) -> Result<()> {
 
 fn run_with<F: FracBits>(o: &TraceOptions) -> Result<()> {
     o.load.validate()?;
-    let mesh = crate::scene::load(&o.scene)?;
+    let mesh = crate::scene::camera::apply(crate::scene::load(&o.scene)?, &o.view, o.load.n)?;
     let job = TraceJob {
         mesh: &mesh,
         load: o.load,

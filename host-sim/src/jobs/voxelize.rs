@@ -15,6 +15,8 @@ use crate::report::progress;
 pub struct VoxelizeOptions {
     /// An .obj file or a built-in scene name.
     pub scene: String,
+    /// The view: fitted, the scene's camera, or a camera of the user's.
+    pub view: crate::scene::camera::ViewChoice,
     /// Grid side and surfaces.
     pub load: LoadConfig,
     /// The loading wave or the direct evaluation.
@@ -43,7 +45,7 @@ pub fn run(o: &VoxelizeOptions) -> Result<()> {
 
 fn run_with<const D: usize>(o: &VoxelizeOptions) -> Result<()> {
     o.load.validate()?;
-    let mesh = crate::scene::load(&o.scene)?;
+    let mesh = crate::scene::camera::apply(crate::scene::load(&o.scene)?, &o.view, o.load.n)?;
     let pb = progress::bar(o.quiet, "load");
     let v = voxelize::<D>(&mesh, &o.load, o.engine, |pos, len| {
         pb.set_length(len.max(pos));

@@ -2,6 +2,7 @@
 
 use anyhow::{bail, Result};
 use cell_core::cell::DEFAULT_DEXELS;
+use cell_core::shade::Eye;
 
 use crate::machine::grid::LightGrid;
 
@@ -21,6 +22,8 @@ pub struct LoadedScene {
     pub load_cycles: u64,
     /// Source face of each facet id (packet order).
     pub source_face: Vec<u32>,
+    /// Where the eye is: the grid's own view, or the camera the scene was seen through.
+    pub eye: Eye,
 }
 
 /// Voxelize a scene with the wave (an empty scene gives an empty grid).
@@ -48,6 +51,7 @@ pub fn load_scene_tapped(
             facets: 0,
             load_cycles: 0,
             source_face: Vec::new(),
+            eye: Eye::Grid,
         });
     }
     let v = crate::machine::load::voxelize_tapped::<DEFAULT_DEXELS>(
@@ -64,6 +68,7 @@ pub fn load_scene_tapped(
         fit: v.prepared.fit.expect("fitted"),
         source_face: v.prepared.source_face,
         grid: v.grid,
+        eye: mesh.screen.as_ref().map_or(Eye::Grid, |s| Eye::Camera(s.view.cell_view(cfg.n))),
     })
 }
 
@@ -116,6 +121,7 @@ pub fn resolve_lights(mesh: &Mesh, scene: &LoadedScene, cli: &[[f64; 3]]) -> Res
         let p = match *l {
             SceneLight::Grid(t) => normalised_to_voxel(t, n),
             SceneLight::World(w) => {
+                let w = mesh.screen.as_ref().map_or(w, |s| s.view.to_screen(w));
                 let mut p = world_to_voxel(&scene.fit, w);
                 // Step down (−y) out of the occupied voxels the light's own quad sits in.
                 for _ in 0..n {

@@ -231,7 +231,11 @@ impl<'a> ShadeEnv<'a> {
             mats: mesh.materials.iter().map(crate::machine::shade::cell_material).collect(),
             kr: mesh.materials.iter().map(|m| m.kr).collect(),
             lights,
-            params: ShadeParams { ambient: [crate::machine::shade::AMBIENT; 3], normal_mode: normals },
+            params: ShadeParams {
+                ambient: [crate::machine::shade::AMBIENT; 3],
+                normal_mode: normals,
+                eye: cell_core::shade::Eye::Grid,
+            },
             mask,
         }
     }

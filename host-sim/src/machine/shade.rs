@@ -9,8 +9,7 @@ use cell_core::beam::FracBits;
 use cell_core::light::SourceMask;
 use cell_core::lit::LitRule;
 use cell_core::shade::{
-    pixel, shading_normal, shading_normal_of, surface_pixel, Material as CellMaterial, NormalMode, PointLight,
-    ShadeParams,
+    pixel, shading_normal_toward, surface_pixel, Eye, Material as CellMaterial, NormalMode, PointLight, ShadeParams,
 };
 
 use crate::machine::loaded::LoadedScene;
@@ -44,6 +43,15 @@ pub fn cell_material(m: &Material) -> CellMaterial {
 pub fn point_lights(positions: &[[f64; 3]]) -> Vec<PointLight> {
     let e = 1.0 / (positions.len().max(1) as f32).sqrt();
     positions.iter().map(|p| PointLight { pos: p.map(|c| c as f32), color: [e; 3] }).collect()
+}
+
+/// Lights (voxel units) as the cells under `eye` shade with them: in view space under a
+/// camera ([`Eye::Camera`]), unchanged in the grid's own view.
+pub fn eye_lights(eye: &Eye, lights: &[PointLight]) -> Vec<PointLight> {
+    match eye {
+        Eye::Grid => lights.to_vec(),
+        Eye::Camera(c) => lights.iter().map(|l| PointLight { pos: c.point(l.pos), ..*l }).collect(),
+    }
 }
 
 /// What the image reads for each cell.
@@ -92,8 +100,9 @@ pub fn shade_grid_with(
     mode: NormalMode,
 ) -> Image {
     let n = scene.grid.n;
-    let params = ShadeParams { ambient: [AMBIENT; 3], normal_mode: mode };
+    let params = ShadeParams { ambient: [AMBIENT; 3], normal_mode: mode, eye: scene.eye };
     let mats: Vec<CellMaterial> = mesh.materials.iter().map(cell_material).collect();
+    let lights = &eye_lights(&scene.eye, lights)[..];
     let ref_lights = ref_lights(lights);
     let mut img = Image {
         n,
@@ -110,21 +119,24 @@ pub fn shade_grid_with(
         let shaded = match seen {
             Seen::FirstVoxel(mask) => pixel(c.x, c.y, &c.store, |z| mask(x, y, z), &mats, lights, &params).map(|px| {
                 let d = c.store.dexels()[0];
-                (px, [c.x as f32, c.y as f32, px.z as f32], shading_normal(&d, mode), d.material)
+                let (p, v) = scene.eye.shading_point([c.x as f32, c.y as f32, px.z as f32]);
+                (px, p, v, shading_normal_toward(d.normal, mode, v), d.material)
             }),
-            Seen::Surface(mask) => c.visible.as_ref().map(|v| {
-                let px = surface_pixel(c.x, c.y, v, mask(x, y), &mats, lights, &params);
-                (px, [c.x as f32, c.y as f32, v.depth()], shading_normal_of(v.normal, mode), v.material)
+            Seen::Surface(mask) => c.visible.as_ref().map(|s| {
+                let px = surface_pixel(c.x, c.y, s, mask(x, y), &mats, lights, &params);
+                let (p, v) = scene.eye.shading_point([c.x as f32, c.y as f32, s.depth()]);
+                (px, p, v, shading_normal_toward(s.normal, mode, v), s.material)
             }),
         };
-        let Some((px, p, nrm, material)) = shaded else {
+        let Some((px, p, v, nrm, material)) = shaded else {
             continue;
         };
         let (rgb, lit) = (px.rgb, px.lit);
         // The same inputs through the f64 formula: the error of the cell's arithmetic alone.
-        let exact = crate::truth::refrender::shade_f64(
-            p.map(|v| v as f64),
-            nrm.map(|v| v as f64),
+        let exact = crate::truth::refrender::shade_view_f64(
+            p.map(f64::from),
+            nrm.map(f64::from),
+            v.map(f64::from),
             &mesh.materials[(material as usize).min(mesh.materials.len() - 1)],
             &ref_lights,
             lit,

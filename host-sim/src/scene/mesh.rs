@@ -70,6 +70,9 @@ pub struct Mesh {
     /// Faces whose winding the loader reversed to make each surface consistent, closed ones
     /// outward ([`crate::scene::meshops::orient`]).
     pub rewound: usize,
+    /// Set when the positions are in screen space ([`crate::scene::camera::to_screen`]): the
+    /// camera, and the world positions they came from. `None`: world space, fitted into the grid.
+    pub screen: Option<std::sync::Arc<crate::scene::camera::Screen>>,
 }
 
 fn convert_material(m: &tobj::Material) -> Material {

@@ -2,6 +2,7 @@
 //!
 //! * [`mesh`] — polygons, materials, lights; the OBJ/MTL reader.
 //! * [`builtin`] — the built-in scenes and [`load`], by name or path.
+//! * [`camera`] — the geometry stage: a camera and the map to screen space (thesis §1.3).
 //! * [`office`] — the procedural offices of the radiosity thesis (bureau1, bureau2, classe).
 //! * [`meshops`] — winding orientation, subdivision.
 //! * [`binvox`] — the `.binvox` voxel file format.
@@ -13,6 +14,7 @@
 
 pub mod binvox;
 pub mod builtin;
+pub mod camera;
 pub mod mesh;
 pub mod meshops;
 pub mod office;

@@ -1237,6 +1237,7 @@ pub fn build(kind: Kind) -> Office {
         lights: s.lights.into_iter().map(SceneLight::World).collect(),
         // Built wound as `orient` says: closed solids outward, the open room inward.
         rewound: 0,
+        screen: None,
     };
     Office {
         mesh,

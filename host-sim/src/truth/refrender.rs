@@ -21,6 +21,7 @@ use anyhow::{bail, Context, Result};
 use parry3d_f64::math::Vector;
 
 use crate::precompute::Fit;
+use crate::scene::camera::View;
 use crate::scene::{Material, Mesh};
 use crate::truth::visibility::Reference;
 
@@ -149,6 +150,19 @@ pub fn shade_linear_view_f64(
     c
 }
 
+/// [`shade_f64`] seen from direction `v` (unit, from the point toward the eye).
+pub fn shade_view_f64(
+    p: [f64; 3],
+    n: [f64; 3],
+    v: [f64; 3],
+    m: &Material,
+    lights: &[RefLight],
+    lit_mask: u32,
+    ambient: [f64; 3],
+) -> [u8; 3] {
+    shade_linear_view_f64(p, n, v, m, lights, lit_mask, ambient).map(encode_gamma)
+}
+
 /// The shading formula for one point (`f64`), shared with the tests of the discrete shader.
 ///
 /// `p_vox`: the point in voxel units; `n`: unit normal facing the viewer; `lit_mask`: bit `s`
@@ -237,8 +251,12 @@ pub struct RefReflect {
 struct RefScene<'a> {
     mesh: &'a Mesh,
     reference: Reference,
-    lights: &'a [RefLight],
+    /// The lights in the space the formula is evaluated in: voxel units, or world units under
+    /// a camera.
+    lights: Vec<RefLight>,
     lights_world: Vec<Vector>,
+    /// The camera of a scene in screen space: primary rays and shading in world space.
+    view: Option<View>,
     ambient: [f64; 3],
     origin: Vector,
     voxel: f64,
@@ -268,10 +286,10 @@ impl RefScene<'_> {
     fn colour(&self, p: Vector, normal: Vector, facet: u32, v: Vector, level: u32, weight: f64) -> ([f64; 3], u32) {
         let (o, vx) = (self.origin, self.voxel);
         let mask = self.lit_mask(p, normal, facet);
-        let p_vox = (p - o) / vx - Vector::splat(0.5);
+        let p_vox = if self.view.is_some() { p } else { (p - o) / vx - Vector::splat(0.5) };
         let m = &self.mesh.materials[self.mesh.faces[facet as usize].material as usize];
         let (p_vox, n, v_arr) = (p_vox.to_array(), normal.to_array(), v.to_array());
-        let mut c = shade_linear_view_f64(p_vox, n, v_arr, m, self.lights, mask, self.ambient);
+        let mut c = shade_linear_view_f64(p_vox, n, v_arr, m, &self.lights, mask, self.ambient);
         let kr = f64::from(m.kr);
         let w = weight * kr;
         if kr > 0.0 && level <= self.reflect.depth && w >= self.reflect.threshold {
@@ -316,7 +334,7 @@ impl<'a> RefScene<'a> {
         mesh: &'a Mesh,
         fit: &Fit,
         n: u32,
-        lights: &'a [RefLight],
+        lights: &[RefLight],
         ambient: [f64; 3],
         reflect: &RefReflect,
     ) -> Result<Self> {
@@ -330,17 +348,37 @@ impl<'a> RefScene<'a> {
         if !fit_ok {
             bail!("refrender: invalid fit {fit:?}");
         }
-        let (tris, facets) = mesh_triangles(mesh)?;
+        if mesh.screen.is_some() && reflect.depth > 0 {
+            bail!("refrender: reflections under a camera are not supported");
+        }
+        // Under a camera the triangles are the world ones the screen-space mesh came from.
+        let world_mesh =
+            mesh.screen.as_ref().map(|s| Mesh { positions: s.world.clone(), screen: None, ..mesh.clone() });
+        let (tris, facets) = mesh_triangles(world_mesh.as_ref().unwrap_or(mesh))?;
         let reference = Reference::new(tris, facets).with_context(|| format!("refrender: scene {}", mesh.name))?;
         let (o, vx) = (Vector::from(fit.origin), fit.voxel);
-        let to_world = |p: Vector| o + (p + Vector::splat(0.5)) * vx;
-        // A primary ray crosses the grid: n voxels and the one in front.
-        let primary_t = (n as f64 + 2.0) * vx;
+        let view = mesh.screen.as_ref().map(|s| s.view);
+        let to_world = |p: Vector| match &view {
+            // Voxel units are screen space: s = (v + ½)/n, then back through the camera.
+            Some(v) => {
+                Vector::from(v.from_view(v.screen_to_view((p + Vector::splat(0.5)).to_array().map(|c| c / n as f64))))
+            }
+            None => o + (p + Vector::splat(0.5)) * vx,
+        };
+        let lights_world: Vec<Vector> = lights.iter().map(|l| to_world(Vector::from(l.pos))).collect();
+        let lights = match view {
+            Some(_) => lights.iter().zip(&lights_world).map(|(l, w)| RefLight { pos: w.to_array(), ..*l }).collect(),
+            None => lights.to_vec(),
+        };
+        // A primary ray crosses the grid: n voxels and the one in front (under a camera: any
+        // length, the frustum bounds the scene).
+        let primary_t = if view.is_some() { f64::MAX / 4.0 } else { (n as f64 + 2.0) * vx };
         Ok(RefScene {
             mesh,
             reference,
             lights,
-            lights_world: lights.iter().map(|l| to_world(Vector::from(l.pos))).collect(),
+            lights_world,
+            view,
             ambient,
             origin: o,
             voxel: vx,
@@ -351,17 +389,20 @@ impl<'a> RefScene<'a> {
         })
     }
 
-    /// Pixel (x, y): the primary ray along +z from one voxel in front of the grid.
+    /// Pixel (x, y): the primary ray along +z from one voxel in front of the grid, or the
+    /// camera's ray through the pixel's centre.
     fn pixel(&self, x: u32, y: u32, img: &mut RefImage) {
         let (o, vx) = (self.origin, self.voxel);
-        let origin = Vector::new(o.x + (x as f64 + 0.5) * vx, o.y + (y as f64 + 0.5) * vx, o.z - vx);
-        let Some((t, facet, normal)) =
-            self.reference.first_hit(origin.to_array(), [0.0, 0.0, 1.0], self.primary_t, &[])
+        let (origin, dir) = match &self.view {
+            Some(v) => v.ray((x as f64 + 0.5) / img.n as f64, (y as f64 + 0.5) / img.n as f64),
+            None => (Vector::new(o.x + (x as f64 + 0.5) * vx, o.y + (y as f64 + 0.5) * vx, o.z - vx), Vector::Z),
+        };
+        let Some((t, facet, normal)) = self.reference.first_hit(origin.to_array(), dir.to_array(), self.primary_t, &[])
         else {
             return;
         };
-        let p = Vector::new(origin.x, origin.y, origin.z + t);
-        let (c, mask) = self.colour(p, Vector::from(normal), facet, Vector::new(0.0, 0.0, -1.0), 1, 1.0);
+        let p = if self.view.is_some() { origin + t * dir } else { Vector::new(origin.x, origin.y, origin.z + t) };
+        let (c, mask) = self.colour(p, Vector::from(normal), facet, -dir, 1, 1.0);
         let i = y as usize * img.n as usize + x as usize;
         img.rgb[i] = c.map(encode_gamma);
         img.covered[i] = true;
@@ -432,6 +473,7 @@ mod tests {
             ],
             lights: vec![],
             rewound: 0,
+            screen: None,
         }
     }
 
@@ -617,6 +659,7 @@ mod tests {
             materials: vec![Material::default()],
             lights: vec![],
             rewound: 0,
+            screen: None,
         }
     }
 
