@@ -8,7 +8,7 @@ use crate::units::Coord;
 
 /// Dexel capacity a host build uses unless told otherwise.
 ///
-/// This constant and the three below are the capacities of the cell that host-sim simulates and
+/// This constant and the seven below are the capacities of the cell that host-sim simulates and
 /// the firmware runs: they are set here and only here.
 pub const DEFAULT_DEXELS: usize = 64;
 
@@ -21,6 +21,21 @@ pub const OB_CAP: usize = 3;
 /// Lit runs per column: 64 since the office scene `bureau2` at n = 128 needed more than 32 in
 /// two columns running along a wall (a lit-store overflow there is an error, never a loss).
 pub const LIT_CAP: usize = 64;
+
+/// Ray FIFO capacity of the classic shadow-ray cell ([`crate::shadow::ShadowCell`]): the
+/// run-time limit FA of the classic phase may be at most this.
+pub const SHADOW_FA_CAP: usize = FA_CAP;
+
+/// Ray FIFO capacity of each of the reflection cell's 4 classes
+/// ([`crate::reflect_cell::ReflectCell`]).
+pub const REFLECT_FA_CAP: usize = FA_CAP;
+
+/// Wait-table entries of the reflection cell: trees waiting at one cell at once (the root's
+/// included); each entry may hold one child ray waiting for FIFO room.
+pub const WAIT_CAP: usize = 16;
+
+/// Answers the reflection cell holds for its router.
+pub const SEND_CAP: usize = 16;
 
 /// Per-cell counters of the loading phase.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
