@@ -52,7 +52,7 @@ use crate::scene::Mesh;
 /// Classic-phase settings.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ClassicConfig {
-    /// FIFO limit of each cell (rays), 1 ..= [`FA_CAP`].
+    /// FIFO limit of each cell (rays), 1 ..= [`SHADOW_FA_CAP`].
     pub fa: usize,
     /// Connectivity of the shadow rays.
     pub connectivity: Connectivity,
