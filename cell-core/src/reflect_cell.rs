@@ -366,7 +366,9 @@ impl<const FA: usize, const W: usize, const S: usize> ReflectCell<FA, W, S> {
         }
         let Some(slot) = self.open(WaitEntry { parent: None, local, kr }) else { return Ok(false) };
         let at = [x, y, d.span.lo];
-        match child_ray(at, d, ([0, 0, 1], 0b100), env, ([x, y], slot), 1, kr).map_err(|error| RayError { at, error })? {
+        match child_ray(at, d, ([0, 0, 1], 0b100), env, ([x, y], slot), 1, kr)
+            .map_err(|error| RayError { at, error })?
+        {
             Some(r) => {
                 if self.launch.push_back(r).is_err() {
                     self.counters.wait_overflows += 1;
@@ -582,5 +584,158 @@ impl<const FA: usize, const W: usize, const S: usize> ReflectCell<FA, W, S> {
     /// Nothing to do until an answer arrives.
     pub fn idle(&self) -> bool {
         self.outs == 0 && self.launch.is_empty() && self.send.is_empty() && self.fifo.iter().all(Deque::is_empty)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dexel::FacetTag;
+    use crate::plane::ColumnPlane;
+    use crate::ray::Q;
+    use crate::shade::NormalMode;
+    use crate::units::Span;
+
+    const SPAN: i32 = 2 * Q * 8;
+
+    fn mirror_column() -> Cell<4> {
+        let mut c = Cell::<4>::new(1, 1);
+        let _ = c.store.insert_on(Span { lo: 3, hi: 3 }, FacetTag::default(), &ColumnPlane::default());
+        c
+    }
+
+    fn env(depth: u8, fa: usize) -> ReflectEnv {
+        ReflectEnv {
+            depth,
+            threshold: 0.01,
+            normal: ReflectNormal::Face,
+            skip_own_facet: true,
+            connectivity: Connectivity::Six,
+            fa,
+            span: SPAN,
+            n: 4,
+            grid_depth: 8,
+        }
+    }
+
+    /// A level-1 ray coming down column (1, 1) from z = 6 toward the mirror at z = 3.
+    fn falling(slot: u16) -> ReflectRay {
+        ReflectRay::new([1, 1, 6], [0, 0, -SPAN], Connectivity::Six, [0, 0], slot, 7, 1, 1.0).unwrap()
+    }
+
+    fn surfaces(mats: &[Material]) -> Surfaces<'_> {
+        let params = ShadeParams { ambient: [0.25; 3], normal_mode: NormalMode::Facet };
+        Surfaces { mats, kr: &[0.5], lights: &[], params }
+    }
+
+    /// Step until nothing is left to walk; the router refuses every answer.
+    fn run_refusing<const FA: usize, const W: usize, const S: usize>(
+        cell: &mut ReflectCell<FA, W, S>,
+        col: &Cell<4>,
+        env: &ReflectEnv,
+    ) {
+        let mats = [Material::default()];
+        for _ in 0..16 {
+            cell.step(col, &surfaces(&mats), &|_| 0, env, |_| false).unwrap();
+        }
+    }
+
+    #[test]
+    fn wait_table_overflow_at_capacity_plus_one_is_counted() {
+        let col = mirror_column();
+        let mut cell = ReflectCell::<4, 1, 4>::new();
+        cell.accept(0, falling(0)).unwrap();
+        run_refusing(&mut cell, &col, &env(2, 4));
+        assert_eq!((cell.counters.hits, cell.counters.waits, cell.waiting()), (1, 1, 1), "exactly the capacity");
+        assert_eq!(cell.counters.wait_overflows, 0);
+        assert_eq!(cell.counters.faults(), 0);
+        cell.accept(0, falling(1)).unwrap();
+        run_refusing(&mut cell, &col, &env(2, 4));
+        assert_eq!(cell.counters.hits, 2);
+        assert_eq!(cell.counters.wait_overflows, 1, "capacity + 1: counted");
+        assert_eq!(cell.waiting(), 1);
+        // The first child left the grid (its black answer is queued); the refused voxel answered
+        // at once: the tree is cut there, nothing is lost.
+        assert_eq!((cell.counters.exits, cell.sending()), (1, 2));
+        assert_eq!(cell.counters.faults(), 1);
+    }
+
+    #[test]
+    fn send_queue_overflow_at_capacity_plus_one_is_counted() {
+        let col = mirror_column();
+        let mut cell = ReflectCell::<4, 4, 2>::new();
+        for slot in 0..2 {
+            cell.accept(0, falling(slot)).unwrap();
+        }
+        run_refusing(&mut cell, &col, &env(1, 4)); // depth 1: the hits answer at once
+        assert_eq!((cell.counters.cut_depth, cell.sending()), (2, 2), "exactly the capacity");
+        assert_eq!(cell.counters.send_overflows, 0);
+        cell.accept(0, falling(2)).unwrap();
+        run_refusing(&mut cell, &col, &env(1, 4));
+        assert_eq!((cell.sending(), cell.counters.send_overflows), (2, 1), "capacity + 1: lost and counted");
+        // The router takes them now: the queue drains, one per cycle.
+        let mats = [Material::default()];
+        let mut taken = 0;
+        for _ in 0..2 {
+            cell.step(&col, &surfaces(&mats), &|_| 0, &env(1, 4), |a| {
+                taken += (a.dest == [0, 0]) as u32;
+                true
+            })
+            .unwrap();
+        }
+        assert_eq!((taken, cell.counters.answers), (2, 2));
+        assert!(cell.idle());
+    }
+
+    #[test]
+    fn fifo_refuses_beyond_capacity_and_stray_answers_are_counted() {
+        let mut cell = ReflectCell::<2, 2, 2>::new();
+        assert!(cell.can_accept(0, 2));
+        cell.accept(0, falling(0)).unwrap();
+        cell.accept(0, falling(1)).unwrap();
+        assert!(!cell.can_accept(0, 2) && !cell.can_accept(0, 64) && cell.can_accept(1, 2));
+        assert_eq!(cell.accept(0, falling(2)), Err(falling(2)));
+        assert_eq!((cell.counters.fifo_overflows, cell.counters.peak_fifo), (1, 2));
+        assert_eq!(cell.deliver(1, [0; 3]), Delivered::Stray);
+        assert_eq!(cell.counters.stray_answers, 1);
+        assert_eq!(cell.counters.faults(), 2);
+    }
+
+    #[test]
+    fn inner_node_combines_and_forwards() {
+        let col = mirror_column();
+        let mut cell = ReflectCell::<4, 2, 4>::new();
+        cell.accept(0, falling(5)).unwrap();
+        let mats = [Material::default()];
+        for _ in 0..4 {
+            // z = 6 → 5 → 4 → 3, then the hit: an entry and a child ray.
+            cell.step(&col, &surfaces(&mats), &|_| 0, &env(2, 4), |_| false).unwrap();
+        }
+        assert_eq!((cell.counters.hits, cell.counters.rays, cell.waiting()), (1, 1, 1));
+        // The child's answer, as the router would deliver it.
+        assert_eq!(cell.deliver(0, [4096; 3]), Delivered::Forwarded);
+        assert_eq!(cell.waiting(), 0);
+        assert_eq!(cell.sending(), 1);
+        // local (ambient 0.25 × ka 0) + 0.5 × 1.0 = 0.5 → Q12 2048, to the parent's slot 5.
+        let mut got = None;
+        cell.step(&col, &surfaces(&mats), &|_| 0, &env(2, 4), |a| {
+            got = Some(a);
+            true
+        })
+        .unwrap();
+        assert_eq!(got.map(|a| (a.dest, a.payload)), Some(([0, 0], (5, [2048; 3]))));
+    }
+
+    #[test]
+    fn ram_is_the_capacities_times_the_ray() {
+        use core::mem::size_of;
+        type Host = ReflectCell<{ crate::cell::REFLECT_FA_CAP }, { crate::cell::WAIT_CAP }, { crate::cell::SEND_CAP }>;
+        let (fa, w, s) = (crate::cell::REFLECT_FA_CAP, crate::cell::WAIT_CAP, crate::cell::SEND_CAP);
+        let stores = 4 * fa * size_of::<ReflectRay>()
+            + 32 * size_of::<Option<ReflectRay>>()
+            + w * (size_of::<Option<WaitEntry>>() + size_of::<ReflectRay>())
+            + s * size_of::<ReflectAnswer>();
+        let bookkeeping = size_of::<Host>() - stores;
+        assert!(bookkeeping < 256, "{bookkeeping} bytes besides the stores");
     }
 }

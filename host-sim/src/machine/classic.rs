@@ -9,14 +9,18 @@
 //! ([`cell_core::visible`]), the ray is the exact segment from that point, and a voxel stops it
 //! only where the segment crosses the voxel's own plane (the plane principle of
 //! [`cell_core::ray`]); a surface whose plane turns away from the source emits no ray (it is in
-//! its own shadow, counted as `back_facing`). Cycle model, per cycle:
+//! its own shadow, counted as `back_facing`). What one cell holds and does is
+//! [`cell_core::shadow::ShadowCell`] (its FIFO of [`SHADOW_FA_CAP`] rays, one output slot per
+//! link, its emission, its answers); this module schedules the cells. Cycle model, per cycle:
 //! 1. **compute**: every cell with rays takes its FIFO's head and does one voxel of work
 //!    ([`ShadowRay::advance`]): an occupied voxel (of another facet) → the answer "shadow";
 //!    the end of the line (the source) → "lit"; the next voxel in the same column → the ray
 //!    goes back to the FIFO's tail; in a neighbour column → the output buffer of that link.
 //!    An answer goes to the cell's router, addressed to the emitter. If the buffer or the router
 //!    channel is full the ray is not processed (no loss, §4.4.2), goes to the FIFO's tail, and
-//!    the cell is blocked for the cycle (the thesis's policy).
+//!    the cell is blocked for the cycle (the thesis's policy). Then the cell emits into the
+//!    room left below the FIFO limit (with `--emitters all` a column may emit more rays than
+//!    FA: they wait in the cell's emitter, which generates them from its dexels).
 //! 2. **links**: answers first ([`crate::machine::network`]: routers, virtual channels, credits), then
 //!    rays (output buffer → neighbour FIFO when it has room); one message per link, direction
 //!    and cycle, whatever its kind.
@@ -405,20 +409,9 @@ impl<'a> ClassicRun<'a> {
         self.active.sort_unstable();
     }
 
-    /// A cell's FIFO refused a ray (its count of overflows): the error naming the cell and the
-    /// capacity to raise.
+    /// A cell's FIFO refused a ray: [`overflow_report`].
     fn check_overflow(&self) -> Result<()> {
-        let over: Vec<usize> = (0..self.cells.len()).filter(|&i| self.cells[i].counters.overflows > 0).collect();
-        if let Some(&i) = over.first() {
-            bail!(
-                "shadow-ray FIFO overflow in {} cell(s), first at cell ({}, {}): more than {SHADOW_FA_CAP} rays; \
-                 raise SHADOW_FA_CAP in host-sim/src/machine/capacity.rs",
-                over.len(),
-                i % self.n,
-                i / self.n
-            );
-        }
-        Ok(())
+        overflow_report(&self.cells, self.n)
     }
 
     /// The error of a cycle with work in flight and nothing moving.
@@ -470,6 +463,21 @@ impl<'a> ClassicRun<'a> {
         }
         self.k
     }
+}
+
+/// The error naming the first cell (of a grid of side `n`) whose FIFO refused a ray (its count
+/// of overflows) and the capacity to raise; `Ok` if none did.
+fn overflow_report<const FA: usize>(cells: &[ShadowCell<FA>], n: usize) -> Result<()> {
+    let over = cells.iter().filter(|c| c.counters.overflows > 0).count();
+    if let Some(i) = cells.iter().position(|c| c.counters.overflows > 0) {
+        bail!(
+            "shadow-ray FIFO overflow in {over} cell(s), first at cell ({}, {}): more than {FA} rays; raise \
+             SHADOW_FA_CAP in cell_core::cell (host-sim/src/machine/capacity.rs re-exports it)",
+            i % n,
+            i / n
+        );
+    }
+    Ok(())
 }
 
 /// The classic phase as the `light`/`render` jobs report it: the lit state and a [`LightStats`]
@@ -543,4 +551,23 @@ pub fn summary(c: &ClassicCounts) -> String {
         c.peak_link_distance,
         c.peak_fifo
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cell_core::ray::Q;
+
+    #[test]
+    fn a_full_fifo_is_reported_naming_the_cell_and_the_capacity() {
+        let mut cells = [ShadowCell::<2>::new(), ShadowCell::new(), ShadowCell::new(), ShadowCell::new()];
+        let ray = ShadowRay::new([1, 0, 0], [5 * Q, 0, 0], Connectivity::Six, 0).unwrap();
+        for _ in 0..2 {
+            cells[1].accept(ray).unwrap();
+        }
+        assert!(overflow_report(&cells, 2).is_ok(), "exactly the capacity is no overflow");
+        assert!(cells[1].accept(ray).is_err());
+        let e = overflow_report(&cells, 2).unwrap_err().to_string();
+        assert!(e.contains("cell (1, 0)") && e.contains("more than 2 rays") && e.contains("SHADOW_FA_CAP"), "{e}");
+    }
 }

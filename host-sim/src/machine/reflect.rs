@@ -52,7 +52,7 @@ use cell_core::route::RoutePolicy;
 use cell_core::shade::{Material as CellMaterial, NormalMode, PointLight, ShadeParams};
 use cell_core::units::Depth;
 
-use crate::machine::capacity::{HostReflectCell, REFLECT_FA_CAP, SEND_CAP, WAIT_CAP};
+use crate::machine::capacity::{HostReflectCell, REFLECT_FA_CAP};
 use crate::machine::grid::LightGrid;
 use crate::machine::loaded::LoadedScene;
 use crate::machine::network::Network;
@@ -394,28 +394,9 @@ impl<'a> ReflectRun<'a> {
         self.active.sort_unstable();
     }
 
-    /// A cell whose store overflowed (or that received a stray answer): the error naming the
-    /// cell and the capacity to raise.
+    /// A cell whose store overflowed (or that received a stray answer): [`fault_report`].
     fn check_faults(&self) -> Result<()> {
-        let nn = self.grid.n as usize;
-        let faulty = self.cells.iter().filter(|c| c.counters.faults() > 0).count();
-        let Some(i) = self.cells.iter().position(|c| c.counters.faults() > 0) else { return Ok(()) };
-        let k = &self.cells[i].counters;
-        let what = if k.wait_overflows > 0 {
-            format!("wait table full (more than {WAIT_CAP} trees waiting at once); raise WAIT_CAP")
-        } else if k.send_overflows > 0 {
-            format!("send queue full (more than {SEND_CAP} answers for the router); raise SEND_CAP")
-        } else if k.fifo_overflows > 0 {
-            format!("ray FIFO full (more than {REFLECT_FA_CAP} rays); raise REFLECT_FA_CAP")
-        } else {
-            "an answer for a wait-table slot that was not open".to_string()
-        };
-        bail!(
-            "reflection cell overflow in {faulty} cell(s), first at cell ({}, {}): {what} in cell_core::cell \
-             (host-sim/src/machine/capacity.rs re-exports it)",
-            i % nn,
-            i / nn
-        )
+        fault_report(&self.cells, self.grid.n as usize)
     }
 
     /// The error of a cycle with trees unanswered and nothing moving.
@@ -478,6 +459,36 @@ impl<'a> ReflectRun<'a> {
     }
 }
 
+/// The error naming the first cell (of a grid of side `n`) whose store overflowed or that
+/// received a stray answer, and the capacity to raise; `Ok` if none did.
+fn fault_report<const FA: usize, const W: usize, const S: usize>(
+    cells: &[ReflectCell<FA, W, S>],
+    n: usize,
+) -> Result<()> {
+    let faulty = cells.iter().filter(|c| c.counters.faults() > 0).count();
+    let Some(i) = cells.iter().position(|c| c.counters.faults() > 0) else { return Ok(()) };
+    let k = &cells[i].counters;
+    let what = if k.wait_overflows > 0 {
+        format!("wait table full (more than {W} trees waiting at once); raise WAIT_CAP")
+    } else if k.send_overflows > 0 {
+        format!("send queue full (more than {S} answers for the router); raise SEND_CAP")
+    } else if k.fifo_overflows > 0 {
+        format!("ray FIFO full (more than {FA} rays); raise REFLECT_FA_CAP")
+    } else {
+        return Err(anyhow::anyhow!(
+            "reflection cell ({}, {}) received an answer for a wait-table slot that was not open",
+            i % n,
+            i / n
+        ));
+    };
+    bail!(
+        "reflection cell overflow in {faulty} cell(s), first at cell ({}, {}): {what} in cell_core::cell \
+         (host-sim/src/machine/capacity.rs re-exports it)",
+        i % n,
+        i / n
+    )
+}
+
 /// One line of reflection counters for the job summaries.
 pub fn summary(c: &ReflectCounts) -> String {
     format!(
@@ -503,5 +514,28 @@ pub fn summary(c: &ReflectCounts) -> String {
             c.mirror_pixels
         ),
         _ => String::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cell_core::reflect::ReflectRay;
+
+    #[test]
+    fn a_full_fifo_is_reported_naming_the_cell_and_the_capacity() {
+        let mut cells = [ReflectCell::<2, 2, 2>::new(), ReflectCell::new(), ReflectCell::new(), ReflectCell::new()];
+        let ray = ReflectRay::new([1, 1, 6], [0, 0, -Q], Connectivity::Six, [0, 0], 0, 7, 1, 1.0).unwrap();
+        for _ in 0..2 {
+            cells[3].accept(0, ray).unwrap();
+        }
+        assert!(fault_report(&cells, 2).is_ok(), "exactly the capacity is no fault");
+        assert!(cells[3].accept(0, ray).is_err());
+        let e = fault_report(&cells, 2).unwrap_err().to_string();
+        assert!(e.contains("cell (1, 1)") && e.contains("more than 2 rays") && e.contains("REFLECT_FA_CAP"), "{e}");
+        cells[3] = ReflectCell::new();
+        cells[2].deliver(0, [0; 3]);
+        let e = fault_report(&cells, 2).unwrap_err().to_string();
+        assert!(e.contains("cell (0, 1)") && e.contains("not open"), "{e}");
     }
 }
