@@ -285,8 +285,8 @@ impl<'a> ClassicRun<'a> {
                 active.push(i as u32);
             }
         }
-        let mut k = ClassicCounts::default();
-        k.voxels = grid.cells.iter().map(|c| c.store.voxel_count() as u64).sum();
+        let voxels = grid.cells.iter().map(|c| c.store.voxel_count() as u64).sum();
+        let k = ClassicCounts { voxels, ..Default::default() };
         let rays_in_flight = cells.iter().map(|c| c.counters.rays as u64).sum();
         let mut in_active = vec![false; n * n];
         for &i in &active {
