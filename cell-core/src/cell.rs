@@ -8,7 +8,7 @@ use crate::units::Coord;
 
 /// Dexel capacity a host build uses unless told otherwise.
 ///
-/// This constant and the three below are the capacities of the cell that host-sim simulates and
+/// This constant and the seven below are the capacities of the cell that host-sim simulates and
 /// the firmware runs: they are set here and only here.
 pub const DEFAULT_DEXELS: usize = 64;
 
@@ -21,6 +21,23 @@ pub const OB_CAP: usize = 3;
 /// Lit runs per column: 64 since the office scene `bureau2` at n = 128 needed more than 32 in
 /// two columns running along a wall (a lit-store overflow there is an error, never a loss).
 pub const LIT_CAP: usize = 64;
+
+/// Ray FIFO capacity of the classic shadow-ray cell ([`crate::shadow::ShadowCell`]): the
+/// run-time limit FA of the classic phase may be at most this.
+pub const SHADOW_FA_CAP: usize = FA_CAP;
+
+/// Ray FIFO capacity of each of the reflection cell's 4 classes
+/// ([`crate::reflect_cell::ReflectCell`]): 16, the default FA, not [`FA_CAP`]. Four classes of
+/// 64 rays made a 30 KB cell, and building n² of them cost the host more than the reflection
+/// phase itself (+22 % instructions on a whole render at n = 64); at 16 a cell is 11.5 KB.
+pub const REFLECT_FA_CAP: usize = 16;
+
+/// Wait-table entries of the reflection cell: trees waiting at one cell at once (the root's
+/// included); each entry may hold one child ray waiting for FIFO room.
+pub const WAIT_CAP: usize = 16;
+
+/// Answers the reflection cell holds for its router.
+pub const SEND_CAP: usize = 16;
 
 /// Per-cell counters of the loading phase.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -22,7 +22,10 @@
 //!   and their wrappers.
 //! * [`trace`] — cell traces (what a cell received, as frames) and their replay through the real cell.
 //! * [`ray`] — incremental 6/18/26-connected 3D lines for shadow and reflected rays (§2.3).
+//! * [`shadow`] — the classic shadow-ray cell: emission, ray walking, answers (§4.1.2–4.1.3).
 //! * [`route`] — destination-addressed routers with virtual channels, deadlock-free (§1.3, §4.1.3).
+//! * [`reflect`] — reflected rays: mirrored directions, the ray walk, answers (§5.2, §5.5).
+//! * [`reflect_cell`] — the reflection cell: ray FIFOs, wait table, answers (§1.3.2, §5.5.5).
 //! * [`visible`] — the surface the pixel shows: a per-cell depth test of the exact facets during loading.
 //! * [`shade`] — Phong/Blinn shading of the visible voxel with `micromath` (§1.1, §5.2).
 #![no_std]
@@ -41,8 +44,10 @@ pub mod occupancy;
 pub mod plane;
 pub mod ray;
 pub mod reflect;
+pub mod reflect_cell;
 pub mod route;
 pub mod shade;
+pub mod shadow;
 pub mod trace;
 pub mod units;
 pub mod visible;

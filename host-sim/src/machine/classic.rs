@@ -9,14 +9,18 @@
 //! ([`cell_core::visible`]), the ray is the exact segment from that point, and a voxel stops it
 //! only where the segment crosses the voxel's own plane (the plane principle of
 //! [`cell_core::ray`]); a surface whose plane turns away from the source emits no ray (it is in
-//! its own shadow, counted as `back_facing`). Cycle model, per cycle:
+//! its own shadow, counted as `back_facing`). What one cell holds and does is
+//! [`cell_core::shadow::ShadowCell`] (its FIFO of [`SHADOW_FA_CAP`] rays, one output slot per
+//! link, its emission, its answers); this module schedules the cells. Cycle model, per cycle:
 //! 1. **compute**: every cell with rays takes its FIFO's head and does one voxel of work
 //!    ([`ShadowRay::advance`]): an occupied voxel (of another facet) → the answer "shadow";
 //!    the end of the line (the source) → "lit"; the next voxel in the same column → the ray
 //!    goes back to the FIFO's tail; in a neighbour column → the output buffer of that link.
 //!    An answer goes to the cell's router, addressed to the emitter. If the buffer or the router
 //!    channel is full the ray is not processed (no loss, §4.4.2), goes to the FIFO's tail, and
-//!    the cell is blocked for the cycle (the thesis's policy).
+//!    the cell is blocked for the cycle (the thesis's policy). Then the cell emits into the
+//!    room left below the FIFO limit (with `--emitters all` a column may emit more rays than
+//!    FA: they wait in the cell's emitter, which generates them from its dexels).
 //! 2. **links**: answers first ([`crate::machine::network`]: routers, virtual channels, credits), then
 //!    rays (output buffer → neighbour FIFO when it has room); one message per link, direction
 //!    and cycle, whatever its kind.
@@ -29,19 +33,20 @@
 //! ([`cell_core::route`]) and always drains, so a cell waiting to send an answer waits finitely.
 //! A cycle with work in flight and nothing moving is reported as an error, never a hang.
 
-use std::collections::VecDeque;
+use std::mem::size_of;
 use std::time::Instant;
 
 use anyhow::{bail, Result};
 use cell_core::beam::FracBits;
 use cell_core::light::{Port, SourceMask};
 use cell_core::lit::LitRule;
-use cell_core::ray::{Connectivity, RayStep, ShadowRay};
-use cell_core::route::{RoutePolicy, Routed};
+use cell_core::ray::{Connectivity, ShadowRay};
+use cell_core::route::RoutePolicy;
+use cell_core::shadow::{EmitError, ShadowCell, ShadowEnv, ShadowStep};
 
 use crate::machine::diffuse::{DiffusionCounts, SourceReport};
 
-use crate::machine::capacity::FA_CAP;
+use crate::machine::capacity::{HostShadowCell, SHADOW_FA_CAP};
 use crate::machine::grid::LightGrid;
 use crate::machine::lighting::LightStats;
 use crate::machine::loaded::LoadedScene;
@@ -51,7 +56,7 @@ use crate::scene::Mesh;
 /// Classic-phase settings.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ClassicConfig {
-    /// FIFO limit of each cell (rays), 1 ..= [`FA_CAP`].
+    /// FIFO limit of each cell (rays), 1 ..= [`SHADOW_FA_CAP`].
     pub fa: usize,
     /// Connectivity of the shadow rays.
     pub connectivity: Connectivity,
@@ -168,8 +173,8 @@ pub fn classic(
     if lights.len() > cell_core::light::MAX_SOURCES {
         bail!("{} light sources: at most {} are supported", lights.len(), cell_core::light::MAX_SOURCES);
     }
-    if cfg.fa == 0 || cfg.fa > FA_CAP {
-        bail!("--fa {} is out of range: 1 ..= {FA_CAP}", cfg.fa);
+    if cfg.fa == 0 || cfg.fa > SHADOW_FA_CAP {
+        bail!("--fa {} is out of range: 1 ..= {SHADOW_FA_CAP}", cfg.fa);
     }
     for (i, &l) in lights.iter().enumerate() {
         crate::machine::diffuse::source_at(i, l, n)?;
@@ -192,67 +197,6 @@ pub fn classic(
     Ok(ClassicLighting { n, masks, per_source, totals })
 }
 
-/// The rays cell `c` emits toward lattice point `src`, the one its pixel waits for first
-/// (see the module doc; with `all_voxels`, one more per occupied voxel, from its centre).
-fn emit<const D: usize>(
-    c: &cell_core::cell::Cell<D>,
-    src: [i32; 3],
-    cfg: &ClassicConfig,
-    k: &mut ClassicCounts,
-) -> Result<VecDeque<ShadowRay>> {
-    let err = |z: i64, e| anyhow::anyhow!("shadow ray from ({}, {}, {z}): {e:?}", c.x, c.y);
-    let mut rays = VecDeque::new();
-    let mut push = |ray: Option<ShadowRay>, k: &mut ClassicCounts| match ray {
-        Some(r) => {
-            rays.push_back(r.with_bias(cfg.bias));
-            k.rays += 1;
-        }
-        None => k.back_facing += 1,
-    };
-    let centre = |z: u16| [c.x as i32, c.y as i32, z as i32].map(|v| v * cell_core::ray::Q);
-    match cfg.rule {
-        LitRule::Thesis => {
-            let Some(first) = c.store.dexels().first() else { return Ok(rays) };
-            let visible_z = first.span.lo;
-            for d in c.store.dexels() {
-                for z in d.span.lo..=if cfg.all_voxels { d.span.hi } else { d.span.lo } {
-                    let ray =
-                        ShadowRay::new([c.x, c.y, z], src, cfg.connectivity, d.facet).map_err(|e| err(z as i64, e))?;
-                    push(Some(if z == visible_z { ray.for_surface() } else { ray }), k);
-                }
-                if !cfg.all_voxels {
-                    break;
-                }
-            }
-        }
-        LitRule::Plane => {
-            if let Some(v) = &c.visible {
-                let a = [
-                    c.x as i32 * cell_core::ray::Q,
-                    c.y as i32 * cell_core::ray::Q,
-                    cell_core::ray::lattice_depth(v.num, v.den),
-                ];
-                let ray = ShadowRay::on_plane(a, &v.plane, v.z_v, src, v.facet).map_err(|e| err(v.z_v as i64, e))?;
-                push(ray.map(ShadowRay::for_surface), k);
-            }
-            if cfg.all_voxels {
-                for d in c.store.dexels() {
-                    for z in d.span.lo..=d.span.hi {
-                        let ray = ShadowRay::on_plane(centre(z), &d.plane, d.span.lo as i32, src, d.facet)
-                            .map_err(|e| err(z as i64, e))?;
-                        push(ray, k);
-                    }
-                }
-            }
-        }
-    }
-    // The surface's ray first: it is the one the image waits for.
-    if let Some(ray) = rays.iter().position(|r| r.surface).and_then(|i| rays.remove(i)) {
-        rays.push_front(ray);
-    }
-    Ok(rays)
-}
-
 /// One source's classic run: the cycle loop over the phases of [`ClassicRun`].
 fn classic_one(
     scene: &LoadedScene,
@@ -263,9 +207,9 @@ fn classic_one(
     mut progress: impl FnMut(u64),
 ) -> Result<ClassicCounts> {
     let mut run = ClassicRun::new(scene, light, si, cfg)?;
-    while run.rays_in_flight > 0 || run.net.in_flight > 0 {
-        let mut moved = run.compute();
-        moved += run.answers(masks);
+    while run.rays_in_flight > 0 || run.net.in_flight > 0 || run.emitters > 0 {
+        let mut moved = run.compute()?;
+        moved += run.answers();
         moved += run.ray_links();
         run.cycle += 1;
         run.next_active();
@@ -277,29 +221,34 @@ fn classic_one(
         }
     }
     progress(run.cycle);
+    run.check_overflow()?;
+    for (m, c) in masks.iter_mut().zip(&run.cells) {
+        *m |= c.mask;
+    }
     Ok(run.finish())
 }
 
 /// The state of one source's classic run from cycle to cycle, and its phases (the module
-/// doc's cycle model).
+/// doc's cycle model). The cells ([`ShadowCell`]) do the per-cell work; the run moves their
+/// rays over the links and their answers over the routers.
 struct ClassicRun<'a> {
     grid: &'a LightGrid,
-    cfg: &'a ClassicConfig,
+    env: ShadowEnv,
     si: usize,
     n: usize,
     /// The source's column.
     src_col: [i64; 2],
-    fifo: Vec<VecDeque<ShadowRay>>,
-    out: Vec<[Option<ShadowRay>; 8]>,
-    /// Voxel steps per cell, and ray messages per link (`cell·8 + port`, the sender's side).
-    steps: Vec<u64>,
+    cells: Vec<HostShadowCell>,
+    /// Ray messages per link (`cell·8 + port`, the sender's side).
     ray_link: Vec<u32>,
-    /// The answer network. Answer payload: bit 0 lit, bit 1 from the visible voxel.
+    /// The answer network ([`cell_core::shadow::ShadowAnswer`] payloads).
     net: Network<u8>,
     k: ClassicCounts,
     /// This source's bit in the masks.
     bit: SourceMask,
     rays_in_flight: u64,
+    /// Cells with emission left.
+    emitters: u64,
     /// The cells with rays, in row-major order, and their flags.
     active: Vec<u32>,
     in_active: Vec<bool>,
@@ -308,39 +257,52 @@ struct ClassicRun<'a> {
     cycle: u64,
 }
 
+/// The error of a ray a cell could not emit.
+fn emit_error(c: &cell_core::cell::Cell<{ crate::machine::capacity::DEFAULT_DEXELS }>, e: EmitError) -> anyhow::Error {
+    anyhow::anyhow!("shadow ray from ({}, {}, {}): {:?}", c.x, c.y, e.z, e.error)
+}
+
 impl<'a> ClassicRun<'a> {
-    /// Every emitter's rays in its FIFO.
+    /// Every cell started on the source: its first rays in its FIFO.
     fn new(scene: &'a LoadedScene, light: [f64; 3], si: usize, cfg: &'a ClassicConfig) -> Result<Self> {
         let grid = &scene.grid;
         let n = grid.n as usize;
-        let src = lattice(light);
-        let mut fifo: Vec<VecDeque<ShadowRay>> = vec![VecDeque::new(); n * n];
-        let mut k = ClassicCounts::default();
-        let mut active: Vec<u32> = Vec::new();
+        crate::machine::limits::check_grid_memory("grid of shadow-ray cells", grid.n, size_of::<HostShadowCell>())?;
+        let env = ShadowEnv {
+            source: lattice(light),
+            rule: cfg.rule,
+            connectivity: cfg.connectivity,
+            all_voxels: cfg.all_voxels,
+            bias: cfg.bias,
+            fa: cfg.fa,
+        };
+        let mut cells: Vec<HostShadowCell> = (0..n * n).map(|_| ShadowCell::new()).collect();
+        let (mut active, mut emitters) = (Vec::new(), 0);
         for (i, c) in grid.cells.iter().enumerate() {
-            let rays = emit(c, src, cfg, &mut k)?;
-            if !rays.is_empty() {
-                fifo[i] = rays;
+            cells[i].start(c, &env).map_err(|e| emit_error(c, e))?;
+            emitters += cells[i].emitting() as u64;
+            if cells[i].busy() {
                 active.push(i as u32);
             }
         }
-        k.voxels = grid.cells.iter().map(|c| c.store.voxel_count() as u64).sum();
+        let voxels = grid.cells.iter().map(|c| c.store.voxel_count() as u64).sum();
+        let k = ClassicCounts { voxels, ..Default::default() };
+        let rays_in_flight = cells.iter().map(|c| c.counters.rays as u64).sum();
         let mut in_active = vec![false; n * n];
         for &i in &active {
             in_active[i as usize] = true;
         }
         Ok(ClassicRun {
             grid,
-            cfg,
+            env,
             si,
             n,
             src_col: [(light[0] + 0.5).floor() as i64, (light[1] + 0.5).floor() as i64],
-            fifo,
-            out: vec![[None; 8]; n * n],
-            steps: vec![0u64; n * n],
+            cells,
             ray_link: vec![0u32; n * n * 8],
             net: Network::new(grid.n, cfg.route),
-            rays_in_flight: k.rays,
+            rays_in_flight,
+            emitters,
             k,
             bit: 1 << si,
             active,
@@ -357,81 +319,67 @@ impl<'a> ClassicRun<'a> {
         ((i % n) as i64 - self.src_col[0]).abs().max(((i / n) as i64 - self.src_col[1]).abs()) as u32
     }
 
-    /// 1. Compute: every active cell takes its FIFO's head and does one voxel of work; a ray
-    ///    that cannot go on (full output buffer or router channel) goes back to the FIFO's
-    ///    tail and the cell is blocked. Returns the steps done.
-    fn compute(&mut self) -> u64 {
+    /// 1. Compute: every active cell does one voxel of work on its FIFO's head
+    ///    ([`ShadowCell::step`]: an answer goes to its router if it has room, a ray to its free
+    ///    output slot; otherwise the cell is blocked), then emits into the room left
+    ///    ([`ShadowCell::launch`]). Returns the steps and emissions done.
+    fn compute(&mut self) -> Result<u64> {
         let mut moved = 0;
+        let (cells, net) = (&mut self.cells, &mut self.net);
         for a in 0..self.active.len() {
             let i = self.active[a] as usize;
-            let Some(head) = self.fifo[i].pop_front() else { continue };
-            let mut ray = head;
-            let step = ray.advance(&self.grid.cells[i].store);
-            let done = match step {
-                RayStep::Shadow | RayStep::Lit => {
-                    let dest = ray.emitter;
-                    let payload = (step == RayStep::Lit) as u8 | (ray.surface as u8) << 1;
-                    self.net.can_inject(i, dest) && self.net.inject(i, Routed { dest, payload })
-                }
-                RayStep::Stay => {
-                    self.fifo[i].push_back(ray);
-                    true
-                }
-                RayStep::Forward(p) => {
-                    let slot = &mut self.out[i][p.index()];
-                    slot.is_none() && slot.replace(ray).is_none()
-                }
-            };
-            if done {
-                self.steps[i] += 1;
-                moved += 1;
-                if matches!(step, RayStep::Shadow | RayStep::Lit) {
+            let c = &mut cells[i];
+            let col = &self.grid.cells[i];
+            match c.step(&col.store, |m| net.can_inject(i, m.dest) && net.inject(i, m)) {
+                ShadowStep::Answered(_) => {
                     self.rays_in_flight -= 1;
                     self.k.answers += 1;
+                    moved += 1;
                 }
-            } else {
-                self.fifo[i].push_back(head);
-                self.k.blocked_cell_cycles += 1;
+                ShadowStep::Moved => moved += 1,
+                ShadowStep::Idle | ShadowStep::Blocked => {}
+            }
+            if c.emitting() {
+                let launched = c.launch(col, &self.env).map_err(|e| emit_error(col, e))? as u64;
+                self.rays_in_flight += launched;
+                moved += launched;
+                self.emitters -= !c.emitting() as u64;
             }
         }
-        moved
+        Ok(moved)
     }
 
     /// 2a. Links, answers first: the routers move them; an answer delivered to its emitter is
-    ///     recorded (a lit visible voxel's in `masks`). Returns the messages moved.
-    fn answers(&mut self, masks: &mut [SourceMask]) -> u64 {
+    ///     recorded by it ([`ShadowCell::deliver`]). Returns the messages moved.
+    fn answers(&mut self) -> u64 {
         self.link_used.iter_mut().for_each(|u| *u = false);
-        let (k, bit) = (&mut self.k, self.bit);
-        self.net.step(&mut self.link_used, |cell, m| {
-            if m.payload & 1 == 1 {
-                k.lit += 1;
-                if m.payload & 2 == 2 {
-                    masks[cell] |= bit;
-                }
-            }
-        })
+        let (cells, bit) = (&mut self.cells, self.bit);
+        self.net.step(&mut self.link_used, |cell, m| cells[cell].deliver(m.payload, bit))
     }
 
-    /// 2b. Links, then rays: each output buffer's ray moves to the neighbour's FIFO if it has
+    /// 2b. Links, then rays: each output slot's ray moves to the neighbour's FIFO if it has
     ///     room and the link carried no answer this cycle. Returns the rays moved.
     fn ray_links(&mut self) -> u64 {
         let (n, mut moved) = (self.n, 0);
         for a in 0..self.active.len() {
             let i = self.active[a] as usize;
+            if !self.cells[i].has_out() {
+                continue;
+            }
             for p in Port::ALL {
                 let link = i * 8 + p.index();
-                if self.link_used[link] {
+                if self.link_used[link] || self.cells[i].out(p).is_none() {
                     continue;
                 }
-                let Some(ray) = self.out[i][p.index()] else { continue };
                 let (dx, dy) = p.delta();
                 let j = (i as i64 + dy as i64 * n as i64 + dx as i64) as usize;
-                if self.fifo[j].len() >= self.cfg.fa {
+                if !self.cells[j].can_accept(self.env.fa) {
                     continue;
                 }
-                self.out[i][p.index()] = None;
-                self.fifo[j].push_back(ray);
-                self.k.peak_fifo = self.k.peak_fifo.max(self.fifo[j].len() as u16);
+                let ray = self.cells[i].take_out(p).expect("a ray in the slot");
+                // Room checked: a refusal would be counted in the cell and reported after the run.
+                let _ = self.cells[j].accept(ray);
+                self.k.peak_fifo = self.k.peak_fifo.max(self.cells[j].fifo_len() as u16);
                 self.link_used[link] = true;
                 self.ray_link[link] += 1;
                 self.k.ray_messages += 1;
@@ -447,9 +395,9 @@ impl<'a> ClassicRun<'a> {
 
     /// Next cycle's active list: the busy cells and those a ray reached, in row-major order.
     fn next_active(&mut self) {
-        let (fifo, out, in_active) = (&self.fifo, &self.out, &mut self.in_active);
+        let (cells, in_active) = (&self.cells, &mut self.in_active);
         self.active.retain(|&i| {
-            let busy = !fifo[i as usize].is_empty() || out[i as usize].iter().any(Option::is_some);
+            let busy = cells[i as usize].busy();
             in_active[i as usize] = busy;
             busy
         });
@@ -461,18 +409,22 @@ impl<'a> ClassicRun<'a> {
         self.active.sort_unstable();
     }
 
+    /// A cell's FIFO refused a ray: [`overflow_report`].
+    fn check_overflow(&self) -> Result<()> {
+        overflow_report(&self.cells, self.n)
+    }
+
     /// The error of a cycle with work in flight and nothing moving.
     fn deadlock(&self) -> anyhow::Error {
         let n = self.n;
         let net = &self.net;
         let mut busy: Vec<String> = net.busy_cells().take(4).map(|(c, o)| format!("router {c}: {o}")).collect();
         busy.extend(self.active.iter().take(8).map(|&i| {
-            let i = i as usize;
-            let outs: Vec<String> = (0..8)
-                .filter_map(|p| self.out[i][p].map(|r| format!("{:?}→{:?}", Port::ALL[p], r.line.voxel())))
-                .collect();
-            let heads: Vec<[i32; 3]> = self.fifo[i].iter().map(|r| r.line.voxel()).collect();
-            format!("cell ({}, {}) fifo {heads:?} out [{}]", i % n, i / n, outs.join(", "))
+            let c = &self.cells[i as usize];
+            let outs: Vec<String> =
+                Port::ALL.iter().filter_map(|&p| c.out(p).map(|r| format!("{p:?}→{:?}", r.line.voxel()))).collect();
+            let heads: Vec<[i32; 3]> = c.fifo().map(|r| r.line.voxel()).collect();
+            format!("cell ({}, {}) fifo {heads:?} out [{}]", i as usize % n, i as usize / n, outs.join(", "))
         }));
         anyhow::anyhow!(
             "deadlock in the classic phase at cycle {} of source {}: {} rays and {} answers in flight, nothing can move ({})",
@@ -484,12 +436,20 @@ impl<'a> ClassicRun<'a> {
         )
     }
 
-    /// The counters: cycles, steps, the busiest cell and link.
+    /// The counters: cycles, the cells' sums, the busiest cell and link.
     fn finish(mut self) -> ClassicCounts {
         let n = self.n;
         self.k.cycles = self.cycle;
-        self.k.ray_steps = self.steps.iter().sum();
-        if let Some((i, &s)) = self.steps.iter().enumerate().max_by_key(|&(i, s)| (*s, std::cmp::Reverse(i))) {
+        for c in &self.cells {
+            let k = &c.counters;
+            self.k.rays += k.rays as u64;
+            self.k.back_facing += k.back_facing as u64;
+            self.k.ray_steps += k.steps as u64;
+            self.k.lit += k.lit as u64;
+            self.k.blocked_cell_cycles += k.blocked as u64;
+        }
+        let steps = |i: usize| self.cells[i].counters.steps as u64;
+        if let Some((i, s)) = (0..n * n).map(|i| (i, steps(i))).max_by_key(|&(i, s)| (s, std::cmp::Reverse(i))) {
             self.k.busiest_cell_steps = s;
             self.k.busiest_cell_distance = self.cheb(i);
         }
@@ -503,6 +463,21 @@ impl<'a> ClassicRun<'a> {
         }
         self.k
     }
+}
+
+/// The error naming the first cell (of a grid of side `n`) whose FIFO refused a ray (its count
+/// of overflows) and the capacity to raise; `Ok` if none did.
+fn overflow_report<const FA: usize>(cells: &[ShadowCell<FA>], n: usize) -> Result<()> {
+    let over = cells.iter().filter(|c| c.counters.overflows > 0).count();
+    if let Some(i) = cells.iter().position(|c| c.counters.overflows > 0) {
+        bail!(
+            "shadow-ray FIFO overflow in {over} cell(s), first at cell ({}, {}): more than {FA} rays; raise \
+             SHADOW_FA_CAP in cell_core::cell (host-sim/src/machine/capacity.rs re-exports it)",
+            i % n,
+            i / n
+        );
+    }
+    Ok(())
 }
 
 /// The classic phase as the `light`/`render` jobs report it: the lit state and a [`LightStats`]
@@ -551,9 +526,7 @@ pub fn run_classic<F: FracBits>(
         lit_voxels: cl.masks.iter().filter(|&&m| m != 0).count() as u64,
         lit_overflows: 0,
         bytes_beam_message: std::mem::size_of::<ShadowRay>(),
-        bytes_light_cell: cfg.fa * std::mem::size_of::<ShadowRay>()
-            + 8 * std::mem::size_of::<Option<ShadowRay>>()
-            + std::mem::size_of::<crate::machine::network::HostRouter<bool>>(),
+        bytes_light_cell: size_of::<HostShadowCell>() + size_of::<crate::machine::network::HostRouter<u8>>(),
         sources,
         wall_seconds: wall,
         peak_rss_mib: crate::machine::load::peak_rss_mib(),
@@ -578,4 +551,23 @@ pub fn summary(c: &ClassicCounts) -> String {
         c.peak_link_distance,
         c.peak_fifo
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cell_core::ray::Q;
+
+    #[test]
+    fn a_full_fifo_is_reported_naming_the_cell_and_the_capacity() {
+        let mut cells = [ShadowCell::<2>::new(), ShadowCell::new(), ShadowCell::new(), ShadowCell::new()];
+        let ray = ShadowRay::new([1, 0, 0], [5 * Q, 0, 0], Connectivity::Six, 0).unwrap();
+        for _ in 0..2 {
+            cells[1].accept(ray).unwrap();
+        }
+        assert!(overflow_report(&cells, 2).is_ok(), "exactly the capacity is no overflow");
+        assert!(cells[1].accept(ray).is_err());
+        let e = overflow_report(&cells, 2).unwrap_err().to_string();
+        assert!(e.contains("cell (1, 0)") && e.contains("more than 2 rays") && e.contains("SHADOW_FA_CAP"), "{e}");
+    }
 }

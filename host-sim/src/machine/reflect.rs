@@ -32,26 +32,27 @@
 //! answer network is deadlock-free by itself ([`cell_core::route`]) and a delivered answer only
 //! updates a wait-table entry (never blocks). So every ray ends and every answer arrives; a
 //! cycle with work in flight and nothing moving is still reported as an error, never a hang.
-//! The wait tables and send queues are unbounded here; the run reports their peaks (what a
-//! firmware must provision).
+//!
+//! What one cell holds and does is [`cell_core::reflect_cell::ReflectCell`] (FIFOs, output
+//! slots, wait table, launch and send queues, all bounded: the capacities are
+//! [`REFLECT_FA_CAP`], [`WAIT_CAP`] and [`SEND_CAP`] of `machine/capacity.rs`); this module
+//! schedules the cells, moves their rays over the links and their answers over the routers, and
+//! stops with an error naming the cell and the capacity to raise if a store overflowed. The
+//! run reports the peaks of the wait tables and send queues (what a firmware must provision).
 
-use std::collections::VecDeque;
+use std::mem::size_of;
 
 use anyhow::{bail, Result};
 use cell_core::dexel::Dexel;
 use cell_core::light::{Port, SourceMask};
 use cell_core::ray::{Connectivity, Q};
-use cell_core::reflect::{
-    combine, hit_normal, reflected_dir, to_answer, toward_origin, Answer, ReflectNormal, ReflectRay, ReflectStep,
-    MAX_GRID,
-};
-use cell_core::route::{RoutePolicy, Routed};
-use cell_core::shade::{
-    encode, facing_mask, shade_linear_toward, shading_normal, Material as CellMaterial, NormalMode, PointLight,
-    ShadeParams, VIEW,
-};
+use cell_core::reflect::{Answer, ReflectNormal, MAX_GRID};
+use cell_core::reflect_cell::{Delivered, RayError, ReflectAnswer, ReflectCell, ReflectEnv, Surfaces};
+use cell_core::route::RoutePolicy;
+use cell_core::shade::{Material as CellMaterial, NormalMode, PointLight, ShadeParams};
+use cell_core::units::Depth;
 
-use crate::machine::capacity::FA_CAP;
+use crate::machine::capacity::{HostReflectCell, REFLECT_FA_CAP};
 use crate::machine::grid::LightGrid;
 use crate::machine::loaded::LoadedScene;
 use crate::machine::network::Network;
@@ -71,7 +72,7 @@ pub struct ReflectConfig {
     pub skip_own_facet: bool,
     /// Connectivity of the rays' lines.
     pub connectivity: Connectivity,
-    /// FIFO limit per class and cell (rays), 1 ..= [`FA_CAP`].
+    /// FIFO limit per class and cell (rays), 1 ..= [`REFLECT_FA_CAP`].
     pub fa: usize,
     /// Routing of the answers.
     pub route: RoutePolicy,
@@ -83,8 +84,12 @@ impl ReflectConfig {
         if n > MAX_GRID {
             bail!("reflections support grids up to n = {MAX_GRID} (got n = {n})");
         }
-        if self.fa == 0 || self.fa > FA_CAP {
-            bail!("--fa {} is out of range: 1 ..= {FA_CAP}", self.fa);
+        if self.fa == 0 || self.fa > REFLECT_FA_CAP {
+            bail!(
+                "--fa {} is out of range for the reflection phase: its cells hold 1 ..= {REFLECT_FA_CAP} rays per class \
+                 (REFLECT_FA_CAP)",
+                self.fa
+            );
         }
         if !(self.threshold.is_finite() && self.threshold >= 0.0) {
             bail!("--reflect-threshold {} must be a finite number ≥ 0", self.threshold);
@@ -159,51 +164,8 @@ pub struct Reflected {
     pub counts: ReflectCounts,
 }
 
-/// A wait-table entry: a voxel waiting for its reflected ray's answer.
-#[derive(Clone, Copy, Debug)]
-struct Node {
-    /// Where the combined answer goes (`None`: the root, the cell's pixel).
-    parent: Option<([u16; 2], u16)>,
-    /// Local linear intensity.
-    local: [f32; 3],
-    kr: f32,
-}
-
 /// Answer payload: the wait-table slot and the intensity.
 type Msg = (u16, Answer);
-
-#[derive(Default)]
-struct CellState {
-    fifo: [VecDeque<ReflectRay>; 4],
-    out: [[Option<ReflectRay>; 8]; 4],
-    outs: u32,
-    table: Vec<Option<Node>>,
-    free: Vec<u16>,
-    open: u32,
-    launch: VecDeque<ReflectRay>,
-    send: VecDeque<Routed<Msg>>,
-    rr: usize,
-}
-
-impl CellState {
-    fn open(&mut self, node: Node) -> u16 {
-        self.open += 1;
-        match self.free.pop() {
-            Some(s) => {
-                self.table[s as usize] = Some(node);
-                s
-            }
-            None => {
-                self.table.push(Some(node));
-                (self.table.len() - 1) as u16
-            }
-        }
-    }
-
-    fn idle(&self) -> bool {
-        self.outs == 0 && self.launch.is_empty() && self.send.is_empty() && self.fifo.iter().all(VecDeque::is_empty)
-    }
-}
 
 /// What the cells need to shade and reflect: materials, lights, lit state.
 pub struct ShadeEnv<'a> {
@@ -240,63 +202,20 @@ impl<'a> ShadeEnv<'a> {
         }
     }
 
-    fn material(&self, d: &Dexel) -> (CellMaterial, f32) {
-        let i = d.material as usize;
-        (self.mats.get(i).copied().unwrap_or_default(), self.kr.get(i).copied().unwrap_or(0.0))
+    /// The cells' view of the materials and lights.
+    pub fn surfaces(&self) -> Surfaces<'_> {
+        Surfaces { mats: &self.mats, kr: &self.kr, lights: self.lights, params: self.params }
     }
 
     /// The visible voxel of column (x, y) as the camera sees it: linear local intensity and Kr.
     pub fn visible_local(&self, x: u16, y: u16, d: &Dexel) -> ([f32; 3], f32) {
-        let z = d.span.lo;
-        let p = [x as f32, y as f32, z as f32];
-        let nrm = shading_normal(d, self.params.normal_mode);
-        let lit = facing_mask(p, nrm, self.lights, (self.mask)(x as u32, y as u32, z));
-        let (m, kr) = self.material(d);
-        (shade_linear_toward(p, nrm, VIEW, &m, self.lights, lit, &self.params), kr)
-    }
-
-    /// A voxel hit by `ray`: linear local intensity seen from the ray's origin, and Kr.
-    pub fn hit_local(
-        &self,
-        x: u16,
-        y: u16,
-        z: u16,
-        d: &Dexel,
-        ray: &ReflectRay,
-        mode: ReflectNormal,
-    ) -> ([f32; 3], f32) {
-        let p = [x as f32, y as f32, z as f32];
-        let v = toward_origin(ray.dir);
-        let nrm = hit_normal(d, mode, v, ray.entry, ray.dir);
-        let lit = facing_mask(p, nrm, self.lights, (self.mask)(x as u32, y as u32, z));
-        let (m, kr) = self.material(d);
-        (shade_linear_toward(p, nrm, v, &m, self.lights, lit, &self.params), kr)
+        self.surfaces().visible_local(x, y, d, (self.mask)(x as u32, y as u32, d.span.lo))
     }
 }
 
 /// Span (lattice units) of a reflected ray's line: long enough to leave the grid from anywhere.
 pub fn ray_span(n: u32, depth: u32) -> i32 {
     2 * Q * n.max(depth) as i32
-}
-
-/// The ray a voxel at (x, y, z) of dexel `d` emits after being reached by a ray of direction
-/// `incident` entering by the faces `entry` (the primary ray: (0, 0, 1), face −z).
-#[allow(clippy::too_many_arguments)]
-pub fn child_ray(
-    at: [u16; 3],
-    d: &Dexel,
-    incident: [i32; 3],
-    entry: u8,
-    cfg: &ReflectConfig,
-    span: i32,
-    parent: ([u16; 2], u16),
-    level: u8,
-    weight: f32,
-) -> Result<Option<ReflectRay>> {
-    let Some(dir) = reflected_dir(incident, entry, d.normal, cfg.normal, span) else { return Ok(None) };
-    let r = ReflectRay::new(at, dir, cfg.connectivity, parent.0, parent.1, d.facet, level, weight)
-        .map_err(|e| anyhow::anyhow!("reflected ray from {at:?}: {e:?}"))?;
-    Ok(Some(r))
 }
 
 /// Run the reflection phase over a lit grid: the cycle loop over the phases of `ReflectRun`.
@@ -309,26 +228,30 @@ pub fn reflect(scene: &LoadedScene, env: &ShadeEnv, cfg: &ReflectConfig) -> Resu
         run.cycle += 1;
         run.next_active();
         if moved == 0 && run.roots_left > 0 {
+            run.check_faults()?;
             return Err(run.deadlock());
         }
     }
-    run.out.counts.cycles = run.cycle;
-    run.out.counts.answer_messages = run.net.hops;
-    Ok(run.out)
+    run.check_faults()?;
+    Ok(run.finish())
+}
+
+/// The error of a ray a cell could not build.
+fn ray_error(e: RayError) -> anyhow::Error {
+    anyhow::anyhow!("reflected ray from {:?}: {:?}", e.at, e.error)
 }
 
 /// The state of the reflection phase from cycle to cycle, and its phases (the module doc's
-/// per-cycle steps).
+/// per-cycle steps). The cells ([`ReflectCell`]) do the per-cell work; the run moves their rays
+/// over the links and their answers over the routers.
 struct ReflectRun<'a> {
     grid: &'a LightGrid,
     env: &'a ShadeEnv<'a>,
-    cfg: &'a ReflectConfig,
-    /// Span of a ray's line ([`ray_span`]).
-    span: i32,
-    cells: Vec<CellState>,
-    out: Reflected,
+    renv: ReflectEnv,
+    cells: Vec<HostReflectCell>,
     /// Trees whose root has no answer yet.
     roots_left: u64,
+    ray_messages: u64,
     net: Network<Msg>,
     link_used: Vec<bool>,
     /// The cells with work, in row-major order, and their flags.
@@ -344,16 +267,26 @@ impl<'a> ReflectRun<'a> {
         let grid = &scene.grid;
         let (n, depth) = (grid.n, grid.depth);
         cfg.validate(n.max(depth))?;
+        crate::machine::limits::check_grid_memory("grid of reflection cells", n, size_of::<HostReflectCell>())?;
         let nn = n as usize;
-        let out = Reflected { rgb: vec![None; nn * nn], root_answers: vec![None; nn * nn], counts: Default::default() };
+        let renv = ReflectEnv {
+            depth: cfg.depth,
+            threshold: cfg.threshold,
+            normal: cfg.normal,
+            skip_own_facet: cfg.skip_own_facet,
+            connectivity: cfg.connectivity,
+            fa: cfg.fa,
+            span: ray_span(n, depth),
+            n,
+            grid_depth: depth,
+        };
         let mut run = ReflectRun {
             grid,
             env,
-            cfg,
-            span: ray_span(n, depth),
-            cells: (0..nn * nn).map(|_| CellState::default()).collect(),
-            out,
+            renv,
+            cells: (0..nn * nn).map(|_| ReflectCell::new()).collect(),
             roots_left: 0,
+            ray_messages: 0,
             net: Network::new(n, cfg.route),
             link_used: vec![false; nn * nn * 8],
             active: Vec::new(),
@@ -372,198 +305,76 @@ impl<'a> ReflectRun<'a> {
 
     /// Each cell whose visible voxel reflects enough opens its root entry and queues its ray.
     fn plant_roots(&mut self) -> Result<()> {
-        let (env, cfg) = (self.env, self.cfg);
+        let surfaces = self.env.surfaces();
         for (i, c) in self.grid.cells.iter().enumerate() {
-            let Some(d) = c.store.dexels().first() else { continue };
-            let (local, kr) = env.visible_local(c.x, c.y, d);
-            if !(kr > 0.0 && kr >= cfg.threshold) {
-                continue;
+            let reached = |z: Depth| (self.env.mask)(c.x as u32, c.y as u32, z);
+            if self.cells[i].plant_root(c, &surfaces, &reached, &self.renv).map_err(ray_error)? {
+                self.roots_left += 1;
             }
-            let (x, y) = (c.x, c.y);
-            let slot = self.cells[i].open(Node { parent: None, local, kr });
-            match child_ray([x, y, d.span.lo], d, [0, 0, 1], 0b100, cfg, self.span, ([x, y], slot), 1, kr)? {
-                Some(r) => self.cells[i].launch.push_back(r),
-                None => self.cells[i].send.push_back(Routed { dest: [x, y], payload: (slot, [0; 3]) }),
-            }
-            self.out.counts.roots += 1;
-            self.roots_left += 1;
         }
         Ok(())
     }
 
     /// 1. Compute, launch, send: every active cell does one voxel of work on the head of one
     ///    of its FIFOs (round robin), may move one child ray from its launch queue into its
-    ///    class's FIFO, and may hand one answer to its router. Returns the moves made.
+    ///    class's FIFO, and may hand one answer to its router ([`ReflectCell::step`]). Returns
+    ///    the moves made.
     fn compute(&mut self) -> Result<u64> {
         let mut moved = 0;
-        for a in 0..self.active.len() {
-            let i = self.active[a];
-            moved += self.work(i)?;
-            moved += self.launch(i);
-            let (k, st) = (&mut self.out.counts, &mut self.cells[i]);
-            if let Some(m) = st.send.front() {
-                if self.net.can_inject(i, m.dest) && self.net.inject(i, *m) {
-                    st.send.pop_front();
-                    k.answers += 1;
-                    moved += 1;
-                }
-            }
-            k.peak_wait = k.peak_wait.max(st.open);
-            k.peak_send = k.peak_send.max(st.send.len() as u32);
+        let surfaces = self.env.surfaces();
+        let (cells, net) = (&mut self.cells, &mut self.net);
+        for &i in &self.active {
+            let c = &self.grid.cells[i];
+            let reached = |z: Depth| (self.env.mask)(c.x as u32, c.y as u32, z);
+            let send = |m: ReflectAnswer| net.can_inject(i, m.dest) && net.inject(i, m);
+            moved += cells[i].step(c, &surfaces, &reached, &self.renv, send).map_err(ray_error)? as u64;
         }
         Ok(moved)
     }
 
-    /// Cell `i` advances the head ray of its next non-empty FIFO by one voxel; 1 if it moved.
-    fn work(&mut self, i: usize) -> Result<u64> {
-        let cell = &self.grid.cells[i];
-        let (n, depth) = (self.grid.n, self.grid.depth);
-        let st = &mut self.cells[i];
-        let Some(c) = (0..4).map(|o| (st.rr + o) % 4).find(|&c| !st.fifo[c].is_empty()) else { return Ok(0) };
-        st.rr = (c + 1) % 4;
-        let head = st.fifo[c].pop_front().expect("non-empty FIFO");
-        let mut ray = head;
-        let k = &mut self.out.counts;
-        match ray.advance(&cell.store, n, depth, self.cfg.skip_own_facet) {
-            ReflectStep::Hit(d, z) => {
-                k.hits += 1;
-                self.hit(i, &ray, &d, z)?;
-            }
-            ReflectStep::Exit => {
-                k.exits += 1;
-                st.send.push_back(Routed { dest: ray.parent, payload: (ray.slot, [0; 3]) });
-            }
-            ReflectStep::Stay => st.fifo[c].push_back(ray),
-            ReflectStep::Forward(p) if st.out[c][p.index()].is_none() => {
-                st.out[c][p.index()] = Some(ray);
-                st.outs += 1;
-            }
-            ReflectStep::Forward(_) => {
-                st.fifo[c].push_back(head);
-                k.blocked_cell_cycles += 1;
-                return Ok(0);
-            }
-        }
-        self.out.counts.ray_steps += 1;
-        Ok(1)
-    }
-
-    /// `ray` hit voxel z of cell `i` (dexel `d`): the voxel shades itself for the ray and either
-    /// reflects (opens a wait-table entry and queues its child ray) or answers at once.
-    fn hit(&mut self, i: usize, ray: &ReflectRay, d: &Dexel, z: u16) -> Result<()> {
-        let (cell, cfg, k) = (&self.grid.cells[i], self.cfg, &mut self.out.counts);
-        let st = &mut self.cells[i];
-        let (local, kr) = self.env.hit_local(cell.x, cell.y, z, d, ray, cfg.normal);
-        let w = ray.weight * kr;
-        let parent = (ray.parent, ray.slot);
-        let reflects = kr > 0.0 && ray.level < cfg.depth && w >= cfg.threshold;
-        if kr > 0.0 && !reflects {
-            if ray.level >= cfg.depth {
-                k.cut_depth += 1;
-            } else {
-                k.cut_threshold += 1;
-            }
-        }
-        let child = if reflects {
-            let slot = st.open(Node { parent: Some(parent), local, kr });
-            let (at, from) = ([cell.x, cell.y, z], ([cell.x, cell.y], slot));
-            let r = child_ray(at, d, ray.dir, ray.entry, cfg, self.span, from, ray.level + 1, w)?;
-            if r.is_none() {
-                st.table[slot as usize] = None;
-                st.free.push(slot);
-                st.open -= 1;
-            }
-            r
-        } else {
-            None
-        };
-        match child {
-            Some(r) => {
-                k.waits += 1;
-                st.launch.push_back(r);
-            }
-            None => st.send.push_back(Routed { dest: parent.0, payload: (parent.1, to_answer(local)) }),
-        }
-        Ok(())
-    }
-
-    /// Cell `i` moves its first waiting child ray into its class's FIFO if there is room; 1 if
-    /// it did.
-    fn launch(&mut self, i: usize) -> u64 {
-        let (k, st) = (&mut self.out.counts, &mut self.cells[i]);
-        let Some(r) = st.launch.front() else { return 0 };
-        let c = r.class();
-        if st.fifo[c].len() >= self.cfg.fa {
-            return 0;
-        }
-        let r = st.launch.pop_front().expect("non-empty launch queue");
-        k.max_level = k.max_level.max(r.level);
-        k.rays += 1;
-        st.fifo[c].push_back(r);
-        k.peak_fifo = k.peak_fifo.max(st.fifo[c].len() as u16);
-        1
-    }
-
     /// 2a. Links, answers first: the routers move them; 3. each delivered answer fills its
-    ///     wait-table entry: a root encodes its pixel, another entry queues its combined answer
-    ///     for its parent. Returns the messages moved.
+    ///     wait-table entry ([`ReflectCell::deliver`]): a root encodes its pixel, another entry
+    ///     queues its combined answer for its parent. Returns the messages moved.
     fn answers(&mut self) -> u64 {
         self.link_used.iter_mut().for_each(|u| *u = false);
-        let mut delivered: Vec<(usize, Msg)> = Vec::new();
-        let moved = self.net.step(&mut self.link_used, |cell, m| delivered.push((cell, m.payload)));
-        for (i, (slot, answer)) in delivered {
-            let st = &mut self.cells[i];
-            let node = st.table[slot as usize].take().expect("an answer for an open wait-table entry");
-            st.free.push(slot);
-            st.open -= 1;
-            match node.parent {
-                None => {
-                    self.out.root_answers[i] = Some(answer);
-                    self.out.rgb[i] = Some(combine(node.local, node.kr, answer).map(encode));
-                    self.roots_left -= 1;
-                }
-                Some((dest, pslot)) => {
-                    st.send
-                        .push_back(Routed { dest, payload: (pslot, to_answer(combine(node.local, node.kr, answer))) });
-                    if !self.in_active[i] {
-                        self.in_active[i] = true;
-                        self.woken.push(i);
-                    }
-                }
+        let (cells, roots_left) = (&mut self.cells, &mut self.roots_left);
+        let (in_active, woken) = (&mut self.in_active, &mut self.woken);
+        self.net.step(&mut self.link_used, |i, m| match cells[i].deliver(m.payload.0, m.payload.1) {
+            Delivered::Root => *roots_left -= 1,
+            Delivered::Forwarded if !in_active[i] => {
+                in_active[i] = true;
+                woken.push(i);
             }
-        }
-        moved
+            Delivered::Forwarded | Delivered::Stray => {}
+        })
     }
 
-    /// 2b. Links, then rays: each output buffer's ray moves to the neighbour's FIFO of the
-    ///     same class if it has room and the link carried nothing else this cycle. Returns the
-    ///     rays moved.
+    /// 2b. Links, then rays: each output slot's ray moves to the neighbour's FIFO of the same
+    ///     class if it has room and the link carried nothing else this cycle. Returns the rays
+    ///     moved.
     fn ray_links(&mut self) -> u64 {
-        let (nn, fa, mut moved) = (self.grid.n as usize, self.cfg.fa, 0);
+        let (nn, fa, mut moved) = (self.grid.n as usize, self.renv.fa, 0);
         for a in 0..self.active.len() {
             let i = self.active[a];
-            if self.cells[i].outs == 0 {
+            if self.cells[i].outs() == 0 {
                 continue;
             }
             for c in 0..4 {
                 for p in Port::ALL {
                     let link = i * 8 + p.index();
-                    if self.link_used[link] {
+                    if self.link_used[link] || self.cells[i].out(c, p).is_none() {
                         continue;
                     }
-                    let Some(ray) = self.cells[i].out[c][p.index()] else { continue };
                     let (dx, dy) = p.delta();
                     let j = (i as i64 + dy as i64 * nn as i64 + dx as i64) as usize;
-                    if self.cells[j].fifo[c].len() >= fa {
+                    if !self.cells[j].can_accept(c, fa) {
                         continue;
                     }
-                    self.cells[i].out[c][p.index()] = None;
-                    self.cells[i].outs -= 1;
-                    self.cells[j].fifo[c].push_back(ray);
-                    let k = &mut self.out.counts;
-                    k.peak_fifo = k.peak_fifo.max(self.cells[j].fifo[c].len() as u16);
+                    let ray = self.cells[i].take_out(c, p).expect("a ray in the slot");
+                    // Room checked: a refusal would be counted in the cell and reported.
+                    let _ = self.cells[j].accept(c, ray);
                     self.link_used[link] = true;
-                    k.ray_messages += 1;
+                    self.ray_messages += 1;
                     moved += 1;
                     if !self.in_active[j] {
                         self.in_active[j] = true;
@@ -591,6 +402,11 @@ impl<'a> ReflectRun<'a> {
         self.active.sort_unstable();
     }
 
+    /// A cell whose store overflowed (or that received a stray answer): [`fault_report`].
+    fn check_faults(&self) -> Result<()> {
+        fault_report(&self.cells, self.grid.n as usize)
+    }
+
     /// The error of a cycle with trees unanswered and nothing moving.
     fn deadlock(&self) -> anyhow::Error {
         let nn = self.grid.n as usize;
@@ -604,10 +420,10 @@ impl<'a> ReflectRun<'a> {
                     "cell ({}, {}): FIFOs {:?}, {} out, {} to launch, {} to send",
                     i % nn,
                     i / nn,
-                    s.fifo.iter().map(VecDeque::len).collect::<Vec<_>>(),
-                    s.outs,
-                    s.launch.len(),
-                    s.send.len()
+                    s.fifo_lens(),
+                    s.outs(),
+                    s.launching(),
+                    s.sending()
                 )
             })
             .collect();
@@ -619,6 +435,66 @@ impl<'a> ReflectRun<'a> {
             busy.join("; ")
         )
     }
+
+    /// The result: the roots' pixels and answers, the cells' counters summed (peaks by maximum).
+    fn finish(self) -> Reflected {
+        let mut k = ReflectCounts {
+            cycles: self.cycle,
+            ray_messages: self.ray_messages,
+            answer_messages: self.net.hops,
+            ..Default::default()
+        };
+        for c in &self.cells {
+            let m = &c.counters;
+            k.roots += m.roots as u64;
+            k.rays += m.rays as u64;
+            k.ray_steps += m.ray_steps as u64;
+            k.answers += m.answers as u64;
+            k.hits += m.hits as u64;
+            k.exits += m.exits as u64;
+            k.waits += m.waits as u64;
+            k.cut_depth += m.cut_depth as u64;
+            k.cut_threshold += m.cut_threshold as u64;
+            k.blocked_cell_cycles += m.blocked as u64;
+            k.max_level = k.max_level.max(m.max_level);
+            k.peak_fifo = k.peak_fifo.max(m.peak_fifo);
+            k.peak_wait = k.peak_wait.max(m.peak_wait as u32);
+            k.peak_send = k.peak_send.max(m.peak_send as u32);
+        }
+        let rgb = self.cells.iter().map(|c| c.pixel).collect();
+        let root_answers = self.cells.iter().map(|c| c.root_answer).collect();
+        Reflected { rgb, root_answers, counts: k }
+    }
+}
+
+/// The error naming the first cell (of a grid of side `n`) whose store overflowed or that
+/// received a stray answer, and the capacity to raise; `Ok` if none did.
+fn fault_report<const FA: usize, const W: usize, const S: usize>(
+    cells: &[ReflectCell<FA, W, S>],
+    n: usize,
+) -> Result<()> {
+    let faulty = cells.iter().filter(|c| c.counters.faults() > 0).count();
+    let Some(i) = cells.iter().position(|c| c.counters.faults() > 0) else { return Ok(()) };
+    let k = &cells[i].counters;
+    let what = if k.wait_overflows > 0 {
+        format!("wait table full (more than {W} trees waiting at once); raise WAIT_CAP")
+    } else if k.send_overflows > 0 {
+        format!("send queue full (more than {S} answers for the router); raise SEND_CAP")
+    } else if k.fifo_overflows > 0 {
+        format!("ray FIFO full (more than {FA} rays); raise REFLECT_FA_CAP")
+    } else {
+        return Err(anyhow::anyhow!(
+            "reflection cell ({}, {}) received an answer for a wait-table slot that was not open",
+            i % n,
+            i / n
+        ));
+    };
+    bail!(
+        "reflection cell overflow in {faulty} cell(s), first at cell ({}, {}): {what} in cell_core::cell \
+         (host-sim/src/machine/capacity.rs re-exports it)",
+        i % n,
+        i / n
+    )
 }
 
 /// One line of reflection counters for the job summaries.
@@ -646,5 +522,28 @@ pub fn summary(c: &ReflectCounts) -> String {
             c.mirror_pixels
         ),
         _ => String::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cell_core::reflect::ReflectRay;
+
+    #[test]
+    fn a_full_fifo_is_reported_naming_the_cell_and_the_capacity() {
+        let mut cells = [ReflectCell::<2, 2, 2>::new(), ReflectCell::new(), ReflectCell::new(), ReflectCell::new()];
+        let ray = ReflectRay::new([1, 1, 6], [0, 0, -Q], Connectivity::Six, [0, 0], 0, 7, 1, 1.0).unwrap();
+        for _ in 0..2 {
+            cells[3].accept(0, ray).unwrap();
+        }
+        assert!(fault_report(&cells, 2).is_ok(), "exactly the capacity is no fault");
+        assert!(cells[3].accept(0, ray).is_err());
+        let e = fault_report(&cells, 2).unwrap_err().to_string();
+        assert!(e.contains("cell (1, 1)") && e.contains("more than 2 rays") && e.contains("REFLECT_FA_CAP"), "{e}");
+        cells[3] = ReflectCell::new();
+        cells[2].deliver(0, [0; 3]);
+        let e = fault_report(&cells, 2).unwrap_err().to_string();
+        assert!(e.contains("cell (0, 1)") && e.contains("not open"), "{e}");
     }
 }
