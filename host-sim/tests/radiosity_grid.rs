@@ -9,11 +9,11 @@ use cell_core::radiosity::Received;
 use host_sim::machine::capacity::{CellReceived, DEFAULT_DEXELS};
 use host_sim::machine::diffuse::LightConfig;
 use host_sim::machine::loaded::{load_scene, LoadedScene};
-use host_sim::machine::radiosity::{reduce_cost, solve, RadiosityConfig};
+use host_sim::machine::radiosity::{map_patches, reduce_cost, shoot, solve, PatchMap, RadiosityConfig};
 use host_sim::precompute::LoadConfig;
 use host_sim::scene::patches::{subdivide, subdivide_voxels, Patches};
 use host_sim::scene::{Face, Material, Mesh};
-use host_sim::truth::formfactor::{Estimator, FormFactors, Sampling};
+use host_sim::truth::formfactor::point_to_polygon;
 use host_sim::truth::radiosity::{progressive, ShootConfig};
 
 type V3 = [f64; 3];
@@ -132,23 +132,65 @@ fn bad_input_is_a_clear_error() {
     assert!(e.to_string().contains("raise --patch-size"), "{e}");
 }
 
+/// The machine's form factor row of shooter `i`: its quanta over the quanta emitted, its own
+/// entry and negative (rounding) entries dropped, as the supervisor takes them.
+fn machine_row(scene: &LoadedScene, map: &PatchMap, p: &Patches, i: usize, c: &RadiosityConfig) -> Vec<f64> {
+    let shot = shoot::<U0, DEFAULT_DEXELS>(&scene.grid, &scene.fit, map, &p.patches, i, c).unwrap();
+    let mut row = vec![0.0; p.patches.len()];
+    for (j, q) in shot.totals {
+        if j as usize != i && q > 0 {
+            row[j as usize] = q as f64 / shot.log.emitted as f64;
+        }
+    }
+    row
+}
+
 #[test]
 fn the_supervisor_shoots_like_the_reference_solver_given_the_same_form_factors() {
     let mesh = room(1.0);
     let scene = loaded(&mesh, 16);
     let p = patches_of(&mesh, &scene, 8.0);
-    let s = solve::<U0, DEFAULT_DEXELS>(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &cfg(5), |_, _| {})
-        .unwrap();
-    // The machine's rows, as form factors (its own entry and negative entries dropped, as the
-    // supervisor does), replayed through the f64 reference's loop.
-    let _ = (&s, progressive::<fn(usize) -> anyhow::Result<Vec<f64>>>, ShootConfig::default());
+    let c = cfg(5);
+    let s = solve::<U0, DEFAULT_DEXELS>(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &c, |_, _| {}).unwrap();
+    let map = map_patches(&scene.grid, &scene.fit, &scene.source_face, &p.patches).unwrap();
+    let shoot_cfg = ShootConfig { stop_fraction: 0.0, max_shots: 5 };
+    let r = progressive(&p.patches, &shoot_cfg, |i| Ok(machine_row(&scene, &map, &p, i, &c))).unwrap();
+    let order: Vec<usize> = s.shots.iter().map(|x| x.patch).collect();
+    assert_eq!(order, r.shots.iter().map(|x| x.patch).collect::<Vec<_>>());
+    for (a, b) in s.radiosity.iter().zip(&r.radiosity) {
+        for k in 0..3 {
+            assert!((a[k] - b[k]).abs() <= 1e-12 * b[k].abs().max(1.0), "{a:?} vs {b:?}");
+        }
+    }
+    assert!((s.residual - r.residual).abs() < 1e-12);
 }
 
+/// The machine's row against the exact point form factor (the closed form of the contour
+/// integral, `truth::formfactor::point_to_polygon`) from the pushed source: in the empty room
+/// every patch sees every other, so the only errors are the grid's. A patch's voxels are
+/// assigned by their centres, so receivers gain or lose at most a strip one voxel wide along
+/// each edge: |ΔF_j| ≤ F_j · perimeter_j · 1 voxel / area_j (rays and quanta are far finer).
 #[test]
-fn the_machine_form_factors_approach_the_ray_cast_reference() {
+fn the_machine_form_factors_approach_the_exact_point_form_factors() {
     let mesh = room(1.0);
     let scene = loaded(&mesh, 48);
     let p = subdivide(&mesh, 0.5, 1000).unwrap();
-    let ff = FormFactors::new(&p, Sampling { strata: 3, seed: 1, estimator: Estimator::Contour }).unwrap();
-    let _ = (ff, scene);
+    let map = map_patches(&scene.grid, &scene.fit, &scene.source_face, &p.patches).unwrap();
+    let c = cfg(1);
+    let voxel = scene.fit.voxel;
+    for i in [0usize, 5, 20] {
+        let m = machine_row(&scene, &map, &p, i, &c);
+        let pi = &p.patches[i];
+        let x = pi.centroid + pi.normal * (c.offset * voxel);
+        let mut sum = 0.0;
+        for (j, pj) in p.patches.iter().enumerate().filter(|&(j, _)| j != i) {
+            let f = point_to_polygon(x, pi.normal, &pj.polygon, pj.normal);
+            let perimeter: f64 = (0..pj.polygon.len()).map(|k| pj.polygon[k].distance(pj.polygon[(k + 1) % pj.polygon.len()])).sum();
+            let bound = f * perimeter * voxel / pj.area + 1e-6;
+            assert!((m[j] - f).abs() <= bound, "F[{i}][{j}]: machine {} vs exact {f} (bound {bound})", m[j]);
+            sum += m[j];
+        }
+        // A closed room: every quantum lands on a patch (the shooter's own wall gets none).
+        assert!((sum - 1.0).abs() < 1e-6, "Σ F[{i}] = {sum}");
+    }
 }
