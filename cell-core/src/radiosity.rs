@@ -157,7 +157,12 @@ pub fn corner_quanta(n: V, dir: Direction, d: u32, f: u32, a2: i64, b2: i64) -> 
     }
     let scale = 1.0 / (1u64 << (f + 1)) as f32;
     let (df, a, b) = (d as f32, a2 as f32 * scale, b2 as f32 * scale);
-    let poly = [far_point(dir, df, -df, -df), far_point(dir, df, a, -df), far_point(dir, df, a, b), far_point(dir, df, -df, b)];
+    let poly = [
+        far_point(dir, df, -df, -df),
+        far_point(dir, df, a, -df),
+        far_point(dir, df, a, b),
+        far_point(dir, df, -df, b),
+    ];
     let ff = polygon_form_factor(n, &poly);
     libm::roundf(ff * FORM_FACTOR_ONE as f32) as i64
 }
@@ -436,7 +441,10 @@ mod tests {
         assert!(r.push(3, 1) && r.push(4, 1) && r.push(6, 2));
         assert!(!r.push(7, 3), "a third run does not fit");
         assert!(!r.push(5, 3), "not increasing");
-        assert_eq!((r.patch_at(3), r.patch_at(4), r.patch_at(5), r.patch_at(6), r.patch_at(7)), (Some(1), Some(1), None, Some(2), None));
+        assert_eq!(
+            (r.patch_at(3), r.patch_at(4), r.patch_at(5), r.patch_at(6), r.patch_at(7)),
+            (Some(1), Some(1), None, Some(2), None)
+        );
         assert_eq!(r.overflows(), 2);
     }
 }

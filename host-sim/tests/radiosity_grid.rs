@@ -73,7 +73,11 @@ fn a_closed_box_receives_every_quantum_of_every_shot() {
     assert_eq!(s.shots.len(), 6);
     for shot in &s.shots {
         assert!(shot.balanced(), "{shot:?}");
-        assert_eq!((shot.left, shot.lost, shot.overflows), (0, 0, 0), "closed box: nothing leaves, nothing lost: {shot:?}");
+        assert_eq!(
+            (shot.left, shot.lost, shot.overflows),
+            (0, 0, 0),
+            "closed box: nothing leaves, nothing lost: {shot:?}"
+        );
         assert_eq!(shot.received, shot.emitted);
         // The six faces hold the hemisphere: 2^30 quanta to f32 ulps (cell_core::radiosity).
         assert!((shot.emitted - (1 << 30)).abs() <= 6 * 4 * 64, "{shot:?}");
@@ -151,7 +155,8 @@ fn the_supervisor_shoots_like_the_reference_solver_given_the_same_form_factors()
     let scene = loaded(&mesh, 16);
     let p = patches_of(&mesh, &scene, 8.0);
     let c = cfg(5);
-    let s = solve::<U0, DEFAULT_DEXELS>(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &c, |_, _| {}).unwrap();
+    let s =
+        solve::<U0, DEFAULT_DEXELS>(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &c, |_, _| {}).unwrap();
     let map = map_patches(&scene.grid, &scene.fit, &scene.source_face, &p.patches).unwrap();
     let shoot_cfg = ShootConfig { stop_fraction: 0.0, max_shots: 5 };
     let r = progressive(&p.patches, &shoot_cfg, |i| Ok(machine_row(&scene, &map, &p, i, &c))).unwrap();
@@ -185,7 +190,8 @@ fn the_machine_form_factors_approach_the_exact_point_form_factors() {
         let mut sum = 0.0;
         for (j, pj) in p.patches.iter().enumerate().filter(|&(j, _)| j != i) {
             let f = point_to_polygon(x, pi.normal, &pj.polygon, pj.normal);
-            let perimeter: f64 = (0..pj.polygon.len()).map(|k| pj.polygon[k].distance(pj.polygon[(k + 1) % pj.polygon.len()])).sum();
+            let perimeter: f64 =
+                (0..pj.polygon.len()).map(|k| pj.polygon[k].distance(pj.polygon[(k + 1) % pj.polygon.len()])).sum();
             let bound = f * perimeter * voxel / pj.area + 1e-6;
             assert!((m[j] - f).abs() <= bound, "F[{i}][{j}]: machine {} vs exact {f} (bound {bound})", m[j]);
             sum += m[j];

@@ -3,8 +3,8 @@
 
 use super::phase_args::LightingArg;
 use super::{
-    AccuracyArgs, AuditArgs, BenchArgs, LightArgs, LightOpts, RadiosityArgs, RenderArgs, SubdivideArgs, TableArgs, TraceArgs,
-    VoxelizeArgs, DEFAULT_N, TRACE_N,
+    AccuracyArgs, AuditArgs, BenchArgs, LightArgs, LightOpts, RadiosityArgs, RenderArgs, SubdivideArgs, TableArgs,
+    TraceArgs, VoxelizeArgs, DEFAULT_N, TRACE_N,
 };
 use crate::jobs::accuracy::AccuracyOptions;
 use crate::jobs::audit::AuditOptions;

@@ -141,10 +141,15 @@ fn solve_with_bar(scene: &LoadedScene, p: &Patches, cfg: &RadiosityConfig, quiet
 fn compare(p: &Patches, s: &GridSolution, o: &RadiosityOptions) -> Result<ReferenceStats> {
     let t0 = Instant::now();
     let ff = FormFactors::new(p, Sampling { strata: 3, seed: 1, estimator: Estimator::Contour })?;
-    let r = crate::truth::radiosity::solve(&p.patches, &ff, &ShootConfig { stop_fraction: o.residual, max_shots: o.shots })?;
+    let r = crate::truth::radiosity::solve(
+        &p.patches,
+        &ff,
+        &ShootConfig { stop_fraction: o.residual, max_shots: o.shots },
+    )?;
     let wall_seconds = t0.elapsed().as_secs_f64();
     let emitters = p.patches.iter().filter(|q| q.emission.iter().any(|&e| e > 0.0)).count();
-    let direct = crate::truth::radiosity::solve(&p.patches, &ff, &ShootConfig { stop_fraction: 0.0, max_shots: emitters })?;
+    let direct =
+        crate::truth::radiosity::solve(&p.patches, &ff, &ShootConfig { stop_fraction: 0.0, max_shots: emitters })?;
     let areas: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
     Ok(ReferenceStats {
         rms_relative_error: rms_relative_error(&r.radiosity, &s.radiosity, &areas)?,

@@ -98,12 +98,18 @@ fn inside(p: &Patch, x: parry3d_f64::math::Vector) -> f64 {
 
 /// Map every occupied voxel to the patch of its face that holds (or is nearest to holding) its
 /// centre: the host's load of the patch runs (`source_face`: mesh face of each facet id).
-pub fn map_patches<const D: usize>(grid: &Grid<D>, fit: &Fit, source_face: &[u32], patches: &[Patch]) -> Result<PatchMap> {
+pub fn map_patches<const D: usize>(
+    grid: &Grid<D>,
+    fit: &Fit,
+    source_face: &[u32],
+    patches: &[Patch],
+) -> Result<PatchMap> {
     if patches.len() > PatchId::MAX as usize {
         bail!("radiosity: {} patches, a cell numbers at most {} (raise --patch-size)", patches.len(), PatchId::MAX);
     }
     let faces = source_face.iter().map(|&f| f as usize + 1).max().unwrap_or(0);
-    let mut by_face: Vec<Vec<usize>> = vec![Vec::new(); faces.max(patches.iter().map(|p| p.face + 1).max().unwrap_or(0))];
+    let mut by_face: Vec<Vec<usize>> =
+        vec![Vec::new(); faces.max(patches.iter().map(|p| p.face + 1).max().unwrap_or(0))];
     for (i, p) in patches.iter().enumerate() {
         by_face[p.face].push(i);
     }
@@ -117,7 +123,8 @@ pub fn map_patches<const D: usize>(grid: &Grid<D>, fit: &Fit, source_face: &[u32
             for z in d.span.lo..=d.span.hi {
                 let w = crate::machine::loaded::voxel_to_world(fit, [x, y, z as f64]);
                 let c = parry3d_f64::math::Vector::new(w[0], w[1], w[2]);
-                let best = cands.iter().copied().max_by(|&a, &b| inside(&patches[a], c).total_cmp(&inside(&patches[b], c)));
+                let best =
+                    cands.iter().copied().max_by(|&a, &b| inside(&patches[a], c).total_cmp(&inside(&patches[b], c)));
                 match best {
                     Some(p) => {
                         map.voxels += 1;
@@ -255,10 +262,15 @@ pub fn shoot<F: FracBits, const D: usize>(
     cfg: &RadiosityConfig,
 ) -> Result<Shot> {
     let n = grid.n;
-    let far = FarDistance::<F>::new(n - 1)
-        .ok_or_else(|| anyhow::anyhow!("far distance {} exceeds the beam budget for {} fraction bits", n - 1, F::U32))?;
+    let far = FarDistance::<F>::new(n - 1).ok_or_else(|| {
+        anyhow::anyhow!("far distance {} exceeds the beam budget for {} fraction bits", n - 1, F::U32)
+    })?;
     if !corner_exact(far.get(), F::U32) {
-        bail!("radiosity: corners of D = {} with {} fraction bits are not exact in f32 (2^(f+1)·D ≥ 2^24)", n - 1, F::U32);
+        bail!(
+            "radiosity: corners of D = {} with {} fraction bits are not exact in f32 (2^(f+1)·D ≥ 2^24)",
+            n - 1,
+            F::U32
+        );
     }
     let (source, normal) = shot_source(&patches[i], fit, n, cfg.offset);
     let initial: Vec<Beam<F>> = Direction::ALL
@@ -286,7 +298,8 @@ pub fn shoot<F: FracBits, const D: usize>(
     let lighting = diffuse_shot::<F, D>(grid, &source, &initial, &cfg.light, &sink, |_, _| {})?;
     log.cost.diffusion = lighting.reports[0].counts.clone();
     log.left = sink.left.load(Relaxed);
-    let received: Vec<CellReceived> = sink.received.into_iter().map(|m| m.into_inner().expect("not poisoned")).collect();
+    let received: Vec<CellReceived> =
+        sink.received.into_iter().map(|m| m.into_inner().expect("not poisoned")).collect();
     log.lost = received.iter().map(|r| r.lost()).sum();
     log.overflows = received.iter().map(|r| r.overflows() as u64).sum();
     let (totals, cycles, messages) = reduce_cost(n, &received);
@@ -510,8 +523,8 @@ fn apply(patches: &[Patch], s: &mut GridSolution, i: usize, shot: Shot) {
             continue;
         }
         let t = q as f64 / emitted * patches[i].area / patches[j].area;
-        for c in 0..3 {
-            let dh = u[c] * t * patches[j].reflectance[c];
+        for (c, (uc, rho)) in u.iter().zip(patches[j].reflectance).enumerate() {
+            let dh = uc * t * rho;
             s.radiosity[j][c] += dh;
             s.unshot[j][c] += dh;
         }
