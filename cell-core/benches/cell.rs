@@ -295,6 +295,7 @@ fn bench_fifo(c: &mut Criterion) {
         lit_visible_only: false,
         hold: 0,
         frustum: None,
+        rays: None,
     };
     let empty = cell_core::cell::Cell::<DEFAULT_DEXELS>::new(0, 0);
     let mut wall = cell_core::cell::Cell::<DEFAULT_DEXELS>::new(0, 0);

@@ -16,6 +16,8 @@
 //! * [`beam`] — light beams and their split (§4.3).
 //! * [`light`] — the lighting phase: FIFO, ports, back-pressure, lit voxels, quiescence (§4.4).
 //! * [`lit`] — the lit rules: the thesis's (§5.5.5) and the plane rule for grazing light (§5.5.6).
+//! * [`radiosity`] — a shooting patch's energy: the form factor of a beam's rays, exactly
+//!   conserved by the split, and the per-column patch accumulators (radiosity thesis §1.3.2, §3.4).
 //! * [`occupancy`] — a coarse block summary of the scene and the sound empty-frustum beam skip.
 //! * [`wire`] — the bytes a link carries: framed messages with a CRC (parse and emit).
 //! * [`link`] — the link seam: one `Link` trait for the perfect link, the `embedded-hal` link
@@ -42,6 +44,7 @@ pub mod lit;
 pub mod normal;
 pub mod occupancy;
 pub mod plane;
+pub mod radiosity;
 pub mod ray;
 pub mod reflect;
 pub mod reflect_cell;

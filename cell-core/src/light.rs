@@ -597,6 +597,21 @@ pub struct LightCounters {
     pub held_cycles: u64,
 }
 
+/// Where the rays of a processed beam end, for a diffusion that carries energy (a radiosity
+/// shot, [`crate::radiosity`]): told once per absorbed or departed beam, when the beam is
+/// processed (never for a candidate that waits). Under the thesis's rule only, where every such
+/// ray set is a whole beam or sub-beam; the plane rule's peeled pieces are not reported.
+pub trait RaySink<F: FracBits>: core::fmt::Debug + Sync {
+    /// The rays of `beam` stopped in voxel `z` of column (x, y).
+    fn absorbed(&self, x: Coord, y: Coord, z: Depth, beam: &Beam<F>);
+    /// The rays of `beam` left the grid (exited, or dropped by a skip).
+    fn left(&self, beam: &Beam<F>);
+}
+
+/// A processed beam's ray sets for a [`RaySink`]: (voxel depth where absorbed, or `None`: left
+/// the grid; the rays). At most the beam itself or its nine sub-beams.
+type RayEvents<F> = heapless::Vec<(Option<Depth>, Beam<F>), 10>;
+
 /// What the machine around a cell looks like during one source's diffusion.
 #[derive(Clone, Copy, Debug)]
 pub struct LightEnv<'a, F: FracBits> {
@@ -642,6 +657,9 @@ pub struct LightEnv<'a, F: FracBits> {
     /// at most [`MAX_HOLD`] (larger values act as it). Waits are counted on the cell's 16-bit
     /// clock: a beam kept blocked for 65 536 cycles may wait once more, never longer than `hold`.
     pub hold: u16,
+    /// Report where the rays of every processed beam end ([`RaySink`]; thesis's rule only).
+    /// `None`: off (the ordinary diffusion).
+    pub rays: Option<&'a dyn RaySink<F>>,
 }
 
 /// What a cell did in one cycle.
@@ -681,14 +699,25 @@ struct Fate<'s, F: FracBits> {
     /// The sub-beams leave on the outside of their voxel's plane (plane rule): those going to
     /// another column carry [`Beam::after_outside`].
     after_outside: bool,
+    /// Where the rays end, when the environment has a [`RaySink`].
+    events: Option<&'s mut RayEvents<F>>,
 }
 
 /// A beam's sub-beams and where each goes (at most nine).
 type SubList<F> = heapless::Vec<(Target, BeamMsg<F>), 9>;
 
+/// Record a ray set's end in `events` (if recording): absorbed at depth `z`, or left (`None`).
+fn record<F: FracBits>(events: &mut Option<&mut RayEvents<F>>, z: Option<Depth>, beam: &Beam<F>) {
+    if let Some(e) = events.as_deref_mut() {
+        // At most ten per processed beam: never full.
+        let _ = e.push((z, *beam));
+    }
+}
+
 impl<'s, F: FracBits> Fate<'s, F> {
-    fn new(subs: &'s mut SubList<F>) -> Self {
+    fn new(subs: &'s mut SubList<F>, events: Option<&'s mut RayEvents<F>>) -> Self {
         Fate {
+            events,
             absorbed: 0,
             lit: false,
             visible: false,
@@ -703,6 +732,9 @@ impl<'s, F: FracBits> Fate<'s, F> {
 
     fn reset(&mut self) {
         self.subs.clear();
+        if let Some(e) = self.events.as_deref_mut() {
+            e.clear();
+        }
         self.absorbed = 0;
         self.lit = false;
         self.visible = false;
@@ -1010,6 +1042,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         if store.occupied(m.z).is_some() {
             f.absorbed = m.beam.ray_count();
             f.lit = true;
+            record(&mut f.events, Some(m.z), &m.beam);
             return;
         }
         if self.frustum_skips(m, env, f) {
@@ -1026,6 +1059,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         let skip = env.frustum.is_some_and(|o| o.frustum_empty(b, env.source, env.far, b.layer().0 + 1));
         if skip {
             f.skipped = b.ray_count();
+            record(&mut f.events, None, b);
         }
         skip
     }
@@ -1067,7 +1101,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     ) {
         let dir = beam.direction();
         let (pos, at) = self.at(dir, z);
-        let Fate { subs, exited, skipped, absorbed, after_empty, after_outside, .. } = f;
+        let Fate { subs, exited, skipped, absorbed, after_empty, after_outside, events, .. } = f;
         let (after_empty, after_outside) = (*after_empty, *after_outside);
         debug_assert_eq!(env.bounds, SubBeamBounds::new(env.n, env.depth, env.skip, env.source));
         let bounds = &env.bounds;
@@ -1076,6 +1110,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 Sub::Send(t, l) => (t, l),
                 Sub::Absorb => {
                     *absorbed += rays(&sb.beam, false).0;
+                    record(events, Some(z), &sb.beam);
                     return;
                 }
             };
@@ -1095,18 +1130,21 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 let _ = subs.push((target, msg));
             } else if !bounds.in_grid(to) {
                 *exited += rays(&sb.beam, terminal).0;
+                record(events, None, &sb.beam);
             } else {
                 // Dropped by the receding skip; a terminal ray dies at its next voxel anyway
                 // (lighting nothing: it is beyond every occupied voxel): absorbed.
                 let (all, dying) = rays(&sb.beam, terminal);
                 *absorbed += dying;
                 *skipped += all - dying;
+                record(events, None, &sb.beam);
             }
         });
         // At the far plane (k = D) or for a beam that is not this source's: the next layer is
         // outside every grid the far distance was chosen for; the rays leave.
         if split.is_err() {
             *exited += rays(beam, false).0;
+            record(events, None, beam);
         }
     }
 
@@ -1462,7 +1500,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             }
         }
         let mut subs = SubList::new();
-        let mut fate = Fate::new(&mut subs);
+        let mut events = RayEvents::new();
+        let mut fate = Fate::new(&mut subs, env.rays.is_some().then_some(&mut events));
         let choice = self.choose(cell, env, &mut fate);
         let Some(i) = choice.chosen else {
             return self.wait(wave, &choice);
@@ -1638,6 +1677,14 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         }
         if fate.visible {
             self.visible_lit |= env.source_bit;
+        }
+        if let (Some(sink), Some(events)) = (env.rays, fate.events.as_deref()) {
+            for (z, b) in events.iter() {
+                match z {
+                    Some(z) => sink.absorbed(self.x, self.y, *z, b),
+                    None => sink.left(b),
+                }
+            }
         }
         activity.add(fate.subs.len() as u64);
         for &(t, sub) in fate.subs.iter() {
@@ -1879,7 +1926,7 @@ mod tests {
             let env = LightEnv {
                 source: &src, far, n, depth: n, order: &order, fa: 4, source_bit: 1, merge: true,
                 policy: if radial { Policy::Radial } else { Policy::Wavefront }, rule: LitRule::Thesis,
-                skip: None, lit_visible_only: false, hold, frustum: None,
+                skip: None, lit_visible_only: false, hold, frustum: None, rays: None,
                 bounds: SubBeamBounds::new(n, n, None, &src),
             };
             let mut store = Cell::<8>::new(0, 0);
@@ -2018,6 +2065,7 @@ mod tests {
             lit_visible_only: false,
             hold: 0,
             frustum: None,
+            rays: None,
             bounds: SubBeamBounds::new(n, n, None, &src),
         };
         let store = Cell::<8>::new(0, 0);

@@ -690,6 +690,7 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
             lit_visible_only: false,
             hold: setup.hold,
             frustum: setup.frustum.as_ref().map(|o| o as &dyn crate::occupancy::FrustumTest<F>),
+            rays: None,
         })
     }
 

@@ -55,10 +55,49 @@ pub enum Command {
     /// cycle, as binary traces (`cell_X_Y.rc2t`) plus the digest of their outputs and final
     /// state (`digests.json`); the firmware replays them.
     Trace(TraceArgs),
+    /// Progressive radiosity on the grid (radiosity thesis §1.3.2, §3.4): each shot a beam
+    /// diffusion from the patch with the most unshot power; per-patch and per-shot CSV;
+    /// `--reference` compares with the f64 solver (ray-cast form factors) on the same patches.
+    Radiosity(RadiosityArgs),
     /// List the built-in scenes.
     Scenes,
     /// Subdivide a mesh (1 → 4 midpoint splits) to about TARGET triangles and write an OBJ.
     Subdivide(SubdivideArgs),
+}
+
+/// Options of `radiosity`.
+#[derive(Args, Debug)]
+pub struct RadiosityArgs {
+    /// Scene and loading options.
+    #[command(flatten)]
+    pub load: LoadArgs,
+    /// Largest patch edge, in voxels.
+    #[arg(long, default_value_t = 24.0)]
+    pub patch_size: f64,
+    /// Shot budget.
+    #[arg(long, default_value_t = 100_000)]
+    pub shots: usize,
+    /// Stop when the unshot power is at most this fraction of the emitted power.
+    #[arg(long, default_value_t = 0.01)]
+    pub residual: f64,
+    /// Push of each shot's source off its patch's centre, voxels along the normal.
+    #[arg(long, default_value_t = crate::machine::radiosity::DEFAULT_OFFSET)]
+    pub offset: f64,
+    /// Also solve with the f64 reference (ray-cast form factors) and compare per patch.
+    #[arg(long)]
+    pub reference: bool,
+    /// Per-patch CSV (default <scene>_patches.csv).
+    #[arg(long)]
+    pub patches_csv: Option<PathBuf>,
+    /// Per-shot CSV: residual, balance, cycles and messages of every shot (default <scene>_shots.csv).
+    #[arg(long)]
+    pub shots_csv: Option<PathBuf>,
+    /// Write the summary as JSON to this file.
+    #[arg(long)]
+    pub stats: Option<PathBuf>,
+    /// Do not draw progress bars.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// Options of `voxelize`.
@@ -603,6 +642,7 @@ fn dispatch(command: Command) -> Result<()> {
         Command::Bench(a) => jobs::bench::run(&(&a).into()),
         Command::Audit(a) => jobs::audit::run(&(&a).into()),
         Command::Trace(a) => jobs::trace::run(&(&a).into()),
+        Command::Radiosity(a) => jobs::radiosity::run(&(&a).into()),
         Command::Scenes => {
             jobs::scenes::list();
             Ok(())

@@ -3,13 +3,14 @@
 
 use super::phase_args::LightingArg;
 use super::{
-    AccuracyArgs, AuditArgs, BenchArgs, LightArgs, LightOpts, RenderArgs, SubdivideArgs, TableArgs, TraceArgs,
-    VoxelizeArgs, DEFAULT_N, TRACE_N,
+    AccuracyArgs, AuditArgs, BenchArgs, LightArgs, LightOpts, RadiosityArgs, RenderArgs, SubdivideArgs, TableArgs,
+    TraceArgs, VoxelizeArgs, DEFAULT_N, TRACE_N,
 };
 use crate::jobs::accuracy::AccuracyOptions;
 use crate::jobs::audit::AuditOptions;
 use crate::jobs::bench::BenchOptions;
 use crate::jobs::light::{LightOptions, LightingOptions};
+use crate::jobs::radiosity::RadiosityOptions;
 use crate::jobs::render::RenderOptions;
 use crate::jobs::scenes::SubdivideOptions;
 use crate::jobs::table::TableOptions;
@@ -103,6 +104,24 @@ impl From<&VoxelizeArgs> for VoxelizeOptions {
             engine: a.engine.into(),
             dexel_capacity: a.dexel_capacity,
             out: a.out.clone(),
+            stats: a.stats.clone(),
+            quiet: a.quiet,
+        }
+    }
+}
+
+impl From<&RadiosityArgs> for RadiosityOptions {
+    fn from(a: &RadiosityArgs) -> Self {
+        RadiosityOptions {
+            scene: a.load.scene.clone(),
+            load: a.load.config(DEFAULT_N),
+            patch_size: a.patch_size,
+            shots: a.shots,
+            residual: a.residual,
+            offset: a.offset,
+            reference: a.reference,
+            patches_csv: a.patches_csv.clone(),
+            shots_csv: a.shots_csv.clone(),
             stats: a.stats.clone(),
             quiet: a.quiet,
         }

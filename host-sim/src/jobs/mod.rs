@@ -8,6 +8,8 @@
 //!   [`accuracy`] — `light-accuracy`; [`table`] — `diffusion-table`.
 //! * [`voxelize`] — load a scene and write a .binvox; [`scenes`] — list, subdivide.
 //! * [`trace`] — record cell traces for the firmware; [`audit`] — a cell's RAM and flash.
+//! * [`radiosity`] — progressive radiosity on the grid, per-patch and per-shot CSV, the f64
+//!   reference's comparison.
 //! * [`bench`] — the speed/accuracy sweep and its Pareto front; [`dump`] — lit-voxel dumps.
 
 pub mod accuracy;
@@ -15,6 +17,7 @@ pub mod audit;
 pub mod bench;
 pub mod dump;
 pub mod light;
+pub mod radiosity;
 pub mod render;
 pub mod scenes;
 pub mod table;

@@ -5,6 +5,7 @@
 //! trace recorded here is replayed there by a cell of exactly the same capacities.
 
 use cell_core::light::LightCell;
+use cell_core::radiosity::{PatchRuns, Received};
 use cell_core::reflect_cell::ReflectCell;
 use cell_core::shadow::ShadowCell;
 
@@ -18,3 +19,16 @@ pub type HostShadowCell = ShadowCell<SHADOW_FA_CAP>;
 
 /// The host's reflection cell type.
 pub type HostReflectCell = ReflectCell<REFLECT_FA_CAP, WAIT_CAP, SEND_CAP>;
+
+/// Patch runs a cell's voxel → patch map holds (radiosity: the patches its column crosses).
+pub const PATCH_RUNS_CAP: usize = 32;
+
+/// Patches a cell accumulates quanta for in one shot: as many as its map can name, so a cell
+/// whose map fits never overflows its accumulator.
+pub const RECEIVED_CAP: usize = PATCH_RUNS_CAP;
+
+/// The host's voxel → patch map of one cell.
+pub type CellPatchRuns = PatchRuns<PATCH_RUNS_CAP>;
+
+/// The host's per-shot patch accumulator of one cell.
+pub type CellReceived = Received<RECEIVED_CAP>;

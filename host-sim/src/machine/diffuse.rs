@@ -17,6 +17,7 @@
 
 use anyhow::{bail, Result};
 use cell_core::beam::{Beam, Direction, FarDistance, FracBits, Source, SourceId, SplitOrder};
+use cell_core::light::RaySink;
 use cell_core::light::{
     Activity, ActivityDelta, BeamMsg, FrustumSummary, LightCell, LightCounters, LightEnv, OccupiedBox, Policy, Port,
     SourceMask, Step, SubBeamBounds,
@@ -343,16 +344,11 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
 ) -> Result<Lighting<F>> {
     let far = check_light_run::<F>(grid.n, sources, cfg)?;
     let n = grid.n;
-    let mut cells: Vec<HostLightCell<F>> = Vec::with_capacity((n * n) as usize);
-    for y in 0..n {
-        for x in 0..n {
-            cells.push(LightCell::new(x as u16, y as u16));
-        }
-    }
+    let cells = idle_cells(n);
     let occupied = occupied_box(grid, cfg.rule);
     let frustum = frustum_summary(grid, cfg, tap.is_some())?;
     check_recording(cfg, tap.is_some())?;
-    let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref() };
+    let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref(), shot: None };
     let wire = cfg.faults.map(|faults| Wire { faults, far: far.get() });
     match (&wire, tap) {
         (None, None) => run.diffuse(cells, GridLinks::new(n, |_| PerfectLink), None, progress),
@@ -365,6 +361,48 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
             run.diffuse(cells, links, Some(t), progress)
         }
     }
+}
+
+/// n × n idle lighting cells, row-major.
+fn idle_cells<F: FracBits>(n: u32) -> Vec<HostLightCell<F>> {
+    let mut cells: Vec<HostLightCell<F>> = Vec::with_capacity((n * n) as usize);
+    for y in 0..n {
+        for x in 0..n {
+            cells.push(LightCell::new(x as u16, y as u16));
+        }
+    }
+    cells
+}
+
+/// One radiosity shot (radiosity thesis §3.4; `machine::radiosity` drives it): the diffusion of
+/// one source whose initial beams are `initial` (the shooting patch's front hemisphere) instead
+/// of the six full faces, every processed beam's absorbed and departed rays reported to `rays`.
+/// The thesis's lit rule only (its absorbed ray sets are whole beams), perfect links.
+pub fn diffuse_shot<F: FracBits, const D: usize>(
+    grid: &Grid<D>,
+    source: &Source,
+    initial: &[Beam<F>],
+    cfg: &LightConfig,
+    rays: &dyn RaySink<F>,
+    progress: impl FnMut(usize, u64),
+) -> Result<Lighting<F>> {
+    if cfg.rule != LitRule::Thesis || cfg.faults.is_some() || cfg.skip_dead_directions {
+        bail!("a radiosity shot runs under the thesis's lit rule, on perfect links, without the dead-direction skip");
+    }
+    let sources = std::slice::from_ref(source);
+    let far = check_light_run::<F>(grid.n, sources, cfg)?;
+    let occupied = occupied_box(grid, cfg.rule);
+    let frustum = frustum_summary(grid, cfg, false)?;
+    let shot = Some(Shot { initial, rays });
+    let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref(), shot };
+    run.diffuse(idle_cells(grid.n), GridLinks::new(grid.n, |_| PerfectLink), None, progress)
+}
+
+/// What a radiosity shot changes in a diffusion ([`diffuse_shot`]).
+#[derive(Clone, Copy)]
+struct Shot<'a, F: FracBits> {
+    initial: &'a [Beam<F>],
+    rays: &'a dyn RaySink<F>,
 }
 
 /// The far distance of an n × n grid, once the run's sources, FIFO limit and memory are
@@ -425,6 +463,7 @@ struct AllSources<'a, F: FracBits, const D: usize> {
     far: FarDistance<F>,
     occupied: OccupiedBox,
     frustum: Option<&'a Summary>,
+    shot: Option<Shot<'a, F>>,
 }
 
 impl<F: FracBits, const D: usize> AllSources<'_, F, D> {
@@ -454,7 +493,9 @@ impl<F: FracBits, const D: usize> AllSources<'_, F, D> {
             let dead = cfg.skip_dead_directions.then_some(self.occupied);
             let rec = Recording { visited: visited.as_deref_mut(), tap: tap.as_deref_mut() };
             let (links, cells) = (links.slots(), &mut cells[..]);
-            let mut rep = diffuse_one(grid, cells, links, src, si, &env, cfg, dead, rec, |c| progress(si, c))?;
+            let initial = self.shot.map(|s| s.initial);
+            let mut rep =
+                diffuse_one(grid, cells, links, (src, initial), si, &env, cfg, dead, rec, |c| progress(si, c))?;
             rep.position = src.pos.map(|p| p.to_num::<f64>());
             add_cell_counts(&mut rep, cells, &before);
             check_conservation(si, &rep.counts)?;
@@ -483,6 +524,7 @@ impl<F: FracBits, const D: usize> AllSources<'_, F, D> {
             lit_visible_only: cfg.lit_visible_only,
             hold: cfg.hold,
             frustum: self.frustum.map(Summary::test),
+            rays: self.shot.map(|s| s.rays),
         }
     }
 }
@@ -753,7 +795,7 @@ fn diffuse_one<F: FracBits, const D: usize, L: HostLink<F>>(
     grid: &Grid<D>,
     cells: &mut [HostLightCell<F>],
     links: &mut [L],
-    src: &Source,
+    src: (&Source, Option<&[Beam<F>]>),
     si: usize,
     env: &LightEnv<'_, F>,
     cfg: &LightConfig,
@@ -779,13 +821,18 @@ fn diffuse_one<F: FracBits, const D: usize, L: HostLink<F>>(
 }
 
 /// The six initial beams of `src` that the dead-direction skip keeps, their rays counted in
-/// `rep` (the skipped ones as skipped).
+/// `rep` (the skipped ones as skipped); or a radiosity shot's own initial beams (`shot`).
 fn initial_beams<F: FracBits>(
     src: &Source,
     far: FarDistance<F>,
     dead: Option<OccupiedBox>,
+    shot: Option<&[Beam<F>]>,
     rep: &mut SourceReport,
 ) -> Vec<Beam<F>> {
+    if let Some(beams) = shot {
+        rep.counts.rays_emitted += beams.iter().map(|b| b.ray_count() as u128).sum::<u128>();
+        return beams.to_vec();
+    }
     let sv = src.voxel();
     let mut initial = Vec::new();
     for d in Direction::ALL {
@@ -904,7 +951,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         grid: &'a Grid<D>,
         cells: &'a mut [HostLightCell<F>],
         links: &'a mut [L],
-        src: &Source,
+        (src, shot): (&Source, Option<&[Beam<F>]>),
         si: usize,
         env: &'a LightEnv<'e, F>,
         cfg: &LightConfig,
@@ -915,7 +962,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         let sv = src.voxel();
         let s_idx = sv[1] as usize * n + sv[0] as usize;
         let mut rep = SourceReport { source: si, ..Default::default() };
-        let initial = initial_beams(src, env.far, dead, &mut rep);
+        let initial = initial_beams(src, env.far, dead, shot, &mut rep);
         let activity = Activity::new();
         activity.add(initial.len() as u64);
         let mut pending = initial.into_iter();

@@ -14,6 +14,8 @@
 //! * [`links`] — the grid's links behind `cell_core::link::Link` (the link seam); [`faults`] —
 //!   the fault-injecting link wrapper; [`tap`] — recording cell traces (and the tracing link
 //!   wrapper).
+//! * [`radiosity`] — progressive radiosity on the grid: one beam diffusion per shot carrying
+//!   its rays' energy, per-patch accumulators, the costed reduction and the supervisor.
 //! * [`limits`] — host memory checks before allocating a grid.
 
 pub mod capacity;
@@ -27,6 +29,7 @@ pub mod links;
 pub mod load;
 pub mod loaded;
 pub mod network;
+pub mod radiosity;
 pub mod reflect;
 pub mod shade;
 pub mod tap;

@@ -1,0 +1,270 @@
+//! The `radiosity` job: progressive radiosity on the grid (radiosity thesis §1.3.2, §3.4;
+//! [`crate::machine::radiosity`]), per-patch results and per-shot costs as CSV, and with
+//! `--reference` the f64 solver on the same patches ([`crate::truth::radiosity`]) for the
+//! per-patch RMS error — the machine's and direct light's (the emitters' shots only).
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Result;
+use cell_core::beam::frac::U0;
+
+use crate::machine::capacity::{CellPatchRuns, CellReceived, HostLightCell, DEFAULT_DEXELS};
+use crate::machine::diffuse::LightConfig;
+use crate::machine::loaded::{load_scene, LoadedScene};
+use crate::machine::radiosity::{solve, GridSolution, RadiosityConfig, ShotLog};
+use crate::precompute::LoadConfig;
+use crate::report::files::{create, write_json};
+use crate::report::progress;
+use crate::scene::patches::{subdivide_voxels, Patches};
+use crate::truth::formfactor::{Estimator, FormFactors, Sampling};
+use crate::truth::radiosity::{ambient, rms_relative_error, ShootConfig};
+
+/// Most patches a scene may be cut into (a cell names a patch with 16 bits).
+pub const MAX_PATCHES: usize = u16::MAX as usize;
+
+/// What the `radiosity` job runs and writes.
+#[derive(Clone, Debug)]
+pub struct RadiosityOptions {
+    /// An .obj file or a built-in scene name.
+    pub scene: String,
+    /// Grid side and surfaces.
+    pub load: LoadConfig,
+    /// Largest patch edge, in voxels.
+    pub patch_size: f64,
+    /// Shot budget.
+    pub shots: usize,
+    /// Stop when the unshot power is at most this fraction of the emitted power.
+    pub residual: f64,
+    /// Push of each shot's source off its patch, voxels.
+    pub offset: f64,
+    /// Also solve with the f64 reference and compare.
+    pub reference: bool,
+    /// Per-patch CSV (default `<scene>_patches.csv`).
+    pub patches_csv: Option<PathBuf>,
+    /// Per-shot CSV (default `<scene>_shots.csv`).
+    pub shots_csv: Option<PathBuf>,
+    /// Summary as JSON.
+    pub stats: Option<PathBuf>,
+    /// No progress bar.
+    pub quiet: bool,
+}
+
+/// The job's summary.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RadiosityStats {
+    /// Scene and grid side.
+    pub scene: String,
+    /// Grid side.
+    pub n: u32,
+    /// Patches.
+    pub patches: usize,
+    /// Shots made.
+    pub shots: usize,
+    /// Why it stopped.
+    pub stop: crate::machine::radiosity::GridStop,
+    /// Unshot over emitted power at the end.
+    pub residual: f64,
+    /// Grid cycles in all (broadcasts, diffusions, reductions).
+    pub cycles: u64,
+    /// Messages in all.
+    pub messages: u64,
+    /// Mean per shot: diffusion cycles, reduction cycles, messages.
+    pub diffusion_cycles_per_shot: f64,
+    /// Mean reduction cycles per shot.
+    pub reduce_cycles_per_shot: f64,
+    /// Mean messages per shot.
+    pub messages_per_shot: f64,
+    /// Bytes a cell adds for radiosity: its patch map, its accumulator and the shot's normal.
+    pub bytes_per_cell_added: usize,
+    /// Bytes of the lighting cell it extends.
+    pub bytes_per_light_cell: usize,
+    /// Voxels with no patch; accumulator overflows.
+    pub unmapped_voxels: u64,
+    /// Accumulator additions that found no slot or no patch.
+    pub received_overflows: u64,
+    /// Wall time of the machine's solution, seconds.
+    pub wall_seconds: f64,
+    /// With `--reference`: the comparison.
+    pub reference: Option<ReferenceStats>,
+}
+
+/// The machine against the f64 reference on the same patches and stopping rule.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ReferenceStats {
+    /// Area-weighted RMS relative error of the machine's per-patch radiosity.
+    pub rms_relative_error: f64,
+    /// The same for direct light only (the reference after its emitters' shots).
+    pub direct_only_rms_relative_error: f64,
+    /// Shots the reference made.
+    pub shots: usize,
+    /// Wall time of the reference, seconds.
+    pub wall_seconds: f64,
+}
+
+/// Run the `radiosity` job.
+pub fn run(o: &RadiosityOptions) -> Result<()> {
+    o.load.validate()?;
+    let mesh = crate::scene::load(&o.scene)?;
+    let scene = load_scene(&mesh, &o.load)?;
+    let p = subdivide_voxels(&mesh, o.patch_size, scene.fit.voxel, MAX_PATCHES)?;
+    let mut cfg = RadiosityConfig::new(LightConfig::default(), o.residual, o.shots);
+    cfg.offset = o.offset;
+    let t0 = Instant::now();
+    let s = solve_with_bar(&scene, &p, &cfg, o.quiet)?;
+    let wall = t0.elapsed().as_secs_f64();
+    let reference = o.reference.then(|| compare(&p, &s, o)).transpose()?;
+    let stats = summarise(&mesh.name, &scene, &p, &s, wall, reference);
+    write_patches(&o.patches_csv.clone().unwrap_or_else(|| format!("{}_patches.csv", mesh.name).into()), &p, &s)?;
+    write_shots(&o.shots_csv.clone().unwrap_or_else(|| format!("{}_shots.csv", mesh.name).into()), &s.shots)?;
+    if let Some(path) = &o.stats {
+        write_json(path, &stats)?;
+    }
+    print_summary(&stats);
+    Ok(())
+}
+
+/// The machine's solution, with a progress bar showing the residual.
+fn solve_with_bar(scene: &LoadedScene, p: &Patches, cfg: &RadiosityConfig, quiet: bool) -> Result<GridSolution> {
+    let pb = progress::bar(quiet, "shots");
+    pb.set_length(cfg.max_shots.min(100_000) as u64);
+    let s = solve::<U0, DEFAULT_DEXELS>(&scene.grid, &scene.fit, &scene.source_face, &p.patches, cfg, |k, r| {
+        pb.set_position(k as u64);
+        pb.set_message(format!("residual {r:.4}"));
+    });
+    pb.finish_and_clear();
+    s
+}
+
+/// The f64 reference on the same patches with the same stopping rule, and direct light only.
+fn compare(p: &Patches, s: &GridSolution, o: &RadiosityOptions) -> Result<ReferenceStats> {
+    let t0 = Instant::now();
+    let ff = FormFactors::new(p, Sampling { strata: 3, seed: 1, estimator: Estimator::Contour })?;
+    let r = crate::truth::radiosity::solve(
+        &p.patches,
+        &ff,
+        &ShootConfig { stop_fraction: o.residual, max_shots: o.shots },
+    )?;
+    let wall_seconds = t0.elapsed().as_secs_f64();
+    let emitters = p.patches.iter().filter(|q| q.emission.iter().any(|&e| e > 0.0)).count();
+    let direct =
+        crate::truth::radiosity::solve(&p.patches, &ff, &ShootConfig { stop_fraction: 0.0, max_shots: emitters })?;
+    let areas: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
+    Ok(ReferenceStats {
+        rms_relative_error: rms_relative_error(&r.radiosity, &s.radiosity, &areas)?,
+        direct_only_rms_relative_error: rms_relative_error(&r.radiosity, &direct.radiosity, &areas)?,
+        shots: r.shots.len(),
+        wall_seconds,
+    })
+}
+
+fn summarise(
+    name: &str,
+    scene: &LoadedScene,
+    p: &Patches,
+    s: &GridSolution,
+    wall_seconds: f64,
+    reference: Option<ReferenceStats>,
+) -> RadiosityStats {
+    let k = s.shots.len().max(1) as f64;
+    let sum = |f: &dyn Fn(&ShotLog) -> u64| s.shots.iter().map(f).sum::<u64>();
+    RadiosityStats {
+        scene: name.to_string(),
+        n: scene.grid.n,
+        patches: p.patches.len(),
+        shots: s.shots.len(),
+        stop: s.stop,
+        residual: s.residual,
+        cycles: sum(&|x| x.cost.cycles()),
+        messages: sum(&|x| x.cost.messages()),
+        diffusion_cycles_per_shot: sum(&|x| x.cost.diffusion.cycles) as f64 / k,
+        reduce_cycles_per_shot: sum(&|x| x.cost.reduce_cycles) as f64 / k,
+        messages_per_shot: sum(&|x| x.cost.messages()) as f64 / k,
+        bytes_per_cell_added: std::mem::size_of::<CellPatchRuns>()
+            + std::mem::size_of::<CellReceived>()
+            + std::mem::size_of::<[f32; 3]>(),
+        bytes_per_light_cell: std::mem::size_of::<HostLightCell<U0>>(),
+        unmapped_voxels: s.unmapped_voxels,
+        received_overflows: s.received_overflows,
+        wall_seconds,
+        reference,
+    }
+}
+
+/// One row per patch: geometry, material, the machine's radiosity, and what is displayed with
+/// the ambient term of §1.3.2.
+fn write_patches(path: &std::path::Path, p: &Patches, s: &GridSolution) -> Result<()> {
+    let mut w = create(path)?;
+    writeln!(w, "patch,face,area,cx,cy,cz,nx,ny,nz,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b,shown_r,shown_g,shown_b,unshot_r,unshot_g,unshot_b")?;
+    let a = ambient(&p.patches, &s.unshot);
+    for (i, q) in p.patches.iter().enumerate() {
+        let (b, u) = (s.radiosity[i], s.unshot[i]);
+        let shown = [0, 1, 2].map(|c| b[c] + q.reflectance[c] * a[c]);
+        let mut row = vec![i as f64, q.face as f64, q.area, q.centroid.x, q.centroid.y, q.centroid.z];
+        row.extend([q.normal.x, q.normal.y, q.normal.z]);
+        row.extend(q.reflectance.iter().chain(&q.emission).chain(&b).chain(&shown).chain(&u));
+        writeln!(w, "{}", row.iter().map(|v| format!("{v}")).collect::<Vec<_>>().join(","))?;
+    }
+    eprintln!("  wrote {}", path.display());
+    Ok(())
+}
+
+/// One row per shot: the shooter, the residual after it, the balance and the costs.
+fn write_shots(path: &std::path::Path, shots: &[ShotLog]) -> Result<()> {
+    let mut w = create(path)?;
+    writeln!(
+        w,
+        "shot,patch,unshot_power,residual_after,emitted,received,lost,left,negative,own,\
+         diffusion_cycles,diffusion_messages,broadcast_cycles,broadcast_messages,reduce_cycles,reduce_messages,\
+         supervisor_ops,cycles,messages"
+    )?;
+    for (k, x) in shots.iter().enumerate() {
+        let c = &x.cost;
+        writeln!(
+            w,
+            "{k},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            x.patch,
+            x.unshot_power,
+            x.residual_after,
+            x.emitted,
+            x.received,
+            x.lost,
+            x.left,
+            x.negative,
+            x.own,
+            c.diffusion.cycles,
+            c.diffusion.messages,
+            c.broadcast_cycles,
+            c.broadcast_messages,
+            c.reduce_cycles,
+            c.reduce_messages,
+            c.supervisor_ops,
+            c.cycles(),
+            c.messages()
+        )?;
+    }
+    eprintln!("  wrote {}", path.display());
+    Ok(())
+}
+
+fn print_summary(s: &RadiosityStats) {
+    eprintln!(
+        "{}: n = {}, {} patches, {} shots ({:?}), residual {:.4}, {:.1} s",
+        s.scene, s.n, s.patches, s.shots, s.stop, s.residual, s.wall_seconds
+    );
+    eprintln!(
+        "  cycles {} (per shot: diffusion {:.0}, reduction {:.0}), messages {} ({:.0} per shot)",
+        s.cycles, s.diffusion_cycles_per_shot, s.reduce_cycles_per_shot, s.messages, s.messages_per_shot
+    );
+    eprintln!(
+        "  bytes per cell added {} (lighting cell {}), unmapped voxels {}, accumulator overflows {}",
+        s.bytes_per_cell_added, s.bytes_per_light_cell, s.unmapped_voxels, s.received_overflows
+    );
+    if let Some(r) = &s.reference {
+        eprintln!(
+            "  reference ({} shots, {:.1} s): per-patch RMS relative error {:.4} (direct light only {:.4})",
+            r.shots, r.wall_seconds, r.rms_relative_error, r.direct_only_rms_relative_error
+        );
+    }
+}

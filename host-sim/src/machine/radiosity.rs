@@ -1,0 +1,539 @@
+//! Progressive radiosity on the grid (radiosity thesis §1.3.2, §3.4, ch. 5): every shot is one
+//! beam diffusion from the shooting patch, each beam carrying the energy of its rays
+//! ([`cell_core::radiosity`]), collected per patch by the cells and reduced to the supervisor.
+//!
+//! One shot, in machine phases (docs/RADIOSITY.md):
+//! 1. **broadcast** — the supervisor hands the shot (source position, patch normal) to cell
+//!    (0, 0), which floods it over the grid: n − 1 cycles (Chebyshev distance), n² − 1 messages;
+//! 2. **diffusion** — [`diffuse_shot`] from the patch's centre pushed `offset` voxels along its
+//!    normal, initial beams restricted to the front hemisphere ([`front_rays`]), the thesis's
+//!    lit rule; every absorbed beam adds its quanta ([`beam_quanta`]) to the [`Received`] slot of
+//!    its voxel's patch ([`PatchRuns`], loaded once with the patches), every departed beam its
+//!    quanta to the rays that left;
+//! 3. **reduction** — sorted streams of (patch, quanta) merged westward along the rows, then
+//!    northward along column 0, to the supervisor at (0, 0): one message per entry and link, an
+//!    end marker per link; cycles from the exact timing of the pipelined merge ([`reduce_cost`]);
+//! 4. **supervisor** — converts quanta to RGB power (the shooter's unshot radiosity, each
+//!    receiver's reflectance: linear, so it commutes with the sums the cells made), updates the
+//!    unshot powers and picks the next shooter: a scan of P patches (the costed global max).
+//!
+//! **Invariant (tested):** per shot, quanta received (lost ones included) + quanta that left the
+//! grid = quanta emitted, exactly ([`ShotLog::balanced`]).
+
+use std::sync::atomic::{AtomicI64, Ordering::Relaxed};
+use std::sync::Mutex;
+
+use anyhow::{bail, Result};
+use cell_core::beam::{Beam, Direction, FarDistance, FracBits, Layer, Source, SourceCoord, SourceId};
+use cell_core::light::RaySink;
+use cell_core::lit::LitRule;
+use cell_core::radiosity::{beam_quanta, corner_exact, front_rays, PatchId};
+use cell_core::units::{Coord, Depth};
+
+use crate::machine::capacity::{CellPatchRuns, CellReceived};
+use crate::machine::diffuse::{diffuse_shot, DiffusionCounts, LightConfig};
+use crate::machine::grid::Grid;
+use crate::machine::loaded::world_to_voxel;
+use crate::precompute::Fit;
+use crate::scene::patches::Patch;
+
+/// Default push of a shot's source off its patch, in voxels along the normal: beyond the
+/// surface's own voxels (a facet's band is at most √3/2 voxel thick on each side), so that no
+/// front-hemisphere ray starts inside them.
+pub const DEFAULT_OFFSET: f64 = 2.0;
+
+/// Settings of a radiosity run on the grid.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RadiosityConfig {
+    /// The diffusion of each shot (thesis's lit rule, no dead-direction skip: [`Self::new`]).
+    pub light: LightConfig,
+    /// Push of the source off the patch, voxels ([`DEFAULT_OFFSET`]).
+    pub offset: f64,
+    /// Stop once the unshot power is at most this fraction of the emitted power.
+    pub stop_fraction: f64,
+    /// Stop after this many shots at most.
+    pub max_shots: usize,
+}
+
+impl RadiosityConfig {
+    /// The lighting defaults made fit for shooting: the thesis's lit rule, the dead-direction
+    /// skip off (a shot emits its own beams), the full lit store.
+    pub fn new(light: LightConfig, stop_fraction: f64, max_shots: usize) -> Self {
+        let light = LightConfig {
+            rule: LitRule::Thesis,
+            skip_dead_directions: false,
+            lit_visible_only: false,
+            skip_hidden: false,
+            faults: None,
+            ..light
+        };
+        RadiosityConfig { light, offset: DEFAULT_OFFSET, stop_fraction, max_shots }
+    }
+}
+
+/// Every cell's voxel → patch map, and what did not fit.
+pub struct PatchMap {
+    /// Per cell, row-major.
+    pub cells: Vec<CellPatchRuns>,
+    /// Occupied voxels mapped to a patch.
+    pub voxels: u64,
+    /// Occupied voxels whose face has no patch (a face the subdivision skipped as degenerate).
+    pub unmapped: u64,
+    /// Runs that did not fit a cell's store (their voxels have no patch).
+    pub overflows: u64,
+}
+
+/// How far inside patch `p` the point `x` lies (its smallest signed distance to an edge, in the
+/// patch's plane; negative outside).
+fn inside(p: &Patch, x: parry3d_f64::math::Vector) -> f64 {
+    let k = p.polygon.len();
+    (0..k)
+        .map(|i| {
+            let (a, b) = (p.polygon[i], p.polygon[(i + 1) % k]);
+            let e = b - a;
+            e.cross(x - a).dot(p.normal) / e.length().max(f64::MIN_POSITIVE)
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Map every occupied voxel to the patch of its face that holds (or is nearest to holding) its
+/// centre: the host's load of the patch runs (`source_face`: mesh face of each facet id).
+pub fn map_patches<const D: usize>(
+    grid: &Grid<D>,
+    fit: &Fit,
+    source_face: &[u32],
+    patches: &[Patch],
+) -> Result<PatchMap> {
+    if patches.len() > PatchId::MAX as usize {
+        bail!("radiosity: {} patches, a cell numbers at most {} (raise --patch-size)", patches.len(), PatchId::MAX);
+    }
+    let faces = source_face.iter().map(|&f| f as usize + 1).max().unwrap_or(0);
+    let mut by_face: Vec<Vec<usize>> =
+        vec![Vec::new(); faces.max(patches.iter().map(|p| p.face + 1).max().unwrap_or(0))];
+    for (i, p) in patches.iter().enumerate() {
+        by_face[p.face].push(i);
+    }
+    let mut map = PatchMap { cells: Vec::with_capacity(grid.cells.len()), voxels: 0, unmapped: 0, overflows: 0 };
+    for (idx, cell) in grid.cells.iter().enumerate() {
+        let (x, y) = ((idx as u32 % grid.n) as f64, (idx as u32 / grid.n) as f64);
+        let mut runs = CellPatchRuns::new();
+        for d in cell.store.dexels() {
+            let face = source_face.get(d.facet as usize).map(|&f| f as usize);
+            let cands = face.and_then(|f| by_face.get(f)).map(Vec::as_slice).unwrap_or(&[]);
+            for z in d.span.lo..=d.span.hi {
+                let w = crate::machine::loaded::voxel_to_world(fit, [x, y, z as f64]);
+                let c = parry3d_f64::math::Vector::new(w[0], w[1], w[2]);
+                let best =
+                    cands.iter().copied().max_by(|&a, &b| inside(&patches[a], c).total_cmp(&inside(&patches[b], c)));
+                match best {
+                    Some(p) => {
+                        map.voxels += 1;
+                        if !runs.push(z, p as PatchId) {
+                            map.overflows += 1;
+                        }
+                    }
+                    None => map.unmapped += 1,
+                }
+            }
+        }
+        map.cells.push(runs);
+    }
+    Ok(map)
+}
+
+/// The cells' side of a shot: what each column received, and the rays that left.
+#[derive(Debug)]
+struct ShotSink<'a, F: FracBits> {
+    normal: [f32; 3],
+    far: FarDistance<F>,
+    n: u32,
+    map: &'a [CellPatchRuns],
+    received: Vec<Mutex<CellReceived>>,
+    left: AtomicI64,
+}
+
+impl<F: FracBits> RaySink<F> for ShotSink<'_, F> {
+    fn absorbed(&self, x: Coord, y: Coord, z: Depth, beam: &Beam<F>) {
+        let q = beam_quanta(self.normal, beam, self.far);
+        let i = y as usize * self.n as usize + x as usize;
+        let patch = self.map[i].patch_at(z);
+        self.received[i].lock().expect("one cell steps on one thread").add(patch, q);
+    }
+
+    fn left(&self, beam: &Beam<F>) {
+        self.left.fetch_add(beam_quanta(self.normal, beam, self.far), Relaxed);
+    }
+}
+
+/// The cost of one shot's phases.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct ShotCost {
+    /// The diffusion's counters (its cycles and messages).
+    #[serde(flatten)]
+    pub diffusion: DiffusionCounts,
+    /// Broadcast of the shot: cycles, messages.
+    pub broadcast_cycles: u64,
+    /// Messages of the broadcast.
+    pub broadcast_messages: u64,
+    /// Reduction to the supervisor: cycles until its end marker arrives.
+    pub reduce_cycles: u64,
+    /// Messages of the reduction (entries and end markers).
+    pub reduce_messages: u64,
+    /// Supervisor operations: the global max (one comparison per patch) and the updates (one
+    /// per entry it received).
+    pub supervisor_ops: u64,
+}
+
+impl ShotCost {
+    /// Grid cycles of the shot: broadcast + diffusion + reduction.
+    pub fn cycles(&self) -> u64 {
+        self.broadcast_cycles + self.diffusion.cycles + self.reduce_cycles
+    }
+
+    /// Messages on the grid's links: broadcast + diffusion + reduction.
+    pub fn messages(&self) -> u64 {
+        self.broadcast_messages + self.diffusion.messages + self.reduce_messages
+    }
+}
+
+/// One shot of the machine.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct ShotLog {
+    /// The shooting patch.
+    pub patch: usize,
+    /// Its unshot power before the shot (channels summed).
+    pub unshot_power: f64,
+    /// Unshot over emitted power after the shot.
+    pub residual_after: f64,
+    /// Quanta of the initial beams.
+    pub emitted: i64,
+    /// Quanta the cells received for a patch.
+    pub received: i64,
+    /// Quanta received for no patch (a full accumulator, an unmapped voxel).
+    pub lost: i64,
+    /// Quanta of the rays that left the grid.
+    pub left: i64,
+    /// Quanta of patches' entries below zero (f32 rounding at the horizon), taken as 0.
+    pub negative: i64,
+    /// Quanta the shooter sent to itself (ignored, as in the reference).
+    pub own: i64,
+    /// The source was outside the grid: nothing was diffused, the whole shot left.
+    pub outside: bool,
+    /// Accumulator additions that found no slot or no patch (their quanta are `lost`).
+    pub overflows: u64,
+    /// Its cost.
+    #[serde(flatten)]
+    pub cost: ShotCost,
+}
+
+impl ShotLog {
+    /// Received + lost + left = emitted, exactly.
+    pub fn balanced(&self) -> bool {
+        self.received + self.lost + self.left == self.emitted
+    }
+}
+
+/// What one shot delivered: per patch (id, quanta), the emitted quanta, and its log.
+pub struct Shot {
+    /// (patch, quanta) after the reduction, by patch id.
+    pub totals: Vec<(PatchId, i64)>,
+    /// Its log.
+    pub log: ShotLog,
+}
+
+/// The source of patch `p`'s shot, in voxel units on the 1/16 lattice, and its unit normal;
+/// `None` when the pushed centre is outside the grid.
+fn shot_source(p: &Patch, fit: &Fit, n: u32, offset: f64) -> (Option<Source>, [f32; 3]) {
+    let c = world_to_voxel(fit, [p.centroid.x, p.centroid.y, p.centroid.z]);
+    let nv = [p.normal.x, p.normal.y, p.normal.z];
+    let pos = [0, 1, 2].map(|k| c[k] + offset * nv[k]);
+    let normal = nv.map(|c| c as f32);
+    let inside = pos.iter().all(|&c| c.is_finite() && c >= 0.0 && c <= n as f64 - 1.0);
+    (inside.then(|| Source::new(SourceId(0), pos.map(SourceCoord::from_num))), normal)
+}
+
+/// Shoot patch `i` on the grid.
+pub fn shoot<F: FracBits, const D: usize>(
+    grid: &Grid<D>,
+    fit: &Fit,
+    map: &PatchMap,
+    patches: &[Patch],
+    i: usize,
+    cfg: &RadiosityConfig,
+) -> Result<Shot> {
+    let n = grid.n;
+    let far = FarDistance::<F>::new(n - 1).ok_or_else(|| {
+        anyhow::anyhow!("far distance {} exceeds the beam budget for {} fraction bits", n - 1, F::U32)
+    })?;
+    if !corner_exact(far.get(), F::U32) {
+        bail!(
+            "radiosity: corners of D = {} with {} fraction bits are not exact in f32 (2^(f+1)·D ≥ 2^24)",
+            n - 1,
+            F::U32
+        );
+    }
+    let (source, normal) = shot_source(&patches[i], fit, n, cfg.offset);
+    let initial: Vec<Beam<F>> = Direction::ALL
+        .iter()
+        .filter_map(|&d| front_rays(normal, d, far).map(|(u, v)| (d, u, v)))
+        .filter_map(|(d, u, v)| Beam::new(SourceId(0), d, Layer(0), u, v, far).ok())
+        .collect();
+    let emitted: i64 = initial.iter().map(|b| beam_quanta(normal, b, far)).sum();
+    let mut log = ShotLog { patch: i, emitted, ..Default::default() };
+    log.cost.broadcast_cycles = n as u64 - 1;
+    log.cost.broadcast_messages = (n as u64).pow(2) - 1;
+    let Some(source) = source else {
+        log.outside = true;
+        log.left = emitted;
+        return Ok(Shot { totals: Vec::new(), log });
+    };
+    let sink = ShotSink {
+        normal,
+        far,
+        n,
+        map: &map.cells,
+        received: (0..grid.cells.len()).map(|_| Mutex::new(CellReceived::new())).collect(),
+        left: AtomicI64::new(0),
+    };
+    let lighting = diffuse_shot::<F, D>(grid, &source, &initial, &cfg.light, &sink, |_, _| {})?;
+    log.cost.diffusion = lighting.reports[0].counts.clone();
+    log.left = sink.left.load(Relaxed);
+    let received: Vec<CellReceived> =
+        sink.received.into_iter().map(|m| m.into_inner().expect("not poisoned")).collect();
+    log.lost = received.iter().map(|r| r.lost()).sum();
+    log.overflows = received.iter().map(|r| r.overflows() as u64).sum();
+    let (totals, cycles, messages) = reduce_cost(n, &received);
+    log.received = totals.iter().map(|e| e.1).sum();
+    log.cost.reduce_cycles = cycles;
+    log.cost.reduce_messages = messages;
+    if !log.balanced() {
+        bail!(
+            "radiosity: shot of patch {i} not balanced: received {} + lost {} + left {} ≠ emitted {}",
+            log.received,
+            log.lost,
+            log.left,
+            log.emitted
+        );
+    }
+    Ok(Shot { totals, log })
+}
+
+/// A stream on a link: (patch, arrival cycle) by increasing patch, closed by an end marker
+/// (patch [`END`]).
+type Stream = Vec<(u32, u64)>;
+
+/// The end marker's key.
+const END: u32 = u32::MAX;
+
+/// The pipelined merge of sorted streams in one cell, as it leaves on the cell's outgoing
+/// link (arrival cycles at the receiver): entry p goes once every input has shown its first
+/// key ≥ p (then no smaller or equal key can come), one message per cycle; equal keys leave
+/// as one entry (their quanta added).
+fn merge(inputs: &[&[(u32, u64)]]) -> Stream {
+    let mut keys: Vec<u32> = inputs.iter().flat_map(|s| s.iter().map(|e| e.0)).collect();
+    keys.sort_unstable();
+    keys.dedup();
+    let mut at = vec![0usize; inputs.len()];
+    let (mut out, mut last) = (Vec::with_capacity(keys.len()), None::<u64>);
+    for p in keys {
+        let mut ready = 0;
+        for (s, i) in inputs.iter().zip(at.iter_mut()) {
+            while s[*i].0 < p {
+                *i += 1;
+            }
+            ready = ready.max(s[*i].1);
+        }
+        let send = last.map_or(ready, |l| ready.max(l + 1));
+        last = Some(send);
+        out.push((p, send + 1));
+    }
+    out
+}
+
+/// The reduction of every cell's [`CellReceived`] to the supervisor at (0, 0): row streams
+/// merged westward, then column 0 northward (module doc). Returns the patch totals, the cycle
+/// the supervisor has the end marker, and the messages sent.
+pub fn reduce_cost(n: u32, received: &[CellReceived]) -> (Vec<(PatchId, i64)>, u64, u64) {
+    let n = n as usize;
+    let mut quanta = std::collections::BTreeMap::<PatchId, i64>::new();
+    for &(p, q) in received.iter().flat_map(|r| r.entries()) {
+        *quanta.entry(p).or_insert(0) += q;
+    }
+    let own = |i: usize| -> Stream {
+        let mut s: Stream = received[i].entries().iter().map(|e| (e.0 as u32, 0)).collect();
+        s.push((END, 0));
+        s
+    };
+    let mut messages = 0u64;
+    let mut from_south: Option<Stream> = None;
+    for y in (0..n).rev() {
+        let mut from_east: Option<Stream> = None;
+        for x in (1..n).rev() {
+            let mine = own(y * n + x);
+            let ins: Vec<&[(u32, u64)]> = [Some(&mine[..]), from_east.as_deref()].into_iter().flatten().collect();
+            let out = merge(&ins);
+            messages += out.len() as u64;
+            from_east = Some(out);
+        }
+        let mine = own(y * n);
+        let ins: Vec<&[(u32, u64)]> =
+            [Some(&mine[..]), from_east.as_deref(), from_south.as_deref()].into_iter().flatten().collect();
+        let out = merge(&ins);
+        messages += out.len() as u64;
+        from_south = Some(out);
+    }
+    let cycles = from_south.as_ref().and_then(|s| s.last()).map_or(0, |e| e.1);
+    let totals = quanta.into_iter().collect();
+    (totals, cycles, messages)
+}
+
+/// Why the machine stopped shooting.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum GridStop {
+    /// The residual reached the stop fraction.
+    Converged,
+    /// The shot budget was spent first.
+    ShotBudget,
+}
+
+/// The machine's progressive solution.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GridSolution {
+    /// Radiosity per patch (RGB).
+    pub radiosity: Vec<[f64; 3]>,
+    /// Unshot radiosity per patch (RGB).
+    pub unshot: Vec<[f64; 3]>,
+    /// Every shot.
+    pub shots: Vec<ShotLog>,
+    /// Why it stopped.
+    pub stop: GridStop,
+    /// Emitted power (channels summed).
+    pub emitted_power: f64,
+    /// Unshot over emitted power at the end.
+    pub residual: f64,
+    /// Runs that did not fit the cells' patch maps, voxels with no patch.
+    pub map_overflows: u64,
+    /// Occupied voxels whose face has no patch.
+    pub unmapped_voxels: u64,
+    /// Accumulator additions that found no slot or no patch, over all shots.
+    pub received_overflows: u64,
+}
+
+/// Power of an RGB radiosity on an area, channels summed.
+fn power(v: [f64; 3], area: f64) -> f64 {
+    (v[0] + v[1] + v[2]) * area
+}
+
+/// The supervisor's global max: the patch with the largest unshot power (lowest index among
+/// equals).
+fn select(patches: &[Patch], unshot: &[[f64; 3]]) -> usize {
+    let mut best = (0, f64::NEG_INFINITY);
+    for (i, (p, u)) in patches.iter().zip(unshot).enumerate() {
+        let w = power(*u, p.area);
+        if w > best.1 {
+            best = (i, w);
+        }
+    }
+    best.0
+}
+
+/// Check the patches before shooting: positive finite areas, some emission. Returns the
+/// emitted power.
+fn check_patches(patches: &[Patch]) -> Result<f64> {
+    if let Some((i, p)) = patches.iter().enumerate().find(|(_, p)| !(p.area.is_finite() && p.area > 0.0)) {
+        bail!("radiosity: patch {i} (face {}) has zero or invalid area {}", p.face, p.area);
+    }
+    let emitted: f64 = patches.iter().map(|p| power(p.emission, p.area)).sum();
+    if emitted.is_nan() || emitted <= 0.0 {
+        bail!(
+            "radiosity: nothing emits: no patch has a material with Ke > 0 ({} patches); the machine's radiosity needs an emitting surface",
+            patches.len()
+        );
+    }
+    Ok(emitted)
+}
+
+/// Progressive refinement on the grid: shoot the patch with the most unshot power until the
+/// residual is at most `cfg.stop_fraction` or `cfg.max_shots` shots are made.
+/// `progress(shots, residual)` after each shot.
+pub fn solve<F: FracBits, const D: usize>(
+    grid: &Grid<D>,
+    fit: &Fit,
+    source_face: &[u32],
+    patches: &[Patch],
+    cfg: &RadiosityConfig,
+    mut progress: impl FnMut(usize, f64),
+) -> Result<GridSolution> {
+    let emitted_power = check_patches(patches)?;
+    if !(cfg.stop_fraction >= 0.0 && cfg.stop_fraction < 1.0) {
+        bail!("radiosity: the residual must be in [0, 1), got {}", cfg.stop_fraction);
+    }
+    if !(cfg.offset.is_finite() && cfg.offset >= 0.0) {
+        bail!("radiosity: the source offset must be a finite number of voxels ≥ 0, got {}", cfg.offset);
+    }
+    let map = map_patches(grid, fit, source_face, patches)?;
+    if map.overflows > 0 {
+        bail!(
+            "radiosity: {} voxel runs of patches do not fit the cells' patch maps ({} runs per column \
+             compiled): raise --patch-size",
+            map.overflows,
+            crate::machine::capacity::PATCH_RUNS_CAP
+        );
+    }
+    let mut s = GridSolution {
+        radiosity: patches.iter().map(|p| p.emission).collect(),
+        unshot: patches.iter().map(|p| p.emission).collect(),
+        shots: Vec::new(),
+        stop: GridStop::ShotBudget,
+        emitted_power,
+        residual: 1.0,
+        map_overflows: map.overflows,
+        unmapped_voxels: map.unmapped,
+        received_overflows: 0,
+    };
+    while s.residual > cfg.stop_fraction {
+        if s.shots.len() >= cfg.max_shots {
+            return Ok(s);
+        }
+        let i = select(patches, &s.unshot);
+        let shot = shoot::<F, D>(grid, fit, &map, patches, i, cfg)?;
+        apply(patches, &mut s, i, shot);
+        progress(s.shots.len(), s.residual);
+    }
+    s.stop = GridStop::Converged;
+    Ok(s)
+}
+
+/// The supervisor's update after patch i's shot: receiver j gets `ΔH_j = U_i F_ij A_i / A_j`
+/// with `F_ij` = its quanta over the quanta emitted, adds `ρ_j ΔH_j` to its radiosity and its
+/// unshot radiosity; `U_i = 0`.
+fn apply(patches: &[Patch], s: &mut GridSolution, i: usize, shot: Shot) {
+    let Shot { totals, mut log } = shot;
+    let u = s.unshot[i];
+    log.unshot_power = power(u, patches[i].area);
+    let emitted = log.emitted.max(1) as f64;
+    for &(j, q) in &totals {
+        let j = j as usize;
+        if j == i {
+            log.own += q;
+            continue;
+        }
+        if q < 0 {
+            log.negative += -q;
+            continue;
+        }
+        let t = q as f64 / emitted * patches[i].area / patches[j].area;
+        for (c, (uc, rho)) in u.iter().zip(patches[j].reflectance).enumerate() {
+            let dh = uc * t * rho;
+            s.radiosity[j][c] += dh;
+            s.unshot[j][c] += dh;
+        }
+    }
+    s.unshot[i] = [0.0; 3];
+    let unshot: f64 = patches.iter().zip(&s.unshot).map(|(p, u)| power(*u, p.area)).sum();
+    s.residual = unshot / s.emitted_power;
+    log.residual_after = s.residual;
+    log.cost.supervisor_ops = patches.len() as u64 + totals.len() as u64;
+    s.received_overflows += log.overflows;
+    s.shots.push(log);
+}
