@@ -31,6 +31,8 @@
 
 mod board;
 mod features;
+#[path = "../../vectors.rs"]
+mod vectors;
 
 use core::panic::PanicInfo;
 
