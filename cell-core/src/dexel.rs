@@ -140,6 +140,20 @@ impl<const N: usize> DexelStore<N> {
     /// exact plane along this column, from which each new dexel's plane offset is taken at its
     /// first voxel ([`FacetPlane::dexel_plane`]).
     pub fn insert_on(&mut self, span: Span, tag: FacetTag, column: &ColumnPlane) -> Insertion {
+        self.insert_planes(span, tag, Some(column))
+    }
+
+    /// [`DexelStore::insert_on`] for a cell that runs only the thesis's lit rule (§5.5.5),
+    /// which never reads a dexel's plane: every new dexel gets the default plane, and the
+    /// plane arithmetic stays out of the cell's code (a firmware image with a small flash
+    /// budget). Neighbouring pieces of one surface then merge where their planes would have
+    /// kept them apart; the occupied voxels are the same.
+    pub fn insert_without_planes(&mut self, span: Span, tag: FacetTag) -> Insertion {
+        self.insert_planes(span, tag, None)
+    }
+
+    #[inline(always)]
+    fn insert_planes(&mut self, span: Span, tag: FacetTag, column: Option<&ColumnPlane>) -> Insertion {
         let mut out = Insertion::default();
         let mut cur = span.lo as u32; // first voxel not yet decided (u32: may pass u16::MAX)
         let hi = span.hi as u32;
@@ -160,7 +174,7 @@ impl<const N: usize> DexelStore<N> {
                         _ => hi + 1,
                     };
                     let piece = Span { lo: cur as Depth, hi: (gap_end - 1) as Depth };
-                    let plane = tag.plane.dexel_plane(column.value(piece.lo as i64));
+                    let plane = column.map_or(DexelPlane::default(), |c| tag.plane.dexel_plane(c.value(piece.lo as i64)));
                     let d = Dexel { span: piece, facet: tag.facet, material: tag.material, normal: tag.normal, plane };
                     if self.absorb(i, d) || self.dexels.insert(i, d).is_ok() {
                         out.added += piece.len();

@@ -5,6 +5,8 @@
 
 use cell_core::beam::frac::U0;
 use cell_core::beam::SplitOrder;
+use cell_core::cell::{Cell, DEFAULT_DEXELS};
+use cell_core::facet::RowPacket;
 use cell_core::light::{FrustumSummary, LightEnv, Policy};
 use cell_core::link::{DecodeError, Reader};
 use cell_core::lit::LitRule;
@@ -28,7 +30,8 @@ pub fn check(s: LightSetup) -> Result<LightSetup, ReplayError> {
     let ok = (cfg!(feature = "plane-rule") || s.rule == LitRule::Thesis)
         && (cfg!(feature = "policies") || s.policy == Policy::Thesis)
         && (cfg!(feature = "hold") || s.hold == 0)
-        && (cfg!(feature = "skip") || s.skip.is_none());
+        && (cfg!(feature = "skip") || s.skip.is_none())
+        && (cfg!(feature = "merge") || !s.merge);
     if ok {
         Ok(s)
     } else {
@@ -48,7 +51,8 @@ pub fn rule(r: LitRule) -> LitRule {
 
 /// `s` with the options not compiled in fixed to "off", where the compiler sees them: the
 /// kept setup is a value in memory, only a copy fixed here and passed to the (inlined)
-/// `LightSetup::env` makes them constants in the step.
+/// `LightSetup::env_without_frustum` makes them constants in the step, and their code leaves
+/// the image.
 #[inline(always)]
 pub fn fixed_options(mut s: LightSetup) -> LightSetup {
     if !cfg!(feature = "frustum") {
@@ -67,12 +71,25 @@ pub fn fixed_options(mut s: LightSetup) -> LightSetup {
     s
 }
 
-/// The environment the cell steps with: without the empty-frustum skip unless compiled in.
+/// The environment the cell steps with. Without the empty-frustum skip it is built without a
+/// summary reference at all: even a `None` one carries the summary's vtable, and with it the
+/// skip's code and (through its `Debug` bound) the formatting machinery.
 #[inline(always)]
 pub fn env<'s>(s: &'s LightSetup, order: &'s SplitOrder) -> Result<LightEnv<'s, U0>, ReplayError> {
     if cfg!(feature = "frustum") {
         s.env(order)
     } else {
         s.env_without_frustum(order)
+    }
+}
+
+/// The loading step (§3.9): without the plane rule, the cell's dexels need no plane and it
+/// keeps no visible surface.
+#[inline(always)]
+pub fn load_step(cell: &mut Cell<DEFAULT_DEXELS>, pkt: &mut RowPacket, depth: u32) -> bool {
+    if cfg!(feature = "plane-rule") {
+        cell.load_step(pkt, depth)
+    } else {
+        cell.load_step_without_planes(pkt, depth)
     }
 }

@@ -31,6 +31,7 @@
 
 mod board;
 mod features;
+mod mem;
 #[path = "../../vectors.rs"]
 mod vectors;
 
@@ -45,10 +46,7 @@ use cell_core::link::{
     self, drain_outputs, read_frame, write_frame, ByteSink, DecodeError, HalLink, Message, PutExt, Reader, HEADER, KIND_BEAM,
     KIND_ROW, MAX_FRAME, TRAILER,
 };
-use cell_core::shade::cell_pixel;
-use cell_core::lit::LitRule;
 use cell_core::trace::{self, kind, LightSetup, ReplayError, Replayer, MAX_LIGHTS, MAX_MATERIALS};
-use cell_core::units::Depth;
 use cortex_m_rt::entry;
 use embedded_hal::digital::OutputPin;
 use heapless::Vec;
@@ -145,7 +143,7 @@ impl Node {
         r.u8()?; // sequence number
         let mut pkt = link::get_row(&mut r)?;
         r.finish()?;
-        Ok(self.cell.load_step(&mut pkt, self.depth).then_some(pkt))
+        Ok(features::load_step(&mut self.cell, &mut pkt, self.depth).then_some(pkt))
     }
 
     /// A frame from a neighbour: a row packet (returned when it goes on east) or a beam.
@@ -182,24 +180,26 @@ impl Node {
                 self.setup = Some(s);
             }
             kind::SHADE => {
-                let s = trace::get_shade_setup(&mut r)?;
-                let rule = features::rule(self.setup.map_or(LitRule::Thesis, |l| l.rule));
-                let lit = &self.light.lit;
-                let pixel = cell_pixel(
-                    rule,
-                    &self.cell,
-                    |z: Depth| lit.mask_at(z),
-                    self.light.visible_lit,
-                    &s.materials,
-                    &s.lights,
-                    &s.params,
-                );
+                #[cfg(feature = "shading")]
+                let pixel = self.shade(trace::get_shade_setup(&mut r)?);
+                #[cfg(not(feature = "shading"))]
+                let pixel = None;
                 self.report(pixel, host);
             }
             _ => return Err(ReplayError::BadHeader),
         }
         r.finish()?;
         Ok(())
+    }
+
+    /// The pixel (§5.2), under the lit rule of the last light setup.
+    #[cfg(feature = "shading")]
+    fn shade(&self, s: trace::ShadeSetup) -> Option<cell_core::shade::Pixel> {
+        use cell_core::{lit::LitRule, shade::cell_pixel, units::Depth};
+        let rule = features::rule(self.setup.map_or(LitRule::Thesis, |l| l.rule));
+        let lit = &self.light.lit;
+        let reached = |z: Depth| lit.mask_at(z);
+        cell_pixel(rule, &self.cell, reached, self.light.visible_lit, &s.materials, &s.lights, &s.params)
     }
 
     /// The report to the host: cell, pixel (flag, rgb, light mask, depth), counters

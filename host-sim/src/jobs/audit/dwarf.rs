@@ -127,7 +127,12 @@ fn read_lines(dwarf: &gimli::Dwarf<Reader<'_>>, unit: &gimli::Unit<Reader<'_>>, 
             }
         }
         if !row.end_sequence() {
-            let m = modules.entry(row.file_index()).or_insert_with(|| file_module(dwarf, unit, row.file_index())).clone();
+            // Line 0: code of no source line (spills, jumps); it counts for the function or
+            // inlined call around it, not for the file the row happens to name.
+            let m = match row.line() {
+                None => None,
+                Some(_) => modules.entry(row.file_index()).or_insert_with(|| file_module(dwarf, unit, row.file_index())).clone(),
+            };
             open = Some((row.address(), m));
         }
     }
