@@ -77,6 +77,31 @@ fn build_firmware(traces: &Path) -> PathBuf {
     target_dir.join(TARGET).join("release/rc2-firmware")
 }
 
+/// The production image (`firmware/src/bin/cell`, built with the replay image by the same
+/// `cargo build --release`): its code and read-only data, and its whole flash (vector table
+/// included), within the 16 KiB a cell is allowed, every byte of it in the per-module table of
+/// `host-sim audit`, and the cell's parts in it.
+fn check_production_image(elf: &Path) {
+    use host_sim::jobs::audit::{flash_table, FLASH_BUDGET};
+    let t = flash_table(elf).expect("read the production image's ELF");
+    let rows: Vec<String> = t.modules.iter().map(|m| format!("{} {} + {} B", m.module, m.code, m.data)).collect();
+    let table = rows.join("\n");
+    assert_eq!(t.modules.iter().map(|m| m.code + m.data).sum::<u64>(), t.flash, "every byte in one row:\n{table}");
+    assert!(
+        t.text + t.rodata <= FLASH_BUDGET && t.flash <= FLASH_BUDGET,
+        "the production image takes {} B of flash (text {} + rodata {} + vector table {}), over the \
+         {FLASH_BUDGET} B cell budget; by module:\n{table}",
+        t.flash,
+        t.text,
+        t.rodata,
+        t.vector_table
+    );
+    assert!(t.by_debug_info, "the release profile keeps debug info in the ELF (not in flash)");
+    for m in ["cell_core::beam", "cell_core::light", "cell_core::dexel", "cell_core::voxelize", "cell_core::link"] {
+        assert!(t.modules.iter().any(|r| r.module == m && r.code > 0), "no code of {m} in the image:\n{table}");
+    }
+}
+
 /// Boot `elf` in QEMU's mps2-an386 (Cortex-M4F), killed after [`QEMU_TIMEOUT`]; returns
 /// (exit code, stdout).
 fn run_qemu(elf: &Path) -> (Option<i32>, String) {
@@ -181,6 +206,7 @@ fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
     let t0 = Instant::now();
     let elf = build_firmware(&dir);
     let t_build = t0.elapsed();
+    check_production_image(&elf.with_file_name("cell"));
     let (code, out) = run_qemu(&elf);
     eprintln!("firmware build {t_build:?}, QEMU run {:?}; QEMU said:\n{out}", t0.elapsed() - t_build);
     let got = parse_output(&out);

@@ -30,8 +30,7 @@ pub fn check(s: LightSetup) -> Result<LightSetup, ReplayError> {
     let ok = (cfg!(feature = "plane-rule") || s.rule == LitRule::Thesis)
         && (cfg!(feature = "policies") || s.policy == Policy::Thesis)
         && (cfg!(feature = "hold") || s.hold == 0)
-        && (cfg!(feature = "skip") || s.skip.is_none())
-        && (cfg!(feature = "merge") || !s.merge);
+        && (cfg!(feature = "skip") || s.skip.is_none());
     if ok {
         Ok(s)
     } else {

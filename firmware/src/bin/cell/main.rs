@@ -41,10 +41,10 @@ use cell_core::beam::frac::U0;
 use cell_core::beam::{FarDistance, SplitOrder};
 use cell_core::cell::{Cell, DEFAULT_DEXELS, FA_CAP, LIT_CAP, OB_CAP};
 use cell_core::facet::RowPacket;
-use cell_core::light::{Activity, LightCell, Port};
+use cell_core::light::{ActivityDelta, LightCell, Port};
 use cell_core::link::{
-    self, drain_outputs, read_frame, write_frame, ByteSink, DecodeError, HalLink, Message, PutExt, Reader, HEADER, KIND_BEAM,
-    KIND_ROW, MAX_FRAME, TRAILER,
+    self, drain_outputs, read_frame, write_frame, ByteSink, DecodeError, HalLink, Message, PutExt, Reader, HEADER,
+    KIND_BEAM, KIND_ROW, MAX_FRAME, TRAILER,
 };
 use cell_core::trace::{self, kind, LightSetup, ReplayError, Replayer, MAX_LIGHTS, MAX_MATERIALS};
 use cortex_m_rt::entry;
@@ -96,7 +96,9 @@ impl<const N: usize> Rx<N> {
 struct Node {
     cell: Cell<DEFAULT_DEXELS>,
     light: Light,
-    activity: Activity,
+    /// Beams that appeared here minus beams consumed here: this cell's share of the
+    /// machine's activity count (§4.4.4).
+    activity: ActivityDelta,
     setup: Option<LightSetup>,
     depth: u32,
     /// Frames that did not decode (CRC, length, values), or that came out of order.
@@ -110,7 +112,7 @@ impl Node {
         Node {
             cell: Cell::new(0, 0),
             light: LightCell::new(0, 0),
-            activity: Activity::new(),
+            activity: ActivityDelta::new(),
             setup: None,
             depth: 0,
             bad_frames: 0,
@@ -215,7 +217,7 @@ impl Node {
             w.put(&p.rgb)?;
             w.u32(p.lit)?;
             w.u16(p.z)?;
-            for c in [store.overflows(), store.lost_voxels() as u32, lit.overflows(), self.refused, self.bad_frames] {
+            for c in [store.overflows(), store.lost_voxels(), lit.overflows(), self.refused, self.bad_frames] {
                 w.u32(c)?;
             }
             w.u8(lit.runs().len() as u8)?;
@@ -234,9 +236,9 @@ impl Node {
 }
 
 /// Send a row packet east, once the east neighbour has room.
-fn forward_east(links: &mut Links, pkt: &RowPacket) {
+fn forward_east(links: &mut Links, pkt: RowPacket) {
     let mut buf = [0u8; MAX_FRAME];
-    let Ok(n) = link::encode::<U0>(0, &Message::Row(pkt.clone()), &mut buf) else { return };
+    let Ok(n) = link::encode::<U0>(0, &Message::Row(pkt), &mut buf) else { return };
     let east = &mut links[Port::E.index()];
     while !embedded_hal::digital::InputPin::is_high(&mut east.ready).unwrap_or(true) {}
     east.spi.0.write_all(&buf[..n]);
@@ -257,7 +259,8 @@ impl Receiver {
     fn host(&mut self, node: &mut Node) {
         while let Some(b) = self.host.read_byte() {
             if let Some(frame) = self.host_rx.push(b) {
-                let r = frame.map_err(ReplayError::from).and_then(|n| node.host_frame(&self.host_rx.buf[..n], self.host));
+                let r =
+                    frame.map_err(ReplayError::from).and_then(|n| node.host_frame(&self.host_rx.buf[..n], self.host));
                 node.bad_frames += r.is_err() as u32;
                 self.host_rx.buf.clear();
             }
@@ -275,7 +278,7 @@ impl Receiver {
             }
             let Some(frame) = rx.push(b) else { continue };
             match frame.map_err(ReplayError::from).and_then(|n| node.port_frame(&rx.buf[..n])) {
-                Ok(Some(pkt)) => forward_east(links, &pkt),
+                Ok(Some(pkt)) => forward_east(links, pkt),
                 Ok(None) => {}
                 Err(_) => node.bad_frames += 1,
             }
@@ -331,7 +334,6 @@ fn main() -> ! {
 /// Halt, without formatting the message: see the module docs.
 #[panic_handler]
 fn panic(_: &PanicInfo) -> ! {
-    loop {
-        cortex_m::asm::udf();
-    }
+    // An undefined instruction: the core faults and stays in cortex-m-rt's fault handler.
+    cortex_m::asm::udf()
 }

@@ -38,7 +38,8 @@ pub struct Inlined {
 
 /// Attribute the code section `base .. base + len`: the innermost project module on each
 /// byte's chain (line file, then the call files of its inlined calls, innermost first); else
-/// the line file's module; else the module of the symbol holding it; else "padding".
+/// the symbol holding it if that is project code; else the line file's module; else the
+/// symbol's; else "padding".
 pub fn attribute(base: u64, len: u64, lines: &[LineSpan], inlined: &[Inlined], syms: &[Sym], bins: &[&str]) -> BTreeMap<String, u64> {
     let n = len as usize;
     let index = |a: u64| (a.saturating_sub(base) as usize).min(n);
@@ -61,13 +62,17 @@ pub fn attribute(base: u64, len: u64, lines: &[LineSpan], inlined: &[Inlined], s
     }
     let mut out = BTreeMap::new();
     for b in 0..n {
-        let m = match (line[b], call[b].1) {
-            (Some(l), _) if is_project(l) => l.to_string(),
-            (_, Some(c)) => c.to_string(),
-            (Some(l), None) => l.to_string(),
-            (None, None) => by_symbol[b].clone().unwrap_or_else(|| "padding".into()),
+        let symbol = by_symbol[b].as_deref();
+        let m = match (line[b], call[b].1, symbol) {
+            (Some(l), _, _) if is_project(l) => l,
+            (_, Some(c), _) => c,
+            // Library code in a project function with no inlined-call entry around it (LLVM
+            // drops those of the smallest inlined calls).
+            (_, None, Some(s)) if is_project(s) => s,
+            (Some(l), None, _) => l,
+            (None, None, s) => s.unwrap_or("padding"),
         };
-        *out.entry(m).or_insert(0) += 1;
+        *out.entry(m.to_string()).or_insert(0) += 1;
     }
     out
 }
@@ -177,7 +182,9 @@ mod tests {
 
     /// A step function of the light cell (0x100..0x140) with the beam split inlined into it
     /// (0x110..0x130), and a `core` slice helper inlined into the split (0x118..0x120) and into
-    /// the step (0x130..0x138); `memcpy` (0x140..0x150) has no line info and no project frame.
+    /// the step (0x130..0x138); `memcpy` (0x140..0x150) has no line info and no project frame;
+    /// `core` code in `panic_fmt` (0x150..0x158) is core's, in the firmware's `main` with no
+    /// inlined-call entry (0x158..0x160) the firmware's; 0x160..0x168 is nobody's.
     #[test]
     fn code_counts_for_the_innermost_project_frame() {
         let lines = [
@@ -188,6 +195,7 @@ mod tests {
             span(0x130, 0x138, "core"),
             span(0x138, 0x140, "cell_core::light"),
             span(0x150, 0x158, "core"),
+            span(0x158, 0x160, "core"),
         ];
         let inlined = [
             inl(0x110, 0x130, 2, "cell_core::light"), // the split, called from light.rs
@@ -198,18 +206,20 @@ mod tests {
         let syms = [
             Sym { addr: 0x140, size: 0x10, name: "_RNvNtCs7NhdfSRABLd_17compiler_builtins3mem6memcpy".into() },
             Sym { addr: 0x150, size: 0x08, name: "_RNvNtCs7ldSeZOOJos_4core9panicking9panic_fmt".into() },
+            Sym { addr: 0x158, size: 0x08, name: "_ZN4cell4main17h0123456789abcdefE".into() },
         ];
-        let got = attribute(0x100, 0x60, &lines, &inlined, &syms, &[]);
+        let got = attribute(0x100, 0x68, &lines, &inlined, &syms, &["cell"]);
         let want: BTreeMap<String, u64> = [
             ("cell_core::light".to_string(), 0x10 + 0x8 + 0x8),
             ("cell_core::beam".to_string(), 0x20),
             ("compiler_builtins".to_string(), 0x10),
             ("core".to_string(), 0x8),
+            ("firmware".to_string(), 0x8),
             ("padding".to_string(), 0x8),
         ]
         .into_iter()
         .collect();
         assert_eq!(got, want);
-        assert_eq!(got.values().sum::<u64>(), 0x60, "every byte in one row");
+        assert_eq!(got.values().sum::<u64>(), 0x68, "every byte in one row");
     }
 }

@@ -424,8 +424,8 @@ mod tests {
             ("_ZN12rc2_firmware4CELL17h1332907407e1027dE", "firmware"),
             ("_RNvMsa_NtCs7ldSeZOOJos_4core3fmtNtB5_9Formatter12pad_integral", "core"),
             ("_RNvNtCs7NhdfSRABLd_17compiler_builtins3mem6memcpy", "compiler_builtins"),
-            ("_ZN3crc5crc3259_$LT$impl$u20$crc..Crc$LT$u32$C$crc..Table$LT$_$GT$$GT$$GT$8checksum17h9f05E", "crc"),
-            (".Lswitch.table._ZN9cell_core5light5Step3new17h0123456789abcdefE", "cell_core::light"),
+            ("_ZN3crc5crc3259_$LT$impl$u20$crc..Crc$LT$u32$C$crc..Table$LT$_$GT$$GT$$GT$8checksum17h9f05ea3934906fe3E", "crc"),
+            (".Lswitch.table._ZN9cell_core5light4Step3new17h0123456789abcdefE", "cell_core::light"),
             ("__aeabi_memcpy4", "compiler_builtins"),
             ("HardFault_", "cortex_m_rt"),
         ];
