@@ -138,6 +138,26 @@ impl LightSetup {
     /// Building the optional summary reference stores its vtable even when it is `None`, which
     /// would keep the skip's code, and through the `Debug` bound the formatting machinery, in
     /// the image. Always inlined: options a firmware fixes become constants through it.
+    ///
+    /// ```
+    /// use cell_core::beam::{frac::U0, Source, SourceId, SplitOrder};
+    /// use cell_core::light::{FrustumSummary, Policy};
+    /// use cell_core::lit::LitRule;
+    /// use cell_core::trace::LightSetup;
+    ///
+    /// let source = Source::at_voxel(SourceId(0), [4, 4, 4]).unwrap();
+    /// let frustum = Some(FrustumSummary::new(16, 16));
+    /// let (policy, rule) = (Policy::Thesis, LitRule::Thesis);
+    /// let setup = LightSetup {
+    ///     source, n: 16, depth: 16, far: 31, policy, fa: 16, merge: true, source_bit: 1,
+    ///     skip: None, hold: 0, frustum, rule,
+    /// };
+    /// let order = SplitOrder::default();
+    /// let with = setup.env::<U0>(&order).unwrap();
+    /// let without = setup.env_without_frustum::<U0>(&order).unwrap();
+    /// assert!(with.frustum.is_some() && without.frustum.is_none());
+    /// assert_eq!((without.far, without.fa, without.bounds), (with.far, with.fa, with.bounds));
+    /// ```
     #[inline(always)]
     pub fn env_without_frustum<'s, F: FracBits>(
         &'s self,

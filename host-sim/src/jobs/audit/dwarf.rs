@@ -40,7 +40,14 @@ pub struct Inlined {
 /// byte's chain (line file, then the call files of its inlined calls, innermost first); else
 /// the symbol holding it if that is project code; else the line file's module; else the
 /// symbol's; else "padding".
-pub fn attribute(base: u64, len: u64, lines: &[LineSpan], inlined: &[Inlined], syms: &[Sym], bins: &[&str]) -> BTreeMap<String, u64> {
+pub fn attribute(
+    base: u64,
+    len: u64,
+    lines: &[LineSpan],
+    inlined: &[Inlined],
+    syms: &[Sym],
+    bins: &[&str],
+) -> BTreeMap<String, u64> {
     let n = len as usize;
     let index = |a: u64| (a.saturating_sub(base) as usize).min(n);
     let mut line: Vec<Option<&str>> = vec![None; n];
@@ -58,7 +65,9 @@ pub fn attribute(base: u64, len: u64, lines: &[LineSpan], inlined: &[Inlined], s
     let mut by_symbol: Vec<Option<String>> = vec![None; n];
     for s in syms {
         let m = module_of_symbol(&demangle(&s.name), bins);
-        by_symbol[index(s.addr)..index(s.addr + s.size).max(index(s.addr))].iter_mut().for_each(|o| *o = Some(m.clone()));
+        by_symbol[index(s.addr)..index(s.addr + s.size).max(index(s.addr))]
+            .iter_mut()
+            .for_each(|o| *o = Some(m.clone()));
     }
     let mut out = BTreeMap::new();
     for b in 0..n {
@@ -136,7 +145,10 @@ fn read_lines(dwarf: &gimli::Dwarf<Reader<'_>>, unit: &gimli::Unit<Reader<'_>>, 
             // inlined call around it, not for the file the row happens to name.
             let m = match row.line() {
                 None => None,
-                Some(_) => modules.entry(row.file_index()).or_insert_with(|| file_module(dwarf, unit, row.file_index())).clone(),
+                Some(_) => modules
+                    .entry(row.file_index())
+                    .or_insert_with(|| file_module(dwarf, unit, row.file_index()))
+                    .clone(),
             };
             open = Some((row.address(), m));
         }
@@ -145,7 +157,11 @@ fn read_lines(dwarf: &gimli::Dwarf<Reader<'_>>, unit: &gimli::Unit<Reader<'_>>, 
 }
 
 /// Every inlined-subroutine entry of a unit, with its ranges, depth and call file.
-fn read_inlined(dwarf: &gimli::Dwarf<Reader<'_>>, unit: &gimli::Unit<Reader<'_>>, out: &mut Vec<Inlined>) -> Result<()> {
+fn read_inlined(
+    dwarf: &gimli::Dwarf<Reader<'_>>,
+    unit: &gimli::Unit<Reader<'_>>,
+    out: &mut Vec<Inlined>,
+) -> Result<()> {
     let mut entries = unit.entries();
     let mut depth = 0isize;
     let mut modules: BTreeMap<u64, Option<String>> = BTreeMap::new();

@@ -34,7 +34,10 @@ pub const FLASH_BUDGET: u64 = 16 * 1024;
 pub const CONCERNS: &[(&str, &[&str])] = &[
     ("beam split (§4.3)", &["cell_core::beam"]),
     ("dexel store (§3.4)", &["cell_core::dexel", "cell_core::normal", "cell_core::plane", "cell_core::cell"]),
-    ("loading: row cell, visible surface (§3.5–3.9)", &["cell_core::voxelize", "cell_core::facet", "cell_core::visible"]),
+    (
+        "loading: row cell, visible surface (§3.5–3.9)",
+        &["cell_core::voxelize", "cell_core::facet", "cell_core::visible"],
+    ),
     ("lighting cell: FIFO, ports, lit store (§4.4, §5.5)", &["cell_core::light", "cell_core::lit", "cell_core::units"]),
     ("empty-frustum skip", &["cell_core::occupancy"]),
     ("shading + gamma table (§5.2)", &["cell_core::shade"]),
@@ -230,7 +233,11 @@ pub fn module_of_file(path: &str) -> Option<String> {
     let path = path.replace('\\', "/");
     if let Some(rest) = path.split("/cell-core/src/").nth(1) {
         let rest = rest.trim_end_matches(".rs").trim_end_matches("/mod");
-        return Some(if rest == "lib" { "cell_core".into() } else { format!("cell_core::{}", rest.replace('/', "::")) });
+        return Some(if rest == "lib" {
+            "cell_core".into()
+        } else {
+            format!("cell_core::{}", rest.replace('/', "::"))
+        });
     }
     if path.contains("/firmware/src/") {
         return Some("firmware".into());
@@ -243,7 +250,10 @@ pub fn module_of_file(path: &str) -> Option<String> {
     }
     // …/registry/src/<index>/<name>-<version>/…
     let krate = path.split("/registry/src/").nth(1)?.split('/').nth(1)?;
-    let name = krate.rsplit_once('-').map_or(krate, |(n, v)| if v.starts_with(|c: char| c.is_ascii_digit()) { n } else { krate });
+    let name =
+        krate
+            .rsplit_once('-')
+            .map_or(krate, |(n, v)| if v.starts_with(|c: char| c.is_ascii_digit()) { n } else { krate });
     Some(name.replace('-', "_"))
 }
 
@@ -263,9 +273,7 @@ pub fn known_tables() -> Vec<(&'static str, Vec<u8>)> {
 /// The 256-entry table of a reflected CRC with reversed polynomial `poly` of `bits` bits.
 fn crc_table(poly: u64, bits: u32) -> Vec<u64> {
     let mask = if bits == 64 { u64::MAX } else { (1 << bits) - 1 };
-    (0..256u64)
-        .map(|i| (0..8).fold(i, |c, _| if c & 1 == 1 { (c >> 1) ^ poly } else { c >> 1 }) & mask)
-        .collect()
+    (0..256u64).map(|i| (0..8).fold(i, |c, _| if c & 1 == 1 { (c >> 1) ^ poly } else { c >> 1 }) & mask).collect()
 }
 
 /// One symbol of a flash section.
@@ -448,7 +456,10 @@ mod tests {
             ("/work/x/firmware/src/bin/cell/main.rs", Some("firmware")),
             ("/rustc/59807616e1fa/library/core/src/slice/mod.rs", Some("core")),
             ("/root/.cargo/registry/src/index.crates.io-1949cf8c6b5b557f/heapless-0.8.0/src/vec.rs", Some("heapless")),
-            ("/root/.cargo/registry/src/index.crates.io-1949cf8c6b5b557f/cortex-m-rt-0.7.5/src/lib.rs", Some("cortex_m_rt")),
+            (
+                "/root/.cargo/registry/src/index.crates.io-1949cf8c6b5b557f/cortex-m-rt-0.7.5/src/lib.rs",
+                Some("cortex_m_rt"),
+            ),
             ("/rustc/x/library/compiler-builtins/compiler-builtins/src/mem/impls.rs", Some("compiler_builtins")),
             ("<unknown>", None),
         ];

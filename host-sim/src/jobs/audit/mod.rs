@@ -157,8 +157,10 @@ pub fn image(path: &Path) -> Result<Image> {
 
 /// Where `cd firmware && cargo build --release` puts the ELFs, relative to the workspace root:
 /// the production image (the cell driven by its links) and the trace-replaying one.
-pub const FIRMWARE_ELFS: [&str; 2] =
-    ["firmware/target/thumbv7em-none-eabihf/release/cell", "firmware/target/thumbv7em-none-eabihf/release/rc2-firmware"];
+pub const FIRMWARE_ELFS: [&str; 2] = [
+    "firmware/target/thumbv7em-none-eabihf/release/cell",
+    "firmware/target/thumbv7em-none-eabihf/release/rc2-firmware",
+];
 
 /// The most any cell of a run used of each store, and the cell that used it.
 #[derive(Clone, Copy, Debug, Default)]
