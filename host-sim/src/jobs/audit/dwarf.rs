@@ -10,7 +10,7 @@ use anyhow::Result;
 use gimli::{AttributeValue, EndianSlice, LittleEndian};
 use object::{Object, ObjectSection};
 
-use super::flash::{demangle, is_project, module_of_file, module_of_symbol, Sym};
+use super::names::{demangle, is_project, module_of_file, module_of_symbol, Sym};
 
 /// Instructions `lo..hi` came from a file of `module` (`None`: unknown file).
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -6,6 +6,7 @@
 
 pub mod dwarf;
 pub mod flash;
+pub mod names;
 
 use std::mem::size_of;
 use std::path::{Path, PathBuf};
