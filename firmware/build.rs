@@ -16,6 +16,9 @@ fn main() {
     let root = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").unwrap());
     let memory_x = root.join("../memory.x");
     fs::copy(&memory_x, out.join("memory.x")).expect("copy ../memory.x");
+    // cortex-m-rt's `device` feature includes `device.x` (handler aliases of a device crate);
+    // the firmware's interrupt vectors (src/vectors.rs) all use the default handler.
+    fs::write(out.join("device.x"), "/* no device-specific handlers: see src/vectors.rs */\n").expect("write device.x");
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rerun-if-changed={}", memory_x.display());
     println!("cargo:rerun-if-changed=build.rs");

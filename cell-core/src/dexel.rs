@@ -140,6 +140,20 @@ impl<const N: usize> DexelStore<N> {
     /// exact plane along this column, from which each new dexel's plane offset is taken at its
     /// first voxel ([`FacetPlane::dexel_plane`]).
     pub fn insert_on(&mut self, span: Span, tag: FacetTag, column: &ColumnPlane) -> Insertion {
+        self.insert_planes(span, tag, Some(column))
+    }
+
+    /// [`DexelStore::insert_on`] for a cell that runs only the thesis's lit rule (§5.5.5),
+    /// which never reads a dexel's plane: every new dexel gets the default plane, and the
+    /// plane arithmetic stays out of the cell's code (a firmware image with a small flash
+    /// budget). Neighbouring pieces of one surface then merge where their planes would have
+    /// kept them apart; the occupied voxels are the same.
+    pub fn insert_without_planes(&mut self, span: Span, tag: FacetTag) -> Insertion {
+        self.insert_planes(span, tag, None)
+    }
+
+    #[inline(always)]
+    fn insert_planes(&mut self, span: Span, tag: FacetTag, column: Option<&ColumnPlane>) -> Insertion {
         let mut out = Insertion::default();
         let mut cur = span.lo as u32; // first voxel not yet decided (u32: may pass u16::MAX)
         let hi = span.hi as u32;
@@ -160,7 +174,8 @@ impl<const N: usize> DexelStore<N> {
                         _ => hi + 1,
                     };
                     let piece = Span { lo: cur as Depth, hi: (gap_end - 1) as Depth };
-                    let plane = tag.plane.dexel_plane(column.value(piece.lo as i64));
+                    let plane =
+                        column.map_or(DexelPlane::default(), |c| tag.plane.dexel_plane(c.value(piece.lo as i64)));
                     let d = Dexel { span: piece, facet: tag.facet, material: tag.material, normal: tag.normal, plane };
                     if self.absorb(i, d) || self.dexels.insert(i, d).is_ok() {
                         out.added += piece.len();
@@ -316,6 +331,29 @@ mod tests {
             }
             for z in 0..80u16 {
                 prop_assert_eq!(s.occupied(z).is_some(), occ[z as usize]);
+            }
+        }
+
+        /// Without planes the store holds the same voxels, each with the same material and
+        /// normal, as with them (oracle: the store with planes, itself checked against the
+        /// owner array above); the planes are the default, and touching pieces of one surface
+        /// that distinct planes kept apart may merge (the merged dexel names its first facet).
+        #[test]
+        fn without_planes_the_same_voxels(spans in proptest::collection::vec((0u16..64, 0u16..12, 0u16..2, -3i64..3), 0..24)) {
+            let (mut with, mut without) = (DexelStore::<64>::new(), DexelStore::<64>::new());
+            for (f, (lo, len, surf, p)) in spans.iter().enumerate() {
+                let plane = FacetPlane { id: f as u32 % 3, nx: *p as i16, ny: 1, nz: 2 << 16, m: 2 };
+                let t = FacetTag { facet: f as u32, material: 0, normal: NormalCode(*surf), plane };
+                let span = Span { lo: *lo, hi: lo + len };
+                let column = ColumnPlane { p: *p, c: 2 };
+                let (a, b) = (with.insert_on(span, t, &column), without.insert_without_planes(span, t));
+                prop_assert_eq!((a.added, a.shared, a.lost), (b.added, b.shared, b.lost));
+                check_invariant(&without);
+            }
+            for z in 0..80u16 {
+                let key = |d: &Dexel| (d.material, d.normal);
+                prop_assert_eq!(with.occupied(z).map(key), without.occupied(z).map(key));
+                prop_assert!(without.occupied(z).is_none_or(|d| d.plane == DexelPlane::default()));
             }
         }
 

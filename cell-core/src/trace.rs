@@ -124,6 +124,67 @@ pub struct LightSetup {
     pub rule: LitRule,
 }
 
+impl LightSetup {
+    /// The lighting environment this setup gives a cell, with sub-beam order `order` (what
+    /// [`Replayer`] and a firmware main loop pass to [`LightCell::step`]). Fails with
+    /// [`ReplayError::BadFar`] when the far distance is beyond the bit budget of `F`.
+    pub fn env<'s, F: FracBits>(&'s self, order: &'s SplitOrder) -> Result<LightEnv<'s, F>, ReplayError> {
+        let mut env = self.env_without_frustum(order)?;
+        env.frustum = self.frustum.as_ref().map(|o| o as &dyn crate::occupancy::FrustumTest<F>);
+        Ok(env)
+    }
+
+    /// [`LightSetup::env`] without the empty-frustum skip, whatever the setup says: for a
+    /// cell built without the skip (a firmware image that refuses setups with a summary).
+    /// Building the optional summary reference stores its vtable even when it is `None`, which
+    /// would keep the skip's code, and through the `Debug` bound the formatting machinery, in
+    /// the image. Always inlined: options a firmware fixes become constants through it.
+    ///
+    /// ```
+    /// use cell_core::beam::{frac::U0, Source, SourceId, SplitOrder};
+    /// use cell_core::light::{FrustumSummary, Policy};
+    /// use cell_core::lit::LitRule;
+    /// use cell_core::trace::LightSetup;
+    ///
+    /// let source = Source::at_voxel(SourceId(0), [4, 4, 4]).unwrap();
+    /// let frustum = Some(FrustumSummary::new(16, 16));
+    /// let (policy, rule) = (Policy::Thesis, LitRule::Thesis);
+    /// let setup = LightSetup {
+    ///     source, n: 16, depth: 16, far: 31, policy, fa: 16, merge: true, source_bit: 1,
+    ///     skip: None, hold: 0, frustum, rule,
+    /// };
+    /// let order = SplitOrder::default();
+    /// let with = setup.env::<U0>(&order).unwrap();
+    /// let without = setup.env_without_frustum::<U0>(&order).unwrap();
+    /// assert!(with.frustum.is_some() && without.frustum.is_none());
+    /// assert_eq!((without.far, without.fa, without.bounds), (with.far, with.fa, with.bounds));
+    /// ```
+    #[inline(always)]
+    pub fn env_without_frustum<'s, F: FracBits>(
+        &'s self,
+        order: &'s SplitOrder,
+    ) -> Result<LightEnv<'s, F>, ReplayError> {
+        Ok(LightEnv {
+            source: &self.source,
+            far: FarDistance::new(self.far).ok_or(ReplayError::BadFar)?,
+            n: self.n,
+            depth: self.depth,
+            policy: self.policy,
+            rule: self.rule,
+            order,
+            fa: self.fa as usize,
+            source_bit: self.source_bit,
+            merge: self.merge,
+            skip: self.skip,
+            bounds: SubBeamBounds::new(self.n, self.depth, self.skip, &self.source),
+            lit_visible_only: false,
+            hold: self.hold,
+            frustum: None,
+            rays: None,
+        })
+    }
+}
+
 /// What a cell needs to shade its pixel.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ShadeSetup {
@@ -319,17 +380,17 @@ const _: () = assert!(
     "traces carry an 8 x 8 x 8 summary, one byte per block row"
 );
 
-/// The sibling wait and the frustum summary of a light record (the summary's occupied
-/// blocks, rebuilt by marking one voxel of each: the summary is a function of its blocks).
-fn read_wait_and_frustum(r: &mut Reader<'_>, mut s: LightSetup) -> Result<LightSetup, DecodeError> {
-    s.hold = r.u16()?;
-    s.frustum = match r.u8()? {
-        0 => None,
+/// The frustum summary of a light record after its flag (the summary's occupied blocks,
+/// rebuilt by marking one voxel of each: the summary is a function of its blocks), for grid
+/// `n` × `n` × `depth`. What [`get_light_setup`] calls on a cell that holds summaries.
+pub fn read_frustum(r: &mut Reader<'_>, n: u32, depth: u32) -> Result<Option<FrustumSummary>, DecodeError> {
+    match r.u8()? {
+        0 => Ok(None),
         1 => {
-            if !(1..=crate::units::MAX_N).contains(&s.n) || !(1..=crate::units::MAX_N).contains(&s.depth) {
+            if !(1..=crate::units::MAX_N).contains(&n) || !(1..=crate::units::MAX_N).contains(&depth) {
                 return Err(DecodeError::BadValue("frustum grid"));
             }
-            let mut o = FrustumSummary::new(s.n, s.depth);
+            let mut o = FrustumSummary::new(n, depth);
             let (side, used) = (o.side(), o.blocks());
             for bx in 0..FRUSTUM_BLOCKS {
                 for by in 0..FRUSTUM_BLOCKS {
@@ -343,11 +404,97 @@ fn read_wait_and_frustum(r: &mut Reader<'_>, mut s: LightSetup) -> Result<LightS
                     }
                 }
             }
-            Some(o)
+            Ok(Some(o))
         }
-        _ => return Err(DecodeError::BadValue("frustum flag")),
+        _ => Err(DecodeError::BadValue("frustum flag")),
+    }
+}
+
+/// The payload of a header record (magic and version checked).
+pub fn get_header(r: &mut Reader<'_>) -> Result<Header, ReplayError> {
+    if r.u32()? != MAGIC || r.u8()? != VERSION {
+        return Err(ReplayError::BadHeader);
+    }
+    Ok(Header {
+        x: r.u16()?,
+        y: r.u16()?,
+        depth: r.u32()?,
+        frac_bits: r.u8()?,
+        dexels: r.u16()?,
+        fifo: r.u16()?,
+        out: r.u8()?,
+        lit: r.u16()?,
+    })
+}
+
+/// The payload of a light record. `frustum(r, n, depth)` reads the frustum flag and summary:
+/// [`read_frustum`], or, on a cell built without the empty-frustum skip, a reader that
+/// refuses a summary (so that its code is not in the image).
+pub fn get_light_setup(
+    r: &mut Reader<'_>,
+    frustum: impl FnOnce(&mut Reader<'_>, u32, u32) -> Result<Option<FrustumSummary>, DecodeError>,
+) -> Result<LightSetup, ReplayError> {
+    let id = SourceId(r.u16()?);
+    let mut pos = [SourceCoord::ZERO; 3];
+    for p in pos.iter_mut() {
+        *p = SourceCoord::from_bits(r.i32()?);
+    }
+    let mut s = LightSetup {
+        source: Source::new(id, pos),
+        n: r.u32()?,
+        depth: r.u32()?,
+        far: r.u32()?,
+        policy: match r.u8()? {
+            0 => Policy::Thesis,
+            1 => Policy::Wavefront,
+            2 => Policy::Radial,
+            _ => return Err(DecodeError::BadValue("policy").into()),
+        },
+        fa: r.u16()?,
+        merge: r.u8()? != 0,
+        source_bit: r.u32()?,
+        skip: match r.u8()? {
+            0 => None,
+            1 => Some(OccupiedBox { lo: [r.u16()?, r.u16()?, r.u16()?], hi: [r.u16()?, r.u16()?, r.u16()?] }),
+            _ => return Err(DecodeError::BadValue("skip flag").into()),
+        },
+        hold: r.u16()?,
+        frustum: None,
+        rule: LitRule::Thesis,
+    };
+    s.frustum = frustum(r, s.n, s.depth)?;
+    s.rule = match r.u8()? {
+        0 => LitRule::Thesis,
+        1 => LitRule::Plane,
+        _ => return Err(DecodeError::BadValue("lit rule").into()),
     };
     Ok(s)
+}
+
+/// The payload of a shading record.
+pub fn get_shade_setup(r: &mut Reader<'_>) -> Result<ShadeSetup, DecodeError> {
+    let ambient = f32x3(r)?;
+    let normal_mode = if r.u8()? == 1 { NormalMode::Face } else { NormalMode::Facet };
+    let mut lights = Vec::new();
+    for _ in 0..r.u8()? {
+        let l = PointLight { pos: f32x3(r)?, color: f32x3(r)? };
+        lights.push(l).map_err(|_| DecodeError::BadValue("too many lights"))?;
+    }
+    let mut materials = Vec::new();
+    for _ in 0..r.u8()? {
+        let m = Material { ka: f32x3(r)?, kd: f32x3(r)?, ks: f32x3(r)?, ns: r.f32()?, ke: f32x3(r)? };
+        materials.push(m).map_err(|_| DecodeError::BadValue("too many materials"))?;
+    }
+    // A camera's inverse follows for a scene seen through one; the grid's own view writes
+    // nothing (traces recorded before cameras read the same).
+    let eye = if r.remaining() == 0 {
+        Eye::Grid
+    } else {
+        let perspective = r.u8()? == 1;
+        let (n, width, near, far) = (r.f32()?, r.f32()?, r.f32()?, r.f32()?);
+        Eye::Camera(CameraView { n, perspective, width, near, far })
+    };
+    Ok(ShadeSetup { params: ShadeParams { ambient, normal_mode, eye }, lights, materials })
 }
 
 impl<'a, F: FracBits> Parser<'a, F> {
@@ -375,62 +522,13 @@ impl<'a, F: FracBits> Parser<'a, F> {
         let mut r = Reader::new(raw.payload);
         let ev = match raw.kind {
             kind::HEADER => {
-                if r.u32()? != MAGIC {
-                    return Err(ReplayError::BadHeader);
-                }
-                self.version = r.u8()?;
-                if self.version != VERSION {
-                    return Err(ReplayError::BadHeader);
-                }
-                Event::Header(Header {
-                    x: r.u16()?,
-                    y: r.u16()?,
-                    depth: r.u32()?,
-                    frac_bits: r.u8()?,
-                    dexels: r.u16()?,
-                    fifo: r.u16()?,
-                    out: r.u8()?,
-                    lit: r.u16()?,
-                })
+                let h = get_header(&mut r)?;
+                self.version = VERSION;
+                Event::Header(h)
             }
             kind::ROW => Event::Row(get_row(&mut r)?),
             kind::LIGHT => {
-                let id = SourceId(r.u16()?);
-                let mut pos = [SourceCoord::ZERO; 3];
-                for p in pos.iter_mut() {
-                    *p = SourceCoord::from_bits(r.i32()?);
-                }
-                let s = LightSetup {
-                    source: Source::new(id, pos),
-                    n: r.u32()?,
-                    depth: r.u32()?,
-                    far: r.u32()?,
-                    policy: match r.u8()? {
-                        0 => Policy::Thesis,
-                        1 => Policy::Wavefront,
-                        2 => Policy::Radial,
-                        _ => return Err(DecodeError::BadValue("policy").into()),
-                    },
-                    fa: r.u16()?,
-                    merge: r.u8()? != 0,
-                    source_bit: r.u32()?,
-                    skip: match r.u8()? {
-                        0 => None,
-                        1 => {
-                            Some(OccupiedBox { lo: [r.u16()?, r.u16()?, r.u16()?], hi: [r.u16()?, r.u16()?, r.u16()?] })
-                        }
-                        _ => return Err(DecodeError::BadValue("skip flag").into()),
-                    },
-                    hold: 0,
-                    frustum: None,
-                    rule: LitRule::Thesis,
-                };
-                let mut s = read_wait_and_frustum(&mut r, s)?;
-                s.rule = match r.u8()? {
-                    0 => LitRule::Thesis,
-                    1 => LitRule::Plane,
-                    _ => return Err(DecodeError::BadValue("lit rule").into()),
-                };
+                let s = get_light_setup(&mut r, read_frustum)?;
                 self.far = Some(FarDistance::new(s.far).ok_or(ReplayError::BadFar)?);
                 Event::Light(s)
             }
@@ -442,34 +540,7 @@ impl<'a, F: FracBits> Parser<'a, F> {
             }
             kind::STEP => Event::Step(r.u32()?),
             kind::GRANT => Event::Grant(port_of(r.u8()?)?),
-            kind::SHADE => {
-                let ambient = f32x3(&mut r)?;
-                let normal_mode = if r.u8()? == 1 { NormalMode::Face } else { NormalMode::Facet };
-                let mut lights = Vec::new();
-                for _ in 0..r.u8()? {
-                    let l = PointLight { pos: f32x3(&mut r)?, color: f32x3(&mut r)? };
-                    lights.push(l).map_err(|_| DecodeError::BadValue("too many lights"))?;
-                }
-                let mut materials = Vec::new();
-                for _ in 0..r.u8()? {
-                    let m = Material {
-                        ka: f32x3(&mut r)?,
-                        kd: f32x3(&mut r)?,
-                        ks: f32x3(&mut r)?,
-                        ns: r.f32()?,
-                        ke: f32x3(&mut r)?,
-                    };
-                    materials.push(m).map_err(|_| DecodeError::BadValue("too many materials"))?;
-                }
-                let eye = if r.remaining() == 0 {
-                    Eye::Grid
-                } else {
-                    let perspective = r.u8()? == 1;
-                    let (n, width, near, far) = (r.f32()?, r.f32()?, r.f32()?, r.f32()?);
-                    Eye::Camera(CameraView { n, perspective, width, near, far })
-                };
-                Event::Shade(ShadeSetup { params: ShadeParams { ambient, normal_mode, eye }, lights, materials })
-            }
+            kind::SHADE => Event::Shade(get_shade_setup(&mut r)?),
             kind::END => Event::End,
             k => return Err(DecodeError::UnknownKind(k).into()),
         };
@@ -673,27 +744,6 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
         Header { x, y, depth, frac_bits: F::U32 as u8, dexels: D as u16, fifo: FA as u16, out: OB as u8, lit: L as u16 }
     }
 
-    fn env<'s>(&self, setup: &'s LightSetup, order: &'s SplitOrder) -> Result<LightEnv<'s, F>, ReplayError> {
-        Ok(LightEnv {
-            source: &setup.source,
-            far: FarDistance::new(setup.far).ok_or(ReplayError::BadFar)?,
-            n: setup.n,
-            depth: setup.depth,
-            policy: setup.policy,
-            rule: setup.rule,
-            order,
-            fa: setup.fa as usize,
-            source_bit: setup.source_bit,
-            merge: setup.merge,
-            skip: setup.skip,
-            bounds: SubBeamBounds::new(setup.n, setup.depth, setup.skip, &setup.source),
-            lit_visible_only: false,
-            hold: setup.hold,
-            frustum: setup.frustum.as_ref().map(|o| o as &dyn crate::occupancy::FrustumTest<F>),
-            rays: None,
-        })
-    }
-
     fn accept(&mut self, m: BeamMsg<F>) -> Result<(), ReplayError> {
         let merge = self.setup.ok_or(ReplayError::NoLightSetup)?.merge;
         let fa = self.setup.map_or(0, |s| s.fa as usize);
@@ -777,7 +827,7 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
             Event::Step(n) => {
                 let setup = self.setup.ok_or(ReplayError::NoLightSetup)?;
                 let order = self.order;
-                let env = self.env(&setup, &order)?;
+                let env = setup.env(&order)?;
                 for _ in 0..n {
                     let r = self.light.step(&self.cell, &env, &self.activity);
                     self.digest.step(r);

@@ -152,14 +152,35 @@ impl<const D: usize> Cell<D> {
     /// facet's box, store it, and step the packet east (`T − A`, `U − A`, `G_i + A_i`) when
     /// cells further east still need it. Returns whether the caller must send `pkt` east.
     pub fn load_step(&mut self, pkt: &mut RowPacket, depth: u32) -> bool {
+        self.load_step_planes::<true>(pkt, depth)
+    }
+
+    /// [`Cell::load_step`] for a cell that runs only the thesis's lit rule (§5.5.5): its
+    /// dexels get no plane ([`DexelStore::insert_without_planes`]) and it keeps no visible
+    /// surface (the plane rule's pixel); the occupied voxels are the same. A firmware image
+    /// with a small flash budget leaves the plane arithmetic out this way.
+    ///
+    /// [`DexelStore::insert_without_planes`]: crate::dexel::DexelStore::insert_without_planes
+    pub fn load_step_without_planes(&mut self, pkt: &mut RowPacket, depth: u32) -> bool {
+        self.load_step_planes::<false>(pkt, depth)
+    }
+
+    #[inline(always)]
+    fn load_step_planes<const PLANES: bool>(&mut self, pkt: &mut RowPacket, depth: u32) -> bool {
         self.counters.packets += 1;
         if self.x >= pkt.bbox.x_min {
             self.counters.spans_computed += 1;
             if let Some(span) = row_span(pkt, depth) {
-                let ins = self.store.insert_on(span, pkt.tag, &pkt.column_plane());
+                let ins = if PLANES {
+                    self.store.insert_on(span, pkt.tag, &pkt.column_plane())
+                } else {
+                    self.store.insert_without_planes(span, pkt.tag)
+                };
                 self.counters.voxels_shared += ins.shared;
             }
-            crate::visible::depth_test(&mut self.visible, crate::visible::surface_of(pkt, depth));
+            if PLANES {
+                crate::visible::depth_test(&mut self.visible, crate::visible::surface_of(pkt, depth));
+            }
         }
         let forward = self.x < pkt.bbox.x_max;
         if forward {

@@ -69,8 +69,18 @@ use crate::normal::NormalCode;
 use crate::plane::FacetPlane;
 use crate::voxelize::{worst_case_g, worst_case_t, MAX_LATTICE_Q, MAX_LATTICE_SPAN};
 
-/// CRC-32/ISO-HDLC, table-driven (1 KiB of flash).
-pub const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+/// CRC-32/ISO-HDLC (computed as [`Crc32Table`] says).
+pub const CRC32: crc::Crc<u32, Crc32Table> = crc::Crc::<u32, Crc32Table>::new(&crc::CRC_32_ISO_HDLC);
+
+/// How [`CRC32`] computes: with the `crc-table` feature (a default one) from a 256-entry table
+/// (1 KiB of read-only data, one lookup per byte); without it bit by bit (no table, eight steps
+/// per byte), for a cell whose flash budget cannot hold the table (docs/FIRMWARE.md, "Flash
+/// budget"). The checksums are the same.
+#[cfg(feature = "crc-table")]
+pub type Crc32Table = crc::Table<1>;
+/// See the other definition.
+#[cfg(not(feature = "crc-table"))]
+pub type Crc32Table = crc::NoTable;
 
 /// Bytes before the payload: kind and length.
 pub const HEADER: usize = 3;

@@ -20,6 +20,7 @@
 #![no_std]
 #![no_main]
 
+mod vectors;
 mod wires;
 
 use core::cell::RefCell;

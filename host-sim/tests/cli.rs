@@ -256,6 +256,14 @@ fn audit_reports_sizes_and_the_budget() {
         get("static_cell") + get("bytes_row_packet") + get("static_light_cell"),
         "the static total is the sum of its parts"
     );
+    // A firmware image that is not there, or not an ELF: a clear error, no table, no panic.
+    let missing = dir.join("no-such-image");
+    let (code, err) = host_sim(&["audit", "cornell", "--n", "16", "--elf", missing.to_str().unwrap()]);
+    assert_ne!(code, 0);
+    assert!(err.contains("cannot read"), "{err}");
+    let (code, err) = host_sim(&["audit", "cornell", "--n", "16", "--elf", json.to_str().unwrap()]);
+    assert_ne!(code, 0);
+    assert!(err.contains("is not an ELF file"), "{err}");
 }
 
 #[test]

@@ -77,6 +77,132 @@ fn build_firmware(traces: &Path) -> PathBuf {
     target_dir.join(TARGET).join("release/rc2-firmware")
 }
 
+/// The production image (`firmware/src/bin/cell`, built with the replay image by the same
+/// `cargo build --release`): its code and read-only data, and its whole flash (vector table
+/// included), within the 16 KiB a cell is allowed, every byte of it in the per-module table of
+/// `host-sim audit`, and the cell's parts in it.
+fn check_production_image(elf: &Path) {
+    use host_sim::jobs::audit::{flash_table, FLASH_BUDGET};
+    let t = flash_table(elf).expect("read the production image's ELF");
+    let rows: Vec<String> = t.modules.iter().map(|m| format!("{} {} + {} B", m.module, m.code, m.data)).collect();
+    let table = rows.join("\n");
+    assert_eq!(t.modules.iter().map(|m| m.code + m.data).sum::<u64>(), t.flash, "every byte in one row:\n{table}");
+    assert!(
+        t.text + t.rodata <= FLASH_BUDGET && t.flash <= FLASH_BUDGET,
+        "the production image takes {} B of flash (text {} + rodata {} + vector table {}), over the \
+         {FLASH_BUDGET} B cell budget; by module:\n{table}",
+        t.flash,
+        t.text,
+        t.rodata,
+        t.vector_table
+    );
+    assert!(t.by_debug_info, "the release profile keeps debug info in the ELF (not in flash)");
+    for m in ["cell_core::beam", "cell_core::light", "cell_core::dexel", "cell_core::voxelize", "cell_core::link"] {
+        assert!(t.modules.iter().any(|r| r.module == m && r.code > 0), "no code of {m} in the image:\n{table}");
+    }
+}
+
+/// The host's side of a smoke run of the production image: the records that make cell (3, 5)
+/// of a 16 × 16 × 32 grid, a light setup (the thesis's rule and policy), the same setup with
+/// a flipped byte, an initial beam of the source in this cell, and a shading record.
+fn production_image_input() -> Vec<u8> {
+    use cell_core::beam::{Beam, Direction, FarDistance, Source, SourceId};
+    use cell_core::light::{BeamMsg, Policy};
+    use cell_core::lit::LitRule;
+    use cell_core::shade::{NormalMode, ShadeParams};
+    use cell_core::trace::{write_event, Event, LightSetup, Replayer, ShadeSetup};
+    use cell_core::wire::Message;
+    let source = Source::at_voxel(SourceId(0), [3, 5, 10]).unwrap();
+    let (policy, rule) = (Policy::Thesis, LitRule::Thesis);
+    let setup = LightSetup {
+        source,
+        n: 16,
+        depth: 32,
+        far: 31,
+        policy,
+        fa: 16,
+        merge: true,
+        source_bit: 1,
+        skip: None,
+        hold: 0,
+        frustum: None,
+        rule,
+    };
+    let shade = ShadeSetup {
+        params: ShadeParams { ambient: [0.1; 3], normal_mode: NormalMode::Facet, eye: cell_core::shade::Eye::Grid },
+        lights: Default::default(),
+        materials: Default::default(),
+    };
+    let header = Replayer::<U0, 64, 64, 3, 64>::header(3, 5, 32);
+    let mut input = Vec::new();
+    let frame = |ev: Event<'_, U0>| {
+        let mut buf = [0u8; 2048];
+        let n = write_event(&ev, &mut buf).unwrap();
+        buf[..n].to_vec()
+    };
+    input.extend(frame(Event::Header(header)));
+    let light = frame(Event::Light(setup));
+    let mut flipped = light.clone();
+    flipped[10] ^= 0x04;
+    input.extend(flipped);
+    input.extend(&light);
+    let beam = Beam::<U0>::initial(&source, Direction::ALL[0], FarDistance::new(31).unwrap());
+    let mut buf = [0u8; 64];
+    let n = Message::Beam(BeamMsg::new(beam, 10)).emit(0, &mut buf).unwrap();
+    input.extend(&buf[..n]);
+    input.extend(frame(Event::Shade(shade)));
+    input
+}
+
+/// Boot the production image with its host link (UART0) on QEMU's stdio and the port links
+/// unconnected, send [`production_image_input`], and read its report: the cell the header
+/// named, no pixel (shading is a feature the image leaves out), one bad frame (the flipped
+/// one), nothing lost, no lit voxel (the column is empty).
+fn run_production_image(elf: &Path) {
+    let mut child = Command::new(QEMU)
+        .args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-display", "none", "-monitor", "none"])
+        .args(["-serial", "stdio", "-kernel"])
+        .arg(elf)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("start qemu-system-arm");
+    // The host link stays open until the report is read: on end of input QEMU's stdio backend
+    // may close the serial port, and a guest slowed down by a loaded machine would answer into
+    // a closed port.
+    let mut host_link = child.stdin.take().unwrap();
+    host_link.write_all(&production_image_input()).unwrap();
+    host_link.flush().unwrap();
+    let mut stdout = child.stdout.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        // The report: header (kind, length), payload, CRC.
+        let mut head = [0u8; 3];
+        stdout.read_exact(&mut head).ok()?;
+        let mut rest = vec![0u8; u16::from_le_bytes([head[1], head[2]]) as usize + 4];
+        stdout.read_exact(&mut rest).ok()?;
+        Some([head.to_vec(), rest].concat())
+    });
+    let start = Instant::now();
+    while !reader.is_finished() && start.elapsed() < QEMU_TIMEOUT {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    drop(host_link);
+    let report = reader.join().unwrap().expect("the production image sent no report before QEMU stopped");
+    let (raw, used) = cell_core::wire::read_frame(&report).expect("the report's frame and CRC");
+    assert_eq!((raw.kind, used), (0x50, report.len()));
+    let p = raw.payload;
+    let u16_at = |i: usize| u16::from_le_bytes([p[i], p[i + 1]]);
+    let u32_at = |i: usize| u32::from_le_bytes(p[i..i + 4].try_into().unwrap());
+    assert_eq!((u16_at(0), u16_at(2)), (3, 5), "the cell the header named");
+    assert_eq!(p[4], 0, "no pixel without the shading feature");
+    let counters: Vec<u32> = (0..5).map(|k| u32_at(14 + 4 * k)).collect();
+    assert_eq!(counters, [0, 0, 0, 0, 1], "dexel overflows, lost voxels, lit overflows, refused beams, bad frames");
+    assert_eq!((p[34], p.len()), (0, 35), "no lit run in an empty column");
+}
+
 /// Boot `elf` in QEMU's mps2-an386 (Cortex-M4F), killed after [`QEMU_TIMEOUT`]; returns
 /// (exit code, stdout).
 fn run_qemu(elf: &Path) -> (Option<i32>, String) {
@@ -181,6 +307,8 @@ fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
     let t0 = Instant::now();
     let elf = build_firmware(&dir);
     let t_build = t0.elapsed();
+    check_production_image(&elf.with_file_name("cell"));
+    run_production_image(&elf.with_file_name("cell"));
     let (code, out) = run_qemu(&elf);
     eprintln!("firmware build {t_build:?}, QEMU run {:?}; QEMU said:\n{out}", t0.elapsed() - t_build);
     let got = parse_output(&out);

@@ -569,10 +569,14 @@ pub struct AuditArgs {
     /// Write the audit as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,
-    /// The firmware ELF whose text/data/bss to report (default: the release build under
-    /// firmware/, if it exists).
+    /// Write the firmware images' flash tables (per module) as CSV to this file.
     #[arg(long)]
-    pub elf: Option<PathBuf>,
+    pub csv: Option<PathBuf>,
+    /// A firmware ELF whose sections and flash per module to report; repeat for several
+    /// (default: the release builds under firmware/ that exist, the production image `cell`
+    /// and the trace-replaying `rc2-firmware`).
+    #[arg(long)]
+    pub elf: Vec<PathBuf>,
 }
 
 /// Options of `trace`.

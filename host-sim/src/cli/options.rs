@@ -136,7 +136,8 @@ impl From<&AuditArgs> for AuditOptions {
             load: a.load.config(DEFAULT_N),
             fa: a.fa,
             json: a.json.clone(),
-            elf: a.elf.clone(),
+            csv: a.csv.clone(),
+            elfs: a.elf.clone(),
         }
     }
 }

@@ -1,11 +1,15 @@
 //! `host-sim audit`: what one cell costs in RAM for a scene, against the per-cell budget in
-//! `memory.x`. Static sizes are `size_of` of the cell's types with the host's
+//! `memory.x`, and in flash, module by module, for the firmware images ([`flash`]). Static sizes are `size_of` of the cell's types with the host's
 //! compile-time capacities; used sizes come from a real load + light run (peak dexels, peak FIFO,
 //! peak lit runs over all cells, with the cell that needs the most); "needed" is a cell compiled
 //! with exactly the capacities the scene used.
 
+pub mod dwarf;
+pub mod flash;
+pub mod names;
+
 use std::mem::size_of;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use cell_core::beam::frac::U0;
@@ -13,6 +17,7 @@ use cell_core::cell::{Cell, DEFAULT_DEXELS};
 use cell_core::dexel::{Dexel, DexelStore};
 use cell_core::facet::{PipelinePacket, RowPacket};
 use cell_core::light::{BeamMsg, LitRun, LitRuns, OutBuffers, Policy};
+use cell_core::trace::{LightSetup, ShadeSetup};
 use cell_core::wire::{BEAM_PAYLOAD, HEADER, MAX_FRAME, ROW_PAYLOAD_BASE, TRAILER};
 
 use crate::machine::diffuse::{FrustumBlocks, LightConfig};
@@ -23,8 +28,10 @@ use crate::machine::loaded::{load_scene, resolve_lights};
 use crate::precompute::LoadConfig;
 use crate::scene::Mesh;
 
+pub use flash::{flash_table, FlashTable, FLASH_BUDGET};
+
 /// The per-cell RAM budget: the RAM `LENGTH` of the top-level `memory.x`.
-pub const MEMORY_X: &str = include_str!("../../../memory.x");
+pub const MEMORY_X: &str = include_str!("../../../../memory.x");
 
 /// Bytes of the `RAM` region in a linker memory script (`LENGTH = 64K`, `0x10000`, `65536`).
 pub fn ram_budget(memory_x: &str) -> Option<usize> {
@@ -84,6 +91,11 @@ pub struct Audit {
     /// 8, 16 and 32 blocks per axis (`--frustum-blocks`); not in the totals, which are those of
     /// a cell without the skips.
     pub frustum_summary: [usize; 3],
+    /// What a cell holds for one source's diffusion (the light setup; its frustum summary
+    /// is the 8-block one) and, while it shades, the shading inputs (lights and materials).
+    pub bytes_light_setup: usize,
+    /// See `bytes_light_setup`.
+    pub bytes_shade_setup: usize,
     /// Capacities compiled into the host.
     pub capacity_dexels: usize,
     /// See `capacity_dexels`.
@@ -116,90 +128,84 @@ pub struct Audit {
     pub wire_row_max: usize,
     /// An acknowledgement.
     pub wire_ack: usize,
-    /// The firmware, read from its ELF (when built).
-    pub firmware: Option<FirmwareSize>,
+    /// The firmware images read (`--elf`, or the release builds under `firmware/`): sections,
+    /// RAM of the replay image's `CELL` static, flash by module.
+    pub images: Vec<Image>,
 }
 
-/// Sizes of the firmware image, read from its ELF like `size` (Berkeley format).
+/// One firmware image: its flash table and the RAM its cell state takes, where a symbol says.
 #[derive(Clone, Debug, serde::Serialize)]
-pub struct FirmwareSize {
-    /// The ELF read.
-    pub elf: String,
-    /// Flash: vector table, code and read-only data.
-    pub text: u64,
-    /// Initialised statics (in flash and RAM).
-    pub data: u64,
-    /// Zeroed statics (RAM).
-    pub bss: u64,
-    /// The firmware's cell state (the `CELL` static: dexels, FIFO, output buffers, lit runs,
-    /// counters, replay bookkeeping), if the symbol is there.
+pub struct Image {
+    /// Flash by module ([`flash::flash_table`]).
+    pub flash: FlashTable,
+    /// The replay image's cell state (its `CELL` static: dexels, FIFO, output buffers, lit
+    /// runs, counters, replay bookkeeping), if the symbol is there.
     pub cell_static: Option<u64>,
-    /// FLASH length of `memory.x`.
-    pub flash_budget: Option<usize>,
+    /// FLASH length of `memory.x` (what the linker allows; the cell budget is
+    /// [`FLASH_BUDGET`]).
+    pub memory_x_flash: Option<usize>,
 }
 
-/// Read text/data/bss of an ARM ELF.
-pub fn firmware_size(path: &std::path::Path) -> Result<FirmwareSize> {
-    use object::{Object, ObjectSection, ObjectSymbol};
+/// Read an image: its flash table and the size of its `CELL` static.
+pub fn image(path: &Path) -> Result<Image> {
+    use object::{Object, ObjectSymbol};
+    let flash = flash_table(path)?;
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
     let elf = object::File::parse(&*bytes).with_context(|| format!("{} is not an ELF file", path.display()))?;
-    let (mut text, mut data, mut bss) = (0, 0, 0);
-    for s in elf.sections() {
-        match s.name().unwrap_or("") {
-            ".vector_table" | ".text" | ".rodata" => text += s.size(),
-            ".data" => data += s.size(),
-            ".bss" | ".uninit" => bss += s.size(),
-            _ => {}
-        }
-    }
     let cell_static = elf.symbols().find(|y| y.name().is_ok_and(|n| n.contains("rc2_firmware4CELL"))).map(|y| y.size());
-    Ok(FirmwareSize {
-        elf: path.display().to_string(),
-        text,
-        data,
-        bss,
-        cell_static,
-        flash_budget: region_length(MEMORY_X, "FLASH"),
-    })
+    Ok(Image { flash, cell_static, memory_x_flash: region_length(MEMORY_X, "FLASH") })
 }
 
-/// Where `cd firmware && cargo build --release` puts the ELF, relative to the workspace root.
-pub const FIRMWARE_ELF: &str = "firmware/target/thumbv7em-none-eabihf/release/rc2-firmware";
+/// Where `cd firmware && cargo build --release` puts the ELFs, relative to the workspace root:
+/// the production image (the cell driven by its links) and the trace-replaying one.
+pub const FIRMWARE_ELFS: [&str; 2] = [
+    "firmware/target/thumbv7em-none-eabihf/release/cell",
+    "firmware/target/thumbv7em-none-eabihf/release/rc2-firmware",
+];
 
-/// Load and light a scene with the default lighting settings and measure its cells.
-pub fn audit(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig, elf: Option<&std::path::Path>) -> Result<Audit> {
+/// The most any cell of a run used of each store, and the cell that used it.
+#[derive(Clone, Copy, Debug, Default)]
+struct Peaks {
+    dexels: (usize, [u32; 2]),
+    fifo: (usize, [u32; 2]),
+    lit_runs: (usize, [u32; 2]),
+}
+
+/// Load and light a scene, and find the peaks of its cells.
+fn peaks(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig) -> Result<Peaks> {
     let loaded = load_scene(mesh, cfg)?;
     let lights = resolve_lights(mesh, &loaded, &[])?;
     let (lighting, _) = run_diffusion::<U0>(mesh, &loaded, &lights, light, |_, _| {})?;
-    let (mut dexels, mut dexels_cell) = (0usize, [0u32; 2]);
+    let mut p = Peaks::default();
+    let raise = |slot: &mut (usize, [u32; 2]), v: usize, x: u16, y: u16| {
+        if v > slot.0 {
+            *slot = (v, [x as u32, y as u32]);
+        }
+    };
     for c in &loaded.grid.cells {
-        if c.store.dexels().len() > dexels {
-            dexels = c.store.dexels().len();
-            dexels_cell = [c.x as u32, c.y as u32];
-        }
+        raise(&mut p.dexels, c.store.dexels().len(), c.x, c.y);
     }
-    let (mut fifo, mut fifo_cell, mut runs, mut runs_cell) = (0usize, [0u32; 2], 0usize, [0u32; 2]);
     for c in &lighting.cells {
-        if c.counters.peak_fifo as usize > fifo {
-            fifo = c.counters.peak_fifo as usize;
-            fifo_cell = [c.x as u32, c.y as u32];
-        }
-        if c.lit.runs().len() > runs {
-            runs = c.lit.runs().len();
-            runs_cell = [c.x as u32, c.y as u32];
-        }
+        raise(&mut p.fifo, c.counters.peak_fifo as usize, c.x, c.y);
+        raise(&mut p.lit_runs, c.lit.runs().len(), c.x, c.y);
     }
+    Ok(p)
+}
+
+/// Load and light a scene with the default lighting settings, measure its cells, and read
+/// the firmware images `elfs`.
+pub fn audit(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig, elfs: &[PathBuf]) -> Result<Audit> {
+    let p = peaks(mesh, cfg, light)?;
     type Light = crate::machine::capacity::HostLightCell<U0>;
     let (b_dexel, b_msg, b_run) = (size_of::<Dexel>(), size_of::<BeamMsg<U0>>(), size_of::<LitRun>());
-    let static_fifo = size_of::<heapless::Vec<BeamMsg<U0>, FA_CAP>>();
-    let static_out = size_of::<OutBuffers<U0, OB_CAP>>();
-    let static_lit = size_of::<LitRuns<LIT_CAP>>();
     let static_cell = size_of::<Cell<DEFAULT_DEXELS>>();
     let static_light = size_of::<Light>();
     let static_total = static_cell + size_of::<RowPacket>() + static_light;
     // The same cell with every capacity cut to what the scene used.
-    let needed_total =
-        static_total - (DEFAULT_DEXELS - dexels) * b_dexel - (FA_CAP - fifo) * b_msg - (LIT_CAP - runs) * b_run;
+    let needed_total = static_total
+        - (DEFAULT_DEXELS - p.dexels.0) * b_dexel
+        - (FA_CAP - p.fifo.0) * b_msg
+        - (LIT_CAP - p.lit_runs.0) * b_run;
     let budget = ram_budget(MEMORY_X);
     Ok(Audit {
         scene: mesh.name.clone(),
@@ -211,21 +217,23 @@ pub fn audit(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig, elf: Option<&st
         bytes_lit_run: b_run,
         static_dexel_store: size_of::<DexelStore<DEFAULT_DEXELS>>(),
         static_cell,
-        static_fifo,
-        static_output_buffers: static_out,
-        static_lit_runs: static_lit,
+        static_fifo: size_of::<heapless::Vec<BeamMsg<U0>, FA_CAP>>(),
+        static_output_buffers: size_of::<OutBuffers<U0, OB_CAP>>(),
+        static_lit_runs: size_of::<LitRuns<LIT_CAP>>(),
         static_light_cell: static_light,
         static_total,
         frustum_summary: [FrustumBlocks::B8, FrustumBlocks::B16, FrustumBlocks::B32].map(FrustumBlocks::bytes),
+        bytes_light_setup: size_of::<LightSetup>(),
+        bytes_shade_setup: size_of::<ShadeSetup>(),
         capacity_dexels: DEFAULT_DEXELS,
         capacity_fifo: FA_CAP,
         capacity_lit_runs: LIT_CAP,
-        used_dexels: dexels,
-        used_dexels_cell: dexels_cell,
-        used_fifo: fifo,
-        used_fifo_cell: fifo_cell,
-        used_lit_runs: runs,
-        used_lit_runs_cell: runs_cell,
+        used_dexels: p.dexels.0,
+        used_dexels_cell: p.dexels.1,
+        used_fifo: p.fifo.0,
+        used_fifo_cell: p.fifo.1,
+        used_lit_runs: p.lit_runs.0,
+        used_lit_runs_cell: p.lit_runs.1,
         needed_total,
         budget_ram: budget,
         fits_budget: budget.map(|b| needed_total <= b),
@@ -233,12 +241,12 @@ pub fn audit(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig, elf: Option<&st
         wire_row_min: HEADER + ROW_PAYLOAD_BASE + TRAILER,
         wire_row_max: MAX_FRAME,
         wire_ack: HEADER + 1 + TRAILER,
-        firmware: elf.map(firmware_size).transpose()?,
+        images: elfs.iter().map(|e| image(e)).collect::<Result<_>>()?,
     })
 }
 
-/// The one-screen report.
-pub fn print(a: &Audit) {
+/// The RAM table: each store's static size with the host's capacities and what the scene used.
+fn print_ram(a: &Audit) {
     println!("{} at n = {}: RAM of one cell (code excluded)", a.scene, a.n);
     println!("| part | static (host capacities) | used by this scene |");
     println!("|---|---|---|");
@@ -265,26 +273,9 @@ pub fn print(a: &Audit) {
         "with --skip-frustum or --skip-hidden, add the occupancy summary: {s8} B (--frustum-blocks 8), {s16} B (16), {s32} B (32)"
     );
     println!(
-        "messages in memory: row packet {} B, pipeline packet {} B, beam {} B",
-        a.bytes_row_packet, a.bytes_pipeline_packet, a.bytes_beam_message
+        "per phase, besides the stores: the light setup {} B (lighting), the shading inputs {} B (shading, on the stack)",
+        a.bytes_light_setup, a.bytes_shade_setup
     );
-    println!(
-        "messages on the wire (framed, CRC-32): beam {} B, row packet {}..{} B, ack {} B",
-        a.wire_beam, a.wire_row_min, a.wire_row_max, a.wire_ack
-    );
-    match &a.firmware {
-        Some(f) => println!(
-            "firmware {}: text {} B, data {} B, bss {} B (flash {} of {} B); its cell state (CELL static) {} B",
-            f.elf,
-            f.text,
-            f.data,
-            f.bss,
-            f.text + f.data,
-            f.flash_budget.map_or("?".into(), |b| b.to_string()),
-            f.cell_static.map_or("?".into(), |b| b.to_string())
-        ),
-        None => println!("firmware: not built (cd firmware && cargo build --release), or give --elf"),
-    }
     match (a.budget_ram, a.fits_budget) {
         (Some(b), Some(fit)) => println!(
             "memory.x RAM budget {} B: {} (anchors: MasPar PE 16 KB; thesis §4.3.2: 16 KB per cell is too much)",
@@ -293,6 +284,74 @@ pub fn print(a: &Audit) {
         ),
         _ => println!("memory.x: no RAM length found"),
     }
+}
+
+/// Message sizes in memory and on the wire.
+fn print_messages(a: &Audit) {
+    println!(
+        "messages in memory: row packet {} B, pipeline packet {} B, beam {} B",
+        a.bytes_row_packet, a.bytes_pipeline_packet, a.bytes_beam_message
+    );
+    println!(
+        "messages on the wire (framed, CRC-32): beam {} B, row packet {}..{} B, ack {} B",
+        a.wire_beam, a.wire_row_min, a.wire_row_max, a.wire_ack
+    );
+}
+
+/// One image: sections, then flash by concern and module against the budget.
+pub fn print_image(i: &Image) {
+    let f = &i.flash;
+    println!(
+        "firmware {}: vector table {} B, text {} B, rodata {} B, data {} B, bss {} B; flash {} B of the {} B cell budget ({}){}",
+        f.elf,
+        f.vector_table,
+        f.text,
+        f.rodata,
+        f.data,
+        f.bss,
+        f.flash,
+        f.budget,
+        if f.flash <= f.budget { "fits" } else { "DOES NOT FIT" },
+        i.cell_static.map_or(String::new(), |b| format!("; its cell state (CELL static) {b} B of RAM"))
+    );
+    println!(
+        "| concern | module | code B | rodata B | total B |  (code by {})",
+        if f.by_debug_info { "DWARF: the innermost project frame" } else { "symbol" }
+    );
+    println!("|---|---|---:|---:|---:|");
+    for m in &f.modules {
+        println!("| {} | {} | {} | {} | {} |", m.concern, m.module, m.code, m.data, m.code + m.data);
+    }
+    for (c, n) in f.concerns().iter().filter(|(_, n)| *n > 0) {
+        println!("| **{c}** | | | | **{n}** |");
+    }
+    println!("| **total** | | | | **{}** |", f.flash);
+}
+
+/// The one-screen report.
+pub fn print(a: &Audit) {
+    print_ram(a);
+    print_messages(a);
+    if a.images.is_empty() {
+        println!("firmware: not built (cd firmware && cargo build --release), or give --elf");
+    }
+    for i in &a.images {
+        print_image(i);
+    }
+}
+
+/// The flash tables as CSV: one row per image and module.
+pub fn write_flash_csv(path: &Path, images: &[Image]) -> Result<()> {
+    use std::io::Write;
+    let mut w = crate::report::files::create(path)?;
+    writeln!(w, "elf,concern,module,code,rodata,total")?;
+    for i in images {
+        for m in &i.flash.modules {
+            writeln!(w, "{},{:?},{},{},{},{}", i.flash.elf, m.concern, m.module, m.code, m.data, m.code + m.data)?;
+        }
+        writeln!(w, "{},\"total\",,{},{},{}", i.flash.elf, i.flash.text, i.flash.flash - i.flash.text, i.flash.flash)?;
+    }
+    Ok(())
 }
 
 /// What the `audit` job measures and writes.
@@ -308,23 +367,31 @@ pub struct AuditOptions {
     pub fa: usize,
     /// Write the audit as JSON here.
     pub json: Option<PathBuf>,
-    /// The firmware ELF to report (default: [`FIRMWARE_ELF`], if it exists).
-    pub elf: Option<PathBuf>,
+    /// Write the flash tables as CSV here.
+    pub csv: Option<PathBuf>,
+    /// The firmware ELFs to report (default: those of [`FIRMWARE_ELFS`] that exist).
+    pub elfs: Vec<PathBuf>,
 }
 
 /// Run the `audit` job: a load + light run (wavefront policy with merging), the cell's sizes,
-/// printed and optionally written as JSON.
+/// the firmware images' flash by module; printed and optionally written as JSON and CSV.
 pub fn run(o: &AuditOptions) -> Result<()> {
     o.load.validate()?;
     let mesh = crate::scene::camera::apply(crate::scene::load(&o.scene)?, &o.view, o.load.n)?;
     let lcfg =
         LightConfig { fa: o.fa, policy: Policy::Wavefront, merge: true, record_visits: false, ..Default::default() };
-    let default_elf = PathBuf::from(FIRMWARE_ELF);
-    let elf = o.elf.clone().or_else(|| default_elf.exists().then_some(default_elf));
-    let a = audit(&mesh, &o.load, &lcfg, elf.as_deref())?;
+    let elfs = if o.elfs.is_empty() {
+        FIRMWARE_ELFS.iter().map(PathBuf::from).filter(|p| p.exists()).collect()
+    } else {
+        o.elfs.clone()
+    };
+    let a = audit(&mesh, &o.load, &lcfg, &elfs)?;
     print(&a);
     if let Some(p) = &o.json {
         crate::report::files::write_json(p, &a)?;
+    }
+    if let Some(p) = &o.csv {
+        write_flash_csv(p, &a.images)?;
     }
     Ok(())
 }
