@@ -616,6 +616,10 @@ pub struct LightEnv<'a, F: FracBits> {
     pub order: &'a SplitOrder,
     /// The FIFO limit in use (≤ the compile-time capacity; for FIFO-size sweeps).
     pub fa: usize,
+    /// The thesis's "si dir propagation libre" read strictly (§4.4.1): a beam is processed only
+    /// when the output buffer of every neighbour it sends to is *empty*, not merely has room.
+    /// A timing rule: same lit voxels, other cycles. `false`: room is enough.
+    pub free_ports: bool,
     /// Bit of the current source in [`SourceMask`].
     pub source_bit: SourceMask,
     /// Merge arriving beams into waiting beams of the same voxel when exact.
@@ -1432,7 +1436,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     /// FIFO).
     /// The eight output buffers are checked at once on their length word ([`room`]; byte p of
     /// `need` counts the sub-beams for port p).
-    fn fits(&self, fate: &Fate<'_, F>, fa: usize) -> bool {
+    /// Under [`LightEnv::free_ports`] every port it sends to must be empty as well.
+    fn fits(&self, fate: &Fate<'_, F>, env: &LightEnv<'_, F>) -> bool {
         let (mut need, mut own) = (0u64, 0usize);
         for (t, _) in fate.subs.iter() {
             match t {
@@ -1441,7 +1446,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             }
         }
         let stays = fate.keep.is_some() as usize;
-        room::<OB>(self.out.lengths(), need) && self.fifo.len() - 1 + stays + own <= fa.min(FA)
+        let lengths = self.out.lengths();
+        let free = !env.free_ports || (0..8).all(|p| (need >> (8 * p)) & 0xFF == 0 || (lengths >> (8 * p)) & 0xFF == 0);
+        free && room::<OB>(lengths, need) && self.fifo.len() - 1 + stays + own <= env.fa.min(FA)
     }
 
     /// One compute cycle (§4.4.1): pick a beam by `env.policy`, process it if the no-loss rule
@@ -1498,7 +1505,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         match env.policy {
             Policy::Thesis => {
                 self.fate(&self.fifo[0], cell, env, fate);
-                if self.fits(fate, env.fa) {
+                if self.fits(fate, env) {
                     Choice { chosen: Some(0), ..Choice::NONE }
                 } else {
                     // Put it back at the tail.
@@ -1558,7 +1565,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 continue;
             }
             self.fate(&self.fifo[i], cell, env, fate);
-            if self.fits(fate, env.fa) {
+            if self.fits(fate, env) {
                 choice.chosen = Some(i);
                 break;
             }
@@ -1877,7 +1884,7 @@ mod tests {
             let far = FarDistance::<U0>::new(n - 1).unwrap();
             let order = SplitOrder::default();
             let env = LightEnv {
-                source: &src, far, n, depth: n, order: &order, fa: 4, source_bit: 1, merge: true,
+                source: &src, far, n, depth: n, order: &order, fa: 4, free_ports: false, source_bit: 1, merge: true,
                 policy: if radial { Policy::Radial } else { Policy::Wavefront }, rule: LitRule::Thesis,
                 skip: None, lit_visible_only: false, hold, frustum: None,
                 bounds: SubBeamBounds::new(n, n, None, &src),
@@ -2012,6 +2019,7 @@ mod tests {
             rule: LitRule::Thesis,
             order: &order,
             fa: 8,
+            free_ports: false,
             source_bit: 1,
             merge: false,
             skip: None,

@@ -665,6 +665,8 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
             rule: setup.rule,
             order,
             fa: setup.fa as usize,
+            // A trace records rc2's timing (the host refuses to trace other timings).
+            free_ports: false,
             source_bit: setup.source_bit,
             merge: setup.merge,
             skip: setup.skip,
