@@ -1998,6 +1998,54 @@ mod tests {
         }
     }
 
+    /// The free-ports rule (§4.4.1, "si dir propagation libre"): the source's +z beam sends one
+    /// sub-beam to each of the 8 neighbours. With one message already waiting toward the east
+    /// there is room for one more, so the beam goes by default; under `free_ports` the east
+    /// port is not free and the cell is blocked until that buffer is empty.
+    #[test]
+    fn free_ports_wait_for_empty_output_buffers() {
+        use crate::beam::{SourceCoord, SourceId};
+        use fixed::types::extra::U0;
+        let n = 16;
+        let src = Source::new(SourceId(0), [SourceCoord::from_num(7); 3]);
+        let far = FarDistance::<U0>::new(n - 1).unwrap();
+        let order = SplitOrder::default();
+        let env = |free_ports| LightEnv {
+            source: &src,
+            far,
+            n,
+            depth: n,
+            policy: Policy::Thesis,
+            rule: LitRule::Thesis,
+            order: &order,
+            fa: 4,
+            free_ports,
+            source_bit: 1,
+            merge: false,
+            skip: None,
+            lit_visible_only: false,
+            hold: 0,
+            frustum: None,
+            bounds: SubBeamBounds::new(n, n, None, &src),
+        };
+        let store = Cell::<8>::new(7, 7);
+        let up = BeamMsg::new(Beam::<U0>::initial(&src, Direction::PosZ, far), 7);
+        let cell = |free_ports| {
+            let mut c = LightCell::<U0, 8, 3, 8>::new(7, 7);
+            c.accept(up, false, &Activity::new()).unwrap();
+            c.out.push_back(Port::E, up).unwrap();
+            let first = c.step(&store, &env(free_ports), &Activity::new());
+            (first, c)
+        };
+        let (step, c) = cell(false);
+        assert_eq!(step, Step::Processed);
+        assert!(Port::ALL.iter().all(|&p| c.out.len(p) == 1 + usize::from(p == Port::E)));
+        let (step, mut c) = cell(true);
+        assert_eq!(step, Step::Blocked);
+        c.out.pop_front(Port::E);
+        assert_eq!(c.step(&store, &env(true), &Activity::new()), Step::Processed);
+    }
+
     /// Among waiting beams of one layer, the wavefront takes the oldest and radial the one
     /// nearest the source's axis (|z − z_s|), whatever their arrival order; both take a smaller
     /// layer first. Checked on every pair of the +x beam's layer-2 sub-beams in one column.

@@ -59,18 +59,49 @@ mod tests {
     use super::*;
     use cell_core::beam::frac::U0;
 
-    /// The thesis's T = N_T + n, up to how far the last ray travels: N_T rays, each in the
-    /// grid for at most n/2 + 1 layers from the centre.
+    /// The mode traced again in f64, ray by ray (voxel ⌊s + u·k/D + ½⌋ per transverse axis,
+    /// exact for these small integers), in the same emission order.
+    fn oracle(n: u32, origin: bool) -> (u64, u64) {
+        let c = if origin { 0.0 } else { (n / 2) as f64 };
+        let d = (n - 1) as f64;
+        let inside = |p: f64| p >= 0.0 && p < n as f64;
+        let (mut i, mut t, mut messages) = (0u64, 0u64, 0u64);
+        // Principal axis and sign of +x, −x, +y, −y, +z, −z; the transverse axes in order.
+        for (w, s) in [(0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0)] {
+            for u in -(n as i64 - 1)..n as i64 {
+                for v in -(n as i64 - 1)..n as i64 {
+                    let (mut k, mut last) = (0u64, None);
+                    loop {
+                        let kk = k as f64;
+                        let at = ((c + u as f64 * kk / d + 0.5).floor(), (c + v as f64 * kk / d + 0.5).floor());
+                        if !inside(c + s * kk) || !inside(at.0) || !inside(at.1) {
+                            break;
+                        }
+                        if k > 0 && (w != 2 || last != Some(at)) {
+                            messages += 1;
+                        }
+                        last = Some(at);
+                        k += 1;
+                    }
+                    t = t.max(i + k);
+                    i += 1;
+                }
+            }
+        }
+        (t, messages)
+    }
+
+    /// Against the f64 oracle, from the centre and from the origin; and the thesis's
+    /// T = N_T + n up to how far the last ray travels (between 1 and n layers).
     #[test]
-    fn ray_by_ray_takes_n_t_plus_at_most_n() {
+    fn ray_by_ray_matches_the_f64_oracle() {
         for n in [2u32, 5, 8, 16] {
-            let (t, messages) = ray_by_ray::<U0>(n, false).unwrap();
-            let d = n as u64 - 1;
-            let rays = 6 * (2 * d + 1) * (2 * d + 1);
-            assert!(t > rays && t <= rays + n as u64, "n {n}: T {t}, N_T {rays}");
-            // Every ray of ±x and ±y changes cell at each of its steps: at least one message
-            // per ray that makes a step (n ≥ 2: all of those pointing inward at layer 1).
-            assert!(messages >= 4 * (2 * d + 1), "n {n}: {messages} messages");
+            for origin in [false, true] {
+                let got = ray_by_ray::<U0>(n, origin).unwrap();
+                assert_eq!(got, oracle(n, origin), "n {n}, origin {origin}");
+                let rays = 6 * (2 * n as u64 - 1).pow(2);
+                assert!(got.0 >= rays && got.0 <= rays + n as u64, "n {n}: T {}, N_T {rays}", got.0);
+            }
         }
     }
 }
