@@ -75,6 +75,13 @@ beams_processed,messages,peak_fifo,fifo_limit,blocked_cell_cycles,thesis_t,ratio
 t_with_detector,ray_by_ray_t,ray_by_ray_messages,wall_seconds";
 
 fn run_with<F: FracBits>(o: &TableOptions) -> Result<()> {
+    // Refuse a timing the cells cannot run before writing anything.
+    let fas: Vec<usize> = o.points().into_iter().flat_map(|(_, fa)| fa).chain(o.timelapse_fa.iter().copied()).collect();
+    for t in &o.timings {
+        for &fa in &fas {
+            t.timing.check(fa, true)?;
+        }
+    }
     let mut rows = Vec::new();
     let mut csv = create(&o.out)?;
     writeln!(csv, "{HEADER}")?;
