@@ -2,7 +2,7 @@
 # The thesis's §4.4.3 experiments under rc2's timing and the thesis-timing variant
 # (docs/DIFFUSION-TIMING.md): every published (N, FA) point, the "large enough" FIFO sweep,
 # the 16³ time-lapse; then the comparison tables and growth exponents.
-# Usage: bash bench/thesis-timing.sh        (writes bench-out/*.csv, *.png; ~15 min on 2 cores)
+# Usage: bash bench/thesis-timing.sh        (writes bench-out/*.csv, *.png; ~30 min on 2 shared cores)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 mkdir -p bench-out

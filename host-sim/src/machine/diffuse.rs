@@ -746,9 +746,21 @@ const fn taken_one(p: u8) -> u32 {
     1 << (4 * p)
 }
 
+/// The (port, count) pairs of a [`Taken`] value with a nonzero count, in port order.
+fn taken_counts(t: u32) -> impl Iterator<Item = (Port, u32)> {
+    let mut rest = t;
+    std::iter::from_fn(move || {
+        (rest != 0).then(|| {
+            let p = rest.trailing_zeros() / 4;
+            rest &= !(15 << (4 * p));
+            (Port::ALL[p as usize], t >> (4 * p) & 15)
+        })
+    })
+}
+
 /// The ports with a nonzero count in a [`Taken`] value.
 fn taken_mask(t: u32) -> u8 {
-    (0..8).fold(0u8, |m, p| m | (u8::from(t >> (4 * p) & 15 != 0) << p))
+    taken_counts(t).fold(0, |m, (p, _)| m | 1 << p.index())
 }
 
 /// Drop the messages of cell `i` whose offers were taken (its `taken` counts, then cleared);
@@ -759,8 +771,8 @@ fn pop_taken<F: FracBits>(c: &mut HostLightCell<F>, i: usize, taken: &[Taken]) -
         return false;
     }
     taken[i].store(0, Relaxed);
-    for p in Port::each(taken_mask(counts)) {
-        for _ in 0..counts >> (4 * p.index()) & 15 {
+    for (p, k) in taken_counts(counts) {
+        for _ in 0..k {
             c.out.pop_front(p);
         }
     }
@@ -1594,6 +1606,23 @@ mod tests {
     }
 
     proptest! {
+        /// A [`Taken`] value holds up to 15 messages per port: adding `taken_one` per message
+        /// and reading back gives each port's count, and the mask of the ports that had any.
+        #[test]
+        fn taken_counts_add_up(counts in proptest::array::uniform8(0u32..=3)) {
+            let t = Taken::new(0);
+            for (p, &k) in counts.iter().enumerate() {
+                for _ in 0..k {
+                    t.fetch_add(taken_one(p as u8), Relaxed);
+                }
+            }
+            let got: Vec<(usize, u32)> = taken_counts(t.load(Relaxed)).map(|(p, k)| (p.index(), k)).collect();
+            let want: Vec<(usize, u32)> = counts.iter().copied().enumerate().filter(|&(_, k)| k > 0).collect();
+            prop_assert_eq!(got, want);
+            let mask = counts.iter().enumerate().fold(0u8, |m, (p, &k)| m | (u8::from(k > 0) << p));
+            prop_assert_eq!(taken_mask(t.load(Relaxed)), mask);
+        }
+
         /// The merge gives exactly the order of a sort of all offers by (receiver, key,
         /// sender), and the receiver cut hands every offer, once, to the piece owning its
         /// receiver.
