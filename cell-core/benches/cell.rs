@@ -288,6 +288,7 @@ fn bench_fifo(c: &mut Criterion) {
         rule: cell_core::lit::LitRule::Thesis,
         order: &order,
         fa: 16,
+        free_ports: false,
         source_bit: 1,
         merge: true,
         skip: None,

@@ -631,6 +631,10 @@ pub struct LightEnv<'a, F: FracBits> {
     pub order: &'a SplitOrder,
     /// The FIFO limit in use (≤ the compile-time capacity; for FIFO-size sweeps).
     pub fa: usize,
+    /// The thesis's "si dir propagation libre" read strictly (§4.4.1): a beam is processed only
+    /// when the output buffer of every neighbour it sends to is *empty*, not merely has room.
+    /// A timing rule: same lit voxels, other cycles. `false`: room is enough.
+    pub free_ports: bool,
     /// Bit of the current source in [`SourceMask`].
     pub source_bit: SourceMask,
     /// Merge arriving beams into waiting beams of the same voxel when exact.
@@ -1470,7 +1474,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     /// FIFO).
     /// The eight output buffers are checked at once on their length word ([`room`]; byte p of
     /// `need` counts the sub-beams for port p).
-    fn fits(&self, fate: &Fate<'_, F>, fa: usize) -> bool {
+    /// Under [`LightEnv::free_ports`] every port it sends to must be empty as well.
+    fn fits(&self, fate: &Fate<'_, F>, env: &LightEnv<'_, F>) -> bool {
         let (mut need, mut own) = (0u64, 0usize);
         for (t, _) in fate.subs.iter() {
             match t {
@@ -1479,7 +1484,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             }
         }
         let stays = fate.keep.is_some() as usize;
-        room::<OB>(self.out.lengths(), need) && self.fifo.len() - 1 + stays + own <= fa.min(FA)
+        let lengths = self.out.lengths();
+        let free = !env.free_ports || (0..8).all(|p| (need >> (8 * p)) & 0xFF == 0 || (lengths >> (8 * p)) & 0xFF == 0);
+        free && room::<OB>(lengths, need) && self.fifo.len() - 1 + stays + own <= env.fa.min(FA)
     }
 
     /// One compute cycle (§4.4.1): pick a beam by `env.policy`, process it if the no-loss rule
@@ -1537,7 +1544,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         match env.policy {
             Policy::Thesis => {
                 self.fate(&self.fifo[0], cell, env, fate);
-                if self.fits(fate, env.fa) {
+                if self.fits(fate, env) {
                     Choice { chosen: Some(0), ..Choice::NONE }
                 } else {
                     // Put it back at the tail.
@@ -1597,7 +1604,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 continue;
             }
             self.fate(&self.fifo[i], cell, env, fate);
-            if self.fits(fate, env.fa) {
+            if self.fits(fate, env) {
                 choice.chosen = Some(i);
                 break;
             }
@@ -1924,7 +1931,7 @@ mod tests {
             let far = FarDistance::<U0>::new(n - 1).unwrap();
             let order = SplitOrder::default();
             let env = LightEnv {
-                source: &src, far, n, depth: n, order: &order, fa: 4, source_bit: 1, merge: true,
+                source: &src, far, n, depth: n, order: &order, fa: 4, free_ports: false, source_bit: 1, merge: true,
                 policy: if radial { Policy::Radial } else { Policy::Wavefront }, rule: LitRule::Thesis,
                 skip: None, lit_visible_only: false, hold, frustum: None, rays: None,
                 bounds: SubBeamBounds::new(n, n, None, &src),
@@ -2038,6 +2045,55 @@ mod tests {
         }
     }
 
+    /// The free-ports rule (§4.4.1, "si dir propagation libre"): the source's +z beam sends one
+    /// sub-beam to each of the 8 neighbours. With one message already waiting toward the east
+    /// there is room for one more, so the beam goes by default; under `free_ports` the east
+    /// port is not free and the cell is blocked until that buffer is empty.
+    #[test]
+    fn free_ports_wait_for_empty_output_buffers() {
+        use crate::beam::{SourceCoord, SourceId};
+        use fixed::types::extra::U0;
+        let n = 16;
+        let src = Source::new(SourceId(0), [SourceCoord::from_num(7); 3]);
+        let far = FarDistance::<U0>::new(n - 1).unwrap();
+        let order = SplitOrder::default();
+        let env = |free_ports| LightEnv {
+            source: &src,
+            far,
+            n,
+            depth: n,
+            policy: Policy::Thesis,
+            rule: LitRule::Thesis,
+            order: &order,
+            fa: 4,
+            free_ports,
+            source_bit: 1,
+            merge: false,
+            skip: None,
+            lit_visible_only: false,
+            hold: 0,
+            frustum: None,
+            rays: None,
+            bounds: SubBeamBounds::new(n, n, None, &src),
+        };
+        let store = Cell::<8>::new(7, 7);
+        let up = BeamMsg::new(Beam::<U0>::initial(&src, Direction::PosZ, far), 7);
+        let cell = |free_ports| {
+            let mut c = LightCell::<U0, 8, 3, 8>::new(7, 7);
+            c.accept(up, false, &Activity::new()).unwrap();
+            c.out.push_back(Port::E, up).unwrap();
+            let first = c.step(&store, &env(free_ports), &Activity::new());
+            (first, c)
+        };
+        let (step, c) = cell(false);
+        assert_eq!(step, Step::Processed);
+        assert!(Port::ALL.iter().all(|&p| c.out.len(p) == 1 + usize::from(p == Port::E)));
+        let (step, mut c) = cell(true);
+        assert_eq!(step, Step::Blocked);
+        c.out.pop_front(Port::E);
+        assert_eq!(c.step(&store, &env(true), &Activity::new()), Step::Processed);
+    }
+
     /// Among waiting beams of one layer, the wavefront takes the oldest and radial the one
     /// nearest the source's axis (|z − z_s|), whatever their arrival order; both take a smaller
     /// layer first. Checked on every pair of the +x beam's layer-2 sub-beams in one column.
@@ -2059,6 +2115,7 @@ mod tests {
             rule: LitRule::Thesis,
             order: &order,
             fa: 8,
+            free_ports: false,
             source_bit: 1,
             merge: false,
             skip: None,

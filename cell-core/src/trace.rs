@@ -173,6 +173,8 @@ impl LightSetup {
             rule: self.rule,
             order,
             fa: self.fa as usize,
+            // A trace records rc2's timing (the host refuses to trace other timings).
+            free_ports: false,
             source_bit: self.source_bit,
             merge: self.merge,
             skip: self.skip,

@@ -294,3 +294,62 @@ fn classic_lighting_options() {
     assert_eq!(code, 0, "{err}");
     assert!(err.contains("classic:") && err.contains("shadow disagreement"), "{err}");
 }
+
+/// `diffusion-table` under both timings: the published T beside ours with the ratio (N = 8,
+/// FA = 1 is a published point: 61 cycles), the time-lapse pictures; an input register that
+/// does not fit the compiled FIFO is a clear error.
+#[test]
+fn diffusion_table_compares_timings_with_the_thesis() {
+    let dir = tmp("t.keep", b"").with_file_name("");
+    let (csv, png, lapse) = (dir.join("t.csv"), dir.join("t.png"), dir.join("lapse.png"));
+    let (code, err) = host_sim(&[
+        "diffusion-table",
+        "--n",
+        "8",
+        "--fa",
+        "1,2",
+        "--policy",
+        "thesis",
+        "--timing",
+        "rc2,thesis",
+        "--source",
+        "origin",
+        "--timelapse",
+        lapse.to_str().unwrap(),
+        "--timelapse-fa",
+        "1",
+        "--quiet",
+        "--out",
+        csv.to_str().unwrap(),
+        "--plot",
+        png.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 4, "2 timings × 2 FIFO sizes");
+    for r in &rows {
+        let cycles: f64 = r[col("cycles")].parse().unwrap();
+        if r[col("fa")] == "1" {
+            assert_eq!(r[col("thesis_t")], "61");
+            let ratio: f64 = r[col("ratio")].parse().unwrap();
+            assert!((ratio - cycles / 61.0).abs() < 1e-3, "{r:?}");
+        } else {
+            assert_eq!(r[col("ratio")], "", "N = 8, FA = 2 is not published");
+        }
+        // The ray-by-ray mode takes at least one cycle per ray.
+        assert!(r[col("ray_by_ray_t")].parse::<u64>().unwrap() >= 6 * 15 * 15);
+    }
+    assert_eq!(rows.iter().filter(|r| r[col("timing")] == "thesis").count(), 2);
+    assert!(png.exists() && dir.join("lapse.fa1.png").exists());
+
+    let bad = dir.join("bad.csv");
+    let args = ["diffusion-table", "--n", "8", "--fa", "64", "--register", "true", "--quiet", "--out"];
+    let (code, err) = host_sim(&[&args[..], &[bad.to_str().unwrap()]].concat());
+    assert_ne!(code, 0);
+    assert!(err.contains("FIFO slots"), "{err}");
+    assert!(!bad.exists(), "nothing written on a refused timing");
+}

@@ -1,14 +1,16 @@
 //! Light diffusion by beam subdivision (thesis ch. 4, SPEC §3), against the independent
 //! per-ray oracle `rc2_tests::oracle::rays` (every ray of the lattice traced on its own):
 //! the lit voxels, their source masks and the ray counts must be identical, for any scene,
-//! sources, fraction bits f, FIFO size FA, policy and merging. Also: coverage of the empty
-//! scene, conservation, termination on adversarial sources, and the cycle counts we claim.
+//! sources, fraction bits f, FIFO size FA, policy, merging and timing rules (`Timing`: the
+//! thesis-timing variant and every knob). Also: coverage of the empty scene, conservation,
+//! termination on adversarial sources, and the cycle counts we claim.
 
 use cell_core::beam::{FracBits, Source, SourceCoord, SourceId};
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use host_sim::machine::diffuse::{diffuse, LightConfig, Lighting};
 use host_sim::machine::grid::Grid;
+use host_sim::machine::timing::{Emission, Timing};
 use host_sim::precompute::{LoadConfig, Q};
 use proptest::prelude::*;
 use rc2_tests::oracle::lit::trace_all_plane;
@@ -75,6 +77,20 @@ fn check_against_rays<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) 
     Ok(())
 }
 
+/// Every combination of the timing knobs (link rate 1–3, register, free ports, emission
+/// order, burst): 48 rule sets.
+fn all_timings() -> Vec<Timing> {
+    let mut all = Vec::new();
+    for link_rate in 1..=3 {
+        for bits in 0..16u8 {
+            let emission = if bits & 4 != 0 { Emission::ZFirst } else { Emission::XyFirst };
+            let (register, free_ports, burst) = (bits & 1 != 0, bits & 2 != 0, bits & 8 != 0);
+            all.push(Timing { link_rate, register, free_ports, emission, burst });
+        }
+    }
+    all
+}
+
 fn config() -> impl Strategy<Value = LightConfig> {
     (
         prop::sample::select(vec![1usize, 2, 3, 5, 16, 64]),
@@ -82,9 +98,12 @@ fn config() -> impl Strategy<Value = LightConfig> {
         any::<bool>(),
         any::<bool>(),
         prop::sample::select(vec![LitRule::Thesis, LitRule::Plane]),
+        prop::sample::select(all_timings()),
     )
-        .prop_map(|(fa, policy, merge, skip, rule)| LightConfig {
-            fa,
+        .prop_map(|(fa, policy, merge, skip, rule, timing)| LightConfig {
+            // An input register takes one FIFO slot of the compiled capacity.
+            fa: fa.min(64 - timing.register as usize),
+            timing,
             policy,
             merge,
             record_visits: false,
@@ -161,6 +180,34 @@ fn adversarial_sources() {
                     check_against_rays::<cell_core::beam::frac::U2>(&g, &[p], cfg)
                         .unwrap_or_else(|e| panic!("{name} {p:?} {rule:?}: {e}"));
                 }
+            }
+        }
+    }
+}
+
+/// The timing rules change when beams move, never what they carry: under every one of the 48
+/// rule sets, each policy and both lit rules, a scene with a floor and a box lights exactly
+/// the oracle's voxels (so the same set under every timing), and FIFO peaks respect FA plus
+/// the register.
+#[test]
+fn every_timing_lights_the_oracles_voxels() {
+    let n = 9u32;
+    let m = Q * n as i64;
+    let tris = [
+        [[0, 0, 8], [m, 0, 8], [m, m, 8]],
+        [[0, 0, 8], [m, m, 8], [0, m, 8]],
+        [[2 * Q, 2 * Q, 4 * Q], [6 * Q, 3 * Q, 5 * Q], [3 * Q, 6 * Q, 4 * Q]],
+    ];
+    let g = grid_with(n, &tris);
+    let src = [[100, 60, 120]];
+    for timing in all_timings() {
+        for policy in [Policy::Thesis, Policy::Wavefront, Policy::Radial] {
+            for rule in [LitRule::Thesis, LitRule::Plane] {
+                let cfg = LightConfig { fa: 2, policy, merge: policy.by_layer(), rule, timing, ..Default::default() };
+                check_against_rays::<cell_core::beam::frac::U0>(&g, &src, cfg)
+                    .unwrap_or_else(|e| panic!("{timing:?} {policy:?} {rule:?}: {e}"));
+                let peak = light::<cell_core::beam::frac::U0>(&g, &src, cfg).reports[0].counts.peak_fifo;
+                assert!(peak as usize <= timing.fifo_limit(2), "{timing:?}: FIFO peak {peak}");
             }
         }
     }

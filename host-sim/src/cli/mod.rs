@@ -148,6 +148,34 @@ impl From<PolicyArg> for cell_core::light::Policy {
     }
 }
 
+/// Timing rules of the diffusion cycle model (`machine::timing`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum TimingArg {
+    /// rc2's: one message per link and cycle, FA counts the beam in process, one initial
+    /// beam per cycle.
+    Rc2,
+    /// The thesis's as docs/DIFFUSION-TIMING.md reads its text and tables.
+    Thesis,
+}
+
+/// Where the diffusion table's source sits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SourceAtArg {
+    /// Voxel (n/2, n/2, n/2) (§4.4.3's time-lapse).
+    Centre,
+    /// Voxel (0, 0, 0), the case §4.3 derives and §4.4.4 starts from.
+    Origin,
+}
+
+/// Emission order of the six initial beams.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum EmissionArg {
+    /// x and y first, then z (§4.4.3's recommendation).
+    XyFirst,
+    /// z first.
+    ZFirst,
+}
+
 /// Scene and loading options, the same for every job that loads a scene.
 #[derive(Args, Debug, Clone)]
 pub struct LoadArgs {
@@ -458,6 +486,39 @@ pub struct TableArgs {
     /// Fraction bits f.
     #[arg(long, default_value_t = 0)]
     pub frac_bits: u32,
+    /// Timing rules of the cycle model to run (docs/DIFFUSION-TIMING.md).
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "rc2")]
+    pub timing: Vec<TimingArg>,
+    /// Override the timings' link rate: messages per link, direction and cycle (1 ..= 3).
+    #[arg(long)]
+    pub link_rate: Option<u8>,
+    /// Override the timings' input register: whether FA counts only the waiting beams.
+    #[arg(long)]
+    pub register: Option<bool>,
+    /// Override the timings' free-ports rule: a beam goes only when every output buffer it
+    /// sends to is empty.
+    #[arg(long)]
+    pub free_ports: Option<bool>,
+    /// Run every (N, FA) point the thesis published (§4.4.3's tables) instead of --n × --fa.
+    #[arg(long)]
+    pub published: bool,
+    /// Where the source sits: the grid's centre voxel (n/2, n/2, n/2) or its origin corner.
+    #[arg(long, value_enum, default_value_t = SourceAtArg::Centre)]
+    pub source: SourceAtArg,
+    /// Override the timings' emission order of the six initial beams.
+    #[arg(long, value_enum)]
+    pub emission: Option<EmissionArg>,
+    /// Override the timings' burst: the source hands over every initial beam its FIFO has
+    /// room for in one cycle.
+    #[arg(long)]
+    pub burst: Option<bool>,
+    /// Also write the thesis's time-lapse of the 16³ experiment (§4.4.3) as slices, one PNG
+    /// per FA of `--timelapse-fa`, named after this path (`F.fa1.png`, …); only that run.
+    #[arg(long)]
+    pub timelapse: Option<PathBuf>,
+    /// FIFO sizes of the time-lapse.
+    #[arg(long, value_delimiter = ',', default_value = "1,16")]
+    pub timelapse_fa: Vec<usize>,
     /// Output CSV.
     #[arg(long, default_value = "diffusion-table.csv")]
     pub out: PathBuf,

@@ -3,8 +3,8 @@
 
 use super::phase_args::LightingArg;
 use super::{
-    AccuracyArgs, AuditArgs, BenchArgs, LightArgs, LightOpts, RadiosityArgs, RenderArgs, SubdivideArgs, TableArgs,
-    TraceArgs, VoxelizeArgs, DEFAULT_N, TRACE_N,
+    AccuracyArgs, AuditArgs, BenchArgs, EmissionArg, LightArgs, LightOpts, RadiosityArgs, RenderArgs, SourceAtArg,
+    SubdivideArgs, TableArgs, TimingArg, TraceArgs, VoxelizeArgs, DEFAULT_N, TRACE_N,
 };
 use crate::jobs::accuracy::AccuracyOptions;
 use crate::jobs::audit::AuditOptions;
@@ -13,10 +13,11 @@ use crate::jobs::light::{LightOptions, LightingOptions};
 use crate::jobs::radiosity::RadiosityOptions;
 use crate::jobs::render::RenderOptions;
 use crate::jobs::scenes::SubdivideOptions;
-use crate::jobs::table::TableOptions;
+use crate::jobs::table::{NamedTiming, TableOptions};
 use crate::jobs::trace::TraceOptions;
 use crate::jobs::voxelize::VoxelizeOptions;
 use crate::machine::diffuse::{FrustumBlocks, LightConfig};
+use crate::machine::timing::{Emission, Timing};
 
 impl From<&LightOpts> for LightingOptions {
     fn from(a: &LightOpts) -> Self {
@@ -39,6 +40,8 @@ impl From<&LightOpts> for LightingOptions {
                 skip_hidden: false,
                 frustum_blocks: FrustumBlocks::default(),
                 rule: a.lit_rule.into(),
+                timing: Timing::RC2,
+                stop_at: None,
             },
             lit_visible_only: a.lit_visible_only,
             skip_hidden: a.skip_hidden,
@@ -150,11 +153,49 @@ impl From<&TableArgs> for TableOptions {
             policies: a.policy.iter().map(|&p| p.into()).collect(),
             merge: a.merge.choice(),
             frac_bits: a.frac_bits,
+            timings: a.timing.iter().map(|&t| table_timing(a, t)).collect(),
+            origin: a.source == SourceAtArg::Origin,
+            published: a.published,
+            timelapse: a.timelapse.clone(),
+            timelapse_fa: a.timelapse_fa.clone(),
             out: a.out.clone(),
             plot: a.plot.clone(),
             quiet: a.quiet,
         }
     }
+}
+
+/// A `diffusion-table` timing: the preset with the command line's overrides, named after both
+/// (e.g. `rc2+link_rate=3`).
+fn table_timing(a: &TableArgs, t: TimingArg) -> NamedTiming {
+    let (mut name, mut timing) = match t {
+        TimingArg::Rc2 => ("rc2".to_string(), Timing::RC2),
+        TimingArg::Thesis => ("thesis".to_string(), Timing::THESIS),
+    };
+    if let Some(k) = a.link_rate {
+        timing.link_rate = k;
+        name += &format!("+link_rate={k}");
+    }
+    if let Some(r) = a.register {
+        timing.register = r;
+        name += &format!("+register={r}");
+    }
+    if let Some(f) = a.free_ports {
+        timing.free_ports = f;
+        name += &format!("+free_ports={f}");
+    }
+    if let Some(e) = a.emission {
+        timing.emission = match e {
+            EmissionArg::XyFirst => Emission::XyFirst,
+            EmissionArg::ZFirst => Emission::ZFirst,
+        };
+        name += &format!("+emission={}", if e == EmissionArg::XyFirst { "xy" } else { "z" });
+    }
+    if let Some(b) = a.burst {
+        timing.burst = b;
+        name += &format!("+burst={b}");
+    }
+    NamedTiming { name, timing }
 }
 
 impl From<&AccuracyArgs> for AccuracyOptions {

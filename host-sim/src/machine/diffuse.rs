@@ -11,6 +11,9 @@
 //!    the same cycle fills deterministically.
 //!
 //! A message produced in cycle t is processed in cycle t + 1 at the earliest: one hop per cycle.
+//! These are rc2's timing rules; [`LightConfig::timing`] ([`Timing`]) changes the open ones
+//! (messages per link and cycle, an input register beside the FIFO, free output ports, the
+//! emission order and rate) without changing any lit voxel.
 //! `T` (cycles) counts cycles until the last beam is consumed, which the global activity
 //! counter ([`Activity`]) detects exactly. Only cells holding beams are visited. A cycle in
 //! which beams exist but nothing moves is a deadlock: reported as an error, never a hang.
@@ -35,6 +38,7 @@ use crate::machine::grid::Grid;
 use crate::machine::links::{self, lossless, sure, CellInbox, GridLinks, HostLink, Took, BACK};
 use crate::machine::tap::{Tap, Tracer};
 use crate::machine::tiles::{merge_sorted, prefetch, prefetch_ends, tiles};
+use crate::machine::timing::Timing;
 
 /// Default of [`LightConfig::stall_cycles`]: a fault-free machine that cannot move for one
 /// cycle is deadlocked; under link faults a few cycles of bad luck are normal.
@@ -84,6 +88,14 @@ pub struct LightConfig {
     pub frustum_blocks: FrustumBlocks,
     /// The lit rule ([`cell_core::lit`]): the plane rule (default) or the thesis's.
     pub rule: LitRule,
+    /// The timing rules the thesis leaves open ([`Timing`]; default: rc2's). Exact: changes
+    /// cycles, messages and FIFO occupancy, never lit voxels.
+    pub timing: Timing,
+    /// Stop each source's diffusion after this many cycles, beams still in flight (a snapshot
+    /// of the grid: which cells hold beams, which voxels were visited; the thesis's time-lapse,
+    /// §4.4.3). A source that ran until then is not checked for conservation. `None`: run
+    /// to quiescence.
+    pub stop_at: Option<u64>,
 }
 
 /// Blocks per axis of the summary the empty-frustum and hidden-voxel skips test beams against
@@ -175,6 +187,8 @@ impl Default for LightConfig {
             skip_hidden: false,
             frustum_blocks: FrustumBlocks::default(),
             rule: LitRule::Plane,
+            timing: Timing::RC2,
+            stop_at: None,
         }
     }
 }
@@ -348,6 +362,7 @@ pub fn diffuse_tapped<F: FracBits, const D: usize>(
     let occupied = occupied_box(grid, cfg.rule);
     let frustum = frustum_summary(grid, cfg, tap.is_some())?;
     check_recording(cfg, tap.is_some())?;
+    cfg.timing.check(cfg.fa, cfg.faults.is_none() && tap.is_none())?;
     let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref(), shot: None };
     let wire = cfg.faults.map(|faults| Wire { faults, far: far.get() });
     match (&wire, tap) {
@@ -498,7 +513,9 @@ impl<F: FracBits, const D: usize> AllSources<'_, F, D> {
                 diffuse_one(grid, cells, links, (src, initial), si, &env, cfg, dead, rec, |c| progress(si, c))?;
             rep.position = src.pos.map(|p| p.to_num::<f64>());
             add_cell_counts(&mut rep, cells, &before);
-            check_conservation(si, &rep.counts)?;
+            if cfg.stop_at.is_none_or(|t| rep.counts.cycles < t) {
+                check_conservation(si, &rep.counts)?;
+            }
             reports.push(rep);
         }
         let link_faults = fault_counts(links.all());
@@ -516,7 +533,8 @@ impl<F: FracBits, const D: usize> AllSources<'_, F, D> {
             policy: cfg.policy,
             rule: cfg.rule,
             order,
-            fa: cfg.fa,
+            fa: cfg.timing.fifo_limit(cfg.fa),
+            free_ports: cfg.timing.free_ports,
             source_bit: 1 << si,
             merge: cfg.merge,
             skip: cfg.skip_receding.then_some(occupied),
@@ -761,16 +779,44 @@ fn by_receiver<'a, T, F: FracBits, L>(
     out
 }
 
-/// Drop the messages of cell `i` whose offers were taken (its `taken` bits, then cleared);
+/// Messages a sender's links delivered in one cycle: a 4-bit count per port (port p in bits
+/// 4p ..= 4p + 3; a link carries at most [`Timing::link_rate`] ≤ `OB_CAP` < 16 per cycle).
+type Taken = AtomicU32;
+
+/// One message taken on port `p`, as a [`Taken`] increment.
+const fn taken_one(p: u8) -> u32 {
+    1 << (4 * p)
+}
+
+/// The (port, count) pairs of a [`Taken`] value with a nonzero count, in port order.
+fn taken_counts(t: u32) -> impl Iterator<Item = (Port, u32)> {
+    let mut rest = t;
+    std::iter::from_fn(move || {
+        (rest != 0).then(|| {
+            let p = rest.trailing_zeros() / 4;
+            rest &= !(15 << (4 * p));
+            (Port::ALL[p as usize], t >> (4 * p) & 15)
+        })
+    })
+}
+
+/// The ports with a nonzero count in a [`Taken`] value.
+fn taken_mask(t: u32) -> u8 {
+    taken_counts(t).fold(0, |m, (p, _)| m | 1 << p.index())
+}
+
+/// Drop the messages of cell `i` whose offers were taken (its `taken` counts, then cleared);
 /// whether there were any.
-fn pop_taken<F: FracBits>(c: &mut HostLightCell<F>, i: usize, taken: &[AtomicU8]) -> bool {
-    let ports = taken[i].load(Relaxed);
-    if ports == 0 {
+fn pop_taken<F: FracBits>(c: &mut HostLightCell<F>, i: usize, taken: &[Taken]) -> bool {
+    let counts = taken[i].load(Relaxed);
+    if counts == 0 {
         return false;
     }
     taken[i].store(0, Relaxed);
-    for p in Port::each(ports) {
-        c.out.pop_front(p);
+    for (p, k) in taken_counts(counts) {
+        for _ in 0..k {
+            c.out.pop_front(p);
+        }
     }
     true
 }
@@ -778,12 +824,12 @@ fn pop_taken<F: FracBits>(c: &mut HostLightCell<F>, i: usize, taken: &[AtomicU8]
 /// Mark the heads of cell `i` that went on the wire this cycle and were not acknowledged (its
 /// `unacked` bits, then cleared), and unmark those acknowledged (its `taken` bits): a head on
 /// the wire is not merged into ([`LightCell::head_in_flight`]).
-fn mark_in_flight<F: FracBits>(c: &mut HostLightCell<F>, i: usize, taken: &[AtomicU8], unacked: &[AtomicU8]) {
+fn mark_in_flight<F: FracBits>(c: &mut HostLightCell<F>, i: usize, taken: &[Taken], unacked: &[AtomicU8]) {
     let u = unacked[i].load(Relaxed);
     if u != 0 {
         unacked[i].store(0, Relaxed);
     }
-    c.head_in_flight = (c.head_in_flight & !taken[i].load(Relaxed)) | u;
+    c.head_in_flight = (c.head_in_flight & !taken_mask(taken[i].load(Relaxed))) | u;
 }
 
 /// Not a sleeper (see [`Sleepers::asleep`]).
@@ -804,7 +850,7 @@ fn diffuse_one<F: FracBits, const D: usize, L: HostLink<F>>(
     mut progress: impl FnMut(u64),
 ) -> Result<SourceReport> {
     let mut run = Run::new(grid, cells, links, src, si, env, cfg, dead, rec);
-    while run.running() {
+    while run.running() && cfg.stop_at.is_none_or(|t| run.cycle < t) {
         let mut moved = run.emit();
         moved |= run.compute();
         moved |= run.links();
@@ -827,6 +873,7 @@ fn initial_beams<F: FracBits>(
     far: FarDistance<F>,
     dead: Option<OccupiedBox>,
     shot: Option<&[Beam<F>]>,
+    order: [Direction; 6],
     rep: &mut SourceReport,
 ) -> Vec<Beam<F>> {
     if let Some(beams) = shot {
@@ -835,7 +882,7 @@ fn initial_beams<F: FracBits>(
     }
     let sv = src.voxel();
     let mut initial = Vec::new();
-    for d in Direction::ALL {
+    for d in order {
         let b = Beam::initial(src, d, far);
         rep.counts.rays_emitted += b.ray_count() as u128;
         if dead.is_some_and(|bx| bx.receding(d, sv, sv.map(i64::from))) {
@@ -874,10 +921,10 @@ struct Run<'a, 'e, F: FracBits, const D: usize, L> {
     active: Vec<u32>,
     /// The cell is (or, during a cycle, will be) in the active list.
     in_active: Vec<AtomicBool>,
-    /// Ports whose offer the receiver took this cycle, per sender (set by the receivers'
-    /// pieces, consumed by the senders' pieces); and (links that may not acknowledge at once)
-    /// ports whose offer went on the wire unacknowledged.
-    taken_ports: Vec<AtomicU8>,
+    /// Messages the receivers took this cycle, per sender, a [`Taken`] count per port (set by
+    /// the receivers' pieces, consumed by the senders' pieces); and (links that may not
+    /// acknowledge at once) ports whose offer went on the wire unacknowledged.
+    taken_ports: Vec<Taken>,
     unacked_ports: Vec<AtomicU8>,
     /// The links acknowledge every delivery at once ([`cell_core::link::Link::LOSSLESS`]).
     lossless: bool,
@@ -912,6 +959,9 @@ struct Run<'a, 'e, F: FracBits, const D: usize, L> {
     /// Cycles in a row in which no beam was processed, delivered or acknowledged.
     stalled: u64,
     stall_limit: u64,
+    /// [`Timing::burst`], and [`Timing::link_rate`] (messages offered per output buffer).
+    burst: bool,
+    link_rate: usize,
 }
 
 /// Held cells the host does not visit until their sibling wait ends or a beam arrives (exact:
@@ -962,7 +1012,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         let sv = src.voxel();
         let s_idx = sv[1] as usize * n + sv[0] as usize;
         let mut rep = SourceReport { source: si, ..Default::default() };
-        let initial = initial_beams(src, env.far, dead, shot, &mut rep);
+        let initial = initial_beams(src, env.far, dead, shot, cfg.timing.emission.order(), &mut rep);
         let activity = Activity::new();
         activity.add(initial.len() as u64);
         let mut pending = initial.into_iter();
@@ -1008,6 +1058,8 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
             unacked: false,
             stalled: 0,
             stall_limit: cfg.stall_cycles.max(1),
+            burst: cfg.timing.burst,
+            link_rate: cfg.timing.link_rate as usize,
         }
     }
 
@@ -1017,8 +1069,20 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
     }
 
     /// 1. The source emitter hands the next initial beam to the source cell if its FIFO has
-    ///    room; whether it did.
+    ///    room (under [`Timing::burst`], every one it has room for); whether it did.
     fn emit(&mut self) -> bool {
+        let mut moved = false;
+        while self.emit_one() {
+            moved = true;
+            if !self.burst {
+                break;
+            }
+        }
+        moved
+    }
+
+    /// Hand the next initial beam to the source cell if its FIFO has room; whether it did.
+    fn emit_one(&mut self) -> bool {
         let Some(b) = self.next_initial else { return false };
         let s_idx = self.s_idx;
         if !self.cells[s_idx].can_accept(self.env.fa) {
@@ -1054,6 +1118,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
             emitting: self.next_initial.is_some(),
             n: self.grid.n as usize,
             wave: self.env.policy.by_layer(),
+            link_rate: self.link_rate,
         };
         let visit = if self.stepping == Stepping::AllCells { &self.all } else { &self.active };
         let pieces = tiles(self.cells, visit, PIECE);
@@ -1280,7 +1345,10 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
                 self.rep.counts.peak_active_cells = self.rep.counts.peak_active_cells.max(b - drained);
             }
         }
-        debug_assert!(self.cells.iter().all(|c| !c.busy()) && self.taken_ports.iter().all(|t| t.load(Relaxed) == 0));
+        debug_assert!(
+            self.running()
+                || self.cells.iter().all(|c| !c.busy()) && self.taken_ports.iter().all(|t| t.load(Relaxed) == 0)
+        );
         self.rep.counts.cycles = self.cycle;
         let n = self.grid.n as usize;
         if let Some((i, load)) = busiest_link(n, &self.link_load) {
@@ -1313,7 +1381,7 @@ fn busiest_link(n: usize, load: &[AtomicU32]) -> Option<(usize, u32)> {
 struct StepCtx<'a, 'e, F: FracBits, const D: usize> {
     grid: &'a Grid<D>,
     env: &'a LightEnv<'e, F>,
-    taken_ports: &'a [AtomicU8],
+    taken_ports: &'a [Taken],
     defer_pops: bool,
     tapping: bool,
     record: bool,
@@ -1322,6 +1390,8 @@ struct StepCtx<'a, 'e, F: FracBits, const D: usize> {
     emitting: bool,
     n: usize,
     wave: bool,
+    /// Messages offered per output buffer ([`Timing::link_rate`]).
+    link_rate: usize,
 }
 
 impl<F: FracBits, const D: usize> StepCtx<'_, '_, F, D> {
@@ -1339,11 +1409,12 @@ impl<F: FracBits, const D: usize> StepCtx<'_, '_, F, D> {
             let step = c.step(&self.grid.cells[i as usize], self.env, &delta);
             self.note(c, i, step, r);
             for p in c.out.busy_ports() {
-                let m = &c.out.waiting(p)[0];
                 let (dx, dy) = p.delta();
                 let to = (i as i64 + dy as i64 * self.n as i64 + dx as i64) as u32;
-                let key = if self.wave { m.beam.layer().0 } else { 0 };
-                r.offers[p.index()].push(Offer { to, key, from: i, port: p.index() as u8, msg: *m });
+                for m in c.out.waiting(p).iter().take(self.link_rate) {
+                    let key = if self.wave { m.beam.layer().0 } else { 0 };
+                    r.offers[p.index()].push(Offer { to, key, from: i, port: p.index() as u8, msg: *m });
+                }
             }
         }
         r.delta = delta.get();
@@ -1355,7 +1426,7 @@ impl<F: FracBits, const D: usize> StepCtx<'_, '_, F, D> {
         prefetch_ends(&self.grid.cells[j].store);
         if self.defer_pops {
             // The buffers its pending pops will shift.
-            let t = self.taken_ports[j].load(Relaxed);
+            let t = taken_mask(self.taken_ports[j].load(Relaxed));
             for p in Port::each(t) {
                 prefetch(cj.out.slots(p));
             }
@@ -1393,7 +1464,7 @@ struct PullCtx<'a, 'e, F: FracBits> {
     stepping: Stepping,
     may_sleep: bool,
     lossless: bool,
-    taken_ports: &'a [AtomicU8],
+    taken_ports: &'a [Taken],
     unacked_ports: &'a [AtomicU8],
     in_active: &'a [AtomicBool],
     asleep: &'a [AtomicU64],
@@ -1434,7 +1505,7 @@ impl<F: FracBits> PullCtx<'_, '_, F> {
             *any |= sent.delivered || sent.acked;
             let bit = 1u8 << o.port;
             if sent.acked {
-                self.taken_ports[o.from as usize].fetch_or(bit, Relaxed);
+                self.taken_ports[o.from as usize].fetch_add(taken_one(o.port), Relaxed);
             } else if !self.lossless {
                 self.unacked_ports[o.from as usize].fetch_or(bit, Relaxed);
             }
@@ -1582,6 +1653,23 @@ mod tests {
     }
 
     proptest! {
+        /// A [`Taken`] value holds up to 15 messages per port: adding `taken_one` per message
+        /// and reading back gives each port's count, and the mask of the ports that had any.
+        #[test]
+        fn taken_counts_add_up(counts in proptest::array::uniform8(0u32..=3)) {
+            let t = Taken::new(0);
+            for (p, &k) in counts.iter().enumerate() {
+                for _ in 0..k {
+                    t.fetch_add(taken_one(p as u8), Relaxed);
+                }
+            }
+            let got: Vec<(usize, u32)> = taken_counts(t.load(Relaxed)).map(|(p, k)| (p.index(), k)).collect();
+            let want: Vec<(usize, u32)> = counts.iter().copied().enumerate().filter(|&(_, k)| k > 0).collect();
+            prop_assert_eq!(got, want);
+            let mask = counts.iter().enumerate().fold(0u8, |m, (p, &k)| m | (u8::from(k > 0) << p));
+            prop_assert_eq!(taken_mask(t.load(Relaxed)), mask);
+        }
+
         /// The merge gives exactly the order of a sort of all offers by (receiver, key,
         /// sender), and the receiver cut hands every offer, once, to the piece owning its
         /// receiver.

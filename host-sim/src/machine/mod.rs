@@ -5,7 +5,9 @@
 //!   the cell and grid types built from them.
 //! * [`grid`], [`load`], [`wave_ref`] — the loading wave (§3.9), its engines and its check.
 //! * [`loaded`] — a scene loaded into the grid, the world ↔ grid mapping, light placement.
-//! * [`diffuse`] — the beam-diffusion scheduler (§4.3–4.4), [`tiles`] its memory layout.
+//! * [`diffuse`] — the beam-diffusion scheduler (§4.3–4.4), [`tiles`] its memory layout,
+//!   [`timing`] the timing rules the thesis leaves open, [`sequential`] the ray-by-ray
+//!   emission mode it weighs against beams (§4.2.4).
 //! * [`lighting`] — a whole lighting run and its statistics.
 //! * [`classic`] — classic shadow rays (§4.1.2) on the same cycle model; [`network`] routes
 //!   their answers.
@@ -31,7 +33,9 @@ pub mod loaded;
 pub mod network;
 pub mod radiosity;
 pub mod reflect;
+pub mod sequential;
 pub mod shade;
 pub mod tap;
 pub mod tiles;
+pub mod timing;
 pub mod wave_ref;

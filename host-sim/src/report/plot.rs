@@ -5,12 +5,16 @@
 //! ([`THESIS_T`], [`THESIS_T_UNBOUNDED`]) in one 1600 × 700 PNG with two panels:
 //!
 //! * left, "T against N (log–log)": one solid line per (policy, FA) for a few FA values
-//!   (the smallest FA present, FA = 16 when present, and the largest FA run for each N);
-//!   the thesis's T for FA = 1, for its largest tabled FA per N and for its "large enough"
-//!   FIFOs as black/grey dashed lines; the ideal `T = N` and our lower bound `LB` (max over
-//!   the rows of each N) as dashed references;
-//! * right, "T against FA": one colour per N, our policies as solid lines (one marker shape
-//!   per policy), the thesis's `T(FA)` for the same N as crosses of the same colour.
+//!   (the smallest FA present, FA = 16 when present, and the largest FA run for each N swept
+//!   over FA); the thesis's T for FA = 1, for its largest tabled FA per N and for its "large
+//!   enough" FIFOs as black/grey dashed lines; the ideal `T = N` and our lower bound `LB` (max
+//!   over the rows of each N) as dashed references;
+//! * right, "T against FA": one colour per N swept over FA (every N when none was), our
+//!   policies as solid lines (one marker shape per policy), the thesis's `T(FA)` for the same
+//!   N as crosses of the same colour.
+//!
+//! [`plot_timelapse`] draws the thesis's time-lapse of the 16³ run: the slices of the voxels
+//! reached so far and the cells holding beams, one row per snapshot time.
 //!
 //! Each panel's legend sits in a strip under its chart (never over the data), laid out in as
 //! many columns as fit. The titles read "T against N (log–log)" and "T against FA" (an en
@@ -26,6 +30,8 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 use anyhow::{anyhow, bail, Context, Result};
+use plotters::chart::MeshStyle;
+use plotters::coord::ranged1d::ValueFormatter;
 use plotters::coord::Shift;
 use plotters::element::DashedPathElement;
 use plotters::prelude::*;
@@ -113,6 +119,71 @@ pub const THESIS_T_UNBOUNDED: &[(u32 /*N*/, u32 /*FA*/, u64 /*T*/)] = &[
     (63, 53, 505), (64, 53, 509),
 ];
 
+/// One frame of the thesis's 16³ time-lapse (§4.4.3): at cycle `t`, the voxels a beam was
+/// processed in so far (`reached`, index `(y·n + x)·n + z`) and the cells holding a beam
+/// (`active`, row-major).
+#[derive(Clone, Debug)]
+pub struct Snapshot {
+    pub t: u64,
+    pub reached: Vec<bool>,
+    pub active: Vec<bool>,
+}
+
+/// Pixels per voxel of a time-lapse slice, and the gap between slices.
+const SLICE_PX: u32 = 5;
+const SLICE_GAP: u32 = 6;
+
+/// The thesis's time-lapse figure (§4.4.3, N = 16, FA = 1 and 16): one row per snapshot, the
+/// n slices z = 0 … n − 1 of the voxels reached so far (black: reached), then the cells
+/// holding a beam at that time (black: active), as the thesis draws them.
+pub fn plot_timelapse(n: u32, frames: &[Snapshot], title: &str, path: &Path) -> Result<()> {
+    ensure_font()?;
+    if frames.iter().any(|f| f.reached.len() != (n * n * n) as usize || f.active.len() != (n * n) as usize) {
+        bail!("time-lapse frames must hold n³ voxels and n² cells (n = {n})");
+    }
+    let (side, label_w, top) = (n * SLICE_PX, 90u32, 40u32);
+    let w = label_w + (n + 1) * (side + SLICE_GAP) + 2 * SLICE_GAP;
+    let h = top + frames.len() as u32 * (side + SLICE_GAP) + 24;
+    let root = BitMapBackend::new(path, (w, h)).into_drawing_area();
+    root.fill(&WHITE).map_err(plot_err)?;
+    let text = |s: &str, x: u32, y: u32, size: u32| {
+        root.draw(&Text::new(s.to_string(), (x as i32, y as i32), (FONT, size).into_font())).map_err(plot_err)
+    };
+    text(title, 10, 8, 18)?;
+    let slice_x = |i: u32| label_w + i * (side + SLICE_GAP) + if i == n { 2 * SLICE_GAP } else { 0 };
+    for i in (0..n).step_by(4) {
+        text(&format!("z = {i}"), slice_x(i), top - 14, 11)?;
+    }
+    text("active cells", slice_x(n), top - 14, 11)?;
+    for (row, f) in frames.iter().enumerate() {
+        let y0 = top + row as u32 * (side + SLICE_GAP);
+        text(&format!("t = {}", f.t), 10, y0 + side / 2 - 7, 14)?;
+        for z in 0..=n {
+            let on = |x: u32, y: u32| {
+                if z == n {
+                    f.active[(y * n + x) as usize]
+                } else {
+                    f.reached[((y * n + x) * n + z) as usize]
+                }
+            };
+            let x0 = slice_x(z);
+            let frame = [(x0 as i32 - 1, y0 as i32 - 1), ((x0 + side) as i32, (y0 + side) as i32)];
+            root.draw(&Rectangle::new(frame, BLACK.mix(0.4))).map_err(plot_err)?;
+            for y in 0..n {
+                for x in 0..n {
+                    if on(x, y) {
+                        let (px, py) = ((x0 + x * SLICE_PX) as i32, (y0 + (n - 1 - y) * SLICE_PX) as i32);
+                        let r = [(px, py), (px + SLICE_PX as i32 - 1, py + SLICE_PX as i32 - 1)];
+                        root.draw(&Rectangle::new(r, BLACK.filled())).map_err(plot_err)?;
+                    }
+                }
+            }
+        }
+    }
+    root.present().map_err(plot_err)?;
+    Ok(())
+}
+
 /// Width and height of the PNG [`plot_diffusion`] writes, in pixels.
 pub const PLOT_SIZE: (u32, u32) = (1600, 700);
 
@@ -199,6 +270,20 @@ impl Data {
         Ok(Self { policies, t, lb, ns })
     }
 
+    /// The Ns run with several FAs (FA sweeps); all Ns when none was.
+    fn swept(&self) -> BTreeSet<u32> {
+        let mut fas: BTreeMap<u32, BTreeSet<u32>> = BTreeMap::new();
+        for &(_, fa, n) in self.t.keys() {
+            fas.entry(n).or_default().insert(fa);
+        }
+        let swept: BTreeSet<u32> = fas.iter().filter(|(_, f)| f.len() > 1).map(|(&n, _)| n).collect();
+        if swept.is_empty() {
+            self.ns.clone()
+        } else {
+            swept
+        }
+    }
+
     /// (FA, T) of one policy at one N, by FA.
     fn sweep(&self, p: usize, n: u32) -> Vec<(f64, f64)> {
         self.t.iter().filter(|((q, _, m), _)| *q == p && *m == n).map(|(&(_, fa, _), &t)| (f64::from(fa), t)).collect()
@@ -246,9 +331,10 @@ fn lines_against_n(d: &Data) -> Vec<Line> {
     if fas.contains(&16) && !fixed.contains(&16) {
         fixed.push(16);
     }
-    // The largest FA of each (policy, N).
+    // The largest FA of each (policy, N), for the Ns swept over FA.
+    let swept = d.swept();
     let mut largest: BTreeMap<(usize, u32), (u32, f64)> = BTreeMap::new();
-    for (&(p, fa, n), &t) in &d.t {
+    for (&(p, fa, n), &t) in d.t.iter().filter(|((_, _, n), _)| swept.contains(n)) {
         let e = largest.entry((p, n)).or_insert((fa, t));
         if fa >= e.0 {
             *e = (fa, t);
@@ -528,6 +614,31 @@ fn n_ticks(r: &std::ops::Range<f64>, ns: &BTreeSet<u32>) -> Vec<f64> {
     t
 }
 
+/// The mesh of a diffusion panel (T on y): integer labels, faint grid lines, the panel's x
+/// description; `tune` adds the panel's own settings.
+fn draw_t_mesh<'a, DB, X, Y>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    x_desc: &str,
+    tune: impl FnOnce(&mut MeshStyle<'a, '_, X, Y, DB>),
+) -> Result<()>
+where
+    DB: DrawingBackend,
+    X: Ranged<ValueType = f64> + ValueFormatter<f64>,
+    Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
+{
+    let mut mesh = chart.configure_mesh();
+    mesh.x_label_formatter(&label_int)
+        .y_label_formatter(&label_int)
+        .bold_line_style(BLACK.mix(0.15))
+        .light_line_style(BLACK.mix(0.05))
+        .label_style((FONT, 15))
+        .axis_desc_style((FONT, 17))
+        .x_desc(x_desc)
+        .y_desc("T\u{2002}(cycles)");
+    tune(&mut mesh);
+    mesh.draw().map_err(plot_err)
+}
+
 fn label_int(v: &f64) -> String {
     if (v - v.round()).abs() < 1e-6 {
         format!("{}", v.round() as i64)
@@ -653,18 +764,7 @@ fn draw_against_n<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, d: &Data, l
             yr.log_scale().with_key_points(y_bold).with_light_points(y_light),
         )
         .map_err(plot_err)?;
-    chart
-        .configure_mesh()
-        .x_label_formatter(&label_int)
-        .y_label_formatter(&label_int)
-        .bold_line_style(BLACK.mix(0.15))
-        .light_line_style(BLACK.mix(0.05))
-        .label_style((FONT, 15))
-        .axis_desc_style((FONT, 17))
-        .x_desc("N (grid size; scene N³)")
-        .y_desc("T\u{2002}(cycles)")
-        .draw()
-        .map_err(plot_err)?;
+    draw_t_mesh(&mut chart, "N (grid size; scene N³)", |_| {})?;
 
     // References first (underneath), then the thesis, then ours on top.
     draw_line(&mut chart, &ideal, ideal_look)?;
@@ -682,7 +782,7 @@ fn draw_against_n<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, d: &Data, l
 /// Right panel: T against FA for each N (linear FA, log T).
 /// With `legend_h = None` only measures: returns the legend strip's needed height.
 fn draw_against_fa<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, d: &Data, legend_h: Option<u32>) -> Result<u32> {
-    // The Ns drawn: ours; with no data, the thesis's FA sweeps.
+    // The Ns drawn: ours swept over FA; with no data, the thesis's FA sweeps.
     let ns: Vec<u32> = if d.ns.is_empty() {
         let mut c: BTreeMap<u32, usize> = BTreeMap::new();
         for &(n, _, _) in THESIS_T {
@@ -690,7 +790,7 @@ fn draw_against_fa<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, d: &Data, 
         }
         c.into_iter().filter(|&(_, k)| k > 1).map(|(n, _)| n).collect()
     } else {
-        d.ns.iter().copied().collect()
+        d.swept().into_iter().collect()
     };
     let mut lines = Vec::new();
     let mut thesis: Vec<(RGBColor, Vec<(f64, f64)>)> = Vec::new();
@@ -747,20 +847,9 @@ fn draw_against_fa<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, d: &Data, 
         .y_label_area_size(Y_LABEL_AREA)
         .build_cartesian_2d(xr, yr.log_scale().with_key_points(y_bold).with_light_points(y_light))
         .map_err(plot_err)?;
-    chart
-        .configure_mesh()
-        .x_labels(14)
-        .x_max_light_lines(1)
-        .x_label_formatter(&label_int)
-        .y_label_formatter(&label_int)
-        .bold_line_style(BLACK.mix(0.15))
-        .light_line_style(BLACK.mix(0.05))
-        .label_style((FONT, 15))
-        .axis_desc_style((FONT, 17))
-        .x_desc("FA (FIFO size, beams per cell)")
-        .y_desc("T\u{2002}(cycles)")
-        .draw()
-        .map_err(plot_err)?;
+    draw_t_mesh(&mut chart, "FA (FIFO size, beams per cell)", |m| {
+        m.x_labels(14).x_max_light_lines(1);
+    })?;
 
     for (colour, pts) in &thesis {
         draw_marks(&mut chart, pts, Mark::Cross, *colour)?;
