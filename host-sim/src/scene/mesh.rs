@@ -72,7 +72,7 @@ pub struct Mesh {
     pub rewound: usize,
     /// Set when the positions are in screen space ([`crate::scene::camera::to_screen`]): the
     /// camera, and the world positions they came from. `None`: world space, fitted into the grid.
-    pub screen: Option<std::sync::Arc<crate::scene::camera::Screen>>,
+    pub screen: Option<std::sync::Arc<super::view::Screen>>,
 }
 
 fn convert_material(m: &tobj::Material) -> Material {

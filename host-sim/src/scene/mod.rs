@@ -3,6 +3,7 @@
 //! * [`mesh`] — polygons, materials, lights; the OBJ/MTL reader.
 //! * [`builtin`] — the built-in scenes and [`load`], by name or path.
 //! * [`camera`] — the geometry stage: a camera and the map to screen space (thesis §1.3).
+//! * [`view`] — a camera's view transform (look-at basis, screen maps, depth range).
 //! * [`office`] — the procedural offices of the radiosity thesis (bureau1, bureau2, classe).
 //! * [`meshops`] — winding orientation, subdivision.
 //! * [`binvox`] — the `.binvox` voxel file format.
@@ -19,6 +20,7 @@ pub mod mesh;
 pub mod meshops;
 pub mod office;
 pub mod patches;
+pub mod view;
 
 pub use builtin::{load, BUILTINS};
 pub use mesh::{add_floor, load_obj_bytes, parse_obj, Face, Material, Mesh, SceneLight};
