@@ -610,7 +610,11 @@ pub trait RaySink<F: FracBits>: core::fmt::Debug + Sync {
 
 /// A processed beam's ray sets for a [`RaySink`]: (voxel depth where absorbed, or `None`: left
 /// the grid; the rays). At most the beam itself or its nine sub-beams.
-type RayEvents<F> = heapless::Vec<(Option<Depth>, Beam<F>), 10>;
+type RayEvents<F> = heapless::Vec<(Option<Depth>, Beam<F>), RAY_EVENTS>;
+
+/// Ray ends one processed beam can report: ten, or none without the `ray-sink` feature (a
+/// firmware image keeps the step's stack frame as small as before the hook).
+const RAY_EVENTS: usize = if cfg!(feature = "ray-sink") { 10 } else { 0 };
 
 /// What the machine around a cell looks like during one source's diffusion.
 #[derive(Clone, Copy, Debug)]
@@ -662,6 +666,7 @@ pub struct LightEnv<'a, F: FracBits> {
     /// clock: a beam kept blocked for 65 536 cycles may wait once more, never longer than `hold`.
     pub hold: u16,
     /// Report where the rays of every processed beam end ([`RaySink`]; thesis's rule only).
+    /// Compiled only with the `ray-sink` feature (a default one; ignored without it).
     /// `None`: off (the ordinary diffusion).
     pub rays: Option<&'a dyn RaySink<F>>,
 }
@@ -711,7 +716,12 @@ struct Fate<'s, F: FracBits> {
 type SubList<F> = heapless::Vec<(Target, BeamMsg<F>), 9>;
 
 /// Record a ray set's end in `events` (if recording): absorbed at depth `z`, or left (`None`).
+/// Compiled out without the `ray-sink` feature (a firmware image: no radiosity, no code).
+#[inline(always)]
 fn record<F: FracBits>(events: &mut Option<&mut RayEvents<F>>, z: Option<Depth>, beam: &Beam<F>) {
+    if !cfg!(feature = "ray-sink") {
+        return;
+    }
     if let Some(e) = events.as_deref_mut() {
         // At most ten per processed beam: never full.
         let _ = e.push((z, *beam));
