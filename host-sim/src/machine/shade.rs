@@ -133,7 +133,7 @@ pub fn shade_grid_with(
         };
         let (rgb, lit) = (px.rgb, px.lit);
         // The same inputs through the f64 formula: the error of the cell's arithmetic alone.
-        let exact = crate::truth::refrender::shade_view_f64(
+        let exact = crate::truth::refrender::shade_linear_view_f64(
             p.map(f64::from),
             nrm.map(f64::from),
             v.map(f64::from),
@@ -141,7 +141,8 @@ pub fn shade_grid_with(
             &ref_lights,
             lit,
             [AMBIENT as f64; 3],
-        );
+        )
+        .map(crate::truth::refrender::encode_gamma);
         for k in 0..3 {
             let e = rgb[k].abs_diff(exact[k]);
             img.shading_max_err_levels = img.shading_max_err_levels.max(e);

@@ -150,19 +150,6 @@ pub fn shade_linear_view_f64(
     c
 }
 
-/// [`shade_f64`] seen from direction `v` (unit, from the point toward the eye).
-pub fn shade_view_f64(
-    p: [f64; 3],
-    n: [f64; 3],
-    v: [f64; 3],
-    m: &Material,
-    lights: &[RefLight],
-    lit_mask: u32,
-    ambient: [f64; 3],
-) -> [u8; 3] {
-    shade_linear_view_f64(p, n, v, m, lights, lit_mask, ambient).map(encode_gamma)
-}
-
 /// The shading formula for one point (`f64`), shared with the tests of the discrete shader.
 ///
 /// `p_vox`: the point in voxel units; `n`: unit normal facing the viewer; `lit_mask`: bit `s`
@@ -401,7 +388,7 @@ impl<'a> RefScene<'a> {
         else {
             return;
         };
-        let p = if self.view.is_some() { origin + t * dir } else { Vector::new(origin.x, origin.y, origin.z + t) };
+        let p = origin + t * dir;
         let (c, mask) = self.colour(p, Vector::from(normal), facet, -dir, 1, 1.0);
         let i = y as usize * img.n as usize + x as usize;
         img.rgb[i] = c.map(encode_gamma);
