@@ -29,14 +29,16 @@
 //! 2. if it is *terminal* (it crossed a plane just before this layer): lights V if V is occupied,
 //!    its plane faces the source and σ_k or σ₋ holds; it is absorbed;
 //! 3. in an empty V goes on;
-//! 4. in an occupied V: lights V if V's plane faces the source and σ_k or σ₋; is absorbed if
-//!    σ₋ ≠ σ_k (it crossed the plane between the two layers); is absorbed if it is behind V's
-//!    plane at both layers (σ₋ = σ_k = 0) and came from empty space (its voxel at layer k − 1
-//!    was empty, [`crate::beam::Beam::after_empty`]) or from the outside of another column's
-//!    surface (its voxel at k − 1 was occupied, in another column, and the ray was on the
-//!    outside of that voxel's plane, [`crate::beam::Beam::after_outside`]) into a plane facing
-//!    the source: either way it crossed a surface between the two layers, in a voxel the
-//!    26-connected step skipped or in a voxel whose plane is another facet's; is absorbed if it
+//! 4. in an occupied V: lights V if the ray is on the source's side of V's plane at layer k or
+//!    k − 1 and that plane faces the source (σ_k or σ₋) or is two-sided (see below; ¬σ_k or
+//!    ¬σ₋); is absorbed if σ₋ ≠ σ_k (it crossed the plane between the two layers); is absorbed
+//!    if it is behind V's plane at both layers (σ₋ = σ_k = 0) and came from empty space (its
+//!    voxel at layer k − 1 was empty, [`crate::beam::Beam::after_empty`]) into a plane that
+//!    faces the source or is one-sided, or from the outside of another column's surface (its
+//!    voxel at k − 1 was occupied, in another column, and the ray was on the outside of that
+//!    voxel's plane, [`crate::beam::Beam::after_outside`]) into a plane facing the source:
+//!    either way it crossed a surface between the two layers, in a voxel the 26-connected step
+//!    skipped or in a voxel whose plane is another facet's; is absorbed if it
 //!    is a ±z ray that stays in its column at layer k + 1 (k < D: at the far plane every ray
 //!    leaves) and has passed another dexel of this column while staying in it (the *column
 //!    rule*, see below); becomes terminal if σ_k ≠ σ_{k+1} (it will cross before the next
@@ -44,7 +46,19 @@
 //!
 //! The terminal step lights the voxel the crossing point may lie in at the next layer. Planes
 //! stop rays from both sides (an open sheet is opaque both ways), but only facets facing the
-//! source are lit. A closed mesh stays closed: a ray crossing its surface crosses a plane in
+//! source, or two-sided ones, are lit.
+//!
+//! **Two-sided planes.** Behind a plane of a closed surface is its inside: a ray found there,
+//! coming from empty space, went through the surface. An open surface (a sheet, a room open
+//! to the viewer, a teapot without its bottom: [`crate::plane::TWO_SIDED`]) has no inside; its
+//! winding is its author's or the host's majority choice. Where it faces away from the source,
+//! "behind" is the source's own side, where a ray is before it reaches the plane: at grazing
+//! angles a ray enters the standard surface's band a few voxels before the plane, and stopping
+//! it there left most of a sheet wound away from its light dark. So rule 4 reads "behind" only
+//! for a two-sided plane facing the source, and a two-sided plane facing away is lit from its
+//! inner side: an open sheet is lit, and stops light, the same whatever its winding. Its far
+//! side is not read as "crossed unseen" either (the one-sided rule for a plane facing away):
+//! that is where rays pass a convex edge of an open mesh (the teapot's silhouette). A closed mesh stays closed: a ray crossing its surface crosses a plane in
 //! one of the two voxels around the crossing (the standard surface has no 26-tunnel), so it is
 //! stopped there — unless that voxel belongs to another facet (a junction), and then it is
 //! inside the mesh and is stopped where it leaves it. A step of a layer moves diagonally, so
@@ -111,6 +125,10 @@ pub struct RayPlane {
     k1: i128,
     cb: i128,
     cg: i128,
+    /// A facet of an open surface ([`crate::plane::TWO_SIDED`]): rule 4 reads "behind" only
+    /// when the plane faces the source (see the module doc). Only a voxel's own plane reads it,
+    /// not the visible surface's.
+    two_sided: bool,
 }
 
 impl RayPlane {
@@ -134,7 +152,7 @@ impl RayPlane {
             + c[u] * (df * s16(u) - l * reference[u] as i128)
             + c[v] * (df * s16(v) - l * reference[v] as i128)
             + (1i128 << 16) * l * plane.e as i128;
-        RayPlane { k0, k1: c[w] * l * dir.sign() as i128, cb: c[u], cg: c[v] }
+        RayPlane { k0, k1: c[w] * l * dir.sign() as i128, cb: c[u], cg: c[v], two_sided: plane.two_sided() }
     }
 
     /// `2¹⁶·L·g` at ray (a, b)'s point of parameter t.
@@ -371,8 +389,9 @@ impl Arrival {
 pub struct Visit {
     /// The tests, in the order [`Visit::verdict`] reads their bits.
     pub tests: Vec<Test, MAX_TESTS>,
-    /// Index of the voxel's own σ₋, σ_k, σ_{k+1} (when occupied).
-    own: Option<(usize, bool)>,
+    /// Index of the voxel's own σ₋, σ_k, σ_{k+1} (when occupied), whether its plane faces the
+    /// source, and whether it is two-sided.
+    own: Option<(usize, bool, bool)>,
     /// Index of the notch's σ_{t1}, σ_{t2} (and σ_{t2+1} when fresh), and its `fresh`, `front`.
     notch: Option<(usize, bool, bool)>,
     /// Index of the visible surface's σ₋, σ_k (when the voxel brackets it and it faces the source).
@@ -403,7 +422,7 @@ impl Visit {
             for t in [prev, k, k + 1] {
                 let _ = tests.push(Test { plane: p, t });
             }
-            (i, p.faces_source())
+            (i, p.faces_source(), p.two_sided)
         });
         let notch = notch.map(|(p, n)| {
             let i = tests.len();
@@ -432,15 +451,15 @@ impl Visit {
     /// for the way they arrived (rule 4): after an empty voxel, or after the outside of
     /// another column's plane into a plane facing the source.
     pub fn absorbs_behind(&self) -> bool {
-        let faces = self.own.is_some_and(|(_, front)| front);
-        self.arrival.after_empty || (self.arrival.after_outside && faces)
+        let Some((_, faces, two_sided)) = self.own else { return false };
+        (self.arrival.after_empty && (faces || !two_sided)) || (self.arrival.after_outside && faces)
     }
 
     /// Whether rays with test bits `bits` are on the outside of the voxel's plane at this
     /// layer (σ_k; false in an empty voxel): what [`Arrival::after_outside`] records for the
     /// next voxel.
     pub fn outside(&self, bits: u8) -> bool {
-        self.own.is_some_and(|(i, _)| bits >> (i + 1) & 1 == 1)
+        self.own.is_some_and(|(i, _, _)| bits >> (i + 1) & 1 == 1)
     }
 
     /// The verdict on rays whose test bits are `bits`; `stays`: they stay in the column (a ±z
@@ -459,15 +478,17 @@ impl Visit {
         if let Some(i) = self.visible {
             v.visible = bit(i) || bit(i + 1);
         }
-        let own = self.own.map(|(i, front)| (bit(i), bit(i + 1), bit(i + 2), front));
-        if let Some((prev, now, _, front)) = own {
-            v.lit = front && (prev || now);
+        let own = self.own.map(|(i, front, two_sided)| (bit(i), bit(i + 1), bit(i + 2), front, two_sided));
+        if let Some((prev, now, _, front, two_sided)) = own {
+            // On the source's side at layer k − 1 or k: the outer side of a plane facing the
+            // source, or the inner side of a two-sided one facing away.
+            v.lit = if front { prev || now } else { two_sided && !(prev && now) };
         }
         if terminal {
             v.out = Out::Absorbed;
             return v;
         }
-        let Some((prev, now, next, _)) = own else {
+        let Some((prev, now, next, _, _)) = own else {
             return v;
         };
         v.out = if prev != now || (stays && self.other_dexel) || (self.absorbs_behind() && !prev && !now) {
@@ -591,7 +612,7 @@ mod tests {
 
     #[test]
     fn verdicts_by_hand() {
-        let p = RayPlane { k0: 1, k1: 0, cb: 0, cg: 0 };
+        let p = RayPlane { k0: 1, k1: 0, cb: 0, cg: 0, two_sided: false };
         // Own plane only: bits (σ₋, σ_k, σ_{k+1}).
         let v = Visit::new(3, Arrival::NONE, Some(p), None, None, false);
         let out = |bits, stays| v.verdict(bits, stays).out;
@@ -613,6 +634,18 @@ mod tests {
         assert_eq!(Visit::new(3, o, Some(p), None, None, false).verdict(0b111, false).out, Out::Continue);
         let away = RayPlane { k0: -1, ..p };
         assert_eq!(Visit::new(3, o, Some(away), None, None, false).verdict(0b000, false).out, Out::Continue);
+        // A one-sided plane facing away: behind it after an empty voxel is inside a closed
+        // surface (absorbed, unlit). Two-sided, it is the source's side: the rays go on and
+        // light the voxel; in front of it they go on unlit.
+        assert_eq!(Visit::new(3, e.arrival, Some(away), None, None, false).verdict(0b000, false).out, Out::Absorbed);
+        let open = Visit::new(3, e.arrival, Some(RayPlane { two_sided: true, ..away }), None, None, false);
+        assert_eq!(open.verdict(0b000, false), Verdict { out: Out::Continue, lit: true, visible: false });
+        assert_eq!(open.verdict(0b100, false), Verdict { out: Out::Terminal, lit: true, visible: false });
+        assert_eq!(open.verdict(0b111, false), Verdict { out: Out::Continue, lit: false, visible: false });
+        assert!(!open.absorbs_behind());
+        // Two-sided and facing the source: the one-sided rule.
+        let front = Visit::new(3, e.arrival, Some(RayPlane { two_sided: true, ..p }), None, None, false);
+        assert_eq!(front.verdict(0b000, false).out, Out::Absorbed);
         // The column rule: staying rays meeting another dexel are absorbed.
         let w = Visit::new(3, Arrival::NONE, Some(p), None, None, true);
         assert_eq!(w.verdict(0b111, true).out, Out::Absorbed);

@@ -15,7 +15,8 @@
 //! The host knows each facet's exact lattice normal N = (A, B, C) (an `i128` cross product,
 //! §3.6). It sends, per facet:
 //!
-//! * `id`: equal for facets in the same exact oriented plane (the first such facet's id);
+//! * `id`: equal for facets in the same exact oriented plane (the first such facet's id), with
+//!   bit 31 ([`TWO_SIDED`]) set for a facet of an open surface;
 //! * the normal scaled so that its largest component is 2¹⁴: `nx = round(A·2¹⁴/m)`,
 //!   `ny = round(B·2¹⁴/m)` (`i16`, |·| ≤ 2¹⁴), and `nz = round(C·2³⁰/m)` (`i32`, the z
 //!   component with 16 more fraction bits, |·| ≤ 2³⁰), with `m = max(|A|, |B|, |C|)`;
@@ -56,7 +57,18 @@
 //! Bytes per dexel: 16 ([`DexelPlane`]); per packet: 20 ([`FacetPlane`]).
 
 /// Identifier of an exact oriented plane: facets in the same plane carry the same id.
+///
+/// Bit 31 is [`TWO_SIDED`]; the rest (below 2³¹) names the plane.
 pub type PlaneId = u32;
+
+/// The bit of a [`PlaneId`] that marks a facet of a surface that bounds no solid (a sheet, a
+/// room open to the viewer; the host decides, `meshops::open_faces`). Its winding was chosen
+/// by its author or by the host's majority rule, not by an inside, so it says nothing about
+/// which side light comes from: the plane lit rule reads such a plane's sides relative to each
+/// source ([`crate::lit`], "two-sided planes") instead of reading its winding as the outward
+/// side. Facets of solids keep their outward winding. It costs no byte: facet ids stay below
+/// 2³¹.
+pub const TWO_SIDED: PlaneId = 1 << 31;
 
 /// Largest |nx|, |ny|: the scaled normal's largest component.
 pub const NORMAL_SCALE: i32 = 1 << 14;
@@ -104,6 +116,11 @@ pub struct DexelPlane {
 }
 
 impl DexelPlane {
+    /// Whether the plane is a facet of an open surface ([`TWO_SIDED`]).
+    pub const fn two_sided(&self) -> bool {
+        self.id & TWO_SIDED != 0
+    }
+
     /// The same plane with the other orientation (g → −g), the same id. Exact: every field
     /// is within ±2³⁰ (or a saturated `e`, negated within `i32`).
     pub const fn flipped(&self) -> DexelPlane {

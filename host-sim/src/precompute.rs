@@ -452,8 +452,9 @@ fn gcd(a: i128, b: i128) -> i128 {
 /// The plane a facet's packet carries ([`cell_core::plane`]): its normal scaled to a largest
 /// component of 2¹⁴, and an id shared by every facet in the same exact oriented plane (`ids`
 /// maps the primitive normal and offset to the first such facet). A zero normal (a degenerate
-/// piece, which the packet builder skips) gets the default.
-pub fn facet_plane(poly: &[[i64; 3]], facet: u32, ids: &mut PlaneIds) -> FacetPlane {
+/// piece, which the packet builder skips) gets the default. `two_sided`: the facet belongs to
+/// an open surface ([`cell_core::plane::TWO_SIDED`], [`crate::scene::meshops::open_faces`]).
+pub fn facet_plane(poly: &[[i64; 3]], facet: u32, two_sided: bool, ids: &mut PlaneIds) -> FacetPlane {
     let n = polygon_normal(poly);
     let Some((nx, ny, nz, m)) = cell_core::plane::scale_normal(n) else {
         return FacetPlane::default();
@@ -461,7 +462,7 @@ pub fn facet_plane(poly: &[[i64; 3]], facet: u32, ids: &mut PlaneIds) -> FacetPl
     let g = gcd(gcd(n[0], n[1]), n[2]);
     let p = n.map(|v| v / g);
     let d = dot(p, poly[0].map(|c| c as i128));
-    let id = *ids.entry((p, d)).or_insert(facet);
+    let id = *ids.entry((p, d)).or_insert(facet) | if two_sided { cell_core::plane::TWO_SIDED } else { 0 };
     FacetPlane { id, nx, ny, nz, m }
 }
 
@@ -490,6 +491,7 @@ pub fn prepare(mesh: &Mesh, cfg: &LoadConfig) -> Result<Prepared> {
     let mut out = Prepared { fit: Some(fit), faces_in: mesh.faces.len(), ..Default::default() };
     let mut seen: std::collections::HashSet<(u16, [i8; 3], Vec<[i64; 3]>)> = Default::default();
     let mut planes = PlaneIds::default();
+    let open = crate::scene::meshops::open_faces(mesh);
     for (fi, face) in mesh.faces.iter().enumerate() {
         let lat: Vec<[i64; 3]> = face.verts.iter().map(|&v| fit.to_lattice(mesh.positions[v as usize])).collect();
         let (pieces, split) = planar_pieces(lat)
@@ -508,7 +510,7 @@ pub fn prepare(mesh: &Mesh, cfg: &LoadConfig) -> Result<Prepared> {
                 facet,
                 material: face.material,
                 normal: shading_normal(mesh, &fit, &piece, nrm),
-                plane: facet_plane(&piece, facet, &mut planes),
+                plane: facet_plane(&piece, facet, open[fi], &mut planes),
             };
             match facet_packet(&piece, tag, cfg)? {
                 Ok(pkt) => {
@@ -521,8 +523,8 @@ pub fn prepare(mesh: &Mesh, cfg: &LoadConfig) -> Result<Prepared> {
             }
         }
     }
-    if out.packets.len() > u32::MAX as usize {
-        bail!("too many facets");
+    if out.packets.len() >= cell_core::plane::TWO_SIDED as usize {
+        bail!("too many facets: {} (plane ids have 31 bits)", out.packets.len());
     }
     let total = out.packets.len() + out.skipped_degenerate;
     if total > 8 && out.skipped_degenerate * 2 > total {

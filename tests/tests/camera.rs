@@ -182,21 +182,26 @@ fn a_cube_lands_on_the_predicted_pixels() {
 /// neighbourhood (the pixel and two pixels around it: a voxel of the tilted floor spans up to
 /// two pixels' worth of floor in depth, and a grid is right to a voxel) is entirely in the
 /// exact shadow or entirely out of it, and entirely on the floor, is lit exactly when the exact
-/// floor point sees the light.
+/// floor point sees the light. The floor is an open sheet: wound with its outward side up,
+/// toward the light, or down, away from it, the result is the same.
 #[test]
 fn a_square_shadow_is_the_exact_one() {
+    for floor_up in [true, false] {
+        square_shadow(floor_up);
+    }
+}
+
+fn square_shadow(floor_up: bool) {
     let n = 96;
     let (floor_y, square_y, h) = (0.0, 1.5, 0.7);
     let mut positions = Vec::new();
     let mut faces = Vec::new();
-    quad(
-        &mut positions,
-        &mut faces,
-        // Wound counter-clockwise seen from above: the floor's outward side is up, toward the
-        // light (an open sheet wound away from its light is the lit rule's known defect).
-        [[-4.0, floor_y, -4.0], [-4.0, floor_y, 4.0], [4.0, floor_y, 4.0], [4.0, floor_y, -4.0]],
-        0,
-    );
+    // Counter-clockwise seen from above: the floor's outward side is up.
+    let mut floor = [[-4.0, floor_y, -4.0], [-4.0, floor_y, 4.0], [4.0, floor_y, 4.0], [4.0, floor_y, -4.0]];
+    if !floor_up {
+        floor.reverse();
+    }
+    quad(&mut positions, &mut faces, floor, 0);
     quad(&mut positions, &mut faces, [[-h, square_y, -h], [-h, square_y, h], [h, square_y, h], [h, square_y, -h]], 1);
     let mesh = Mesh {
         name: "square".into(),
@@ -254,9 +259,13 @@ fn a_square_shadow_is_the_exact_one() {
                     continue;
                 }
                 let i = (y * n + x) as usize;
-                assert!(image.covered[i], "{projection:?}: floor pixel ({x}, {y}) not covered");
+                assert!(image.covered[i], "{projection:?}, floor up {floor_up}: floor pixel ({x}, {y}) not covered");
                 let want = !s[0];
-                assert_eq!(image.lit[i] & 1 == 1, want, "{projection:?}: pixel ({x}, {y}) lit should be {want}");
+                assert_eq!(
+                    image.lit[i] & 1 == 1,
+                    want,
+                    "{projection:?}, floor up {floor_up}: pixel ({x}, {y}) lit should be {want}"
+                );
                 if want {
                     lit += 1
                 } else {

@@ -290,3 +290,51 @@ fn segment_square_test() {
     assert!(segment_meets_square([1.0, 0.0], [1.0, 3.0], [1.2, 2.0], 0.25)); // vertical
     assert!(!segment_meets_square([1.0, 0.0], [1.0, 3.0], [1.3, 2.0], 0.25));
 }
+
+/// One quad, the plane y = z/2 (seen from z = −∞ it is tilted in screen space), wound `front`
+/// toward the viewer or away from it.
+fn tilted_sheet(front: bool) -> Mesh {
+    let face = if front { "f 1 4 3 2" } else { "f 1 2 3 4" };
+    let obj = format!("v -4 -2 -4\nv 4 -2 -4\nv 4 2 4\nv -4 2 4\n{face}\n");
+    host_sim::scene::mesh::load_obj_bytes("tilted-sheet", obj.as_bytes(), None).unwrap()
+}
+
+/// A single planar sheet cannot shadow itself: the f64 reference lights every pixel of it
+/// whose surface faces the light, and so must the machine — whichever way the sheet is wound,
+/// with the same image both ways (an open sheet is two-sided; lit from the side its winding
+/// turns away from the light, its rays used to be absorbed by rule 4 as soon as they entered
+/// the thick band, before reaching the plane: 61.9 % of the pixels dark at n = 96,
+/// docs/LIGHTING.md). The lights graze the sheet at 7° to 25°, above and below the light's
+/// principal planes, and the beam diffusion equals the per-ray oracle here.
+#[test]
+fn a_tilted_sheet_is_lit_wherever_the_reference_sees_the_light() {
+    use cell_core::beam::frac::U0;
+    let n = 48;
+    let cfg = LightConfig { lit_visible_only: true, skip_hidden: true, ..Default::default() };
+    let rcfg = RenderConfig::diffusion(cfg, NormalMode::Facet);
+    let mut images = Vec::new();
+    for front in [false, true] {
+        let mesh = tilted_sheet(front);
+        let loaded = host_sim::machine::loaded::load_scene(
+            &mesh,
+            &LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative },
+        )
+        .unwrap();
+        for light in [[0.5, 0.5, 0.2], [0.5, 0.7, 0.2], [0.3, 0.35, 0.05]] {
+            let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[light]).unwrap();
+            let reference = host_sim::jobs::render::reference_image(&mesh, &loaded, &lights, &rcfg).unwrap();
+            let got = render::<U0>(&mesh, &loaded, &lights, cfg, Some(&reference)).image;
+            let want = oracle_image(&mesh, &loaded, &lights, LitRule::Plane, 0);
+            assert_eq!(got.lit, want.lit, "front {front}, light {light:?}: the machine equals the per-ray oracle");
+            let both: Vec<usize> = (0..got.covered.len()).filter(|&i| got.covered[i] && reference.covered[i]).collect();
+            assert!(both.len() > (n * n / 4) as usize, "the sheet covers a good part of the image");
+            assert!(both.iter().all(|&i| reference.lit[i] == 1), "the reference lights the whole sheet");
+            let dark: Vec<(u32, u32)> =
+                both.iter().filter(|&&i| got.lit[i] == 0).map(|&i| (i as u32 % n, i as u32 / n)).collect();
+            assert!(dark.is_empty(), "front {front}, light {light:?}: {} pixels dark: {dark:?}", dark.len());
+            images.push(got.lit);
+        }
+    }
+    let (away, toward) = images.split_at(images.len() / 2);
+    assert_eq!(away, toward, "the same lit pixels whichever way the sheet is wound");
+}

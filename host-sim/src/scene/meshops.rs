@@ -87,7 +87,7 @@ pub struct Orientation {
 ///
 /// The plane lit rule ([`cell_core::lit`]) reads a facet's winding normal as the side light
 /// travels on (a ray that reaches a surface voxel from empty space behind its plane has crossed
-/// a surface). OBJ files wind outward by convention, but not always: a stray reversed facet, or
+/// a surface), except on surfaces that bound no solid ([`open_faces`]: two-sided). OBJ files wind outward by convention, but not always: a stray reversed facet, or
 /// a whole mesh inside out. So, with vertices identified by position, each surface of faces
 /// joined by manifold edges (shared by exactly two faces) is made consistent — two faces
 /// sharing an edge traverse it in opposite directions — and then oriented: a closed surface
@@ -95,6 +95,170 @@ pub struct Orientation {
 /// to the viewer) keeping the winding of the larger part of its area, as its author meant.
 /// Degenerate faces (fewer than three distinct vertices) are left alone.
 pub fn orient(mesh: &mut Mesh) -> Orientation {
+    let surfaces = surfaces(mesh);
+    let mut flip = surfaces.flip;
+    let mut out = Orientation { components: surfaces.parts.len(), ..Default::default() };
+    for part in &surfaces.parts {
+        let reverse = if part.closed {
+            out.closed += 1;
+            signed_volume(mesh, &part.members, &flip) < 0.0
+        } else {
+            let (mut kept, mut turned) = (0.0, 0.0);
+            for &f in &part.members {
+                let a = area(mesh, &mesh.faces[f]);
+                if flip[f] == Some(true) {
+                    turned += a;
+                } else {
+                    kept += a;
+                }
+            }
+            turned > kept
+        };
+        for &f in &part.members {
+            flip[f] = flip[f].map(|x| x ^ reverse);
+        }
+    }
+    for (f, fl) in mesh.faces.iter_mut().zip(&flip) {
+        if *fl == Some(true) {
+            f.verts.reverse();
+            out.rewound += 1;
+        }
+    }
+    out
+}
+
+/// Which faces the plane lit rule treats as two-sided ([`cell_core::plane::TWO_SIDED`]): those
+/// of a surface that does not bound a solid, so that its winding says nothing about which side
+/// light comes from (a sheet, a floor, a room open to the viewer).
+///
+/// A closed surface (every edge shared by exactly two faces, consistently wound) bounds a
+/// solid. So may a surface that is open only by its edges' bookkeeping — a box whose faces are
+/// split with T-junctions, a solid in several pieces: for the faces of an open surface the
+/// generalized winding number (Jacobson et al. 2013: the solid angles of faces over 4π) of
+/// the surfaces it touches (sharing a vertex position, transitively) is measured just off a
+/// few of its faces, on both sides. Around solids it is a whole number: 0 outside an
+/// outward-wound solid, 1 inside, 1 on both sides of a face between two solids that touch
+/// (coincident faces of opposite windings cancel); beside a sheet it is fractional (about ∓½
+/// near a large flat one). A surface whose sampled faces all see whole numbers on both sides,
+/// within 0.1, is one-sided; every other open surface is two-sided.
+pub fn open_faces(mesh: &Mesh) -> Vec<bool> {
+    let mut open = vec![false; mesh.faces.len()];
+    let surfaces = surfaces(mesh);
+    if surfaces.parts.iter().all(|p| p.closed) {
+        return open;
+    }
+    let group = touching_groups(mesh, &surfaces.parts);
+    let mut tris_of: HashMap<usize, Vec<[Vector; 3]>> = HashMap::new();
+    for (i, part) in surfaces.parts.iter().enumerate().filter(|(_, p)| !p.closed) {
+        let tris = tris_of.entry(group[i]).or_insert_with(|| {
+            let faces = surfaces.parts.iter().enumerate().filter(|(j, _)| group[*j] == group[i]);
+            fan_triangles(mesh, faces.flat_map(|(_, p)| p.members.iter().copied()))
+        });
+        if !bounds_a_solid(mesh, part, tris) {
+            for &f in &part.members {
+                open[f] = true;
+            }
+        }
+    }
+    open
+}
+
+/// For each part, a representative of its group: parts that share a vertex position, directly
+/// or through other parts (the pieces of a solid split with T-junctions; not a floor and the
+/// mesh standing on it, unless they share a vertex).
+fn touching_groups(mesh: &Mesh, parts: &[Part]) -> Vec<usize> {
+    fn find(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let mut parent: Vec<usize> = (0..parts.len()).collect();
+    let mut owner: HashMap<[u64; 3], usize> = HashMap::new();
+    for (i, part) in parts.iter().enumerate() {
+        for &f in &part.members {
+            for &v in &mesh.faces[f].verts {
+                let Some(p) = mesh.positions.get(v as usize) else { continue };
+                let o = *owner.entry(p.map(f64::to_bits)).or_insert(i);
+                let (a, b) = (find(&mut parent, o), find(&mut parent, i));
+                parent[a] = b;
+            }
+        }
+    }
+    (0..parts.len()).map(|i| find(&mut parent, i)).collect()
+}
+
+/// Faces sampled per open surface by [`open_faces`].
+const WINDING_SAMPLES: usize = 3;
+
+/// Whether the winding number of the touching surfaces is a whole number on both sides of a
+/// few of the part's faces (see [`open_faces`]).
+fn bounds_a_solid(mesh: &Mesh, part: &Part, tris: &[[Vector; 3]]) -> bool {
+    let m = &part.members;
+    let picks = (0..WINDING_SAMPLES).map(|k| m[k * (m.len() - 1) / (WINDING_SAMPLES - 1).max(1)]);
+    let mut sampled = 0;
+    for f in picks {
+        let face = &mesh.faces[f];
+        let a = area_vector(mesh, face);
+        let (len, p) = (a.length(), |i: usize| Vector::from(mesh.positions[face.verts[i] as usize]));
+        if len == 0.0 || !len.is_finite() {
+            continue;
+        }
+        // The centroid of the fan's first triangle lies inside the polygon.
+        let c = (p(0) + p(1) + p(2)) / 3.0;
+        let off = a / len * (1e-3 * len.sqrt());
+        let (outer, inner) = (winding_number(c + off, tris), winding_number(c - off, tris));
+        let fractional = |w: f64| (w - w.round()).abs() > 0.1;
+        if fractional(outer) || fractional(inner) {
+            return false;
+        }
+        sampled += 1;
+    }
+    sampled > 0
+}
+
+/// Faces `faces` as fans of triangles (world positions).
+fn fan_triangles(mesh: &Mesh, faces: impl Iterator<Item = usize>) -> Vec<[Vector; 3]> {
+    let p = |v: u32| Vector::from(mesh.positions[v as usize]);
+    faces
+        .map(|f| &mesh.faces[f])
+        .flat_map(|f| {
+            (1..f.verts.len().saturating_sub(1)).map(move |k| [p(f.verts[0]), p(f.verts[k]), p(f.verts[k + 1])])
+        })
+        .collect()
+}
+
+/// The generalized winding number at `q`: the triangles' signed solid angles over 4π (Van
+/// Oosterom and Strackee's formula).
+fn winding_number(q: Vector, tris: &[[Vector; 3]]) -> f64 {
+    let mut sum = 0.0;
+    for t in tris {
+        let (a, b, c) = (t[0] - q, t[1] - q, t[2] - q);
+        let (la, lb, lc) = (a.length(), b.length(), c.length());
+        let num = a.dot(b.cross(c));
+        let den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+        sum += 2.0 * num.atan2(den);
+    }
+    sum / (4.0 * std::f64::consts::PI)
+}
+
+/// One connected surface: faces joined by manifold edges.
+struct Part {
+    members: Vec<usize>,
+    /// Every edge shared by exactly two faces, consistently orientable.
+    closed: bool,
+}
+
+/// The mesh's connected surfaces, and for each face whether reversing it makes its surface's
+/// winding consistent (`None`: a degenerate face, in no surface).
+struct Surfaces {
+    flip: Vec<Option<bool>>,
+    parts: Vec<Part>,
+}
+
+/// Floods the surfaces of `mesh`, vertices identified by exact position.
+fn surfaces(mesh: &Mesh) -> Surfaces {
     let faces = &mesh.faces;
     // Vertices identified by exact position (files may repeat a position).
     let mut canon: HashMap<[u64; 3], u32> = HashMap::new();
@@ -134,13 +298,12 @@ pub fn orient(mesh: &mut Mesh) -> Orientation {
         }
     }
     let mut flip: Vec<Option<bool>> = vec![None; faces.len()];
-    let mut out = Orientation::default();
+    let mut parts = Vec::new();
     for seed in 0..faces.len() {
         if flip[seed].is_some() || ring(&faces[seed]).iter().collect::<std::collections::HashSet<_>>().len() < 3 {
             continue;
         }
         // Flood one surface: consistent iff the two faces traverse the shared edge oppositely.
-        out.components += 1;
         let (mut members, mut stack, mut consistent) = (vec![seed], vec![seed], true);
         flip[seed] = Some(false);
         while let Some(f) = stack.pop() {
@@ -158,32 +321,9 @@ pub fn orient(mesh: &mut Mesh) -> Orientation {
             }
         }
         let closed = consistent && members.iter().all(|&f| !open[f]);
-        let reverse = if closed {
-            out.closed += 1;
-            signed_volume(mesh, &members, &flip) < 0.0
-        } else {
-            let (mut kept, mut turned) = (0.0, 0.0);
-            for &f in &members {
-                let a = area(mesh, &faces[f]);
-                if flip[f] == Some(true) {
-                    turned += a;
-                } else {
-                    kept += a;
-                }
-            }
-            turned > kept
-        };
-        for &f in &members {
-            flip[f] = flip[f].map(|x| x ^ reverse);
-        }
+        parts.push(Part { members, closed });
     }
-    for (f, fl) in mesh.faces.iter_mut().zip(&flip) {
-        if *fl == Some(true) {
-            f.verts.reverse();
-            out.rewound += 1;
-        }
-    }
-    out
+    Surfaces { flip, parts }
 }
 
 /// The polygon's area vector (Newell: half the sum of its fan's cross products).
@@ -288,6 +428,40 @@ mod tests {
         room.faces[1].verts.reverse();
         assert_eq!(orient(&mut room), Orientation { components: 1, closed: 0, rewound: 1 });
         assert_eq!(outward(&room), 0, "the open box stays wound inward");
+    }
+
+    /// Which faces are two-sided: a sheet's, an inward room's; not a closed cube's, nor a
+    /// cube's whose top is split with T-junctions (open by its edges, a solid by its winding
+    /// number), nor a closed mesh's.
+    #[test]
+    fn open_faces_are_those_that_bound_no_solid() {
+        let unit = |i: u32| [(i & 1) as f64, (i >> 1 & 1) as f64, (i >> 2 & 1) as f64];
+        let mesh = |positions: Vec<[f64; 3]>, faces: &[&[u32]]| Mesh {
+            positions,
+            faces: faces.iter().map(|f| Face { verts: f.to_vec(), material: 0 }).collect(),
+            ..Mesh::default()
+        };
+        let corners: Vec<[f64; 3]> = (0..8).map(unit).collect();
+        let out: [&[u32]; 6] =
+            [&[0, 2, 3, 1], &[4, 5, 7, 6], &[0, 1, 5, 4], &[2, 6, 7, 3], &[0, 4, 6, 2], &[1, 3, 7, 5]];
+        let cube = mesh(corners.clone(), &out);
+        assert_eq!(outward(&cube), 6, "wound outward");
+        assert_eq!(open_faces(&cube), vec![false; 6]);
+        // The top (z = 1: 4 5 7 6) split at x = ½ into two quads: its side neighbours' edges
+        // y = 0 and y = 1 meet two edges each (T-junctions).
+        let mut split = corners.clone();
+        split.extend([[0.5, 0.0, 1.0], [0.5, 1.0, 1.0]]); // 8, 9
+        let t = mesh(split, &[out[0], &[4, 8, 9, 6], &[8, 5, 7, 9], out[2], out[3], out[4], out[5]]);
+        assert_eq!(surfaces(&t).parts.iter().filter(|p| p.closed).count(), 0, "open by its edges");
+        assert_eq!(open_faces(&t), vec![false; 7], "a solid by its winding number");
+        // One quad; the cube without its top, wound inward (a room): two-sided.
+        assert_eq!(open_faces(&mesh(corners[..4].to_vec(), &[&[0, 1, 3, 2]])), vec![true]);
+        let inward: Vec<Vec<u32>> =
+            out.iter().filter(|f| **f != out[1]).map(|f| f.iter().rev().copied().collect()).collect();
+        let room = mesh(corners, &inward.iter().map(|f| f.as_slice()).collect::<Vec<_>>());
+        assert_eq!(open_faces(&room), vec![true; 5]);
+        let cow = crate::scene::load("cow").unwrap();
+        assert!(open_faces(&cow).iter().all(|&o| !o), "the cow is closed");
     }
 
     #[test]

@@ -69,6 +69,10 @@ pub struct Surface {
     pub nz: i64,
     /// The plane's value at the centre of voxel (x, y, lo).
     pub e: i64,
+    /// A facet of an open surface: its winding says nothing about where light comes from, so
+    /// where it faces away from the source its voxels are lit from the source's (inner) side,
+    /// and rule 4 does not read that side as "crossed unseen".
+    pub two_sided: bool,
 }
 
 /// A column's visible surface: its plane (reference depth `z_v`) and the voxels `z_v`,
@@ -178,7 +182,12 @@ impl Ray {
                 *lit_visible = true;
             }
         }
-        let lights = |r: &Ray, s: &Surface| r.sigma(s, x, y, 0) && (r.sigma(s, x, y, k) || r.sigma(s, x, y, prev));
+        // On the source's side (σ_t = σ₀) at layer k or k − 1, of a plane facing the source or
+        // of a two-sided one.
+        let lights = |r: &Ray, s: &Surface| {
+            let s0 = r.sigma(s, x, y, 0);
+            (s0 || s.two_sided) && (r.sigma(s, x, y, k) == s0 || r.sigma(s, x, y, prev) == s0)
+        };
         if self.terminal {
             if let Some(s) = own {
                 *lit = lights(self, &s);
@@ -197,8 +206,10 @@ impl Ray {
         let (was, now, next) = (self.sigma(&s, x, y, prev), self.sigma(&s, x, y, k), self.sigma(&s, x, y, k + 1));
         // Behind the plane at both layers, having come from empty space, or from the outside
         // of another column's plane into one facing the source: it crossed a surface unseen.
+        // (Behind a two-sided plane facing away is the source's side: the ray has not reached the
+        // plane yet.)
         let faces = self.sigma(&s, x, y, 0);
-        if was != now || ((from_empty || (from_outside && faces)) && !was && !now) {
+        if was != now || (((from_empty && (faces || !s.two_sided)) || (from_outside && faces)) && !was && !now) {
             return false;
         }
         if z_ray && stays && self.column.is_some_and(|c| c != s.lo) {
@@ -483,7 +494,14 @@ mod tests {
     fn z_plane(zp: f64, up: bool, lo: i64) -> Surface {
         let sgn = if up { 1 } else { -1 };
         // g = sgn·2^14·(p_z − zp) = (nz/2^16)(p_z − lo) + e.
-        Surface { lo, nx: 0, ny: 0, nz: sgn << 30, e: (sgn as f64 * 16384.0 * (lo as f64 - zp)).round() as i64 }
+        Surface {
+            lo,
+            nx: 0,
+            ny: 0,
+            nz: sgn << 30,
+            e: (sgn as f64 * 16384.0 * (lo as f64 - zp)).round() as i64,
+            two_sided: false,
+        }
     }
 
     fn none_visible(_: i64, _: i64) -> Option<Visible> {
@@ -540,6 +558,42 @@ mod tests {
         let fate = trace_ray_plane(n, &sheet, &none_visible, src, 5, 0, 0, 11, 0, &mut lit, &mut vis);
         assert_eq!(fate, Fate::Absorbed { voxel: [5, 5, 5], k: 4 });
         assert!(lit.is_empty(), "behind a plane facing the source: not lit");
+        // The plane facing away, on an open surface (two-sided): the ray is on its outer side,
+        // beyond the source's; it goes on as for the one-sided plane, lighting nothing.
+        let open = |x: i64, y: i64, z: i64| away(x, y, z).map(|s| Surface { two_sided: true, ..s });
+        let fate = trace_ray_plane(n, &open, &none_visible, src, 5, 0, 0, 11, 0, &mut lit, &mut vis);
+        assert_eq!(fate, Fate::Exited { k: 10 });
+        assert!(lit.is_empty());
+    }
+
+    /// An open sheet wound away from the source: a one-sided plane facing away stops the ray as
+    /// soon as it enters the plane's voxels from the source's side (rule 4, "behind" it: inside
+    /// a closed surface); two-sided, the ray goes on to the plane, lights the voxels on the
+    /// source's side, and is stopped where it crosses: as for the sheet wound toward it.
+    #[test]
+    fn an_open_sheet_is_lit_from_the_source_side_whatever_its_winding() {
+        let n = 12;
+        let src = [80, 80, 16 * 9];
+        let sheet = |two_sided: bool| {
+            move |x: i64, y: i64, z: i64| {
+                ((x, y) == (5, 5) && (4..=6).contains(&z)).then(|| Surface { two_sided, ..z_plane(4.75, false, 4) })
+            }
+        };
+        let (mut lit, mut vis) = (Vec::new(), Vec::new());
+        let fate = trace_ray_plane(n, &sheet(false), &none_visible, src, 5, 0, 0, 11, 0, &mut lit, &mut vis);
+        assert_eq!(fate, Fate::Absorbed { voxel: [5, 5, 6], k: 3 }, "one-sided: stopped on entry");
+        assert!(lit.is_empty());
+        let fate = trace_ray_plane(n, &sheet(true), &none_visible, src, 5, 0, 0, 11, 0, &mut lit, &mut vis);
+        // z = 6, 5 are above z = 4.75, the source's side (lit); the ray crosses between layers 4
+        // and 5 (z = 5 → 4): terminal at z = 5, it lights z = 4 (it was above at layer 4) and
+        // dies there.
+        assert_eq!(lit, vec![[5, 5, 6], [5, 5, 5], [5, 5, 4]]);
+        assert_eq!(fate, Fate::Absorbed { voxel: [5, 5, 4], k: 5 });
+        let up = |x: i64, y: i64, z: i64| sheet(false)(x, y, z).map(|s| Surface { nz: -s.nz, e: -s.e, ..s });
+        lit.clear();
+        let fate_up = trace_ray_plane(n, &up, &none_visible, src, 5, 0, 0, 11, 0, &mut lit, &mut vis);
+        assert_eq!(fate_up, fate, "the same as the sheet wound toward the source");
+        assert_eq!(lit, vec![[5, 5, 6], [5, 5, 5], [5, 5, 4]]);
     }
 
     /// The visible surface is lit by rays in the two voxels that bracket it, on its own plane.
@@ -583,6 +637,7 @@ mod tests {
                             ny: r(&mut seed, 16384),
                             nz: r(&mut seed, 16384) << 16,
                             e: r(&mut seed, 20000),
+                            two_sided: lcg(&mut seed) % 2 == 0,
                         };
                         col.push((z, hi, s));
                         z = hi + 2;
@@ -598,6 +653,7 @@ mod tests {
                         ny: r(&mut seed, 16384),
                         nz: r(&mut seed, 16384) << 16,
                         e: r(&mut seed, 20000),
+                        two_sided: false,
                     };
                     vis[i] = Some(Visible { z_v, plane });
                 }
@@ -623,8 +679,9 @@ mod tests {
         let n = 9;
         let wall = |x: i64, _: i64, _: i64| x == 6;
         // g(p) = −2^14·(p_x − 6) − 2^13 − 1: zero at x = 5.5 − 2^−14.
-        let surf =
-            |x: i64, y: i64, z: i64| wall(x, y, z).then_some(Surface { lo: z, nx: -16384, ny: 0, nz: 0, e: -8193 });
+        let surf = |x: i64, y: i64, z: i64| {
+            wall(x, y, z).then_some(Surface { lo: z, nx: -16384, ny: 0, nz: 0, e: -8193, two_sided: false })
+        };
         let src = [16 * 2, 16 * 4, 16 * 4];
         let got = trace_all_plane(n, &surf, &none_visible, &[src], n - 1, 1);
         let want = super::super::rays::trace_all(n, &|x, y, z| wall(x, y, z), &[src], n - 1, 1);

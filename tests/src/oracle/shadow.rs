@@ -141,7 +141,7 @@ mod tests {
 
     /// The plane y = y0 facing +y as a surface of column (·, y) with reference voxel `lo`.
     fn wall_y(y0_vox: f64, y: i64, lo: i64) -> Surface {
-        Surface { lo, nx: 0, ny: 16384, nz: 0, e: (16384.0 * (y as f64 - y0_vox)).round() as i64 }
+        Surface { lo, nx: 0, ny: 16384, nz: 0, e: (16384.0 * (y as f64 - y0_vox)).round() as i64, two_sided: false }
     }
 
     #[test]
@@ -158,14 +158,14 @@ mod tests {
     fn an_occluding_slab_stops_and_a_leaving_overhang_does_not() {
         // Emitter: the floor z* = 2 in column (0, 0), plane facing −z (the viewer), source
         // straight "above" at z = −10 voxels.
-        let floor = Surface { lo: 2, nx: 0, ny: 0, nz: -(1 << 30), e: 0 };
+        let floor = Surface { lo: 2, nx: 0, ny: 0, nz: -(1 << 30), e: 0, two_sided: false };
         let e = Emitter { x: 0, y: 0, num: 2, den: 1, id: 1, plane: floor };
         let b = [0, 0, -160];
         assert!(lit(&e, b, &|_, _, _| None));
         // A slab at z = −5 facing the emitter (+z): the segment enters it: stops.
         let slab = |nz: i64, lo: i64, e: i64| {
             move |_: i64, _: i64, z: i64| {
-                (z == lo).then_some(Occupant { id: 2, plane: Surface { lo, nx: 0, ny: 0, nz, e } })
+                (z == lo).then_some(Occupant { id: 2, plane: Surface { lo, nx: 0, ny: 0, nz, e, two_sided: false } })
             }
         };
         assert!(!lit(&e, b, &slab(1 << 30, -5, 0)));

@@ -60,16 +60,22 @@ pub fn wave_and_oracle_voxels(
     (got, want)
 }
 
-/// A dexel plane as the plane-rule oracle reads it, referred to depth `lo`.
-fn surface(lo: i64, p: &cell_core::plane::DexelPlane) -> rc2_tests::oracle::lit::Surface {
-    rc2_tests::oracle::lit::Surface { lo, nx: p.nx as i64, ny: p.ny as i64, nz: p.nz as i64, e: p.e as i64 }
+/// A dexel plane as the plane-rule oracle reads it, referred to depth `lo` (`two_sided`: a
+/// dexel's plane says it; a visible surface, turned toward the viewer, is read as it is).
+fn surface(lo: i64, p: &cell_core::plane::DexelPlane, two_sided: bool) -> rc2_tests::oracle::lit::Surface {
+    rc2_tests::oracle::lit::Surface { lo, nx: p.nx as i64, ny: p.ny as i64, nz: p.nz as i64, e: p.e as i64, two_sided }
 }
 
 /// The plane rule's oracle view of a loaded grid: each occupied voxel's dexel plane.
 pub fn surfaces_of<const D: usize>(
     g: &host_sim::machine::grid::Grid<D>,
 ) -> impl Fn(i64, i64, i64) -> Option<rc2_tests::oracle::lit::Surface> + '_ {
-    move |x, y, z| g.cell(x as u32, y as u32).store.occupied(z as u16).map(|d| surface(d.span.lo as i64, &d.plane))
+    move |x, y, z| {
+        g.cell(x as u32, y as u32)
+            .store
+            .occupied(z as u16)
+            .map(|d| surface(d.span.lo as i64, &d.plane, d.plane.two_sided()))
+    }
 }
 
 /// The plane rule's oracle view of a loaded grid: each column's visible surface.
@@ -77,9 +83,10 @@ pub fn columns_of<const D: usize>(
     g: &host_sim::machine::grid::Grid<D>,
 ) -> impl Fn(i64, i64) -> Option<rc2_tests::oracle::lit::Visible> + '_ {
     move |x, y| {
-        g.cell(x as u32, y as u32)
-            .visible
-            .map(|v| rc2_tests::oracle::lit::Visible { z_v: v.z_v as i64, plane: surface(v.z_v as i64, &v.plane) })
+        g.cell(x as u32, y as u32).visible.map(|v| rc2_tests::oracle::lit::Visible {
+            z_v: v.z_v as i64,
+            plane: surface(v.z_v as i64, &v.plane, false),
+        })
     }
 }
 
@@ -110,7 +117,8 @@ pub fn emitter_of<const D: usize>(
 }
 
 /// The packets of lattice triangles with their planes (ids shared by coplanar ones) and
-/// distinct materials, skipping degenerate ones.
+/// distinct materials, skipping degenerate ones. Every second triangle is two-sided (a facet of
+/// an open surface, [`cell_core::plane::TWO_SIDED`]) so that random scenes exercise both kinds.
 pub fn packets_of(
     tris: &[[[i64; 3]; 3]],
     cfg: &host_sim::precompute::LoadConfig,
@@ -119,7 +127,7 @@ pub fn packets_of(
     tris.iter()
         .enumerate()
         .filter_map(|(i, t)| {
-            let plane = host_sim::precompute::facet_plane(t, i as u32, &mut ids);
+            let plane = host_sim::precompute::facet_plane(t, i as u32, i % 2 == 1, &mut ids);
             let tag = cell_core::dexel::FacetTag { facet: i as u32, material: i as u16, plane, ..Default::default() };
             host_sim::precompute::facet_packet(t, tag, cfg).expect("in budget").ok()
         })
