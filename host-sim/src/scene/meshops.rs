@@ -140,7 +140,8 @@ pub fn orient(mesh: &mut Mesh) -> Orientation {
 /// outward-wound solid, 1 inside, 1 on both sides of a face between two solids that touch
 /// (coincident faces of opposite windings cancel); beside a sheet it is fractional (about ∓½
 /// near a large flat one). A surface whose sampled faces all see whole numbers on both sides,
-/// within 0.1, is one-sided; every other open surface is two-sided.
+/// within 0.1, is one-sided; every other open surface is two-sided, as are those left when
+/// the work reaches [`WINDING_BUDGET`].
 pub fn open_faces(mesh: &Mesh) -> Vec<bool> {
     let mut open = vec![false; mesh.faces.len()];
     let surfaces = surfaces(mesh);
@@ -149,12 +150,17 @@ pub fn open_faces(mesh: &Mesh) -> Vec<bool> {
     }
     let group = touching_groups(mesh, &surfaces.parts);
     let mut tris_of: HashMap<usize, Vec<[Vector; 3]>> = HashMap::new();
+    let mut budget = WINDING_BUDGET;
     for (i, part) in surfaces.parts.iter().enumerate().filter(|(_, p)| !p.closed) {
         let tris = tris_of.entry(group[i]).or_insert_with(|| {
             let faces = surfaces.parts.iter().enumerate().filter(|(j, _)| group[*j] == group[i]);
             fan_triangles(mesh, faces.flat_map(|(_, p)| p.members.iter().copied()))
         });
-        if !bounds_a_solid(mesh, part, tris) {
+        // Past the budget (a mesh of many small open pieces), open surfaces stay two-sided.
+        let cost = 2 * WINDING_SAMPLES * tris.len();
+        let solid = cost <= budget && bounds_a_solid(mesh, part, tris);
+        budget = budget.saturating_sub(cost);
+        if !solid {
             for &f in &part.members {
                 open[f] = true;
             }
@@ -191,6 +197,10 @@ fn touching_groups(mesh: &Mesh, parts: &[Part]) -> Vec<usize> {
 
 /// Faces sampled per open surface by [`open_faces`].
 const WINDING_SAMPLES: usize = 3;
+
+/// Triangle solid angles [`open_faces`] may evaluate for one mesh (about 0.1 s): beyond, the
+/// remaining open surfaces are two-sided without a measure.
+const WINDING_BUDGET: usize = 20_000_000;
 
 /// Whether the winding number of the touching surfaces is a whole number on both sides of a
 /// few of the part's faces (see [`open_faces`]).
