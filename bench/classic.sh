@@ -24,14 +24,14 @@ CSV=bench-out/classic.csv
 for n in $NS; do
   for scene in $SCENES; do
     o=bench-out/classic-$scene-$n
-    $B render "$scene" --n "$n" --reference --quiet ${EXTRA:-} --out "$o-diffusion.png" --stats "$o-diffusion.json" 2> "$o-diffusion.log"
-    $B render "$scene" --n "$n" --reference --quiet ${EXTRA:-} --lighting classic --out "$o-classic.png" --stats "$o-classic.json" 2> "$o-classic.log"
+    $B render "$scene" --n "$n" --view fitted --reference --quiet ${EXTRA:-} --out "$o-diffusion.png" --stats "$o-diffusion.json" 2> "$o-diffusion.log"
+    $B render "$scene" --n "$n" --view fitted --reference --quiet ${EXTRA:-} --lighting classic --out "$o-classic.png" --stats "$o-classic.json" 2> "$o-classic.log"
     rm -f "$o-all.json" "$o-all.log"
     if (( n <= ALL_MAX_N )); then
-      $B light "$scene" --n "$n" --sigma naive --contour projected --quiet --lighting classic --emitters all \
+      $B light "$scene" --n "$n" --view fitted --sigma naive --contour projected --quiet --lighting classic --emitters all \
         --stats "$o-all.json" 2> "$o-all.log"
     fi
-    $B voxelize "$scene" --n "$n" --sigma naive --contour projected --quiet --stats "$o-vox.json" 2> /dev/null
+    $B voxelize "$scene" --n "$n" --view fitted --sigma naive --contour projected --quiet --stats "$o-vox.json" 2> /dev/null
     python3 - "$o" "$scene" "$n" >> "$CSV" <<'PY'
 import json, os, re, sys
 o, scene, n = sys.argv[1], sys.argv[2], int(sys.argv[3])

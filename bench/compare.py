@@ -230,7 +230,7 @@ def light_bench(a, host, out_dir, rows):
         for n in a.light_n:
             dump = os.path.join(out_dir, f"{scene_name}-{n}.lit.json")
             stats = os.path.join(out_dir, f"{scene_name}-{n}.light.json")
-            args = ["light", scene_name, "--n", str(n), "--sigma", a.sigma, "--contour", a.contour]
+            args = ["light", scene_name, "--n", str(n), "--view", "fitted", "--sigma", a.sigma, "--contour", a.contour]
             args += ["--dump-lit", dump, "--stats", stats, "--quiet"]
             wall, inner = time_host(host, args, stats, a.runs)
             d = json.load(open(dump))

@@ -35,7 +35,7 @@ for n in $NS; do
         *) echo "unknown method $m" >&2; exit 2 ;;
       esac
       o=bench-out/lit-$scene-$n-$m
-      $B render "$scene" --n "$n" --reference --quiet "${opts[@]}" --out "$o.png" --stats "$o.json" 2> "$o.log"
+      $B render "$scene" --n "$n" --view fitted --reference --quiet "${opts[@]}" --out "$o.png" --stats "$o.json" 2> "$o.log"
       python3 - "$o.json" "$scene" "$n" "$m" >> "$CSV" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1])); l = s['light']; r = s['reference']

@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Regenerates the README's pictures in docs/ with the current defaults:
-#   docs/cornell{,.reference,.diff}.png       render cornell --n 128 --reference
+#   docs/cornell{,.reference,.diff}.png       render cornell --n 128 --reference (its camera)
 #   docs/teapot-floor{,.reference,.diff}.png  render teapot-floor --n 256 --reference
 #   docs/grazing.png  the tall block's front face, lit by the Cornell light at a degree or two
-#                     (n = 256, ×2): thesis's rule with the former defaults | plane rule (default,
+#                     (n = 256, fitted view, ×2): thesis's rule with the former defaults | plane rule (default,
 #                     f = 0) | plane rule at f = 1 | f64 reference
 # Needs python3 with Pillow (`pip install pillow`) for the grazing montage.
 set -euo pipefail
@@ -13,10 +13,10 @@ B=./target/release/host-sim
 $B render cornell --n 128 --reference --quiet --out docs/cornell.png
 $B render teapot-floor --n 256 --reference --quiet --out docs/teapot-floor.png
 T=$(mktemp -d)
-$B render cornell --n 256 --quiet --out "$T/thesis.png" \
+$B render cornell --n 256 --view fitted --quiet --out "$T/thesis.png" \
   --lit-rule thesis --sigma naive --contour projected --frac-bits 0 --policy wavefront
-$B render cornell --n 256 --reference --quiet --out "$T/plane.png"
-$B render cornell --n 256 --quiet --frac-bits 1 --out "$T/plane-f1.png"
+$B render cornell --n 256 --view fitted --reference --quiet --out "$T/plane.png"
+$B render cornell --n 256 --view fitted --quiet --frac-bits 1 --out "$T/plane-f1.png"
 python3 - "$T" <<'PY'
 import sys
 from PIL import Image

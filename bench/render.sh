@@ -12,7 +12,7 @@ echo "| scene | n | light cycles | T/LB | shadow disagreement % | coverage disag
 echo "|---|---|---|---|---|---|---|---|---|---|---|"
 for n in $NS; do
   for scene in cornell teapot-floor cow-floor; do
-    $B render "$scene" --n "$n" --reference --quiet --out "bench-out/render-$scene-$n.png" \
+    $B render "$scene" --n "$n" --view fitted --reference --quiet --out "bench-out/render-$scene-$n.png" \
        --stats "bench-out/render-$scene-$n.json" 2>/dev/null
     python3 - "bench-out/render-$scene-$n.json" <<'PY'
 import json, sys

@@ -37,7 +37,7 @@ for scene in $SCENES; do
       js=bench-out/scale-$scene-$n-t$t.json
       rm -f "$js"
       status=ok
-      timeout "$LIMIT" $B render "$src" --n "$n" --threads "$t" --quiet "${extra[@]}" ${EXTRA:-} \
+      timeout "$LIMIT" $B render "$src" --n "$n" --view fitted --threads "$t" --quiet "${extra[@]}" ${EXTRA:-} \
         --out "bench-out/scale-$scene-$n.png" --stats "$js" >/dev/null 2>bench-out/scale-err.txt || status=fail
       if [[ $status == fail ]]; then
         echo "$scene,$n,$t,,timeout_or_error,,,,,,,,,,," >> "$CSV"

@@ -3,7 +3,7 @@
 //!
 //! Traces: every `*.rc2t` file of `$RC2_TRACE_DIR` (the QEMU test records them from a host-sim
 //! run and points this variable at them), or of `firmware/traces/` (a small committed set
-//! recorded by `host-sim trace --n 32 --cell 5,7 --cell 16,16 --busiest --out firmware/traces`).
+//! recorded by `host-sim trace --n 32 --view fitted --cell 5,7 --cell 16,16 --busiest --out firmware/traces`).
 //! They become `TRACES: &[(&str, &[u8])]` in `$OUT_DIR/traces.rs` via `include_bytes!`.
 //!
 //! `-Tlink.x` is passed here rather than through `rustflags` in `.cargo/config.toml` so that a

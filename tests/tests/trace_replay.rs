@@ -207,7 +207,7 @@ fn light_records_carry_the_wait_and_the_summary() {
 /// `RC2_TRACE_DIR` is given), read from disk: each one replays on the host (the cell code the
 /// firmware runs) to the digest `digests.json` lists for it, with the header's cell and the
 /// listed size and record count; and recording again with the command that made them
-/// (`host-sim trace --n 32 --cell 5,7 --cell 16,16 --busiest --out firmware/traces`, parsed and
+/// (`host-sim trace --n 32 --view fitted --cell 5,7 --cell 16,16 --busiest --out firmware/traces`, parsed and
 /// run as the `host-sim` binary does) writes the same files, byte for byte, `digests.json`
 /// included. A change to the machine that alters these traces fails here until they are
 /// re-recorded.
@@ -256,7 +256,20 @@ fn committed_firmware_traces_replay_and_re_record_byte_identically() {
 
     let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("firmware-traces-rerecorded");
     let _ = std::fs::remove_dir_all(&out);
-    let args = ["host-sim", "trace", "--n", "32", "--cell", "5,7", "--cell", "16,16", "--busiest", "--out"];
+    let args = [
+        "host-sim",
+        "trace",
+        "--n",
+        "32",
+        "--view",
+        "fitted",
+        "--cell",
+        "5,7",
+        "--cell",
+        "16,16",
+        "--busiest",
+        "--out",
+    ];
     let cli = host_sim::cli::Cli::try_parse_from(args.iter().copied().chain([out.to_str().unwrap()]))
         .expect("the documented command line parses");
     host_sim::cli::run(cli).expect("host-sim trace runs");

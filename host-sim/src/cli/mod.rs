@@ -204,10 +204,11 @@ pub struct LoadArgs {
 /// The camera: how the host maps the scene into the grid's screen space (thesis §1.3).
 #[derive(Args, Debug, Clone)]
 pub struct CameraArgs {
-    /// The view: `fitted` (no camera: the scene's bounding box fitted into the grid, seen along
-    /// +z), or `scene` (the scene's published camera: the Cornell box's eye (278, 273, −800),
-    /// 39.3°). `--eye` gives your own camera instead.
-    #[arg(long, value_enum, default_value_t = ViewArg::Fitted, conflicts_with = "eye")]
+    /// The view: `auto` (the scene's own camera if it has one — the Cornell box's published
+    /// eye (278, 273, −800), 39.3° — else fitted; fitted with --reflections), `fitted` (no
+    /// camera: the scene's bounding box fitted into the grid, seen along +z), or `scene` (the
+    /// scene's camera, an error if it has none). `--eye` gives your own camera instead.
+    #[arg(long, value_enum, default_value_t = ViewArg::Auto, conflicts_with = "eye")]
     pub view: ViewArg,
     /// Eye position X,Y,Z (world units): a camera of your own; needs --look-at.
     #[arg(long, value_parser = parse_triple, allow_hyphen_values = true, requires = "look_at")]
@@ -235,6 +236,8 @@ pub struct CameraArgs {
 /// `--view`.
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ViewArg {
+    /// The scene's own camera if it has one, else fitted.
+    Auto,
     /// No camera: the scene fitted into the grid.
     Fitted,
     /// The scene's own camera.
@@ -246,6 +249,7 @@ impl CameraArgs {
     pub fn choice(&self) -> ViewChoice {
         let (Some(eye), Some(look_at)) = (self.eye, self.look_at) else {
             return match self.view {
+                ViewArg::Auto => ViewChoice::Auto,
                 ViewArg::Fitted => ViewChoice::Fitted,
                 ViewArg::Scene => ViewChoice::Scene,
             };

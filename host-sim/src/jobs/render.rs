@@ -36,6 +36,8 @@ use crate::truth::refrender::{RefImage, RefReflect};
 /// Everything `render --stats` reports.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct RenderStats {
+    /// The view: "fitted" (the scene fitted into the grid, seen along +z) or the camera's.
+    pub view: String,
     /// The lighting run (load and light counters, bytes per cell).
     pub light: LightStats,
     /// Normal mode used for shading.
@@ -275,6 +277,7 @@ fn shade(
     let load_cell = std::mem::size_of::<cell_core::cell::Cell<{ cell_core::cell::DEFAULT_DEXELS }>>()
         + std::mem::size_of::<cell_core::facet::RowPacket>();
     let stats = RenderStats {
+        view: input.mesh.screen.as_ref().map_or_else(|| "fitted".into(), |s| s.view.describe()),
         normals: match cfg.normals {
             NormalMode::Facet => "facet".into(),
             NormalMode::Face => "face".into(),
@@ -369,7 +372,13 @@ pub fn run(o: &RenderOptions) -> Result<()> {
 
 fn run_with<F: FracBits>(o: &RenderOptions) -> Result<()> {
     let cfg = o.config()?;
-    let mesh = crate::scene::camera::apply(scene::load(&o.scene)?, &o.view, o.load.n)?;
+    // Reflected rays are traced in the grid's own view: with reflections the default view is
+    // the fitted one.
+    let view = match o.view {
+        crate::scene::camera::ViewChoice::Auto if o.reflections.is_some() => crate::scene::camera::ViewChoice::Fitted,
+        v => v,
+    };
+    let mesh = crate::scene::camera::apply(scene::load(&o.scene)?, &view, o.load.n)?;
     if mesh.screen.is_some() && o.reflections.is_some() {
         bail!("--reflections needs the fitted view: reflected rays are not traced through a camera yet");
     }
@@ -446,6 +455,7 @@ fn print_summary(load: &LoadConfig, r: &Rendered, written: &[String]) {
         if s.light.merge { " + merge" } else { "" },
         s.normals
     );
+    eprintln!("  view: {}", s.view);
     eprintln!(
         "  cycles: load {}  light {} (T/LB {:.2}, {} beams)  shade {}",
         s.light.load_cycles, t.cycles, s.light.t_over_lb, t.beams_processed, s.shade_cycles

@@ -36,8 +36,10 @@ pub use super::view::{Camera, Projection, Screen, View, DEPTH_MARGIN_VOXELS};
 /// Which view a job loads a scene with.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub enum ViewChoice {
-    /// No camera: the scene fitted into the grid, seen along +z (every figure before cameras).
+    /// The scene's own camera if it has one ([`scene_camera`]: the Cornell box), else fitted.
     #[default]
+    Auto,
+    /// No camera: the scene fitted into the grid, seen along +z (every figure before cameras).
     Fitted,
     /// The scene's own camera ([`scene_camera`]; an error for a scene that has none).
     Scene,
@@ -53,6 +55,10 @@ pub fn scene_camera(name: &str) -> Option<Camera> {
 /// `mesh` as `choice` sees it: unchanged (fitted), or in screen space through a camera.
 pub fn apply(mesh: Mesh, choice: &ViewChoice, n: u32) -> Result<Mesh> {
     match choice {
+        ViewChoice::Auto => match scene_camera(&mesh.name) {
+            Some(cam) => to_screen(mesh, &cam, n),
+            None => Ok(mesh),
+        },
         ViewChoice::Fitted => Ok(mesh),
         ViewChoice::Scene => match scene_camera(&mesh.name) {
             Some(cam) => to_screen(mesh, &cam, n),
@@ -103,4 +109,28 @@ pub fn to_screen(mesh: Mesh, cam: &Camera, n: u32) -> Result<Mesh> {
     let positions = mesh.positions.iter().map(|&p| view.to_screen(p)).collect();
     let world = mesh.positions.clone();
     Ok(Mesh { positions, screen: Some(Arc::new(Screen { view, world })), ..mesh })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The default view is the scene's own camera where it has one, the fitted view elsewhere;
+    /// `fitted` never uses a camera and `scene` needs one.
+    #[test]
+    fn the_default_view_is_the_scenes_camera() {
+        let load = |s: &str| crate::scene::load(s).unwrap();
+        let cornell = apply(load("cornell"), &ViewChoice::default(), 64).unwrap();
+        let screen = cornell.screen.as_ref().expect("the Cornell box is seen through its camera");
+        assert_eq!(screen.view.eye.to_array(), Camera::CORNELL.eye);
+        assert!(screen.view.perspective);
+        assert!(apply(load("cornell"), &ViewChoice::Fitted, 64).unwrap().screen.is_none());
+        let facet = load("facet");
+        assert_eq!(
+            apply(facet.clone(), &ViewChoice::Auto, 64).unwrap().positions,
+            facet.positions,
+            "no camera: fitted"
+        );
+        assert!(apply(facet, &ViewChoice::Scene, 64).is_err());
+    }
 }

@@ -75,6 +75,17 @@ fn v3(a: [f64; 3], what: &str) -> Result<Vector> {
 }
 
 impl View {
+    /// A one-line description: eye, projection and depth range (world units).
+    pub fn describe(&self) -> String {
+        let e = self.eye;
+        let projection = if self.perspective {
+            format!("perspective {:.1}°", 2.0 * (self.width / 2.0).atan().to_degrees())
+        } else {
+            format!("orthographic, width {}", self.width)
+        };
+        format!("camera at ({}, {}, {}), {projection}, depth {:.0} ..= {:.0}", e.x, e.y, e.z, self.near, self.far)
+    }
+
     /// Resolve `cam` for an `n`-grid against the world points `points` (the scene's used
     /// vertices and lights): checks the camera, and sets near and far from the points' depth
     /// range where not given ([`DEPTH_MARGIN_VOXELS`]).
