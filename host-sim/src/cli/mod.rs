@@ -620,6 +620,9 @@ pub struct BenchArgs {
     /// Do not print progress lines.
     #[arg(long)]
     pub quiet: bool,
+    /// The camera each scene is seen through (the same at every n).
+    #[command(flatten)]
+    pub camera: CameraArgs,
 }
 
 /// Options of `audit`.

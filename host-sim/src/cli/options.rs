@@ -221,6 +221,7 @@ impl From<&BenchArgs> for BenchOptions {
             out: a.out.clone(),
             plot: a.plot.clone(),
             quiet: a.quiet,
+            view: a.camera.choice(),
         }
     }
 }

@@ -153,20 +153,24 @@ pub struct BenchOptions {
     pub plot: PathBuf,
     /// No progress lines.
     pub quiet: bool,
+    /// The view each scene is seen through (applied at each n).
+    pub view: crate::scene::camera::ViewChoice,
 }
 
 /// Run the `bench` job on its scenes ([`run_bench`]).
 pub fn run(o: &BenchOptions) -> Result<()> {
     let meshes = o.scenes.iter().map(|s| crate::scene::load(s)).collect::<Result<Vec<_>>>()?;
-    run_bench(&meshes, &o.n, &o.frac_bits, &o.out, &o.plot, o.quiet)
+    run_bench(&meshes, &o.view, &o.n, &o.frac_bits, &o.out, &o.plot, o.quiet)
 }
 
 /// Run the sweep on several scenes at each n; write the CSV (one row per scene and
 /// configuration, plus an `all` row per configuration: error and cycles averaged over the scenes,
 /// bytes the largest) and one Pareto plot per n over the averaged rows
-/// (`<plot stem>-n<N>.png`, or the plot path itself for a single n).
+/// (`<plot stem>-n<N>.png`, or the plot path itself for a single n). Each scene is seen
+/// through `view` ([`crate::scene::camera::apply`]).
 pub fn run_bench(
     meshes: &[Mesh],
+    view: &crate::scene::camera::ViewChoice,
     ns: &[u32],
     fs: &[u32],
     csv_path: &Path,
@@ -183,6 +187,7 @@ pub fn run_bench(
     for &n in ns {
         let mut sums = vec![Sums::default(); knobs.len()];
         for mesh in meshes {
+            let mesh = &crate::scene::camera::apply(mesh.clone(), view, n)?;
             let mut reference = None;
             for (k, sum) in knobs.iter().zip(&mut sums) {
                 let r = measure(mesh, n, k, &mut reference)?;
