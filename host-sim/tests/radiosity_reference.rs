@@ -16,7 +16,7 @@ use host_sim::truth::formfactor::{
     FormFactors, Sampling,
 };
 use host_sim::truth::radiosity::{
-    ambient, balance, displayed, jacobi, progressive, reflected, rms_relative_error, solve, ShootConfig, Stop,
+    ambient, balance, displayed, jacobi, progressive, rms_relative_error, solve, ShootConfig, Stop,
 };
 use parry3d_f64::math::Vector;
 
@@ -455,68 +455,4 @@ fn bad_input_is_a_clear_error() {
     m.faces.push(Face { verts: vec![24, 25, 26], material: 1 });
     let q = subdivide(&m, 0.5, 100).unwrap();
     assert_eq!((q.summary.degenerate_faces, q.patches.len()), (1, 24));
-}
-
-/// The figures of the report on the built-in Cornell box (its light is the emissive quad of
-/// material `light`, Ke = (17, 12, 4)). Errors are on the reflected radiosity `B − E` (the light's
-/// own `E` would dominate `B`). `RC2_WORST_PATCHES=1` lists the patches of the largest self-error.
-#[test]
-#[ignore]
-fn cornell_measurements() {
-    let mesh = host_sim::scene::load("cornell").unwrap();
-    let p = subdivide(&mesh, 100.0, 10_000).unwrap();
-    println!("cornell: {:?}", p.summary);
-    let runs: Vec<Vec<[f64; 3]>> = [(3, Estimator::Contour), (6, Estimator::Contour), (3, Estimator::PointToPoint)]
-        .into_iter()
-        .map(|(strata, est)| cornell_run(&p, strata, est))
-        .collect();
-    compare_runs(&p, "self-error, contour 18 vs 72 samples per patch", &runs[1], &runs[0]);
-    compare_runs(&p, "point-to-point 18 vs contour 72", &runs[1], &runs[2]);
-}
-
-/// Solve the Cornell patches to 1 % and to 1e-6, print shots, times and rays; the converged
-/// reflected radiosity.
-fn cornell_run(p: &Patches, strata: usize, est: Estimator) -> Vec<[f64; 3]> {
-    let areas: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
-    let f = ff(p, strata, 11, est);
-    let t0 = std::time::Instant::now();
-    let one = solve(&p.patches, &f, &ShootConfig { stop_fraction: 0.01, max_shots: 100_000 }).unwrap();
-    let t1 = t0.elapsed().as_secs_f64();
-    let rays = f.rays_cast();
-    let distinct = one.shots.iter().map(|s| s.patch).collect::<std::collections::BTreeSet<_>>().len();
-    let t0 = std::time::Instant::now();
-    let deep = solve(&p.patches, &f, &ShootConfig { stop_fraction: 1e-6, max_shots: 1_000_000 }).unwrap();
-    let t2 = t0.elapsed().as_secs_f64();
-    let b = balance(&p.patches, &deep);
-    println!(
-        "{est:?} strata {strata} ({} samples per quad patch): to 1 %: {} shots ({distinct} distinct shooters, \
-         {rays} rays), {t1:.2} s; to 1e-6: {} shots, {t2:.2} s; leaked {:.3} of emitted (open front), absorbed {:.3}",
-        2 * strata * strata,
-        one.shots.len(),
-        deep.shots.len(),
-        b.leaked / b.emitted,
-        b.absorbed / b.emitted
-    );
-    let (r1, rd) = (reflected(&p.patches, &one.radiosity), reflected(&p.patches, &deep.radiosity));
-    let e1 = rms_relative_error(&rd, &r1, &areas).unwrap();
-    println!("   the 1 % solution against the converged one (same F): RMS relative {e1:.4} (reflected B − E)");
-    rd
-}
-
-/// Print the RMS relative difference of two solutions and the spread of the per-patch ones.
-fn compare_runs(p: &Patches, what: &str, a: &[[f64; 3]], b: &[[f64; 3]]) {
-    let areas: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
-    let rms = rms_relative_error(a, b, &areas).unwrap();
-    let n = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    let rel = |i: usize| n([0, 1, 2].map(|c| a[i][c] - b[i][c])) / n(a[i]).max(1e-300);
-    let mut order: Vec<usize> = (0..a.len()).collect();
-    order.sort_by(|&x, &y| rel(x).total_cmp(&rel(y)));
-    let q = |f: f64| rel(order[((order.len() - 1) as f64 * f) as usize]);
-    println!("{what}: RMS relative {rms:.4}; per patch median {:.4}, 95 % {:.4}, max {:.4}", q(0.5), q(0.95), q(1.0));
-    if std::env::var("RC2_WORST_PATCHES").is_ok() {
-        for &i in order.iter().rev().take(8) {
-            let c = p.patches[i].centroid;
-            println!("  patch {i} (face {}, centroid {c:.0?}): {:.4?} vs {:.4?}", p.patches[i].face, a[i], b[i]);
-        }
-    }
 }

@@ -86,6 +86,10 @@ pub struct RadiosityArgs {
     /// Also solve with the f64 reference (ray-cast form factors) and compare per patch.
     #[arg(long)]
     pub reference: bool,
+    /// With --reference: also solve the reference with 4× the form-factor samples and report
+    /// how far its own solution moves (its self-error, to set beside the machine's error).
+    #[arg(long, requires = "reference")]
+    pub reference_self_error: bool,
     /// Per-patch CSV (default <scene>_patches.csv).
     #[arg(long)]
     pub patches_csv: Option<PathBuf>,

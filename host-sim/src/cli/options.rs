@@ -123,6 +123,7 @@ impl From<&RadiosityArgs> for RadiosityOptions {
             residual: a.residual,
             offset: a.offset,
             reference: a.reference,
+            reference_self_error: a.reference_self_error,
             patches_csv: a.patches_csv.clone(),
             shots_csv: a.shots_csv.clone(),
             stats: a.stats.clone(),

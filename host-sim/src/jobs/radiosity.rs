@@ -41,6 +41,8 @@ pub struct RadiosityOptions {
     pub offset: f64,
     /// Also solve with the f64 reference and compare.
     pub reference: bool,
+    /// With `reference`: also solve it with 4× the samples and report its self-error.
+    pub reference_self_error: bool,
     /// Per-patch CSV (default `<scene>_patches.csv`).
     pub patches_csv: Option<PathBuf>,
     /// Per-shot CSV (default `<scene>_shots.csv`).
@@ -99,6 +101,10 @@ pub struct ReferenceStats {
     pub direct_only_rms_relative_error: f64,
     /// Shots the reference made.
     pub shots: usize,
+    /// With `--reference-self-error`: area-weighted RMS relative difference between the
+    /// reference (3 × 3 strata per patch pair) and the same solver with 6 × 6 strata, on the
+    /// reflected radiosity B − E (a bound on the reference's own error at this patch size).
+    pub self_error: Option<f64>,
     /// Wall time of the reference, seconds.
     pub wall_seconds: f64,
 }
@@ -139,6 +145,11 @@ fn solve_with_bar(scene: &LoadedScene, p: &Patches, cfg: &RadiosityConfig, quiet
 
 /// The f64 reference on the same patches with the same stopping rule, and direct light only.
 fn compare(p: &Patches, s: &GridSolution, o: &RadiosityOptions) -> Result<ReferenceStats> {
+    // The reference's solve with `strata` × `strata` samples per patch pair, the job's stop.
+    let reference = |strata: usize| -> Result<crate::truth::radiosity::Solution> {
+        let ff = FormFactors::new(p, Sampling { strata, seed: 1, estimator: Estimator::Contour })?;
+        crate::truth::radiosity::solve(&p.patches, &ff, &ShootConfig { stop_fraction: o.residual, max_shots: o.shots })
+    };
     let t0 = Instant::now();
     let ff = FormFactors::new(p, Sampling { strata: 3, seed: 1, estimator: Estimator::Contour })?;
     let r = crate::truth::radiosity::solve(
@@ -151,11 +162,20 @@ fn compare(p: &Patches, s: &GridSolution, o: &RadiosityOptions) -> Result<Refere
     let direct =
         crate::truth::radiosity::solve(&p.patches, &ff, &ShootConfig { stop_fraction: 0.0, max_shots: emitters })?;
     let areas: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
+    let self_error = o
+        .reference_self_error
+        .then(|| -> Result<f64> {
+            let fine = reference(6)?;
+            let reflected = |b: &[[f64; 3]]| crate::truth::radiosity::reflected(&p.patches, b);
+            rms_relative_error(&reflected(&fine.radiosity), &reflected(&r.radiosity), &areas)
+        })
+        .transpose()?;
     Ok(ReferenceStats {
         rms_relative_error: rms_relative_error(&r.radiosity, &s.radiosity, &areas)?,
         direct_only_rms_relative_error: rms_relative_error(&r.radiosity, &direct.radiosity, &areas)?,
         shots: r.shots.len(),
         wall_seconds,
+        self_error,
     })
 }
 
@@ -266,5 +286,8 @@ fn print_summary(s: &RadiosityStats) {
             "  reference ({} shots, {:.1} s): per-patch RMS relative error {:.4} (direct light only {:.4})",
             r.shots, r.wall_seconds, r.rms_relative_error, r.direct_only_rms_relative_error
         );
+        if let Some(e) = r.self_error {
+            eprintln!("  reference self-error (3×3 against 6×6 strata, reflected B − E): RMS relative {e:.4}");
+        }
     }
 }
