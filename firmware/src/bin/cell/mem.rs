@@ -36,14 +36,23 @@ unsafe extern "C" fn memcpy(dest: *mut u8, src: *const u8, n: usize) -> *mut u8 
     dest
 }
 
-/// C `memmove`: overlapping copies go the safe way round.
-#[no_mangle]
-unsafe extern "C" fn memmove(dest: *mut u8, src: *const u8, n: usize) -> *mut u8 {
+/// Overlapping copies go the safe way round. The `__aeabi_memmove*` entry points call this, not
+/// `memmove`: LLVM takes a call to a function named `memmove` for the C library's, turns it into
+/// its `llvm.memmove` intrinsic and lowers that, on ARM, to a call to `__aeabi_memmove` — from
+/// inside `__aeabi_memmove`, an endless recursion that ran the stack out of RAM at the cell's
+/// first FIFO removal (`heapless::Vec::remove`) and hard-faulted the core.
+unsafe fn move_bytes(dest: *mut u8, src: *const u8, n: usize) {
     if (dest as usize) <= (src as usize) {
         unsafe { copy_forward(dest, src, n) };
     } else {
         unsafe { copy_backward(dest, src, n) };
     }
+}
+
+/// C `memmove`.
+#[no_mangle]
+unsafe extern "C" fn memmove(dest: *mut u8, src: *const u8, n: usize) -> *mut u8 {
+    unsafe { move_bytes(dest, src, n) };
     dest
 }
 
@@ -69,20 +78,20 @@ unsafe extern "C" fn __aeabi_memcpy4(dest: *mut u8, src: *const u8, n: usize) {
 unsafe extern "C" fn __aeabi_memcpy8(dest: *mut u8, src: *const u8, n: usize) {
     unsafe { copy_forward(dest, src, n) }
 }
-/// ARM EABI move entry points.
+/// ARM EABI move entry points (through [`move_bytes`], never `memmove`: see there).
 #[no_mangle]
 unsafe extern "C" fn __aeabi_memmove(dest: *mut u8, src: *const u8, n: usize) {
-    unsafe { memmove(dest, src, n) };
+    unsafe { move_bytes(dest, src, n) }
 }
 /// See [`__aeabi_memmove`].
 #[no_mangle]
 unsafe extern "C" fn __aeabi_memmove4(dest: *mut u8, src: *const u8, n: usize) {
-    unsafe { memmove(dest, src, n) };
+    unsafe { move_bytes(dest, src, n) }
 }
 /// See [`__aeabi_memmove`].
 #[no_mangle]
 unsafe extern "C" fn __aeabi_memmove8(dest: *mut u8, src: *const u8, n: usize) {
-    unsafe { memmove(dest, src, n) };
+    unsafe { move_bytes(dest, src, n) }
 }
 /// ARM EABI fill entry points: note the argument order (length before value).
 #[no_mangle]
