@@ -42,7 +42,7 @@ pub const CONCERNS: &[(&str, &[&str])] = &[
     ("lighting cell: FIFO, ports, lit store (§4.4, §5.5)", &["cell_core::light", "cell_core::lit", "cell_core::units"]),
     ("empty-frustum skip", &["cell_core::occupancy"]),
     ("shading + gamma table (§5.2)", &["cell_core::shade"]),
-    ("codec + CRC-32 table", &["cell_core::link", "crc"]),
+    ("codec + CRC-32 table", &["cell_core::wire", "cell_core::link", "crc"]),
     ("host records (trace codec)", &["cell_core::trace"]),
     ("routing (§1.3, §4.1.3)", &["cell_core::route"]),
     ("reflection (§2.3)", &["cell_core::reflect", "cell_core::ray"]),
@@ -112,7 +112,7 @@ pub fn known_tables() -> Vec<(&'static str, Vec<u8>)> {
     let gamma: Vec<u8> = cell_core::shade::GAMMA_THRESHOLDS.iter().flat_map(|t| t.to_le_bytes()).collect();
     let crc32: Vec<u8> = crc_table(0xEDB8_8320u32 as u64, 32).iter().flat_map(|&v| (v as u32).to_le_bytes()).collect();
     let crc64: Vec<u8> = crc_table(0xC96C_5795_D787_0F42, 64).iter().flat_map(|v| v.to_le_bytes()).collect();
-    vec![("cell_core::shade", gamma), ("cell_core::link", crc32), ("cell_core::trace", crc64)]
+    vec![("cell_core::shade", gamma), ("cell_core::wire", crc32), ("cell_core::trace", crc64)]
 }
 
 /// The 256-entry table of a reflected CRC with reversed polynomial `poly` of `bits` bits.
@@ -255,7 +255,7 @@ mod tests {
     #[test]
     fn known_tables_are_found_in_anonymous_data() {
         let tables = known_tables();
-        let crc32 = &tables.iter().find(|t| t.0 == "cell_core::link").unwrap().1;
+        let crc32 = &tables.iter().find(|t| t.0 == "cell_core::wire").unwrap().1;
         let entry = |i: usize| u32::from_le_bytes(crc32[4 * i..4 * i + 4].try_into().unwrap());
         let crc = b"123456789".iter().fold(!0u32, |c, &b| (c >> 8) ^ entry(((c ^ b as u32) & 0xff) as usize));
         assert_eq!(!crc, 0xCBF4_3926, "CRC-32/ISO-HDLC check value");
@@ -274,7 +274,7 @@ mod tests {
         let named = Sym { addr: base + 2, size: 4, name: "_ZN9cell_core4beam5TABLE17h0123456789abcdefE".into() };
         let rows = attribute_rodata(base, &section, &[named], FIRMWARE_BINS);
         assert_eq!(rows["cell_core::shade"], 1020);
-        assert_eq!(rows["cell_core::link"], 1024);
+        assert_eq!(rows["cell_core::wire"], 1024);
         assert_eq!(rows["cell_core::beam"], 4);
         assert_eq!(rows["anonymous constants"], 10 - 4 + 3 + 5);
         assert_eq!(rows.values().sum::<u64>(), section.len() as u64, "every byte in one row");
