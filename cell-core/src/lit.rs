@@ -26,8 +26,8 @@
 //!    if V is one of the two voxels bracketing it, that facet's plane B — oriented toward the
 //!    viewer, whatever the facet's winding — faces the source (g_B(Se) > 0) and σᴮ_k or σᴮ₋
 //!    holds;
-//! 2. if it is *terminal* (it crossed a plane just before this layer): lights V if V is occupied,
-//!    its plane faces the source and σ_k or σ₋ holds; it is absorbed;
+//! 2. if it is *terminal* (it crossed a plane just before this layer): lights V if V is occupied
+//!    and rule 4 would light it; it is absorbed;
 //! 3. in an empty V goes on;
 //! 4. in an occupied V: lights V if the ray is on the source's side of V's plane at layer k or
 //!    k − 1 and that plane faces the source (σ_k or σ₋) or is two-sided (see below; ¬σ_k or
@@ -48,18 +48,21 @@
 //! stop rays from both sides (an open sheet is opaque both ways), but only facets facing the
 //! source, or two-sided ones, are lit.
 //!
-//! **Two-sided planes.** Behind a plane of a closed surface is its inside: a ray found there,
-//! coming from empty space, went through the surface. An open surface (a sheet, a room open
-//! to the viewer, a teapot without its bottom: [`crate::plane::TWO_SIDED`]) has no inside; its
-//! winding is its author's or the host's majority choice. Where it faces away from the source,
-//! "behind" is the source's own side, where a ray is before it reaches the plane: at grazing
-//! angles a ray enters the standard surface's band a few voxels before the plane, and stopping
-//! it there left most of a sheet wound away from its light dark. So rule 4 reads "behind" only
-//! for a two-sided plane facing the source, and a two-sided plane facing away is lit from its
-//! inner side: an open sheet is lit, and stops light, the same whatever its winding. Its far
-//! side is not read as "crossed unseen" either (the one-sided rule for a plane facing away):
-//! that is where rays pass a convex edge of an open mesh (the teapot's silhouette). A closed mesh stays closed: a ray crossing its surface crosses a plane in
-//! one of the two voxels around the crossing (the standard surface has no 26-tunnel), so it is
+//! **Two-sided planes.** Behind a plane of a solid's surface is its inside: a ray found there,
+//! coming from empty space, went through the surface. A surface that bounds no solid (a sheet,
+//! a room open to the viewer, the teapot: [`crate::plane::TWO_SIDED`], decided by the host) has
+//! no inside; its winding is its author's or the host's majority choice. Where it faces away
+//! from the source, "behind" is the source's own side, where a ray is before it reaches the
+//! plane: at grazing angles a ray enters the standard surface's band a few voxels before the
+//! plane, and stopping it there left most of a sheet wound away from its light dark. So rule 4
+//! reads "behind" only for a two-sided plane facing the source, and a two-sided plane facing
+//! away is lit from its inner side: an open sheet is lit, and stops light, the same whatever
+//! its winding. Its far side is not read as "crossed unseen" either (the one-sided rule for a
+//! plane facing away): that is where rays pass a convex edge of an open mesh (the teapot's
+//! silhouette).
+//!
+//! A closed mesh stays closed: a ray crossing its surface crosses a plane in one of the two
+//! voxels around the crossing (the standard surface has no 26-tunnel), so it is
 //! stopped there — unless that voxel belongs to another facet (a junction), and then it is
 //! inside the mesh and is stopped where it leaves it. A step of a layer moves diagonally, so
 //! the crossing point may lie in a voxel neither layer visits; the ray then reaches a surface
@@ -448,8 +451,9 @@ impl Visit {
     }
 
     /// Whether the rays behind the voxel's plane at both layers (σ₋ = σ_k = 0) are absorbed
-    /// for the way they arrived (rule 4): after an empty voxel, or after the outside of
-    /// another column's plane into a plane facing the source.
+    /// for the way they arrived (rule 4): after an empty voxel into a plane facing the source
+    /// or one-sided, or after the outside of another column's plane into a plane facing the
+    /// source.
     pub fn absorbs_behind(&self) -> bool {
         let Some((_, faces, two_sided)) = self.own else { return false };
         (self.arrival.after_empty && (faces || !two_sided)) || (self.arrival.after_outside && faces)
