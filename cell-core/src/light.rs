@@ -1784,6 +1784,36 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// The environment of the hand-made cases below: the thesis's rule and policy, FIFO size
+    /// 4, one source bit, no merging, skip, hold, frustum summary or ray sink; each case
+    /// changes what it tests with struct update.
+    fn thesis_env<'a, F: FracBits>(
+        source: &'a Source,
+        order: &'a SplitOrder,
+        far: FarDistance<F>,
+        n: u32,
+    ) -> LightEnv<'a, F> {
+        LightEnv {
+            source,
+            far,
+            n,
+            depth: n,
+            policy: Policy::Thesis,
+            rule: LitRule::Thesis,
+            order,
+            fa: 4,
+            free_ports: false,
+            source_bit: 1,
+            merge: false,
+            skip: None,
+            lit_visible_only: false,
+            hold: 0,
+            frustum: None,
+            rays: None,
+            bounds: SubBeamBounds::new(n, n, None, source),
+        }
+    }
+
     fn check<const L: usize>(r: &LitRuns<L>) {
         for w in r.runs().windows(2) {
             assert!(w[0].hi < w[1].lo);
@@ -1941,10 +1971,10 @@ mod tests {
             let far = FarDistance::<U0>::new(n - 1).unwrap();
             let order = SplitOrder::default();
             let env = LightEnv {
-                source: &src, far, n, depth: n, order: &order, fa: 4, free_ports: false, source_bit: 1, merge: true,
-                policy: if radial { Policy::Radial } else { Policy::Wavefront }, rule: LitRule::Thesis,
-                skip: None, lit_visible_only: false, hold, frustum: None, rays: None,
-                bounds: SubBeamBounds::new(n, n, None, &src),
+                merge: true,
+                policy: if radial { Policy::Radial } else { Policy::Wavefront },
+                hold,
+                ..thesis_env(&src, &order, far, n)
             };
             let mut store = Cell::<8>::new(0, 0);
             let tag = crate::dexel::FacetTag::default();
@@ -2067,25 +2097,7 @@ mod tests {
         let src = Source::new(SourceId(0), [SourceCoord::from_num(7); 3]);
         let far = FarDistance::<U0>::new(n - 1).unwrap();
         let order = SplitOrder::default();
-        let env = |free_ports| LightEnv {
-            source: &src,
-            far,
-            n,
-            depth: n,
-            policy: Policy::Thesis,
-            rule: LitRule::Thesis,
-            order: &order,
-            fa: 4,
-            free_ports,
-            source_bit: 1,
-            merge: false,
-            skip: None,
-            lit_visible_only: false,
-            hold: 0,
-            frustum: None,
-            rays: None,
-            bounds: SubBeamBounds::new(n, n, None, &src),
-        };
+        let env = |free_ports| LightEnv { free_ports, ..thesis_env(&src, &order, far, n) };
         let store = Cell::<8>::new(7, 7);
         let up = BeamMsg::new(Beam::<U0>::initial(&src, Direction::PosZ, far), 7);
         let cell = |free_ports| {
@@ -2116,25 +2128,7 @@ mod tests {
         let src = Source::new(SourceId(0), [c(7.0), c(7.0), c(7.25)]);
         let far = FarDistance::<U0>::new(n - 1).unwrap();
         let order = SplitOrder::default();
-        let env = |policy| LightEnv {
-            source: &src,
-            far,
-            n,
-            depth: n,
-            policy,
-            rule: LitRule::Thesis,
-            order: &order,
-            fa: 8,
-            free_ports: false,
-            source_bit: 1,
-            merge: false,
-            skip: None,
-            lit_visible_only: false,
-            hold: 0,
-            frustum: None,
-            rays: None,
-            bounds: SubBeamBounds::new(n, n, None, &src),
-        };
+        let env = |policy| LightEnv { policy, fa: 8, ..thesis_env(&src, &order, far, n) };
         let store = Cell::<8>::new(0, 0);
         let sv = src.voxel();
         let px = Direction::PosX;

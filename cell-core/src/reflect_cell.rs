@@ -348,6 +348,14 @@ impl<const FA: usize, const W: usize, const S: usize> ReflectCell<FA, W, S> {
         }
     }
 
+    /// Queue a child ray for launching; one launch entry per open entry, so there is room
+    /// while the wait table has it, and an overflow is counted as the table's.
+    fn queue_launch(&mut self, r: ReflectRay) {
+        if self.launch.push_back(r).is_err() {
+            self.counters.wait_overflows += 1;
+        }
+    }
+
     /// If the column's visible voxel reflects enough, open the root entry and queue its ray
     /// (or its black answer, for a degenerate direction); `true` if it did. `reached(z)`: the
     /// sources that lit voxel z of the column (the light phase's result).
@@ -369,11 +377,7 @@ impl<const FA: usize, const W: usize, const S: usize> ReflectCell<FA, W, S> {
         match child_ray(at, d, ([0, 0, 1], 0b100), env, ([x, y], slot), 1, kr)
             .map_err(|error| RayError { at, error })?
         {
-            Some(r) => {
-                if self.launch.push_back(r).is_err() {
-                    self.counters.wait_overflows += 1;
-                }
-            }
+            Some(r) => self.queue_launch(r),
             None => self.queue(Routed { dest: [x, y], payload: (slot, [0; 3]) }),
         }
         self.counters.roots += 1;
@@ -487,10 +491,7 @@ impl<const FA: usize, const W: usize, const S: usize> ReflectCell<FA, W, S> {
         match child {
             Some(r) => {
                 self.counters.waits += 1;
-                // One launch entry per open entry: room while the table has it.
-                if self.launch.push_back(r).is_err() {
-                    self.counters.wait_overflows += 1;
-                }
+                self.queue_launch(r);
             }
             None => self.queue(Routed { dest: parent.0, payload: (parent.1, to_answer(local)) }),
         }

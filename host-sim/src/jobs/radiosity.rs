@@ -145,18 +145,14 @@ fn solve_with_bar(scene: &LoadedScene, p: &Patches, cfg: &RadiosityConfig, quiet
 
 /// The f64 reference on the same patches with the same stopping rule, and direct light only.
 fn compare(p: &Patches, s: &GridSolution, o: &RadiosityOptions) -> Result<ReferenceStats> {
-    // The reference's solve with `strata` × `strata` samples per patch pair, the job's stop.
-    let reference = |strata: usize| -> Result<crate::truth::radiosity::Solution> {
-        let ff = FormFactors::new(p, Sampling { strata, seed: 1, estimator: Estimator::Contour })?;
-        crate::truth::radiosity::solve(&p.patches, &ff, &ShootConfig { stop_fraction: o.residual, max_shots: o.shots })
+    // Form factors with `strata` × `strata` samples per patch pair; the job's stopping rule.
+    let form_factors = |strata: usize| FormFactors::new(p, Sampling { strata, seed: 1, estimator: Estimator::Contour });
+    let shoot = |ff: &FormFactors| {
+        crate::truth::radiosity::solve(&p.patches, ff, &ShootConfig { stop_fraction: o.residual, max_shots: o.shots })
     };
     let t0 = Instant::now();
-    let ff = FormFactors::new(p, Sampling { strata: 3, seed: 1, estimator: Estimator::Contour })?;
-    let r = crate::truth::radiosity::solve(
-        &p.patches,
-        &ff,
-        &ShootConfig { stop_fraction: o.residual, max_shots: o.shots },
-    )?;
+    let ff = form_factors(3)?;
+    let r = shoot(&ff)?;
     let wall_seconds = t0.elapsed().as_secs_f64();
     let emitters = p.patches.iter().filter(|q| q.emission.iter().any(|&e| e > 0.0)).count();
     let direct =
@@ -165,7 +161,7 @@ fn compare(p: &Patches, s: &GridSolution, o: &RadiosityOptions) -> Result<Refere
     let self_error = o
         .reference_self_error
         .then(|| -> Result<f64> {
-            let fine = reference(6)?;
+            let fine = shoot(&form_factors(6)?)?;
             let reflected = |b: &[[f64; 3]]| crate::truth::radiosity::reflected(&p.patches, b);
             rms_relative_error(&reflected(&fine.radiosity), &reflected(&r.radiosity), &areas)
         })
