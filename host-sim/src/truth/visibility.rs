@@ -36,6 +36,10 @@ use parry3d_f64::query::Ray;
 /// (relative: the segment runs over `t ∈ [0, 1]`) do not block.
 pub const SEGMENT_END_TOL: f64 = 1e-9;
 
+/// Hits of [`Reference::first_hit`] within this relative depth of the first are ties, broken by
+/// the lowest facet id: coplanar triangles differ by rounding only (about 10⁻¹⁶ relative).
+pub const TIE_REL: f64 = 1e-9;
+
 /// A triangle is skipped as zero-area when `|e1 × e2| ≤ DEGENERATE_SIN · |e1| · |e2|`, i.e.
 /// when the sine of its angle at the first vertex is at most 10⁻¹² (an exact zero included).
 pub const DEGENERATE_SIN: f64 = 1e-12;
@@ -245,6 +249,12 @@ impl Reference {
     /// First hit along the ray `origin + t·dir` with `0 < t < max_t`, ignoring the facets in
     /// `ignore`: `(t, facet id, unit normal facing the ray origin)`. `t` is in units of `dir`
     /// (which need not be normalised). Non-finite input, a zero `dir` or `max_t ≤ 0` give `None`.
+    ///
+    /// Coplanar facets that overlap (the Cornell box's light quad in its ceiling) are hit at the
+    /// same depth up to rounding: among the hits within [`TIE_REL`] of the first, the lowest
+    /// facet id wins — the first in the scene's order, as the machine's depth test keeps the
+    /// first of equal depths (`cell_core::visible`). Without it the rounding picked either
+    /// facet pixel by pixel.
     pub fn first_hit(
         &self,
         origin: [f64; 3],
@@ -268,7 +278,14 @@ impl Reference {
             let t = sr.hit(tri)?;
             (t > 0.0 && t < best).then_some(t)
         })?;
-        let tri = &self.tris[leaf as usize];
+        let tie = t * (1.0 + TIE_REL);
+        let tri = self
+            .bvh
+            .leaves(|node| node.cast_ray(&ray, tie) <= tie)
+            .map(|l| &self.tris[l as usize])
+            .filter(|c| !ignore.contains(&c.facet) && sr.hit(c).is_some_and(|tc| tc > 0.0 && tc <= tie))
+            .min_by_key(|c| c.facet)
+            .unwrap_or(&self.tris[leaf as usize]);
         let n = tri.normal;
         let n = if n.dot(dir) > 0.0 { -n } else { n };
         Some((t, tri.facet, n.to_array()))
@@ -733,5 +750,35 @@ mod tests {
         assert_eq!(r.first_hit([0.2, 0.2, -1.0], [0.0, 0.0, 1.0], f64::NAN, &[]), None);
         assert_eq!(r.first_hit([0.2, 0.2, -1.0], [0.0; 3], 10.0, &[]), None);
         assert_eq!(r.first_hit([0.2, 0.2, -1.0], [0.0, 0.0, 1.0], -1.0, &[]), None);
+    }
+
+    /// Two overlapping coplanar quads in a tilted plane (the Cornell light in its ceiling): where
+    /// both are hit, the lower facet id wins, whichever order they are given in; where only one
+    /// is, that one.
+    #[test]
+    fn coplanar_overlap_is_won_by_the_lower_facet_id() {
+        // The plane z = 0.3·x + 0.7·y + 5, seen along +z from below.
+        let on = |x: f64, y: f64| [x, y, 0.3 * x + 0.7 * y + 5.0];
+        let quad = |lo: f64, hi: f64| {
+            let (a, b, c, d) = (on(lo, lo), on(hi, lo), on(hi, hi), on(lo, hi));
+            [[a, b, c], [a, c, d]]
+        };
+        let (big, small) = (quad(0.0, 10.0), quad(3.0, 6.0));
+        let mut rng = Rng(9);
+        for order in [false, true] {
+            let (tris, facets) = if order {
+                ([big, small].concat(), vec![7, 7, 3, 3])
+            } else {
+                ([small, big].concat(), vec![3, 3, 7, 7])
+            };
+            let r = Reference::new(tris, facets).unwrap();
+            for _ in 0..2000 {
+                let (x, y) = (10.0 * rng.f(), 10.0 * rng.f());
+                let inside = (3.0..=6.0).contains(&x) && (3.0..=6.0).contains(&y);
+                let (t, facet, _) = r.first_hit([x, y, -20.0], [0.0, 0.0, 1.0], 100.0, &[]).unwrap();
+                assert!((t - (on(x, y)[2] + 20.0)).abs() < 1e-9, "({x}, {y}): depth {t}");
+                assert_eq!(facet, if inside { 3 } else { 7 }, "({x}, {y}), order {order}");
+            }
+        }
     }
 }
