@@ -11,7 +11,12 @@
 //! * `empty-crossings` — a plane crossed (rule 4's crossing, the terminal step, "behind after
 //!   empty space") stops a ray only where the crossing point lies in an occupied voxel;
 //! * `exact-occluders` — a ray is stopped exactly where its segment meets a triangle of the
-//!   mesh (f64), wherever the rule would stop it: occluders exactly as thin as the mesh.
+//!   mesh (f64), wherever the rule would stop it: occluders exactly as thin as the mesh;
+//! * `exact-source` — the lattice rays leave from the light itself: the machine's ray at layer
+//!   k of a face is `S + (u, v)·k/D` with S the light across the face's axis (sixteenths) but
+//!   its voxel's centre along it (§4.3's layers are whole voxels from the source voxel), up to
+//!   half a voxel from the light; here the ray's distance along the axis is counted from the
+//!   light, `k − δ`, so every ray is a true ray from the light.
 //!
 //! What no variant changes is the receiving side: a lit pixel is lit by at least one lattice ray through its two bracketing voxels; at f = 0
 //! about one or two rays cross a pixel's footprint, and the reference samples its centre.
@@ -38,12 +43,14 @@ mod common;
 struct Variant {
     empty_crossings: bool,
     exact_occluders: bool,
+    exact_source: bool,
 }
 
-const VARIANTS: [(&str, Variant); 3] = [
-    ("rule", Variant { empty_crossings: false, exact_occluders: false }),
-    ("empty-crossings", Variant { empty_crossings: true, exact_occluders: false }),
-    ("exact-occluders", Variant { empty_crossings: false, exact_occluders: true }),
+const VARIANTS: [(&str, Variant); 4] = [
+    ("rule", Variant { empty_crossings: false, exact_occluders: false, exact_source: false }),
+    ("empty-crossings", Variant { empty_crossings: true, exact_occluders: false, exact_source: false }),
+    ("exact-occluders", Variant { empty_crossings: false, exact_occluders: true, exact_source: false }),
+    ("exact-source", Variant { empty_crossings: false, exact_occluders: false, exact_source: true }),
 ];
 
 type Surfaces<'a> = &'a (dyn Fn(i64, i64, i64) -> Option<Surface> + Sync);
@@ -60,20 +67,74 @@ struct Walk<'a> {
     mesh: &'a Reference,
     origin: [f64; 3],
     voxel: f64,
+    /// Rays from the light itself (the `exact-source` variant).
+    exact_source: bool,
 }
 
 impl Walk<'_> {
+    /// 16 × the distance along the face's axis from the ray's origin to layer t: 16·t for the
+    /// machine's rays, 16·t − sign·(S_w − 16·V_w) from the light itself.
+    fn t16(&self, dir: usize, t: i64) -> i128 {
+        let (w, sign, _, _) = dir_axes(dir);
+        let lead = if self.exact_source { self.src[w] - 16 * self.sv[w] } else { 0 };
+        16 * t as i128 - (sign * lead) as i128
+    }
+
+    /// The voxel of ray (dir, a, b) at layer k: the oracle's [`ray_voxel`], or the same
+    /// rounding (`⌊x + ½⌋`, exact) of the true ray from the light.
+    fn voxel(&self, dir: usize, a: i64, b: i64, k: i64) -> [i64; 3] {
+        if !self.exact_source {
+            return ray_voxel(self.n, self.src, dir, a, b, self.d, 0, k);
+        }
+        let (w, sign, ua, va) = dir_axes(dir);
+        let scale = self.d as i128;
+        let across = |c: i64, o: i64| ((c as i128 + 8) * scale + o as i128 * self.t16(dir, k)).div_euclid(16 * scale);
+        let mut p = [0; 3];
+        p[w] = self.sv[w] + sign * k;
+        p[ua] = across(self.src[ua], a) as i64;
+        p[va] = across(self.src[va], b) as i64;
+        p
+    }
+
+    /// `plane_value` of the oracle, or the same scaled plane value at the true ray's point.
     fn value(&self, s: &Surface, p: [i64; 3], dir: usize, a: i64, b: i64, t: i64) -> i128 {
-        plane_value(s, p[0], p[1], self.src, dir, a, b, self.d, 0, t)
+        if !self.exact_source {
+            return plane_value(s, p[0], p[1], self.src, dir, a, b, self.d, 0, t);
+        }
+        let (w, sign, ua, va) = dir_axes(dir);
+        let (df, tt) = (self.d as i128, self.t16(dir, t));
+        let reference = [p[0] as i128, p[1] as i128, s.lo as i128];
+        let mut lp = [0i128; 3];
+        lp[w] = 16 * df * (self.sv[w] as i128 + sign as i128 * t as i128 - reference[w]);
+        lp[ua] = df * self.src[ua] as i128 + a as i128 * tt - 16 * df * reference[ua];
+        lp[va] = df * self.src[va] as i128 + b as i128 * tt - 16 * df * reference[va];
+        Self::scaled(s, lp, 16 * df)
+    }
+
+    /// `2¹⁶·L·g` from `L·(point − reference)`, as the oracle's `plane_value` combines it.
+    fn scaled(s: &Surface, lp: [i128; 3], l: i128) -> i128 {
+        (s.nx as i128 * lp[0] + s.ny as i128 * lp[1]) * 65536 + s.nz as i128 * lp[2] + 65536 * l * s.e as i128
+    }
+
+    /// Whether the source is on the front side of `s` (voxel p): the layer-0 point of the
+    /// machine's rays, or the light itself.
+    fn source_in_front(&self, s: &Surface, p: [i64; 3], dir: usize) -> bool {
+        if !self.exact_source {
+            return self.value(s, p, dir, 0, 0, 0) > 0;
+        }
+        let l = 16 * self.d as i128;
+        let reference = [p[0] as i128, p[1] as i128, s.lo as i128];
+        Self::scaled(s, [0, 1, 2].map(|i| self.d as i128 * self.src[i] as i128 - l * reference[i]), l) > 0
     }
 
     /// The ray's point of parameter t, in voxel-centre coordinates.
     fn point(&self, dir: usize, a: i64, b: i64, t: f64) -> [f64; 3] {
         let (w, sg, ua, va) = dir_axes(dir);
+        let dist = t + self.t16(dir, 0) as f64 / 16.0;
         let mut p = [0.0; 3];
         p[w] = self.sv[w] as f64 + sg as f64 * t;
-        p[ua] = self.src[ua] as f64 / 16.0 + a as f64 * t / self.d as f64;
-        p[va] = self.src[va] as f64 / 16.0 + b as f64 * t / self.d as f64;
+        p[ua] = self.src[ua] as f64 / 16.0 + a as f64 * dist / self.d as f64;
+        p[va] = self.src[va] as f64 / 16.0 + b as f64 * dist / self.d as f64;
         p
     }
 
@@ -106,11 +167,11 @@ impl Walk<'_> {
         let mut terminal: Option<(Surface, [i64; 3], i64)> = None;
         let (mut column, mut outside, mut from_empty) = (None, false, false);
         for k in 0..=d {
-            let p = ray_voxel(n, self.src, dir, a, b, d, 0, k);
+            let p = self.voxel(dir, a, b, k);
             if p.iter().any(|&c| !(0..n).contains(&c)) {
                 return;
             }
-            let next = ray_voxel(n, self.src, dir, a, b, d, 0, k + 1);
+            let next = self.voxel(dir, a, b, k + 1);
             let stays = z_ray && k < d && p[0] == next[0] && p[1] == next[1];
             let own = (self.surfaces)(p[0], p[1], p[2]);
             let prev = (k - 1).max(0);
@@ -118,7 +179,7 @@ impl Walk<'_> {
             // Rule 1: the visible surface.
             if let Some(v) = (self.columns)(p[0], p[1]) {
                 if (p[2] == v.z_v || p[2] == v.z_v + 1)
-                    && sigma(&v.plane, 0)
+                    && self.source_in_front(&v.plane, p, dir)
                     && (sigma(&v.plane, k) || sigma(&v.plane, prev))
                 {
                     out.push([p[0], p[1]]);
@@ -145,7 +206,8 @@ impl Walk<'_> {
                 continue;
             };
             // Rule 4.
-            let (was, now, then, faces) = (sigma(&s, prev), sigma(&s, k), sigma(&s, k + 1), sigma(&s, 0));
+            let (was, now, then, faces) =
+                (sigma(&s, prev), sigma(&s, k), sigma(&s, k + 1), self.source_in_front(&s, p, dir));
             let stop = |t0: i64| {
                 if var.exact_occluders {
                     self.meets_mesh(dir, a, b, t0 as f64, k as f64)
@@ -198,6 +260,11 @@ fn main() {
     println!(
         "{scene} n = {n}: variant, shadow disagreement, PSNR, pixels darker / brighter than the reference (light 1)"
     );
+    for (i, light) in lights.iter().enumerate() {
+        let src = host_sim::machine::diffuse::source_at(i, *light, n).expect("source").pos.map(|c| c.to_bits() as i64);
+        let lead = [0, 1, 2].map(|w| (src[w] - 16 * source_voxel(src)[w]) as f64 / 16.0);
+        println!("light {}: voxel {:?}, the light {lead:+?} voxel from its centre", i + 1, source_voxel(src));
+    }
     for (name, var) in chosen {
         let mut lit: BTreeMap<[i64; 2], u32> = BTreeMap::new();
         for (i, light) in lights.iter().enumerate() {
@@ -213,6 +280,7 @@ fn main() {
                 mesh: &exact,
                 origin: loaded.fit.origin,
                 voxel: loaded.fit.voxel,
+                exact_source: var.exact_source,
             };
             let m = walk.d;
             let cols: Vec<[i64; 2]> = (0..6usize)
