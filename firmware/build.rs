@@ -2,9 +2,12 @@
 //! out for QEMU's mps2-an386) and cortex-m-rt's `link.x`; embed the cell traces to replay.
 //!
 //! Traces: every `*.rc2t` file of `$RC2_TRACE_DIR` (the QEMU test records them from a host-sim
-//! run and points this variable at them), or of `firmware/traces/` (a small committed set
-//! recorded by `host-sim trace --n 32 --view fitted --cell 5,7 --cell 16,16 --busiest --out firmware/traces`).
-//! They become `TRACES: &[(&str, &[u8])]` in `$OUT_DIR/traces.rs` via `include_bytes!`.
+//! run and points this variable at them), or of `firmware/traces/`, and of the directories
+//! directly under it (a small committed set: the light phase in `traces/`, a classic
+//! shadow-ray run in `traces/shadow-rays/`, a reflection run in `traces/reflections/`; the
+//! commands that record them are in docs/FIRMWARE.md). They become
+//! `TRACES: &[(&str, &[u8])]` in `$OUT_DIR/traces.rs` via `include_bytes!`, named by their
+//! path under the directory.
 //!
 //! `-Tlink.x` is passed here rather than through `rustflags` in `.cargo/config.toml` so that a
 //! `RUSTFLAGS` in the environment (which replaces config rustflags) cannot drop it.
@@ -29,18 +32,23 @@ fn main() {
 
     println!("cargo:rerun-if-env-changed=RC2_TRACE_DIR");
     let dir = env::var_os("RC2_TRACE_DIR").map(PathBuf::from).unwrap_or_else(|| root.join("traces"));
-    println!("cargo:rerun-if-changed={}", dir.display());
-    let mut files: Vec<PathBuf> = fs::read_dir(&dir)
-        .unwrap_or_else(|e| panic!("cannot read the trace directory {}: {e}", dir.display()))
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|x| x == "rc2t"))
-        .collect();
+    let list = |d: &PathBuf| -> Vec<PathBuf> {
+        println!("cargo:rerun-if-changed={}", d.display());
+        fs::read_dir(d)
+            .unwrap_or_else(|e| panic!("cannot read the trace directory {}: {e}", d.display()))
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .collect()
+    };
+    let top = list(&dir);
+    let mut files: Vec<PathBuf> = top.iter().filter(|p| p.is_dir()).flat_map(list).chain(top.iter().cloned()).collect();
+    files.retain(|p| p.is_file() && p.extension().is_some_and(|x| x == "rc2t"));
     files.sort();
-    let mut src =
-        String::from("/// The embedded traces: (file name, bytes).\npub static TRACES: &[(&str, &[u8])] = &[\n");
+    let mut src = String::from(
+        "/// The embedded traces: (path under the trace directory, bytes).\npub static TRACES: &[(&str, &[u8])] = &[\n",
+    );
     for f in &files {
         println!("cargo:rerun-if-changed={}", f.display());
-        let name = f.file_name().unwrap().to_string_lossy();
+        let name = f.strip_prefix(&dir).unwrap().to_string_lossy();
         src += &format!("    ({name:?}, include_bytes!({:?})),\n", f.canonicalize().unwrap());
     }
     src += "];\n";

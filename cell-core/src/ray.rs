@@ -73,6 +73,7 @@ use crate::dexel::DexelStore;
 use crate::light::Port;
 use crate::plane::{DexelPlane, PlaneId, NORMAL_SCALE};
 use crate::units::FacetId;
+use crate::wire::{ByteSink, DecodeError, EncodeError, PutExt, Reader};
 
 /// Lattice units per voxel (the 1/16 voxel lattice of facets and sources).
 pub const Q: i32 = 16;
@@ -372,6 +373,139 @@ impl Line {
     }
 }
 
+/// Largest |voxel coordinate| a decoded line may hold: the voxels of lattice points within
+/// ±[`MAX_COORD`].
+const MAX_VOXEL: i32 = MAX_COORD / Q + 1;
+/// Most steps along one axis a decoded line may have left: a span of [`MAX_SPAN`].
+const MAX_STEPS: i32 = MAX_SPAN / Q + 1;
+
+/// Bytes of [`Line::put`] at most: a 26/18 walk with a pending voxel.
+pub const LINE_BYTES: usize = 58;
+
+impl Line {
+    /// Write the walk's state, what a ray message carries (all integers little-endian):
+    ///
+    /// * a tag u8: 0 the 6-connected walk, 1 the 26-connected, 2 the 18-connected; the current
+    ///   voxel 3×i32;
+    /// * 6-connected: |B − A| 3×i32, the step signs u8 (2 bits per axis, two's complement),
+    ///   the lattice distances to the next boundaries 3×i32, B's voxel 3×i32 (50 bytes);
+    /// * 26/18: u8 with the major axis (bits 0–1), a negative major step (bit 2) and a pending
+    ///   split step (bit 3); the increments 3×i32, the remainders 3×i32, Q·M i32, the major
+    ///   steps left u32, and the pending voxel 3×i32 when bit 3 is set (46 or 58 bytes).
+    ///
+    /// ```
+    /// use cell_core::ray::{Connectivity, Line, Q, LINE_BYTES};
+    /// use cell_core::wire::{Reader, SliceWriter};
+    ///
+    /// let mut line = Line::new([0, 0, 0], [3 * Q, 2 * Q, Q], Connectivity::Eighteen).unwrap();
+    /// line.step(); // mid-walk: a corner step split in two, its second half pending
+    /// let mut buf = [0u8; LINE_BYTES];
+    /// let mut w = SliceWriter::new(&mut buf);
+    /// line.put(&mut w).unwrap();
+    /// let len = w.len();
+    /// let mut copy = Line::get(&mut Reader::new(&buf[..len])).unwrap();
+    /// assert_eq!(copy, line);
+    /// assert_eq!((copy.step(), copy.remaining()), (line.clone().step(), line.remaining() - 1));
+    /// ```
+    pub fn put<S: ByteSink + ?Sized>(&self, w: &mut S) -> Result<(), EncodeError> {
+        let tag = match &self.walk {
+            Walk::Aw(_) => 0,
+            Walk::Dda(d) => 1 + d.split as u8,
+        };
+        w.u8(tag)?;
+        for c in self.v {
+            w.i32(c)?;
+        }
+        match &self.walk {
+            Walk::Aw(a) => {
+                a.d.iter().try_for_each(|&c| w.i32(c))?;
+                w.u8((0..3).fold(0, |m, i| m | ((a.s[i] as u8) & 3) << (2 * i)))?;
+                a.nb.iter().chain(&a.target).try_for_each(|&c| w.i32(c))
+            }
+            Walk::Dda(d) => {
+                w.u8(d.m | ((d.sm < 0) as u8) << 2 | (d.pending.is_some() as u8) << 3)?;
+                d.inc.iter().chain(&d.r).try_for_each(|&c| w.i32(c))?;
+                w.i32(d.qm)?;
+                w.u32(d.left)?;
+                d.pending.iter().flatten().try_for_each(|&c| w.i32(c))
+            }
+        }
+    }
+
+    /// Read a walk written by [`Line::put`]. The state is checked to be one a line within the
+    /// bit budget can reach (voxels within ±2²² + 1, spans within [`MAX_SPAN`], remainders in
+    /// range, steps toward the end voxel), so that walking it cannot overflow or panic; a value
+    /// outside is [`DecodeError::BadValue`].
+    pub fn get(r: &mut Reader<'_>) -> Result<Line, DecodeError> {
+        let tag = r.u8()?;
+        let v = [r.i32()?, r.i32()?, r.i32()?];
+        if v.iter().any(|c| c.unsigned_abs() > MAX_VOXEL as u32) {
+            return Err(DecodeError::BadValue("line voxel"));
+        }
+        let walk = match tag {
+            0 => Walk::Aw(Aw::get(r, v)?),
+            1 | 2 => Walk::Dda(Dda::get(r, v, tag == 2)?),
+            _ => return Err(DecodeError::BadValue("line walk")),
+        };
+        Ok(Line { v, walk })
+    }
+}
+
+impl Aw {
+    /// The 6-connected walk's state after the current voxel `v` ([`Line::get`]).
+    fn get(r: &mut Reader<'_>, v: [i32; 3]) -> Result<Aw, DecodeError> {
+        let d = [r.i32()?, r.i32()?, r.i32()?];
+        let signs = r.u8()?;
+        let s = [0, 1, 2].map(|i| ((signs >> (2 * i)) << 6) as i8 >> 6);
+        let nb = [r.i32()?, r.i32()?, r.i32()?];
+        let target = [r.i32()?, r.i32()?, r.i32()?];
+        for i in 0..3 {
+            // A step sign (±1) on exactly the axes that move.
+            if !(0..=MAX_SPAN).contains(&d[i]) || s[i] < -1 || (s[i] == 0) != (d[i] == 0) || signs >> 6 != 0 {
+                return Err(DecodeError::BadValue("line span"));
+            }
+            // The end voxel lies ahead along the step's sign (or is reached).
+            let ahead = target[i].abs_diff(v[i]);
+            let toward = (target[i] > v[i]) as i8 - (target[i] < v[i]) as i8;
+            if !(0..=MAX_SPAN + 2 * Q).contains(&nb[i]) || ahead > MAX_STEPS as u32 || (toward != 0 && toward != s[i]) {
+                return Err(DecodeError::BadValue("line boundary"));
+            }
+        }
+        Ok(Aw { d, s, nb, target })
+    }
+}
+
+impl Dda {
+    /// The 26- (or, `split`, 18-) connected walk's state after the current voxel `v`
+    /// ([`Line::get`]).
+    fn get(r: &mut Reader<'_>, v: [i32; 3], split: bool) -> Result<Dda, DecodeError> {
+        let b = r.u8()?;
+        let (m, sm, pending) = (b & 3, if b & 4 != 0 { -1 } else { 1 }, b & 8 != 0);
+        let inc = [r.i32()?, r.i32()?, r.i32()?];
+        let rem = [r.i32()?, r.i32()?, r.i32()?];
+        let (qm, left) = (r.i32()?, r.u32()?);
+        let pending = if pending { Some([r.i32()?, r.i32()?, r.i32()?]) } else { None };
+        if m > 2 || b >> 4 != 0 || !(0..=Q * MAX_SPAN).contains(&qm) || left > MAX_STEPS as u32 {
+            return Err(DecodeError::BadValue("line axis"));
+        }
+        let minor_ok = |i: usize| {
+            let (inc, rem) = (inc[i], rem[i]);
+            if i == m as usize || qm == 0 {
+                inc == 0 && rem == 0
+            } else {
+                inc.unsigned_abs() <= qm as u32 && (0..qm).contains(&rem)
+            }
+        };
+        if !(0..3).all(minor_ok) || (qm == 0 && left != 0) {
+            return Err(DecodeError::BadValue("line remainder"));
+        }
+        if pending.is_some_and(|p| p.iter().zip(&v).any(|(a, b)| a.abs_diff(*b) > 1)) {
+            return Err(DecodeError::BadValue("line pending voxel"));
+        }
+        Ok(Dda { m, sm, inc, r: rem, qm, left, split, pending })
+    }
+}
+
 /// The 2D cell step (dx, dy) between two consecutive voxels of a line, or `None` when the
 /// next voxel is in the same column (a z step, handled inside the cell).
 pub fn cell_step(from: [i32; 3], to: [i32; 3]) -> Option<(i8, i8)> {
@@ -604,6 +738,7 @@ impl ShadowRay {
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
 
     fn path(a: [i32; 3], b: [i32; 3], c: Connectivity) -> heapless::Vec<[i32; 3], 256> {
@@ -721,6 +856,139 @@ mod tests {
             assert!(plane_value(&p, r, a, d, t) > 0);
             let flipped = plane_value(&p.flipped(), r, a, d, t);
             assert!(flipped < 0);
+        }
+    }
+
+    /// Writes `l` and reads it back.
+    fn round_trip(l: &Line) -> Result<Line, DecodeError> {
+        let mut buf = [0u8; LINE_BYTES];
+        let mut w = crate::wire::SliceWriter::new(&mut buf);
+        l.put(&mut w).unwrap();
+        let n = w.len();
+        let mut r = Reader::new(&buf[..n]);
+        let back = Line::get(&mut r)?;
+        r.finish()?;
+        Ok(back)
+    }
+
+    #[test]
+    fn line_state_round_trips_at_every_step() {
+        let ends = [
+            ([0, 0, 0], [5 * Q + 3, -7 * Q, 2 * Q + 9]),
+            ([3, -8, 40], [-50 * Q, 33 * Q + 5, -2]),
+            ([0; 3], [3 * Q, 3 * Q, 3 * Q]),
+            ([0; 3], [0; 3]),
+            ([MAX_COORD, -MAX_COORD, 0], [MAX_COORD - MAX_SPAN, -MAX_COORD + MAX_SPAN, MAX_SPAN / 3]),
+        ];
+        for c in Connectivity::ALL {
+            for (a, b) in ends {
+                let mut l = Line::new(a, b, c).unwrap();
+                for _ in 0..200 {
+                    assert_eq!(round_trip(&l), Ok(l), "{c:?} {a:?} → {b:?} at {:?}", l.voxel());
+                    if l.step().is_none() {
+                        break;
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn decoded_lines_outside_the_budget_are_refused() {
+        let l = Line::new([0; 3], [3 * Q, -2 * Q, Q], Connectivity::Six).unwrap();
+        let aw = |edit: &dyn Fn(&mut [i32; 3], &mut Aw)| {
+            let mut f = l;
+            if let Walk::Aw(w) = &mut f.walk {
+                edit(&mut f.v, w);
+            }
+            round_trip(&f)
+        };
+        assert!(aw(&|v, _| v[0] = MAX_VOXEL + 1).is_err(), "a voxel beyond the budget");
+        assert!(aw(&|_, w| w.s[1] = 0).is_err(), "no step on an axis that moves");
+        assert!(aw(&|_, w| w.target[0] = -1).is_err(), "the end behind the step");
+        assert!(aw(&|_, w| w.nb[2] = -1).is_err(), "a negative boundary distance");
+        let d = Line::new([0; 3], [3 * Q, -2 * Q, Q], Connectivity::TwentySix).unwrap();
+        let dda = |edit: &dyn Fn(&mut Dda)| {
+            let mut f = d;
+            if let Walk::Dda(w) = &mut f.walk {
+                edit(w);
+            }
+            round_trip(&f)
+        };
+        assert!(dda(&|w| w.m = 3).is_err(), "a major axis beyond z");
+        assert!(dda(&|w| w.r[1] = w.qm).is_err(), "a remainder out of [0, Q·M)");
+        assert!(dda(&|w| w.inc[1] = w.qm + 1).is_err(), "two carries in a step");
+        assert!(dda(&|w| w.inc[0] = 1).is_err(), "an increment on the major axis");
+        assert!(dda(&|w| w.left = MAX_STEPS as u32 + 1).is_err(), "a walk beyond the span");
+        assert!(dda(&|w| w.pending = Some([5, 5, 5])).is_err(), "a pending voxel not next to the current one");
+        assert_eq!(Line::get(&mut Reader::new(&[3, 0, 0, 0, 0])), Err(DecodeError::Truncated));
+        let mut walk3 = [0u8; 64];
+        walk3[0] = 3;
+        assert_eq!(Line::get(&mut Reader::new(&walk3)), Err(DecodeError::BadValue("line walk")));
+    }
+
+    proptest::proptest! {
+        /// Any bytes: decoding never panics.
+        #[test]
+        fn any_bytes_decode_without_panic(bytes in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..64)) {
+            let _ = Line::get(&mut Reader::new(&bytes));
+        }
+
+        /// Any state the decoder's checks admit, reachable by a real line or not (remainders,
+        /// boundary distances, steps left and directions drawn at random within the checks):
+        /// it round-trips and walks to its end without overflow or panic (debug builds check
+        /// every operation), its exit parameter in range.
+        #[test]
+        fn any_admitted_state_walks_without_panic(
+            kind in 0u8..3,
+            v in proptest::array::uniform3(-MAX_VOXEL..=MAX_VOXEL),
+            small in proptest::array::uniform3(0i32..40),
+            signs in proptest::array::uniform3(proptest::prelude::any::<bool>()),
+            m in 0u8..3,
+            qm in 0i32..200,
+            fractions in proptest::array::uniform3(0.0f64..1.0),
+            pending in proptest::prelude::any::<bool>(),
+        ) {
+            let sign = |k: usize| if signs[k] { 1 } else { -1 };
+            let walk = if kind == 0 {
+                let d = small.map(|c| c * 1000);
+                let s = [0, 1, 2].map(|k| if d[k] == 0 { 0 } else { sign(k) as i8 });
+                let target = [0, 1, 2].map(|k| v[k] + s[k] as i32 * (small[k] % 7));
+                let nb = small.map(|c| c * 97 % (MAX_SPAN + 2 * Q));
+                Walk::Aw(Aw { d, s, nb, target })
+            } else {
+                let mut inc = [0; 3];
+                let mut r = [0; 3];
+                for k in (0..3).filter(|&k| k != m as usize && qm > 0) {
+                    inc[k] = sign(k) * (fractions[k] * qm as f64) as i32;
+                    r[k] = ((fractions[(k + 1) % 3] * qm as f64) as i32).min(qm - 1);
+                }
+                let left = if qm == 0 { 0 } else { small[0] as u32 };
+                let pending = pending.then(|| [v[0] + 1, v[1], v[2] - 1]);
+                Walk::Dda(Dda { m, sm: sign(m as usize) as i8, inc, r, qm, left, split: kind == 2, pending })
+            };
+            let mut l = Line { v, walk };
+            proptest::prop_assert_eq!(round_trip(&l), Ok(l));
+            let mut steps = 0u32;
+            while l.step().is_some() {
+                if let Some((num, den)) = l.exit() {
+                    proptest::prop_assert!(den > 0 && num >= 0);
+                }
+                steps += 1;
+                proptest::prop_assert!(steps <= 3 * MAX_STEPS as u32 + 3);
+            }
+        }
+
+        /// Lines built from any end points within the budget round-trip at every step.
+        #[test]
+        fn built_lines_round_trip(a in proptest::array::uniform3(-4000i32..4000), b in proptest::array::uniform3(-4000i32..4000), k in 0usize..3) {
+            let mut l = Line::new(a, b, Connectivity::ALL[k]).unwrap();
+            loop {
+                proptest::prop_assert_eq!(round_trip(&l), Ok(l));
+                if l.step().is_none() {
+                    break;
+                }
+            }
         }
     }
 

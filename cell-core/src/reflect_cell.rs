@@ -582,6 +582,11 @@ impl<const FA: usize, const W: usize, const S: usize> ReflectCell<FA, W, S> {
         self.open
     }
 
+    /// The open wait-table entries with their slots, in slot order.
+    pub fn wait_table(&self) -> impl Iterator<Item = (u16, &WaitEntry)> {
+        self.table.iter().enumerate().filter_map(|(i, e)| e.as_ref().map(|e| (i as u16, e)))
+    }
+
     /// Nothing to do until an answer arrives.
     pub fn idle(&self) -> bool {
         self.outs == 0 && self.launch.is_empty() && self.send.is_empty() && self.fifo.iter().all(Deque::is_empty)

@@ -18,6 +18,12 @@
 //! | `0x10` | [`Message::Row`] (a facet row packet, §3.9) | seq u8, facet u32, material u16, normal u16, plane (id u32, nx i16, ny i16, nz i32, m u64), box 6×u16, a c t u 4×i64, edge count u8, edges (a i32, c i32, g i64, off i32) | 81 + 20·edges |
 //! | `0x20` | [`Message::Beam`] (§4.4) | seq u8, frac bits u8, source u16, direction u8 (bit 7: terminal, bit 6: after an empty voxel, bit 5: after the outside of a plane, [`crate::lit`]), layer u32, u_lo u_hi v_lo v_hi 4×i32, z u16 | 27 + 7 = 34 |
 //! | `0x30` | [`Message::Ack`] | seq u8 | 1 + 7 = 8 |
+//! | `0x21` | [`RayMsg::Shadow`] (a classic shadow ray, §4.1.2) | seq u8, the ray ([`put_shadow_ray`]) | 61 … 117 + 7 (117: the plane rule's segment) |
+//! | `0x22` | [`RayMsg::Reflect`] (a reflected ray, §1.3.2) | seq u8, the ray ([`put_reflect_ray`]) | 76 … 88 + 7 |
+//!
+//! Ray frames ([`RayMsg`]) are not [`Message`]s: the host grid moves rays between its cells as
+//! values and the production cell does not run the ray phases yet; cell traces carry them
+//! ([`crate::trace`]), and a cell replaying one decodes them off its links like beams.
 //!
 //! `seq` is the link-level sequence number (for acknowledgement and retransmission); a trace
 //! leaves it 0.
@@ -67,6 +73,8 @@ use crate::facet::{FacetBox, RowEdge, RowPacket, MAX_EDGES};
 use crate::light::BeamMsg;
 use crate::normal::NormalCode;
 use crate::plane::FacetPlane;
+use crate::ray::{Line, PlaneWalk, ShadowRay, LINE_BYTES, MAX_COORD, MAX_SPAN};
+use crate::reflect::ReflectRay;
 use crate::voxelize::{worst_case_g, worst_case_t, MAX_LATTICE_Q, MAX_LATTICE_SPAN};
 
 /// CRC-32/ISO-HDLC (computed as [`Crc32Table`] says).
@@ -92,6 +100,13 @@ pub const KIND_ROW: u8 = 0x10;
 pub const KIND_BEAM: u8 = 0x20;
 /// Frame kind of an acknowledgement.
 pub const KIND_ACK: u8 = 0x30;
+/// Frame kind of a classic shadow ray ([`RayMsg::Shadow`]).
+pub const KIND_SHADOW_RAY: u8 = 0x21;
+/// Frame kind of a reflected ray ([`RayMsg::Reflect`]).
+pub const KIND_REFLECT_RAY: u8 = 0x22;
+/// The longest ray frame: a shadow ray under the plane rule with an 18-connected line's
+/// pending voxel (seq 1, line [`LINE_BYTES`], emitter to grace 14, plane state 52).
+pub const MAX_RAY_FRAME: usize = HEADER + 1 + LINE_BYTES + 14 + 52 + TRAILER;
 /// Payload bytes of a beam message (with its `seq`).
 pub const BEAM_PAYLOAD: usize = 27;
 /// Payload bytes of a row packet without edges (with its `seq`).
@@ -550,6 +565,149 @@ impl<F: FracBits> Frame<F> {
     }
 }
 
+/// A ray of the ray phases on a link: a classic shadow ray (§4.1.2) or a reflected ray (§1.3.2).
+/// Its frame carries the whole state of the ray (its incremental line included), as a cell
+/// holds it: the receiving cell walks on from where the sender stopped.
+///
+/// ```
+/// use cell_core::ray::{Connectivity, ShadowRay, Q};
+/// use cell_core::wire::{read_frame, DecodeError, RayMsg, MAX_RAY_FRAME};
+///
+/// // A shadow ray from voxel (2, 3, 4) toward a source at voxel (20, 9, 30), one step along.
+/// let mut ray = ShadowRay::new([2, 3, 4], [20 * Q, 9 * Q, 30 * Q], Connectivity::Six, 7).unwrap();
+/// ray.line.step();
+/// let mut buf = [0u8; MAX_RAY_FRAME];
+/// let len = RayMsg::Shadow(ray).emit(5, &mut buf).unwrap();
+/// let (raw, used) = read_frame(&buf[..len]).unwrap();
+/// assert_eq!((used, RayMsg::parse_payload(raw)), (len, Ok((5, RayMsg::Shadow(ray)))));
+/// // A byte changed on the wire: the frame's CRC refuses it.
+/// buf[len / 2] ^= 1;
+/// assert_eq!(read_frame(&buf[..len]).err(), Some(DecodeError::BadCrc));
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RayMsg {
+    /// A shadow ray walking toward its source.
+    Shadow(ShadowRay),
+    /// A reflected ray.
+    Reflect(ReflectRay),
+}
+
+impl RayMsg {
+    /// Emit this ray's frame with link sequence number `seq` into `buf`; returns its length
+    /// (at most [`MAX_RAY_FRAME`]).
+    pub fn emit(&self, seq: u8, buf: &mut [u8]) -> Result<usize, EncodeError> {
+        match self {
+            RayMsg::Shadow(ray) => write_frame(buf, KIND_SHADOW_RAY, |w| {
+                w.u8(seq)?;
+                put_shadow_ray(w, ray)
+            }),
+            RayMsg::Reflect(ray) => write_frame(buf, KIND_REFLECT_RAY, |w| {
+                w.u8(seq)?;
+                put_reflect_ray(w, ray)
+            }),
+        }
+    }
+
+    /// Parse a CRC-checked ray frame's payload; returns the sequence number and the ray.
+    pub fn parse_payload(raw: RawFrame<'_>) -> Result<(u8, Self), DecodeError> {
+        let mut r = Reader::new(raw.payload);
+        let seq = r.u8()?;
+        let ray = match raw.kind {
+            KIND_SHADOW_RAY => RayMsg::Shadow(get_shadow_ray(&mut r)?),
+            KIND_REFLECT_RAY => RayMsg::Reflect(get_reflect_ray(&mut r)?),
+            k => return Err(DecodeError::UnknownKind(k)),
+        };
+        r.finish()?;
+        Ok((seq, ray))
+    }
+}
+
+/// Write a shadow ray's fields (payload after `seq`): its line ([`Line::put`]), emitter 2×u16,
+/// facet u32, emitter z i32, flags u8 (bit 0 fresh, bit 1 surface, bit 2 plane state), grace
+/// u8, and under the plane rule A 3×i32, D 3×i32, own plane u32, t_in 2×i32, own g 2×i64.
+pub fn put_shadow_ray<S: ByteSink + ?Sized>(w: &mut S, ray: &ShadowRay) -> Result<(), EncodeError> {
+    ray.line.put(w)?;
+    w.u16(ray.emitter[0])?;
+    w.u16(ray.emitter[1])?;
+    w.u32(ray.facet)?;
+    w.i32(ray.emitter_z)?;
+    w.u8(ray.fresh as u8 | (ray.surface as u8) << 1 | (ray.plane.is_some() as u8) << 2)?;
+    w.u8(ray.grace)?;
+    if let Some(p) = &ray.plane {
+        p.a.iter().chain(&p.d).try_for_each(|&c| w.i32(c))?;
+        w.u32(p.own)?;
+        w.i32(p.t_in.0)?;
+        w.i32(p.t_in.1)?;
+        w.i64(p.own_g.0)?;
+        w.i64(p.own_g.1)?;
+    }
+    Ok(())
+}
+
+/// Read a shadow ray written by [`put_shadow_ray`] (its line and segment checked: see
+/// [`Line::get`]; t_in within [0, 1]).
+pub fn get_shadow_ray(r: &mut Reader<'_>) -> Result<ShadowRay, DecodeError> {
+    let line = Line::get(r)?;
+    let emitter = [r.u16()?, r.u16()?];
+    let (facet, emitter_z, flags, grace) = (r.u32()?, r.i32()?, r.u8()?, r.u8()?);
+    if flags >> 3 != 0 {
+        return Err(DecodeError::BadValue("shadow ray flags"));
+    }
+    let plane = if flags & 4 != 0 {
+        let a = [r.i32()?, r.i32()?, r.i32()?];
+        let d = [r.i32()?, r.i32()?, r.i32()?];
+        let own = r.u32()?;
+        let t_in = (r.i32()?, r.i32()?);
+        let own_g = (r.i64()?, r.i64()?);
+        let in_budget = a.iter().all(|c| c.unsigned_abs() <= MAX_COORD as u32)
+            && d.iter().all(|c| c.unsigned_abs() <= MAX_SPAN as u32)
+            && 0 < t_in.1
+            && (0..=t_in.1).contains(&t_in.0);
+        if !in_budget {
+            return Err(DecodeError::BadValue("shadow ray segment"));
+        }
+        Some(PlaneWalk { a, d, own, t_in, own_g })
+    } else {
+        None
+    };
+    Ok(ShadowRay { line, emitter, facet, emitter_z, fresh: flags & 1 != 0, grace, surface: flags & 2 != 0, plane })
+}
+
+/// Write a reflected ray's fields (payload after `seq`): its line ([`Line::put`]), direction
+/// 3×i32, parent 2×u16, slot u16, facet u32, level u8, weight f32, entry faces u8, fresh u8.
+pub fn put_reflect_ray<S: ByteSink + ?Sized>(w: &mut S, ray: &ReflectRay) -> Result<(), EncodeError> {
+    ray.line.put(w)?;
+    ray.dir.iter().try_for_each(|&c| w.i32(c))?;
+    w.u16(ray.parent[0])?;
+    w.u16(ray.parent[1])?;
+    w.u16(ray.slot)?;
+    w.u32(ray.facet)?;
+    w.u8(ray.level)?;
+    w.f32(ray.weight)?;
+    w.u8(ray.entry)?;
+    w.u8(ray.fresh as u8)
+}
+
+/// Read a reflected ray written by [`put_reflect_ray`] (its line checked: see [`Line::get`]).
+pub fn get_reflect_ray(r: &mut Reader<'_>) -> Result<ReflectRay, DecodeError> {
+    let line = Line::get(r)?;
+    let dir = [r.i32()?, r.i32()?, r.i32()?];
+    if dir.iter().any(|c| c.unsigned_abs() > MAX_SPAN as u32) {
+        return Err(DecodeError::BadValue("reflected ray direction"));
+    }
+    let parent = [r.u16()?, r.u16()?];
+    let (slot, facet, level, weight, entry) = (r.u16()?, r.u32()?, r.u8()?, r.f32()?, r.u8()?);
+    let fresh = match r.u8()? {
+        0 => false,
+        1 => true,
+        _ => return Err(DecodeError::BadValue("reflected ray flags")),
+    };
+    if entry >> 3 != 0 {
+        return Err(DecodeError::BadValue("reflected ray entry faces"));
+    }
+    Ok(ReflectRay { line, dir, parent, slot, facet, level, weight, entry, fresh })
+}
+
 // ---------------------------------------------------------------------------------------------
 
 #[cfg(test)]
@@ -794,5 +952,79 @@ mod tests {
         assert_eq!(row(i64::MAX, 1), Err(DecodeError::BadValue("plane coefficient a beyond the bit budget")));
         assert_eq!(row(0, 0), Err(DecodeError::BadValue("facet plane beyond the bit budget")));
         assert_eq!(row(0, (1 << 41) + 1), Err(DecodeError::BadValue("facet plane beyond the bit budget")));
+    }
+
+    #[test]
+    fn ray_frames_round_trip_within_their_size() {
+        use crate::plane::DexelPlane;
+        use crate::ray::{Connectivity, Q};
+        let plane = DexelPlane { id: 9, nx: 300, ny: -200, nz: -15000, e: -77 };
+        let mut rays = std::vec::Vec::new();
+        for c in Connectivity::ALL {
+            let r = ShadowRay::new([3, 4, 5], [40 * Q, -9 * Q + 3, 60 * Q], c, 11).unwrap().with_bias(2);
+            rays.push(RayMsg::Shadow(r.for_surface()));
+            let dir = [-7 * Q, 5 * Q, -31 * Q];
+            let mut f = ReflectRay::new([9, 8, 7], dir, c, [1, 2], 3, 4, 5, 0.25).unwrap();
+            let store = crate::dexel::DexelStore::<4>::new();
+            while f.line.remaining() > 20 {
+                let _ = f.advance(&store, 64, 64, true);
+            }
+            rays.push(RayMsg::Reflect(f));
+        }
+        let plane_ray = ShadowRay::on_plane([5 * Q, 6 * Q, 70], &plane, 4, [50 * Q, 3 * Q, -30 * Q], 2).unwrap();
+        rays.push(RayMsg::Shadow(plane_ray.expect("the plane faces the source")));
+        for ray in rays {
+            let mut buf = [0u8; MAX_RAY_FRAME + 8];
+            let n = ray.emit(7, &mut buf).unwrap();
+            assert!(n <= MAX_RAY_FRAME, "{n} bytes");
+            let (raw, used) = read_frame(&buf[..n]).unwrap();
+            assert_eq!((used, RayMsg::parse_payload(raw)), (n, Ok((7, ray))));
+            buf[n / 2] ^= 0x20;
+            assert_eq!(read_frame(&buf[..n]).unwrap_err(), DecodeError::BadCrc);
+        }
+        // The longest: the plane rule's segment on a line with a pending voxel.
+        let mut longest = ShadowRay::new([0, 0, 0], [3 * Q, 3 * Q, 3 * Q], Connectivity::Eighteen, 0).unwrap();
+        while longest.line.step().is_some_and(|v| v != [1, 1, 0] && v != [1, 0, 1] && v != [0, 1, 1]) {}
+        longest.plane = plane_ray.map(|r| r.plane.unwrap());
+        let mut buf = [0u8; MAX_RAY_FRAME + 8];
+        assert_eq!(RayMsg::Shadow(longest).emit(0, &mut buf), Ok(MAX_RAY_FRAME));
+    }
+
+    #[test]
+    fn rays_outside_the_budget_are_rejected() {
+        let ray = ShadowRay::new([3, 4, 5], [40 * 16, 0, 0], crate::ray::Connectivity::Six, 1).unwrap();
+        let frame = |ray: &ShadowRay, flags: Option<u8>| {
+            let mut buf = [0u8; MAX_RAY_FRAME];
+            let n = write_frame(&mut buf, KIND_SHADOW_RAY, |w| {
+                w.u8(0)?;
+                put_shadow_ray(w, ray)
+            })
+            .unwrap();
+            let mut v = buf[..n].to_vec();
+            if let Some(f) = flags {
+                // The flags byte: after seq, the line (50 bytes), emitter, facet and z.
+                v[HEADER + 1 + 50 + 12] = f;
+                let end = v.len() - TRAILER;
+                let crc = CRC32.checksum(&v[..end]).to_le_bytes();
+                v[end..].copy_from_slice(&crc);
+            }
+            let (raw, _) = read_frame(&v).unwrap();
+            RayMsg::parse_payload(raw).map(|_| ())
+        };
+        assert_eq!(frame(&ray, None), Ok(()));
+        assert_eq!(frame(&ray, Some(0x08)), Err(DecodeError::BadValue("shadow ray flags")));
+        let mut walk = ray;
+        walk.plane = Some(PlaneWalk { a: [0; 3], d: [1; 3], own: 0, t_in: (2, 1), own_g: (0, 0) });
+        assert_eq!(frame(&walk, None), Err(DecodeError::BadValue("shadow ray segment")));
+        let mut raw = [0u8; 4];
+        raw[0] = KIND_SHADOW_RAY;
+        assert_eq!(
+            RayMsg::parse_payload(RawFrame { kind: KIND_BEAM, payload: &[0] }),
+            Err(DecodeError::UnknownKind(KIND_BEAM))
+        );
+        assert_eq!(
+            RayMsg::parse_payload(RawFrame { kind: KIND_REFLECT_RAY, payload: &raw }),
+            Err(DecodeError::Truncated)
+        );
     }
 }

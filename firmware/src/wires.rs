@@ -59,6 +59,11 @@ pub fn grant(links: &mut [HalLink<ReadyLine, FrameWire>; 8], port: Port) {
     }
 }
 
+/// A frame goes out on link `port` (a ray a neighbour took).
+pub fn send(links: &mut [HalLink<ReadyLine, FrameWire>; 8], port: Port, frame: &[u8]) {
+    let _ = links[port.index()].spi.write(frame);
+}
+
 /// Frame bytes sent on all links so far.
 pub fn bytes_sent() -> u32 {
     SENT_BYTES.load(Ordering::Relaxed)

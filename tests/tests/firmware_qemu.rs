@@ -1,11 +1,13 @@
-//! The cell on a microcontroller: traces recorded from a host-sim run of the Cornell
-//! box (loading + one light) for several cells — the busiest included — are embedded in the
-//! `firmware/` crate, which drives a real `cell_core` cell through them on an emulated
-//! Cortex-M4F (QEMU `mps2-an386`): frames arrive through the link interrupt, go out through
-//! `embedded-hal` links. It prints the digest of each cell's outputs and final state; this test
-//! checks each equals the digest the host computed from its own grid run. Two altered traces
-//! ride along and must fail: one with a flipped byte (the CRC refuses it) and one re-encoded
-//! with a changed value (valid frames, different digest).
+//! The cell on a microcontroller: traces recorded from host-sim runs for several cells — the
+//! busiest included — are embedded in the `firmware/` crate, which drives a real `cell_core`
+//! cell through them on an emulated Cortex-M4F (QEMU `mps2-an386`): frames arrive through the
+//! link interrupt, go out through `embedded-hal` links. Every phase is there: loading and one
+//! light of the Cornell box (and an open scene with the sibling wait and the frustum skip), the
+//! classic shadow-ray phase and the reflection phase ([`ray_traces`]). The firmware prints the
+//! digest of each cell's outputs and final state; this test checks each equals the digest the
+//! host computed from its own grid run. Altered traces ride along and must fail: flipped bytes
+//! (a CRC refuses them: a trace record's, or a ray frame's own on the link receive path) and
+//! re-encoded changed values (valid frames, different digest).
 //!
 //! When `qemu-system-arm` or the `thumbv7em-none-eabihf` target is missing: under CI (the
 //! environment variable `CI` set, as `.ci/run` and CI services set it) the test **fails**, since
@@ -19,10 +21,19 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use cell_core::beam::frac::U0;
-use host_sim::jobs::trace::{record, TraceJob};
+use cell_core::lit::LitRule;
+use cell_core::ray::Connectivity;
+use cell_core::reflect::ReflectNormal;
+use cell_core::route::RoutePolicy;
+use host_sim::jobs::trace::{record, CellTrace, TraceJob};
+use host_sim::machine::classic::ClassicConfig;
 use host_sim::machine::diffuse::{FrustumBlocks, LightConfig};
+use host_sim::machine::reflect::ReflectConfig;
 use host_sim::precompute::LoadConfig;
-use rc2_tests::traces::{cornell_job_cells, mutate_row_material};
+use rc2_tests::traces::{
+    brighten_reflect_answers, cornell_job_cells, corrupt_first_ray_frame, flip_shadow_answers, mutate_row_material,
+    trace_job,
+};
 
 const TARGET: &str = "thumbv7em-none-eabihf";
 const QEMU: &str = "qemu-system-arm";
@@ -272,30 +283,18 @@ fn parse_output(out: &str) -> HashMap<String, Result<u64, String>> {
     m
 }
 
-#[test]
-fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
-    if let Some(why) = missing_tool() {
-        assert!(
-            !in_ci(),
-            "CI is set, and the firmware cannot run under QEMU: {why}. `.ci/run` installs \
-             qemu-system-arm and the {TARGET} target; a CI run must not skip this test"
-        );
-        // Straight to stderr, not through `eprintln!`, which the test harness captures and
-        // hides for a passing test: a skip must show in every run.
-        let _ = writeln!(
-            std::io::stderr(),
-            "SKIPPED firmware_replays_cornell_traces_bit_identical_to_the_host: {why} \
-             (not a CI run; with CI=1 this is a failure)"
-        );
-        return;
-    }
+/// The light-phase traces the firmware replays, written to `dir`: a Cornell-box run at n = 64
+/// (loading + one light) for its corner, centre, source and busiest cells, two altered copies
+/// of the corner cell's (`z_flipped`: a flipped byte; `z_changed`: a re-encoded changed
+/// material), and an open scene's busiest and centre cells with the sibling wait and the
+/// frustum skip (`w_…`). Returns the unaltered traces by the name the firmware prints, and
+/// the corner cell's digest.
+fn light_traces(dir: &Path) -> (Vec<(String, CellTrace)>, u64) {
     let (mesh, load, light, cells) = cornell_job_cells(64);
-    let job = TraceJob { mesh: &mesh, load, light, lights: Vec::new(), cells, busiest: true };
+    let job = TraceJob { busiest: true, ..trace_job(&mesh, load, light, cells) };
     let traces = record::<U0>(&job).expect("record traces");
     assert!(traces.len() >= 4, "corner, centre, source and busiest cells");
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("qemu-traces");
-    let _ = std::fs::remove_dir_all(&dir);
-    host_sim::jobs::trace::write_traces(&dir, &traces).unwrap();
+    host_sim::jobs::trace::write_traces(dir, &traces).unwrap();
     // Two altered copies of the corner cell's trace (the first one recorded; small, so that the
     // firmware's flash holds them too).
     let corner = traces.first().unwrap();
@@ -310,20 +309,156 @@ fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
     // one of the teapot's ~6 000 sub-voxel facets sends row packets through these cells, and
     // the traces would not fit the firmware's 256 KiB of flash.
     let teapot = host_sim::scene::load("teapot-floor").unwrap();
-    let tload = LoadConfig::thin(32);
     let tlight = LightConfig { hold: 4, skip_frustum: true, frustum_blocks: FrustumBlocks::B8, ..light };
-    let tjob = TraceJob {
-        mesh: &teapot,
-        load: tload,
-        light: tlight,
-        lights: Vec::new(),
-        cells: vec![[16, 16]],
-        busiest: true,
-    };
+    let tjob = TraceJob { busiest: true, ..trace_job(&teapot, LoadConfig::thin(32), tlight, vec![[16, 16]]) };
     let waits = record::<U0>(&tjob).expect("record traces with the wait and the frustum skip");
     for t in &waits {
         std::fs::write(dir.join(format!("w_cell_{}_{}.rc2t", t.x, t.y)), &t.bytes).unwrap();
     }
+    let corner_digest = corner.digest;
+    let named = traces.into_iter().map(|t| (format!("cell_{}_{}.rc2t", t.x, t.y), t));
+    let named = named.chain(waits.into_iter().map(|t| (format!("w_cell_{}_{}.rc2t", t.x, t.y), t)));
+    (named.collect(), corner_digest)
+}
+
+/// The ray phases on the MCU, recorded at n = 32 (small traces, a few KB each): the Cornell box
+/// lit by classic shadow rays under the plane rule (6-connected walks, the plane segment's
+/// 64-bit arithmetic) and under the thesis's rule with 26-connected rays from every occupied
+/// voxel and dimension-ordered answers; the Cornell box with a mirror, reflections to depth 4
+/// (`f32` shading, the wait table, answers forwarded), with 6-connected rays and with
+/// 26-connected ones through FIFOs of 2. Each set goes to a directory under `dir` (the firmware
+/// build embeds those too, named `set/cell_X_Y.rc2t`). Altered copies in `dir`: `z_ray_flipped`
+/// (a byte of a ray frame flipped in the trace: the record's CRC), `z_ray_wire` (the same byte
+/// flipped on the wire, the record re-encoded: the ray frame's own CRC, on the link receive
+/// path), `z_answer_changed` and `z_reflect_changed` (an answer the router delivers, re-encoded
+/// changed: a valid trace, another digest). Returns the unaltered traces by name and the
+/// digests of the two whose answers were changed.
+fn ray_traces(dir: &Path) -> (Vec<(String, CellTrace)>, [u64; 2]) {
+    let named = record_ray_sets(dir);
+    let (shadow, mirror) = (&named[0].1, &named[3].1);
+    altered_ray_traces(dir, shadow, mirror);
+    let digests = [shadow.digest, mirror.digest];
+    (named, digests)
+}
+
+/// The unaltered ray-phase traces of [`ray_traces`], written under `dir`, by name: the first
+/// two are the plane rule's shadow rays, the fourth a reflection cell.
+fn record_ray_sets(dir: &Path) -> Vec<(String, CellTrace)> {
+    let (six, adaptive) = (Connectivity::Six, RoutePolicy::Adaptive);
+    let plane =
+        ClassicConfig { fa: 16, connectivity: six, route: adaptive, all_voxels: false, bias: 0, rule: LitRule::Plane };
+    let thesis = ClassicConfig {
+        connectivity: Connectivity::TwentySix,
+        all_voxels: true,
+        rule: LitRule::Thesis,
+        route: RoutePolicy::DiagonalFirst,
+        ..plane
+    };
+    let normal = ReflectNormal::Facet;
+    let mirror = ReflectConfig {
+        depth: 4,
+        threshold: 0.01,
+        normal,
+        skip_own_facet: true,
+        connectivity: six,
+        fa: 16,
+        route: adaptive,
+    };
+    let mirror26 = ReflectConfig { connectivity: Connectivity::TwentySix, fa: 2, ..mirror };
+    let sets = [
+        ("shadow-plane", "cornell", Some(plane), None, vec![[22, 14], [10, 18]]),
+        ("shadow-thesis-26", "cornell", Some(thesis), None, vec![[6, 22]]),
+        ("reflect", "cornell-mirror", None, Some(mirror), vec![[20, 11], [20, 17]]),
+        ("reflect-26", "cornell-mirror", None, Some(mirror26), vec![[20, 17]]),
+    ];
+    let mut named = Vec::new();
+    for (set, scene, classic, reflections, cells) in sets {
+        let mesh = host_sim::scene::load(scene).unwrap();
+        let (load, light) = (LoadConfig::watertight(32), LightConfig::default());
+        let job = TraceJob { classic, reflections, ..trace_job(&mesh, load, light, cells) };
+        let traces = record::<U0>(&job).unwrap_or_else(|e| panic!("record the {set} traces: {e}"));
+        host_sim::jobs::trace::write_traces(&dir.join(set), &traces).unwrap();
+        named.extend(traces.into_iter().map(|t| (format!("{set}/cell_{}_{}.rc2t", t.x, t.y), t)));
+    }
+    named
+}
+
+/// The altered copies of [`ray_traces`], from a shadow-ray trace and a reflection trace.
+fn altered_ray_traces(dir: &Path, shadow: &CellTrace, mirror: &CellTrace) {
+    let flipped = corrupt_first_ray_frame::<U0>(&shadow.bytes).expect("a ray came in on a link");
+    let mut records = cell_core::trace::Parser::<U0>::new(&flipped);
+    assert!(std::iter::from_fn(|| records.next_event()).all(|r| r.is_ok()), "only the ray frame's CRC is wrong");
+    let at = (0..flipped.len()).find(|&i| flipped[i] != shadow.bytes[i]).unwrap();
+    let mut raw = shadow.bytes.clone();
+    raw[at] ^= flipped[at] ^ shadow.bytes[at];
+    std::fs::write(dir.join("z_ray_flipped.rc2t"), raw).unwrap();
+    std::fs::write(dir.join("z_ray_wire.rc2t"), flipped).unwrap();
+    let unlit = flip_shadow_answers::<U0>(&shadow.bytes);
+    std::fs::write(dir.join("z_answer_changed.rc2t"), unlit.expect("an answer came back")).unwrap();
+    let brighter = brighten_reflect_answers::<U0>(&mirror.bytes);
+    std::fs::write(dir.join("z_reflect_changed.rc2t"), brighter.expect("a reflection answer came back")).unwrap();
+}
+
+/// The firmware's digest of each named trace equals the host grid's.
+fn check_digests(got: &HashMap<String, Result<u64, String>>, traces: &[(String, CellTrace)], out: &str) {
+    for (name, t) in traces {
+        match got.get(name) {
+            Some(Ok(d)) => assert_eq!(
+                *d, t.digest,
+                "{name} (cell ({}, {})): the Cortex-M4F gives {d:016x}, the host grid {:016x}",
+                t.x, t.y, t.digest
+            ),
+            other => panic!("{name} (cell ({}, {})): no digest from the firmware: {other:?}\n{out}", t.x, t.y),
+        }
+    }
+}
+
+/// The altered traces: each flipped byte refused by a CRC, each re-encoded change replayed to
+/// another digest than the original's.
+fn check_altered(got: &HashMap<String, Result<u64, String>>, changed: &[(&str, u64)]) {
+    for name in ["z_flipped.rc2t", "z_ray_flipped.rc2t", "z_ray_wire.rc2t"] {
+        assert!(
+            matches!(got.get(name), Some(Err(e)) if e.contains("BadCrc")),
+            "{name}: a flipped byte must be refused by the CRC: {:?}",
+            got.get(name)
+        );
+    }
+    for &(name, original) in changed {
+        match got.get(name) {
+            Some(Ok(d)) => assert_ne!(*d, original, "{name}: a changed value must change the digest"),
+            Some(Err(e)) => panic!("{name}: the re-encoded trace is valid and must replay: {e}"),
+            None => panic!("no result for {name}"),
+        }
+    }
+}
+
+/// Whether the test can run here; when it cannot, why (on stderr), or a failure under CI.
+fn tools_present() -> bool {
+    let Some(why) = missing_tool() else { return true };
+    assert!(
+        !in_ci(),
+        "CI is set, and the firmware cannot run under QEMU: {why}. `.ci/run` installs \
+         qemu-system-arm and the {TARGET} target; a CI run must not skip this test"
+    );
+    // Straight to stderr, not through `eprintln!`, which the test harness captures and
+    // hides for a passing test: a skip must show in every run.
+    let _ = writeln!(
+        std::io::stderr(),
+        "SKIPPED firmware_replays_cornell_traces_bit_identical_to_the_host: {why} \
+         (not a CI run; with CI=1 this is a failure)"
+    );
+    false
+}
+
+#[test]
+fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
+    if !tools_present() {
+        return;
+    }
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("qemu-traces");
+    let _ = std::fs::remove_dir_all(&dir);
+    let (light, corner) = light_traces(&dir);
+    let (rays, [shadow, mirror]) = ray_traces(&dir);
 
     let t0 = Instant::now();
     let elf = build_firmware(&dir);
@@ -333,36 +468,10 @@ fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
     let (code, out) = run_qemu(&elf);
     eprintln!("firmware build {t_build:?}, QEMU run {:?}; QEMU said:\n{out}", t0.elapsed() - t_build);
     let got = parse_output(&out);
-    for t in &traces {
-        let name = format!("cell_{}_{}.rc2t", t.x, t.y);
-        match got.get(&name) {
-            Some(Ok(d)) => assert_eq!(
-                *d, t.digest,
-                "cell ({}, {}): the Cortex-M4F gives {d:016x}, the host grid {:016x}",
-                t.x, t.y, t.digest
-            ),
-            other => panic!("cell ({}, {}): no digest from the firmware: {other:?}\n{out}", t.x, t.y),
-        }
-    }
-    for t in &waits {
-        let name = format!("w_cell_{}_{}.rc2t", t.x, t.y);
-        match got.get(&name) {
-            Some(Ok(d)) => {
-                assert_eq!(*d, t.digest, "{name} (hold 4, frustum skip): firmware {d:016x}, host {:016x}", t.digest)
-            }
-            other => panic!("{name}: no digest from the firmware: {other:?}\n{out}"),
-        }
-    }
-    assert!(
-        matches!(got.get("z_flipped.rc2t"), Some(Err(e)) if e.contains("BadCrc")),
-        "a flipped byte must be refused by the CRC: {:?}",
-        got.get("z_flipped.rc2t")
-    );
-    match got.get("z_changed.rc2t") {
-        Some(Ok(d)) => assert_ne!(*d, corner.digest, "a changed material must change the digest"),
-        Some(Err(e)) => panic!("the re-encoded trace is valid and must replay: {e}"),
-        None => panic!("no result for z_changed.rc2t:\n{out}"),
-    }
-    // The flipped trace makes the firmware report failure through its exit code.
+    check_digests(&got, &light, &out);
+    check_digests(&got, &rays, &out);
+    let changed = [("z_changed.rc2t", corner), ("z_answer_changed.rc2t", shadow), ("z_reflect_changed.rc2t", mirror)];
+    check_altered(&got, &changed);
+    // The flipped traces make the firmware report failure through its exit code.
     assert_eq!(code, Some(1), "the firmware must exit with EXIT_FAILURE when a trace fails:\n{out}");
 }

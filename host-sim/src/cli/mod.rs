@@ -51,9 +51,10 @@ pub enum Command {
     /// RAM of one cell for a scene: static sizes by part, what the scene uses (peak dexels,
     /// FIFO, lit runs, with the cell that needs most), and whether it fits `memory.x`.
     Audit(AuditArgs),
-    /// Record, for chosen cells of a load + light run, every message they receive and every
-    /// cycle, as binary traces (`cell_X_Y.rc2t`) plus the digest of their outputs and final
-    /// state (`digests.json`); the firmware replays them.
+    /// Record, for chosen cells of a run (loading; beam diffusion, or classic shadow rays with
+    /// `--lighting classic`; shading; with `--reflections N` the reflection phase), every
+    /// message they receive and every cycle, as binary traces (`cell_X_Y.rc2t`) plus the
+    /// digest of their outputs and final state (`digests.json`); the firmware replays them.
     Trace(TraceArgs),
     /// Progressive radiosity on the grid (radiosity thesis §1.3.2, §3.4): each shot a beam
     /// diffusion from the patch with the most unshot power; per-patch and per-shot CSV;
@@ -657,13 +658,21 @@ pub struct TraceArgs {
     /// Scene and loading options.
     #[command(flatten)]
     pub load: LoadArgs,
-    /// Lighting options (the firmware is built for the default --frac-bits 0).
+    /// Lighting options (the firmware is built for the default --frac-bits 0). With
+    /// `--lighting classic` the trace records the classic shadow-ray phase of each source
+    /// instead of beam diffusion.
     #[command(flatten)]
     pub light: LightOpts,
+    /// The reflection phase, recorded after shading (`--reflections N`, N > 0; needs
+    /// `--lighting diffusion` and the fitted view, the default with it).
+    #[command(flatten)]
+    pub reflect: crate::cli::phase_args::ReflectOpts,
     /// A cell to record, X,Y (repeatable).
     #[arg(long = "cell", value_parser = parse_cell)]
     pub cells: Vec<[u32; 2]>,
-    /// Also record the cell that processes the most beams (found by a first run).
+    /// Also record the cell that processes the most beams (with `--lighting classic`: the most
+    /// shadow-ray voxel steps), found by a first run. Near a source that cell receives most
+    /// rays: its trace can be large.
     #[arg(long)]
     pub busiest: bool,
     /// Directory for the traces and digests.json.

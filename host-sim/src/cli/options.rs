@@ -91,6 +91,10 @@ impl From<&TraceArgs> for TraceOptions {
             view: a.load.camera.choice(),
             load: a.load.config(TRACE_N),
             light: (&a.light).into(),
+            reflections: (a.reflect.reflections > 0).then(|| {
+                let (fa, rule) = (a.light.fa, a.light.lit_rule.into());
+                a.reflect.config(fa, &a.light.classic.config(fa, rule))
+            }),
             cells: a.cells.clone(),
             busiest: a.busiest,
             out: a.out.clone(),

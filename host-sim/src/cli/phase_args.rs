@@ -98,7 +98,7 @@ pub enum ReflectNormalArg {
     Face,
 }
 
-/// Command-line options of the reflection phase (`render`).
+/// Command-line options of the reflection phase (`render`, `trace`).
 #[derive(clap::Args, Debug, Clone)]
 pub struct ReflectOpts {
     /// Mirror reflections: largest depth of the distributed ray tree (reflections per path);

@@ -42,7 +42,7 @@ pub struct LightingOptions {
     /// Blocks per axis of the occupancy summary the beam skips test against. Default: 32; 8 in
     /// `trace` (a cell trace carries the 8 × 8 × 8 summary).
     pub frustum_blocks: Option<FrustumBlocks>,
-    /// Classic shadow rays instead of diffusion (`render`, `light`; `trace` records diffusion).
+    /// Classic shadow rays instead of diffusion (`render`, `light`, `trace`).
     pub classic: Option<ClassicConfig>,
 }
 

@@ -3,21 +3,28 @@
 //! `cell_core::trace` records; and the digest of what they output and end up holding, computed
 //! from the grid itself. A firmware (or [`cell_core::trace::replay`]) drives a fresh cell
 //! through the records and must reach the same digest.
+//!
+//! The run is the one `render` makes with the same options: loading, then beam diffusion or
+//! (with classic lighting) the classic shadow-ray phase of each source, shading, then (with
+//! reflections) the reflection phase; every phase it runs is in the trace.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use cell_core::beam::{FracBits, Source};
 use cell_core::cell::DEFAULT_DEXELS;
-use cell_core::shade::{cell_pixel, NormalMode, ShadeParams};
+use cell_core::lit::LitRule;
+use cell_core::shade::{cell_pixel, Eye, NormalMode, ShadeParams};
 use cell_core::trace::{Event, ShadeSetup, MAX_LIGHTS, MAX_MATERIALS};
 
 use crate::jobs::light::{unsupported_frac_bits, LightingOptions};
 use crate::machine::diffuse::{diffuse_tapped, source_at, FrustumBlocks, LightConfig, Lighting};
 use crate::machine::tap::{CellRecorder, Tap};
 
-use crate::machine::capacity::{FA_CAP, LIT_CAP, OB_CAP};
+use crate::machine::capacity::{HostLightCell, FA_CAP, LIT_CAP, OB_CAP};
+use crate::machine::classic::{classic_tapped, ClassicConfig, ClassicLighting};
 use crate::machine::loaded::LoadedScene;
+use crate::machine::reflect::{reflect_tapped, ReflectConfig, ShadeEnv};
 use crate::machine::shade::{cell_material, eye_lights, point_lights, AMBIENT};
 use crate::precompute::LoadConfig;
 use crate::scene::Mesh;
@@ -51,13 +58,28 @@ pub struct TraceJob<'a> {
     pub cells: Vec<[u32; 2]>,
     /// Also record the busiest cell (found by a first, untraced run).
     pub busiest: bool,
+    /// Classic shadow rays instead of beam diffusion (`light` is then unused).
+    pub classic: Option<ClassicConfig>,
+    /// The reflection phase after shading (needs beam diffusion and the grid's own view).
+    pub reflections: Option<ReflectConfig>,
 }
 
-/// Run loading and lighting on the grid, recording the chosen cells.
+/// The lit state the lighting phase left.
+enum Lit<F: FracBits> {
+    /// Beam diffusion's: every cell's lit store.
+    Beams(Lighting<F>),
+    /// Classic shadow rays': the sources that lit each visible surface.
+    Rays(ClassicLighting, LitRule),
+}
+
+/// Run the phases on the grid (see the module doc), recording the chosen cells.
 pub fn record<F: FracBits>(job: &TraceJob<'_>) -> Result<Vec<CellTrace>> {
     let n = job.load.n;
     if job.mesh.materials.len() > MAX_MATERIALS {
         bail!("{} materials: a trace carries at most {MAX_MATERIALS}", job.mesh.materials.len());
+    }
+    if job.reflections.is_some() && job.classic.is_some() {
+        bail!("--reflections needs --lighting diffusion (the lit state of every voxel, not only the visible ones)");
     }
     let cells = cells_to_record::<F>(job)?;
     let mut tap = Tap::new::<F>(n, n, &cells)?;
@@ -66,13 +88,52 @@ pub fn record<F: FracBits>(job: &TraceJob<'_>) -> Result<Vec<CellTrace>> {
     if lights.len() > MAX_LIGHTS {
         bail!("{} lights: a trace carries at most {MAX_LIGHTS}", lights.len());
     }
-    let lighting = diffuse_tapped::<F, DEFAULT_DEXELS>(&scene.grid, &sources, &job.light, Some(&mut tap), |_, _| {})?;
+    let lit = match &job.classic {
+        None => Lit::Beams(diffuse_tapped::<F, DEFAULT_DEXELS>(
+            &scene.grid,
+            &sources,
+            &job.light,
+            Some(&mut tap),
+            |_, _| {},
+        )?),
+        Some(c) => Lit::Rays(classic_tapped(&scene, &lights, c, Some(&mut tap), |_, _| {})?, c.rule),
+    };
     let shade = ShadeSetup {
         params: ShadeParams { ambient: [AMBIENT; 3], normal_mode: NormalMode::Facet, eye: scene.eye },
         lights: eye_lights(&scene.eye, &point_lights(&lights)).into_iter().collect(),
         materials: job.mesh.materials.iter().map(cell_material).collect(),
     };
-    Ok(tap.into_recorders().into_iter().map(|r| finish_trace::<F>(r, job, &scene, &lighting, &shade)).collect())
+    tap.shade(&shade);
+    if let (Some(cfg), Lit::Beams(lighting)) = (&job.reflections, &lit) {
+        reflections(job, &scene, lighting, &shade, cfg, &mut tap)?;
+    }
+    Ok(tap.into_recorders().into_iter().map(|r| finish_trace::<F>(r, job, &scene, &lit, &shade)).collect())
+}
+
+/// The reflection phase over the lit grid, shading with the trace's shading inputs (what the
+/// replaying cell shades with).
+fn reflections<F: FracBits>(
+    job: &TraceJob<'_>,
+    scene: &LoadedScene,
+    lighting: &Lighting<F>,
+    shade: &ShadeSetup,
+    cfg: &ReflectConfig,
+    tap: &mut Tap,
+) -> Result<()> {
+    if shade.params.eye != Eye::Grid {
+        bail!("--reflections needs the fitted view: reflected rays are not traced through a camera yet");
+    }
+    cfg.validate(job.load.n)?;
+    let mask = |x, y, z| lighting.mask(x, y, z);
+    let env = ShadeEnv {
+        mats: shade.materials.to_vec(),
+        kr: job.mesh.materials.iter().map(|m| m.kr).collect(),
+        lights: &shade.lights,
+        params: shade.params,
+        mask: &mask,
+    };
+    reflect_tapped(scene, &env, cfg, Some(tap))?;
+    Ok(())
 }
 
 /// The job's lights (grid-normalised positions) and the cell sources at them.
@@ -87,10 +148,19 @@ fn cells_to_record<F: FracBits>(job: &TraceJob<'_>) -> Result<Vec<[u32; 2]>> {
     let mut cells = job.cells.clone();
     if job.busiest {
         let scene = crate::machine::loaded::load_scene(job.mesh, &job.load)?;
-        let (_, sources) = lights_of(job, &scene)?;
-        let l = crate::machine::diffuse::diffuse::<F, DEFAULT_DEXELS>(&scene.grid, &sources, &job.light, |_, _| {})?;
-        let b = l.reports.iter().max_by_key(|r| r.counts.lb_cell_load).map(|r| r.busiest_cell);
-        cells.extend(b);
+        let (lights, sources) = lights_of(job, &scene)?;
+        match &job.classic {
+            None => {
+                let l = crate::machine::diffuse::diffuse::<F, DEFAULT_DEXELS>(
+                    &scene.grid,
+                    &sources,
+                    &job.light,
+                    |_, _| {},
+                )?;
+                cells.extend(l.reports.iter().max_by_key(|r| r.counts.lb_cell_load).map(|r| r.busiest_cell));
+            }
+            Some(c) => cells.push(crate::machine::classic::classic(&scene, &lights, c, |_, _| {})?.totals.busiest_cell),
+        }
     }
     if cells.is_empty() {
         bail!("no cell to record: give --cell X,Y or --busiest");
@@ -98,21 +168,30 @@ fn cells_to_record<F: FracBits>(job: &TraceJob<'_>) -> Result<Vec<[u32; 2]>> {
     Ok(cells)
 }
 
-/// Close one cell's recording: its shading setup and end records, and the digest of what the
-/// grid left in the cell (state, lit store, pixel).
+/// Close one cell's recording: its end record, and the digest of what the grid left in the
+/// cell (state, lit store, pixel; a classic run leaves the lighting cell as it was built).
 fn finish_trace<F: FracBits>(
     mut r: CellRecorder,
     job: &TraceJob<'_>,
     scene: &LoadedScene,
-    lighting: &Lighting<F>,
+    lit: &Lit<F>,
     shade: &ShadeSetup,
 ) -> CellTrace {
     let idx = (r.y * job.load.n + r.x) as usize;
-    let (cell, light) = (&scene.grid.cells[idx], &lighting.cells[idx]);
-    let (lit, visible) = (&light.lit, light.visible_lit);
+    let cell = &scene.grid.cells[idx];
     let (mats, lights) = (&shade.materials, &shade.lights);
-    let px = cell_pixel(job.light.rule, cell, |z| lit.mask_at(z), visible, mats, lights, &shade.params);
-    r.push::<F>(&Event::Shade(shade.clone()));
+    let unlit = HostLightCell::<F>::new(cell.x, cell.y);
+    let (light, px) = match lit {
+        Lit::Beams(lighting) => {
+            let light = &lighting.cells[idx];
+            let (lit, visible) = (&light.lit, light.visible_lit);
+            (light, cell_pixel(job.light.rule, cell, |z| lit.mask_at(z), visible, mats, lights, &shade.params))
+        }
+        Lit::Rays(cl, rule) => {
+            let m = cl.mask(r.x, r.y);
+            (&unlit, cell_pixel(*rule, cell, |_| m, m, mats, lights, &shade.params))
+        }
+    };
     r.push::<F>(&Event::End);
     let (x, y) = (r.x, r.y);
     let (bytes, records, mut digest) = r.into_parts();
@@ -152,8 +231,10 @@ pub struct TraceOptions {
     pub view: crate::scene::camera::ViewChoice,
     /// Grid side and surfaces (keep n small: a trace must fit the firmware's flash).
     pub load: LoadConfig,
-    /// Lights and diffusion settings (classic lighting is not traced).
+    /// Lights and lighting settings: beam diffusion, or classic shadow rays.
     pub light: LightingOptions,
+    /// The reflection phase after shading (`None`: none).
+    pub reflections: Option<ReflectConfig>,
     /// Cells to record, `[x, y]`.
     pub cells: Vec<[u32; 2]>,
     /// Also record the cell that processes the most beams.
@@ -171,7 +252,13 @@ pub fn run(o: &TraceOptions) -> Result<()> {
 
 fn run_with<F: FracBits>(o: &TraceOptions) -> Result<()> {
     o.load.validate()?;
-    let mesh = crate::scene::camera::apply(crate::scene::load(&o.scene)?, &o.view, o.load.n)?;
+    // Reflected rays are traced in the grid's own view: with reflections the default view is
+    // the fitted one (as `render` has it).
+    let view = match o.view {
+        crate::scene::camera::ViewChoice::Auto if o.reflections.is_some() => crate::scene::camera::ViewChoice::Fitted,
+        v => v,
+    };
+    let mesh = crate::scene::camera::apply(crate::scene::load(&o.scene)?, &view, o.load.n)?;
     let job = TraceJob {
         mesh: &mesh,
         load: o.load,
@@ -179,6 +266,8 @@ fn run_with<F: FracBits>(o: &TraceOptions) -> Result<()> {
         lights: o.light.lights.clone(),
         cells: o.cells.clone(),
         busiest: o.busiest,
+        classic: o.light.classic,
+        reflections: o.reflections,
     };
     let traces = record::<F>(&job)?;
     write_traces(&o.out, &traces)?;
@@ -186,8 +275,18 @@ fn run_with<F: FracBits>(o: &TraceOptions) -> Result<()> {
         let (d, st) = replay::<F>(&t.bytes)?;
         let ok = if d == t.digest { "replay ok" } else { "REPLAY MISMATCH" };
         println!(
-            "cell ({:>3}, {:>3}): {:>6} bytes, {:>5} records ({} rows, {} beams in, {} cycles, {} sent), digest {:016x}, {ok}",
-            t.x, t.y, t.bytes.len(), t.records, st.rows, st.received, st.steps, st.sent, t.digest
+            "cell ({:>3}, {:>3}): {:>6} bytes, {:>5} records ({} rows, {} beams/rays in, {} cycles, {} sent, {} answers), \
+             digest {:016x}, {ok}",
+            t.x,
+            t.y,
+            t.bytes.len(),
+            t.records,
+            st.rows,
+            st.received,
+            st.steps,
+            st.sent,
+            st.answers,
+            t.digest
         );
         if d != t.digest {
             bail!("replaying the trace of cell ({}, {}) gave digest {d:016x}", t.x, t.y);

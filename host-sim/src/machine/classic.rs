@@ -37,12 +37,15 @@ use std::mem::size_of;
 use std::time::Instant;
 
 use anyhow::{bail, Result};
+use cell_core::beam::frac::U0;
 use cell_core::beam::FracBits;
 use cell_core::light::{Port, SourceMask};
 use cell_core::lit::LitRule;
 use cell_core::ray::{Connectivity, ShadowRay};
 use cell_core::route::RoutePolicy;
 use cell_core::shadow::{EmitError, ShadowCell, ShadowEnv, ShadowStep};
+use cell_core::trace::{Event, ShadowSetup};
+use cell_core::wire::RayMsg;
 
 use crate::machine::diffuse::{DiffusionCounts, SourceReport};
 
@@ -51,6 +54,7 @@ use crate::machine::grid::LightGrid;
 use crate::machine::lighting::LightStats;
 use crate::machine::loaded::LoadedScene;
 use crate::machine::network::Network;
+use crate::machine::tap::Tap;
 use crate::scene::Mesh;
 
 /// Classic-phase settings.
@@ -96,6 +100,8 @@ pub struct ClassicCounts {
     pub back_facing: u64,
     /// Largest number of voxel steps one cell processed.
     pub busiest_cell_steps: u64,
+    /// That cell, (x, y) (the first in row-major order on ties).
+    pub busiest_cell: [u32; 2],
     /// Chebyshev distance (cells) from the busiest cell to the source's column.
     pub busiest_cell_distance: u32,
     /// Most messages (rays + answers) one link carried in one direction.
@@ -122,6 +128,7 @@ impl ClassicCounts {
         self.back_facing += o.back_facing;
         if o.busiest_cell_steps > self.busiest_cell_steps {
             self.busiest_cell_steps = o.busiest_cell_steps;
+            self.busiest_cell = o.busiest_cell;
             self.busiest_cell_distance = o.busiest_cell_distance;
         }
         if o.peak_link_load > self.peak_link_load {
@@ -167,6 +174,18 @@ pub fn classic(
     scene: &LoadedScene,
     lights: &[[f64; 3]],
     cfg: &ClassicConfig,
+    progress: impl FnMut(usize, u64),
+) -> Result<ClassicLighting> {
+    classic_tapped(scene, lights, cfg, None, progress)
+}
+
+/// [`classic`], recording what the cells watched by `tap` receive and send (each source's
+/// setup, cycles, rays, answers, and its end with the cell's state).
+pub fn classic_tapped(
+    scene: &LoadedScene,
+    lights: &[[f64; 3]],
+    cfg: &ClassicConfig,
+    mut tap: Option<&mut Tap>,
     mut progress: impl FnMut(usize, u64),
 ) -> Result<ClassicLighting> {
     let n = scene.grid.n;
@@ -190,7 +209,7 @@ pub fn classic(
     let mut per_source = Vec::new();
     let mut totals = ClassicCounts::default();
     for (si, &l) in lights.iter().enumerate() {
-        let c = classic_one(scene, l, si, cfg, &mut masks, |c| progress(si, c))?;
+        let c = classic_one(scene, l, si, cfg, &mut masks, tap.as_deref_mut(), |c| progress(si, c))?;
         totals.add(&c);
         per_source.push(c);
     }
@@ -204,9 +223,10 @@ fn classic_one(
     si: usize,
     cfg: &ClassicConfig,
     masks: &mut [SourceMask],
+    tap: Option<&mut Tap>,
     mut progress: impl FnMut(u64),
 ) -> Result<ClassicCounts> {
-    let mut run = ClassicRun::new(scene, light, si, cfg)?;
+    let mut run = ClassicRun::new(scene, light, si, cfg, tap)?;
     while run.rays_in_flight > 0 || run.net.in_flight > 0 || run.emitters > 0 {
         let mut moved = run.compute()?;
         moved += run.answers();
@@ -221,6 +241,9 @@ fn classic_one(
         }
     }
     progress(run.cycle);
+    if let Some(t) = run.tap.as_deref_mut() {
+        t.each(|i, r| r.shadow_end(&run.cells[i]));
+    }
     run.check_overflow()?;
     for (m, c) in masks.iter_mut().zip(&run.cells) {
         *m |= c.mask;
@@ -255,6 +278,8 @@ struct ClassicRun<'a> {
     link_used: Vec<bool>,
     woken: Vec<u32>,
     cycle: u64,
+    /// The trace recorder, if the run is recorded.
+    tap: Option<&'a mut Tap>,
 }
 
 /// The error of a ray a cell could not emit.
@@ -264,7 +289,13 @@ fn emit_error(c: &cell_core::cell::Cell<{ crate::machine::capacity::DEFAULT_DEXE
 
 impl<'a> ClassicRun<'a> {
     /// Every cell started on the source: its first rays in its FIFO.
-    fn new(scene: &'a LoadedScene, light: [f64; 3], si: usize, cfg: &'a ClassicConfig) -> Result<Self> {
+    fn new(
+        scene: &'a LoadedScene,
+        light: [f64; 3],
+        si: usize,
+        cfg: &'a ClassicConfig,
+        mut tap: Option<&'a mut Tap>,
+    ) -> Result<Self> {
         let grid = &scene.grid;
         let n = grid.n as usize;
         crate::machine::limits::check_grid_memory("grid of shadow-ray cells", grid.n, size_of::<HostShadowCell>())?;
@@ -276,6 +307,9 @@ impl<'a> ClassicRun<'a> {
             bias: cfg.bias,
             fa: cfg.fa,
         };
+        if let Some(t) = tap.as_deref_mut() {
+            t.all::<U0>(&Event::Shadow(ShadowSetup { env, source_bit: 1 << si, fifo: SHADOW_FA_CAP as u16 }));
+        }
         let mut cells: Vec<HostShadowCell> = (0..n * n).map(|_| ShadowCell::new()).collect();
         let (mut active, mut emitters) = (Vec::new(), 0);
         for (i, c) in grid.cells.iter().enumerate() {
@@ -310,6 +344,7 @@ impl<'a> ClassicRun<'a> {
             link_used: vec![false; n * n * 8],
             woken: Vec::new(),
             cycle: 0,
+            tap,
         })
     }
 
@@ -330,7 +365,13 @@ impl<'a> ClassicRun<'a> {
             let i = self.active[a] as usize;
             let c = &mut cells[i];
             let col = &self.grid.cells[i];
-            match c.step(&col.store, |m| net.can_inject(i, m.dest) && net.inject(i, m)) {
+            let mut offered = None;
+            let step = c.step(&col.store, |m| {
+                let took = net.can_inject(i, m.dest) && net.inject(i, m);
+                offered = Some((m, took));
+                took
+            });
+            match step {
                 ShadowStep::Answered(_) => {
                     self.rays_in_flight -= 1;
                     self.k.answers += 1;
@@ -339,11 +380,15 @@ impl<'a> ClassicRun<'a> {
                 ShadowStep::Moved => moved += 1,
                 ShadowStep::Idle | ShadowStep::Blocked => {}
             }
+            let mut launched = 0;
             if c.emitting() {
-                let launched = c.launch(col, &self.env).map_err(|e| emit_error(col, e))? as u64;
-                self.rays_in_flight += launched;
-                moved += launched;
+                launched = c.launch(col, &self.env).map_err(|e| emit_error(col, e))?;
+                self.rays_in_flight += launched as u64;
+                moved += launched as u64;
                 self.emitters -= !c.emitting() as u64;
+            }
+            if let Some(r) = self.tap.as_deref_mut().and_then(|t| t.get(i)) {
+                r.shadow_cycle(step, launched, offered);
             }
         }
         Ok(moved)
@@ -353,8 +398,13 @@ impl<'a> ClassicRun<'a> {
     ///     recorded by it ([`ShadowCell::deliver`]). Returns the messages moved.
     fn answers(&mut self) -> u64 {
         self.link_used.iter_mut().for_each(|u| *u = false);
-        let (cells, bit) = (&mut self.cells, self.bit);
-        self.net.step(&mut self.link_used, |cell, m| cells[cell].deliver(m.payload, bit))
+        let (cells, bit, tap) = (&mut self.cells, self.bit, &mut self.tap);
+        self.net.step(&mut self.link_used, |cell, m| {
+            if let Some(r) = tap.as_deref_mut().and_then(|t| t.get(cell)) {
+                r.shadow_answer(m.payload);
+            }
+            cells[cell].deliver(m.payload, bit)
+        })
     }
 
     /// 2b. Links, then rays: each output slot's ray moves to the neighbour's FIFO if it has
@@ -377,6 +427,9 @@ impl<'a> ClassicRun<'a> {
                     continue;
                 }
                 let ray = self.cells[i].take_out(p).expect("a ray in the slot");
+                if let Some(t) = self.tap.as_deref_mut() {
+                    t.ray_moved(i, p, 0, &RayMsg::Shadow(ray), j);
+                }
                 // Room checked: a refusal would be counted in the cell and reported after the run.
                 let _ = self.cells[j].accept(ray);
                 self.k.peak_fifo = self.k.peak_fifo.max(self.cells[j].fifo_len() as u16);
@@ -451,6 +504,7 @@ impl<'a> ClassicRun<'a> {
         let steps = |i: usize| self.cells[i].counters.steps as u64;
         if let Some((i, s)) = (0..n * n).map(|i| (i, steps(i))).max_by_key(|&(i, s)| (s, std::cmp::Reverse(i))) {
             self.k.busiest_cell_steps = s;
+            self.k.busiest_cell = [(i % n) as u32, (i / n) as u32];
             self.k.busiest_cell_distance = self.cheb(i);
         }
         self.k.answer_messages = self.net.hops;
@@ -510,7 +564,12 @@ pub fn run_classic<F: FracBits>(
         .per_source
         .iter()
         .enumerate()
-        .map(|(s, c)| SourceReport { source: s, position: lights[s], busiest_cell: [0, 0], counts: as_diffusion(c) })
+        .map(|(s, c)| SourceReport {
+            source: s,
+            position: lights[s],
+            busiest_cell: c.busiest_cell,
+            counts: as_diffusion(c),
+        })
         .collect();
     let stats = LightStats {
         scene: mesh.name.clone(),

@@ -43,6 +43,7 @@
 use std::mem::size_of;
 
 use anyhow::{bail, Result};
+use cell_core::beam::frac::U0;
 use cell_core::dexel::Dexel;
 use cell_core::light::{Port, SourceMask};
 use cell_core::ray::{Connectivity, Q};
@@ -50,12 +51,15 @@ use cell_core::reflect::{Answer, ReflectNormal, MAX_GRID};
 use cell_core::reflect_cell::{Delivered, RayError, ReflectAnswer, ReflectCell, ReflectEnv, Surfaces};
 use cell_core::route::RoutePolicy;
 use cell_core::shade::{Material as CellMaterial, NormalMode, PointLight, ShadeParams};
+use cell_core::trace::{Event, ReflectSetup, MAX_MATERIALS};
 use cell_core::units::Depth;
+use cell_core::wire::RayMsg;
 
-use crate::machine::capacity::{HostReflectCell, REFLECT_FA_CAP};
+use crate::machine::capacity::{HostReflectCell, REFLECT_FA_CAP, SEND_CAP, WAIT_CAP};
 use crate::machine::grid::LightGrid;
 use crate::machine::loaded::LoadedScene;
 use crate::machine::network::Network;
+use crate::machine::tap::Tap;
 use crate::scene::Mesh;
 
 /// Reflection-phase settings.
@@ -220,7 +224,18 @@ pub fn ray_span(n: u32, depth: u32) -> i32 {
 
 /// Run the reflection phase over a lit grid: the cycle loop over the phases of `ReflectRun`.
 pub fn reflect(scene: &LoadedScene, env: &ShadeEnv, cfg: &ReflectConfig) -> Result<Reflected> {
-    let mut run = ReflectRun::new(scene, env, cfg)?;
+    reflect_tapped(scene, env, cfg, None)
+}
+
+/// [`reflect`], recording what the cells watched by `tap` receive and send (the phase's
+/// setup, cycles, rays, answers, and its end with the cell's state).
+pub fn reflect_tapped(
+    scene: &LoadedScene,
+    env: &ShadeEnv,
+    cfg: &ReflectConfig,
+    tap: Option<&mut Tap>,
+) -> Result<Reflected> {
+    let mut run = ReflectRun::new(scene, env, cfg, tap)?;
     while run.roots_left > 0 {
         let mut moved = run.compute()?;
         moved += run.answers();
@@ -231,6 +246,9 @@ pub fn reflect(scene: &LoadedScene, env: &ShadeEnv, cfg: &ReflectConfig) -> Resu
             run.check_faults()?;
             return Err(run.deadlock());
         }
+    }
+    if let Some(t) = run.tap.as_deref_mut() {
+        t.each(|i, r| r.reflect_end(&run.cells[i]));
     }
     run.check_faults()?;
     Ok(run.finish())
@@ -259,11 +277,18 @@ struct ReflectRun<'a> {
     in_active: Vec<bool>,
     woken: Vec<usize>,
     cycle: u64,
+    /// The trace recorder, if the run is recorded.
+    tap: Option<&'a mut Tap>,
 }
 
 impl<'a> ReflectRun<'a> {
     /// The roots' rays ready to launch (or their black answers ready to send).
-    fn new(scene: &'a LoadedScene, env: &'a ShadeEnv<'a>, cfg: &'a ReflectConfig) -> Result<Self> {
+    fn new(
+        scene: &'a LoadedScene,
+        env: &'a ShadeEnv<'a>,
+        cfg: &'a ReflectConfig,
+        mut tap: Option<&'a mut Tap>,
+    ) -> Result<Self> {
         let grid = &scene.grid;
         let (n, depth) = (grid.n, grid.depth);
         cfg.validate(n.max(depth))?;
@@ -280,6 +305,13 @@ impl<'a> ReflectRun<'a> {
             n,
             grid_depth: depth,
         };
+        if let Some(t) = tap.as_deref_mut() {
+            let Ok(kr) = heapless::Vec::from_slice(&env.kr) else {
+                bail!("{} materials: a trace carries at most {MAX_MATERIALS}", env.kr.len());
+            };
+            let caps = [REFLECT_FA_CAP, WAIT_CAP, SEND_CAP].map(|c| c as u16);
+            t.all::<U0>(&Event::Reflect(ReflectSetup { env: renv, kr, caps }));
+        }
         let mut run = ReflectRun {
             grid,
             env,
@@ -293,6 +325,7 @@ impl<'a> ReflectRun<'a> {
             in_active: vec![false; nn * nn],
             woken: Vec::new(),
             cycle: 0,
+            tap,
         };
         if cfg.depth > 0 {
             run.plant_roots()?;
@@ -326,8 +359,17 @@ impl<'a> ReflectRun<'a> {
         for &i in &self.active {
             let c = &self.grid.cells[i];
             let reached = |z: Depth| (self.env.mask)(c.x as u32, c.y as u32, z);
-            let send = |m: ReflectAnswer| net.can_inject(i, m.dest) && net.inject(i, m);
-            moved += cells[i].step(c, &surfaces, &reached, &self.renv, send).map_err(ray_error)? as u64;
+            let mut offered = None;
+            let send = |m: ReflectAnswer| {
+                let took = net.can_inject(i, m.dest) && net.inject(i, m);
+                offered = Some((m, took));
+                took
+            };
+            let m = cells[i].step(c, &surfaces, &reached, &self.renv, send).map_err(ray_error)?;
+            if let Some(r) = self.tap.as_deref_mut().and_then(|t| t.get(i)) {
+                r.reflect_cycle(m, offered);
+            }
+            moved += m as u64;
         }
         Ok(moved)
     }
@@ -338,14 +380,19 @@ impl<'a> ReflectRun<'a> {
     fn answers(&mut self) -> u64 {
         self.link_used.iter_mut().for_each(|u| *u = false);
         let (cells, roots_left) = (&mut self.cells, &mut self.roots_left);
-        let (in_active, woken) = (&mut self.in_active, &mut self.woken);
-        self.net.step(&mut self.link_used, |i, m| match cells[i].deliver(m.payload.0, m.payload.1) {
-            Delivered::Root => *roots_left -= 1,
-            Delivered::Forwarded if !in_active[i] => {
-                in_active[i] = true;
-                woken.push(i);
+        let (in_active, woken, tap) = (&mut self.in_active, &mut self.woken, &mut self.tap);
+        self.net.step(&mut self.link_used, |i, m| {
+            if let Some(r) = tap.as_deref_mut().and_then(|t| t.get(i)) {
+                r.reflect_answer(m.payload.0, m.payload.1);
             }
-            Delivered::Forwarded | Delivered::Stray => {}
+            match cells[i].deliver(m.payload.0, m.payload.1) {
+                Delivered::Root => *roots_left -= 1,
+                Delivered::Forwarded if !in_active[i] => {
+                    in_active[i] = true;
+                    woken.push(i);
+                }
+                Delivered::Forwarded | Delivered::Stray => {}
+            }
         })
     }
 
@@ -371,6 +418,9 @@ impl<'a> ReflectRun<'a> {
                         continue;
                     }
                     let ray = self.cells[i].take_out(c, p).expect("a ray in the slot");
+                    if let Some(t) = self.tap.as_deref_mut() {
+                        t.ray_moved(i, p, c as u8, &RayMsg::Reflect(ray), j);
+                    }
                     // Room checked: a refusal would be counted in the cell and reported.
                     let _ = self.cells[j].accept(c, ray);
                     self.link_used[link] = true;

@@ -1,6 +1,8 @@
 //! The trace tap: records, for chosen cells of a grid run, every message they receive, every
 //! compute cycle and every message a neighbour takes from them (`cell_core::trace` records), as the
-//! schedulers run. The `trace` job writes what it recorded; the firmware replays it.
+//! schedulers run: loading, beam diffusion, and the ray phases (the classic shadow rays of
+//! [`super::classic`] and the reflections of [`super::reflect`], with the answers their routers
+//! take and deliver). The `trace` job writes what it recorded; the firmware replays it.
 //!
 //! The link events come from [`Tracer`], a wrapper around any grid link (`cell_core::link::Link`):
 //! it notes every beam its far end took in the link step's journal ([`Journal`]), and the
@@ -9,13 +11,16 @@
 use std::collections::HashMap;
 
 use anyhow::{bail, Result};
-use cell_core::beam::FracBits;
+use cell_core::beam::{frac::U0, FracBits};
 use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::facet::RowPacket;
 use cell_core::light::{BeamMsg, FrustumSummary, LightEnv, Port, Step};
 use cell_core::link::{Link, Sent};
-use cell_core::trace::{write_event, Digester, Event, Header, LightSetup, Replayer};
-use cell_core::wire::Message;
+use cell_core::reflect::Answer;
+use cell_core::reflect_cell::{ReflectAnswer, ReflectCell};
+use cell_core::shadow::{ShadowAnswer, ShadowCell, ShadowStep};
+use cell_core::trace::{write_event, Digester, Event, Header, LightSetup, Replayer, ShadeSetup};
+use cell_core::wire::{Message, RayMsg, MAX_RAY_FRAME};
 
 use super::capacity::{FA_CAP, LIT_CAP, OB_CAP};
 use super::faults::{FaultCounts, FaultTally};
@@ -65,7 +70,7 @@ impl CellRecorder {
 
     /// A row packet arrives (before the cell processes it).
     pub fn row(&mut self, p: &RowPacket) {
-        self.push::<cell_core::beam::frac::U0>(&Event::Row(p.clone()));
+        self.push::<U0>(&Event::Row(p.clone()));
     }
 
     /// The cell forwarded the (stepped) packet east.
@@ -99,6 +104,58 @@ impl CellRecorder {
     fn grant<F: FracBits>(&mut self, port: Port, m: &BeamMsg<F>) {
         self.push::<F>(&Event::Grant(port));
         self.digest.sent_beam(port, m);
+    }
+
+    /// One cycle of a ray phase's cell: a `Refused` record when its router refused the answer
+    /// it offered (`offered`: whether the router took it), else one more `Step`.
+    fn ray_cycle(&mut self, offered: Option<bool>) {
+        if offered == Some(false) {
+            self.push::<U0>(&Event::Refused);
+        } else {
+            self.steps += 1;
+        }
+    }
+
+    /// One cycle of the shadow-ray cell: its step, the rays it launched after it, and the
+    /// answer it offered its router, if any, with whether the router took it.
+    pub fn shadow_cycle(&mut self, step: ShadowStep, launched: u32, offered: Option<(ShadowAnswer, bool)>) {
+        if let Some((a, true)) = &offered {
+            self.digest.shadow_answer(a);
+        }
+        self.ray_cycle(offered.map(|(_, took)| took));
+        self.digest.shadow_cycle(step, launched);
+    }
+
+    /// One cycle of the reflection cell: its moves, and the answer it offered its router, if
+    /// any, with whether the router took it.
+    pub fn reflect_cycle(&mut self, moved: u32, offered: Option<(ReflectAnswer, bool)>) {
+        if let Some((a, true)) = &offered {
+            self.digest.reflect_answer(a);
+        }
+        self.ray_cycle(offered.map(|(_, took)| took));
+        self.digest.reflect_cycle(moved);
+    }
+
+    /// The router delivers a shadow-ray answer (its payload) to the cell.
+    pub fn shadow_answer(&mut self, payload: u8) {
+        self.push::<U0>(&Event::ShadowAnswer(payload));
+    }
+
+    /// The router delivers a reflection answer for wait-table slot `slot` to the cell.
+    pub fn reflect_answer(&mut self, slot: u16, answer: Answer) {
+        self.push::<U0>(&Event::ReflectAnswer { slot, answer });
+    }
+
+    /// The end of a source's shadow-ray phase: the record, and the cell's state in the digest.
+    pub fn shadow_end<const FA: usize>(&mut self, cell: &ShadowCell<FA>) {
+        self.push::<U0>(&Event::PhaseEnd);
+        self.digest.shadow_state(cell);
+    }
+
+    /// The end of the reflection phase: the record, and the cell's state in the digest.
+    pub fn reflect_end<const FA: usize, const W: usize, const S: usize>(&mut self, cell: &ReflectCell<FA, W, S>) {
+        self.push::<U0>(&Event::PhaseEnd);
+        self.digest.reflect_state(cell);
     }
 }
 
@@ -156,8 +213,40 @@ impl Tap {
             frustum: frustum.copied(),
             rule: env.rule,
         };
+        self.all::<F>(&Event::Light(s));
+    }
+
+    /// Every recorder: `f(grid index, recorder)`.
+    pub fn each(&mut self, mut f: impl FnMut(usize, &mut CellRecorder)) {
+        for (&idx, &i) in &self.by_index {
+            f(idx, &mut self.recorders[i]);
+        }
+    }
+
+    /// A record for every watched cell (a phase's setup, the shading inputs).
+    pub fn all<F: FracBits>(&mut self, ev: &Event<'_, F>) {
         for r in &mut self.recorders {
-            r.push::<F>(&Event::Light(s));
+            r.push(ev);
+        }
+    }
+
+    /// The shading inputs.
+    pub fn shade(&mut self, s: &ShadeSetup) {
+        self.all(&Event::<U0>::Shade(s.clone()));
+    }
+
+    /// A ray of class `class` left cell `from` through `port` into cell `to`: the sender's
+    /// `Take`, the receiver's frame.
+    pub fn ray_moved(&mut self, from: usize, port: Port, class: u8, ray: &RayMsg, to: usize) {
+        if let Some(r) = self.get(from) {
+            r.push::<U0>(&Event::Take { class, port });
+            r.digest.sent_ray(port, ray);
+        }
+        if let Some(r) = self.get(to) {
+            let mut buf = [0u8; MAX_RAY_FRAME];
+            // Cannot fail: no ray frame is longer.
+            let len = ray.emit(0, &mut buf).expect("ray frame fits");
+            r.push::<U0>(&Event::Recv { port: Port::ALL[BACK[port.index()]], frame: &buf[..len] });
         }
     }
 

@@ -43,7 +43,7 @@ pub const CONCERNS: &[(&str, &[&str])] = &[
     ("empty-frustum skip", &["cell_core::occupancy"]),
     ("shading + gamma table (§5.2)", &["cell_core::shade"]),
     ("codec + CRC-32 table", &["cell_core::wire", "cell_core::link", "crc"]),
-    ("host records (trace codec)", &["cell_core::trace"]),
+    ("host records (trace codec)", &["cell_core::trace", "cell_core::trace::rays"]),
     ("routing (§1.3, §4.1.3)", &["cell_core::route"]),
     ("reflection (§2.3)", &["cell_core::reflect", "cell_core::ray"]),
     ("firmware: main loop, drivers", &["firmware"]),

@@ -9,34 +9,57 @@
 //! | `0x41` | [`Event::Row`] | a row packet arriving from the west (loading, §3.9) |
 //! | `0x42` | [`Event::Light`] | a source's diffusion starts: source id u16, position 3×i32 (1/16 voxel), n u32, depth u32, D u32, policy u8, FIFO limit u16, merge u8, source bit u32, skip u8 (+ occupied box lo, hi 6×u16 when 1); from version 3: sibling wait u16, frustum u8 (+ the summary's 8 × 8 block rows, 64 × u8 bit masks over z, when 1), lit rule u8 (0 thesis, 1 plane) |
 //! | `0x43` | [`Event::Inject`] | the source emitter hands this cell an initial beam |
-//! | `0x44` | [`Event::Recv`] | link `port` delivers a beam: port u8 + the link frame as on the wire (its own CRC) |
+//! | `0x44` | [`Event::Recv`] | link `port` delivers a beam (or, in a ray phase, a ray): port u8 + the link frame as on the wire (its own CRC) |
 //! | `0x45` | [`Event::Step`] | `count` u32 compute cycles |
 //! | `0x46` | [`Event::Grant`] | the neighbour on `port` took the head of that output buffer |
 //! | `0x47` | [`Event::Shade`] | ambient 3×f32, normal mode u8, lights (count u8, pos+colour 6×f32), materials (count u8, 13×f32), then for a camera ([`crate::shade::Eye::Camera`]) perspective u8, n width near far 4×f32 |
 //! | `0x48` | [`Event::End`] | end of the trace |
+//! | `0x49` | [`Event::Shadow`] | a source's classic shadow-ray phase starts ([`ShadowSetup`]): source 3×i32 (1/16 voxel), lit rule u8, ray connectivity u8 (6, 18, 26), every voxel emits u8, bias u8, FIFO limit u16, source bit u32, FIFO capacity u16 |
+//! | `0x4a` | [`Event::Reflect`] | the reflection phase starts ([`ReflectSetup`]): depth u8, threshold f32, normal u8 (0 facet, 1 face), skip own facet u8, connectivity u8, FIFO limit u16, span i32, n u32, depth u32, capacities (FIFO per class, wait table, send queue) 3×u16, Kr (count u8, f32 each) |
+//! | `0x4b` | [`Event::ShadowAnswer`] | the cell's router delivers a shadow-ray answer: payload u8 ([`crate::shadow::ANSWER_LIT`], [`crate::shadow::ANSWER_SURFACE`]) |
+//! | `0x4c` | [`Event::ReflectAnswer`] | the cell's router delivers a reflection answer: wait-table slot u16, intensity 3×u16 (Q12) |
+//! | `0x4d` | [`Event::Refused`] | one compute cycle of the ray phase in which the router refused the answer the cell offered |
+//! | `0x4e` | [`Event::Take`] | the neighbour on `port` took the ray of output slot (class, port): class u8 (0 for shadow rays), port u8 |
+//! | `0x4f` | [`Event::PhaseEnd`] | the ray phase ended (a source's, for shadow rays) |
 //!
-//! The cell's *outputs* are what it sends (forwarded row packets, beam frames on each port) and
-//! the result of every compute cycle; its *final state* is its dexels, lit runs, counters and
-//! pixel. [`Digester`] folds both into a CRC-64 digest. The host computes it from its own grid
-//! run; [`Replayer`] recomputes it by driving a fresh cell through the trace. The two are equal
-//! iff the cell behaves the same, which the QEMU test checks on a Cortex-M4F.
+//! In the ray phases ([`rays`]) a `Step` record counts cycles of the phase's cell in which its
+//! router took any answer offered, and `Recv` carries a ray frame ([`crate::wire::RayMsg`]). A
+//! trace holds every phase the recorded run ran, in order: loading, then beam diffusion or
+//! the classic shadow rays, shading, then reflections. The ray records were added without a
+//! version change: a trace of loading and lighting reads and replays as before.
+//!
+//! **Invariant: a replay reaches the host's digest iff the cell behaved the same.** The cell's
+//! *outputs* are what it sends (forwarded row packets, beam and ray frames on each port,
+//! answers to its router) and the result of every compute cycle; its *final state* is its
+//! dexels, lit runs, counters and pixel, and each ray phase's cell state at its end
+//! ([`rays`]). [`Digester`] folds both into a CRC-64 digest. The host computes it from its own
+//! grid run; [`Replayer`] recomputes it by driving a fresh cell through the trace. The two are
+//! equal iff the cell behaves the same, which the QEMU test checks on a Cortex-M4F.
+//!
+//! **Thesis:** no section of its own: a trace records the cell of loading (§3.9), beam
+//! diffusion (§4.4), classic shadow rays (§4.1.2–4.1.3), shading (§5) and reflections (§1.3.2)
+//! at its links.
 
 use heapless::Vec;
 
 use crate::beam::{FarDistance, FracBits, Source, SourceCoord, SourceId, SplitOrder};
-use crate::cell::Cell;
+use crate::cell::{Cell, REFLECT_FA_CAP, SEND_CAP, SHADOW_FA_CAP, WAIT_CAP};
 use crate::facet::RowPacket;
 use crate::light::{
     Activity, BeamMsg, FrustumSummary, LightCell, LightEnv, OccupiedBox, Policy, Port, SourceMask, Step, SubBeamBounds,
 };
 use crate::link::{self, Link, Sent};
 use crate::lit::LitRule;
+use crate::reflect::Answer;
 use crate::shade::{cell_pixel, CameraView, Eye, Material, NormalMode, Pixel, PointLight, ShadeParams};
 use crate::units::{Coord, Depth};
 use crate::wire::{
     self, get_beam, get_row, put_beam, put_row, read_frame, write_frame, ByteSink, DecodeError, EncodeError, Frame,
-    PutExt, Reader, HEADER, TRAILER,
+    PutExt, Reader, SliceWriter, HEADER, MAX_RAY_FRAME, TRAILER,
 };
+
+pub mod rays;
+pub use rays::{Rays, ReflectSetup, ShadowSetup};
 
 /// `RC2T`.
 pub const MAGIC: u32 = u32::from_le_bytes(*b"RC2T");
@@ -65,6 +88,20 @@ pub mod kind {
     pub const SHADE: u8 = 0x47;
     /// [`super::Event::End`].
     pub const END: u8 = 0x48;
+    /// [`super::Event::Shadow`].
+    pub const SHADOW: u8 = 0x49;
+    /// [`super::Event::Reflect`].
+    pub const REFLECT: u8 = 0x4a;
+    /// [`super::Event::ShadowAnswer`].
+    pub const SHADOW_ANSWER: u8 = 0x4b;
+    /// [`super::Event::ReflectAnswer`].
+    pub const REFLECT_ANSWER: u8 = 0x4c;
+    /// [`super::Event::Refused`].
+    pub const REFUSED: u8 = 0x4d;
+    /// [`super::Event::Take`].
+    pub const TAKE: u8 = 0x4e;
+    /// [`super::Event::PhaseEnd`].
+    pub const PHASE_END: u8 = 0x4f;
 }
 /// Most lights a shading record carries.
 pub const MAX_LIGHTS: usize = 8;
@@ -72,6 +109,8 @@ pub const MAX_LIGHTS: usize = 8;
 pub const MAX_MATERIALS: usize = 16;
 /// Longest beam link frame.
 pub const BEAM_FRAME: usize = HEADER + wire::BEAM_PAYLOAD + TRAILER;
+/// Longest link frame a cell receives in a trace: a beam or a ray.
+pub const LINK_FRAME: usize = if BEAM_FRAME > MAX_RAY_FRAME { BEAM_FRAME } else { MAX_RAY_FRAME };
 
 /// The cell a trace is for and the capacities it was recorded with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -226,6 +265,30 @@ pub enum Event<'a, F: FracBits> {
     Shade(ShadeSetup),
     /// End of trace.
     End,
+    /// A source's classic shadow-ray phase starts.
+    Shadow(ShadowSetup),
+    /// The reflection phase starts.
+    Reflect(ReflectSetup),
+    /// The router delivers a shadow-ray answer (its payload bits).
+    ShadowAnswer(u8),
+    /// The router delivers a reflection answer.
+    ReflectAnswer {
+        /// The wait-table slot it is for.
+        slot: u16,
+        /// The intensity.
+        answer: Answer,
+    },
+    /// One cycle of the ray phase in which the router refused the answer offered.
+    Refused,
+    /// A neighbour took the ray of an output slot.
+    Take {
+        /// The ray class (0 for shadow rays; 0 ..= 3 for reflected rays).
+        class: u8,
+        /// The link.
+        port: Port,
+    },
+    /// The ray phase ended (a source's, for shadow rays).
+    PhaseEnd,
 }
 
 /// Why a trace could not be replayed (a value, never a panic).
@@ -250,6 +313,11 @@ pub enum ReplayError {
     Link,
     /// Records after the end, or no end.
     BadEnd,
+    /// A ray-phase record without its phase's setup (or for another phase), or a reflection
+    /// setup before the shading record.
+    NoPhaseSetup,
+    /// The cell could not build a ray (a coordinate or span beyond the ray's bit budget).
+    Ray,
 }
 
 impl From<DecodeError> for ReplayError {
@@ -286,43 +354,7 @@ pub fn write_event<F: FracBits>(ev: &Event<'_, F>, buf: &mut [u8]) -> Result<usi
             w.u16(h.lit)
         }),
         Event::Row(p) => write_frame(buf, kind::ROW, |w| put_row(w, p)),
-        Event::Light(s) => write_frame(buf, kind::LIGHT, |w| {
-            w.u16(s.source.id.0)?;
-            for c in s.source.pos {
-                w.i32(c.to_bits())?;
-            }
-            w.u32(s.n)?;
-            w.u32(s.depth)?;
-            w.u32(s.far)?;
-            w.u8(policy_code(s.policy))?;
-            w.u16(s.fa)?;
-            w.u8(s.merge as u8)?;
-            w.u32(s.source_bit)?;
-            match &s.skip {
-                None => w.u8(0)?,
-                Some(b) => {
-                    w.u8(1)?;
-                    for v in b.lo.iter().chain(&b.hi) {
-                        w.u16(*v)?;
-                    }
-                }
-            }
-            w.u16(s.hold)?;
-            match &s.frustum {
-                None => w.u8(0)?,
-                Some(o) => {
-                    w.u8(1)?;
-                    for bx in 0..FRUSTUM_BLOCKS {
-                        for by in 0..FRUSTUM_BLOCKS {
-                            let row =
-                                (0..FRUSTUM_BLOCKS).fold(0u8, |m, bz| m | (o.occupied_block([bx, by, bz]) as u8) << bz);
-                            w.u8(row)?;
-                        }
-                    }
-                }
-            }
-            w.u8(matches!(s.rule, LitRule::Plane) as u8)
-        }),
+        Event::Light(s) => write_frame(buf, kind::LIGHT, |w| put_light_setup(w, s)),
         Event::Inject(m) => write_frame(buf, kind::INJECT, |w| put_beam(w, m)),
         Event::Recv { port, frame } => write_frame(buf, kind::RECV, |w| {
             w.u8(port.index() as u8)?;
@@ -330,36 +362,86 @@ pub fn write_event<F: FracBits>(ev: &Event<'_, F>, buf: &mut [u8]) -> Result<usi
         }),
         Event::Step(n) => write_frame(buf, kind::STEP, |w| w.u32(*n)),
         Event::Grant(p) => write_frame(buf, kind::GRANT, |w| w.u8(p.index() as u8)),
-        Event::Shade(s) => write_frame(buf, kind::SHADE, |w| {
-            for a in s.params.ambient {
-                w.f32(a)?;
-            }
-            w.u8(matches!(s.params.normal_mode, NormalMode::Face) as u8)?;
-            w.u8(s.lights.len() as u8)?;
-            for l in &s.lights {
-                for v in l.pos.iter().chain(l.color.iter()) {
-                    w.f32(*v)?;
-                }
-            }
-            w.u8(s.materials.len() as u8)?;
-            for m in &s.materials {
-                for v in m.ka.iter().chain(&m.kd).chain(&m.ks).chain(core::iter::once(&m.ns)).chain(&m.ke) {
-                    w.f32(*v)?;
-                }
-            }
-            match s.params.eye {
-                // The grid's own view writes nothing: traces recorded before cameras read the same.
-                Eye::Grid => Ok(()),
-                Eye::Camera(c) => {
-                    w.u8(c.perspective as u8)?;
-                    for v in [c.n, c.width, c.near, c.far] {
-                        w.f32(v)?;
-                    }
-                    Ok(())
-                }
-            }
-        }),
+        Event::Shade(s) => write_frame(buf, kind::SHADE, |w| put_shade_setup(w, s)),
         Event::End => write_frame(buf, kind::END, |_| Ok(())),
+        Event::Shadow(s) => write_frame(buf, kind::SHADOW, |w| rays::put_shadow_setup(w, s)),
+        Event::Reflect(s) => write_frame(buf, kind::REFLECT, |w| rays::put_reflect_setup(w, s)),
+        Event::ShadowAnswer(p) => write_frame(buf, kind::SHADOW_ANSWER, |w| w.u8(*p)),
+        Event::ReflectAnswer { slot, answer } => {
+            write_frame(buf, kind::REFLECT_ANSWER, |w| rays::put_reflect_answer(w, *slot, answer))
+        }
+        Event::Refused => write_frame(buf, kind::REFUSED, |_| Ok(())),
+        Event::Take { class, port } => write_frame(buf, kind::TAKE, |w| rays::put_take(w, *class, *port)),
+        Event::PhaseEnd => write_frame(buf, kind::PHASE_END, |_| Ok(())),
+    }
+}
+
+/// Write a light setup record's payload (the layout is in the module's table).
+fn put_light_setup(w: &mut SliceWriter<'_>, s: &LightSetup) -> Result<(), EncodeError> {
+    w.u16(s.source.id.0)?;
+    for c in s.source.pos {
+        w.i32(c.to_bits())?;
+    }
+    w.u32(s.n)?;
+    w.u32(s.depth)?;
+    w.u32(s.far)?;
+    w.u8(policy_code(s.policy))?;
+    w.u16(s.fa)?;
+    w.u8(s.merge as u8)?;
+    w.u32(s.source_bit)?;
+    match &s.skip {
+        None => w.u8(0)?,
+        Some(b) => {
+            w.u8(1)?;
+            for v in b.lo.iter().chain(&b.hi) {
+                w.u16(*v)?;
+            }
+        }
+    }
+    w.u16(s.hold)?;
+    match &s.frustum {
+        None => w.u8(0)?,
+        Some(o) => {
+            w.u8(1)?;
+            for bx in 0..FRUSTUM_BLOCKS {
+                for by in 0..FRUSTUM_BLOCKS {
+                    let row = (0..FRUSTUM_BLOCKS).fold(0u8, |m, bz| m | (o.occupied_block([bx, by, bz]) as u8) << bz);
+                    w.u8(row)?;
+                }
+            }
+        }
+    }
+    w.u8(matches!(s.rule, LitRule::Plane) as u8)
+}
+
+/// Write a shading record's payload (the layout is in the module's table).
+fn put_shade_setup(w: &mut SliceWriter<'_>, s: &ShadeSetup) -> Result<(), EncodeError> {
+    for a in s.params.ambient {
+        w.f32(a)?;
+    }
+    w.u8(matches!(s.params.normal_mode, NormalMode::Face) as u8)?;
+    w.u8(s.lights.len() as u8)?;
+    for l in &s.lights {
+        for v in l.pos.iter().chain(l.color.iter()) {
+            w.f32(*v)?;
+        }
+    }
+    w.u8(s.materials.len() as u8)?;
+    for m in &s.materials {
+        for v in m.ka.iter().chain(&m.kd).chain(&m.ks).chain(core::iter::once(&m.ns)).chain(&m.ke) {
+            w.f32(*v)?;
+        }
+    }
+    match s.params.eye {
+        // The grid's own view writes nothing: traces recorded before cameras read the same.
+        Eye::Grid => Ok(()),
+        Eye::Camera(c) => {
+            w.u8(c.perspective as u8)?;
+            for v in [c.n, c.width, c.near, c.far] {
+                w.f32(v)?;
+            }
+            Ok(())
+        }
     }
 }
 
@@ -544,6 +626,13 @@ impl<'a, F: FracBits> Parser<'a, F> {
             kind::GRANT => Event::Grant(port_of(r.u8()?)?),
             kind::SHADE => Event::Shade(get_shade_setup(&mut r)?),
             kind::END => Event::End,
+            kind::SHADOW => Event::Shadow(rays::get_shadow_setup(&mut r)?),
+            kind::REFLECT => Event::Reflect(rays::get_reflect_setup(&mut r)?),
+            kind::SHADOW_ANSWER => Event::ShadowAnswer(r.u8()?),
+            kind::REFLECT_ANSWER => rays::get_reflect_answer(&mut r)?,
+            kind::REFUSED => Event::Refused,
+            kind::TAKE => rays::get_take(&mut r)?,
+            kind::PHASE_END => Event::PhaseEnd,
             k => return Err(DecodeError::UnknownKind(k).into()),
         };
         r.finish()?;
@@ -671,12 +760,14 @@ pub struct ReplayStats {
     pub records: u32,
     /// Row packets processed.
     pub rows: u32,
-    /// Beams received (links and emitter).
+    /// Beams and rays received (links and emitter).
     pub received: u32,
-    /// Compute cycles.
+    /// Compute cycles (of every phase).
     pub steps: u32,
-    /// Frames sent.
+    /// Frames sent (beams and rays).
     pub sent: u32,
+    /// Answers the cell's router delivered (ray phases).
+    pub answers: u32,
 }
 
 /// A [`Link`] whose neighbour is ready iff it is the granted one; a send is taken at once (its
@@ -695,8 +786,20 @@ impl<F: FracBits> Link<F> for GrantLink {
 }
 
 /// A fresh cell driven through a trace: `D` dexels, FIFO `FA`, output buffers `OB`, `L` lit
-/// runs (they must equal the trace header's).
-pub struct Replayer<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usize> {
+/// runs (they must equal the trace header's); for the ray phases ([`rays`]) `SFA` shadow rays,
+/// and `RFA` rays per class, `W` wait entries and `S` queued answers in the reflection cell
+/// (they must equal the phase's setup record; by default the capacities of [`crate::cell`]).
+pub struct Replayer<
+    F: FracBits,
+    const D: usize,
+    const FA: usize,
+    const OB: usize,
+    const L: usize,
+    const SFA: usize = SHADOW_FA_CAP,
+    const RFA: usize = REFLECT_FA_CAP,
+    const W: usize = WAIT_CAP,
+    const S: usize = SEND_CAP,
+> {
     /// The loading state.
     pub cell: Cell<D>,
     /// The lighting state.
@@ -707,7 +810,13 @@ pub struct Replayer<F: FracBits, const D: usize, const FA: usize, const OB: usiz
     pub stats: ReplayStats,
     /// The pixel, once shaded.
     pub pixel: Option<Pixel>,
+    /// The ray phase running, with its cell.
+    pub rays: Rays<SFA, RFA, W, S>,
+    /// What the classic shadow-ray phases lit: the sources whose rays reached the visible
+    /// surface, and the lit rule (`None`: no classic phase ran; the pixel reads the lit store).
+    pub shadow_lit: Option<(SourceMask, LitRule)>,
     setup: Option<LightSetup>,
+    shade: Option<ShadeSetup>,
     depth: u32,
     started: bool,
     ended: bool,
@@ -715,16 +824,37 @@ pub struct Replayer<F: FracBits, const D: usize, const FA: usize, const OB: usiz
     digest: Digester,
 }
 
-impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usize> Default
-    for Replayer<F, D, FA, OB, L>
+impl<
+        F: FracBits,
+        const D: usize,
+        const FA: usize,
+        const OB: usize,
+        const L: usize,
+        const SFA: usize,
+        const RFA: usize,
+        const W: usize,
+        const S: usize,
+    > Default for Replayer<F, D, FA, OB, L, SFA, RFA, W, S>
 {
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usize> Replayer<F, D, FA, OB, L> {
-    /// Before the header.
+impl<
+        F: FracBits,
+        const D: usize,
+        const FA: usize,
+        const OB: usize,
+        const L: usize,
+        const SFA: usize,
+        const RFA: usize,
+        const W: usize,
+        const S: usize,
+    > Replayer<F, D, FA, OB, L, SFA, RFA, W, S>
+{
+    /// Before the header. A firmware builds its one replaying cell once and starts each trace
+    /// over in place ([`Replayer::reset`]): the cell is a third of its RAM.
     pub fn new() -> Self {
         Replayer {
             cell: Cell::new(0, 0),
@@ -732,13 +862,45 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
             activity: Activity::new(),
             stats: ReplayStats::default(),
             pixel: None,
+            rays: Rays::Idle,
+            shadow_lit: None,
             setup: None,
+            shade: None,
             depth: 0,
             started: false,
             ended: false,
             order: SplitOrder::default(),
             digest: Digester::new(),
         }
+    }
+
+    /// Back to the state of [`Replayer::new`], in place, field by field (no cell-sized
+    /// temporary: on a firmware the stack is what the static cell leaves of the RAM).
+    pub fn reset(&mut self) {
+        let Replayer {
+            cell,
+            light,
+            activity,
+            stats,
+            pixel,
+            rays,
+            shadow_lit,
+            setup,
+            shade,
+            depth,
+            started,
+            ended,
+            order,
+            digest,
+        } = self;
+        *cell = Cell::new(0, 0);
+        *light = LightCell::new(0, 0);
+        *activity = Activity::new();
+        *stats = ReplayStats::default();
+        *rays = Rays::Idle;
+        (*pixel, *shadow_lit, *setup, *shade) = (None, None, None, None);
+        (*depth, *started, *ended, *order) = (0, false, false, SplitOrder::default());
+        *digest = Digester::new();
     }
 
     /// The header this build expects for cell (x, y).
@@ -758,12 +920,16 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
 
     /// The link receive path: decode a frame off link `port` and put its beam into the FIFO.
     /// On an MCU this runs in the link's receive interrupt.
+    /// A ray frame goes into the ray phase's cell instead ([`rays`]).
     pub fn receive_frame(&mut self, _port: Port, frame: &[u8]) -> Result<(), ReplayError> {
+        let raw = rays::single_frame(frame)?;
+        if matches!(raw.kind, wire::KIND_SHADOW_RAY | wire::KIND_REFLECT_RAY) {
+            return self.receive_ray(raw);
+        }
         let far = FarDistance::new(self.setup.ok_or(ReplayError::NoLightSetup)?.far).ok_or(ReplayError::BadFar)?;
-        let (f, used) = Frame::<F>::parse(frame, far)?;
-        match f.msg {
-            wire::Message::Beam(m) if used == frame.len() => self.accept(m),
-            _ => Err(DecodeError::BadValue("not a single beam frame").into()),
+        match Frame::<F>::parse_payload(raw, far)?.msg {
+            wire::Message::Beam(m) => self.accept(m),
+            _ => Err(DecodeError::BadValue("not a beam frame").into()),
         }
     }
 
@@ -789,28 +955,16 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
         }
     }
 
-    /// Apply one record. `Recv` goes through [`Replayer::receive_frame`] and `Grant` through
-    /// [`Replayer::grant`] with in-memory links; a firmware routes them through its interrupt
-    /// and its `embedded-hal` links instead.
+    /// Apply one record. `Recv` goes through [`Replayer::receive_frame`], `Grant` through
+    /// [`Replayer::grant`] with in-memory links and `Take` through [`Replayer::take_ray`]; a
+    /// firmware routes them through its interrupt and its `embedded-hal` links instead.
     pub fn apply(&mut self, ev: Event<'_, F>) -> Result<(), ReplayError> {
         self.stats.records += 1;
         if self.ended {
             return Err(ReplayError::BadEnd);
         }
         match ev {
-            Event::Header(h) => {
-                if self.started {
-                    return Err(ReplayError::BadHeader);
-                }
-                if h != Self::header(h.x, h.y, h.depth) {
-                    return Err(ReplayError::CapacityMismatch);
-                }
-                self.cell = Cell::new(h.x, h.y);
-                self.light = LightCell::new(h.x, h.y);
-                self.depth = h.depth;
-                self.started = true;
-                return Ok(());
-            }
+            Event::Header(h) => return self.start(h),
             _ if !self.started => return Err(ReplayError::BadHeader),
             Event::Row(mut p) => {
                 self.stats.rows += 1;
@@ -823,39 +977,73 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
                 self.light.counters.max_layer = 0;
                 self.light.counters.peak_fifo = 0;
                 self.setup = Some(s);
+                self.rays = Rays::Idle;
             }
             Event::Inject(m) => self.accept(m)?,
             Event::Recv { port, frame } => self.receive_frame(port, frame)?,
-            Event::Step(n) => {
-                let setup = self.setup.ok_or(ReplayError::NoLightSetup)?;
-                let order = self.order;
-                let env = setup.env(&order)?;
+            Event::Step(n) if !matches!(self.rays, Rays::Idle) => {
                 for _ in 0..n {
-                    let r = self.light.step(&self.cell, &env, &self.activity);
-                    self.digest.step(r);
-                    self.stats.steps += 1;
+                    self.ray_cycle(true)?;
                 }
             }
+            Event::Step(n) => self.light_cycles(n)?,
             Event::Grant(p) => {
                 let mut links: [GrantLink; 8] = core::array::from_fn(|i| GrantLink(i == p.index()));
                 self.grant(p, &mut links)?;
             }
-            Event::Shade(s) => {
-                let rule = self.setup.map_or(LitRule::Thesis, |l| l.rule);
-                let (lit, visible) = (&self.light.lit, self.light.visible_lit);
-                self.pixel = cell_pixel(
-                    rule,
-                    &self.cell,
-                    |z: Depth| lit.mask_at(z),
-                    visible,
-                    &s.materials,
-                    &s.lights,
-                    &s.params,
-                );
-            }
+            Event::Shade(s) => self.shade(s),
             Event::End => self.ended = true,
+            Event::Shadow(s) => self.start_shadow(s)?,
+            Event::Reflect(s) => self.start_reflect(s)?,
+            ev @ (Event::ShadowAnswer(_) | Event::ReflectAnswer { .. }) => self.deliver(ev)?,
+            Event::Refused => self.ray_cycle(false)?,
+            Event::Take { class, port } => self.take_ray(class, port, |_| {})?,
+            Event::PhaseEnd => self.end_phase()?,
         }
         Ok(())
+    }
+
+    /// The header record: the cell it is for, after checking the capacities.
+    fn start(&mut self, h: Header) -> Result<(), ReplayError> {
+        if self.started {
+            return Err(ReplayError::BadHeader);
+        }
+        if h != Self::header(h.x, h.y, h.depth) {
+            return Err(ReplayError::CapacityMismatch);
+        }
+        self.cell = Cell::new(h.x, h.y);
+        self.light = LightCell::new(h.x, h.y);
+        self.depth = h.depth;
+        self.started = true;
+        Ok(())
+    }
+
+    /// `n` compute cycles of the light cell.
+    fn light_cycles(&mut self, n: u32) -> Result<(), ReplayError> {
+        let setup = self.setup.ok_or(ReplayError::NoLightSetup)?;
+        let order = self.order;
+        let env = setup.env(&order)?;
+        for _ in 0..n {
+            let r = self.light.step(&self.cell, &env, &self.activity);
+            self.digest.step(r);
+            self.stats.steps += 1;
+        }
+        Ok(())
+    }
+
+    /// The shading record: the pixel, from what the classic shadow rays lit (the visible
+    /// surface only) or from the lit store; its inputs are kept for the reflection phase.
+    fn shade(&mut self, s: ShadeSetup) {
+        let (mats, lights) = (&s.materials, &s.lights);
+        self.pixel = match self.shadow_lit {
+            Some((m, rule)) => cell_pixel(rule, &self.cell, |_| m, m, mats, lights, &s.params),
+            None => {
+                let rule = self.setup.map_or(LitRule::Thesis, |l| l.rule);
+                let (lit, visible) = (&self.light.lit, self.light.visible_lit);
+                cell_pixel(rule, &self.cell, |z: Depth| lit.mask_at(z), visible, mats, lights, &s.params)
+            }
+        };
+        self.shade = Some(s);
     }
 
     /// Whether the end record was applied.
@@ -865,11 +1053,17 @@ impl<F: FracBits, const D: usize, const FA: usize, const OB: usize, const L: usi
 
     /// The digest of the outputs and the final state.
     pub fn finish(mut self) -> Result<u64, ReplayError> {
+        self.take_digest()
+    }
+
+    /// [`Replayer::finish`] in place: the digest (the replayer's own starts over).
+    pub fn take_digest(&mut self) -> Result<u64, ReplayError> {
         if !self.ended {
             return Err(ReplayError::BadEnd);
         }
-        self.digest.state(&self.cell, &self.light, self.pixel);
-        Ok(self.digest.finish())
+        let mut digest = core::mem::take(&mut self.digest);
+        digest.state(&self.cell, &self.light, self.pixel);
+        Ok(digest.finish())
     }
 }
 
