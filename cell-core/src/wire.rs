@@ -18,6 +18,7 @@
 //! | `0x10` | [`Message::Row`] (a facet row packet, §3.9) | seq u8, facet u32, material u16, normal u16, plane (id u32, nx i16, ny i16, nz i32, m u64), box 6×u16, a c t u 4×i64, edge count u8, edges (a i32, c i32, g i64, off i32) | 81 + 20·edges |
 //! | `0x20` | [`Message::Beam`] (§4.4) | seq u8, frac bits u8, source u16, direction u8 (bit 7: terminal, bit 6: after an empty voxel, bit 5: after the outside of a plane, [`crate::lit`]), layer u32, u_lo u_hi v_lo v_hi 4×i32, z u16 | 27 + 7 = 34 |
 //! | `0x30` | [`Message::Ack`] | seq u8 | 1 + 7 = 8 |
+//! | `0x40` | [`Message::Token`] (the termination token, [`crate::termination`]) | seq u8, phase u16, sum i32, colour u8 (0 white, 1 black) | 8 + 7 = 15 |
 //!
 //! `seq` is the link-level sequence number (for acknowledgement and retransmission); a trace
 //! leaves it 0.
@@ -67,6 +68,7 @@ use crate::facet::{FacetBox, RowEdge, RowPacket, MAX_EDGES};
 use crate::light::BeamMsg;
 use crate::normal::NormalCode;
 use crate::plane::FacetPlane;
+use crate::termination::Token;
 use crate::voxelize::{worst_case_g, worst_case_t, MAX_LATTICE_Q, MAX_LATTICE_SPAN};
 
 /// CRC-32/ISO-HDLC (computed as [`Crc32Table`] says).
@@ -92,6 +94,10 @@ pub const KIND_ROW: u8 = 0x10;
 pub const KIND_BEAM: u8 = 0x20;
 /// Frame kind of an acknowledgement.
 pub const KIND_ACK: u8 = 0x30;
+/// Frame kind of a termination token.
+pub const KIND_TOKEN: u8 = 0x40;
+/// Payload bytes of a termination token (with its `seq`).
+pub const TOKEN_PAYLOAD: usize = 8;
 /// Payload bytes of a beam message (with its `seq`).
 pub const BEAM_PAYLOAD: usize = 27;
 /// Payload bytes of a row packet without edges (with its `seq`).
@@ -365,6 +371,8 @@ pub enum Message<F: FracBits> {
     Beam(BeamMsg<F>),
     /// Acknowledges the data frame with this sequence number.
     Ack,
+    /// The termination detector's token on its way round the ring of boards.
+    Token(Token),
 }
 
 /// A message with its link-level sequence number.
@@ -493,6 +501,24 @@ pub fn get_beam<F: FracBits>(r: &mut Reader<'_>, far: FarDistance<F>) -> Result<
     Ok(BeamMsg::new(beam, r.u16()?))
 }
 
+/// Write a termination token's fields (payload after `seq`).
+pub fn put_token<S: ByteSink + ?Sized>(w: &mut S, t: &Token) -> Result<(), EncodeError> {
+    w.u16(t.phase)?;
+    w.i32(t.count)?;
+    w.u8(t.black as u8)
+}
+
+/// Read a termination token's fields.
+pub fn get_token(r: &mut Reader<'_>) -> Result<Token, DecodeError> {
+    let (phase, count) = (r.u16()?, r.i32()?);
+    let black = match r.u8()? {
+        0 => false,
+        1 => true,
+        _ => return Err(DecodeError::BadValue("token colour")),
+    };
+    Ok(Token { phase, count, black })
+}
+
 impl<F: FracBits> Message<F> {
     /// Bytes of this message's frame on the wire (header, payload with `seq`, CRC).
     pub fn buffer_len(&self) -> usize {
@@ -502,6 +528,7 @@ impl<F: FracBits> Message<F> {
                 Message::Row(p) => ROW_PAYLOAD_BASE + p.edges.len() * ROW_EDGE_BYTES,
                 Message::Beam(_) => BEAM_PAYLOAD,
                 Message::Ack => 1,
+                Message::Token(_) => TOKEN_PAYLOAD,
             }
     }
 
@@ -518,6 +545,10 @@ impl<F: FracBits> Message<F> {
                 put_beam(w, m)
             }),
             Message::Ack => write_frame(buf, KIND_ACK, |w| w.u8(seq)),
+            Message::Token(t) => write_frame(buf, KIND_TOKEN, |w| {
+                w.u8(seq)?;
+                put_token(w, t)
+            }),
         }
     }
 }
@@ -538,6 +569,7 @@ impl<F: FracBits> Frame<F> {
             KIND_ROW => Message::Row(get_row(&mut r)?),
             KIND_BEAM => Message::Beam(get_beam(&mut r, far)?),
             KIND_ACK => Message::Ack,
+            KIND_TOKEN => Message::Token(get_token(&mut r)?),
             k => return Err(DecodeError::UnknownKind(k)),
         };
         r.finish()?;
@@ -596,6 +628,16 @@ mod tests {
         0x30, 0x01, 0x00, // kind ACK, len 1
         0x5a, // seq
         0x60, 0xf5, 0x13, 0x5b, // CRC-32 0x5b13f560
+    ];
+
+    /// A black termination token of phase 3 with sum −2, seq 0x11.
+    const TOKEN_P3: [u8; 15] = [
+        0x40, 0x08, 0x00, // kind TOKEN, len 8
+        0x11, // seq
+        0x03, 0x00, // phase 3
+        0xfe, 0xff, 0xff, 0xff, // sum −2
+        0x01, // black
+        0x1b, 0xd2, 0x5b, 0x5c, // CRC-32 0x5c5bd21b
     ];
 
     /// A beam at f = 0: seq 7, source 0x0203, direction −y (3) terminal (bit 7) and after the
@@ -711,13 +753,14 @@ mod tests {
     #[test]
     fn frames_equal_hand_written_bytes() {
         known_answer::<U0>(0x5a, Message::Ack, &ACK_5A);
+        known_answer::<U0>(0x11, Message::Token(Token { phase: 3, count: -2, black: true }), &TOKEN_P3);
         let m = beam_msg::<U0>(0x0203, Direction::NegY, [true, false, true], 17, [-5, 12, 0, 127], 320);
         known_answer::<U0>(7, Message::Beam(m), &BEAM_F0);
         let m = beam_msg::<U4>(0xffff, Direction::PosZ, [false, true, false], 126, [-24, 36, -2032, -2024], 0);
         known_answer::<U4>(0xc8, Message::Beam(m), &BEAM_F4);
         known_answer::<U0>(0, Message::Row(row_2_edges()), &ROW_2_EDGES);
         // The literal frames with their last CRC byte changed are refused.
-        for lit in [&ACK_5A[..], &BEAM_F0[..], &ROW_2_EDGES[..]] {
+        for lit in [&ACK_5A[..], &TOKEN_P3[..], &BEAM_F0[..], &ROW_2_EDGES[..]] {
             let mut b = lit.to_vec();
             *b.last_mut().unwrap() ^= 0x01;
             assert_eq!(Frame::<U0>::parse(&b, far()).unwrap_err(), DecodeError::BadCrc);
@@ -742,6 +785,20 @@ mod tests {
     }
 
     proptest! {
+        #[test]
+        fn token_round_trip(seq in any::<u8>(), phase in any::<u16>(), count in any::<i32>(), black in any::<bool>()) {
+            let msg = Message::<U0>::Token(Token { phase, count, black });
+            let mut buf = [0u8; MAX_FRAME];
+            let n = msg.emit(seq, &mut buf).unwrap();
+            prop_assert_eq!(n, HEADER + TOKEN_PAYLOAD + TRAILER);
+            let (f, used) = Frame::<U0>::parse(&buf[..n], far()).unwrap();
+            prop_assert_eq!((f.seq, f.msg, used), (seq, msg, n));
+            // A colour byte other than 0 or 1 is refused (behind a valid CRC).
+            let mut bad = [0u8; 32];
+            let m = write_frame(&mut bad, KIND_TOKEN, |w| { w.put(&buf[HEADER..HEADER + 7])?; w.u8(2) }).unwrap();
+            prop_assert_eq!(Frame::<U0>::parse(&bad[..m], far()).unwrap_err(), DecodeError::BadValue("token colour"));
+        }
+
         #[test]
         fn row_round_trip(facet in any::<u32>(), a in -1000i64..1000, c in -1000i64..1000, t in any::<i32>(),
                           edges in proptest::collection::vec((-5000i32..5000, -5000i32..5000, any::<i32>()), 0..=MAX_EDGES)) {
