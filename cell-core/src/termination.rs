@@ -85,7 +85,7 @@
 //!
 //! # Wire
 //!
-//! The token is a frame of its own ([`crate::wire::Message::Token`], kind `0x40`): phase u16,
+//! The token is a frame of its own ([`crate::wire::TokenFrame`], kind `0x40`): phase u16,
 //! sum i32, colour u8 — 15 bytes with the header, sequence number and CRC.
 //!
 //! ```

@@ -18,7 +18,11 @@
 //! | `0x10` | [`Message::Row`] (a facet row packet, §3.9) | seq u8, facet u32, material u16, normal u16, plane (id u32, nx i16, ny i16, nz i32, m u64), box 6×u16, a c t u 4×i64, edge count u8, edges (a i32, c i32, g i64, off i32) | 81 + 20·edges |
 //! | `0x20` | [`Message::Beam`] (§4.4) | seq u8, frac bits u8, source u16, direction u8 (bit 7: terminal, bit 6: after an empty voxel, bit 5: after the outside of a plane, [`crate::lit`]), layer u32, u_lo u_hi v_lo v_hi 4×i32, z u16 | 27 + 7 = 34 |
 //! | `0x30` | [`Message::Ack`] | seq u8 | 1 + 7 = 8 |
-//! | `0x40` | [`Message::Token`] (the termination token, [`crate::termination`]) | seq u8, phase u16, sum i32, colour u8 (0 white, 1 black) | 8 + 7 = 15 |
+//! | `0x40` | [`TokenFrame`] (the termination token between boards, [`crate::termination`]) | seq u8, phase u16, sum i32, colour u8 (0 white, 1 black) | 8 + 7 = 15 |
+//!
+//! A token is not a [`Message`]: cells never see one, a board's link driver dispatches on the
+//! raw frame's kind ([`read_frame`]), and an image that runs no detector (the production cell,
+//! whose flash budget is counted to the byte) carries no token decoder.
 //!
 //! `seq` is the link-level sequence number (for acknowledgement and retransmission); a trace
 //! leaves it 0.
@@ -371,8 +375,6 @@ pub enum Message<F: FracBits> {
     Beam(BeamMsg<F>),
     /// Acknowledges the data frame with this sequence number.
     Ack,
-    /// The termination detector's token on its way round the ring of boards.
-    Token(Token),
 }
 
 /// A message with its link-level sequence number.
@@ -519,6 +521,47 @@ pub fn get_token(r: &mut Reader<'_>) -> Result<Token, DecodeError> {
     Ok(Token { phase, count, black })
 }
 
+/// A termination token's frame ([`KIND_TOKEN`]) with its link sequence number.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TokenFrame {
+    /// Link sequence number.
+    pub seq: u8,
+    /// The token.
+    pub token: Token,
+}
+
+impl TokenFrame {
+    /// Bytes of a token frame on the wire.
+    pub const LEN: usize = HEADER + TOKEN_PAYLOAD + TRAILER;
+
+    /// Emit the frame into `buf`; returns its length ([`TokenFrame::LEN`]).
+    pub fn emit(&self, buf: &mut [u8]) -> Result<usize, EncodeError> {
+        write_frame(buf, KIND_TOKEN, |w| {
+            w.u8(self.seq)?;
+            put_token(w, &self.token)
+        })
+    }
+
+    /// Parse the token frame at the start of `bytes` (CRC, kind, length and colour checked);
+    /// returns it and the bytes it took.
+    pub fn parse(bytes: &[u8]) -> Result<(Self, usize), DecodeError> {
+        let (raw, used) = read_frame(bytes)?;
+        Ok((Self::parse_payload(raw)?, used))
+    }
+
+    /// Parse a CRC-checked frame's payload as a token.
+    pub fn parse_payload(raw: RawFrame<'_>) -> Result<Self, DecodeError> {
+        if raw.kind != KIND_TOKEN {
+            return Err(DecodeError::UnknownKind(raw.kind));
+        }
+        let mut r = Reader::new(raw.payload);
+        let seq = r.u8()?;
+        let token = get_token(&mut r)?;
+        r.finish()?;
+        Ok(TokenFrame { seq, token })
+    }
+}
+
 impl<F: FracBits> Message<F> {
     /// Bytes of this message's frame on the wire (header, payload with `seq`, CRC).
     pub fn buffer_len(&self) -> usize {
@@ -528,7 +571,6 @@ impl<F: FracBits> Message<F> {
                 Message::Row(p) => ROW_PAYLOAD_BASE + p.edges.len() * ROW_EDGE_BYTES,
                 Message::Beam(_) => BEAM_PAYLOAD,
                 Message::Ack => 1,
-                Message::Token(_) => TOKEN_PAYLOAD,
             }
     }
 
@@ -545,10 +587,6 @@ impl<F: FracBits> Message<F> {
                 put_beam(w, m)
             }),
             Message::Ack => write_frame(buf, KIND_ACK, |w| w.u8(seq)),
-            Message::Token(t) => write_frame(buf, KIND_TOKEN, |w| {
-                w.u8(seq)?;
-                put_token(w, t)
-            }),
         }
     }
 }
@@ -569,7 +607,6 @@ impl<F: FracBits> Frame<F> {
             KIND_ROW => Message::Row(get_row(&mut r)?),
             KIND_BEAM => Message::Beam(get_beam(&mut r, far)?),
             KIND_ACK => Message::Ack,
-            KIND_TOKEN => Message::Token(get_token(&mut r)?),
             k => return Err(DecodeError::UnknownKind(k)),
         };
         r.finish()?;
@@ -753,14 +790,23 @@ mod tests {
     #[test]
     fn frames_equal_hand_written_bytes() {
         known_answer::<U0>(0x5a, Message::Ack, &ACK_5A);
-        known_answer::<U0>(0x11, Message::Token(Token { phase: 3, count: -2, black: true }), &TOKEN_P3);
+        let tf = TokenFrame { seq: 0x11, token: Token { phase: 3, count: -2, black: true } };
+        let mut buf = [0u8; TokenFrame::LEN];
+        assert_eq!(tf.emit(&mut buf), Ok(TOKEN_P3.len()));
+        assert_eq!(buf, TOKEN_P3, "encoded token frame");
+        assert_eq!(TokenFrame::parse(&TOKEN_P3), Ok((tf, TOKEN_P3.len())), "decoded literal");
+        assert_eq!(Frame::<U0>::parse(&TOKEN_P3, far()).unwrap_err(), DecodeError::UnknownKind(KIND_TOKEN));
+        assert_eq!(TokenFrame::parse(&ACK_5A).unwrap_err(), DecodeError::UnknownKind(KIND_ACK));
+        let mut b = TOKEN_P3;
+        b[14] ^= 0x01;
+        assert_eq!(TokenFrame::parse(&b).unwrap_err(), DecodeError::BadCrc);
         let m = beam_msg::<U0>(0x0203, Direction::NegY, [true, false, true], 17, [-5, 12, 0, 127], 320);
         known_answer::<U0>(7, Message::Beam(m), &BEAM_F0);
         let m = beam_msg::<U4>(0xffff, Direction::PosZ, [false, true, false], 126, [-24, 36, -2032, -2024], 0);
         known_answer::<U4>(0xc8, Message::Beam(m), &BEAM_F4);
         known_answer::<U0>(0, Message::Row(row_2_edges()), &ROW_2_EDGES);
         // The literal frames with their last CRC byte changed are refused.
-        for lit in [&ACK_5A[..], &TOKEN_P3[..], &BEAM_F0[..], &ROW_2_EDGES[..]] {
+        for lit in [&ACK_5A[..], &BEAM_F0[..], &ROW_2_EDGES[..]] {
             let mut b = lit.to_vec();
             *b.last_mut().unwrap() ^= 0x01;
             assert_eq!(Frame::<U0>::parse(&b, far()).unwrap_err(), DecodeError::BadCrc);
@@ -787,16 +833,18 @@ mod tests {
     proptest! {
         #[test]
         fn token_round_trip(seq in any::<u8>(), phase in any::<u16>(), count in any::<i32>(), black in any::<bool>()) {
-            let msg = Message::<U0>::Token(Token { phase, count, black });
+            let tf = TokenFrame { seq, token: Token { phase, count, black } };
             let mut buf = [0u8; MAX_FRAME];
-            let n = msg.emit(seq, &mut buf).unwrap();
-            prop_assert_eq!(n, HEADER + TOKEN_PAYLOAD + TRAILER);
-            let (f, used) = Frame::<U0>::parse(&buf[..n], far()).unwrap();
-            prop_assert_eq!((f.seq, f.msg, used), (seq, msg, n));
-            // A colour byte other than 0 or 1 is refused (behind a valid CRC).
+            let n = tf.emit(&mut buf).unwrap();
+            prop_assert_eq!(n, TokenFrame::LEN);
+            prop_assert_eq!(TokenFrame::parse(&buf[..n]), Ok((tf, n)));
+            // A colour byte other than 0 or 1 is refused (behind a valid CRC), and so is a
+            // payload of another length.
             let mut bad = [0u8; 32];
             let m = write_frame(&mut bad, KIND_TOKEN, |w| { w.put(&buf[HEADER..HEADER + 7])?; w.u8(2) }).unwrap();
-            prop_assert_eq!(Frame::<U0>::parse(&bad[..m], far()).unwrap_err(), DecodeError::BadValue("token colour"));
+            prop_assert_eq!(TokenFrame::parse(&bad[..m]).unwrap_err(), DecodeError::BadValue("token colour"));
+            let m = write_frame(&mut bad, KIND_TOKEN, |w| w.put(&buf[HEADER..n - TRAILER + 1])).unwrap();
+            prop_assert_eq!(TokenFrame::parse(&bad[..m]).unwrap_err(), DecodeError::BadLength);
         }
 
         #[test]

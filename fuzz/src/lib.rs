@@ -59,7 +59,7 @@ fn decode_as<F: FracBits>(data: &[u8], d: u32) {
                     let _ = m.beam.split(&src, far, at);
                 }
             }
-            Message::Ack | Message::Token(_) => {}
+            Message::Ack => {}
         }
     }
 }

@@ -30,7 +30,7 @@
 //!   sets and the dexel stores after the last declaration.
 //! * **The ring** ([`ring`]): a boustrophedon over the boards' 4-neighbour links closed back
 //!   along the first column (the board grid must have an even side, or be 1 × 1). The token
-//!   is encoded with the wire codec ([`Message::Token`]) and decoded at the far end.
+//!   is encoded with the wire codec ([`TokenFrame`]) and decoded at the far end.
 //!
 //! **Ground truth.** The executor keeps what the boards cannot see — frames on wires, which
 //! boards are passive — and checks every declaration against it: a declaration while a
@@ -49,13 +49,13 @@ use std::collections::VecDeque;
 use std::convert::Infallible;
 
 use anyhow::{bail, Result};
-use cell_core::beam::{FarDistance, FracBits, Source, SplitOrder};
+use cell_core::beam::{FracBits, Source, SplitOrder};
 use cell_core::facet::{PipelinePacket, RowPacket};
 use cell_core::light::{Activity, ActivityDelta, BeamMsg, LightCell, LightEnv, Port};
 use cell_core::link::{Link, PerfectLink, Sent};
 use cell_core::termination::{Action, Node, Token};
 use cell_core::voxelize::PipelineCell;
-use cell_core::wire::{Frame, Message, HEADER, TOKEN_PAYLOAD, TRAILER};
+use cell_core::wire::TokenFrame;
 
 use crate::machine::capacity::HostLightCell;
 use crate::machine::diffuse::{check_light_run, initial_beams, AllSources, LightConfig, Lighting, SourceReport};
@@ -277,7 +277,7 @@ pub fn run<F: FracBits>(
         bail!("too many sources, or a zero delay or pause bound");
     }
     let far = check_light_run::<F>(n, sources, light)?;
-    let mut ex = Executor::<F>::new(packets, n, sources.len(), far, cfg)?;
+    let mut ex = Executor::<F>::new(packets, n, sources.len(), cfg)?;
     let mut grid = LightGrid::new(n, n);
     ex.schedule(0, |ex, b| ex.step_loading(b, &mut grid), |_, _, _| {})?;
     let order = SplitOrder::default();
@@ -300,7 +300,6 @@ struct Executor<F: FracBits> {
     tile: u32,
     tx: u32,
     cfg: AsyncConfig,
-    far: FarDistance<F>,
     cells: Vec<HostLightCell<F>>,
     boards: Vec<Board<F>>,
     /// Beam registers and wire links of cell links across board edges, by receiving end
@@ -322,7 +321,7 @@ struct Executor<F: FracBits> {
 }
 
 impl<F: FracBits> Executor<F> {
-    fn new(packets: &[PipelinePacket], n: u32, sources: usize, far: FarDistance<F>, cfg: &AsyncConfig) -> Result<Self> {
+    fn new(packets: &[PipelinePacket], n: u32, sources: usize, cfg: &AsyncConfig) -> Result<Self> {
         let tx = n / cfg.tile;
         let count = (tx * tx) as usize;
         let ring = ring(tx as usize, tx as usize)?;
@@ -367,7 +366,6 @@ impl<F: FracBits> Executor<F> {
             tile: cfg.tile,
             tx,
             cfg: *cfg,
-            far,
             cells,
             regs: vec![Register::default(); (n * n) as usize * 8],
             wires,
@@ -464,7 +462,7 @@ impl<F: FracBits> Executor<F> {
             return None;
         }
         let (_, bytes) = self.boards[b].token_in.take()?;
-        let Ok((Frame { msg: Message::Token(t), .. }, _)) = Frame::<F>::parse(&bytes, self.far) else {
+        let Ok((TokenFrame { token: t, .. }, _)) = TokenFrame::parse(&bytes) else {
             unreachable!("the token frame decodes");
         };
         self.stats.token_hops += 1;
@@ -506,8 +504,8 @@ impl<F: FracBits> Executor<F> {
     }
 
     fn send_token(&mut self, b: usize, t: Token) {
-        let mut buf = [0u8; HEADER + TOKEN_PAYLOAD + TRAILER];
-        let len = Message::<F>::Token(t).emit(0, &mut buf).expect("a token frame fits");
+        let mut buf = [0u8; TokenFrame::LEN];
+        let len = TokenFrame { seq: 0, token: t }.emit(&mut buf).expect("a token frame fits");
         self.stats.token_bytes += len as u64;
         let to = self.boards[b].next;
         let at = self.now + 1 + self.rng.below(self.cfg.max_delay);
