@@ -30,6 +30,8 @@
 //! * [`reflect_cell`] — the reflection cell: ray FIFOs, wait table, answers (§1.3.2, §5.5.5).
 //! * [`visible`] — the surface the pixel shows: a per-cell depth test of the exact facets during loading.
 //! * [`shade`] — Phong/Blinn shading of the visible voxel with `micromath` (§1.1, §5.2).
+//! * [`termination`] — distributed termination detection: Safra's token ring with message
+//!   counters over the boards' links (§4.4.4 without a central counter).
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -51,6 +53,7 @@ pub mod reflect_cell;
 pub mod route;
 pub mod shade;
 pub mod shadow;
+pub mod termination;
 pub mod trace;
 pub mod units;
 pub mod visible;

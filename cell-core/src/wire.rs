@@ -20,10 +20,14 @@
 //! | `0x30` | [`Message::Ack`] | seq u8 | 1 + 7 = 8 |
 //! | `0x21` | [`RayMsg::Shadow`] (a classic shadow ray, §4.1.2) | seq u8, the ray ([`put_shadow_ray`]) | 61 … 117 + 7 (117: the plane rule's segment) |
 //! | `0x22` | [`RayMsg::Reflect`] (a reflected ray, §1.3.2) | seq u8, the ray ([`put_reflect_ray`]) | 76 … 88 + 7 |
+//! | `0x40` | [`TokenFrame`] (the termination token between boards, [`crate::termination`]) | seq u8, phase u16, sum i32, colour u8 (0 white, 1 black) | 8 + 7 = 15 |
 //!
 //! Ray frames ([`RayMsg`]) are not [`Message`]s: the host grid moves rays between its cells as
 //! values and the production cell does not run the ray phases yet; cell traces carry them
 //! ([`crate::trace`]), and a cell replaying one decodes them off its links like beams.
+//! A token is not a [`Message`]: cells never see one, a board's link driver dispatches on the
+//! raw frame's kind ([`read_frame`]), and an image that runs no detector (the production cell,
+//! whose flash budget is counted to the byte) carries no token decoder.
 //!
 //! `seq` is the link-level sequence number (for acknowledgement and retransmission); a trace
 //! leaves it 0.
@@ -75,6 +79,7 @@ use crate::normal::NormalCode;
 use crate::plane::FacetPlane;
 use crate::ray::{Line, PlaneWalk, ShadowRay, LINE_BYTES, MAX_COORD, MAX_SPAN};
 use crate::reflect::ReflectRay;
+use crate::termination::Token;
 use crate::voxelize::{worst_case_g, worst_case_t, MAX_LATTICE_Q, MAX_LATTICE_SPAN};
 
 /// CRC-32/ISO-HDLC (computed as [`Crc32Table`] says).
@@ -107,6 +112,10 @@ pub const KIND_REFLECT_RAY: u8 = 0x22;
 /// The longest ray frame: a shadow ray under the plane rule with an 18-connected line's
 /// pending voxel (seq 1, line [`LINE_BYTES`], emitter to grace 14, plane state 52).
 pub const MAX_RAY_FRAME: usize = HEADER + 1 + LINE_BYTES + 14 + 52 + TRAILER;
+/// Frame kind of a termination token.
+pub const KIND_TOKEN: u8 = 0x40;
+/// Payload bytes of a termination token (with its `seq`).
+pub const TOKEN_PAYLOAD: usize = 8;
 /// Payload bytes of a beam message (with its `seq`).
 pub const BEAM_PAYLOAD: usize = 27;
 /// Payload bytes of a row packet without edges (with its `seq`).
@@ -508,6 +517,65 @@ pub fn get_beam<F: FracBits>(r: &mut Reader<'_>, far: FarDistance<F>) -> Result<
     Ok(BeamMsg::new(beam, r.u16()?))
 }
 
+/// Write a termination token's fields (payload after `seq`).
+pub fn put_token<S: ByteSink + ?Sized>(w: &mut S, t: &Token) -> Result<(), EncodeError> {
+    w.u16(t.phase)?;
+    w.i32(t.count)?;
+    w.u8(t.black as u8)
+}
+
+/// Read a termination token's fields.
+pub fn get_token(r: &mut Reader<'_>) -> Result<Token, DecodeError> {
+    let (phase, count) = (r.u16()?, r.i32()?);
+    let black = match r.u8()? {
+        0 => false,
+        1 => true,
+        _ => return Err(DecodeError::BadValue("token colour")),
+    };
+    Ok(Token { phase, count, black })
+}
+
+/// A termination token's frame ([`KIND_TOKEN`]) with its link sequence number.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TokenFrame {
+    /// Link sequence number.
+    pub seq: u8,
+    /// The token.
+    pub token: Token,
+}
+
+impl TokenFrame {
+    /// Bytes of a token frame on the wire.
+    pub const LEN: usize = HEADER + TOKEN_PAYLOAD + TRAILER;
+
+    /// Emit the frame into `buf`; returns its length ([`TokenFrame::LEN`]).
+    pub fn emit(&self, buf: &mut [u8]) -> Result<usize, EncodeError> {
+        write_frame(buf, KIND_TOKEN, |w| {
+            w.u8(self.seq)?;
+            put_token(w, &self.token)
+        })
+    }
+
+    /// Parse the token frame at the start of `bytes` (CRC, kind, length and colour checked);
+    /// returns it and the bytes it took.
+    pub fn parse(bytes: &[u8]) -> Result<(Self, usize), DecodeError> {
+        let (raw, used) = read_frame(bytes)?;
+        Ok((Self::parse_payload(raw)?, used))
+    }
+
+    /// Parse a CRC-checked frame's payload as a token.
+    pub fn parse_payload(raw: RawFrame<'_>) -> Result<Self, DecodeError> {
+        if raw.kind != KIND_TOKEN {
+            return Err(DecodeError::UnknownKind(raw.kind));
+        }
+        let mut r = Reader::new(raw.payload);
+        let seq = r.u8()?;
+        let token = get_token(&mut r)?;
+        r.finish()?;
+        Ok(TokenFrame { seq, token })
+    }
+}
+
 impl<F: FracBits> Message<F> {
     /// Bytes of this message's frame on the wire (header, payload with `seq`, CRC).
     pub fn buffer_len(&self) -> usize {
@@ -756,6 +824,16 @@ mod tests {
         0x60, 0xf5, 0x13, 0x5b, // CRC-32 0x5b13f560
     ];
 
+    /// A black termination token of phase 3 with sum −2, seq 0x11.
+    const TOKEN_P3: [u8; 15] = [
+        0x40, 0x08, 0x00, // kind TOKEN, len 8
+        0x11, // seq
+        0x03, 0x00, // phase 3
+        0xfe, 0xff, 0xff, 0xff, // sum −2
+        0x01, // black
+        0x1b, 0xd2, 0x5b, 0x5c, // CRC-32 0x5c5bd21b
+    ];
+
     /// A beam at f = 0: seq 7, source 0x0203, direction −y (3) terminal (bit 7) and after the
     /// outside of a plane (bit 5), layer 17, u −5 ..= 12, v 0 ..= 127, z 320.
     const BEAM_F0: [u8; 34] = [
@@ -869,6 +947,16 @@ mod tests {
     #[test]
     fn frames_equal_hand_written_bytes() {
         known_answer::<U0>(0x5a, Message::Ack, &ACK_5A);
+        let tf = TokenFrame { seq: 0x11, token: Token { phase: 3, count: -2, black: true } };
+        let mut buf = [0u8; TokenFrame::LEN];
+        assert_eq!(tf.emit(&mut buf), Ok(TOKEN_P3.len()));
+        assert_eq!(buf, TOKEN_P3, "encoded token frame");
+        assert_eq!(TokenFrame::parse(&TOKEN_P3), Ok((tf, TOKEN_P3.len())), "decoded literal");
+        assert_eq!(Frame::<U0>::parse(&TOKEN_P3, far()).unwrap_err(), DecodeError::UnknownKind(KIND_TOKEN));
+        assert_eq!(TokenFrame::parse(&ACK_5A).unwrap_err(), DecodeError::UnknownKind(KIND_ACK));
+        let mut b = TOKEN_P3;
+        b[14] ^= 0x01;
+        assert_eq!(TokenFrame::parse(&b).unwrap_err(), DecodeError::BadCrc);
         let m = beam_msg::<U0>(0x0203, Direction::NegY, [true, false, true], 17, [-5, 12, 0, 127], 320);
         known_answer::<U0>(7, Message::Beam(m), &BEAM_F0);
         let m = beam_msg::<U4>(0xffff, Direction::PosZ, [false, true, false], 126, [-24, 36, -2032, -2024], 0);
@@ -900,6 +988,22 @@ mod tests {
     }
 
     proptest! {
+        #[test]
+        fn token_round_trip(seq in any::<u8>(), phase in any::<u16>(), count in any::<i32>(), black in any::<bool>()) {
+            let tf = TokenFrame { seq, token: Token { phase, count, black } };
+            let mut buf = [0u8; MAX_FRAME];
+            let n = tf.emit(&mut buf).unwrap();
+            prop_assert_eq!(n, TokenFrame::LEN);
+            prop_assert_eq!(TokenFrame::parse(&buf[..n]), Ok((tf, n)));
+            // A colour byte other than 0 or 1 is refused (behind a valid CRC), and so is a
+            // payload of another length.
+            let mut bad = [0u8; 32];
+            let m = write_frame(&mut bad, KIND_TOKEN, |w| { w.put(&buf[HEADER..HEADER + 7])?; w.u8(2) }).unwrap();
+            prop_assert_eq!(TokenFrame::parse(&bad[..m]).unwrap_err(), DecodeError::BadValue("token colour"));
+            let m = write_frame(&mut bad, KIND_TOKEN, |w| w.put(&buf[HEADER..n - TRAILER + 1])).unwrap();
+            prop_assert_eq!(TokenFrame::parse(&bad[..m]).unwrap_err(), DecodeError::BadLength);
+        }
+
         #[test]
         fn row_round_trip(facet in any::<u32>(), a in -1000i64..1000, c in -1000i64..1000, t in any::<i32>(),
                           edges in proptest::collection::vec((-5000i32..5000, -5000i32..5000, any::<i32>()), 0..=MAX_EDGES)) {

@@ -422,7 +422,7 @@ struct Shot<'a, F: FracBits> {
 
 /// The far distance of an n × n grid, once the run's sources, FIFO limit and memory are
 /// checked.
-fn check_light_run<F: FracBits>(n: u32, sources: &[Source], cfg: &LightConfig) -> Result<FarDistance<F>> {
+pub(crate) fn check_light_run<F: FracBits>(n: u32, sources: &[Source], cfg: &LightConfig) -> Result<FarDistance<F>> {
     if sources.len() > cell_core::light::MAX_SOURCES {
         bail!("{} light sources: at most {} are supported", sources.len(), cell_core::light::MAX_SOURCES);
     }
@@ -471,7 +471,7 @@ fn check_recording(cfg: &LightConfig, tapped: bool) -> Result<()> {
 }
 
 /// What every source's diffusion of a run shares.
-struct AllSources<'a, F: FracBits, const D: usize> {
+pub(crate) struct AllSources<'a, F: FracBits, const D: usize> {
     grid: &'a Grid<D>,
     sources: &'a [Source],
     cfg: &'a LightConfig,
@@ -481,7 +481,15 @@ struct AllSources<'a, F: FracBits, const D: usize> {
     shot: Option<Shot<'a, F>>,
 }
 
-impl<F: FracBits, const D: usize> AllSources<'_, F, D> {
+impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
+    /// The sources of a run on `grid` whose cells are told no frustum summary (the
+    /// asynchronous boards, [`crate::machine::async_tiles`]: every cell's environment comes
+    /// from [`AllSources::env`] as here).
+    pub(crate) fn plain(grid: &'a Grid<D>, sources: &'a [Source], cfg: &'a LightConfig, far: FarDistance<F>) -> Self {
+        let occupied = occupied_box(grid, cfg.rule);
+        AllSources { grid, sources, cfg, far, occupied, frustum: None, shot: None }
+    }
+
     /// Diffuse the sources one after another over `cells`, through `links`.
     fn diffuse<L: HostLink<F> + FaultTally>(
         &self,
@@ -523,7 +531,7 @@ impl<F: FracBits, const D: usize> AllSources<'_, F, D> {
     }
 
     /// The lighting environment of source `si`.
-    fn env<'e>(&'e self, src: &'e Source, si: usize, order: &'e SplitOrder) -> LightEnv<'e, F> {
+    pub(crate) fn env<'e>(&'e self, src: &'e Source, si: usize, order: &'e SplitOrder) -> LightEnv<'e, F> {
         let (cfg, grid, occupied) = (self.cfg, self.grid, self.occupied);
         LightEnv {
             source: src,
@@ -868,7 +876,7 @@ fn diffuse_one<F: FracBits, const D: usize, L: HostLink<F>>(
 
 /// The six initial beams of `src` that the dead-direction skip keeps, their rays counted in
 /// `rep` (the skipped ones as skipped); or a radiosity shot's own initial beams (`shot`).
-fn initial_beams<F: FracBits>(
+pub(crate) fn initial_beams<F: FracBits>(
     src: &Source,
     far: FarDistance<F>,
     dead: Option<OccupiedBox>,

@@ -19,7 +19,11 @@
 //! * [`radiosity`] — progressive radiosity on the grid: one beam diffusion per shot carrying
 //!   its rays' energy, per-patch accumulators, the costed reduction and the supervisor.
 //! * [`limits`] — host memory checks before allocating a grid.
+//! * [`async_tiles`] — the grid as asynchronous boards (tiles of cells, random link delays, no
+//!   global cycle) whose phases end by distributed termination detection
+//!   (`cell_core::termination`), checked against the host's ground truth.
 
+pub mod async_tiles;
 pub mod capacity;
 pub mod classic;
 pub mod diffuse;
