@@ -111,10 +111,9 @@ fn radiosity_images_are_closer_to_the_radiosity_reference_and_bleed_its_colours(
         );
         // The machine shows it too, weaker: its form factors are point-to-area from each
         // patch's centre pushed --offset (2) voxels off it, which underestimates the exchange
-        // between patches meeting at a corner — the ceiling strip along each wall
-        // (docs/RADIOSITY.md measures 60–75 % of the reference's bleeding at n = 48–96). At
-        // least 40 %, at most 125 %: a machine that lost the indirect light or swapped the
-        // walls' colours gives 0 or less.
+        // between patches meeting at a corner — the ceiling strip along each wall. At least
+        // 40 %, at most 125 %: a machine that lost the indirect light or swapped the walls'
+        // colours gives 0 or less.
         assert!(got >= 0.4 * want && got <= 1.25 * want, "{display:?}: machine bleeding {got:.4}, reference {want:.4}");
     }
 }
