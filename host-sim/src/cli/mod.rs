@@ -72,18 +72,9 @@ pub struct RadiosityArgs {
     /// Scene and loading options.
     #[command(flatten)]
     pub load: LoadArgs,
-    /// Largest patch edge, in voxels.
-    #[arg(long, default_value_t = 24.0)]
-    pub patch_size: f64,
-    /// Shot budget.
-    #[arg(long, default_value_t = 100_000)]
-    pub shots: usize,
-    /// Stop when the unshot power is at most this fraction of the emitted power.
-    #[arg(long, default_value_t = 0.01)]
-    pub residual: f64,
-    /// Push of each shot's source off its patch's centre, voxels along the normal.
-    #[arg(long, default_value_t = crate::machine::radiosity::DEFAULT_OFFSET)]
-    pub offset: f64,
+    /// Patches and stopping rule.
+    #[command(flatten)]
+    pub solve: crate::cli::phase_args::RadiosityOpts,
     /// Also solve with the f64 reference (ray-cast form factors) and compare per patch.
     #[arg(long)]
     pub reference: bool,
@@ -462,6 +453,19 @@ pub struct RenderArgs {
     /// Reflection options.
     #[command(flatten)]
     pub reflect: crate::cli::phase_args::ReflectOpts,
+    /// Add indirect light: progressive radiosity on the grid (as the `radiosity` job, whose
+    /// --patch-size, --shots, --residual and --offset it takes), each cell shading its direct
+    /// light plus the indirect light of its visible point; also writes F.direct.png (direct
+    /// light only). With --reference, the reference shades with the f64 solver's radiosity.
+    #[arg(long)]
+    pub radiosity: bool,
+    /// Radiosity options (with --radiosity).
+    #[command(flatten)]
+    pub radiosity_opts: crate::cli::phase_args::RadiosityOpts,
+    /// How a cell shows radiosity (with --radiosity): flat (its patch's value) or smooth (vertex
+    /// values interpolated over the patch) [default: smooth].
+    #[arg(long, value_enum)]
+    pub radiosity_display: Option<crate::cli::phase_args::DisplayArg>,
     /// Output PNG.
     #[arg(long, default_value = "render.png")]
     pub out: PathBuf,
@@ -720,7 +724,10 @@ pub fn run(cli: Cli) -> Result<()> {
 fn dispatch(command: Command) -> Result<()> {
     match command {
         Command::Voxelize(a) => jobs::voxelize::run(&(&a).into()),
-        Command::Render(a) => jobs::render::run(&(&a).into()),
+        Command::Render(a) => {
+            a.check()?;
+            jobs::render::run(&(&a).into())
+        }
         Command::Light(a) => jobs::light::run(&(&a).into()),
         Command::DiffusionTable(a) => jobs::table::run(&(&a).into()),
         Command::LightAccuracy(a) => jobs::accuracy::run(&(&a).into()),

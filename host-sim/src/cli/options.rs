@@ -12,6 +12,7 @@ use crate::jobs::bench::BenchOptions;
 use crate::jobs::light::{LightOptions, LightingOptions};
 use crate::jobs::radiosity::RadiosityOptions;
 use crate::jobs::render::RenderOptions;
+use crate::jobs::render_radiosity::{RenderRadiosity, DEFAULT_DISPLAY};
 use crate::jobs::scenes::SubdivideOptions;
 use crate::jobs::table::{NamedTiming, TableOptions};
 use crate::jobs::trace::TraceOptions;
@@ -51,10 +52,25 @@ impl From<&LightOpts> for LightingOptions {
     }
 }
 
+impl RenderArgs {
+    /// Refuse radiosity options without `--radiosity`: they would change nothing.
+    pub fn check(&self) -> anyhow::Result<()> {
+        let stray = self.radiosity_opts.first_given().or(self.radiosity_display.map(|_| "--radiosity-display"));
+        match stray {
+            Some(flag) if !self.radiosity => anyhow::bail!("{flag} is a radiosity option: add --radiosity"),
+            _ => Ok(()),
+        }
+    }
+}
+
 impl From<&RenderArgs> for RenderOptions {
     fn from(a: &RenderArgs) -> Self {
         let (fa, rule) = (a.light.fa, a.light.lit_rule.into());
         RenderOptions {
+            radiosity: a.radiosity.then(|| RenderRadiosity {
+                solve: (&a.radiosity_opts).into(),
+                display: a.radiosity_display.map_or(DEFAULT_DISPLAY, Into::into),
+            }),
             scene: a.load.scene.clone(),
             view: a.load.camera.choice(),
             load: a.load.config(DEFAULT_N),
@@ -122,10 +138,7 @@ impl From<&RadiosityArgs> for RadiosityOptions {
         RadiosityOptions {
             scene: a.load.scene.clone(),
             load: a.load.config(DEFAULT_N),
-            patch_size: a.patch_size,
-            shots: a.shots,
-            residual: a.residual,
-            offset: a.offset,
+            solve: (&a.solve).into(),
             reference: a.reference,
             reference_self_error: a.reference_self_error,
             patches_csv: a.patches_csv.clone(),

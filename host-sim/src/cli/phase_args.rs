@@ -1,11 +1,14 @@
-//! Command-line options of the classic and reflection phases (flattened into `light`/`render`).
+//! Command-line options of the classic, reflection and radiosity phases (flattened into
+//! `light`/`render`, and `radiosity`).
 
 use cell_core::lit::LitRule;
 use cell_core::ray::Connectivity;
 use cell_core::reflect::ReflectNormal;
 use cell_core::route::RoutePolicy;
 
+use crate::jobs::radiosity::RadiositySettings;
 use crate::machine::classic::ClassicConfig;
+use crate::machine::indirect::Display;
 use crate::machine::reflect::ReflectConfig;
 
 /// How the lighting jobs compute the lit state.
@@ -131,6 +134,68 @@ impl ReflectOpts {
             connectivity: classic.connectivity,
             fa,
             route: classic.route,
+        }
+    }
+}
+
+/// Command-line options of a radiosity solution: the `radiosity` job's and `render --radiosity`'s.
+/// Unset, each takes the default its help gives ([`RadiositySettings::default`]).
+#[derive(clap::Args, Debug, Clone)]
+pub struct RadiosityOpts {
+    /// Largest patch edge, in voxels [default: 24].
+    #[arg(long)]
+    pub patch_size: Option<f64>,
+    /// Shot budget [default: 100000].
+    #[arg(long)]
+    pub shots: Option<usize>,
+    /// Stop when the unshot power is at most this fraction of the emitted power [default: 0.01].
+    #[arg(long)]
+    pub residual: Option<f64>,
+    /// Push of each shot's source off its patch's centre, voxels along the normal [default: 2].
+    #[arg(long)]
+    pub offset: Option<f64>,
+}
+
+impl RadiosityOpts {
+    /// The first option given, as its flag (to refuse it where radiosity is off).
+    pub fn first_given(&self) -> Option<&'static str> {
+        [
+            (self.patch_size.is_some(), "--patch-size"),
+            (self.shots.is_some(), "--shots"),
+            (self.residual.is_some(), "--residual"),
+            (self.offset.is_some(), "--offset"),
+        ]
+        .into_iter()
+        .find_map(|(given, flag)| given.then_some(flag))
+    }
+}
+
+impl From<&RadiosityOpts> for RadiositySettings {
+    fn from(a: &RadiosityOpts) -> Self {
+        let d = RadiositySettings::default();
+        RadiositySettings {
+            patch_size: a.patch_size.unwrap_or(d.patch_size),
+            shots: a.shots.unwrap_or(d.shots),
+            residual: a.residual.unwrap_or(d.residual),
+            offset: a.offset.unwrap_or(d.offset),
+        }
+    }
+}
+
+/// How `render --radiosity` shows a patch's radiosity.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum DisplayArg {
+    /// The value of the patch holding the visible point.
+    Flat,
+    /// Vertex values (the mean of the patches around each vertex) interpolated over the patch.
+    Smooth,
+}
+
+impl From<DisplayArg> for Display {
+    fn from(a: DisplayArg) -> Self {
+        match a {
+            DisplayArg::Flat => Display::Flat,
+            DisplayArg::Smooth => Display::Smooth,
         }
     }
 }

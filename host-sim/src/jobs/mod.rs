@@ -3,7 +3,8 @@
 //! line ([`crate::cli`]) only parses arguments, converts them into those options and calls it.
 //!
 //! * [`render`] — the main job: load, light (diffusion or classic), shade, reflect, compare; its
-//!   [`render::render`] is the one entry point of a render on a loaded scene.
+//!   [`render::render`] is the one entry point of a render on a loaded scene;
+//!   [`render_radiosity`] its radiosity phase (`render --radiosity`).
 //! * [`light`] — the `light` job and the lighting options `render` and `trace` share;
 //!   [`accuracy`] — `light-accuracy`; [`table`] — `diffusion-table`.
 //! * [`voxelize`] — load a scene and write a .binvox; [`scenes`] — list, subdivide.
@@ -19,6 +20,7 @@ pub mod dump;
 pub mod light;
 pub mod radiosity;
 pub mod render;
+pub mod render_radiosity;
 pub mod scenes;
 pub mod table;
 pub mod trace;

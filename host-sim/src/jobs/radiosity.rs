@@ -19,18 +19,15 @@ use crate::report::files::{create, write_json};
 use crate::report::progress;
 use crate::scene::patches::{subdivide_voxels, Patches};
 use crate::truth::formfactor::{Estimator, FormFactors, Sampling};
-use crate::truth::radiosity::{ambient, rms_relative_error, ShootConfig};
+use crate::truth::radiosity::{ambient, rms_relative_error, ShootConfig, Solution};
 
 /// Most patches a scene may be cut into (a cell names a patch with 16 bits).
 pub const MAX_PATCHES: usize = u16::MAX as usize;
 
-/// What the `radiosity` job runs and writes.
-#[derive(Clone, Debug)]
-pub struct RadiosityOptions {
-    /// An .obj file or a built-in scene name.
-    pub scene: String,
-    /// Grid side and surfaces.
-    pub load: LoadConfig,
+/// How a radiosity solution is made: the patches and the stopping rule, shared by the
+/// `radiosity` job and `render --radiosity`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RadiositySettings {
     /// Largest patch edge, in voxels.
     pub patch_size: f64,
     /// Shot budget.
@@ -39,6 +36,42 @@ pub struct RadiosityOptions {
     pub residual: f64,
     /// Push of each shot's source off its patch, voxels.
     pub offset: f64,
+}
+
+impl Default for RadiositySettings {
+    fn default() -> Self {
+        RadiositySettings {
+            patch_size: 24.0,
+            shots: 100_000,
+            residual: 0.01,
+            offset: crate::machine::radiosity::DEFAULT_OFFSET,
+        }
+    }
+}
+
+impl RadiositySettings {
+    /// The machine's settings: shots under the default diffusion (made fit for shooting).
+    pub fn machine(&self) -> RadiosityConfig {
+        let mut cfg = RadiosityConfig::new(LightConfig::default(), self.residual, self.shots);
+        cfg.offset = self.offset;
+        cfg
+    }
+
+    /// The patches of `mesh` on a grid of voxel size `voxel` (world units).
+    pub fn patches(&self, mesh: &crate::scene::Mesh, voxel: f64) -> Result<Patches> {
+        subdivide_voxels(mesh, self.patch_size, voxel, MAX_PATCHES)
+    }
+}
+
+/// What the `radiosity` job runs and writes.
+#[derive(Clone, Debug)]
+pub struct RadiosityOptions {
+    /// An .obj file or a built-in scene name.
+    pub scene: String,
+    /// Grid side and surfaces.
+    pub load: LoadConfig,
+    /// Patches and stopping rule.
+    pub solve: RadiositySettings,
     /// Also solve with the f64 reference and compare.
     pub reference: bool,
     /// With `reference`: also solve it with 4× the samples and report its self-error.
@@ -82,7 +115,10 @@ pub struct RadiosityStats {
     pub bytes_per_cell_added: usize,
     /// Bytes of the lighting cell it extends.
     pub bytes_per_light_cell: usize,
-    /// Voxels with no patch; accumulator overflows.
+    /// Faces the subdivision skipped as zero-area (they get no patch; their voxels, if any,
+    /// count as unmapped).
+    pub zero_area_faces: usize,
+    /// Voxels with no patch.
     pub unmapped_voxels: u64,
     /// Accumulator additions that found no slot or no patch.
     pub received_overflows: u64,
@@ -114,13 +150,11 @@ pub fn run(o: &RadiosityOptions) -> Result<()> {
     o.load.validate()?;
     let mesh = crate::scene::load(&o.scene)?;
     let scene = load_scene(&mesh, &o.load)?;
-    let p = subdivide_voxels(&mesh, o.patch_size, scene.fit.voxel, MAX_PATCHES)?;
-    let mut cfg = RadiosityConfig::new(LightConfig::default(), o.residual, o.shots);
-    cfg.offset = o.offset;
+    let p = o.solve.patches(&mesh, scene.fit.voxel)?;
     let t0 = Instant::now();
-    let s = solve_with_bar(&scene, &p, &cfg, o.quiet)?;
+    let s = solve_with_bar(&scene, &p, &o.solve.machine(), o.quiet)?;
     let wall = t0.elapsed().as_secs_f64();
-    let reference = o.reference.then(|| compare(&p, &s, o)).transpose()?;
+    let reference = o.reference.then(|| compare(&p, &s, &o.solve, o.reference_self_error)).transpose()?.map(|r| r.0);
     let stats = summarise(&mesh.name, &scene, &p, &s, wall, reference);
     write_patches(&o.patches_csv.clone().unwrap_or_else(|| format!("{}_patches.csv", mesh.name).into()), &p, &s)?;
     write_shots(&o.shots_csv.clone().unwrap_or_else(|| format!("{}_shots.csv", mesh.name).into()), &s.shots)?;
@@ -132,7 +166,7 @@ pub fn run(o: &RadiosityOptions) -> Result<()> {
 }
 
 /// The machine's solution, with a progress bar showing the residual.
-fn solve_with_bar(scene: &LoadedScene, p: &Patches, cfg: &RadiosityConfig, quiet: bool) -> Result<GridSolution> {
+pub fn solve_with_bar(scene: &LoadedScene, p: &Patches, cfg: &RadiosityConfig, quiet: bool) -> Result<GridSolution> {
     let pb = progress::bar(quiet, "shots");
     pb.set_length(cfg.max_shots.min(100_000) as u64);
     let s = solve::<U0, DEFAULT_DEXELS>(&scene.grid, &scene.fit, &scene.source_face, &p.patches, cfg, |k, r| {
@@ -143,39 +177,58 @@ fn solve_with_bar(scene: &LoadedScene, p: &Patches, cfg: &RadiosityConfig, quiet
     s
 }
 
-/// The f64 reference on the same patches with the same stopping rule, and direct light only.
-fn compare(p: &Patches, s: &GridSolution, o: &RadiosityOptions) -> Result<ReferenceStats> {
-    // Form factors with `strata` × `strata` samples per patch pair; the job's stopping rule.
-    let form_factors = |strata: usize| FormFactors::new(p, Sampling { strata, seed: 1, estimator: Estimator::Contour });
-    let shoot = |ff: &FormFactors| {
-        crate::truth::radiosity::solve(&p.patches, ff, &ShootConfig { stop_fraction: o.residual, max_shots: o.shots })
-    };
+/// Form factors of the f64 reference with `strata` × `strata` samples per patch pair.
+fn form_factors(p: &Patches, strata: usize) -> Result<FormFactors> {
+    FormFactors::new(p, Sampling { strata, seed: 1, estimator: Estimator::Contour })
+}
+
+/// The f64 reference's solution on the same patches with the same stopping rule (3 × 3 strata),
+/// its form factors, and its wall time in seconds.
+pub fn reference_solve(p: &Patches, s: &RadiositySettings) -> Result<(FormFactors, Solution, f64)> {
     let t0 = Instant::now();
-    let ff = form_factors(3)?;
-    let r = shoot(&ff)?;
-    let wall_seconds = t0.elapsed().as_secs_f64();
+    let ff = form_factors(p, 3)?;
+    let r = shoot(p, &ff, s)?;
+    Ok((ff, r, t0.elapsed().as_secs_f64()))
+}
+
+/// The reference's progressive solution with `ff` under the stopping rule of `s`.
+fn shoot(p: &Patches, ff: &FormFactors, s: &RadiositySettings) -> Result<Solution> {
+    crate::truth::radiosity::solve(&p.patches, ff, &ShootConfig { stop_fraction: s.residual, max_shots: s.shots })
+}
+
+/// The f64 reference on the same patches with the same stopping rule, and direct light only:
+/// the comparison, the reference's form factors and its solution. `self_error`: also solve it
+/// with 6 × 6 strata ([`ReferenceStats::self_error`]).
+pub fn compare(
+    p: &Patches,
+    s: &GridSolution,
+    settings: &RadiositySettings,
+    self_error: bool,
+) -> Result<(ReferenceStats, FormFactors, Solution)> {
+    let (ff, r, wall_seconds) = reference_solve(p, settings)?;
     let emitters = p.patches.iter().filter(|q| q.emission.iter().any(|&e| e > 0.0)).count();
     let direct =
         crate::truth::radiosity::solve(&p.patches, &ff, &ShootConfig { stop_fraction: 0.0, max_shots: emitters })?;
     let areas: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
-    let self_error = o
-        .reference_self_error
+    let self_error = self_error
         .then(|| -> Result<f64> {
-            let fine = shoot(&form_factors(6)?)?;
+            let fine = shoot(p, &form_factors(p, 6)?, settings)?;
             let reflected = |b: &[[f64; 3]]| crate::truth::radiosity::reflected(&p.patches, b);
             rms_relative_error(&reflected(&fine.radiosity), &reflected(&r.radiosity), &areas)
         })
         .transpose()?;
-    Ok(ReferenceStats {
+    let stats = ReferenceStats {
         rms_relative_error: rms_relative_error(&r.radiosity, &s.radiosity, &areas)?,
         direct_only_rms_relative_error: rms_relative_error(&r.radiosity, &direct.radiosity, &areas)?,
         shots: r.shots.len(),
         wall_seconds,
         self_error,
-    })
+    };
+    Ok((stats, ff, r))
 }
 
-fn summarise(
+/// The summary of a machine solution.
+pub fn summarise(
     name: &str,
     scene: &LoadedScene,
     p: &Patches,
@@ -201,6 +254,7 @@ fn summarise(
             + std::mem::size_of::<CellReceived>()
             + std::mem::size_of::<[f32; 3]>(),
         bytes_per_light_cell: std::mem::size_of::<HostLightCell<U0>>(),
+        zero_area_faces: p.summary.degenerate_faces,
         unmapped_voxels: s.unmapped_voxels,
         received_overflows: s.received_overflows,
         wall_seconds,
@@ -264,7 +318,8 @@ fn write_shots(path: &std::path::Path, shots: &[ShotLog]) -> Result<()> {
     Ok(())
 }
 
-fn print_summary(s: &RadiosityStats) {
+/// Print the summary of a solution (and its comparison).
+pub fn print_summary(s: &RadiosityStats) {
     eprintln!(
         "{}: n = {}, {} patches, {} shots ({:?}), residual {:.4}, {:.1} s",
         s.scene, s.n, s.patches, s.shots, s.stop, s.residual, s.wall_seconds
@@ -274,8 +329,8 @@ fn print_summary(s: &RadiosityStats) {
         s.cycles, s.diffusion_cycles_per_shot, s.reduce_cycles_per_shot, s.messages, s.messages_per_shot
     );
     eprintln!(
-        "  bytes per cell added {} (lighting cell {}), unmapped voxels {}, accumulator overflows {}",
-        s.bytes_per_cell_added, s.bytes_per_light_cell, s.unmapped_voxels, s.received_overflows
+        "  bytes per cell added {} (lighting cell {}), zero-area faces skipped {}, unmapped voxels {}, accumulator overflows {}",
+        s.bytes_per_cell_added, s.bytes_per_light_cell, s.zero_area_faces, s.unmapped_voxels, s.received_overflows
     );
     if let Some(r) = &s.reference {
         eprintln!(

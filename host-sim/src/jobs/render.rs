@@ -19,12 +19,14 @@ use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
 
 use crate::jobs::light::{print_link_faults, surfaces, unsupported_frac_bits, LightingOptions};
+use crate::jobs::render_radiosity::{self, DisplayPsnr, RadiosityRenderStats, RenderRadiosity};
 use crate::machine::classic::{run_classic, ClassicConfig, ClassicCounts};
 use crate::machine::diffuse::LightConfig;
+use crate::machine::indirect::Display;
 use crate::machine::lighting::{run_diffusion, LightStats};
 use crate::machine::loaded::{load_scene, resolve_lights, LoadedScene};
 use crate::machine::reflect::{reflect, ReflectConfig, ReflectCounts, ShadeEnv};
-use crate::machine::shade::{point_lights, ref_lights, seen, shade_grid_with, Image, Seen, AMBIENT};
+use crate::machine::shade::{point_lights, ref_lights, seen, shade_grid_ambient, Ambient, Image, Seen, AMBIENT};
 use crate::precompute::LoadConfig;
 use crate::report::files::write_json;
 use crate::report::png::write_png;
@@ -56,8 +58,11 @@ pub struct RenderStats {
     pub shading_max_err_levels: u8,
     /// Mean of that.
     pub shading_mean_err_levels: f64,
-    /// Comparison with the continuous reference (with `--reference`).
+    /// Comparison with the continuous reference (with `--reference`; with `--radiosity`, the
+    /// radiosity image against the reference shaded with the f64 solver's radiosity).
     pub reference: Option<crate::truth::compare::Comparison>,
+    /// With `--radiosity`: the solution, its display and their costs.
+    pub radiosity: Option<RadiosityRenderStats>,
     /// Wall time: load, light, shade, reference.
     pub load_seconds: f64,
     /// Lighting wall time.
@@ -118,12 +123,15 @@ pub struct RenderInput<'a> {
     pub load_seconds: f64,
     /// Wall time of the reference.
     pub reference_seconds: f64,
+    /// Radiosity ([`crate::jobs::render_radiosity`]): per cell the indirect irradiance of its
+    /// visible point, which the cells shade with in place of the constant ambient term.
+    pub indirect: Option<&'a [[f32; 3]]>,
 }
 
 impl<'a> RenderInput<'a> {
     /// The scene and its lights, with no reference and no time spent before.
     pub fn new(mesh: &'a Mesh, scene: &'a LoadedScene, lights: &'a [[f64; 3]]) -> RenderInput<'a> {
-        RenderInput { mesh, scene, lights, reference: None, load_seconds: 0.0, reference_seconds: 0.0 }
+        RenderInput { mesh, scene, lights, reference: None, load_seconds: 0.0, reference_seconds: 0.0, indirect: None }
     }
 
     /// The same, compared with `reference`.
@@ -158,6 +166,8 @@ pub struct Rendered {
     pub classic: Option<ClassicCounts>,
     /// Counters of the reflection phase (with reflections), PSNRs against the reference included.
     pub reflections: Option<ReflectCounts>,
+    /// With radiosity: the same render with the constant ambient term (direct light only).
+    pub direct_only: Option<Image>,
 }
 
 /// Light and shade a loaded scene as `cfg` says; compare with the input's reference when given.
@@ -271,7 +281,11 @@ fn shade(
     let (load_seconds, reference_seconds) = (input.load_seconds, input.reference_seconds);
     let t1 = Instant::now();
     let lights = point_lights(input.lights);
-    let image = shade_grid_with(input.mesh, input.scene, &lights, seen, cfg.normals);
+    let constant = Ambient::Constant([AMBIENT; 3]);
+    let ambient = input.indirect.map_or(constant, Ambient::Indirect);
+    let image = shade_grid_ambient(input.mesh, input.scene, &lights, seen, cfg.normals, &ambient);
+    let direct_only =
+        input.indirect.map(|_| shade_grid_ambient(input.mesh, input.scene, &lights, seen, cfg.normals, &constant));
     let t2 = Instant::now();
     let cmp = input.reference.map(|r| crate::truth::compare::compare(&image.rgb, &image.covered, &image.lit, r));
     let load_cell = std::mem::size_of::<cell_core::cell::Cell<{ cell_core::cell::DEFAULT_DEXELS }>>()
@@ -297,8 +311,9 @@ fn shade(
         wall_seconds: load_seconds + light_seconds + (t2 - t1).as_secs_f64() + reference_seconds,
         peak_rss_mib: crate::machine::load::peak_rss_mib(),
         light: lstats,
+        radiosity: None,
     };
-    Rendered { image, stats, classic: None, reflections: None }
+    Rendered { image, stats, classic: None, reflections: None, direct_only }
 }
 
 /// The render statistics with the reflection counters added under `"reflections"`.
@@ -325,6 +340,8 @@ pub struct RenderOptions {
     pub normals: NormalMode,
     /// The reflection phase (needs diffusion lighting); `None`: no reflections.
     pub reflections: Option<ReflectConfig>,
+    /// Indirect light by radiosity on the grid; `None`: direct light only.
+    pub radiosity: Option<RenderRadiosity>,
     /// Output PNG.
     pub out: PathBuf,
     /// Also ray-cast the f64 reference and compare: `F.reference.png` and `F.diff.png` beside
@@ -352,6 +369,12 @@ impl RenderOptions {
             (None, None) => RenderLighting::Diffusion,
         };
         let reflecting = self.reflections.is_some();
+        if reflecting && self.radiosity.is_some() {
+            bail!(
+                "--radiosity cannot be combined with --reflections: reflected rays shade what they hit \
+                 without its indirect light (run one or the other)"
+            );
+        }
         if reflecting && self.light.lit_visible_only == Some(true) {
             bail!(
                 "--reflections reads the lit state of the voxels reflected rays hit, hidden ones included: \
@@ -372,6 +395,35 @@ pub fn run(o: &RenderOptions) -> Result<()> {
 
 fn run_with<F: FracBits>(o: &RenderOptions) -> Result<()> {
     let cfg = o.config()?;
+    let (mesh, loaded, load_seconds) = load_phase(o)?;
+    let lights = resolve_lights(&mesh, &loaded, &o.light.lights)?;
+    let radiosity = radiosity_phase(o, &mesh, &loaded, &lights, cfg.light.rule)?;
+    let t1 = Instant::now();
+    let reference = reference_phase(o, &mesh, &loaded, &lights, &cfg, radiosity.as_ref())?;
+    let input = RenderInput {
+        reference: reference.as_ref(),
+        load_seconds,
+        reference_seconds: t1.elapsed().as_secs_f64(),
+        indirect: radiosity.as_ref().map(|r| &r.shown.cells[..]),
+        ..RenderInput::new(&mesh, &loaded, &lights)
+    };
+    let pb = progress::bar(o.quiet, "light 1");
+    let mut r = render::<F>(&input, &cfg, progress::light(&pb))?;
+    pb.finish_and_clear();
+    if let Some(rad) = &radiosity {
+        let t2 = Instant::now();
+        let mut stats = radiosity_stats::<F>(rad, &r, &input, &cfg)?;
+        stats.seconds = rad.seconds + t2.elapsed().as_secs_f64();
+        r.stats.wall_seconds += stats.seconds;
+        r.stats.radiosity = Some(stats);
+    }
+    let written = write_outputs(o, &r, reference.as_ref())?;
+    print_summary(&o.load, &r, &written);
+    Ok(())
+}
+
+/// Load phase: the scene through the chosen view, loaded on the grid; the load's wall time.
+fn load_phase(o: &RenderOptions) -> Result<(Mesh, LoadedScene, f64)> {
     // Reflected rays are traced in the grid's own view: with reflections the default view is
     // the fitted one.
     let view = match o.view {
@@ -387,29 +439,98 @@ fn run_with<F: FracBits>(o: &RenderOptions) -> Result<()> {
     pb.set_length(1);
     let loaded = load_scene(&mesh, &o.load)?;
     pb.finish_and_clear();
-    let load_seconds = t0.elapsed().as_secs_f64();
-    let lights = resolve_lights(&mesh, &loaded, &o.light.lights)?;
-    let t1 = Instant::now();
-    let reference = if o.reference {
-        if mesh.faces.is_empty() {
-            bail!("--reference needs a scene with geometry ('{}' has none)", mesh.name);
-        }
-        Some(reference_image(&mesh, &loaded, &lights, &cfg)?)
-    } else {
-        None
+    Ok((mesh, loaded, t0.elapsed().as_secs_f64()))
+}
+
+/// The radiosity phase's results ([`render_radiosity`]): the solutions and what the cells show.
+struct RadiosityPhase {
+    solved: render_radiosity::Solved,
+    shown: render_radiosity::Prepared,
+    /// Wall time of the shots, the reference solver and the display.
+    seconds: f64,
+}
+
+/// Radiosity phase (with `--radiosity`): shoot, solve the reference (with `--reference`), show
+/// the solution on the render's grid, pixels showing by `rule`.
+fn radiosity_phase(
+    o: &RenderOptions,
+    mesh: &Mesh,
+    loaded: &LoadedScene,
+    lights: &[[f64; 3]],
+    rule: LitRule,
+) -> Result<Option<RadiosityPhase>> {
+    let Some(r) = &o.radiosity else {
+        return Ok(None);
     };
-    let input = RenderInput {
-        reference: reference.as_ref(),
-        load_seconds,
-        reference_seconds: t1.elapsed().as_secs_f64(),
-        ..RenderInput::new(&mesh, &loaded, &lights)
+    let t0 = Instant::now();
+    let solved = render_radiosity::solve(mesh, loaded, &o.load, &r.solve, o.reference, o.quiet)?;
+    let shown = solved.show(mesh, loaded, lights, r.display, rule)?;
+    Ok(Some(RadiosityPhase { solved, shown, seconds: t0.elapsed().as_secs_f64() }))
+}
+
+/// Reference phase (with `--reference`): the f64 image, shaded with the f64 solver's radiosity
+/// when the render has radiosity.
+fn reference_phase(
+    o: &RenderOptions,
+    mesh: &Mesh,
+    loaded: &LoadedScene,
+    lights: &[[f64; 3]],
+    cfg: &RenderConfig,
+    radiosity: Option<&RadiosityPhase>,
+) -> Result<Option<RefImage>> {
+    if !o.reference {
+        return Ok(None);
+    }
+    if mesh.faces.is_empty() {
+        bail!("--reference needs a scene with geometry ('{}' has none)", mesh.name);
+    }
+    match radiosity {
+        Some(rad) => rad.solved.reference_image(&rad.shown, mesh, loaded, lights),
+        None => reference_image(mesh, loaded, lights, cfg).map(Some),
+    }
+}
+
+/// The radiosity statistics of a radiosity render `r`: with a reference, the direct-only
+/// image's PSNR against it and the other display's render.
+fn radiosity_stats<F: FracBits>(
+    rad: &RadiosityPhase,
+    r: &Rendered,
+    input: &RenderInput<'_>,
+    cfg: &RenderConfig,
+) -> Result<RadiosityRenderStats> {
+    let mut stats = rad.shown.stats.clone();
+    stats.direct_only_psnr_db = r.direct_only.as_ref().zip(input.reference).map(|(d, rf)| direct_psnr(d, rf));
+    if input.reference.is_some() {
+        stats.other_display = Some(other_display::<F>(&rad.solved, stats.display, input, cfg)?);
+    }
+    Ok(stats)
+}
+
+/// PSNR of a direct-light-only image against a (radiosity) reference.
+fn direct_psnr(direct: &Image, reference: &RefImage) -> f64 {
+    crate::truth::compare::compare(&direct.rgb, &direct.covered, &direct.lit, reference).psnr_db
+}
+
+/// The radiosity render of `input`'s scene with the display other than `shown`, against the
+/// reference shown the same way: its PSNR and the direct-only image's.
+fn other_display<F: FracBits>(
+    solved: &render_radiosity::Solved,
+    shown: Display,
+    input: &RenderInput<'_>,
+    cfg: &RenderConfig,
+) -> Result<DisplayPsnr> {
+    let display = match shown {
+        Display::Flat => Display::Smooth,
+        Display::Smooth => Display::Flat,
     };
-    let pb = progress::bar(o.quiet, "light 1");
-    let r = render::<F>(&input, &cfg, progress::light(&pb))?;
-    pb.finish_and_clear();
-    let written = write_outputs(o, &r, reference.as_ref())?;
-    print_summary(&o.load, &r, &written);
-    Ok(())
+    let (mesh, loaded, lights) = (input.mesh, input.scene, input.lights);
+    let other = solved.show(mesh, loaded, lights, display, cfg.light.rule)?;
+    let reference = solved.reference_image(&other, mesh, loaded, lights)?.expect("solved with the reference");
+    let input = RenderInput { indirect: Some(&other.cells), reference: Some(&reference), ..*input };
+    let r = render::<F>(&input, cfg, |_, _| {})?;
+    let direct = r.direct_only.as_ref().expect("a radiosity render");
+    let psnr_db = r.stats.reference.map_or(f64::NAN, |c| c.psnr_db);
+    Ok(DisplayPsnr { display, psnr_db, direct_only_psnr_db: direct_psnr(direct, &reference) })
 }
 
 /// `F.EXT` beside the image `F.png`: its extension replaced, dots in the stem kept
@@ -423,6 +544,11 @@ fn beside(out: &Path, ext: &str) -> PathBuf {
 fn write_outputs(o: &RenderOptions, r: &Rendered, reference: Option<&RefImage>) -> Result<Vec<String>> {
     write_png(&o.out, r.image.n, &r.image.rgb)?;
     let mut written = vec![o.out.display().to_string()];
+    if let Some(direct) = &r.direct_only {
+        let p = beside(&o.out, "direct.png");
+        write_png(&p, direct.n, &direct.rgb)?;
+        written.push(p.display().to_string());
+    }
     if let Some(reference) = reference {
         let (rp, dp) = (beside(&o.out, "reference.png"), beside(&o.out, "diff.png"));
         write_png(&rp, reference.n, &reference.rgb)?;
@@ -472,11 +598,17 @@ fn print_summary(load: &LoadConfig, r: &Rendered, written: &[String]) {
     if let Some(c) = &r.reflections {
         eprintln!("  {}", crate::machine::reflect::summary(c));
     }
+    if let Some(rad) = &s.radiosity {
+        render_radiosity::print_summary(rad);
+    }
     if let Some(c) = &s.reference {
         eprintln!(
             "  reference: shadow disagreement {:.2} %, coverage disagreement {:.2} %, PSNR {:.2} dB",
             c.shadow_disagreement_pct, c.coverage_disagreement_pct, c.psnr_db
         );
+    }
+    if let Some(d) = s.radiosity.as_ref().and_then(|r| r.direct_only_psnr_db) {
+        eprintln!("  direct light only against the radiosity reference: PSNR {d:.2} dB");
     }
     eprintln!(
         "  wall {:.2} s (load {:.2}, light {:.2}, shade {:.2}, reference {:.2})   wrote {}",

@@ -5,7 +5,7 @@
 //! trace recorded here is replayed there by a cell of exactly the same capacities.
 
 use cell_core::light::LightCell;
-use cell_core::radiosity::{PatchRuns, Received};
+use cell_core::radiosity::{IndirectPixel, PatchRuns, Received};
 use cell_core::reflect_cell::ReflectCell;
 use cell_core::shadow::ShadowCell;
 
@@ -32,3 +32,10 @@ pub type CellPatchRuns = PatchRuns<PATCH_RUNS_CAP>;
 
 /// The host's per-shot patch accumulator of one cell.
 pub type CellReceived = Received<RECEIVED_CAP>;
+
+/// A cell's indirect light under the flat display: the record of its visible patch.
+pub type CellIndirectFlat = IndirectPixel<1>;
+
+/// A cell's indirect light under the smooth display: the records of its patch's corners (a
+/// patch has 3 or 4).
+pub type CellIndirectSmooth = IndirectPixel<4>;

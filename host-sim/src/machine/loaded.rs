@@ -77,6 +77,19 @@ pub fn voxel_to_world(fit: &Fit, v: [f64; 3]) -> [f64; 3] {
     [0, 1, 2].map(|i| fit.origin[i] + (v[i] + 0.5) * fit.voxel)
 }
 
+/// World position of a voxel-unit point of a loaded scene: through [`voxel_to_world`] in the
+/// fitted view, back through the camera (screen space, s = (v + ½)/n) when `mesh` is in screen
+/// space.
+pub fn grid_to_world(mesh: &Mesh, scene: &LoadedScene, v: [f64; 3]) -> [f64; 3] {
+    match &mesh.screen {
+        Some(s) => {
+            let n = scene.grid.n as f64;
+            s.view.from_view(s.view.screen_to_view(v.map(|c| (c + 0.5) / n)))
+        }
+        None => voxel_to_world(&scene.fit, v),
+    }
+}
+
 /// Voxel-unit position of a world point (voxel centres at integers).
 pub fn world_to_voxel(fit: &Fit, p: [f64; 3]) -> [f64; 3] {
     [0, 1, 2].map(|i| (p[i] - fit.origin[i]) / fit.voxel - 0.5)

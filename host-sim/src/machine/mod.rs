@@ -17,7 +17,8 @@
 //!   the fault-injecting link wrapper; [`tap`] — recording cell traces (and the tracing link
 //!   wrapper).
 //! * [`radiosity`] — progressive radiosity on the grid: one beam diffusion per shot carrying
-//!   its rays' energy, per-patch accumulators, the costed reduction and the supervisor.
+//!   its rays' energy, per-patch accumulators, the costed reduction and the supervisor;
+//!   [`indirect`] shows its solution: each cell's indirect light, broadcast and costed.
 //! * [`limits`] — host memory checks before allocating a grid.
 //! * [`async_tiles`] — the grid as asynchronous boards (tiles of cells, random link delays, no
 //!   global cycle) whose phases end by distributed termination detection
@@ -29,6 +30,7 @@ pub mod classic;
 pub mod diffuse;
 pub mod faults;
 pub mod grid;
+pub mod indirect;
 pub mod lighting;
 pub mod limits;
 pub mod links;

@@ -35,6 +35,7 @@ use crate::machine::diffuse::{diffuse_shot, DiffusionCounts, LightConfig};
 use crate::machine::grid::Grid;
 use crate::machine::loaded::world_to_voxel;
 use crate::precompute::Fit;
+use crate::scene::patch_display::{by_face, locate};
 use crate::scene::patches::Patch;
 
 /// Default push of a shot's source off its patch, in voxels along the normal: beyond the
@@ -83,19 +84,6 @@ pub struct PatchMap {
     pub overflows: u64,
 }
 
-/// How far inside patch `p` the point `x` lies (its smallest signed distance to an edge, in the
-/// patch's plane; negative outside).
-fn inside(p: &Patch, x: parry3d_f64::math::Vector) -> f64 {
-    let k = p.polygon.len();
-    (0..k)
-        .map(|i| {
-            let (a, b) = (p.polygon[i], p.polygon[(i + 1) % k]);
-            let e = b - a;
-            e.cross(x - a).dot(p.normal) / e.length().max(f64::MIN_POSITIVE)
-        })
-        .fold(f64::INFINITY, f64::min)
-}
-
 /// Map every occupied voxel to the patch of its face that holds (or is nearest to holding) its
 /// centre: the host's load of the patch runs (`source_face`: mesh face of each facet id).
 pub fn map_patches<const D: usize>(
@@ -108,11 +96,7 @@ pub fn map_patches<const D: usize>(
         bail!("radiosity: {} patches, a cell numbers at most {} (raise --patch-size)", patches.len(), PatchId::MAX);
     }
     let faces = source_face.iter().map(|&f| f as usize + 1).max().unwrap_or(0);
-    let mut by_face: Vec<Vec<usize>> =
-        vec![Vec::new(); faces.max(patches.iter().map(|p| p.face + 1).max().unwrap_or(0))];
-    for (i, p) in patches.iter().enumerate() {
-        by_face[p.face].push(i);
-    }
+    let by_face = by_face(patches, faces);
     let mut map = PatchMap { cells: Vec::with_capacity(grid.cells.len()), voxels: 0, unmapped: 0, overflows: 0 };
     for (idx, cell) in grid.cells.iter().enumerate() {
         let (x, y) = ((idx as u32 % grid.n) as f64, (idx as u32 / grid.n) as f64);
@@ -122,9 +106,7 @@ pub fn map_patches<const D: usize>(
             let cands = face.and_then(|f| by_face.get(f)).map(Vec::as_slice).unwrap_or(&[]);
             for z in d.span.lo..=d.span.hi {
                 let w = crate::machine::loaded::voxel_to_world(fit, [x, y, z as f64]);
-                let c = parry3d_f64::math::Vector::new(w[0], w[1], w[2]);
-                let best =
-                    cands.iter().copied().max_by(|&a, &b| inside(&patches[a], c).total_cmp(&inside(&patches[b], c)));
+                let best = locate(patches, cands, parry3d_f64::math::Vector::new(w[0], w[1], w[2]));
                 match best {
                     Some(p) => {
                         map.voxels += 1;
@@ -403,6 +385,9 @@ pub struct GridSolution {
     pub radiosity: Vec<[f64; 3]>,
     /// Unshot radiosity per patch (RGB).
     pub unshot: Vec<[f64; 3]>,
+    /// Indirect irradiance per patch (RGB): what the shots of reflected power brought it, the
+    /// emitters' first shots of their own emission left out (the direct light).
+    pub indirect: Vec<[f64; 3]>,
     /// Every shot.
     pub shots: Vec<ShotLog>,
     /// Why it stopped.
@@ -483,6 +468,7 @@ pub fn solve<F: FracBits, const D: usize>(
     let mut s = GridSolution {
         radiosity: patches.iter().map(|p| p.emission).collect(),
         unshot: patches.iter().map(|p| p.emission).collect(),
+        indirect: vec![[0.0; 3]; patches.len()],
         shots: Vec::new(),
         stop: GridStop::ShotBudget,
         emitted_power,
@@ -506,10 +492,15 @@ pub fn solve<F: FracBits, const D: usize>(
 
 /// The supervisor's update after patch i's shot: receiver j gets `ΔH_j = U_i F_ij A_i / A_j`
 /// with `F_ij` = its quanta over the quanta emitted, adds `ρ_j ΔH_j` to its radiosity and its
-/// unshot radiosity; `U_i = 0`.
+/// unshot radiosity; `U_i = 0`. Until its first shot the unshot radiosity of i holds its
+/// emission `E_i` (it only grows from `E_i`); what `U_i − E_i` brings j on that shot, and all
+/// of `U_i` on later ones, is indirect irradiance.
 fn apply(patches: &[Patch], s: &mut GridSolution, i: usize, shot: Shot) {
     let Shot { totals, mut log } = shot;
     let u = s.unshot[i];
+    let first = s.shots.iter().all(|x| x.patch != i);
+    let reflected: [f64; 3] =
+        std::array::from_fn(|c| if first { (u[c] - patches[i].emission[c]).max(0.0) } else { u[c] });
     log.unshot_power = power(u, patches[i].area);
     let emitted = log.emitted.max(1) as f64;
     for &(j, q) in &totals {
@@ -527,6 +518,7 @@ fn apply(patches: &[Patch], s: &mut GridSolution, i: usize, shot: Shot) {
             let dh = uc * t * rho;
             s.radiosity[j][c] += dh;
             s.unshot[j][c] += dh;
+            s.indirect[j][c] += reflected[c] * t;
         }
     }
     s.unshot[i] = [0.0; 3];

@@ -91,7 +91,37 @@ pub fn shade_grid<F: FracBits>(
     shade_grid_with(mesh, scene, lights, &seen(lighting), mode)
 }
 
-/// Shade every cell's visible voxel or surface (see [`Seen`]).
+/// The ambient term `Ka ⊙ Ia` a cell shades with.
+#[derive(Clone, Copy, Debug)]
+pub enum Ambient<'a> {
+    /// The empirical ambient source of the local model (radiosity thesis §1.1.1): `Ia` the same
+    /// everywhere, reflected with the material's `Ka`.
+    Constant([f32; 3]),
+    /// Radiosity (`crate::machine::indirect`): per cell (row-major) the indirect irradiance of
+    /// its visible point, reflected with the material's `Kd` like any diffuse light: `Ka := Kd`.
+    Indirect(&'a [[f32; 3]]),
+}
+
+impl Ambient<'_> {
+    /// `Ia` at cell `i`.
+    fn at(&self, i: usize) -> [f32; 3] {
+        match self {
+            Ambient::Constant(a) => *a,
+            Ambient::Indirect(cells) => cells[i],
+        }
+    }
+
+    /// A material as the cells shade it under this ambient term.
+    fn material(&self, m: &Material) -> Material {
+        match self {
+            Ambient::Constant(_) => m.clone(),
+            Ambient::Indirect(_) => Material { ka: m.kd, ..m.clone() },
+        }
+    }
+}
+
+/// Shade every cell's visible voxel or surface (see [`Seen`]) with the constant ambient
+/// [`AMBIENT`].
 pub fn shade_grid_with(
     mesh: &Mesh,
     scene: &LoadedScene,
@@ -99,9 +129,22 @@ pub fn shade_grid_with(
     seen: &Seen<'_>,
     mode: NormalMode,
 ) -> Image {
+    shade_grid_ambient(mesh, scene, lights, seen, mode, &Ambient::Constant([AMBIENT; 3]))
+}
+
+/// [`shade_grid_with`] under the given ambient term.
+pub fn shade_grid_ambient(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    lights: &[PointLight],
+    seen: &Seen<'_>,
+    mode: NormalMode,
+    ambient: &Ambient<'_>,
+) -> Image {
     let n = scene.grid.n;
-    let params = ShadeParams { ambient: [AMBIENT; 3], normal_mode: mode, eye: scene.eye };
-    let mats: Vec<CellMaterial> = mesh.materials.iter().map(cell_material).collect();
+    let mut params = ShadeParams { ambient: [AMBIENT; 3], normal_mode: mode, eye: scene.eye };
+    let materials: Vec<Material> = mesh.materials.iter().map(|m| ambient.material(m)).collect();
+    let mats: Vec<CellMaterial> = materials.iter().map(cell_material).collect();
     let lights = &eye_lights(&scene.eye, lights)[..];
     let ref_lights = ref_lights(lights);
     let mut img = Image {
@@ -115,6 +158,7 @@ pub fn shade_grid_with(
     let (mut err_sum, mut err_count) = (0u64, 0u64);
     for (i, c) in scene.grid.cells.iter().enumerate() {
         let (x, y) = (c.x as u32, c.y as u32);
+        params.ambient = ambient.at(i);
         // The pixel, the point and normal it was shaded at, and its material.
         let shaded = match seen {
             Seen::FirstVoxel(mask) => pixel(c.x, c.y, &c.store, |z| mask(x, y, z), &mats, lights, &params).map(|px| {
@@ -137,10 +181,10 @@ pub fn shade_grid_with(
             p.map(f64::from),
             nrm.map(f64::from),
             v.map(f64::from),
-            &mesh.materials[(material as usize).min(mesh.materials.len() - 1)],
+            &materials[(material as usize).min(materials.len() - 1)],
             &ref_lights,
             lit,
-            [AMBIENT as f64; 3],
+            params.ambient.map(f64::from),
         )
         .map(crate::truth::refrender::encode_gamma);
         for k in 0..3 {

@@ -9,6 +9,8 @@
 //! * [`binvox`] — the `.binvox` voxel file format.
 //! * [`patches`] — radiosity patches: a mesh cut into small planar convex polygons
 //!   (Renaud 1993, §1.3.3).
+//! * [`patch_display`] — showing a radiosity solution: a point's place on its patch, shared
+//!   vertices, the exposure of indirect light (Renaud 1993, §1.3.1).
 //!
 //! Modules of this folder import each other by `super::…`, never through this file: the
 //! re-exports below are for the rest of the crate.
@@ -19,6 +21,7 @@ pub mod camera;
 pub mod mesh;
 pub mod meshops;
 pub mod office;
+pub mod patch_display;
 pub mod patches;
 pub mod view;
 

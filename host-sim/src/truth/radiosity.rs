@@ -315,6 +315,35 @@ pub fn jacobi(patches: &[Patch], f: &[Vec<f64>], tol: f64, max_iter: usize) -> R
     bail!("radiosity: Jacobi did not converge to {tol} in {max_iter} iterations")
 }
 
+/// The indirect irradiance of a solution (RGB per patch): its irradiance less the direct light,
+/// `Σ E_i F_ij A_i / A_j` over the emitters i that shot (a patch's emission is in its unshot
+/// radiosity until its first shot, and leaves then). `row(i)` gives `F_ij` for every j, the rows
+/// the solution was made with. Rounding below zero is clamped to zero.
+///
+/// Errors: a row fails or has the wrong length.
+pub fn indirect_irradiance<R>(patches: &[Patch], s: &Solution, mut row: R) -> Result<Vec<[f64; 3]>>
+where
+    R: FnMut(usize) -> Result<Vec<f64>>,
+{
+    let mut h = s.irradiance.clone();
+    let mut shooters: Vec<usize> = s.shots.iter().map(|r| r.patch).collect();
+    shooters.sort_unstable();
+    shooters.dedup();
+    for i in shooters.into_iter().filter(|&i| patches[i].emission.iter().any(|&e| e > 0.0)) {
+        let f = row(i)?;
+        check_row(i, &f, patches.len())?;
+        for (j, (pj, fij)) in patches.iter().zip(&f).enumerate() {
+            if j == i {
+                continue;
+            }
+            for c in 0..3 {
+                h[j][c] -= patches[i].emission[c] * fij * patches[i].area / pj.area;
+            }
+        }
+    }
+    Ok(h.into_iter().map(|v| v.map(|x| x.max(0.0))).collect())
+}
+
 /// The reflected part of a radiosity solution, `B − E` per patch: what the solvers compute (the
 /// emission is given). Compare these rather than `B` when bright emitters would dominate.
 pub fn reflected(patches: &[Patch], radiosity: &[[f64; 3]]) -> Vec<[f64; 3]> {

@@ -235,6 +235,16 @@ pub struct RefReflect {
     pub threshold: f64,
 }
 
+/// The ambient term `Ka ⊙ Ia` of the reference's shading.
+#[derive(Clone, Copy)]
+pub enum RefAmbient<'a> {
+    /// The local model's constant ambient source, reflected with `Ka`.
+    Constant([f64; 3]),
+    /// Radiosity: `Ia` of a point given by its face and world position (the indirect irradiance
+    /// there), reflected with `Kd` like any diffuse light (`Ka := Kd`).
+    Indirect(&'a dyn Fn(u32, [f64; 3]) -> [f64; 3]),
+}
+
 struct RefScene<'a> {
     mesh: &'a Mesh,
     reference: Reference,
@@ -244,7 +254,7 @@ struct RefScene<'a> {
     lights_world: Vec<Vector>,
     /// The camera of a scene in screen space: primary rays and shading in world space.
     view: Option<View>,
-    ambient: [f64; 3],
+    ambient: RefAmbient<'a>,
     origin: Vector,
     voxel: f64,
     /// Length of a primary ray (world units).
@@ -276,7 +286,13 @@ impl RefScene<'_> {
         let p_vox = if self.view.is_some() { p } else { (p - o) / vx - Vector::splat(0.5) };
         let m = &self.mesh.materials[self.mesh.faces[facet as usize].material as usize];
         let (p_vox, n, v_arr) = (p_vox.to_array(), normal.to_array(), v.to_array());
-        let mut c = shade_linear_view_f64(p_vox, n, v_arr, m, &self.lights, mask, self.ambient);
+        let mut c = match self.ambient {
+            RefAmbient::Constant(a) => shade_linear_view_f64(p_vox, n, v_arr, m, &self.lights, mask, a),
+            RefAmbient::Indirect(at) => {
+                let m = Material { ka: m.kd, ..m.clone() };
+                shade_linear_view_f64(p_vox, n, v_arr, &m, &self.lights, mask, at(facet, p.to_array()))
+            }
+        };
         let kr = f64::from(m.kr);
         let w = weight * kr;
         if kr > 0.0 && level <= self.reflect.depth && w >= self.reflect.threshold {
@@ -305,6 +321,18 @@ pub fn render_reference_reflect(
     ambient: [f64; 3],
     reflect: &RefReflect,
 ) -> Result<RefImage> {
+    render_reference_ambient(mesh, fit, n, lights, RefAmbient::Constant(ambient), reflect)
+}
+
+/// [`render_reference_reflect`] with any ambient term ([`RefAmbient`]).
+pub fn render_reference_ambient(
+    mesh: &Mesh,
+    fit: &Fit,
+    n: u32,
+    lights: &[RefLight],
+    ambient: RefAmbient<'_>,
+    reflect: &RefReflect,
+) -> Result<RefImage> {
     let scene = RefScene::new(mesh, fit, n, lights, ambient, reflect)?;
     let mut img = RefImage::empty(n, lights.len() as u32);
     for y in 0..n {
@@ -322,7 +350,7 @@ impl<'a> RefScene<'a> {
         fit: &Fit,
         n: u32,
         lights: &[RefLight],
-        ambient: [f64; 3],
+        ambient: RefAmbient<'a>,
         reflect: &RefReflect,
     ) -> Result<Self> {
         if n == 0 {
