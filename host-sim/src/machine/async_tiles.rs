@@ -236,6 +236,17 @@ enum Load {
     Row(u32, u32, RowPacket),
 }
 
+/// The board (row-major index, `tx` boards a side) holding cell (x, y).
+fn board_index(x: u32, y: u32, tile: u32, tx: u32) -> usize {
+    ((y / tile) * tx + x / tile) as usize
+}
+
+/// The row-major indices of the cells of the `tile` × `tile` board whose first cell is
+/// (x0, y0), on a grid of side n.
+fn board_cells(x0: u32, y0: u32, n: u32, tile: u32) -> impl Iterator<Item = usize> + Clone {
+    (0..tile).flat_map(move |dy| (0..tile).map(move |dx| ((y0 + dy) * n + x0 + dx) as usize))
+}
+
 /// One board's own state (its cells live in the executor's row-major arrays).
 struct Board<F: FracBits> {
     x0: u32,
@@ -353,11 +364,11 @@ impl<F: FracBits> Executor<F> {
                 let (fx, fy) = ((to % n) as i64 + dx as i64, (to / n) as i64 + dy as i64);
                 let inside = (0..n as i64).contains(&fx) && (0..n as i64).contains(&fy);
                 let from = (fy * n as i64 + fx) as u32;
-                let board = |c: u32| ((c / n) / cfg.tile) * tx + (c % n) / cfg.tile;
+                let board = |c: u32| board_index(c % n, c / n, cfg.tile, tx);
                 (inside && board(from) != board(to)).then(|| WireLink {
                     rng: Rng(rng.next_u64()),
                     max_delay: cfg.max_delay,
-                    extra: cfg.slow.filter(|s| s.board == board(from) as usize).map_or(0, |s| s.extra_delay),
+                    extra: cfg.slow.filter(|s| s.board == board(from)).map_or(0, |s| s.extra_delay),
                 })
             })
             .collect();
@@ -385,7 +396,7 @@ impl<F: FracBits> Executor<F> {
     }
 
     fn board_of(&self, x: u32, y: u32) -> usize {
-        ((y / self.tile) * self.tx + x / self.tile) as usize
+        board_index(x, y, self.tile, self.tx)
     }
 
     /// Delay of a basic message sent by board `b`.
@@ -476,8 +487,7 @@ impl<F: FracBits> Executor<F> {
         if !(bd.host.is_empty() && bd.work.is_empty() && bd.emit.is_empty()) {
             return false;
         }
-        let t = self.tile;
-        (0..t).all(|dy| (0..t).all(|dx| !self.cells[((bd.y0 + dy) * self.n + bd.x0 + dx) as usize].busy()))
+        board_cells(bd.x0, bd.y0, self.n, self.tile).all(|i| !self.cells[i].busy())
     }
 
     /// Poll board `b`'s node; send its token, or check its declaration against the ground
@@ -632,13 +642,12 @@ impl<F: FracBits> Executor<F> {
         envs: &[LightEnv<'_, F>],
         light: &LightConfig,
     ) -> Result<()> {
-        let (n, t) = (self.n, self.tile);
-        let (x0, y0) = (self.boards[b].x0, self.boards[b].y0);
-        let own: Vec<usize> = (0..t).flat_map(|dy| (0..t).map(move |dx| ((y0 + dy) * n + x0 + dx) as usize)).collect();
+        let n = self.n;
+        let own = board_cells(self.boards[b].x0, self.boards[b].y0, n, self.tile);
         let fa = envs.first().map_or(light.fa, |e| e.fa);
         let tally = ActivityDelta::new();
         // Arrived beams, into the FIFOs with room.
-        for &i in &own {
+        for i in own.clone() {
             for back in 0..8 {
                 let s = i * 8 + back;
                 let arrived = self.regs[s].frame.is_some_and(|(at, _)| at <= self.now);
@@ -659,14 +668,14 @@ impl<F: FracBits> Executor<F> {
             }
         }
         // Compute.
-        for &i in &own {
+        for i in own.clone() {
             if let Some(m) = self.cells[i].fifo.first() {
                 let env = &envs[m.beam.source().0 as usize];
                 self.cells[i].step(&grid.cells[i], env, &tally);
             }
         }
         // Links.
-        for &i in &own {
+        for i in own {
             for p in Port::ALL {
                 let Some(&m) = self.cells[i].out.front(p) else { continue };
                 let (dx, dy) = p.delta();
