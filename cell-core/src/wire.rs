@@ -348,6 +348,20 @@ pub fn write_frame(
     Ok(end + TRAILER)
 }
 
+/// Write one link frame: [`write_frame`] with the link sequence number `seq` first in the
+/// payload, then what `body` writes (every message on a link: rows, beams, acks, rays, tokens).
+fn write_link_frame(
+    buf: &mut [u8],
+    kind: u8,
+    seq: u8,
+    body: impl FnOnce(&mut SliceWriter<'_>) -> Result<(), EncodeError>,
+) -> Result<usize, EncodeError> {
+    write_frame(buf, kind, |w| {
+        w.u8(seq)?;
+        body(w)
+    })
+}
+
 /// A frame as read off a link: its kind and its (CRC-checked) payload.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RawFrame<'a> {
@@ -550,10 +564,7 @@ impl TokenFrame {
 
     /// Emit the frame into `buf`; returns its length ([`TokenFrame::LEN`]).
     pub fn emit(&self, buf: &mut [u8]) -> Result<usize, EncodeError> {
-        write_frame(buf, KIND_TOKEN, |w| {
-            w.u8(self.seq)?;
-            put_token(w, &self.token)
-        })
+        write_link_frame(buf, KIND_TOKEN, self.seq, |w| put_token(w, &self.token))
     }
 
     /// Parse the token frame at the start of `bytes` (CRC, kind, length and colour checked);
@@ -592,15 +603,9 @@ impl<F: FracBits> Message<F> {
     /// length ([`Message::buffer_len`]).
     pub fn emit(&self, seq: u8, buf: &mut [u8]) -> Result<usize, EncodeError> {
         match self {
-            Message::Row(p) => write_frame(buf, KIND_ROW, |w| {
-                w.u8(seq)?;
-                put_row(w, p)
-            }),
-            Message::Beam(m) => write_frame(buf, KIND_BEAM, |w| {
-                w.u8(seq)?;
-                put_beam(w, m)
-            }),
-            Message::Ack => write_frame(buf, KIND_ACK, |w| w.u8(seq)),
+            Message::Row(p) => write_link_frame(buf, KIND_ROW, seq, |w| put_row(w, p)),
+            Message::Beam(m) => write_link_frame(buf, KIND_BEAM, seq, |w| put_beam(w, m)),
+            Message::Ack => write_link_frame(buf, KIND_ACK, seq, |_| Ok(())),
         }
     }
 }
@@ -665,14 +670,8 @@ impl RayMsg {
     /// (at most [`MAX_RAY_FRAME`]).
     pub fn emit(&self, seq: u8, buf: &mut [u8]) -> Result<usize, EncodeError> {
         match self {
-            RayMsg::Shadow(ray) => write_frame(buf, KIND_SHADOW_RAY, |w| {
-                w.u8(seq)?;
-                put_shadow_ray(w, ray)
-            }),
-            RayMsg::Reflect(ray) => write_frame(buf, KIND_REFLECT_RAY, |w| {
-                w.u8(seq)?;
-                put_reflect_ray(w, ray)
-            }),
+            RayMsg::Shadow(ray) => write_link_frame(buf, KIND_SHADOW_RAY, seq, |w| put_shadow_ray(w, ray)),
+            RayMsg::Reflect(ray) => write_link_frame(buf, KIND_REFLECT_RAY, seq, |w| put_reflect_ray(w, ray)),
         }
     }
 
