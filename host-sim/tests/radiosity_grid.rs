@@ -200,3 +200,54 @@ fn the_machine_form_factors_approach_the_exact_point_form_factors() {
         assert!((sum - 1.0).abs() < 1e-6, "Σ F[{i}] = {sum}");
     }
 }
+
+/// The `radiosity` job through the binary, run to a residual: it says it converged, its
+/// per-shot CSV shows the residual falling to the stopping fraction (never rising: Σ_j F_ij ≤ 1
+/// and ρ < 1 on every patch of the Cornell box), and it draws that curve as a PNG beside the
+/// f64 reference's.
+#[test]
+fn the_radiosity_job_converges_and_plots_its_residual() {
+    let dir = std::env::temp_dir().join(format!("rc2-radiosity-job-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    let (stats, shots, plot) = (file("s.json"), file("shots.csv"), file("residual.png"));
+    let args = [
+        "--threads",
+        "1",
+        "radiosity",
+        "cornell",
+        "--n",
+        "24",
+        "--patch-size",
+        "8",
+        "--residual",
+        "0.3",
+        "--reference",
+        "--quiet",
+        "--stats",
+        &stats,
+        "--shots-csv",
+        &shots,
+        "--residual-plot",
+        &plot,
+        "--patches-csv",
+        &file("p.csv"),
+    ];
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_host-sim")).args(args).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert_eq!(json["stop"], "Converged", "{json}");
+    let csv = std::fs::read_to_string(&shots).unwrap();
+    let mut lines = csv.lines();
+    let column = lines.next().unwrap().split(',').position(|h| h == "residual_after").unwrap();
+    let residuals: Vec<f64> = lines.map(|l| l.split(',').nth(column).unwrap().parse().unwrap()).collect();
+    assert_eq!(residuals.len() as u64, json["shots"].as_u64().unwrap());
+    assert!(residuals.windows(2).all(|w| w[1] <= w[0] + 1e-12), "{residuals:?}");
+    let (last, before) = (residuals[residuals.len() - 1], residuals[residuals.len() - 2]);
+    assert!(last <= 0.3 && before > 0.3, "stopped at the first shot below 0.3: {before} then {last}");
+    let png = std::fs::read(&plot).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    assert!(err.contains(&format!("wrote {plot}")), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -88,6 +88,10 @@ pub struct RadiosityArgs {
     /// Per-shot CSV: residual, balance, cycles and messages of every shot (default <scene>_shots.csv).
     #[arg(long)]
     pub shots_csv: Option<PathBuf>,
+    /// Plot of the residual against shots, PNG (default <scene>_residual.png): the machine's,
+    /// and with --reference the f64 reference's beside it.
+    #[arg(long)]
+    pub residual_plot: Option<PathBuf>,
     /// Write the summary as JSON to this file.
     #[arg(long)]
     pub stats: Option<PathBuf>,

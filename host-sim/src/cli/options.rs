@@ -143,6 +143,7 @@ impl From<&RadiosityArgs> for RadiosityOptions {
             reference_self_error: a.reference_self_error,
             patches_csv: a.patches_csv.clone(),
             shots_csv: a.shots_csv.clone(),
+            residual_plot: a.residual_plot.clone(),
             stats: a.stats.clone(),
             quiet: a.quiet,
         }

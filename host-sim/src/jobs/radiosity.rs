@@ -15,6 +15,7 @@ use crate::machine::diffuse::LightConfig;
 use crate::machine::loaded::{load_scene, LoadedScene};
 use crate::machine::radiosity::{solve, GridSolution, RadiosityConfig, ShotLog};
 use crate::precompute::LoadConfig;
+use crate::report::convergence::{plot_residuals, Series};
 use crate::report::files::{create, write_json};
 use crate::report::progress;
 use crate::scene::patches::{subdivide_voxels, Patches};
@@ -80,6 +81,8 @@ pub struct RadiosityOptions {
     pub patches_csv: Option<PathBuf>,
     /// Per-shot CSV (default `<scene>_shots.csv`).
     pub shots_csv: Option<PathBuf>,
+    /// Residual against shots, PNG (default `<scene>_residual.png`).
+    pub residual_plot: Option<PathBuf>,
     /// Summary as JSON.
     pub stats: Option<PathBuf>,
     /// No progress bar.
@@ -154,14 +157,47 @@ pub fn run(o: &RadiosityOptions) -> Result<()> {
     let t0 = Instant::now();
     let s = solve_with_bar(&scene, &p, &o.solve.machine(), o.quiet)?;
     let wall = t0.elapsed().as_secs_f64();
-    let reference = o.reference.then(|| compare(&p, &s, &o.solve, o.reference_self_error)).transpose()?.map(|r| r.0);
-    let stats = summarise(&mesh.name, &scene, &p, &s, wall, reference);
+    let compared = o.reference.then(|| compare(&p, &s, &o.solve, o.reference_self_error)).transpose()?;
+    let plot = o.residual_plot.clone().unwrap_or_else(|| format!("{}_residual.png", mesh.name).into());
+    plot_residual(&plot, &mesh.name, scene.grid.n, &s, compared.as_ref().map(|c| &c.2), o.solve.residual)?;
+    let stats = summarise(&mesh.name, &scene, &p, &s, wall, compared.map(|c| c.0));
     write_patches(&o.patches_csv.clone().unwrap_or_else(|| format!("{}_patches.csv", mesh.name).into()), &p, &s)?;
     write_shots(&o.shots_csv.clone().unwrap_or_else(|| format!("{}_shots.csv", mesh.name).into()), &s.shots)?;
     if let Some(path) = &o.stats {
         write_json(path, &stats)?;
     }
     print_summary(&stats);
+    Ok(())
+}
+
+/// The residual against shots: the machine's and, with `--reference`, the f64 reference's on
+/// the same patches and stopping rule.
+fn plot_residual(
+    path: &std::path::Path,
+    name: &str,
+    n: u32,
+    s: &GridSolution,
+    reference: Option<&Solution>,
+    stop: f64,
+) -> Result<()> {
+    let points = |r: &mut dyn Iterator<Item = f64>| -> Vec<(f64, f64)> {
+        std::iter::once((0.0, 1.0))
+            .chain(r.enumerate().map(|(k, v)| ((k + 1) as f64, v)))
+            .filter(|p| p.1 > 0.0)
+            .collect()
+    };
+    let mut series = vec![Series {
+        label: format!("machine (n = {n})"),
+        points: points(&mut s.shots.iter().map(|x| x.residual_after)),
+    }];
+    if let Some(r) = reference {
+        series.push(Series {
+            label: "f64 reference".into(),
+            points: points(&mut r.shots.iter().map(|x| x.residual_after)),
+        });
+    }
+    plot_residuals(&format!("{name}: progressive radiosity"), "shots", &series, (stop > 0.0).then_some(stop), path)?;
+    eprintln!("  wrote {}", path.display());
     Ok(())
 }
 

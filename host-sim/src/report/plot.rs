@@ -190,7 +190,7 @@ pub const PLOT_SIZE: (u32, u32) = (1600, 700);
 /// DejaVu Sans (Bitstream Vera licence, see `assets/DejaVuSans-LICENSE.txt`).
 const FONT_BYTES: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 /// The family name plotters' default styles ask for; the embedded font is registered under it.
-const FONT: &str = "sans-serif";
+pub(crate) const FONT: &str = "sans-serif";
 
 /// Colours of our series (matplotlib's "tab10", its grey swapped for navy: greys and black
 /// are the thesis's).
@@ -212,7 +212,7 @@ const THESIS_LIGHT: RGBColor = RGBColor(160, 160, 160);
 const LB_COLOUR: RGBColor = RGBColor(178, 34, 34);
 
 /// Registers the embedded font with plotters, once per process.
-fn ensure_font() -> Result<()> {
+pub(crate) fn ensure_font() -> Result<()> {
     static DONE: OnceLock<Result<(), String>> = OnceLock::new();
     DONE.get_or_init(|| {
         plotters::style::register_font(FONT, FontStyle::Normal, FONT_BYTES)
@@ -222,7 +222,7 @@ fn ensure_font() -> Result<()> {
     .map_err(|e| anyhow!(e))
 }
 
-fn plot_err<E: std::fmt::Display>(e: E) -> anyhow::Error {
+pub(crate) fn plot_err<E: std::fmt::Display>(e: E) -> anyhow::Error {
     anyhow!("plotting failed: {e}")
 }
 
