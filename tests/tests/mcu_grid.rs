@@ -2,17 +2,24 @@
 //! QEMU `mps2-an386` processes running `firmware/src/bin/board`), each UART a TCP character
 //! device to a port this test listens on. The test relays the bytes between neighbouring
 //! boards' UARTs (E ↔ W, N ↔ S), in the fault runs corrupting and dropping bytes on the
-//! wire from a seeded generator, and talks to each board's host link (UART 0) itself, through
-//! the same `cell_core::serial::SerialLink` the boards run.
+//! wire from a seeded generator, in the slow run holding back one board's bytes, and talks to
+//! each board's host link (UART 0) itself, through the same `cell_core::serial::SerialLink`
+//! the boards run.
 //!
-//! Each board sends [`COUNT`] data frames on each of its links and checks the frames it
-//! receives against what its neighbour sent, in order (the board's doc has the exercise); its
-//! report must say every frame arrived exactly once, unaltered, and every one it sent was
-//! acknowledged. A board that does not report within [`GRID_TIMEOUT`] fails the test, with
-//! every board's QEMU output; every QEMU child is killed on every exit path.
+//! * **Link exercise**: each board sends [`COUNT`] data frames on each of its links and checks
+//!   the frames it receives against what its neighbour sent, in order; its report must say
+//!   every frame arrived exactly once, unaltered, and every one it sent was acknowledged.
+//! * **Termination exercise** (`firmware/src/bin/board/safra.rs`): the host injects work items
+//!   that spread over the boards as messages on the links; the boards detect the end of the
+//!   work themselves with Safra's token ring over the same links, and ring position 0 tells
+//!   the host. At the declaration every item must have been processed, none queued or in
+//!   flight, and no board may see work after it learned of the declaration (never early);
+//!   the declaration must come (never hanging).
 //!
-//! This proves the links of the MCU grid (issue 25, item 4: the UART driver, the frame link
-//! with its CRC, acknowledgement and no loss). The boards do not run tiles of cells yet.
+//! A board that does not answer within [`GRID_TIMEOUT`] fails the test, with every board's
+//! QEMU output; every QEMU child is killed on every exit path.
+//!
+//! The boards do not run tiles of cells yet (issue 25, item 4).
 //!
 //! Needs `qemu-system-arm` and the `thumbv7em-none-eabihf` target: under CI a missing tool is
 //! a failure, elsewhere a skip ([`rc2_tests::qemu::tools_present`]).
@@ -141,8 +148,14 @@ fn next(rng: &mut u64) -> u64 {
 }
 
 /// Copy bytes from `src` to `dst` until `stop`, corrupting (flipping bits of) and dropping
-/// bytes as `faults` says. Returns (bytes read, faults injected).
-fn relay(mut src: TcpStream, mut dst: TcpStream, faults: Faults, stream: u64, stop: Arc<AtomicBool>) -> (u64, u64) {
+/// bytes as `faults` says, each chunk held back `delay`. Returns (bytes read, faults injected).
+fn relay(
+    (mut src, mut dst): (TcpStream, TcpStream),
+    faults: Faults,
+    stream: u64,
+    delay: Duration,
+    stop: Arc<AtomicBool>,
+) -> (u64, u64) {
     let mut rng = (faults.seed ^ stream.wrapping_mul(0x9E37_79B9_7F4A_7C15)) | 1;
     src.set_read_timeout(Some(Duration::from_millis(20))).unwrap();
     let (mut bytes, mut injected) = (0, 0);
@@ -168,6 +181,7 @@ fn relay(mut src: TcpStream, mut dst: TcpStream, faults: Faults, stream: u64, st
                 out.push(b);
             }
         }
+        std::thread::sleep(delay);
         if dst.write_all(&out).is_err() {
             break;
         }
@@ -281,8 +295,49 @@ struct Run {
     wall: Duration,
 }
 
-/// Boot the 2 × 2 grid, configure it, relay with `faults`, collect every board's report.
-fn run_grid(faults: Faults) -> Run {
+/// A booted grid: its processes and relays, the host's end of each board's UART 0, the time
+/// it started.
+struct Booted {
+    grid: Grid,
+    hosts: Vec<(HostPort, SerialLink<LINK_BUF>)>,
+    t0: Instant,
+}
+
+impl Booted {
+    /// Poll every host link once, then wait a little; a failed link (a QEMU gone) or the
+    /// deadline passed fails the test, saying `what` was awaited.
+    fn poll(&mut self, what: &dyn Fn() -> String) {
+        let now = self.t0.elapsed().as_millis() as u64;
+        if self.t0.elapsed() > GRID_TIMEOUT {
+            panic!("{} not within {GRID_TIMEOUT:?} (a hang)\nQEMU said:\n{}", what(), self.grid.outputs());
+        }
+        for (b, (port, link)) in self.hosts.iter_mut().enumerate() {
+            if let Err(e) = link.poll(now, port) {
+                panic!("board {b}'s host link failed ({e:?}): its QEMU stopped?\nQEMU said:\n{}", self.grid.outputs());
+            }
+        }
+        std::thread::sleep(Duration::from_micros(200));
+    }
+
+    /// Send `body` of `kind` to board `b`, waiting for the link to take it.
+    fn send(&mut self, b: usize, kind: u8, body: &[u8]) {
+        while !self.hosts[b].1.can_send() {
+            self.poll(&|| format!("board {b}'s acknowledgement"));
+        }
+        self.hosts[b].1.send(kind, body).unwrap();
+    }
+
+    /// Wait until every host link has nothing outstanding (every frame taken by its board).
+    fn settle(&mut self) {
+        while self.hosts.iter().any(|(_, l)| !l.idle()) {
+            self.poll(&|| "the boards' acknowledgements".to_string());
+        }
+    }
+}
+
+/// Boot the 2 × 2 grid, relaying with `faults`, the links of board `slow.0` held back
+/// `slow.1`.
+fn boot(faults: Faults, slow: Option<(usize, Duration)>) -> Booted {
     let elf = board_elf();
     let boards = SIDE * SIDE;
     let t0 = Instant::now();
@@ -348,17 +403,17 @@ fn run_grid(faults: Faults) -> Run {
             let Some(c) = neighbour(b, l) else { continue };
             let here = socks[b][l + 1].take().unwrap();
             let there = socks[c][(l + 2) % 4 + 1].take().unwrap();
-            for (src, dst) in [(here.try_clone().unwrap(), there.try_clone().unwrap()), (there, here)] {
+            let delay = slow.filter(|&(s, _)| s == b || s == c).map_or(Duration::ZERO, |(_, d)| d);
+            for ends in [(here.try_clone().unwrap(), there.try_clone().unwrap()), (there, here)] {
                 let stop = stop.clone();
                 stream += 1;
                 let s = stream;
-                grid.relays.push(std::thread::spawn(move || relay(src, dst, faults, s, stop)));
+                grid.relays.push(std::thread::spawn(move || relay(ends, faults, s, delay, stop)));
             }
         }
     }
 
-    // Host links: configure every board, then wait for every report.
-    let mut hosts: Vec<(HostPort, SerialLink<LINK_BUF>)> = socks
+    let hosts = socks
         .iter_mut()
         .map(|s| {
             let s = s[0].take().unwrap();
@@ -366,27 +421,24 @@ fn run_grid(faults: Faults) -> Run {
             (HostPort { s, peeked: None }, SerialLink::new(100))
         })
         .collect();
-    for (b, (_, link)) in hosts.iter_mut().enumerate() {
+    Booted { grid, hosts, t0 }
+}
+
+/// The link exercise on a grid relaying with `faults`: configure every board, collect every
+/// board's report.
+fn run_grid(faults: Faults) -> Run {
+    let mut g = boot(faults, None);
+    let boards = SIDE * SIDE;
+    for b in 0..boards {
         let mut config = vec![b as u8];
         config.extend((0..4).map(|l| neighbour(b, l).map_or(NONE, |c| c as u8)));
         config.extend(COUNT.to_le_bytes());
-        link.send(KIND_CONFIG, &config).unwrap();
+        g.send(b, KIND_CONFIG, &config);
     }
     let mut reports: Vec<Option<[LinkReport; 4]>> = vec![None; boards];
     while reports.iter().any(Option::is_none) {
-        let now = t0.elapsed().as_millis() as u64;
-        if Instant::now() > deadline {
-            let missing: Vec<usize> = (0..boards).filter(|&b| reports[b].is_none()).collect();
-            panic!(
-                "boards {missing:?} did not report within {GRID_TIMEOUT:?} (a hang, or a lost frame); \
-                 reports so far: {reports:?}\nQEMU said:\n{}",
-                grid.outputs()
-            );
-        }
-        for (b, (port, link)) in hosts.iter_mut().enumerate() {
-            if let Err(e) = link.poll(now, port) {
-                panic!("board {b}'s host link failed ({e:?}): its QEMU stopped?\nQEMU said:\n{}", grid.outputs());
-            }
+        g.poll(&|| format!("every board's report (a hang, or a lost frame; so far: {reports:?})"));
+        for (b, (_, link)) in g.hosts.iter_mut().enumerate() {
             if let Some(f) = link.received() {
                 assert_eq!(f.kind, KIND_REPORT, "board {b} sent an unknown frame");
                 let (id, r) = parse_report(f.payload);
@@ -396,19 +448,11 @@ fn run_grid(faults: Faults) -> Run {
                 link.pop();
             }
         }
-        std::thread::sleep(Duration::from_micros(200));
     }
     // Acknowledge the reports before the boards go.
-    let settle = Instant::now();
-    while hosts.iter().any(|(_, l)| !l.idle()) && settle.elapsed() < Duration::from_secs(1) {
-        let now = t0.elapsed().as_millis() as u64;
-        for (port, link) in &mut hosts {
-            let _ = link.poll(now, port);
-        }
-    }
-    let wall = t0.elapsed();
-    let (bytes, injected) = grid.stop_relays();
-    drop(grid);
+    g.settle();
+    let wall = g.t0.elapsed();
+    let (bytes, injected) = g.grid.stop_relays();
     Run { reports: reports.into_iter().map(Option::unwrap).collect(), bytes, injected, wall }
 }
 
@@ -467,4 +511,200 @@ fn corrupted_and_dropped_bytes_between_boards_are_recovered_by_the_link() {
     );
     assert!(run.injected > 0, "the relays injected no fault");
     assert!(retransmitted > 0 && skipped > 0, "faults were injected, so the links must have repaired some");
+}
+
+/// Frame kinds of the termination exercise (firmware/src/bin/board/safra.rs).
+const KIND_TERM_CONFIG: u8 = 0x63;
+const KIND_WORK: u8 = 0x64;
+const KIND_START: u8 = 0x65;
+const KIND_DONE: u8 = 0x66;
+const KIND_QUERY: u8 = 0x67;
+const KIND_STATE: u8 = 0x68;
+/// The ring over the 2 × 2 boards (board ids in ring order) and, per board, the link to its
+/// successor (0 E, 1 N, 2 W, 3 S).
+const RING: [usize; 4] = [0, 1, 3, 2];
+const RING_NEXT: [u8; 4] = [0, 1, 3, 2];
+/// A workload: the host's items (board, ttl), children per item, busy time per item (µs).
+#[derive(Clone, Copy, Debug)]
+struct Work {
+    items: &'static [(usize, u8)],
+    fan_out: u8,
+    work_us: u16,
+}
+
+impl Work {
+    /// Items processed in all: an item of ttl t makes t + 1 (one child each) or 2^(t+1) − 1
+    /// (two).
+    fn total(&self) -> u32 {
+        self.items.iter().map(|&(_, t)| if self.fan_out == 1 { u32::from(t) + 1 } else { (2u32 << t) - 1 }).sum()
+    }
+}
+
+/// Trees: 637 items, 1 ms each, most of the time many messages in flight at once.
+const TREES: Work = Work { items: &[(0, 7), (0, 6), (3, 7)], fan_out: 2, work_us: 1000 };
+/// A chain of 12 items, 5 ms each, from board 3: one item alive at a time, most of the time
+/// every board passive and one message in flight. With board 3's links slowed (the test
+/// below), a message on one of them is overtaken by whole token rounds on the others: where a
+/// detector without message counters (colours only) declares early. (Checked by hand: with
+/// `Node::sent`/`received` replaced by colour-only bookkeeping on the board, the test below
+/// fails, late work seen after the declaration.)
+const CHAIN: Work = Work { items: &[(3, 11)], fan_out: 1, work_us: 5_000 };
+
+/// A board's state as it answers a query.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct BoardState {
+    processed: u32,
+    sent: u32,
+    received: u32,
+    injected: u32,
+    queued: u32,
+    count: i32,
+    forwarded: u32,
+    overflows: u32,
+    retransmitted: u32,
+    skipped: u32,
+    late: u32,
+}
+
+fn parse_state(p: &[u8]) -> (u8, BoardState) {
+    assert_eq!(p.len(), 45, "state length");
+    let u = |i: usize| u32::from_le_bytes(p[1 + 4 * i..5 + 4 * i].try_into().unwrap());
+    let st = BoardState {
+        processed: u(0),
+        sent: u(1),
+        received: u(2),
+        injected: u(3),
+        queued: u(4),
+        count: u(5) as i32,
+        forwarded: u(6),
+        overflows: u(7),
+        retransmitted: u(8),
+        skipped: u(9),
+        late: u(10),
+    };
+    (p[0], st)
+}
+
+/// Ask every board for its state.
+fn query(g: &mut Booted) -> Vec<BoardState> {
+    for b in 0..g.hosts.len() {
+        g.send(b, KIND_QUERY, &[]);
+    }
+    let mut states: Vec<Option<BoardState>> = vec![None; g.hosts.len()];
+    while states.iter().any(Option::is_none) {
+        g.poll(&|| format!("every board's state (so far {states:?})"));
+        for (b, (_, link)) in g.hosts.iter_mut().enumerate() {
+            if let Some(f) = link.received() {
+                assert_eq!(f.kind, KIND_STATE, "board {b} sent an unexpected frame (a second declaration?)");
+                let (id, st) = parse_state(f.payload);
+                assert_eq!(id as usize, b);
+                states[b] = Some(st);
+                link.pop();
+            }
+        }
+    }
+    states.into_iter().map(Option::unwrap).collect()
+}
+
+/// The termination exercise: configure the ring, inject `work`'s items, start the detection, wait
+/// for ring position 0's two declarations (the work's phase, then the empty phase whose round
+/// tells every board of the first), then read every board's state twice, 300 ms apart.
+/// Returns the two readings and the time from start to declaration.
+fn run_termination(
+    work: Work,
+    faults: Faults,
+    slow: Option<(usize, Duration)>,
+) -> ([Vec<BoardState>; 2], Duration, u64) {
+    let mut g = boot(faults, slow);
+    for (b, next) in RING_NEXT.into_iter().enumerate() {
+        let position = RING.iter().position(|&r| r == b).unwrap();
+        let mut config = vec![b as u8];
+        config.extend((0..4).map(|l| neighbour(b, l).map_or(NONE, |c| c as u8)));
+        config.extend([position as u8, RING.len() as u8, next]);
+        config.extend(work.work_us.to_le_bytes());
+        config.push(work.fan_out);
+        g.send(b, KIND_TERM_CONFIG, &config);
+    }
+    for (i, &(b, ttl)) in work.items.iter().enumerate() {
+        let id = (i as u32) << 24;
+        g.send(b, KIND_WORK, &[[ttl].as_slice(), &id.to_le_bytes()].concat());
+    }
+    // Every injected item taken by its board before the detection starts.
+    g.settle();
+    let start = Instant::now();
+    g.send(RING[0], KIND_START, &[]);
+    // Phase 0 (the work), then phase 1 (empty: its round tells every board of the first).
+    let mut declared = Vec::new();
+    while declared.len() < 2 {
+        g.poll(&|| format!("the declaration of termination of phase {}", declared.len()));
+        for (b, (_, link)) in g.hosts.iter_mut().enumerate() {
+            if let Some(f) = link.received() {
+                assert_eq!((b, f.kind), (RING[0], KIND_DONE), "only ring position 0 declares");
+                assert_eq!(f.payload, &(declared.len() as u16).to_le_bytes(), "phases in order");
+                declared.push(start.elapsed());
+                link.pop();
+            }
+        }
+    }
+    let first = query(&mut g);
+    let wait = Instant::now();
+    while wait.elapsed() < Duration::from_millis(300) {
+        g.poll(&|| "the boards, after the declaration".to_string());
+        for (b, (_, link)) in g.hosts.iter().enumerate() {
+            assert!(link.received().is_none(), "board {b} sent a frame after the declaration");
+        }
+    }
+    let second = query(&mut g);
+    g.settle();
+    let (_, injected) = g.grid.stop_relays();
+    ([first, second], declared[0], injected)
+}
+
+/// At the declaration every item had been processed, none was queued or in flight, and
+/// nothing happened after it.
+fn check_terminated(work: Work, states: &[Vec<BoardState>; 2]) {
+    let expected = work.total();
+    let [first, second] = states;
+    let sum = |f: fn(&BoardState) -> u32| first.iter().map(f).sum::<u32>();
+    assert_eq!(
+        sum(|s| s.processed),
+        expected,
+        "items processed by the declaration (an early declaration leaves work undone): {first:?}"
+    );
+    assert_eq!(sum(|s| s.injected), work.items.len() as u32);
+    assert_eq!(sum(|s| s.sent), sum(|s| s.received), "work frames in flight at the declaration: {first:?}");
+    assert_eq!(sum(|s| s.sent), expected - work.items.len() as u32, "every item but the host's crossed a link");
+    assert_eq!(first.iter().map(|s| s.count).sum::<i32>(), 0);
+    for (b, s) in first.iter().enumerate() {
+        assert_eq!((s.queued, s.overflows), (0, 0), "board {b} still had work, or overflowed: {s:?}");
+        assert_eq!(s.late, 0, "board {b} saw work after it knew of the declaration: {s:?}");
+        assert!(s.forwarded > 0, "board {b} never forwarded the token");
+    }
+    let processed = |v: &Vec<BoardState>| v.iter().map(|s| (s.processed, s.sent, s.received)).collect::<Vec<_>>();
+    assert_eq!(processed(first), processed(second), "work after the declaration");
+}
+
+#[test]
+fn the_boards_detect_termination_never_early_with_a_slow_board() {
+    if !qemu::tools_present("the_boards_detect_termination_never_early_with_a_slow_board") {
+        return;
+    }
+    let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
+    // Board 3's links hold every chunk of bytes back 300 ms, both ways (a token round over the
+    // other links takes less).
+    let (states, declared, _) = run_termination(CHAIN, CLEAN, Some((3, Duration::from_millis(300))));
+    eprintln!("slow board 3: declared {declared:?} after the start; states {states:?}");
+    check_terminated(CHAIN, &states);
+}
+
+#[test]
+fn the_boards_detect_termination_over_faulty_links() {
+    if !qemu::tools_present("the_boards_detect_termination_over_faulty_links") {
+        return;
+    }
+    let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
+    let (states, declared, injected) = run_termination(TREES, Faults { corrupt: 40, drop: 40, seed: 0x7E2A }, None);
+    eprintln!("faulty links: {injected} faults, declared {declared:?} after the start; states {states:?}");
+    check_terminated(TREES, &states);
+    assert!(injected > 0, "the relays injected no fault");
 }

@@ -4,8 +4,9 @@
 //! `cell_core::wire` frames through a [`SerialLink`] (sequence numbers, acknowledgement,
 //! retransmission, resynchronisation after corrupted or dropped bytes).
 //!
-//! What a board runs now is the **link exercise** (tests/tests/mcu_grid.rs): it proves the
-//! links, not yet a tile of cells.
+//! A board runs one of two exercises (tests/tests/mcu_grid.rs), chosen by the host's
+//! configuration frame; they prove the links and the termination detection, not yet a tile of
+//! cells. The **termination exercise** is in [`safra`]. The **link exercise**:
 //!
 //! 1. The host sends a configuration on UART 0 ([`KIND_CONFIG`]: this board's id, its
 //!    neighbours' ids on links E, N, W, S — UARTs 1 … 4, `0xFF` where there is none — and how
@@ -34,6 +35,7 @@
 
 #[path = "../../exit.rs"]
 mod exit;
+mod safra;
 mod uart;
 #[path = "../../vectors.rs"]
 mod vectors;
@@ -115,28 +117,60 @@ struct Tally {
     mismatches: u16,
 }
 
+/// A board's wires: its UARTs, the serial link on each, and its clock.
+pub struct Board {
+    /// UART 0 (host), then the links E, N, W, S.
+    pub uarts: [Uart; 5],
+    /// The serial link on each UART.
+    pub links: [SerialLink<LINK_BUF>; 5],
+    clock: Clock,
+}
+
+impl Board {
+    /// Microseconds since boot.
+    pub fn now(&mut self) -> u64 {
+        self.clock.now()
+    }
+
+    /// Poll link `i` (0: the host).
+    pub fn poll(&mut self, i: usize, now: u64) {
+        let _ = self.links[i].poll(now, &mut self.uarts[i]);
+    }
+}
+
 #[entry]
 fn main() -> ! {
-    let mut uarts: [Uart; 5] = core::array::from_fn(Uart::new);
-    let mut links: [SerialLink<LINK_BUF>; 5] = core::array::from_fn(|_| SerialLink::new(TIMEOUT_US));
     let peripherals = cortex_m::Peripherals::take().unwrap_or_else(|| panic!("peripherals taken twice"));
-    let mut clock = Clock::new(peripherals.SYST);
+    let mut board = Board {
+        uarts: core::array::from_fn(Uart::new),
+        links: core::array::from_fn(|_| SerialLink::new(TIMEOUT_US)),
+        clock: Clock::new(peripherals.SYST),
+    };
 
     // 1. The configuration. Neighbour links are not polled yet: their bytes wait in the UARTs
     // (QEMU holds them back while a receiver is full), nothing is lost.
-    let (id, neighbours, count) = loop {
-        let _ = links[0].poll(clock.now(), &mut uarts[0]);
-        let Some(f) = links[0].received() else { continue };
-        let config = (f.kind == KIND_CONFIG && f.payload.len() == 7).then(|| {
-            (f.payload[0], [f.payload[1], f.payload[2], f.payload[3], f.payload[4]], [f.payload[5], f.payload[6]])
-        });
-        links[0].pop();
-        if let Some((id, n, c)) = config {
-            break (id, n, u16::from_le_bytes(c));
+    loop {
+        let now = board.now();
+        board.poll(0, now);
+        let Some(f) = board.links[0].received() else { continue };
+        let p = f.payload;
+        if f.kind == KIND_CONFIG && p.len() == 7 {
+            let (id, neighbours, count) = (p[0], [p[1], p[2], p[3], p[4]], u16::from_le_bytes([p[5], p[6]]));
+            board.links[0].pop();
+            link_exercise(board, id, neighbours, count);
         }
-    };
+        if let Some(config) = safra::Config::parse(f.kind, p) {
+            board.links[0].pop();
+            safra::run(board, config);
+        }
+        board.links[0].pop();
+    }
+}
 
-    // 2. The exercise.
+/// The link exercise (the module doc's steps 2 and 3).
+fn link_exercise(mut board: Board, id: u8, neighbours: [u8; LINKS], count: u16) -> ! {
+    let (links, uarts) = (&mut board.links, &mut board.uarts);
+    let clock = &mut board.clock;
     let mut tally = [Tally::default(); LINKS];
     let mut reported = false;
     let mut buf = [0u8; 43];
