@@ -29,6 +29,11 @@
 //! to be correct: a short one only costs retransmissions, which the sequence numbers make
 //! harmless.
 //!
+//! **Waiting**: when a pass of its loop leaves nothing to do but wait for bytes, a board sleeps
+//! ([`Board::wait`], `wfi`) until a UART interrupt (a byte received, a transmitter free) or
+//! SysTick's (every [`TICK_CYCLES`]: the timeouts) wakes it: four boards emulated on one
+//! machine leave its cores to each other and to the links' relays.
+//!
 //! A panic prints its message over semihosting and exits QEMU with a failure.
 #![no_std]
 #![no_main]
@@ -42,6 +47,7 @@ mod vectors;
 
 use cell_core::serial::{SerialLink, SerialStats};
 use cortex_m_rt::entry;
+use embedded_io::ReadReady;
 use heapless::Vec;
 
 #[cfg(feature = "defmt")]
@@ -65,9 +71,12 @@ const TIMEOUT_US: u64 = 50_000;
 /// The core clock of the MPS2 FPGA images (QEMU's `mps2-an386` too).
 const CORE_HZ: u64 = 25_000_000;
 
-/// Microseconds since boot, from SysTick counting down the core clock over its 24 bits
-/// (0.67 s a turn: [`Clock::now`] must be called more often than that, which the main loop
-/// does).
+/// SysTick's period in core cycles (10 ms): it wakes a waiting board.
+const TICK_CYCLES: u32 = 250_000;
+
+/// Microseconds since boot, from SysTick counting down the core clock, [`TICK_CYCLES`] a turn
+/// ([`Clock::now`] must be called at least once a turn, which the main loop does: SysTick's
+/// interrupt wakes it; a turn missed would only slow the clock down).
 struct Clock {
     /// Owned: nothing else reprograms the timer.
     _syst: cortex_m::peripheral::SYST,
@@ -79,15 +88,18 @@ impl Clock {
     fn new(mut syst: cortex_m::peripheral::SYST) -> Clock {
         use cortex_m::peripheral::syst::SystClkSource;
         syst.set_clock_source(SystClkSource::Core);
-        syst.set_reload(0x00FF_FFFF);
+        syst.set_reload(TICK_CYCLES - 1);
         syst.clear_current();
+        syst.enable_interrupt();
         syst.enable_counter();
         Clock { _syst: syst, last: cortex_m::peripheral::SYST::get_current(), cycles: 0 }
     }
 
     fn now(&mut self) -> u64 {
         let cur = cortex_m::peripheral::SYST::get_current();
-        self.cycles += u64::from(self.last.wrapping_sub(cur) & 0x00FF_FFFF);
+        // Counting down from TICK_CYCLES − 1 to 0, then again.
+        let elapsed = if cur <= self.last { self.last - cur } else { self.last + TICK_CYCLES - cur };
+        self.cycles += u64::from(elapsed);
         self.last = cur;
         self.cycles / (CORE_HZ / 1_000_000)
     }
@@ -132,15 +144,37 @@ impl Board {
         self.clock.now()
     }
 
+    /// Sleep until an interrupt (a UART's, SysTick's) unless a byte is already waiting. Call it
+    /// when a pass of the loop leaves nothing to do but wait.
+    pub fn wait(&mut self) {
+        wait(&mut self.uarts);
+    }
+
     /// Poll link `i` (0: the host).
     pub fn poll(&mut self, i: usize, now: u64) {
         let _ = self.links[i].poll(now, &mut self.uarts[i]);
     }
 }
 
+/// [`Board::wait`] on these UARTs.
+fn wait(uarts: &mut [Uart; 5]) {
+    cortex_m::interrupt::free(|_| {
+        // With interrupts masked, an interrupt that comes after the check still ends the `wfi`
+        // (it is pending), and its handler runs once they are unmasked.
+        if !uarts.iter_mut().any(|u| u.read_ready().unwrap_or(true)) {
+            cortex_m::asm::wfi();
+        }
+    });
+}
+
 #[entry]
 fn main() -> ! {
     let peripherals = cortex_m::Peripherals::take().unwrap_or_else(|| panic!("peripherals taken twice"));
+    // Every interrupt line of the board to the default handler: the UARTs' are the ones
+    // enabled at their source.
+    // SAFETY: the handler below only acknowledges UART interrupts; no critical section of this
+    // program relies on interrupts being masked.
+    unsafe { (*cortex_m::peripheral::NVIC::PTR).iser[0].write(u32::MAX) };
     let mut board = Board {
         uarts: core::array::from_fn(Uart::new),
         links: core::array::from_fn(|_| SerialLink::new(TIMEOUT_US)),
@@ -152,7 +186,10 @@ fn main() -> ! {
     loop {
         let now = board.now();
         board.poll(0, now);
-        let Some(f) = board.links[0].received() else { continue };
+        let Some(f) = board.links[0].received() else {
+            board.wait();
+            continue;
+        };
         let p = f.payload;
         if f.kind == KIND_CONFIG && p.len() == 7 {
             let (id, neighbours, count) = (p[0], [p[1], p[2], p[3], p[4]], u16::from_le_bytes([p[5], p[6]]));
@@ -220,5 +257,17 @@ fn link_exercise(mut board: Board, id: u8, neighbours: [u8; LINKS], count: u16) 
             }
             reported = links[0].send(KIND_REPORT, &report).is_ok();
         }
+        wait(uarts);
     }
 }
+
+/// Every device interrupt (and SysTick's): acknowledge the UARTs'; waking the core was the
+/// point.
+#[cortex_m_rt::exception]
+unsafe fn DefaultHandler(_irqn: i16) {
+    uart::clear_interrupts();
+}
+
+/// SysTick: waking the core is the point.
+#[cortex_m_rt::exception]
+fn SysTick() {}

@@ -250,5 +250,8 @@ pub fn run(mut board: Board, c: Config) -> ! {
                 }
             }
         }
+        if queue.is_empty() {
+            board.wait();
+        }
     }
 }

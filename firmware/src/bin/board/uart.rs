@@ -6,7 +6,11 @@
 //! UART i). Registers (ARM CMSDK APB UART, DDI 0479, and QEMU's `hw/char/cmsdk-apb-uart.c`):
 //! `DATA` (0x00), `STATE` (0x04: bit 0 transmitter full, bit 1 receiver full, bits 2 and 3 the
 //! transmit and receive overruns, write 1 to clear), `CTRL` (0x08: bit 0 transmit enable, bit
-//! 1 receive enable), `BAUDDIV` (0x10, at least 16). Each direction holds one byte.
+//! 1 receive enable, bits 2 and 3 their interrupts), `INTSTATUS`/`INTCLEAR` (0x0C, write 1 to
+//! clear), `BAUDDIV` (0x10, at least 16). Each direction holds one byte.
+//!
+//! The driver polls; the interrupts (a byte received, the transmitter free again) only wake a
+//! core that waits for them ([`clear_interrupts`] is the handler's whole work).
 //!
 //! **Invariant**: a read takes a byte only while the receiver is full, a write puts one only
 //! while the transmitter is not full, so neither overruns; [`Uart::overruns`] counts any
@@ -26,11 +30,13 @@ pub const UART_BASE: [usize; 5] = [0x4000_4000, 0x4000_5000, 0x4000_6000, 0x4000
 const DATA: usize = 0x00;
 const STATE: usize = 0x04;
 const CTRL: usize = 0x08;
+const INTCLEAR: usize = 0x0C;
 const BAUDDIV: usize = 0x10;
 const STATE_TX_FULL: u32 = 1 << 0;
 const STATE_RX_FULL: u32 = 1 << 1;
 const STATE_OVERRUNS: u32 = 0b1100;
-const CTRL_TX_RX_ENABLE: u32 = 0b11;
+/// Transmitter, receiver and both their interrupts enabled.
+const CTRL_ENABLE: u32 = 0b1111;
 
 fn read(addr: usize) -> u32 {
     // SAFETY: `addr` is an aligned register of one of the UARTs at `UART_BASE`.
@@ -49,11 +55,11 @@ pub struct Uart {
 }
 
 impl Uart {
-    /// Enable UART `i` (`UART_BASE[i]`), transmitter and receiver.
+    /// Enable UART `i` (`UART_BASE[i]`), transmitter and receiver, and their interrupts.
     pub fn new(i: usize) -> Uart {
         let base = UART_BASE[i];
         write(base + BAUDDIV, 16);
-        write(base + CTRL, CTRL_TX_RX_ENABLE);
+        write(base + CTRL, CTRL_ENABLE);
         Uart { base, overruns: 0 }
     }
 
@@ -69,6 +75,14 @@ impl Uart {
             write(self.base + STATE, s & STATE_OVERRUNS);
         }
         s
+    }
+}
+
+/// Acknowledge every UART's interrupts (the interrupt handler: the bytes themselves are
+/// polled).
+pub fn clear_interrupts() {
+    for base in UART_BASE {
+        write(base + INTCLEAR, 0b1111);
     }
 }
 
