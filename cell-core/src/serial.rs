@@ -29,9 +29,9 @@
 //! **Invariant** (exactly once, in order). If the byte stream between the two ends keeps the
 //! order of the bytes it delivers (it may corrupt, drop or insert any of them), CRC-32 catches
 //! every corrupted frame, and both ends keep calling [`SerialLink::poll`], then the sequence of
-//! frames [`SerialLink::pop`] returns at one end is a prefix of the sequence
-//! [`SerialLink::send`] accepted at the other, and grows to all of it while the stream delivers
-//! intact frames now and then. Why: at most one data frame is outstanding, so every data frame
+//! frames the application takes at one end ([`SerialLink::received`], then
+//! [`SerialLink::pop`]) is a prefix of the sequence [`SerialLink::send`] accepted at the other,
+//! and grows to all of it while the stream delivers intact frames now and then. Why: at most one data frame is outstanding, so every data frame
 //! that reaches the receiver carries the expected sequence number `e` (the outstanding frame)
 //! or `e − 1` (a late copy of the one before: all earlier copies were written before it, and
 //! the stream does not reorder); only `e` is delivered, and `e` advances on delivery. Likewise
