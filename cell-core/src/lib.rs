@@ -22,6 +22,8 @@
 //! * [`wire`] — the bytes a link carries: framed messages with a CRC (parse and emit).
 //! * [`link`] — the link seam: one `Link` trait for the perfect link, the `embedded-hal` link
 //!   and their wrappers.
+//! * [`serial`] — a reliable frame link over a byte stream (a UART, through `embedded-io`):
+//!   every frame exactly once and in order, whatever bytes the wire corrupts or drops.
 //! * [`trace`] — cell traces (what a cell received, as frames) and their replay through the real cell.
 //! * [`ray`] — incremental 6/18/26-connected 3D lines for shadow and reflected rays (§2.3).
 //! * [`shadow`] — the classic shadow-ray cell: emission, ray walking, answers (§4.1.2–4.1.3).
@@ -51,6 +53,7 @@ pub mod ray;
 pub mod reflect;
 pub mod reflect_cell;
 pub mod route;
+pub mod serial;
 pub mod shade;
 pub mod shadow;
 pub mod termination;

@@ -24,12 +24,12 @@
 #![no_std]
 #![no_main]
 
+mod exit;
 mod stack;
 mod vectors;
 mod wires;
 
 use core::cell::RefCell;
-use core::panic::PanicInfo;
 
 use cell_core::beam::frac::U0;
 use cell_core::cell::{DEFAULT_DEXELS, FA_CAP, LIT_CAP, OB_CAP};
@@ -38,7 +38,7 @@ use cell_core::trace::{Event, Parser, ReplayError, ReplayStats, Replayer, LINK_F
 use cell_core::wire::DecodeError;
 use cortex_m::peripheral::SCB;
 use cortex_m_rt::{entry, exception};
-use cortex_m_semihosting::{debug, hprintln};
+use cortex_m_semihosting::hprintln;
 use critical_section::Mutex;
 use heapless::Vec;
 
@@ -157,17 +157,5 @@ fn main() -> ! {
         }
     }
     hprintln!("traces={} sent_bytes={} stack_peak={}", TRACES.len(), wires::bytes_sent(), stack::peak());
-    debug::exit(if failed { debug::EXIT_FAILURE } else { debug::EXIT_SUCCESS });
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-#[panic_handler]
-fn panic(info: &PanicInfo) -> ! {
-    hprintln!("panic: {}", info);
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
-    }
+    exit::exit(!failed)
 }

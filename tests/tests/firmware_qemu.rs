@@ -30,62 +30,19 @@ use host_sim::machine::classic::ClassicConfig;
 use host_sim::machine::diffuse::{FrustumBlocks, LightConfig};
 use host_sim::machine::reflect::ReflectConfig;
 use host_sim::precompute::LoadConfig;
+use rc2_tests::qemu::{self, QEMU};
 use rc2_tests::traces::{
     brighten_reflect_answers, cornell_job_cells, corrupt_first_ray_frame, flip_shadow_answers, mutate_row_material,
     trace_job,
 };
 
-const TARGET: &str = "thumbv7em-none-eabihf";
-const QEMU: &str = "qemu-system-arm";
 const QEMU_TIMEOUT: Duration = Duration::from_secs(60);
-
-fn firmware_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware")
-}
-
-/// Why the QEMU test cannot run here, if it cannot.
-fn missing_tool() -> Option<String> {
-    match Command::new(QEMU).arg("--version").stdout(Stdio::null()).stderr(Stdio::null()).status() {
-        Ok(s) if s.success() => {}
-        _ => return Some(format!("`{QEMU}` is not on PATH (apt-get install -y qemu-system-arm)")),
-    }
-    let rustc = std::env::var("RUSTC").unwrap_or_else(|_| "rustc".into());
-    let sysroot = Command::new(&rustc).args(["--print", "sysroot"]).output().ok().filter(|o| o.status.success());
-    let Some(sysroot) = sysroot else {
-        return Some(format!("`{rustc} --print sysroot` failed"));
-    };
-    let lib = Path::new(String::from_utf8_lossy(&sysroot.stdout).trim()).join("lib/rustlib").join(TARGET).join("lib");
-    if !lib.is_dir() {
-        return Some(format!("the {TARGET} target is not installed (rustup target add {TARGET})"));
-    }
-    None
-}
-
-/// Whether this is a CI run: `CI` is set to anything but empty, `0` or `false` (`.ci/run`
-/// exports `CI=1`; GitHub Actions, GitLab and most services set `CI=true`).
-fn in_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| !matches!(v.trim().to_ascii_lowercase().as_str(), "" | "0" | "false"))
-}
 
 /// Build the firmware in release mode, with the traces of `traces`, into a target directory of
 /// this test's own.
 fn build_firmware(traces: &Path) -> PathBuf {
     let target_dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("firmware");
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    // Run from firmware/ so that its .cargo/config.toml applies; no RUSTFLAGS from outside
-    // (host flags must not reach the thumbv7em build).
-    let out = Command::new(cargo)
-        .current_dir(firmware_dir())
-        .args(["build", "--release", "--target", TARGET])
-        .env("CARGO_TARGET_DIR", &target_dir)
-        .env("RC2_TRACE_DIR", traces)
-        .env_remove("RUSTFLAGS")
-        .env_remove("CARGO_ENCODED_RUSTFLAGS")
-        .env_remove("CARGO_BUILD_TARGET")
-        .output()
-        .expect("run cargo build for the firmware");
-    assert!(out.status.success(), "firmware build failed:\n{}", String::from_utf8_lossy(&out.stderr));
-    target_dir.join(TARGET).join("release/rc2-firmware")
+    qemu::build_firmware(&target_dir, Some(traces), &[]).join("rc2-firmware")
 }
 
 /// The production image (`firmware/src/bin/cell`, built with the replay image by the same
@@ -432,27 +389,9 @@ fn check_altered(got: &HashMap<String, Result<u64, String>>, changed: &[(&str, u
     }
 }
 
-/// Whether the test can run here; when it cannot, why (on stderr), or a failure under CI.
-fn tools_present() -> bool {
-    let Some(why) = missing_tool() else { return true };
-    assert!(
-        !in_ci(),
-        "CI is set, and the firmware cannot run under QEMU: {why}. `.ci/run` installs \
-         qemu-system-arm and the {TARGET} target; a CI run must not skip this test"
-    );
-    // Straight to stderr, not through `eprintln!`, which the test harness captures and
-    // hides for a passing test: a skip must show in every run.
-    let _ = writeln!(
-        std::io::stderr(),
-        "SKIPPED firmware_replays_cornell_traces_bit_identical_to_the_host: {why} \
-         (not a CI run; with CI=1 this is a failure)"
-    );
-    false
-}
-
 #[test]
 fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
-    if !tools_present() {
+    if !qemu::tools_present("firmware_replays_cornell_traces_bit_identical_to_the_host") {
         return;
     }
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("qemu-traces");
