@@ -235,7 +235,7 @@ pub enum Policy {
     /// axis, so a voxel's pieces come from its own position and the one nearer the axis: taken
     /// inside out, a cell's layer feeds the next cell's in the order that cell takes it, and
     /// the pipelines of a ±x or ±y pyramid drain together (Cornell box n = 512: 56 % fewer
-    /// cycles than the wavefront, 7 % more beams; BENCHMARKS, session 10).
+    /// cycles than the wavefront, 7 % more beams; BENCHMARKS.md).
     Radial,
 }
 

@@ -19,7 +19,7 @@
 //! A board that does not answer within [`GRID_TIMEOUT`] fails the test, with every board's
 //! QEMU output; every QEMU child is killed on every exit path.
 //!
-//! The boards do not run tiles of cells yet (issue 25, item 4).
+//! The boards do not run tiles of cells yet (docs/FIRMWARE.md, "Not done yet").
 //!
 //! Needs `qemu-system-arm` and the `thumbv7em-none-eabihf` target: under CI a missing tool is
 //! a failure, elsewhere a skip ([`rc2_tests::qemu::tools_present`]).

@@ -1,4 +1,4 @@
-//! One board of a grid of microcontrollers on real serial links (issue 25, item 4; the grid
+//! One board of a grid of microcontrollers on real serial links (the grid
 //! of boards host-sim's `machine::async_tiles` simulates): four neighbour links and a host
 //! link, each a UART of QEMU's `mps2-an386` ([`uart`], an `embedded-io` driver) carrying
 //! `cell_core::wire` frames through a [`SerialLink`] (sequence numbers, acknowledgement,
