@@ -98,6 +98,9 @@ pub struct Prepared {
     reference_records: Option<Vec<[f64; 3]>>,
 }
 
+/// An RGB value per patch.
+type PerPatch = Vec<[f64; 3]>;
+
 /// Phases 1 and 3's solutions, before any display: the machine's and (with `--reference`) the
 /// f64 solver's indirect irradiance per patch.
 pub struct Solved {
@@ -105,7 +108,7 @@ pub struct Solved {
     faces: usize,
     machine: crate::machine::radiosity::GridSolution,
     /// The f64 solver's indirect irradiance and unshot radiosity per patch.
-    reference: Option<(Vec<[f64; 3]>, Vec<[f64; 3]>)>,
+    reference: Option<(PerPatch, PerPatch)>,
     stats: RadiosityStats,
     shot_grid_load_cycles: Option<u64>,
 }

@@ -204,8 +204,8 @@ pub fn exposure(patches: &[Patch], lights: &[[f64; 3]], intensity: f64) -> Resul
             }
             let w = r / r2.sqrt();
             let g = i.area * i.normal.dot(w).max(0.0) * (-j.normal.dot(w)).max(0.0) / (std::f64::consts::PI * r2);
-            for c in 0..3 {
-                emitted[c] += j.area * g * i.emission[c];
+            for (e, ie) in emitted.iter_mut().zip(i.emission) {
+                *e += j.area * g * ie;
             }
         }
     }

@@ -336,8 +336,8 @@ where
             if j == i {
                 continue;
             }
-            for c in 0..3 {
-                h[j][c] -= patches[i].emission[c] * fij * patches[i].area / pj.area;
+            for (hc, ec) in h[j].iter_mut().zip(patches[i].emission) {
+                *hc -= ec * fij * patches[i].area / pj.area;
             }
         }
     }
