@@ -282,8 +282,11 @@ fn surfaces(mesh: &Mesh) -> Surfaces {
         .collect();
     let ring =
         |f: &Face| -> Vec<u32> { f.verts.iter().map(|&v| id.get(v as usize).copied().unwrap_or(u32::MAX)).collect() };
-    // Undirected edge → (face, traverses it from the smaller vertex id).
-    let mut edges: HashMap<(u32, u32), Vec<(u32, bool)>> = HashMap::new();
+    // Undirected edge → (face, traverses it from the smaller vertex id). Ordered: the faces'
+    // adjacency lists, hence the flood order, each part's members and the faces
+    // `bounds_a_solid` samples, are built by walking it, and must not depend on a hash seed
+    // (with a `HashMap` the Cornell box's lit voxels changed from run to run).
+    let mut edges: std::collections::BTreeMap<(u32, u32), Vec<(u32, bool)>> = Default::default();
     for (fi, f) in faces.iter().enumerate() {
         let r = ring(f);
         for k in 0..r.len() {
