@@ -38,6 +38,8 @@
 #![no_std]
 #![no_main]
 
+#[path = "../../cmsdk.rs"]
+mod cmsdk;
 #[path = "../../exit.rs"]
 mod exit;
 mod safra;

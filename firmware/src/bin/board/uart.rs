@@ -17,36 +17,20 @@
 //! overrun the hardware reports anyway (a byte lost in the UART, which the link above repairs
 //! like any loss on the wire).
 //!
-//! Registers are read and written with volatile accesses.
+//! Registers are read and written with volatile accesses ([`crate::cmsdk`], the register map
+//! the production cell's driver shares).
 
 use core::convert::Infallible;
-use core::ptr::{read_volatile, write_volatile};
 
 use embedded_io::{ErrorType, Read, ReadReady, Write, WriteReady};
 
+use crate::cmsdk::{
+    read, write, BAUDDIV, CTRL, CTRL_ENABLE_WITH_INTERRUPTS, DATA, INTCLEAR, STATE, STATE_OVERRUNS, STATE_RX_FULL,
+    STATE_TX_FULL,
+};
+
 /// The an386's UARTs: 0 (the host link on a board of the grid), then 1 … 4.
 pub const UART_BASE: [usize; 5] = [0x4000_4000, 0x4000_5000, 0x4000_6000, 0x4000_7000, 0x4000_9000];
-
-const DATA: usize = 0x00;
-const STATE: usize = 0x04;
-const CTRL: usize = 0x08;
-const INTCLEAR: usize = 0x0C;
-const BAUDDIV: usize = 0x10;
-const STATE_TX_FULL: u32 = 1 << 0;
-const STATE_RX_FULL: u32 = 1 << 1;
-const STATE_OVERRUNS: u32 = 0b1100;
-/// Transmitter, receiver and both their interrupts enabled.
-const CTRL_ENABLE: u32 = 0b1111;
-
-fn read(addr: usize) -> u32 {
-    // SAFETY: `addr` is an aligned register of one of the UARTs at `UART_BASE`.
-    unsafe { read_volatile(addr as *const u32) }
-}
-
-fn write(addr: usize, v: u32) {
-    // SAFETY: as in `read`.
-    unsafe { write_volatile(addr as *mut u32, v) }
-}
 
 /// One CMSDK APB UART.
 pub struct Uart {
@@ -59,7 +43,7 @@ impl Uart {
     pub fn new(i: usize) -> Uart {
         let base = UART_BASE[i];
         write(base + BAUDDIV, 16);
-        write(base + CTRL, CTRL_ENABLE);
+        write(base + CTRL, CTRL_ENABLE_WITH_INTERRUPTS);
         Uart { base, overruns: 0 }
     }
 

@@ -13,11 +13,12 @@
 //! about what a link delivers, so the image keeps all of the cell's code.
 
 use core::convert::Infallible;
-use core::ptr::{read_volatile, write_volatile};
 
 use cell_core::light::Port;
 use embedded_hal::digital::{ErrorType as PinErrorType, InputPin, OutputPin};
 use embedded_hal::spi::{self, Operation, SpiDevice};
+
+use crate::cmsdk::{read, write, BAUDDIV, CTRL, CTRL_TX_RX_ENABLE, DATA, STATE, STATE_RX_FULL, STATE_TX_FULL};
 
 /// UART base addresses: the host link, then one per port in [`Port::ALL`] order.
 pub const LINK_UART: [usize; 9] = [
@@ -36,28 +37,10 @@ const GPIO_READY_IN: usize = 0x4001_0000;
 /// GPIO1: this cell's ready lines to its neighbours (outputs).
 const GPIO_READY_OUT: usize = 0x4001_1000;
 
-// CMSDK APB UART registers and bits.
-const UART_DATA: usize = 0x00;
-const UART_STATE: usize = 0x04;
-const UART_CTRL: usize = 0x08;
-const UART_BAUDDIV: usize = 0x10;
-const STATE_TX_FULL: u32 = 1;
-const STATE_RX_FULL: u32 = 2;
-const CTRL_TX_RX_ENABLE: u32 = 3;
 // CMSDK AHB GPIO registers.
 const GPIO_DATA: usize = 0x00;
 const GPIO_DATAOUT: usize = 0x04;
 const GPIO_OUTENSET: usize = 0x10;
-
-fn read(addr: usize) -> u32 {
-    // SAFETY: `addr` is one of the fixed, aligned peripheral registers above.
-    unsafe { read_volatile(addr as *const u32) }
-}
-
-fn write(addr: usize, v: u32) {
-    // SAFETY: as in `read`.
-    unsafe { write_volatile(addr as *mut u32, v) }
-}
 
 /// One UART: a byte stream carrying link frames.
 #[derive(Clone, Copy)]
@@ -67,21 +50,21 @@ impl Uart {
     /// Enable the UART of link `i` (`LINK_UART[i]`).
     pub fn link(i: usize) -> Uart {
         let u = Uart(LINK_UART[i]);
-        write(u.0 + UART_BAUDDIV, 16);
-        write(u.0 + UART_CTRL, CTRL_TX_RX_ENABLE);
+        write(u.0 + BAUDDIV, 16);
+        write(u.0 + CTRL, CTRL_TX_RX_ENABLE);
         u
     }
 
     /// The byte waiting in the receiver, if any.
     pub fn read_byte(self) -> Option<u8> {
-        (read(self.0 + UART_STATE) & STATE_RX_FULL != 0).then(|| read(self.0 + UART_DATA) as u8)
+        (read(self.0 + STATE) & STATE_RX_FULL != 0).then(|| read(self.0 + DATA) as u8)
     }
 
     /// Send `bytes`, waiting for room in the transmitter.
     pub fn write_all(self, bytes: &[u8]) {
         for &b in bytes {
-            while read(self.0 + UART_STATE) & STATE_TX_FULL != 0 {}
-            write(self.0 + UART_DATA, b as u32);
+            while read(self.0 + STATE) & STATE_TX_FULL != 0 {}
+            write(self.0 + DATA, b as u32);
         }
     }
 }

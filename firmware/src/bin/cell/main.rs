@@ -30,6 +30,8 @@
 #![no_main]
 
 mod board;
+#[path = "../../cmsdk.rs"]
+mod cmsdk;
 mod features;
 mod mem;
 #[path = "../../vectors.rs"]
