@@ -276,3 +276,54 @@ fn square_shadow(floor_up: bool) {
         assert!(shadowed > 100 && lit > 1000, "{projection:?}: {shadowed} shadowed, {lit} lit pixels checked");
     }
 }
+
+/// A lamp in the plane of its ceiling, through the Cornell box's camera: the published
+/// geometry puts the light's quad in the ceiling's plane. Planar in the world, the two are
+/// quantised separately in screen space and their planes come out up to a fraction of a voxel
+/// apart, either way; the cells' depth test takes two surfaces of one normal within 1/8 voxel
+/// (`cell_core::visible::DEPTH_TIE`) as a tie and keeps the first in the scene's order, as
+/// the f64 reference keeps the lowest facet id among hits within its rounding. So the pixels
+/// that show the lamp are the reference's, up to its outline: a pixel may differ only where
+/// one of its 8 neighbours is on the other side of the reference's lamp outline. (Before the
+/// tie, at n = 512 the ceiling showed over the whole lamp.)
+#[test]
+fn a_lamp_in_its_ceiling_shows_where_the_reference_shows_it() {
+    use host_sim::scene::camera::{apply, ViewChoice};
+    for n in [128u32, 256, 512] {
+        let mesh = apply(host_sim::scene::load("cornell").unwrap(), &ViewChoice::Scene, n).unwrap();
+        let loaded = load_scene(&mesh, &LoadConfig::watertight(n)).unwrap();
+        let lights = resolve_lights(&mesh, &loaded, &[]).unwrap();
+        let cfg = RenderConfig::diffusion(LightConfig::default(), NormalMode::Facet);
+        let reference = host_sim::jobs::render::reference_image(&mesh, &loaded, &lights, &cfg).unwrap();
+        // The machine's facet ids count the pieces of split polygons; materials are the mesh's.
+        let emissive = |m: usize| mesh.materials[m].ke.iter().any(|&k| k > 0.0);
+        let emits = |f: u32| emissive(mesh.faces[f as usize].material as usize);
+        let idx = |x: u32, y: u32| (y * n + x) as usize;
+        let lamp_ref = |x: u32, y: u32| reference.covered[idx(x, y)] && emits(reference.facet[idx(x, y)]);
+        let (mut lamp_pixels, mut outline, mut inside) = (0, 0, Vec::new());
+        for y in 0..n {
+            for x in 0..n {
+                let machine = loaded.grid.cell(x, y).visible.is_some_and(|v| emissive(v.material as usize));
+                lamp_pixels += lamp_ref(x, y) as u32;
+                if machine == lamp_ref(x, y) {
+                    continue;
+                }
+                let (xs, ys) = (x.saturating_sub(1)..=(x + 1).min(n - 1), y.saturating_sub(1)..=(y + 1).min(n - 1));
+                let on_outline = xs.clone().any(|u| ys.clone().any(|v| lamp_ref(u, v) != lamp_ref(x, y)));
+                if on_outline {
+                    outline += 1;
+                } else {
+                    inside.push((x, y, machine));
+                }
+            }
+        }
+        eprintln!("n = {n}: {lamp_pixels} lamp pixels in the reference, {outline} differ on its outline");
+        assert!(lamp_pixels > n * n / 400, "n = {n}: the reference shows the lamp on {lamp_pixels} pixels only");
+        assert!(
+            inside.is_empty(),
+            "n = {n}: {} pixels off the lamp's outline differ (x, y, machine shows the lamp): {:?}",
+            inside.len(),
+            &inside[..inside.len().min(8)]
+        );
+    }
+}
