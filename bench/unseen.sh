@@ -8,6 +8,11 @@
 #   LIGHTS  default: 0.2,0.9,0.1 0.9,0.5,0.2 0.5,0.05,0.5 0.1,0.2,0.9 (grid-normalised)
 #   NS      default: 256
 #   METHODS default: "plane classic" (plane: the defaults; classic: --lighting classic)
+#   ROTATE  default: none. Rotations of each mesh to render instead of the mesh as stored, each
+#           a sequence of axis and angle in radians applied in order (x0.6y0.9: 0.6 about x,
+#           then 0.9 about y); "none" is the mesh as stored. The rotated OBJ is written to
+#           bench-out/unseen/MESH-ROTATION.obj (vertices only: normals and texture coordinates
+#           dropped).
 #   APPEND=1 adds to the CSV instead of starting it anew.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -15,14 +20,44 @@ MESHES=${MESHES:-"suzanne fandisk cow teapot"}
 LIGHTS=${LIGHTS:-"0.2,0.9,0.1 0.9,0.5,0.2 0.5,0.05,0.5 0.1,0.2,0.9"}
 NS=${NS:-256}
 METHODS=${METHODS:-"plane classic"}
+ROTATE=${ROTATE:-none}
 mkdir -p bench-out/unseen
 cargo build --release -q -p host-sim
 B=./target/release/host-sim
 CSV=bench-out/unseen.csv
 [[ ${APPEND:-0} == 1 && -f $CSV ]] || echo "mesh,light,n,method,shadow_disagreement_pct,psnr_db,cycles" > "$CSV"
+# rotated MESH_OBJ ROTATION: prints the path of the mesh under ROTATION (itself for "none").
+rotated() {
+  [[ $2 == none ]] && { echo "$1"; return; }
+  local out=bench-out/unseen/$(basename "$1" .obj)-$2.obj
+  python3 - "$1" "$2" "$out" <<'PY'
+import math, re, sys
+src, spec, out = sys.argv[1:]
+ops = [(a, float(x)) for a, x in re.findall(r"([xyz])(-?[0-9.]+)", spec)]
+def rot(v, ax, t):
+    c, s = math.cos(t), math.sin(t); x, y, z = v
+    return {"x": (x, c*y - s*z, s*y + c*z), "y": (c*x + s*z, y, -s*x + c*z), "z": (c*x - s*y, s*x + c*y, z)}[ax]
+lines = []
+for l in open(src):
+    if l.startswith("v "):
+        v = tuple(map(float, l.split()[1:4]))
+        for ax, t in ops:
+            v = rot(v, ax, t)
+        lines.append("v %.6f %.6f %.6f" % v)
+    elif l.startswith("f "):
+        lines.append("f " + " ".join(w.split("/")[0] for w in l.split()[1:]))
+    elif not l.startswith(("vn ", "vt ")):
+        lines.append(l.rstrip("\n"))
+open(out, "w").write("\n".join(lines) + "\n")
+PY
+  echo "$out"
+}
 for n in $NS; do
-  for mesh in $MESHES; do
-    obj=$mesh; [[ -f $obj ]] || obj=../shared/scenes/$mesh.obj
+  for base in $MESHES; do
+   base_obj=$base; [[ -f $base_obj ]] || base_obj=../shared/scenes/$base.obj
+   for rotation in $ROTATE; do
+    obj=$(rotated "$base_obj" "$rotation")
+    mesh=$(basename "$base" .obj); [[ $rotation == none ]] || mesh=$mesh-$rotation
     for light in $LIGHTS; do
       for m in $METHODS; do
         case $m in
@@ -30,15 +65,16 @@ for n in $NS; do
           classic) opts=(--lighting classic) ;;
           *) echo "unknown method $m" >&2; exit 2 ;;
         esac
-        o=bench-out/unseen/$(basename "$mesh" .obj)-$light-$n-$m
+        o=bench-out/unseen/$mesh-$light-$n-$m
         $B render "$obj" --n "$n" --light "$light" --reference --quiet "${opts[@]}" --out "$o.png" --stats "$o.json" 2> "$o.log"
-        python3 - "$o.json" "$(basename "$mesh" .obj)" "$light" "$n" "$m" >> "$CSV" <<'PY'
+        python3 - "$o.json" "$mesh" "$light" "$n" "$m" >> "$CSV" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1])); r = s['reference']
 print(f"{sys.argv[2]},\"{sys.argv[3]}\",{sys.argv[4]},{sys.argv[5]},{r['shadow_disagreement_pct']:.2f},{r['psnr_db']:.2f},{s['light']['cycles']}")
 PY
       done
     done
+   done
   done
 done
 python3 - "$CSV" <<'PY'

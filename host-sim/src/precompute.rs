@@ -14,7 +14,9 @@
 //!
 //! Polygons are kept when planar (exactly, after quantisation) and convex; otherwise a convex
 //! polygon is split into a triangle fan, a non-convex one is ear-clipped (both counted), and a
-//! self-intersecting one is rejected with a message naming the face.
+//! self-intersecting one is rejected with a message naming the face. A small polygon that is
+//! simple in the mesh but that the lattice folds onto itself is split before quantisation
+//! (ear clipping of the mesh's own polygon, [`triangulate_f64`]), not refused.
 
 use anyhow::{bail, Result};
 use cell_core::dexel::FacetTag;
@@ -406,36 +408,84 @@ fn ear_clip(p: &[[i64; 3]], (_, u, v): (usize, usize, usize)) -> std::result::Re
         (b[u] - a[u]) as i128 * (c[v] - a[v]) as i128 - (b[v] - a[v]) as i128 * (c[u] - a[u]) as i128
     };
     let area2: i128 = (0..p.len()).map(|i| orient([0; 3], p[i], p[(i + 1) % p.len()])).sum();
-    let s = area2.signum();
-    if s == 0 {
+    let sign = |i: usize, j: usize, k: usize| orient(p[i], p[j], p[k]).signum() as i8;
+    let tris = ear_clip_indices(p.len(), area2.signum() as i8, sign, |i, j| p[i] == p[j])?;
+    Ok(tris.into_iter().map(|t| t.map(|i| p[i]).to_vec()).collect())
+}
+
+/// Ear clipping of a simple polygon of `k` vertices, given the sign of its (projected) area and
+/// of each triangle's (`orient`), and which vertices coincide (`same`): index triples in the
+/// polygon's winding.
+fn ear_clip_indices(
+    k: usize,
+    area_sign: i8,
+    orient: impl Fn(usize, usize, usize) -> i8,
+    same: impl Fn(usize, usize) -> bool,
+) -> std::result::Result<Vec<[usize; 3]>, &'static str> {
+    if area_sign == 0 {
         return Err("self-overlapping polygon (zero projected area)");
     }
-    let mut idx: Vec<usize> = (0..p.len()).collect();
+    let mut idx: Vec<usize> = (0..k).collect();
     let mut tris = Vec::new();
     while idx.len() > 3 {
         let k = idx.len();
         let ear = (0..k).find(|&i| {
-            let (a, b, c) = (p[idx[(i + k - 1) % k]], p[idx[i]], p[idx[(i + 1) % k]]);
-            if orient(a, b, c) * s <= 0 {
+            let (a, b, c) = (idx[(i + k - 1) % k], idx[i], idx[(i + 1) % k]);
+            if orient(a, b, c) * area_sign <= 0 {
                 return false; // reflex or flat corner
             }
             // No other vertex inside or on the candidate ear.
-            idx.iter().all(|&j| {
-                let q = p[j];
-                q == a
-                    || q == b
-                    || q == c
-                    || !(orient(a, b, q) * s >= 0 && orient(b, c, q) * s >= 0 && orient(c, a, q) * s >= 0)
+            idx.iter().all(|&q| {
+                same(q, a)
+                    || same(q, b)
+                    || same(q, c)
+                    || !(orient(a, b, q) * area_sign >= 0
+                        && orient(b, c, q) * area_sign >= 0
+                        && orient(c, a, q) * area_sign >= 0)
             })
         });
         let Some(i) = ear else {
             return Err("self-intersecting polygon: cannot be triangulated");
         };
-        tris.push(vec![p[idx[(i + k - 1) % k]], p[idx[i]], p[idx[(i + 1) % k]]]);
+        tris.push([idx[(i + k - 1) % k], idx[i], idx[(i + 1) % k]]);
         idx.remove(i);
     }
-    tris.push(idx.iter().map(|&i| p[i]).collect());
+    tris.push([idx[0], idx[1], idx[2]]);
     Ok(tris)
+}
+
+/// Triangles (vertex index triples) of a polygon given by its mesh positions (f64): ear
+/// clipping in the projection on the plane its Newell normal is most orthogonal to. For the
+/// polygons quantisation folds (a small quad whose lattice vertices overlap in projection): the
+/// mesh's own polygon is simple, so its triangles are, before quantisation.
+pub fn triangulate_f64(p: &[[f64; 3]]) -> std::result::Result<Vec<[usize; 3]>, &'static str> {
+    let k = p.len();
+    let mut n = [0.0f64; 3];
+    for i in 0..k {
+        let (a, b) = (p[i], p[(i + 1) % k]);
+        n[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        n[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        n[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    if n.iter().any(|c| !c.is_finite()) {
+        return Err("non-finite polygon");
+    }
+    let axis = (0..3).max_by(|&i, &j| n[i].abs().total_cmp(&n[j].abs())).unwrap_or(2);
+    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+    let sign = |x: f64| {
+        if x > 0.0 {
+            1
+        } else if x < 0.0 {
+            -1
+        } else {
+            0
+        }
+    };
+    let orient = |a: usize, b: usize, c: usize| {
+        let (a, b, c) = (p[a], p[b], p[c]);
+        sign((b[u] - a[u]) * (c[v] - a[v]) - (b[v] - a[v]) * (c[u] - a[u]))
+    };
+    ear_clip_indices(k, sign(n[axis]), orient, |i, j| p[i] == p[j])
 }
 
 /// Plane ids by exact oriented plane (primitive normal, offset): the first facet's id.
@@ -494,8 +544,18 @@ pub fn prepare(mesh: &Mesh, cfg: &LoadConfig) -> Result<Prepared> {
     let open = crate::scene::meshops::open_faces(mesh);
     for (fi, face) in mesh.faces.iter().enumerate() {
         let lat: Vec<[i64; 3]> = face.verts.iter().map(|&v| fit.to_lattice(mesh.positions[v as usize])).collect();
-        let (pieces, split) = planar_pieces(lat)
-            .map_err(|why| anyhow::anyhow!("{}: face {} ({} vertices): {why}", mesh.name, fi + 1, face.verts.len()))?;
+        let (pieces, split) = match planar_pieces(lat.clone()) {
+            Ok(pieces) => pieces,
+            // Quantisation can fold a small polygon that is simple in the mesh: split the mesh's
+            // own polygon and quantise its triangles (those it flattens are skipped, counted).
+            Err(why) => {
+                let world: Vec<[f64; 3]> = face.verts.iter().map(|&v| mesh.positions[v as usize]).collect();
+                let tris = triangulate_f64(&world).map_err(|_| {
+                    anyhow::anyhow!("{}: face {} ({} vertices): {why}", mesh.name, fi + 1, face.verts.len())
+                })?;
+                (tris.into_iter().map(|t| dedup_cyclic(t.map(|i| lat[i]).to_vec())).collect(), true)
+            }
+        };
         out.polygons_split += split as usize;
         for piece in pieces {
             let nrm = polygon_normal(&piece);
@@ -538,4 +598,74 @@ pub fn prepare(mesh: &Mesh, cfg: &LoadConfig) -> Result<Prepared> {
         bail!("{}: every facet is degenerate after quantisation: nothing to voxelize", mesh.name);
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{Face, Material};
+
+    /// Twice the signed area of a polygon's projection on axes (u, v), in f64.
+    fn area2(p: &[[f64; 3]], u: usize, v: usize) -> f64 {
+        (0..p.len()).map(|i| p[i][u] * p[(i + 1) % p.len()][v] - p[(i + 1) % p.len()][u] * p[i][v]).sum()
+    }
+
+    /// A small quad of a rotated Suzanne, simple in the mesh, that the 1/16-voxel lattice
+    /// folds at n = 64: its lattice polygon overlaps itself (zero projected area), which the
+    /// precompute refused for the whole mesh. Now the mesh's own quad is split into triangles
+    /// before quantisation: the mesh loads, the quad's pieces are triangles of its own vertices
+    /// (or skipped as degenerate, counted), and the triangles cover the quad: their projected
+    /// areas sum to its own in f64.
+    #[test]
+    fn a_quad_that_quantisation_folds_is_split_not_refused() {
+        let quad = [
+            [-1.988194, 0.373821, 5.111843],
+            [-1.956551, 0.384146, 5.065068],
+            [-2.099595, 0.450383, 5.14733],
+            [-2.068451, 0.384179, 5.098982],
+        ];
+        // A triangle spanning the rotated mesh's bounding box sets the same fit.
+        let (lo, hi) = ([-3.280888, -1.187599, 3.404089], [-1.255502, 1.189965, 5.273136]);
+        let mut positions = vec![lo, [hi[0], hi[1], lo[2]], [lo[0], hi[1], hi[2]]];
+        positions.extend(quad);
+        let mesh = Mesh {
+            name: "folded-quad".into(),
+            positions,
+            faces: vec![Face { verts: vec![0, 1, 2], material: 0 }, Face { verts: vec![3, 4, 5, 6], material: 0 }],
+            materials: vec![Material::default()],
+            ..Default::default()
+        };
+        let cfg = LoadConfig::watertight(64);
+        let fit = fit(&mesh, 64).unwrap();
+        let lat: Vec<[i64; 3]> = quad.iter().map(|&p| fit.to_lattice(p)).collect();
+        assert!(planar_pieces(lat.clone()).is_err(), "the premise: the lattice folds this quad");
+
+        let out = prepare(&mesh, &cfg).expect("the mesh loads");
+        assert_eq!(out.polygons_split, 1);
+        let pieces: Vec<&Vec<[i64; 3]>> =
+            out.polygons.iter().zip(&out.source_face).filter(|(_, &f)| f == 1).map(|(p, _)| p).collect();
+        assert_eq!(pieces.len() + out.skipped_degenerate, 2, "two triangles, kept or skipped as degenerate");
+        assert!(pieces.iter().all(|p| p.len() == 3 && p.iter().all(|v| lat.contains(v))));
+        let tris = triangulate_f64(&quad).unwrap();
+        assert_eq!(tris.len(), 2);
+        for (u, v) in [(0, 1), (1, 2), (2, 0)] {
+            let whole = area2(&quad, u, v);
+            let parts: f64 = tris.iter().map(|t| area2(&t.map(|i| quad[i]), u, v)).sum();
+            assert!((whole - parts).abs() <= 1e-12 * whole.abs().max(1e-9), "axes ({u}, {v}): {whole} vs {parts}");
+        }
+    }
+
+    /// A polygon that overlaps itself in the mesh (a bowtie) is still refused: there is no
+    /// simple polygon to split.
+    #[test]
+    fn a_bowtie_in_the_mesh_is_still_refused() {
+        let bowtie = [[0.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        assert!(triangulate_f64(&bowtie).is_err());
+        let l_shape =
+            [[0.0, 0.0, 1.0], [2.0, 0.0, 1.0], [2.0, 1.0, 1.0], [1.0, 1.0, 1.0], [1.0, 2.0, 1.0], [0.0, 2.0, 1.0]];
+        let tris = triangulate_f64(&l_shape).unwrap();
+        assert_eq!(tris.len(), 4);
+        let parts: f64 = tris.iter().map(|t| area2(&t.map(|i| l_shape[i]), 0, 1)).sum();
+        assert!((parts - 6.0).abs() < 1e-12, "the L's area twice: {parts}");
+    }
 }
