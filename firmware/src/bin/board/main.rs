@@ -43,6 +43,7 @@ mod cmsdk;
 #[path = "../../exit.rs"]
 mod exit;
 mod safra;
+mod tiles;
 mod uart;
 #[path = "../../vectors.rs"]
 mod vectors;
@@ -66,10 +67,16 @@ pub const KIND_CONFIG: u8 = 0x60;
 pub const KIND_REPORT: u8 = 0x61;
 /// Board → neighbour: one data frame of the exercise.
 pub const KIND_DATA: u8 = 0x62;
-/// Bytes per link buffer (the longest frame: the report's 3 + 1 + 1 + 4 × 28 + 4 = 121 B).
-const LINK_BUF: usize = 128;
+/// Bytes per link buffer: the longest frame, a row packet between boards in the tile exercise
+/// (3 + 1 + 4 + 73 + 8 × 20 + 4 = 245 B), or a cell's report (3 + 1 + 22 + 2 × 16 × 8 + 4 =
+/// 286 B).
+pub const LINK_BUF: usize = 320;
+
+/// The longest frame of the link and termination exercises on a neighbour link (the report's
+/// 3 + 1 + 1 + 4 × 28 + 4 = 121 B goes to the host).
+const SHORT_FRAME: usize = 128;
 /// Microseconds before an unacknowledged frame is sent again.
-const TIMEOUT_US: u64 = 50_000;
+pub const TIMEOUT_US: u64 = 50_000;
 /// The core clock of the MPS2 FPGA images (QEMU's `mps2-an386` too).
 const CORE_HZ: u64 = 25_000_000;
 
@@ -179,7 +186,17 @@ fn main() -> ! {
     unsafe { (*cortex_m::peripheral::NVIC::PTR).iser[0].write(u32::MAX) };
     let mut board = Board {
         uarts: core::array::from_fn(Uart::new),
-        links: core::array::from_fn(|_| SerialLink::new(TIMEOUT_US)),
+        // The host link carries the tile exercise's long frames from the start; the neighbour
+        // links carry the link and termination exercises' short ones unless the tile exercise
+        // lifts their limit (a short limit resynchronises faster after a corrupted length).
+        links: core::array::from_fn(|i| {
+            let link = SerialLink::new(TIMEOUT_US);
+            if i == 0 {
+                link
+            } else {
+                link.with_max_frame(SHORT_FRAME)
+            }
+        }),
         clock: Clock::new(peripherals.SYST),
     };
 
@@ -201,6 +218,10 @@ fn main() -> ! {
         if let Some(config) = safra::Config::parse(f.kind, p) {
             board.links[0].pop();
             safra::run(board, config);
+        }
+        if let Some(config) = tiles::Config::parse(f.kind, p) {
+            board.links[0].pop();
+            tiles::run(board, config);
         }
         board.links[0].pop();
     }
