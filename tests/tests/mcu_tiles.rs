@@ -1,6 +1,7 @@
 //! Tiles of cells on a grid of microcontrollers: 2 × 2 emulated Cortex-M4F boards
 //! (`firmware/src/bin/board`, its tile exercise `tiles.rs`), each holding 4 × 4 cells of an
-//! 8 × 8 grid, load the Cornell box (its two blocks cast shadows) and light it from one source,
+//! 8 × 8 grid, load the Cornell box (its two blocks cast shadows) and light it from one source
+//! beside the corner the four boards share,
 //! asynchronously, over serial links between QEMU processes (`rc2_tests::boards`): loading
 //! packets and beams cross board edges as frames, a beam to a diagonal neighbour is forwarded
 //! by a side neighbour, and the boards detect the end of each phase themselves (Safra's ring).
@@ -49,6 +50,8 @@ const KIND_TILE_LIGHT: u8 = 0x6A;
 const KIND_PIPE: u8 = 0x6B;
 const KIND_TILE_CELL: u8 = 0x6E;
 const KIND_TILE_STATE: u8 = 0x6F;
+/// The light, in fractions of the scene's box (x, y up, z).
+const LIGHT: [f64; 3] = [0.4, 0.5, 0.45];
 /// Dexels and lit runs a cell report carries at most (the board's `REPORTED`).
 const REPORTED: usize = 16;
 
@@ -70,7 +73,9 @@ fn case() -> Case {
     let mesh = host_sim::scene::load("cornell").unwrap();
     let cfg = LoadConfig::watertight(N);
     let loaded = load_scene(&mesh, &cfg).unwrap();
-    let lights = resolve_lights(&mesh, &loaded, &[[0.5, 0.8, 0.45]]).unwrap();
+    // Halfway up, between the blocks, at a cell beside the corner the four boards share: its
+    // beams cross board edges every way, diagonally too.
+    let lights = resolve_lights(&mesh, &loaded, &[LIGHT]).unwrap();
     let sources: Vec<Source> = lights.iter().enumerate().map(|(i, p)| source_at(i, *p, N).unwrap()).collect();
     let light = LightConfig { skip_receding: false, skip_dead_directions: false, ..Default::default() };
     let packets = prepare(&mesh, &cfg).unwrap().packets;
@@ -156,11 +161,12 @@ struct BoardState {
     peak_work: u32,
     retransmitted: u32,
     skipped: u32,
+    stack: u32,
     count: i32,
 }
 
 fn parse_state(p: &[u8]) -> (u8, BoardState) {
-    assert_eq!(p.len(), 1 + 13 * 4 + 4, "state length");
+    assert_eq!(p.len(), 1 + 14 * 4 + 4, "state length");
     let u = |i: usize| u32::from_le_bytes(p[1 + 4 * i..5 + 4 * i].try_into().unwrap());
     let st = BoardState {
         sent: u(0),
@@ -176,7 +182,8 @@ fn parse_state(p: &[u8]) -> (u8, BoardState) {
         peak_work: u(10),
         retransmitted: u(11),
         skipped: u(12),
-        count: u(13) as i32,
+        stack: u(13),
+        count: u(14) as i32,
     };
     (p[0], st)
 }
@@ -327,6 +334,7 @@ fn check(c: &Case, r: &TileRun, what: &str) {
         );
         assert!(s.tokens > 0 && s.loads > 0, "{what}: board {b} never forwarded the token or loaded: {s:?}");
     }
+    assert!(sum(|s| s.forwarded) > 0, "{what}: no beam crossed a board corner (the light was put beside one)");
 }
 
 fn report(c: &Case, r: &TileRun, what: &str) {
@@ -334,7 +342,7 @@ fn report(c: &Case, r: &TileRun, what: &str) {
     eprintln!(
         "{what}: {} cells, {} occupied and {} lit voxels equal host-sim's; declared {:?}; wall {:?}; {} basic \
          frames ({} forwarded at corners), {} retransmissions, {} bytes skipped, {} bytes relayed, {} faults; \
-         peak arrived beams {}, peak work {}",
+         peak arrived beams {}, peak work {}, peak stack {} B",
         r.cells.len(),
         c.occupied(),
         c.lit(),
@@ -348,6 +356,7 @@ fn report(c: &Case, r: &TileRun, what: &str) {
         r.injected,
         r.states.iter().map(|s| s.peak_arrived).max().unwrap_or(0),
         r.states.iter().map(|s| s.peak_work).max().unwrap_or(0),
+        r.states.iter().map(|s| s.stack).max().unwrap_or(0),
     );
 }
 
@@ -397,9 +406,12 @@ fn a_slow_board_never_makes_the_ring_declare_early() {
     }
     let c = the_case();
     let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
-    // Board 3 (the source's) gets every byte on its links 100 ms late, both ways (a delay
-    // line): a token round over the other links takes less.
-    let r = run_tiles(c, CLEAN, Some((3, Duration::from_millis(100))));
-    report(c, &r, "slow board 3");
-    check(c, &r, "slow board 3");
+    // The source's board gets every byte on its links 100 ms late, both ways (a delay line):
+    // a token round over the other links takes less, and its beams are still on their way
+    // while the others are passive.
+    let (slow, _) = c.initial_beams();
+    let what = format!("slow board {slow} (the source's)");
+    let r = run_tiles(c, CLEAN, Some((slow, Duration::from_millis(100))));
+    report(c, &r, &what);
+    check(c, &r, &what);
 }

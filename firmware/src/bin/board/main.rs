@@ -4,9 +4,11 @@
 //! `cell_core::wire` frames through a [`SerialLink`] (sequence numbers, acknowledgement,
 //! retransmission, resynchronisation after corrupted or dropped bytes).
 //!
-//! A board runs one of two exercises (tests/tests/mcu_grid.rs), chosen by the host's
-//! configuration frame; they prove the links and the termination detection, not yet a tile of
-//! cells. The **termination exercise** is in [`safra`]. The **link exercise**:
+//! A board runs one of three exercises, chosen by the host's configuration frame. The **tile
+//! exercise** ([`tiles`], tests/tests/mcu_tiles.rs) holds a tile of cells that loads and lights
+//! a scene with the other boards; the **termination exercise** ([`safra`],
+//! tests/tests/mcu_grid.rs) detects the end of a synthetic computation; the **link exercise**
+//! (tests/tests/mcu_grid.rs) proves the links:
 //!
 //! 1. The host sends a configuration on UART 0 ([`KIND_CONFIG`]: this board's id, its
 //!    neighbours' ids on links E, N, W, S — UARTs 1 … 4, `0xFF` where there is none — and how
@@ -43,12 +45,16 @@ mod cmsdk;
 #[path = "../../exit.rs"]
 mod exit;
 mod safra;
+#[path = "../../stack.rs"]
+mod stack;
 mod tiles;
 mod uart;
 #[path = "../../vectors.rs"]
 mod vectors;
 
 use cell_core::serial::{SerialLink, SerialStats};
+use cell_core::termination::Token;
+use cell_core::wire::{put_token, SliceWriter, KIND_TOKEN};
 use cortex_m_rt::entry;
 use embedded_io::ReadReady;
 use heapless::Vec;
@@ -165,6 +171,13 @@ impl Board {
     }
 }
 
+/// Hand termination token `t` to `link` (the ring's next position); whether it took it.
+pub fn send_token(link: &mut SerialLink<LINK_BUF>, t: &Token) -> bool {
+    let mut buf = [0u8; 8];
+    let mut w = SliceWriter::new(&mut buf);
+    put_token(&mut w, t).is_ok() && link.send(KIND_TOKEN, w.written()).is_ok()
+}
+
 /// [`Board::wait`] on these UARTs.
 fn wait(uarts: &mut [Uart; 5]) {
     cortex_m::interrupt::free(|_| {
@@ -178,6 +191,9 @@ fn wait(uarts: &mut [Uart; 5]) {
 
 #[entry]
 fn main() -> ! {
+    // The stack's high-water mark, which the tile exercise reports (the board's state lives on
+    // its stack).
+    stack::paint();
     let peripherals = cortex_m::Peripherals::take().unwrap_or_else(|| panic!("peripherals taken twice"));
     // Every interrupt line of the board to the default handler: the UARTs' are the ones
     // enabled at their source.

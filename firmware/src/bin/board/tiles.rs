@@ -52,15 +52,15 @@ use cell_core::termination::{Action, Node, Token};
 use cell_core::trace::{self, kind, LightSetup};
 use cell_core::voxelize::PipelineCell;
 use cell_core::wire::{
-    get_beam, get_pipe, get_row, get_token, put_beam, put_pipe, put_row, put_token, read_frame, PutExt, Reader,
-    SliceWriter, KIND_BEAM, KIND_TOKEN,
+    get_beam, get_pipe, get_row, get_token, put_beam, put_pipe, put_row, read_frame, PutExt, Reader, SliceWriter,
+    KIND_BEAM, KIND_TOKEN,
 };
 use heapless::{Deque, Vec};
 
 use crate::safra::{KIND_DONE, KIND_QUERY, KIND_START};
 use cell_core::serial::SerialLink;
 
-use crate::{Board, LINKS, LINK_BUF, NONE, TIMEOUT_US};
+use crate::{send_token, stack, Board, LINKS, LINK_BUF, NONE, TIMEOUT_US};
 
 /// Host → board: the tile exercise's configuration: id u8, neighbour ids on E, N, W, S
 /// (4 × u8, `0xFF`: none), ring position u8, ring length u8, link to the next ring position u8
@@ -84,7 +84,8 @@ pub const KIND_TILE_CELL: u8 = 0x6E;
 /// Board → host: id u8, then u32 each: basic frames sent, basic frames received, frames
 /// forwarded (diagonal beams), tokens forwarded, late work, overflows and bad frames, beams
 /// misrouted, loading items processed, cell steps, peak arrived beams, peak work list, the
-/// neighbour links' retransmissions and skipped bytes; then the termination counter i32.
+/// neighbour links' retransmissions and skipped bytes, the stack's peak in bytes (the board's
+/// whole state lives on it); then the termination counter i32.
 pub const KIND_TILE_STATE: u8 = 0x6F;
 
 /// Largest tile side: the board's state is sized for [`SIDE`]² cells (board-memory.x).
@@ -525,8 +526,7 @@ fn tile(mut board: Board, c: Config, setup: LightSetup) -> ! {
                 continue;
             }
             if let (true, Some(t)) = (l == c.ring_next as usize, token) {
-                let mut w = SliceWriter::new(&mut buf);
-                if put_token(&mut w, &t).is_ok() && link.send(KIND_TOKEN, w.written()).is_ok() {
+                if send_token(link, &t) {
                     token = None;
                     st.tokens += 1;
                 }
@@ -635,6 +635,7 @@ fn state_report(c: &Config, st: &State, node: &Node, board: &Board, buf: &mut [u
         st.peak_work,
         retransmitted,
         skipped,
+        stack::peak() as u32,
     ] {
         let _ = w.u32(v);
     }
