@@ -59,6 +59,26 @@ pub struct Faults {
 
 pub const CLEAN: Faults = Faults { corrupt: 0, drop: 0, seed: 0 };
 
+/// Wires that deliver their bytes late (a delay line, [`relay`]).
+#[derive(Clone, Copy, Debug)]
+pub enum Slow {
+    /// Both directions of every link of the board.
+    Board(usize, Duration),
+    /// One direction of one link: the bytes board `from` sends board `to`.
+    Wire { from: usize, to: usize, delay: Duration },
+}
+
+impl Slow {
+    /// The delay of the bytes board `from` sends board `to`.
+    pub fn delay(self, from: usize, to: usize) -> Duration {
+        match self {
+            Slow::Board(b, d) if b == from || b == to => d,
+            Slow::Wire { from: f, to: t, delay } if (f, t) == (from, to) => delay,
+            _ => Duration::ZERO,
+        }
+    }
+}
+
 /// Neighbour of board `b` on link `l` (0 E, 1 N, 2 W, 3 S), if any; board `b` is at
 /// `(b % SIDE, b / SIDE)`, N is +y.
 pub fn neighbour(b: usize, l: usize) -> Option<usize> {
@@ -290,9 +310,9 @@ impl Booted {
     }
 }
 
-/// Boot the 2 × 2 grid of `elf` ([`board_elf`]), relaying with `faults`, the links of board
-/// `slow.0` held back `slow.1`; the run must end within `timeout`.
-pub fn boot(elf: &Path, faults: Faults, slow: Option<(usize, Duration)>, timeout: Duration) -> Booted {
+/// Boot the 2 × 2 grid of `elf` ([`board_elf`]), relaying with `faults`, the wires `slow`
+/// says late; the run must end within `timeout`.
+pub fn boot(elf: &Path, faults: Faults, slow: Option<Slow>, timeout: Duration) -> Booted {
     let boards = SIDE * SIDE;
     let t0 = Instant::now();
     let deadline = t0 + timeout;
@@ -357,8 +377,9 @@ pub fn boot(elf: &Path, faults: Faults, slow: Option<(usize, Duration)>, timeout
             let Some(c) = neighbour(b, l) else { continue };
             let here = socks[b][l + 1].take().unwrap();
             let there = socks[c][(l + 2) % 4 + 1].take().unwrap();
-            let delay = slow.filter(|&(s, _)| s == b || s == c).map_or(Duration::ZERO, |(_, d)| d);
-            for ends in [(here.try_clone().unwrap(), there.try_clone().unwrap()), (there, here)] {
+            let ends = [(here.try_clone().unwrap(), there.try_clone().unwrap()), (there, here)];
+            for (ends, (from, to)) in ends.into_iter().zip([(b, c), (c, b)]) {
+                let delay = slow.map_or(Duration::ZERO, |s| s.delay(from, to));
                 let stop = stop.clone();
                 stream += 1;
                 let s = stream;

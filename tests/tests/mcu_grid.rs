@@ -29,7 +29,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use rc2_tests::boards::{
-    board_elf, boot, neighbour, Booted, Faults, CLEAN, KIND_DONE, KIND_QUERY, KIND_START, NONE, ONE_GRID, RING,
+    board_elf, boot, neighbour, Booted, Faults, Slow, CLEAN, KIND_DONE, KIND_QUERY, KIND_START, NONE, ONE_GRID, RING,
     RING_NEXT, SIDE,
 };
 use rc2_tests::qemu;
@@ -262,11 +262,7 @@ fn query(g: &mut Booted) -> Vec<BoardState> {
 /// for ring position 0's two declarations (the work's phase, then the empty phase whose round
 /// tells every board of the first), then read every board's state twice, 300 ms apart.
 /// Returns the two readings and the time from start to declaration.
-fn run_termination(
-    work: Work,
-    faults: Faults,
-    slow: Option<(usize, Duration)>,
-) -> ([Vec<BoardState>; 2], Duration, u64) {
+fn run_termination(work: Work, faults: Faults, slow: Option<Slow>) -> ([Vec<BoardState>; 2], Duration, u64) {
     let mut g = boot(board_elf(Path::new(env!("CARGO_TARGET_TMPDIR"))), faults, slow, GRID_TIMEOUT);
     for (b, next) in RING_NEXT.into_iter().enumerate() {
         let position = RING.iter().position(|&r| r == b).unwrap();
@@ -344,7 +340,7 @@ fn the_boards_detect_termination_never_early_with_a_slow_board() {
     let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
     // Board 3's links deliver every byte 300 ms late, both ways (a token round over the
     // other links takes less).
-    let (states, declared, _) = run_termination(CHAIN, CLEAN, Some((3, Duration::from_millis(300))));
+    let (states, declared, _) = run_termination(CHAIN, CLEAN, Some(Slow::Board(3, Duration::from_millis(300))));
     eprintln!("slow board 3: declared {declared:?} after the start; states {states:?}");
     check_terminated(CHAIN, &states);
 }

@@ -33,7 +33,7 @@ use host_sim::machine::diffuse::{source_at, LightConfig};
 use host_sim::machine::loaded::{load_scene, resolve_lights};
 use host_sim::precompute::{prepare, LoadConfig};
 use rc2_tests::boards::{
-    board_elf, boot, neighbour, Booted, Faults, CLEAN, KIND_DONE, KIND_QUERY, KIND_START, NONE, ONE_GRID, RING,
+    board_elf, boot, neighbour, Booted, Faults, Slow, CLEAN, KIND_DONE, KIND_QUERY, KIND_START, NONE, ONE_GRID, RING,
     RING_NEXT, SIDE,
 };
 use rc2_tests::qemu;
@@ -222,7 +222,7 @@ struct TileRun {
 /// Configure the boards, hand board 0 the facets and the source's board its initial beams,
 /// start the ring, wait for the three declarations (loading, lighting, the empty phase that
 /// tells every board of the lighting's), then read every board's report.
-fn run_tiles(c: &Case, faults: Faults, slow: Option<(usize, Duration)>) -> TileRun {
+fn run_tiles(c: &Case, faults: Faults, slow: Option<Slow>) -> TileRun {
     let mut g = boot(board_elf(Path::new(env!("CARGO_TARGET_TMPDIR"))), faults, slow, TIMEOUT);
     let record = c.light_record();
     for (b, next) in RING_NEXT.into_iter().enumerate() {
@@ -411,7 +411,28 @@ fn a_slow_board_never_makes_the_ring_declare_early() {
     // while the others are passive.
     let (slow, _) = c.initial_beams();
     let what = format!("slow board {slow} (the source's)");
-    let r = run_tiles(c, CLEAN, Some((slow, Duration::from_millis(100))));
+    let r = run_tiles(c, CLEAN, Some(Slow::Board(slow, Duration::from_millis(100))));
     report(c, &r, &what);
     check(c, &r, &what);
+}
+
+#[test]
+fn a_late_wire_against_the_ring_never_makes_it_declare_early() {
+    if !qemu::tools_present("a_late_wire_against_the_ring_never_makes_it_declare_early") {
+        return;
+    }
+    let c = the_case();
+    let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
+    // The ring goes 0 → 1 → 3 → 2 → 0 over every link of the 2 × 2 boards, so a board's slow
+    // links slow its token too. Here only the bytes the source's board (2) sends board 3 are
+    // 300 ms late: that wire goes against the ring, and the light flows along it (east, away
+    // from the source), so a beam on it is overtaken by the token's way round 2 → 0 → 1 → 3,
+    // and a detector that finds every board passive declares the lighting with it in flight.
+    // (Checked by hand: with `Node::sent`/`received` taken out of the board, this run fails,
+    // board 3 seeing beams after the declaration; the slow-board run above does not.)
+    assert_eq!(c.initial_beams().0, 2, "the light is on board 2");
+    let slow = Slow::Wire { from: 2, to: 3, delay: Duration::from_millis(300) };
+    let r = run_tiles(c, CLEAN, Some(slow));
+    report(c, &r, "wire 2 → 3 late");
+    check(c, &r, "wire 2 → 3 late");
 }
