@@ -7,7 +7,9 @@
 //! by a side neighbour, and the boards detect the end of each phase themselves (Safra's ring).
 //!
 //! The oracle is host-sim's simulation of the same machine (`machine::async_tiles`, B = 4):
-//! every cell's dexels (span and facet) and lit voxels must be the boards'. The lit set does
+//! every cell's dexels (span and facet), lit voxels and pixel (`machine::shade::shade_grid` of
+//! that run; the boards shade with `cell_core::shade::cell_pixel` and the inputs
+//! `host-sim trace` records) must be the boards'. The lit set does
 //! not depend on timing, so the same holds with corrupted and dropped bytes on the links and
 //! with one board's links slowed down. Each run also fails if a board hangs (no declaration
 //! within [`TIMEOUT`]; every QEMU is killed on every path out), if a frame is lost (basic
@@ -26,11 +28,13 @@ use cell_core::beam::frac::U0;
 use cell_core::beam::{Beam, FarDistance, Source};
 use cell_core::facet::PipelinePacket;
 use cell_core::light::BeamMsg;
-use cell_core::trace::{write_event, Event, LightSetup};
+use cell_core::shade::{NormalMode, ShadeParams};
+use cell_core::trace::{write_event, Event, LightSetup, ShadeSetup};
 use cell_core::wire::{put_beam, put_pipe, PutExt, SliceWriter, KIND_BEAM};
 use host_sim::machine::async_tiles::{run, AsyncConfig};
 use host_sim::machine::diffuse::{source_at, LightConfig};
-use host_sim::machine::loaded::{load_scene, resolve_lights};
+use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
+use host_sim::machine::shade::{cell_material, eye_lights, point_lights, shade_grid, AMBIENT};
 use host_sim::precompute::{prepare, LoadConfig};
 use rc2_tests::boards::{
     board_elf, boot, neighbour, Booted, Faults, Slow, CLEAN, KIND_DONE, KIND_QUERY, KIND_START, NONE, ONE_GRID, RING,
@@ -50,13 +54,15 @@ const KIND_TILE_LIGHT: u8 = 0x6A;
 const KIND_PIPE: u8 = 0x6B;
 const KIND_TILE_CELL: u8 = 0x6E;
 const KIND_TILE_STATE: u8 = 0x6F;
+const KIND_TILE_SHADE: u8 = 0x70;
 /// The light, in fractions of the scene's box (x, y up, z).
 const LIGHT: [f64; 3] = [0.4, 0.5, 0.45];
 /// Dexels and lit runs a cell report carries at most (the board's `REPORTED`).
 const REPORTED: usize = 16;
 
-/// One cell as the boards or the oracle see it: dexels (lo, hi, facet) and lit voxels (z, mask).
-type CellView = (Vec<(u16, u16, u32)>, Vec<(u32, u32)>);
+/// One cell as the boards or the oracle see it: dexels (lo, hi, facet), lit voxels (z, mask)
+/// and pixel (its rgb, if the cell shows a surface).
+type CellView = (Vec<(u16, u16, u32)>, Vec<(u32, u32)>, Option<[u8; 3]>);
 
 /// The scene, the light, and what host-sim's boards make of it.
 struct Case {
@@ -64,6 +70,7 @@ struct Case {
     source: Source,
     light: LightConfig,
     depth: u32,
+    shade: ShadeSetup,
     cells: BTreeMap<(u16, u16), CellView>,
 }
 
@@ -81,15 +88,29 @@ fn case() -> Case {
     let packets = prepare(&mesh, &cfg).unwrap().packets;
     let r = run::<U0>(&packets, N, &sources, &light, &AsyncConfig { tile: TILE, ..Default::default() }).unwrap();
     assert_eq!(r.early, None);
+    // The shading inputs a cell gets (as `host-sim trace` records them), and the pixels
+    // host-sim shades from the boards' lit state.
+    let shade = ShadeSetup {
+        params: ShadeParams { ambient: [AMBIENT; 3], normal_mode: NormalMode::Facet, eye: loaded.eye },
+        lights: eye_lights(&loaded.eye, &point_lights(&lights)).into_iter().collect(),
+        materials: mesh.materials.iter().map(cell_material).collect(),
+    };
     let mut cells: BTreeMap<(u16, u16), CellView> = BTreeMap::new();
     for c in &r.grid.cells {
         let dexels = c.store.dexels().iter().map(|d| (d.span.lo, d.span.hi, d.facet)).collect();
-        cells.insert((c.x, c.y), (dexels, Vec::new()));
+        cells.insert((c.x, c.y), (dexels, Vec::new(), None));
     }
     for ([x, y, z], mask) in r.lighting.lit_voxels() {
         cells.get_mut(&(x as u16, y as u16)).unwrap().1.push((z, mask));
     }
-    Case { packets, source: sources[0], light, depth: loaded.grid.depth, cells }
+    let depth = loaded.grid.depth;
+    let scene = LoadedScene { grid: r.grid, ..loaded };
+    let img = shade_grid(&mesh, &scene, &point_lights(&lights), &r.lighting, NormalMode::Facet);
+    for ((x, y), view) in cells.iter_mut() {
+        let i = *y as usize * N as usize + *x as usize;
+        view.2 = img.covered[i].then_some(img.rgb[i]);
+    }
+    Case { packets, source: sources[0], light, depth, shade, cells }
 }
 
 impl Case {
@@ -112,6 +133,13 @@ impl Case {
         };
         let mut buf = [0u8; 256];
         let n = write_event::<U0>(&Event::Light(setup), &mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    /// The shading record every board gets.
+    fn shade_record(&self) -> Vec<u8> {
+        let mut buf = [0u8; 1024];
+        let n = write_event::<U0>(&Event::Shade(self.shade.clone()), &mut buf).unwrap();
         buf[..n].to_vec()
     }
 
@@ -196,7 +224,8 @@ fn parse_cell(p: &[u8]) -> ((u16, u16), CellView, [u32; 4]) {
     let (x, y, nd, nr) = (u16_at(0), u16_at(2), p[4] as usize, p[5] as usize);
     assert!(nd <= REPORTED && nr <= REPORTED, "cell ({x}, {y}): {nd} dexels, {nr} runs: more than a report holds");
     let counters = [u32_at(6), u32_at(10), u32_at(14), u32_at(18)];
-    let base = 22;
+    let pixel = (p[22] != 0).then(|| [p[23], p[24], p[25]]);
+    let base = 26;
     assert_eq!(p.len(), base + 8 * (nd + nr), "cell report length");
     let dexels = (0..nd).map(|i| (u16_at(base + 8 * i), u16_at(base + 8 * i + 2), u32_at(base + 8 * i + 4))).collect();
     let mut lit = Vec::new();
@@ -205,7 +234,7 @@ fn parse_cell(p: &[u8]) -> ((u16, u16), CellView, [u32; 4]) {
         let (lo, hi, mask) = (u32::from(u16_at(o)), u32::from(u16_at(o + 2)), u32_at(o + 4));
         lit.extend((lo..=hi).map(|z| (z, mask)));
     }
-    ((x, y), (dexels, lit), counters)
+    ((x, y), (dexels, lit, pixel), counters)
 }
 
 /// What a run gave: every cell's view, every board's state, when each phase was declared
@@ -224,7 +253,7 @@ struct TileRun {
 /// tells every board of the lighting's), then read every board's report.
 fn run_tiles(c: &Case, faults: Faults, slow: Option<Slow>) -> TileRun {
     let mut g = boot(board_elf(Path::new(env!("CARGO_TARGET_TMPDIR"))), faults, slow, TIMEOUT);
-    let record = c.light_record();
+    let (record, shading) = (c.light_record(), c.shade_record());
     for (b, next) in RING_NEXT.into_iter().enumerate() {
         let position = RING.iter().position(|&r| r == b).unwrap();
         let mut config = vec![b as u8];
@@ -238,6 +267,7 @@ fn run_tiles(c: &Case, faults: Faults, slow: Option<Slow>) -> TileRun {
         config.extend((c.depth as u16).to_le_bytes());
         g.send(b, KIND_TILE_CONFIG, &config);
         g.send(b, KIND_TILE_LIGHT, &record);
+        g.send(b, KIND_TILE_SHADE, &shading);
     }
     for p in &c.packets {
         let mut buf = [0u8; 512];
@@ -318,10 +348,11 @@ fn query(g: &mut Booted) -> (BTreeMap<(u16, u16), CellView>, Vec<BoardState>) {
 /// overflowed.
 fn check(c: &Case, r: &TileRun, what: &str) {
     assert_eq!(r.cells.len(), (N * N) as usize, "{what}: every cell reported");
-    for (xy, (dexels, lit)) in &c.cells {
+    for (xy, (dexels, lit, pixel)) in &c.cells {
         let got = &r.cells[xy];
         assert_eq!(&got.0, dexels, "{what}: dexels of cell {xy:?}");
         assert_eq!(&got.1, lit, "{what}: lit voxels of cell {xy:?}");
+        assert_eq!(&got.2, pixel, "{what}: pixel of cell {xy:?}");
     }
     let sum = |f: fn(&BoardState) -> u32| r.states.iter().map(f).sum::<u32>();
     assert_eq!(sum(|s| s.sent), sum(|s| s.received), "{what}: basic frames lost or in flight: {:?}", r.states);
@@ -340,12 +371,13 @@ fn check(c: &Case, r: &TileRun, what: &str) {
 fn report(c: &Case, r: &TileRun, what: &str) {
     let sum = |f: fn(&BoardState) -> u32| r.states.iter().map(f).sum::<u32>();
     eprintln!(
-        "{what}: {} cells, {} occupied and {} lit voxels equal host-sim's; declared {:?}; wall {:?}; {} basic \
+        "{what}: {} cells, {} occupied and {} lit voxels and {} pixels equal host-sim's; declared {:?}; wall {:?}; {} basic \
          frames ({} forwarded at corners), {} retransmissions, {} bytes skipped, {} bytes relayed, {} faults; \
          peak arrived beams {}, peak work {}, peak stack {} B",
         r.cells.len(),
         c.occupied(),
         c.lit(),
+        c.cells.values().filter(|v| v.2.is_some()).count(),
         r.declared,
         r.wall,
         sum(|s| s.sent),

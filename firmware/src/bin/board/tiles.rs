@@ -48,12 +48,14 @@ use cell_core::beam::{FarDistance, SplitOrder};
 use cell_core::cell::{Cell, DEFAULT_DEXELS, FA_CAP, LIT_CAP, OB_CAP};
 use cell_core::facet::{PipelinePacket, RowPacket};
 use cell_core::light::{ActivityDelta, BeamMsg, LightCell, Port};
+use cell_core::lit::LitRule;
+use cell_core::shade::cell_pixel;
 use cell_core::termination::{Action, Node, Token};
-use cell_core::trace::{self, kind, LightSetup};
+use cell_core::trace::{self, kind, LightSetup, ShadeSetup};
 use cell_core::voxelize::PipelineCell;
 use cell_core::wire::{
-    get_beam, get_pipe, get_row, get_token, put_beam, put_pipe, put_row, read_frame, PutExt, Reader, SliceWriter,
-    KIND_BEAM, KIND_TOKEN,
+    get_beam, get_pipe, get_row, get_token, put_beam, put_pipe, put_row, read_frame, ByteSink, PutExt, Reader,
+    SliceWriter, KIND_BEAM, KIND_TOKEN,
 };
 use heapless::{Deque, Vec};
 
@@ -78,9 +80,15 @@ pub const KIND_ROW_AT: u8 = 0x6C;
 pub const KIND_TILE_BEAM: u8 = 0x6D;
 /// Board → host: one cell: x u16, y u16, dexels u8, lit runs u8, dexel-store overflows u32,
 /// lost voxels u32, lit-store overflows u32, still busy u32 (0 or 1: a beam left in the cell),
-/// then up to [`REPORTED`]
+/// its pixel (a flag u8, 1 when shaded, and rgb 3 × u8: `cell_core::shade::cell_pixel` under
+/// the light setup's lit rule with the [`KIND_TILE_SHADE`] inputs; flag 0 without a visible
+/// surface or before the shading record came), then up to [`REPORTED`]
 /// dexels (lo u16, hi u16, facet u32) and as many lit runs (lo u16, hi u16, mask u32).
 pub const KIND_TILE_CELL: u8 = 0x6E;
+/// Host → board: the shading inputs (materials, lights, ambient, eye), a whole
+/// `cell_core::trace` shading record; the cells shade their pixels when the host asks for the
+/// report, after the lighting was declared.
+pub const KIND_TILE_SHADE: u8 = 0x70;
 /// Board → host: id u8, then u32 each: basic frames sent, basic frames received, frames
 /// forwarded (diagonal beams), tokens forwarded, late work, overflows and bad frames, beams
 /// misrouted, loading items processed, cell steps, peak arrived beams, peak work list, the
@@ -336,6 +344,7 @@ fn tile(mut board: Board, c: Config, setup: LightSetup) -> ! {
     let mut st = State::default();
     let mut done_due: Deque<u16, 4> = Deque::new();
     let mut report_next: Option<usize> = None;
+    let mut shade: Option<ShadeSetup> = None;
     let mut buf = [0u8; LINK_BUF];
     loop {
         let now = board.now();
@@ -414,6 +423,10 @@ fn tile(mut board: Board, c: Config, setup: LightSetup) -> ! {
                         }
                     }
                     _ => st.overflows += 1,
+                },
+                KIND_TILE_SHADE => match shade_setup(f.payload) {
+                    Some(sh) => shade = Some(sh),
+                    None => st.overflows += 1,
                 },
                 KIND_START => started = true,
                 KIND_QUERY => report_next = Some(0),
@@ -567,7 +580,7 @@ fn tile(mut board: Board, c: Config, setup: LightSetup) -> ! {
                 let _ = board.links[0].send(KIND_DONE, &p.to_le_bytes());
             } else if let Some(i) = report_next {
                 let n = if i < slots.len() {
-                    cell_report(&slots[i], &mut buf)
+                    cell_report(&slots[i], setup.rule, shade.as_ref(), &mut buf)
                 } else {
                     state_report(&c, &st, &node, &board, &mut buf)
                 };
@@ -583,9 +596,25 @@ fn tile(mut board: Board, c: Config, setup: LightSetup) -> ! {
     }
 }
 
+/// The shading inputs of a trace shading record.
+fn shade_setup(bytes: &[u8]) -> Option<ShadeSetup> {
+    let (raw, _) = read_frame(bytes).ok()?;
+    if raw.kind != kind::SHADE {
+        return None;
+    }
+    let mut r = Reader::new(raw.payload);
+    let s = trace::get_shade_setup(&mut r).ok()?;
+    r.finish().ok()?;
+    Some(s)
+}
+
 /// A [`KIND_TILE_CELL`] body into `buf`; returns its length.
-fn cell_report(s: &Slot, buf: &mut [u8]) -> usize {
+fn cell_report(s: &Slot, rule: LitRule, shade: Option<&ShadeSetup>, buf: &mut [u8]) -> usize {
     let (store, lit) = (&s.cell.store, &s.light.lit);
+    let pixel = shade.and_then(|sh| {
+        let reached = |z| lit.mask_at(z);
+        cell_pixel(rule, &s.cell, reached, s.light.visible_lit, &sh.materials, &sh.lights, &sh.params)
+    });
     let mut w = SliceWriter::new(buf);
     let dexels = &store.dexels()[..store.dexels().len().min(REPORTED)];
     let runs = &lit.runs()[..lit.runs().len().min(REPORTED)];
@@ -597,6 +626,8 @@ fn cell_report(s: &Slot, buf: &mut [u8]) -> usize {
         for v in [store.overflows(), store.lost_voxels(), lit.overflows(), u32::from(s.light.busy())] {
             w.u32(v)?;
         }
+        w.u8(u8::from(pixel.is_some()))?;
+        w.put(&pixel.map_or([0; 3], |p| p.rgb))?;
         for d in dexels {
             w.u16(d.span.lo)?;
             w.u16(d.span.hi)?;
