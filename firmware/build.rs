@@ -1,5 +1,8 @@
 //! Link against the top-level `memory.x` (the per-cell budget: 256 KiB flash, 64 KiB RAM, laid
-//! out for QEMU's mps2-an386) and cortex-m-rt's `link.x`; embed the cell traces to replay.
+//! out for QEMU's mps2-an386) and cortex-m-rt's `link.x`; embed the cell traces to replay. The
+//! `board` binary (a tile of cells of the grid of boards) links against `board-memory.x`
+//! instead (512 KiB of RAM): each binary gets its own `memory.x` directory as a linker search
+//! path (`cargo:rustc-link-arg-bin`), where `link.x`'s `INCLUDE memory.x` finds it.
 //!
 //! Traces: every `*.rc2t` file of `$RC2_TRACE_DIR` (the QEMU test records them from a host-sim
 //! run and points this variable at them), or of `firmware/traces/`, and of the directories
@@ -18,12 +21,24 @@ fn main() {
     let out = PathBuf::from(env::var_os("OUT_DIR").unwrap());
     let root = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").unwrap());
     let memory_x = root.join("../memory.x");
-    fs::copy(&memory_x, out.join("memory.x")).expect("copy ../memory.x");
+    let board_memory_x = root.join("board-memory.x");
+    // An older build's copy in the shared search path would shadow the per-binary ones.
+    let _ = fs::remove_file(out.join("memory.x"));
+    for (bins, from, dir) in
+        [(&["rc2-firmware", "cell"][..], &memory_x, "cell-memory"), (&["board"][..], &board_memory_x, "board-memory")]
+    {
+        let d = out.join(dir);
+        fs::create_dir_all(&d).expect("create a memory.x directory");
+        fs::copy(from, d.join("memory.x")).unwrap_or_else(|e| panic!("copy {}: {e}", from.display()));
+        for bin in bins {
+            println!("cargo:rustc-link-arg-bin={bin}=-L{}", d.display());
+        }
+        println!("cargo:rerun-if-changed={}", from.display());
+    }
     // cortex-m-rt's `device` feature includes `device.x` (handler aliases of a device crate);
     // the firmware's interrupt vectors (src/vectors.rs) all use the default handler.
     fs::write(out.join("device.x"), "/* no device-specific handlers: see src/vectors.rs */\n").expect("write device.x");
     println!("cargo:rustc-link-search={}", out.display());
-    println!("cargo:rerun-if-changed={}", memory_x.display());
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rustc-link-arg=-Tlink.x");
     if env::var_os("CARGO_FEATURE_DEFMT").is_some() {

@@ -185,6 +185,9 @@ pub struct SerialLink<const N: usize> {
     tx_pos: usize,
     tx_is_data: bool,
     timeout: u64,
+    /// The longest frame either end sends on this link ([`SerialLink::with_max_frame`]; `N`
+    /// by default): a header announcing more is not a frame.
+    max_frame: usize,
     stats: SerialStats,
 }
 
@@ -213,6 +216,7 @@ impl<const N: usize> SerialLink<N> {
             tx_pos: 0,
             tx_is_data: false,
             timeout,
+            max_frame: N,
             stats: SerialStats {
                 sent: 0,
                 retransmitted: 0,
@@ -224,6 +228,18 @@ impl<const N: usize> SerialLink<N> {
                 stray: 0,
             },
         }
+    }
+
+    /// This link with frames of at most `max` bytes (header, sequence number, body and CRC;
+    /// capped at `N`), both ways: [`SerialLink::send`] refuses a longer one
+    /// ([`SendError::TooLong`]), and the receiver's hunt treats a header announcing a longer one
+    /// as noise at once. Both ends of a link must agree. A link whose buffer must hold long
+    /// frames for one use but carries only short ones in another resynchronises faster with the
+    /// short limit: a corrupted length it would otherwise wait for (receiving retransmissions
+    /// into the bogus frame until it is complete, or stale) costs it only one skipped byte.
+    pub const fn with_max_frame(mut self, max: usize) -> Self {
+        self.max_frame = if max < N { max } else { N };
+        self
     }
 
     /// What the link did so far.
@@ -258,6 +274,9 @@ impl<const N: usize> SerialLink<N> {
             w.put(&[seq])?;
             w.put(body)
         })?;
+        if len > self.max_frame {
+            return Err(SendError::TooLong);
+        }
         self.out.clear();
         // Cannot fail: `len` ≤ N.
         let _ = self.out.extend_from_slice(&buf[..len]);
@@ -372,7 +391,8 @@ impl<const N: usize> SerialLink<N> {
     fn hunt(&mut self) {
         while self.rx.len() >= HEADER {
             let len = u16::from_le_bytes([self.rx[1], self.rx[2]]) as usize;
-            let impossible = len == 0 || HEADER + len + TRAILER > N || (self.rx[0] == KIND_ACK && len != 1);
+            let impossible =
+                len == 0 || HEADER + len + TRAILER > self.max_frame || (self.rx[0] == KIND_ACK && len != 1);
             if impossible {
                 self.skip(1);
                 continue;
@@ -630,6 +650,23 @@ mod tests {
         assert_eq!(l.send(KIND_BEAM, &[0; 1]), Err(SendError::Busy));
         assert!(!l.pop());
         assert!(l.received().is_none());
+    }
+
+    #[test]
+    fn a_shorter_frame_limit_refuses_long_frames_and_skips_their_headers_at_once() {
+        // Sending: 8 bytes of frame around the body.
+        let mut l = SerialLink::<64>::new(5).with_max_frame(32);
+        assert_eq!(l.send(KIND_BEAM, &[0; 25]), Err(SendError::TooLong));
+        assert_eq!(l.send(KIND_BEAM, &[0; 24]), Ok(()));
+        // Receiving: a header announcing a 40-byte frame (it fits 64) is noise under the limit
+        // of 32, the start of a frame without it.
+        for (limit, skipped) in [(32, 1), (64, 0)] {
+            let (mut rx, mut tx) = (Wire::new(1, 100, 0, 0, 0), Wire::new(2, 100, 0, 0, 0));
+            rx.bytes.extend([KIND_BEAM, 33, 0]);
+            let mut l = SerialLink::<64>::new(5).with_max_frame(limit);
+            l.poll(0, &mut End { rx: &mut rx, tx: &mut tx }).unwrap();
+            assert_eq!(l.stats().skipped, skipped, "limit {limit}");
+        }
     }
 
     #[test]

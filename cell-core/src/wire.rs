@@ -73,7 +73,7 @@ use heapless::Vec;
 
 use crate::beam::{Beam, Direction, FarDistance, FarOffset, FracBits, Layer, RayRange, SourceId};
 use crate::dexel::FacetTag;
-use crate::facet::{FacetBox, RowEdge, RowPacket, MAX_EDGES};
+use crate::facet::{FacetBox, PipeEdge, PipelinePacket, RowEdge, RowPacket, MAX_EDGES};
 use crate::light::BeamMsg;
 use crate::normal::NormalCode;
 use crate::plane::FacetPlane;
@@ -489,6 +489,36 @@ pub fn get_row(r: &mut Reader<'_>) -> Result<RowPacket, DecodeError> {
         let _ = edges.push(RowEdge { a: ea, c: ec, g, off });
     }
     Ok(RowPacket { tag, bbox, a, c, t, u, edges })
+}
+
+/// Write a pipeline packet's fields: the row packet it hands its row
+/// ([`PipelinePacket::to_row`], as [`put_row`] writes it), then its `b` (i64) and each edge's
+/// `b` (i32), in edge order. The grid of boards (firmware `board`) sends the pipeline packets
+/// that cross a board edge this way: a pipeline packet is never a cell link's frame, so it has
+/// no frame kind here.
+pub fn put_pipe<S: ByteSink + ?Sized>(w: &mut S, p: &PipelinePacket) -> Result<(), EncodeError> {
+    put_row(w, &p.to_row())?;
+    w.i64(p.b)?;
+    for e in &p.edges {
+        w.i32(e.b)?;
+    }
+    Ok(())
+}
+
+/// Read a pipeline packet's fields ([`put_pipe`]), checking the bit budget of
+/// [`crate::voxelize`] as [`get_row`] does (`b` within the plane coefficients' bound, each
+/// edge's `b` within the edge coefficients').
+pub fn get_pipe(r: &mut Reader<'_>) -> Result<PipelinePacket, DecodeError> {
+    let (m, q) = (MAX_LATTICE_SPAN, MAX_LATTICE_Q);
+    let row = get_row(r)?;
+    let b = within(r.i64()?, 2 * q * m * m, "plane coefficient b beyond the bit budget")?;
+    let mut edges = Vec::new();
+    for e in &row.edges {
+        let eb = within(r.i32()? as i64, q * m, "edge coefficient beyond the bit budget")? as i32;
+        // Cannot fail: as many edges as the row packet's, at most MAX_EDGES.
+        let _ = edges.push(PipeEdge { a: e.a, b: eb, c: e.c, g: e.g, off: e.off });
+    }
+    Ok(PipelinePacket { tag: row.tag, bbox: row.bbox, a: row.a, b, c: row.c, t: row.t, u: row.u, edges })
 }
 
 /// Write a beam message's fields (payload after `seq`).
@@ -928,6 +958,37 @@ mod tests {
                 .into_iter()
                 .collect(),
         }
+    }
+
+    #[test]
+    fn pipeline_packets_round_trip_and_refuse_a_b_beyond_the_budget() {
+        let row = row_2_edges();
+        let edges = row.edges.iter().zip([5, -7]).map(|(e, b)| PipeEdge { a: e.a, b, c: e.c, g: e.g, off: e.off });
+        let p = PipelinePacket {
+            tag: row.tag,
+            bbox: row.bbox,
+            a: row.a,
+            b: -11,
+            c: row.c,
+            t: row.t,
+            u: row.u,
+            edges: edges.collect(),
+        };
+        let mut buf = [0u8; MAX_FRAME + 64];
+        let mut w = SliceWriter::new(&mut buf);
+        put_pipe(&mut w, &p).unwrap();
+        let n = w.len();
+        assert_eq!(n, ROW_PAYLOAD_BASE - 1 + 2 * ROW_EDGE_BYTES + 8 + 2 * 4, "row fields, b, the edges' b");
+        let mut r = Reader::new(&buf[..n]);
+        assert_eq!(get_pipe(&mut r).unwrap(), p);
+        r.finish().unwrap();
+        assert_eq!(p.to_row(), row, "the row part is the row packet's encoding");
+        // b beyond the budget of the plane coefficients.
+        let big = PipelinePacket { b: i64::MAX, ..p };
+        let mut w = SliceWriter::new(&mut buf);
+        put_pipe(&mut w, &big).unwrap();
+        let n = w.len();
+        assert!(get_pipe(&mut Reader::new(&buf[..n])).is_err());
     }
 
     /// Encode a known message, compare with the literal frame, decode the literal back.

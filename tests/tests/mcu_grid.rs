@@ -2,7 +2,7 @@
 //! QEMU `mps2-an386` processes running `firmware/src/bin/board`), each UART a TCP character
 //! device to a port this test listens on. The test relays the bytes between neighbouring
 //! boards' UARTs (E ↔ W, N ↔ S), in the fault runs corrupting and dropping bytes on the
-//! wire from a seeded generator, in the slow run holding back one board's bytes, and talks to
+//! wire from a seeded generator, in the slow run delaying one board's bytes, and talks to
 //! each board's host link (UART 0) itself, through the same `cell_core::serial::SerialLink`
 //! the boards run.
 //!
@@ -19,240 +19,28 @@
 //! A board that does not answer within [`GRID_TIMEOUT`] fails the test, with every board's
 //! QEMU output; every QEMU child is killed on every exit path.
 //!
-//! The boards do not run tiles of cells yet (docs/FIRMWARE.md, "Not done yet").
+//! The tiles of cells (loading and lighting a scene) are in `mcu_tiles.rs`; the QEMU processes,
+//! relays and host links of both are in `rc2_tests::boards`.
 //!
 //! Needs `qemu-system-arm` and the `thumbv7em-none-eabihf` target: under CI a missing tool is
 //! a failure, elsewhere a skip ([`rc2_tests::qemu::tools_present`]).
 
-use std::io::{ErrorKind, Read, Write};
-use std::net::{TcpListener, TcpStream};
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, OnceLock};
-use std::thread::JoinHandle;
+use std::path::Path;
 use std::time::{Duration, Instant};
 
-use cell_core::serial::SerialLink;
-use rc2_tests::qemu::{self, QEMU};
+use rc2_tests::boards::{
+    board_elf, boot, neighbour, Booted, Faults, Slow, CLEAN, KIND_DONE, KIND_QUERY, KIND_START, NONE, ONE_GRID, RING,
+    RING_NEXT, SIDE,
+};
+use rc2_tests::qemu;
 
 /// Data frames each board sends on each of its links.
 const COUNT: u16 = 120;
 /// The whole run (boot, exercise, reports) must end within this.
 const GRID_TIMEOUT: Duration = Duration::from_secs(60);
-/// Grid side: `SIDE × SIDE` boards.
-const SIDE: usize = 2;
 /// Frame kinds of the exercise (firmware/src/bin/board/main.rs).
 const KIND_CONFIG: u8 = 0x60;
 const KIND_REPORT: u8 = 0x61;
-/// Link buffer of the host's end (the board's `LINK_BUF`).
-const LINK_BUF: usize = 128;
-/// No neighbour.
-const NONE: u8 = 0xFF;
-
-/// The board image, built once per test binary.
-fn board_elf() -> &'static Path {
-    static ELF: OnceLock<PathBuf> = OnceLock::new();
-    ELF.get_or_init(|| {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("firmware-board");
-        qemu::build_firmware(&dir, None, &["--bin", "board"]).join("board")
-    })
-}
-
-/// The QEMU runs share two cores with everything else: one grid at a time.
-static ONE_GRID: Mutex<()> = Mutex::new(());
-
-/// Faults injected on every inter-board byte stream, per 10 000 bytes.
-#[derive(Clone, Copy, Debug)]
-struct Faults {
-    corrupt: u64,
-    drop: u64,
-    seed: u64,
-}
-
-const CLEAN: Faults = Faults { corrupt: 0, drop: 0, seed: 0 };
-
-/// Neighbour of board `b` on link `l` (0 E, 1 N, 2 W, 3 S), if any; board `b` is at
-/// `(b % SIDE, b / SIDE)`, N is +y.
-fn neighbour(b: usize, l: usize) -> Option<usize> {
-    let (x, y) = (b % SIDE, b / SIDE);
-    let (nx, ny) = match l {
-        0 => (x + 1, y),
-        1 => (x, y + 1),
-        2 => (x.checked_sub(1)?, y),
-        _ => (x, y.checked_sub(1)?),
-    };
-    (nx < SIDE && ny < SIDE).then_some(ny * SIDE + nx)
-}
-
-/// The QEMU processes and relay threads of one grid: killed and stopped when dropped, whatever
-/// the test's path out.
-struct Grid {
-    boards: Vec<Child>,
-    output: Vec<Arc<Mutex<String>>>,
-    stop: Arc<AtomicBool>,
-    relays: Vec<JoinHandle<(u64, u64)>>,
-}
-
-impl Grid {
-    /// Every board's QEMU output so far (a panic message, QEMU's own errors).
-    fn outputs(&self) -> String {
-        let mut s = String::new();
-        for (b, o) in self.output.iter().enumerate() {
-            s += &format!("--- board {b} ---\n{}\n", o.lock().unwrap());
-        }
-        s
-    }
-
-    /// Stop the relays; returns (bytes relayed, faults injected).
-    fn stop_relays(&mut self) -> (u64, u64) {
-        self.stop.store(true, Ordering::SeqCst);
-        self.relays.drain(..).map(|h| h.join().unwrap_or((0, 0))).fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
-    }
-}
-
-impl Drop for Grid {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::SeqCst);
-        for c in &mut self.boards {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
-
-/// Accept the connection QEMU makes to `l`, within the deadline.
-fn accept(l: &TcpListener, deadline: Instant, grid: &Grid) -> TcpStream {
-    l.set_nonblocking(true).unwrap();
-    loop {
-        match l.accept() {
-            Ok((s, _)) => {
-                s.set_nonblocking(false).unwrap();
-                s.set_nodelay(true).unwrap();
-                return s;
-            }
-            Err(e) if e.kind() == ErrorKind::WouldBlock && Instant::now() < deadline => {
-                std::thread::sleep(Duration::from_millis(5))
-            }
-            Err(e) => panic!("a board's UART did not connect ({e}); QEMU said:\n{}", grid.outputs()),
-        }
-    }
-}
-
-/// xorshift64*: the relays' fault generator.
-fn next(rng: &mut u64) -> u64 {
-    *rng ^= *rng >> 12;
-    *rng ^= *rng << 25;
-    *rng ^= *rng >> 27;
-    rng.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11
-}
-
-/// Copy bytes from `src` to `dst` until `stop`, corrupting (flipping bits of) and dropping
-/// bytes as `faults` says, each chunk held back `delay`. Returns (bytes read, faults injected).
-fn relay(
-    (mut src, mut dst): (TcpStream, TcpStream),
-    faults: Faults,
-    stream: u64,
-    delay: Duration,
-    stop: Arc<AtomicBool>,
-) -> (u64, u64) {
-    let mut rng = (faults.seed ^ stream.wrapping_mul(0x9E37_79B9_7F4A_7C15)) | 1;
-    src.set_read_timeout(Some(Duration::from_millis(20))).unwrap();
-    let (mut bytes, mut injected) = (0, 0);
-    let mut buf = [0u8; 256];
-    let mut out = Vec::with_capacity(256);
-    while !stop.load(Ordering::SeqCst) {
-        let n = match src.read(&mut buf) {
-            Ok(0) => break,
-            Ok(n) => n,
-            Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => continue,
-            Err(_) => break,
-        };
-        bytes += n as u64;
-        out.clear();
-        for &b in &buf[..n] {
-            let r = next(&mut rng) % 10_000;
-            if r < faults.drop {
-                injected += 1;
-            } else if r < faults.drop + faults.corrupt {
-                injected += 1;
-                out.push(b ^ (next(&mut rng) % 255 + 1) as u8);
-            } else {
-                out.push(b);
-            }
-        }
-        std::thread::sleep(delay);
-        if dst.write_all(&out).is_err() {
-            break;
-        }
-    }
-    (bytes, injected)
-}
-
-/// The host's end of a board's UART 0: a TCP stream behind `embedded-io`, never blocking on
-/// read.
-struct HostPort {
-    s: TcpStream,
-    peeked: Option<u8>,
-}
-
-impl embedded_io::ErrorType for HostPort {
-    type Error = embedded_io::ErrorKind;
-}
-
-impl embedded_io::ReadReady for HostPort {
-    fn read_ready(&mut self) -> Result<bool, Self::Error> {
-        if self.peeked.is_some() {
-            return Ok(true);
-        }
-        let mut b = [0u8; 1];
-        match self.s.read(&mut b) {
-            Ok(0) => Err(embedded_io::ErrorKind::BrokenPipe),
-            Ok(_) => {
-                self.peeked = Some(b[0]);
-                Ok(true)
-            }
-            Err(e) if e.kind() == ErrorKind::WouldBlock => Ok(false),
-            Err(_) => Err(embedded_io::ErrorKind::Other),
-        }
-    }
-}
-
-impl embedded_io::Read for HostPort {
-    fn read(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
-        match (self.peeked.take(), buf.is_empty()) {
-            (_, true) => Ok(0),
-            (Some(b), false) => {
-                buf[0] = b;
-                Ok(1)
-            }
-            (None, false) => loop {
-                if embedded_io::ReadReady::read_ready(self)? {
-                    return self.read(buf);
-                }
-                std::thread::sleep(Duration::from_millis(1));
-            },
-        }
-    }
-}
-
-impl embedded_io::WriteReady for HostPort {
-    fn write_ready(&mut self) -> Result<bool, Self::Error> {
-        Ok(true)
-    }
-}
-
-impl embedded_io::Write for HostPort {
-    fn write(&mut self, buf: &[u8]) -> Result<usize, Self::Error> {
-        self.s.set_nonblocking(false).map_err(|_| embedded_io::ErrorKind::Other)?;
-        let r = self.s.write(buf).map_err(|_| embedded_io::ErrorKind::BrokenPipe);
-        self.s.set_nonblocking(true).map_err(|_| embedded_io::ErrorKind::Other)?;
-        r
-    }
-    fn flush(&mut self) -> Result<(), Self::Error> {
-        Ok(())
-    }
-}
 
 /// One link of a board's report.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -295,139 +83,10 @@ struct Run {
     wall: Duration,
 }
 
-/// A booted grid: its processes and relays, the host's end of each board's UART 0, the time
-/// it started.
-struct Booted {
-    grid: Grid,
-    hosts: Vec<(HostPort, SerialLink<LINK_BUF>)>,
-    t0: Instant,
-}
-
-impl Booted {
-    /// Poll every host link once, then wait a little; a failed link (a QEMU gone) or the
-    /// deadline passed fails the test, saying `what` was awaited.
-    fn poll(&mut self, what: &dyn Fn() -> String) {
-        let now = self.t0.elapsed().as_millis() as u64;
-        if self.t0.elapsed() > GRID_TIMEOUT {
-            panic!("{} not within {GRID_TIMEOUT:?} (a hang)\nQEMU said:\n{}", what(), self.grid.outputs());
-        }
-        for (b, (port, link)) in self.hosts.iter_mut().enumerate() {
-            if let Err(e) = link.poll(now, port) {
-                panic!("board {b}'s host link failed ({e:?}): its QEMU stopped?\nQEMU said:\n{}", self.grid.outputs());
-            }
-        }
-        std::thread::sleep(Duration::from_micros(200));
-    }
-
-    /// Send `body` of `kind` to board `b`, waiting for the link to take it.
-    fn send(&mut self, b: usize, kind: u8, body: &[u8]) {
-        while !self.hosts[b].1.can_send() {
-            self.poll(&|| format!("board {b}'s acknowledgement"));
-        }
-        self.hosts[b].1.send(kind, body).unwrap();
-    }
-
-    /// Wait until every host link has nothing outstanding (every frame taken by its board).
-    fn settle(&mut self) {
-        while self.hosts.iter().any(|(_, l)| !l.idle()) {
-            self.poll(&|| "the boards' acknowledgements".to_string());
-        }
-    }
-}
-
-/// Boot the 2 × 2 grid, relaying with `faults`, the links of board `slow.0` held back
-/// `slow.1`.
-fn boot(faults: Faults, slow: Option<(usize, Duration)>) -> Booted {
-    let elf = board_elf();
-    let boards = SIDE * SIDE;
-    let t0 = Instant::now();
-    let deadline = t0 + GRID_TIMEOUT;
-    // One listener per connected UART: 0 (host link) and each link with a neighbour.
-    let listeners: Vec<Vec<Option<TcpListener>>> = (0..boards)
-        .map(|b| {
-            (0..5)
-                .map(|u| (u == 0 || neighbour(b, u - 1).is_some()).then(|| TcpListener::bind("127.0.0.1:0").unwrap()))
-                .collect()
-        })
-        .collect();
-    let stop = Arc::new(AtomicBool::new(false));
-    let mut grid = Grid { boards: Vec::new(), output: Vec::new(), stop: stop.clone(), relays: Vec::new() };
-    for ls in &listeners {
-        let mut cmd = Command::new(QEMU);
-        cmd.args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-display", "none", "-monitor", "none"])
-            .args(["-semihosting-config", "enable=on,target=native"]);
-        for (u, l) in ls.iter().enumerate() {
-            match l {
-                Some(l) => {
-                    let port = l.local_addr().unwrap().port();
-                    cmd.arg("-chardev").arg(format!("socket,id=u{u},host=127.0.0.1,port={port},server=off"));
-                    cmd.arg("-serial").arg(format!("chardev:u{u}"));
-                }
-                None => {
-                    cmd.args(["-serial", "null"]);
-                }
-            }
-        }
-        let mut child = cmd
-            .arg("-kernel")
-            .arg(elf)
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("start qemu-system-arm");
-        let out = Arc::new(Mutex::new(String::new()));
-        for mut pipe in
-            [Box::new(child.stdout.take().unwrap()) as Box<dyn Read + Send>, Box::new(child.stderr.take().unwrap())]
-        {
-            let out = out.clone();
-            std::thread::spawn(move || {
-                let mut buf = [0u8; 512];
-                while let Ok(n @ 1..) = pipe.read(&mut buf) {
-                    out.lock().unwrap().push_str(&String::from_utf8_lossy(&buf[..n]));
-                }
-            });
-        }
-        grid.boards.push(child);
-        grid.output.push(out);
-    }
-    let mut socks: Vec<Vec<Option<TcpStream>>> = listeners
-        .iter()
-        .map(|ls| ls.iter().map(|l| l.as_ref().map(|l| accept(l, deadline, &grid))).collect())
-        .collect();
-
-    // Relays: link l of board b to link (l + 2) % 4 of its neighbour, each direction once.
-    let mut stream = 0;
-    for b in 0..boards {
-        for l in 0..2 {
-            let Some(c) = neighbour(b, l) else { continue };
-            let here = socks[b][l + 1].take().unwrap();
-            let there = socks[c][(l + 2) % 4 + 1].take().unwrap();
-            let delay = slow.filter(|&(s, _)| s == b || s == c).map_or(Duration::ZERO, |(_, d)| d);
-            for ends in [(here.try_clone().unwrap(), there.try_clone().unwrap()), (there, here)] {
-                let stop = stop.clone();
-                stream += 1;
-                let s = stream;
-                grid.relays.push(std::thread::spawn(move || relay(ends, faults, s, delay, stop)));
-            }
-        }
-    }
-
-    let hosts = socks
-        .iter_mut()
-        .map(|s| {
-            let s = s[0].take().unwrap();
-            s.set_nonblocking(true).unwrap();
-            (HostPort { s, peeked: None }, SerialLink::new(100))
-        })
-        .collect();
-    Booted { grid, hosts, t0 }
-}
-
 /// The link exercise on a grid relaying with `faults`: configure every board, collect every
 /// board's report.
 fn run_grid(faults: Faults) -> Run {
-    let mut g = boot(faults, None);
+    let mut g = boot(board_elf(Path::new(env!("CARGO_TARGET_TMPDIR"))), faults, None, GRID_TIMEOUT);
     let boards = SIDE * SIDE;
     for b in 0..boards {
         let mut config = vec![b as u8];
@@ -516,14 +175,7 @@ fn corrupted_and_dropped_bytes_between_boards_are_recovered_by_the_link() {
 /// Frame kinds of the termination exercise (firmware/src/bin/board/safra.rs).
 const KIND_TERM_CONFIG: u8 = 0x63;
 const KIND_WORK: u8 = 0x64;
-const KIND_START: u8 = 0x65;
-const KIND_DONE: u8 = 0x66;
-const KIND_QUERY: u8 = 0x67;
 const KIND_STATE: u8 = 0x68;
-/// The ring over the 2 × 2 boards (board ids in ring order) and, per board, the link to its
-/// successor (0 E, 1 N, 2 W, 3 S).
-const RING: [usize; 4] = [0, 1, 3, 2];
-const RING_NEXT: [u8; 4] = [0, 1, 3, 2];
 /// A workload: the host's items (board, ttl), children per item, busy time per item (µs).
 #[derive(Clone, Copy, Debug)]
 struct Work {
@@ -610,12 +262,8 @@ fn query(g: &mut Booted) -> Vec<BoardState> {
 /// for ring position 0's two declarations (the work's phase, then the empty phase whose round
 /// tells every board of the first), then read every board's state twice, 300 ms apart.
 /// Returns the two readings and the time from start to declaration.
-fn run_termination(
-    work: Work,
-    faults: Faults,
-    slow: Option<(usize, Duration)>,
-) -> ([Vec<BoardState>; 2], Duration, u64) {
-    let mut g = boot(faults, slow);
+fn run_termination(work: Work, faults: Faults, slow: Option<Slow>) -> ([Vec<BoardState>; 2], Duration, u64) {
+    let mut g = boot(board_elf(Path::new(env!("CARGO_TARGET_TMPDIR"))), faults, slow, GRID_TIMEOUT);
     for (b, next) in RING_NEXT.into_iter().enumerate() {
         let position = RING.iter().position(|&r| r == b).unwrap();
         let mut config = vec![b as u8];
@@ -690,9 +338,9 @@ fn the_boards_detect_termination_never_early_with_a_slow_board() {
         return;
     }
     let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
-    // Board 3's links hold every chunk of bytes back 300 ms, both ways (a token round over the
+    // Board 3's links deliver every byte 300 ms late, both ways (a token round over the
     // other links takes less).
-    let (states, declared, _) = run_termination(CHAIN, CLEAN, Some((3, Duration::from_millis(300))));
+    let (states, declared, _) = run_termination(CHAIN, CLEAN, Some(Slow::Board(3, Duration::from_millis(300))));
     eprintln!("slow board 3: declared {declared:?} after the start; states {states:?}");
     check_terminated(CHAIN, &states);
 }

@@ -4,9 +4,11 @@
 //! `cell_core::wire` frames through a [`SerialLink`] (sequence numbers, acknowledgement,
 //! retransmission, resynchronisation after corrupted or dropped bytes).
 //!
-//! A board runs one of two exercises (tests/tests/mcu_grid.rs), chosen by the host's
-//! configuration frame; they prove the links and the termination detection, not yet a tile of
-//! cells. The **termination exercise** is in [`safra`]. The **link exercise**:
+//! A board runs one of three exercises, chosen by the host's configuration frame. The **tile
+//! exercise** ([`tiles`], tests/tests/mcu_tiles.rs) holds a tile of cells that loads and lights
+//! a scene with the other boards; the **termination exercise** ([`safra`],
+//! tests/tests/mcu_grid.rs) detects the end of a synthetic computation; the **link exercise**
+//! (tests/tests/mcu_grid.rs) proves the links:
 //!
 //! 1. The host sends a configuration on UART 0 ([`KIND_CONFIG`]: this board's id, its
 //!    neighbours' ids on links E, N, W, S — UARTs 1 … 4, `0xFF` where there is none — and how
@@ -43,11 +45,16 @@ mod cmsdk;
 #[path = "../../exit.rs"]
 mod exit;
 mod safra;
+#[path = "../../stack.rs"]
+mod stack;
+mod tiles;
 mod uart;
 #[path = "../../vectors.rs"]
 mod vectors;
 
 use cell_core::serial::{SerialLink, SerialStats};
+use cell_core::termination::Token;
+use cell_core::wire::{put_token, SliceWriter, KIND_TOKEN};
 use cortex_m_rt::entry;
 use embedded_io::ReadReady;
 use heapless::Vec;
@@ -66,10 +73,16 @@ pub const KIND_CONFIG: u8 = 0x60;
 pub const KIND_REPORT: u8 = 0x61;
 /// Board → neighbour: one data frame of the exercise.
 pub const KIND_DATA: u8 = 0x62;
-/// Bytes per link buffer (the longest frame: the report's 3 + 1 + 1 + 4 × 28 + 4 = 121 B).
-const LINK_BUF: usize = 128;
+/// Bytes per link buffer: the longest frame, a row packet between boards in the tile exercise
+/// (3 + 1 + 4 + 73 + 8 × 20 + 4 = 245 B), or a cell's report (3 + 1 + 22 + 2 × 16 × 8 + 4 =
+/// 286 B).
+pub const LINK_BUF: usize = 320;
+
+/// The longest frame of the link and termination exercises on a neighbour link (the report's
+/// 3 + 1 + 1 + 4 × 28 + 4 = 121 B goes to the host).
+const SHORT_FRAME: usize = 128;
 /// Microseconds before an unacknowledged frame is sent again.
-const TIMEOUT_US: u64 = 50_000;
+pub const TIMEOUT_US: u64 = 50_000;
 /// The core clock of the MPS2 FPGA images (QEMU's `mps2-an386` too).
 const CORE_HZ: u64 = 25_000_000;
 
@@ -158,6 +171,13 @@ impl Board {
     }
 }
 
+/// Hand termination token `t` to `link` (the ring's next position); whether it took it.
+pub fn send_token(link: &mut SerialLink<LINK_BUF>, t: &Token) -> bool {
+    let mut buf = [0u8; 8];
+    let mut w = SliceWriter::new(&mut buf);
+    put_token(&mut w, t).is_ok() && link.send(KIND_TOKEN, w.written()).is_ok()
+}
+
 /// [`Board::wait`] on these UARTs.
 fn wait(uarts: &mut [Uart; 5]) {
     cortex_m::interrupt::free(|_| {
@@ -171,6 +191,9 @@ fn wait(uarts: &mut [Uart; 5]) {
 
 #[entry]
 fn main() -> ! {
+    // The stack's high-water mark, which the tile exercise reports (the board's state lives on
+    // its stack).
+    stack::paint();
     let peripherals = cortex_m::Peripherals::take().unwrap_or_else(|| panic!("peripherals taken twice"));
     // Every interrupt line of the board to the default handler: the UARTs' are the ones
     // enabled at their source.
@@ -179,7 +202,17 @@ fn main() -> ! {
     unsafe { (*cortex_m::peripheral::NVIC::PTR).iser[0].write(u32::MAX) };
     let mut board = Board {
         uarts: core::array::from_fn(Uart::new),
-        links: core::array::from_fn(|_| SerialLink::new(TIMEOUT_US)),
+        // The host link carries the tile exercise's long frames from the start; the neighbour
+        // links carry the link and termination exercises' short ones unless the tile exercise
+        // lifts their limit (a short limit resynchronises faster after a corrupted length).
+        links: core::array::from_fn(|i| {
+            let link = SerialLink::new(TIMEOUT_US);
+            if i == 0 {
+                link
+            } else {
+                link.with_max_frame(SHORT_FRAME)
+            }
+        }),
         clock: Clock::new(peripherals.SYST),
     };
 
@@ -201,6 +234,10 @@ fn main() -> ! {
         if let Some(config) = safra::Config::parse(f.kind, p) {
             board.links[0].pop();
             safra::run(board, config);
+        }
+        if let Some(config) = tiles::Config::parse(f.kind, p) {
+            board.links[0].pop();
+            tiles::run(board, config);
         }
         board.links[0].pop();
     }

@@ -34,10 +34,10 @@
 //! silently; the host sizes its injection below it.
 
 use cell_core::termination::{Action, Node, Token};
-use cell_core::wire::{get_token, put_token, Reader, SliceWriter, KIND_TOKEN};
+use cell_core::wire::{get_token, Reader, KIND_TOKEN};
 use heapless::{Deque, Vec};
 
-use crate::{Board, LINKS, NONE};
+use crate::{send_token, Board, LINKS, NONE};
 
 /// Host → board: the termination exercise's configuration: id u8, neighbour ids on E, N, W,
 /// S (4 × u8, `0xFF`: none), ring position u8, ring length u8, link to the next ring position
@@ -197,9 +197,7 @@ pub fn run(mut board: Board, c: Config) -> ! {
                 continue;
             }
             if let (true, Some(t)) = (l == c.ring_next as usize, token) {
-                let mut buf = [0u8; 7];
-                let mut w = SliceWriter::new(&mut buf);
-                if put_token(&mut w, &t).is_ok() && link.send(KIND_TOKEN, w.written()).is_ok() {
+                if send_token(link, &t) {
                     token = None;
                     st.forwarded += 1;
                 }

@@ -1,0 +1,470 @@
+//! Tiles of cells on a grid of microcontrollers: 2 × 2 emulated Cortex-M4F boards
+//! (`firmware/src/bin/board`, its tile exercise `tiles.rs`), each holding 4 × 4 cells of an
+//! 8 × 8 grid, load the Cornell box (its two blocks cast shadows) and light it from one source
+//! beside the corner the four boards share,
+//! asynchronously, over serial links between QEMU processes (`rc2_tests::boards`): loading
+//! packets and beams cross board edges as frames, a beam to a diagonal neighbour is forwarded
+//! by a side neighbour, and the boards detect the end of each phase themselves (Safra's ring).
+//!
+//! The oracle is host-sim's simulation of the same machine (`machine::async_tiles`, B = 4):
+//! every cell's dexels (span and facet), lit voxels and pixel (`machine::shade::shade_grid` of
+//! that run; the boards shade with `cell_core::shade::cell_pixel` and the inputs
+//! `host-sim trace` records) must be the boards'. The lit set does
+//! not depend on timing, so the same holds with corrupted and dropped bytes on the links and
+//! with one board's links slowed down. Each run also fails if a board hangs (no declaration
+//! within [`TIMEOUT`]; every QEMU is killed on every path out), if a frame is lost (basic
+//! frames sent ≠ received, a board's termination counter not 0) or if a declaration came
+//! early (a board saw loading work after it learned the loading was declared, or beams after
+//! the lighting was; the dexels or the lit set would differ too).
+//!
+//! Needs `qemu-system-arm` and the `thumbv7em-none-eabihf` target: under CI a missing tool is
+//! a failure, elsewhere a skip ([`rc2_tests::qemu::tools_present`]).
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use cell_core::beam::frac::U0;
+use cell_core::beam::{Beam, FarDistance, Source};
+use cell_core::facet::PipelinePacket;
+use cell_core::light::BeamMsg;
+use cell_core::shade::{NormalMode, ShadeParams};
+use cell_core::trace::{write_event, Event, LightSetup, ShadeSetup};
+use cell_core::wire::{put_beam, put_pipe, PutExt, SliceWriter, KIND_BEAM};
+use host_sim::machine::async_tiles::{run, AsyncConfig};
+use host_sim::machine::diffuse::{source_at, LightConfig};
+use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
+use host_sim::machine::shade::{cell_material, eye_lights, point_lights, shade_grid, AMBIENT};
+use host_sim::precompute::{prepare, LoadConfig};
+use rc2_tests::boards::{
+    board_elf, boot, neighbour, Booted, Faults, Slow, CLEAN, KIND_DONE, KIND_QUERY, KIND_START, NONE, ONE_GRID, RING,
+    RING_NEXT, SIDE,
+};
+use rc2_tests::qemu;
+
+/// Grid side in cells.
+const N: u32 = 8;
+/// Board side in cells.
+const TILE: u32 = N / SIDE as u32;
+/// A run (boot, loading, lighting, reports) must end within this.
+const TIMEOUT: Duration = Duration::from_secs(90);
+/// Frame kinds of the tile exercise (firmware/src/bin/board/tiles.rs).
+const KIND_TILE_CONFIG: u8 = 0x69;
+const KIND_TILE_LIGHT: u8 = 0x6A;
+const KIND_PIPE: u8 = 0x6B;
+const KIND_TILE_CELL: u8 = 0x6E;
+const KIND_TILE_STATE: u8 = 0x6F;
+const KIND_TILE_SHADE: u8 = 0x70;
+/// The light, in fractions of the scene's box (x, y up, z).
+const LIGHT: [f64; 3] = [0.4, 0.5, 0.45];
+/// Dexels and lit runs a cell report carries at most (the board's `REPORTED`).
+const REPORTED: usize = 16;
+
+/// One cell as the boards or the oracle see it: dexels (lo, hi, facet), lit voxels (z, mask)
+/// and pixel (its rgb, if the cell shows a surface).
+type CellView = (Vec<(u16, u16, u32)>, Vec<(u32, u32)>, Option<[u8; 3]>);
+
+/// The scene, the light, and what host-sim's boards make of it.
+struct Case {
+    packets: Vec<PipelinePacket>,
+    source: Source,
+    light: LightConfig,
+    depth: u32,
+    shade: ShadeSetup,
+    cells: BTreeMap<(u16, u16), CellView>,
+}
+
+/// The Cornell box at n = 8 under one light, on host-sim's asynchronous boards of 4 × 4 cells,
+/// with the lighting defaults less the skips that need a whole-grid reduction.
+fn case() -> Case {
+    let mesh = host_sim::scene::load("cornell").unwrap();
+    let cfg = LoadConfig::watertight(N);
+    let loaded = load_scene(&mesh, &cfg).unwrap();
+    // Halfway up, between the blocks, at a cell beside the corner the four boards share: its
+    // beams cross board edges every way, diagonally too.
+    let lights = resolve_lights(&mesh, &loaded, &[LIGHT]).unwrap();
+    let sources: Vec<Source> = lights.iter().enumerate().map(|(i, p)| source_at(i, *p, N).unwrap()).collect();
+    let light = LightConfig { skip_receding: false, skip_dead_directions: false, ..Default::default() };
+    let packets = prepare(&mesh, &cfg).unwrap().packets;
+    let r = run::<U0>(&packets, N, &sources, &light, &AsyncConfig { tile: TILE, ..Default::default() }).unwrap();
+    assert_eq!(r.early, None);
+    // The shading inputs a cell gets (as `host-sim trace` records them), and the pixels
+    // host-sim shades from the boards' lit state.
+    let shade = ShadeSetup {
+        params: ShadeParams { ambient: [AMBIENT; 3], normal_mode: NormalMode::Facet, eye: loaded.eye },
+        lights: eye_lights(&loaded.eye, &point_lights(&lights)).into_iter().collect(),
+        materials: mesh.materials.iter().map(cell_material).collect(),
+    };
+    let mut cells: BTreeMap<(u16, u16), CellView> = BTreeMap::new();
+    for c in &r.grid.cells {
+        let dexels = c.store.dexels().iter().map(|d| (d.span.lo, d.span.hi, d.facet)).collect();
+        cells.insert((c.x, c.y), (dexels, Vec::new(), None));
+    }
+    for ([x, y, z], mask) in r.lighting.lit_voxels() {
+        cells.get_mut(&(x as u16, y as u16)).unwrap().1.push((z, mask));
+    }
+    let depth = loaded.grid.depth;
+    let scene = LoadedScene { grid: r.grid, ..loaded };
+    let img = shade_grid(&mesh, &scene, &point_lights(&lights), &r.lighting, NormalMode::Facet);
+    for ((x, y), view) in cells.iter_mut() {
+        let i = *y as usize * N as usize + *x as usize;
+        view.2 = img.covered[i].then_some(img.rgb[i]);
+    }
+    Case { packets, source: sources[0], light, depth, shade, cells }
+}
+
+impl Case {
+    /// The light record every board gets.
+    fn light_record(&self) -> Vec<u8> {
+        let l = &self.light;
+        let setup = LightSetup {
+            source: self.source,
+            n: N,
+            depth: self.depth,
+            far: N - 1,
+            policy: l.policy,
+            fa: l.timing.fifo_limit(l.fa) as u16,
+            merge: l.merge,
+            source_bit: 1,
+            skip: None,
+            hold: 0,
+            frustum: None,
+            rule: l.rule,
+        };
+        let mut buf = [0u8; 256];
+        let n = write_event::<U0>(&Event::Light(setup), &mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    /// The shading record every board gets.
+    fn shade_record(&self) -> Vec<u8> {
+        let mut buf = [0u8; 1024];
+        let n = write_event::<U0>(&Event::Shade(self.shade.clone()), &mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    /// The source's initial beams, encoded, and the board holding its cell.
+    fn initial_beams(&self) -> (usize, Vec<Vec<u8>>) {
+        let far = FarDistance::<U0>::new(N - 1).unwrap();
+        let sv = self.source.voxel();
+        let beams = self.light.timing.emission.order().map(|d| {
+            let m = BeamMsg::new(Beam::initial(&self.source, d, far), sv[2] as u16);
+            let mut buf = [0u8; 64];
+            let mut w = SliceWriter::new(&mut buf);
+            put_beam(&mut w, &m).unwrap();
+            w.written().to_vec()
+        });
+        (board_of(sv[0] as u32, sv[1] as u32), beams.to_vec())
+    }
+
+    /// Lit voxels in all.
+    fn lit(&self) -> usize {
+        self.cells.values().map(|c| c.1.len()).sum()
+    }
+
+    /// Occupied voxels in all.
+    fn occupied(&self) -> u32 {
+        self.cells.values().flat_map(|c| &c.0).map(|&(lo, hi, _)| u32::from(hi - lo) + 1).sum()
+    }
+}
+
+/// The board holding cell (x, y).
+fn board_of(x: u32, y: u32) -> usize {
+    (y / TILE) as usize * SIDE + (x / TILE) as usize
+}
+
+/// A board's state as it reports it (`KIND_TILE_STATE`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct BoardState {
+    sent: u32,
+    received: u32,
+    forwarded: u32,
+    tokens: u32,
+    late: u32,
+    overflows: u32,
+    misrouted: u32,
+    loads: u32,
+    steps: u32,
+    peak_arrived: u32,
+    peak_work: u32,
+    retransmitted: u32,
+    skipped: u32,
+    stack: u32,
+    count: i32,
+}
+
+fn parse_state(p: &[u8]) -> (u8, BoardState) {
+    assert_eq!(p.len(), 1 + 14 * 4 + 4, "state length");
+    let u = |i: usize| u32::from_le_bytes(p[1 + 4 * i..5 + 4 * i].try_into().unwrap());
+    let st = BoardState {
+        sent: u(0),
+        received: u(1),
+        forwarded: u(2),
+        tokens: u(3),
+        late: u(4),
+        overflows: u(5),
+        misrouted: u(6),
+        loads: u(7),
+        steps: u(8),
+        peak_arrived: u(9),
+        peak_work: u(10),
+        retransmitted: u(11),
+        skipped: u(12),
+        stack: u(13),
+        count: u(14) as i32,
+    };
+    (p[0], st)
+}
+
+/// A cell report: (x, y), its view, and its overflow counters (dexel store, lost voxels, lit
+/// store, still busy).
+fn parse_cell(p: &[u8]) -> ((u16, u16), CellView, [u32; 4]) {
+    let u16_at = |i: usize| u16::from_le_bytes([p[i], p[i + 1]]);
+    let u32_at = |i: usize| u32::from_le_bytes(p[i..i + 4].try_into().unwrap());
+    let (x, y, nd, nr) = (u16_at(0), u16_at(2), p[4] as usize, p[5] as usize);
+    assert!(nd <= REPORTED && nr <= REPORTED, "cell ({x}, {y}): {nd} dexels, {nr} runs: more than a report holds");
+    let counters = [u32_at(6), u32_at(10), u32_at(14), u32_at(18)];
+    let pixel = (p[22] != 0).then(|| [p[23], p[24], p[25]]);
+    let base = 26;
+    assert_eq!(p.len(), base + 8 * (nd + nr), "cell report length");
+    let dexels = (0..nd).map(|i| (u16_at(base + 8 * i), u16_at(base + 8 * i + 2), u32_at(base + 8 * i + 4))).collect();
+    let mut lit = Vec::new();
+    for i in 0..nr {
+        let o = base + 8 * (nd + i);
+        let (lo, hi, mask) = (u32::from(u16_at(o)), u32::from(u16_at(o + 2)), u32_at(o + 4));
+        lit.extend((lo..=hi).map(|z| (z, mask)));
+    }
+    ((x, y), (dexels, lit, pixel), counters)
+}
+
+/// What a run gave: every cell's view, every board's state, when each phase was declared
+/// (from the start), wall time, bytes relayed and faults injected.
+struct TileRun {
+    cells: BTreeMap<(u16, u16), CellView>,
+    states: Vec<BoardState>,
+    declared: Vec<Duration>,
+    wall: Duration,
+    bytes: u64,
+    injected: u64,
+}
+
+/// Configure the boards, hand board 0 the facets and the source's board its initial beams,
+/// start the ring, wait for the three declarations (loading, lighting, the empty phase that
+/// tells every board of the lighting's), then read every board's report.
+fn run_tiles(c: &Case, faults: Faults, slow: Option<Slow>) -> TileRun {
+    let mut g = boot(board_elf(Path::new(env!("CARGO_TARGET_TMPDIR"))), faults, slow, TIMEOUT);
+    let (record, shading) = (c.light_record(), c.shade_record());
+    for (b, next) in RING_NEXT.into_iter().enumerate() {
+        let position = RING.iter().position(|&r| r == b).unwrap();
+        let mut config = vec![b as u8];
+        config.extend((0..4).map(|l| neighbour(b, l).map_or(NONE, |c| c as u8)));
+        config.extend([position as u8, RING.len() as u8, next]);
+        let (x0, y0) = ((b % SIDE) as u32 * TILE, (b / SIDE) as u32 * TILE);
+        config.extend((x0 as u16).to_le_bytes());
+        config.extend((y0 as u16).to_le_bytes());
+        config.push(TILE as u8);
+        config.extend((N as u16).to_le_bytes());
+        config.extend((c.depth as u16).to_le_bytes());
+        g.send(b, KIND_TILE_CONFIG, &config);
+        g.send(b, KIND_TILE_LIGHT, &record);
+        g.send(b, KIND_TILE_SHADE, &shading);
+    }
+    for p in &c.packets {
+        let mut buf = [0u8; 512];
+        let mut w = SliceWriter::new(&mut buf);
+        w.u16(0).unwrap();
+        put_pipe(&mut w, p).unwrap();
+        let body = w.written().to_vec();
+        g.send(board_of(0, 0), KIND_PIPE, &body);
+    }
+    let (source_board, beams) = c.initial_beams();
+    for b in &beams {
+        g.send(source_board, KIND_BEAM, b);
+    }
+    // Every host frame taken before the detection starts: they are not basic messages.
+    g.settle();
+    let start = Instant::now();
+    g.send(RING[0], KIND_START, &[]);
+    let mut declared = Vec::new();
+    while declared.len() < 3 {
+        g.poll(&|| format!("the declaration of phase {} (0 loading, 1 lighting, 2 the news)", declared.len()));
+        for (b, (_, link)) in g.hosts.iter_mut().enumerate() {
+            if let Some(f) = link.received() {
+                assert_eq!((b, f.kind), (RING[0], KIND_DONE), "only ring position 0 declares, nothing else comes");
+                assert_eq!(f.payload, &(declared.len() as u16).to_le_bytes(), "phases in order");
+                declared.push(start.elapsed());
+                link.pop();
+            }
+        }
+    }
+    let (cells, states) = query(&mut g);
+    // Nothing after the reports: no board goes on working.
+    let wait = Instant::now();
+    while wait.elapsed() < Duration::from_millis(300) {
+        g.poll(&|| "the boards, after their reports".to_string());
+        for (b, (_, link)) in g.hosts.iter().enumerate() {
+            assert!(link.received().is_none(), "board {b} sent a frame after its report");
+        }
+    }
+    g.settle();
+    let wall = g.t0.elapsed();
+    let (bytes, injected) = g.grid.stop_relays();
+    TileRun { cells, states, declared, wall, bytes, injected }
+}
+
+/// Ask every board for its report: its cells, then its state.
+fn query(g: &mut Booted) -> (BTreeMap<(u16, u16), CellView>, Vec<BoardState>) {
+    for b in 0..g.hosts.len() {
+        g.send(b, KIND_QUERY, &[]);
+    }
+    let mut cells = BTreeMap::new();
+    let mut states: Vec<Option<BoardState>> = vec![None; g.hosts.len()];
+    while states.iter().any(Option::is_none) {
+        g.poll(&|| format!("every board's report (so far {} cells, states {states:?})", cells.len()));
+        for (b, (_, link)) in g.hosts.iter_mut().enumerate() {
+            let Some(f) = link.received() else { continue };
+            match f.kind {
+                KIND_TILE_CELL => {
+                    assert!(states[b].is_none(), "board {b}: a cell after its state");
+                    let (xy, view, counters) = parse_cell(f.payload);
+                    assert_eq!(board_of(u32::from(xy.0), u32::from(xy.1)), b, "board {b} reported cell {xy:?}");
+                    assert_eq!(counters, [0; 4], "cell {xy:?}: store overflows, lost voxels, lit overflows, busy");
+                    assert!(cells.insert(xy, view).is_none(), "cell {xy:?} reported twice");
+                }
+                KIND_TILE_STATE => {
+                    let (id, st) = parse_state(f.payload);
+                    assert_eq!(id as usize, b);
+                    states[b] = Some(st);
+                }
+                k => panic!("board {b} sent frame kind {k:#x} in its report"),
+            }
+            link.pop();
+        }
+    }
+    (cells, states.into_iter().map(Option::unwrap).collect())
+}
+
+/// Every cell's dexels and lit voxels are the oracle's; no frame lost, no work late, nothing
+/// overflowed.
+fn check(c: &Case, r: &TileRun, what: &str) {
+    assert_eq!(r.cells.len(), (N * N) as usize, "{what}: every cell reported");
+    for (xy, (dexels, lit, pixel)) in &c.cells {
+        let got = &r.cells[xy];
+        assert_eq!(&got.0, dexels, "{what}: dexels of cell {xy:?}");
+        assert_eq!(&got.1, lit, "{what}: lit voxels of cell {xy:?}");
+        assert_eq!(&got.2, pixel, "{what}: pixel of cell {xy:?}");
+    }
+    let sum = |f: fn(&BoardState) -> u32| r.states.iter().map(f).sum::<u32>();
+    assert_eq!(sum(|s| s.sent), sum(|s| s.received), "{what}: basic frames lost or in flight: {:?}", r.states);
+    assert_eq!(r.states.iter().map(|s| s.count).sum::<i32>(), 0, "{what}: termination counters");
+    for (b, s) in r.states.iter().enumerate() {
+        assert_eq!(
+            (s.late, s.overflows, s.misrouted),
+            (0, 0, 0),
+            "{what}: board {b}: late, overflows, misrouted: {s:?}"
+        );
+        assert!(s.tokens > 0 && s.loads > 0, "{what}: board {b} never forwarded the token or loaded: {s:?}");
+    }
+    assert!(sum(|s| s.forwarded) > 0, "{what}: no beam crossed a board corner (the light was put beside one)");
+}
+
+fn report(c: &Case, r: &TileRun, what: &str) {
+    let sum = |f: fn(&BoardState) -> u32| r.states.iter().map(f).sum::<u32>();
+    eprintln!(
+        "{what}: {} cells, {} occupied and {} lit voxels and {} pixels equal host-sim's; declared {:?}; wall {:?}; {} basic \
+         frames ({} forwarded at corners), {} retransmissions, {} bytes skipped, {} bytes relayed, {} faults; \
+         peak arrived beams {}, peak work {}, peak stack {} B",
+        r.cells.len(),
+        c.occupied(),
+        c.lit(),
+        c.cells.values().filter(|v| v.2.is_some()).count(),
+        r.declared,
+        r.wall,
+        sum(|s| s.sent),
+        sum(|s| s.forwarded),
+        sum(|s| s.retransmitted),
+        sum(|s| s.skipped),
+        r.bytes,
+        r.injected,
+        r.states.iter().map(|s| s.peak_arrived).max().unwrap_or(0),
+        r.states.iter().map(|s| s.peak_work).max().unwrap_or(0),
+        r.states.iter().map(|s| s.stack).max().unwrap_or(0),
+    );
+}
+
+/// The case, computed once per test binary.
+fn the_case() -> &'static Case {
+    static CASE: std::sync::OnceLock<Case> = std::sync::OnceLock::new();
+    CASE.get_or_init(|| {
+        let c = case();
+        assert!(c.lit() > 50 && c.lit() < c.occupied() as usize, "a lit scene with shadows");
+        c
+    })
+}
+
+#[test]
+fn boards_load_and_light_their_tiles_as_host_sim_does() {
+    if !qemu::tools_present("boards_load_and_light_their_tiles_as_host_sim_does") {
+        return;
+    }
+    let c = the_case();
+    let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
+    let r = run_tiles(c, CLEAN, None);
+    report(c, &r, "clean links");
+    check(c, &r, "clean links");
+    assert_eq!(r.injected, 0);
+}
+
+#[test]
+fn boards_light_the_same_voxels_over_faulty_links() {
+    if !qemu::tools_present("boards_light_the_same_voxels_over_faulty_links") {
+        return;
+    }
+    let c = the_case();
+    let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
+    // About one byte in 250 corrupted and one in 250 dropped, as the link exercise's fault run.
+    let r = run_tiles(c, Faults { corrupt: 40, drop: 40, seed: 0x711E_5EED }, None);
+    report(c, &r, "faulty links");
+    check(c, &r, "faulty links");
+    let sum = |f: fn(&BoardState) -> u32| r.states.iter().map(f).sum::<u32>();
+    assert!(r.injected > 0, "the relays injected no fault");
+    assert!(sum(|s| s.retransmitted) > 0 && sum(|s| s.skipped) > 0, "faults were injected: some repaired");
+}
+
+#[test]
+fn a_slow_board_never_makes_the_ring_declare_early() {
+    if !qemu::tools_present("a_slow_board_never_makes_the_ring_declare_early") {
+        return;
+    }
+    let c = the_case();
+    let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
+    // The source's board gets every byte on its links 100 ms late, both ways (a delay line):
+    // a token round over the other links takes less, and its beams are still on their way
+    // while the others are passive.
+    let (slow, _) = c.initial_beams();
+    let what = format!("slow board {slow} (the source's)");
+    let r = run_tiles(c, CLEAN, Some(Slow::Board(slow, Duration::from_millis(100))));
+    report(c, &r, &what);
+    check(c, &r, &what);
+}
+
+#[test]
+fn a_late_wire_against_the_ring_never_makes_it_declare_early() {
+    if !qemu::tools_present("a_late_wire_against_the_ring_never_makes_it_declare_early") {
+        return;
+    }
+    let c = the_case();
+    let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
+    // The ring goes 0 → 1 → 3 → 2 → 0 over every link of the 2 × 2 boards, so a board's slow
+    // links slow its token too. Here only the bytes the source's board (2) sends board 3 are
+    // 300 ms late: that wire goes against the ring, and the light flows along it (east, away
+    // from the source), so a beam on it is overtaken by the token's way round 2 → 0 → 1 → 3,
+    // and a detector that finds every board passive declares the lighting with it in flight.
+    // (Checked by hand: with `Node::sent`/`received` taken out of the board, this run fails,
+    // board 3 seeing beams after the declaration; the slow-board run above does not.)
+    assert_eq!(c.initial_beams().0, 2, "the light is on board 2");
+    let slow = Slow::Wire { from: 2, to: 3, delay: Duration::from_millis(300) };
+    let r = run_tiles(c, CLEAN, Some(slow));
+    report(c, &r, "wire 2 → 3 late");
+    check(c, &r, "wire 2 → 3 late");
+}
