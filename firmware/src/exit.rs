@@ -1,11 +1,13 @@
 //! How a test image ends under QEMU (the replay image, the grid's board): its exit status
-//! through semihosting, and a panic's message printed before a failing exit.
+//! through semihosting, and a panic's message printed before a failing exit — on stderr, so
+//! that it never mixes with what the image writes on stdout (the replay's digests, the board's
+//! binary defmt log).
 //!
 //! **Invariant**: the image never returns from [`exit`] or a panic; QEMU ends with the status.
 
 use core::panic::PanicInfo;
 
-use cortex_m_semihosting::{debug, hprintln};
+use cortex_m_semihosting::{debug, heprintln};
 
 /// End QEMU with success or failure.
 pub fn exit(ok: bool) -> ! {
@@ -17,6 +19,6 @@ pub fn exit(ok: bool) -> ! {
 
 #[panic_handler]
 fn panic(info: &PanicInfo) -> ! {
-    hprintln!("panic: {}", info);
+    heprintln!("panic: {}", info);
     exit(false)
 }

@@ -42,7 +42,8 @@ pub fn board_elf(tmp: &Path) -> &'static Path {
     static ELF: OnceLock<PathBuf> = OnceLock::new();
     ELF.get_or_init(|| {
         let dir = tmp.join("firmware-board");
-        qemu::build_firmware(&dir, None, &["--bin", "board"]).join("board")
+        // With its defmt log (stdout over semihosting), which a failing test shows decoded.
+        qemu::build_firmware(&dir, None, &["--bin", "board", "--features", "defmt"]).join("board")
     })
 }
 
@@ -96,19 +97,31 @@ pub fn neighbour(b: usize, l: usize) -> Option<usize> {
 /// the test's path out.
 pub struct Grid {
     pub boards: Vec<Child>,
+    /// The image the boards run (its defmt table decodes their logs).
+    pub elf: PathBuf,
+    /// Each board's stdout: its defmt log frames, as they came.
+    pub log: Vec<Arc<Mutex<Vec<u8>>>>,
+    /// Each board's stderr: a panic's message, QEMU's own errors.
     pub output: Vec<Arc<Mutex<String>>>,
     pub stop: Arc<AtomicBool>,
     pub relays: Vec<JoinHandle<(u64, u64)>>,
 }
 
 impl Grid {
-    /// Every board's QEMU output so far (a panic message, QEMU's own errors).
+    /// Every board's QEMU output so far: its log, decoded ([`Grid::logs`]), then its stderr
+    /// (a panic message, QEMU's own errors).
     pub fn outputs(&self) -> String {
         let mut s = String::new();
-        for (b, o) in self.output.iter().enumerate() {
-            s += &format!("--- board {b} ---\n{}\n", o.lock().unwrap());
+        for (b, (log, o)) in self.logs().iter().zip(&self.output).enumerate() {
+            s += &format!("--- board {b} ---\n{}\n{}\n", log.join("\n"), o.lock().unwrap());
         }
         s
+    }
+
+    /// Every board's defmt log so far, decoded with the image's table, a line per frame.
+    pub fn logs(&self) -> Vec<Vec<String>> {
+        let elf = std::fs::read(&self.elf).unwrap_or_default();
+        self.log.iter().map(|l| decode_log(&elf, &l.lock().unwrap())).collect()
     }
 
     /// Stop the relays; returns (bytes relayed, faults injected).
@@ -325,7 +338,14 @@ pub fn boot(elf: &Path, faults: Faults, slow: Option<Slow>, timeout: Duration) -
         })
         .collect();
     let stop = Arc::new(AtomicBool::new(false));
-    let mut grid = Grid { boards: Vec::new(), output: Vec::new(), stop: stop.clone(), relays: Vec::new() };
+    let mut grid = Grid {
+        boards: Vec::new(),
+        elf: elf.to_path_buf(),
+        log: Vec::new(),
+        output: Vec::new(),
+        stop: stop.clone(),
+        relays: Vec::new(),
+    };
     for ls in &listeners {
         let mut cmd = Command::new(QEMU);
         cmd.args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-display", "none", "-monitor", "none"])
@@ -350,19 +370,24 @@ pub fn boot(elf: &Path, faults: Faults, slow: Option<Slow>, timeout: Duration) -
             .stderr(Stdio::piped())
             .spawn()
             .expect("start qemu-system-arm");
-        let out = Arc::new(Mutex::new(String::new()));
-        for mut pipe in
-            [Box::new(child.stdout.take().unwrap()) as Box<dyn Read + Send>, Box::new(child.stderr.take().unwrap())]
-        {
-            let out = out.clone();
-            std::thread::spawn(move || {
-                let mut buf = [0u8; 512];
-                while let Ok(n @ 1..) = pipe.read(&mut buf) {
-                    out.lock().unwrap().push_str(&String::from_utf8_lossy(&buf[..n]));
-                }
-            });
-        }
+        let (log, out) = (Arc::new(Mutex::new(Vec::new())), Arc::new(Mutex::new(String::new())));
+        let (mut stdout, mut stderr) = (child.stdout.take().unwrap(), child.stderr.take().unwrap());
+        let to = log.clone();
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 512];
+            while let Ok(n @ 1..) = stdout.read(&mut buf) {
+                to.lock().unwrap().extend_from_slice(&buf[..n]);
+            }
+        });
+        let to = out.clone();
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 512];
+            while let Ok(n @ 1..) = stderr.read(&mut buf) {
+                to.lock().unwrap().push_str(&String::from_utf8_lossy(&buf[..n]));
+            }
+        });
         grid.boards.push(child);
+        grid.log.push(log);
         grid.output.push(out);
     }
     let mut socks: Vec<Vec<Option<TcpStream>>> = listeners
@@ -403,3 +428,30 @@ pub fn boot(elf: &Path, faults: Faults, slow: Option<Slow>, timeout: Duration) -
 /// successor (0 E, 1 N, 2 W, 3 S).
 pub const RING: [usize; 4] = [0, 1, 3, 2];
 pub const RING_NEXT: [u8; 4] = [0, 1, 3, 2];
+
+/// The defmt frames of `bytes` (a board's stdout), decoded with the table of `elf`: one line
+/// per frame; a line saying why where the log cannot be decoded (no table, a malformed frame
+/// the encoding cannot recover from, bytes left after the last whole frame).
+pub fn decode_log(elf: &[u8], bytes: &[u8]) -> Vec<String> {
+    use defmt_decoder::{DecodeError, Table};
+    let table = match Table::parse(elf) {
+        Ok(Some(t)) => t,
+        Ok(None) => return vec!["(no defmt table in the image: built without its defmt feature)".into()],
+        Err(e) => return vec![format!("(the image's defmt table does not parse: {e})")],
+    };
+    let mut decoder = table.new_stream_decoder();
+    decoder.received(bytes);
+    let mut lines = Vec::new();
+    loop {
+        match decoder.decode() {
+            Ok(frame) => lines.push(frame.display_message().to_string()),
+            Err(DecodeError::UnexpectedEof) => break,
+            Err(DecodeError::Malformed) if table.encoding().can_recover() => lines.push("(a malformed frame)".into()),
+            Err(DecodeError::Malformed) => {
+                lines.push("(a malformed frame: the rest of the log cannot be decoded)".into());
+                break;
+            }
+        }
+    }
+    lines
+}

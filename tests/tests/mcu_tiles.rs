@@ -15,7 +15,10 @@
 //! within [`TIMEOUT`]; every QEMU is killed on every path out), if a frame is lost (basic
 //! frames sent ≠ received, a board's termination counter not 0) or if a declaration came
 //! early (a board saw loading work after it learned the loading was declared, or beams after
-//! the lighting was; the dexels or the lit set would differ too).
+//! the lighting was; the dexels or the lit set would differ too). Every board's defmt log is
+//! decoded (`rc2_tests::boards::decode_log`), printed with the run's figures and with any
+//! failure, and checked: each board says it held its tile, took part in each phase and saw no
+//! late work.
 //!
 //! Needs `qemu-system-arm` and the `thumbv7em-none-eabihf` target: under CI a missing tool is
 //! a failure, elsewhere a skip ([`rc2_tests::qemu::tools_present`]).
@@ -246,6 +249,8 @@ struct TileRun {
     wall: Duration,
     bytes: u64,
     injected: u64,
+    /// Each board's defmt log, decoded ([`rc2_tests::boards::Grid::logs`]).
+    logs: Vec<Vec<String>>,
 }
 
 /// Configure the boards, hand board 0 the facets and the source's board its initial beams,
@@ -309,7 +314,7 @@ fn run_tiles(c: &Case, faults: Faults, slow: Option<Slow>) -> TileRun {
     g.settle();
     let wall = g.t0.elapsed();
     let (bytes, injected) = g.grid.stop_relays();
-    TileRun { cells, states, declared, wall, bytes, injected }
+    TileRun { cells, states, declared, wall, bytes, injected, logs: g.grid.logs() }
 }
 
 /// Ask every board for its report: its cells, then its state.
@@ -344,9 +349,21 @@ fn query(g: &mut Booted) -> (BTreeMap<(u16, u16), CellView>, Vec<BoardState>) {
     (cells, states.into_iter().map(Option::unwrap).collect())
 }
 
-/// Every cell's dexels and lit voxels are the oracle's; no frame lost, no work late, nothing
-/// overflowed.
+/// [`check_run`], and on failure the boards' logs, decoded, before the failure itself.
 fn check(c: &Case, r: &TileRun, what: &str) {
+    let checked = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| check_run(c, r, what)));
+    if let Err(failure) = checked {
+        for (b, log) in r.logs.iter().enumerate() {
+            eprintln!("{what}: board {b}'s log (defmt, decoded):\n  {}", log.join("\n  "));
+        }
+        std::panic::resume_unwind(failure);
+    }
+}
+
+/// Every cell's dexels and lit voxels are the oracle's; no frame lost, no work late, nothing
+/// overflowed; every board's log says it held its tile, took the token into each phase (ring
+/// position 0: declared each) and reported — the log decoded from its defmt frames.
+fn check_run(c: &Case, r: &TileRun, what: &str) {
     assert_eq!(r.cells.len(), (N * N) as usize, "{what}: every cell reported");
     for (xy, (dexels, lit, pixel)) in &c.cells {
         let got = &r.cells[xy];
@@ -366,9 +383,25 @@ fn check(c: &Case, r: &TileRun, what: &str) {
         assert!(s.tokens > 0 && s.loads > 0, "{what}: board {b} never forwarded the token or loaded: {s:?}");
     }
     assert!(sum(|s| s.forwarded) > 0, "{what}: no beam crossed a board corner (the light was put beside one)");
+    for (b, log) in r.logs.iter().enumerate() {
+        let has = |text: &str| log.iter().any(|l| l.contains(text));
+        let (x0, y0) = ((b % SIDE) as u32 * TILE, (b / SIDE) as u32 * TILE);
+        assert!(has(&format!("board {b}: tile of {TILE} x {TILE} cells at ({x0}, {y0})")), "{what}: board {b}'s log");
+        assert!(has(&format!("board {b}: report (0 late, 0 overflows")), "{what}: board {b}'s log");
+        for phase in 1..=2 {
+            let line = match RING[0] == b {
+                true => format!("board {b}: declared the end of phase {}", phase - 1),
+                false => format!("board {b}: entered phase {phase}"),
+            };
+            assert!(has(&line), "{what}: board {b}'s log lacks \"{line}\"");
+        }
+    }
 }
 
 fn report(c: &Case, r: &TileRun, what: &str) {
+    for (b, log) in r.logs.iter().enumerate() {
+        eprintln!("{what}: board {b}'s log (defmt, decoded):\n  {}", log.join("\n  "));
+    }
     let sum = |f: fn(&BoardState) -> u32| r.states.iter().map(f).sum::<u32>();
     eprintln!(
         "{what}: {} cells, {} occupied and {} lit voxels and {} pixels equal host-sim's; declared {:?}; wall {:?}; {} basic \

@@ -36,9 +36,21 @@
 //! SysTick's (every [`TICK_CYCLES`]: the timeouts) wakes it: four boards emulated on one
 //! machine leave its cores to each other and to the links' relays.
 //!
-//! A panic prints its message over semihosting and exits QEMU with a failure.
+//! A panic prints its message over semihosting (stderr) and exits QEMU with a failure; with the
+//! `defmt` feature the board logs its steps ([`log!`]) on stdout.
 #![no_std]
 #![no_main]
+
+/// A line of the board's log: with the `defmt` feature, a `defmt::println!` frame (printed
+/// whatever `DEFMT_LOG` says) over semihosting (stdout), which the grid tests decode with the
+/// image's defmt table and show when a run fails; without it, nothing (its arguments are not
+/// evaluated).
+macro_rules! log {
+    ($($t:tt)*) => {
+        #[cfg(feature = "defmt")]
+        defmt::println!($($t)*);
+    };
+}
 
 #[path = "../../cmsdk.rs"]
 mod cmsdk;
@@ -228,14 +240,17 @@ fn main() -> ! {
         let p = f.payload;
         if f.kind == KIND_CONFIG && p.len() == 7 {
             let (id, neighbours, count) = (p[0], [p[1], p[2], p[3], p[4]], u16::from_le_bytes([p[5], p[6]]));
+            log!("board {=u8}: link exercise, {=u16} frames per link", id, count);
             board.links[0].pop();
             link_exercise(board, id, neighbours, count);
         }
         if let Some(config) = safra::Config::parse(f.kind, p) {
+            log!("termination exercise: configured");
             board.links[0].pop();
             safra::run(board, config);
         }
         if let Some(config) = tiles::Config::parse(f.kind, p) {
+            log!("tile exercise: configured");
             board.links[0].pop();
             tiles::run(board, config);
         }

@@ -346,6 +346,16 @@ fn tile(mut board: Board, c: Config, setup: LightSetup) -> ! {
     let mut report_next: Option<usize> = None;
     let mut shade: Option<ShadeSetup> = None;
     let mut buf = [0u8; LINK_BUF];
+    log!(
+        "board {=u8}: tile of {=u16} x {=u16} cells at ({=u16}, {=u16}), ring position {=u8}, source here: {=bool}",
+        c.id,
+        c.side,
+        c.side,
+        c.x0,
+        c.y0,
+        c.ring_position,
+        source_slot.is_some()
+    );
     loop {
         let now = board.now();
         // 1. Neighbours: tokens and basic frames, each taken only when there is room.
@@ -358,6 +368,13 @@ fn tile(mut board: Board, c: Config, setup: LightSetup) -> ! {
             if f.kind == KIND_TOKEN {
                 if let Ok(t) = get_token(&mut Reader::new(f.payload)) {
                     if let Some(p) = node.token(t).entered {
+                        log!(
+                            "board {=u8}: entered phase {=u16} ({=u32} frames sent, {=u32} received)",
+                            c.id,
+                            p,
+                            st.sent,
+                            st.received
+                        );
                         entered(p, &mut emit, &mut pending);
                     }
                 }
@@ -429,7 +446,16 @@ fn tile(mut board: Board, c: Config, setup: LightSetup) -> ! {
                     None => st.overflows += 1,
                 },
                 KIND_START => started = true,
-                KIND_QUERY => report_next = Some(0),
+                KIND_QUERY => {
+                    log!(
+                        "board {=u8}: report ({=u32} late, {=u32} overflows, {=u32} beams forwarded)",
+                        c.id,
+                        st.late,
+                        st.overflows,
+                        st.forwarded
+                    );
+                    report_next = Some(0)
+                }
                 _ => {}
             }
             board.links[0].pop();
@@ -567,6 +593,7 @@ fn tile(mut board: Board, c: Config, setup: LightSetup) -> ! {
             match node.poll(passive) {
                 Ok(Action::Forward(t)) => token = Some(t),
                 Ok(Action::Declare(p)) => {
+                    log!("board {=u8}: declared the end of phase {=u16}", c.id, p);
                     let _ = done_due.push_back(p);
                     entered(node.phase(), &mut emit, &mut pending);
                 }
