@@ -28,12 +28,11 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use cell_core::beam::frac::U0;
-use cell_core::beam::{Beam, FarDistance, Source};
+use cell_core::beam::Source;
 use cell_core::facet::PipelinePacket;
-use cell_core::light::BeamMsg;
 use cell_core::shade::{NormalMode, ShadeParams};
 use cell_core::trace::{write_event, Event, LightSetup, ShadeSetup};
-use cell_core::wire::{put_beam, put_pipe, PutExt, SliceWriter, KIND_BEAM};
+use cell_core::wire::{put_pipe, PutExt, SliceWriter};
 use host_sim::machine::async_tiles::{run, AsyncConfig};
 use host_sim::machine::diffuse::{source_at, LightConfig};
 use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
@@ -166,18 +165,10 @@ impl Case {
         buf[..n].to_vec()
     }
 
-    /// The source's initial beams, encoded, and the board holding its cell.
-    fn initial_beams(&self) -> (usize, Vec<Vec<u8>>) {
-        let far = FarDistance::<U0>::new(N - 1).unwrap();
+    /// The board holding the source's cell (which makes its initial beams itself).
+    fn source_board(&self) -> usize {
         let sv = self.source.voxel();
-        let beams = self.light.timing.emission.order().map(|d| {
-            let m = BeamMsg::new(Beam::initial(&self.source, d, far), sv[2] as u16);
-            let mut buf = [0u8; 64];
-            let mut w = SliceWriter::new(&mut buf);
-            put_beam(&mut w, &m).unwrap();
-            w.written().to_vec()
-        });
-        (board_of(sv[0] as u32, sv[1] as u32), beams.to_vec())
+        board_of(sv[0] as u32, sv[1] as u32)
     }
 
     /// Lit voxels in all.
@@ -273,8 +264,8 @@ struct TileRun {
     logs: Vec<Vec<String>>,
 }
 
-/// Configure the boards, hand board 0 the facets and the source's board its initial beams,
-/// start the ring, wait for the three declarations (loading, lighting, the empty phase that
+/// Configure the boards (each gets the light setup; the source's board makes its initial
+/// beams from it), hand board 0 the facets, start the ring, wait for the three declarations (loading, lighting, the empty phase that
 /// tells every board of the lighting's), then read every board's report.
 fn run_tiles(c: &Case, faults: Faults, slow: Option<Slow>) -> TileRun {
     let mut g = boot(board_elf(Path::new(env!("CARGO_TARGET_TMPDIR"))), faults, slow, TIMEOUT);
@@ -301,10 +292,6 @@ fn run_tiles(c: &Case, faults: Faults, slow: Option<Slow>) -> TileRun {
         put_pipe(&mut w, p).unwrap();
         let body = w.written().to_vec();
         g.send(board_of(0, 0), KIND_PIPE, &body);
-    }
-    let (source_board, beams) = c.initial_beams();
-    for b in &beams {
-        g.send(source_board, KIND_BEAM, b);
     }
     // Every host frame taken before the detection starts: they are not basic messages.
     g.settle();
@@ -496,7 +483,7 @@ fn a_slow_board_never_makes_the_ring_declare_early() {
     // The source's board gets every byte on its links 100 ms late, both ways (a delay line):
     // a token round over the other links takes less, and its beams are still on their way
     // while the others are passive.
-    let (slow, _) = c.initial_beams();
+    let slow = c.source_board();
     let what = format!("slow board {slow} (the source's)");
     let r = run_tiles(c, CLEAN, Some(Slow::Board(slow, Duration::from_millis(100))));
     report(c, &r, &what);
@@ -517,7 +504,7 @@ fn a_late_wire_against_the_ring_never_makes_it_declare_early() {
     // and a detector that finds every board passive declares the lighting with it in flight.
     // (Checked by hand: with `Node::sent`/`received` taken out of the board, this run fails,
     // board 3 seeing beams after the declaration; the slow-board run above does not.)
-    assert_eq!(c.initial_beams().0, 2, "the light is on board 2");
+    assert_eq!(c.source_board(), 2, "the light is on board 2");
     let slow = Slow::Wire { from: 2, to: 3, delay: Duration::from_millis(300) };
     let r = run_tiles(c, CLEAN, Some(slow));
     report(c, &r, "wire 2 → 3 late");

@@ -5,8 +5,7 @@
 //! * **Setup** (host → board, UART 0): [`KIND_TILE_CONFIG`] (board id, neighbours, ring
 //!   position, tile origin and side, n, depth), then the light setup ([`KIND_TILE_LIGHT`]: a
 //!   `cell_core::trace` light record), then, to the board holding pipeline cell 0 (cell
-//!   (0, 0)), the scene's pipeline packets ([`KIND_PIPE`] at row 0), and to the board holding
-//!   the source's cell, the source's initial beams (`wire::KIND_BEAM`). Then
+//!   (0, 0)), the scene's pipeline packets ([`KIND_PIPE`] at row 0). Then
 //!   `safra::KIND_START` to ring position 0. The host's frames are not basic messages: they are
 //!   all taken (acknowledged) before the detection starts.
 //! * **Cells**: a [`Slot`] per cell of the tile: a `cell_core::cell::Cell` (the dexel store
@@ -20,7 +19,8 @@
 //!   flows east and north (+x, +y), in order on each link.
 //! * **Lighting** (phase 1): arrived beams go into their cell's FIFO when it has room (a beam
 //!   for a full FIFO waits; later beams for other cells do not), the source's board hands its
-//!   cell the next initial beam once it entered phase 1, every cell holding a beam steps, and
+//!   cell the next of the six initial beams it made from the light setup once it entered
+//!   phase 1, every cell holding a beam steps, and
 //!   the head of every output buffer moves: to the neighbour cell's FIFO inside the tile (when
 //!   it has room), or into the outgoing queue of the link towards the neighbour's board
 //!   ([`KIND_TILE_BEAM`], addressed by cell). A beam to a diagonal neighbour across a board
@@ -44,7 +44,7 @@
 //! is counted, never silent.
 
 use cell_core::beam::frac::U0;
-use cell_core::beam::{FarDistance, SplitOrder};
+use cell_core::beam::{Beam, FarDistance, SplitOrder};
 use cell_core::cell::{Cell, DEFAULT_DEXELS, FA_CAP, LIT_CAP, OB_CAP};
 use cell_core::facet::{PipelinePacket, RowPacket};
 use cell_core::light::{ActivityDelta, BeamMsg, LightCell, Port};
@@ -55,7 +55,7 @@ use cell_core::trace::{self, kind, LightSetup, ShadeSetup};
 use cell_core::voxelize::PipelineCell;
 use cell_core::wire::{
     get_beam, get_pipe, get_row, get_token, put_beam, put_pipe, put_row, read_frame, ByteSink, PutExt, Reader,
-    SliceWriter, KIND_BEAM, KIND_TOKEN,
+    SliceWriter, KIND_TOKEN,
 };
 use heapless::{Deque, Vec};
 
@@ -336,6 +336,13 @@ fn tile(mut board: Board, c: Config, setup: LightSetup) -> ! {
     let mut emit: Deque<BeamMsg<U0>, EMIT> = Deque::new();
     let sv = setup.source.voxel();
     let source_slot = c.slot(sv[0], sv[1]);
+    // The source's cell makes its six initial beams itself (§4.3), from the light setup every
+    // board got; they go out once the board enters the lighting phase.
+    if source_slot.is_some() {
+        for b in Beam::initial_six(&setup.source, far) {
+            let _ = pending.push_back(BeamMsg::new(b, sv[2] as u16));
+        }
+    }
     // Loading (0), lighting (1), and the empty phase (2) that tells every board of the
     // lighting's declaration.
     let mut node = Node::new(u16::from(c.ring_position), 2);
@@ -428,14 +435,6 @@ fn tile(mut board: Board, c: Config, setup: LightSetup) -> ! {
                 KIND_PIPE => match (r.u16(), get_pipe(&mut r)) {
                     (Ok(0), Ok(p)) if c.slot(0, 0).is_some() => {
                         if host.push_back(p).is_err() {
-                            st.overflows += 1;
-                        }
-                    }
-                    _ => st.overflows += 1,
-                },
-                KIND_BEAM => match get_beam(&mut r, far) {
-                    Ok(b) if source_slot.is_some() => {
-                        if pending.push_back(b).is_err() {
                             st.overflows += 1;
                         }
                     }
