@@ -459,14 +459,8 @@ fn ear_clip_indices(
 /// polygons quantisation folds (a small quad whose lattice vertices overlap in projection): the
 /// mesh's own polygon is simple, so its triangles are, before quantisation.
 pub fn triangulate_f64(p: &[[f64; 3]]) -> std::result::Result<Vec<[usize; 3]>, &'static str> {
-    let k = p.len();
-    let mut n = [0.0f64; 3];
-    for i in 0..k {
-        let (a, b) = (p[i], p[(i + 1) % k]);
-        n[0] += (a[1] - b[1]) * (a[2] + b[2]);
-        n[1] += (a[2] - b[2]) * (a[0] + b[0]);
-        n[2] += (a[0] - b[0]) * (a[1] + b[1]);
-    }
+    let points: Vec<parry3d_f64::math::Vector> = p.iter().map(|&q| q.into()).collect();
+    let n = crate::scene::patches::area_vector(&points).to_array();
     if n.iter().any(|c| !c.is_finite()) {
         return Err("non-finite polygon");
     }
@@ -485,7 +479,7 @@ pub fn triangulate_f64(p: &[[f64; 3]]) -> std::result::Result<Vec<[usize; 3]>, &
         let (a, b, c) = (p[a], p[b], p[c]);
         sign((b[u] - a[u]) * (c[v] - a[v]) - (b[v] - a[v]) * (c[u] - a[u]))
     };
-    ear_clip_indices(k, sign(n[axis]), orient, |i, j| p[i] == p[j])
+    ear_clip_indices(p.len(), sign(n[axis]), orient, |i, j| p[i] == p[j])
 }
 
 /// Plane ids by exact oriented plane (primitive normal, offset): the first facet's id.
