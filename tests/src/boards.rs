@@ -315,6 +315,28 @@ impl Booted {
         self.hosts[b].1.send(kind, body).unwrap();
     }
 
+    /// Start the detection at ring position 0 and wait for its declarations of phases 0 …
+    /// `phases` − 1, in order, while ring position 0 sends nothing else and no other board
+    /// sends anything; `what(k)` names phase k in a failure. Returns when each came, from the
+    /// start.
+    pub fn declarations(&mut self, phases: usize, what: &dyn Fn(usize) -> String) -> Vec<Duration> {
+        let start = Instant::now();
+        self.send(RING[0], KIND_START, &[]);
+        let mut declared = Vec::new();
+        while declared.len() < phases {
+            self.poll(&|| format!("the declaration of {}", what(declared.len())));
+            for (b, (_, link)) in self.hosts.iter_mut().enumerate() {
+                if let Some(f) = link.received() {
+                    assert_eq!((b, f.kind), (RING[0], KIND_DONE), "only ring position 0 declares, nothing else comes");
+                    assert_eq!(f.payload, &(declared.len() as u16).to_le_bytes(), "phases in order");
+                    declared.push(start.elapsed());
+                    link.pop();
+                }
+            }
+        }
+        declared
+    }
+
     /// Wait until every host link has nothing outstanding (every frame taken by its board).
     pub fn settle(&mut self) {
         while self.hosts.iter().any(|(_, l)| !l.idle()) {
@@ -428,6 +450,23 @@ pub fn boot(elf: &Path, faults: Faults, slow: Option<Slow>, timeout: Duration) -
 /// successor (0 E, 1 N, 2 W, 3 S).
 pub const RING: [usize; 4] = [0, 1, 3, 2];
 pub const RING_NEXT: [u8; 4] = [0, 1, 3, 2];
+
+/// The head of every exercise's configuration of board `b`: its id and its neighbours' ids on
+/// links E, N, W, S ([`NONE`] where there is none).
+pub fn board_config(b: usize) -> Vec<u8> {
+    let mut config = vec![b as u8];
+    config.extend((0..4).map(|l| neighbour(b, l).map_or(NONE, |c| c as u8)));
+    config
+}
+
+/// [`board_config`], then what the ring's exercises add: `b`'s position in the [`RING`], the
+/// ring's length and the link to its successor.
+pub fn ring_config(b: usize) -> Vec<u8> {
+    let mut config = board_config(b);
+    let position = RING.iter().position(|&r| r == b).unwrap();
+    config.extend([position as u8, RING.len() as u8, RING_NEXT[b]]);
+    config
+}
 
 /// The defmt frames of `bytes` (a board's stdout), decoded with the table of `elf`: one line
 /// per frame; a line saying why where the log cannot be decoded (no table, a malformed frame

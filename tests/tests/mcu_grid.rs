@@ -29,8 +29,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use rc2_tests::boards::{
-    board_elf, boot, neighbour, Booted, Faults, Slow, CLEAN, KIND_DONE, KIND_QUERY, KIND_START, NONE, ONE_GRID, RING,
-    RING_NEXT, SIDE,
+    board_config, board_elf, boot, neighbour, ring_config, Booted, Faults, Slow, CLEAN, KIND_QUERY, ONE_GRID, SIDE,
 };
 use rc2_tests::qemu;
 
@@ -89,8 +88,7 @@ fn run_grid(faults: Faults) -> Run {
     let mut g = boot(board_elf(Path::new(env!("CARGO_TARGET_TMPDIR"))), faults, None, GRID_TIMEOUT);
     let boards = SIDE * SIDE;
     for b in 0..boards {
-        let mut config = vec![b as u8];
-        config.extend((0..4).map(|l| neighbour(b, l).map_or(NONE, |c| c as u8)));
+        let mut config = board_config(b);
         config.extend(COUNT.to_le_bytes());
         g.send(b, KIND_CONFIG, &config);
     }
@@ -264,11 +262,8 @@ fn query(g: &mut Booted) -> Vec<BoardState> {
 /// Returns the two readings and the time from start to declaration.
 fn run_termination(work: Work, faults: Faults, slow: Option<Slow>) -> ([Vec<BoardState>; 2], Duration, u64) {
     let mut g = boot(board_elf(Path::new(env!("CARGO_TARGET_TMPDIR"))), faults, slow, GRID_TIMEOUT);
-    for (b, next) in RING_NEXT.into_iter().enumerate() {
-        let position = RING.iter().position(|&r| r == b).unwrap();
-        let mut config = vec![b as u8];
-        config.extend((0..4).map(|l| neighbour(b, l).map_or(NONE, |c| c as u8)));
-        config.extend([position as u8, RING.len() as u8, next]);
+    for b in 0..SIDE * SIDE {
+        let mut config = ring_config(b);
         config.extend(work.work_us.to_le_bytes());
         config.push(work.fan_out);
         g.send(b, KIND_TERM_CONFIG, &config);
@@ -279,21 +274,8 @@ fn run_termination(work: Work, faults: Faults, slow: Option<Slow>) -> ([Vec<Boar
     }
     // Every injected item taken by its board before the detection starts.
     g.settle();
-    let start = Instant::now();
-    g.send(RING[0], KIND_START, &[]);
     // Phase 0 (the work), then phase 1 (empty: its round tells every board of the first).
-    let mut declared = Vec::new();
-    while declared.len() < 2 {
-        g.poll(&|| format!("the declaration of termination of phase {}", declared.len()));
-        for (b, (_, link)) in g.hosts.iter_mut().enumerate() {
-            if let Some(f) = link.received() {
-                assert_eq!((b, f.kind), (RING[0], KIND_DONE), "only ring position 0 declares");
-                assert_eq!(f.payload, &(declared.len() as u16).to_le_bytes(), "phases in order");
-                declared.push(start.elapsed());
-                link.pop();
-            }
-        }
-    }
+    let declared = g.declarations(2, &|k| format!("termination of phase {k}"));
     let first = query(&mut g);
     let wait = Instant::now();
     while wait.elapsed() < Duration::from_millis(300) {

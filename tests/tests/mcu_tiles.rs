@@ -39,10 +39,7 @@ use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
 use host_sim::machine::shade::{cell_material, eye_lights, point_lights, shade_grid, AMBIENT};
 use host_sim::precompute::{prepare, LoadConfig};
 use host_sim::scene::Mesh;
-use rc2_tests::boards::{
-    board_elf, boot, neighbour, Booted, Faults, Slow, CLEAN, KIND_DONE, KIND_QUERY, KIND_START, NONE, ONE_GRID, RING,
-    RING_NEXT, SIDE,
-};
+use rc2_tests::boards::{board_elf, boot, ring_config, Booted, Faults, Slow, CLEAN, KIND_QUERY, ONE_GRID, RING, SIDE};
 use rc2_tests::qemu;
 
 /// Grid side in cells.
@@ -270,11 +267,8 @@ struct TileRun {
 fn run_tiles(c: &Case, faults: Faults, slow: Option<Slow>) -> TileRun {
     let mut g = boot(board_elf(Path::new(env!("CARGO_TARGET_TMPDIR"))), faults, slow, TIMEOUT);
     let (record, shading) = (c.light_record(), c.shade_record());
-    for (b, next) in RING_NEXT.into_iter().enumerate() {
-        let position = RING.iter().position(|&r| r == b).unwrap();
-        let mut config = vec![b as u8];
-        config.extend((0..4).map(|l| neighbour(b, l).map_or(NONE, |c| c as u8)));
-        config.extend([position as u8, RING.len() as u8, next]);
+    for b in 0..SIDE * SIDE {
+        let mut config = ring_config(b);
         let (x0, y0) = ((b % SIDE) as u32 * TILE, (b / SIDE) as u32 * TILE);
         config.extend((x0 as u16).to_le_bytes());
         config.extend((y0 as u16).to_le_bytes());
@@ -295,20 +289,7 @@ fn run_tiles(c: &Case, faults: Faults, slow: Option<Slow>) -> TileRun {
     }
     // Every host frame taken before the detection starts: they are not basic messages.
     g.settle();
-    let start = Instant::now();
-    g.send(RING[0], KIND_START, &[]);
-    let mut declared = Vec::new();
-    while declared.len() < 3 {
-        g.poll(&|| format!("the declaration of phase {} (0 loading, 1 lighting, 2 the news)", declared.len()));
-        for (b, (_, link)) in g.hosts.iter_mut().enumerate() {
-            if let Some(f) = link.received() {
-                assert_eq!((b, f.kind), (RING[0], KIND_DONE), "only ring position 0 declares, nothing else comes");
-                assert_eq!(f.payload, &(declared.len() as u16).to_le_bytes(), "phases in order");
-                declared.push(start.elapsed());
-                link.pop();
-            }
-        }
-    }
+    let declared = g.declarations(3, &|k| format!("phase {k} (0 loading, 1 lighting, 2 the news)"));
     let (cells, states) = query(&mut g);
     // Nothing after the reports: no board goes on working.
     let wait = Instant::now();
