@@ -18,8 +18,28 @@
 //!   half a voxel from the light; here the ray's distance along the axis is counted from the
 //!   light, `k − δ`, so every ray is a true ray from the light.
 //!
-//! What no variant changes is the receiving side: a lit pixel is lit by at least one lattice ray through its two bracketing voxels; at f = 0
-//! about one or two rays cross a pixel's footprint, and the reference samples its centre.
+//! The receiving side of the machine: a pixel is lit by any lattice ray through its two
+//! bracketing voxels on the light's side of its plane; at f = 0 about one or two rays cross a
+//! pixel's footprint, a region around the point the reference samples. Variants that change it
+//! (`Receiver`), alone or with exact occluders in part of the voxels:
+//! * `point` — lit iff the ray to the pixel's own point (the visible plane on the column's
+//!   centre line; a lattice ray at f = 8) gets there, the machine's occluders on the way;
+//! * `point+exact` — the same past exact occluders: the ideal, what the reference computes;
+//! * `point+creases`, `point+rims`, `point+creases+rims`, `creases+rims` — exact occluders
+//!   only in voxels two planes of the mesh pass through (creases), or in occupied voxels no
+//!   triangle passes through (rims: the conservative contour and the standard band around
+//!   edges), the plane rule elsewhere (triangles sampled every tenth of a voxel);
+//! * `nearest0+creases+rims`, `nearest1+creases+rims`, `nearest0+exact`, `nearest1+exact` —
+//!   a receiver a cell can evaluate: one lattice ray at f = 0 or 1, the one nearest the
+//!   pixel's point among those whose path crosses its bracketing voxels on the plane's outer
+//!   side, must reach it;
+//! * `point+exact+source`, `nearest0+exact+source`, `nearest1+exact+source` — the same with
+//!   the rays from the light itself (`exact-source`), and two of the three parts without the
+//!   third: `exact+source` (the machine's receivers), `nearest0+source` (its occluders);
+//! * `wedges`, `point+wedges`, `nearest0+wedges` — a try at creases and rims with what cells
+//!   hold: a voxel next to another plane (within a voxel of its centre, in one of its 26
+//!   neighbours) takes the two planes as a solid's convex or concave wedge, or as a sheet
+//!   bent along their line.
 //!
 //! f = 0, standard + conservative surfaces, the scene's own lights, the fitted view. f64
 //! arithmetic where the variants need it: an experiment, not a cell.
@@ -38,20 +58,87 @@ use std::collections::BTreeMap;
 #[path = "../tests/common/mod.rs"]
 mod common;
 
+/// How a pixel's visible surface is tested.
+#[derive(Clone, Copy, PartialEq)]
+enum Receiver {
+    /// The machine's: lit by any lattice ray through its two bracketing voxels.
+    Window,
+    /// Lit iff the ray from the source to the surface's point on the column's centre line
+    /// reaches it (a lattice ray at f = [`POINT_F`]: the exact ray to within 2⁻⁸ voxel).
+    Point,
+    /// Lit iff one lattice ray at f fraction bits reaches it: of the rays whose path crosses
+    /// the two bracketing voxels on the plane's outer side (without obstacles), the one
+    /// nearest the exact ray to the surface's point — a sample the cell can name from its own
+    /// geometry.
+    Nearest(u32),
+}
+
 /// Which parts of the rule are replaced by exact geometry.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy)]
 struct Variant {
     empty_crossings: bool,
     exact_occluders: bool,
     exact_source: bool,
+    receiver: Receiver,
+    /// Exact occluders in the voxels that two planes of the mesh pass through.
+    exact_creases: bool,
+    /// Exact occluders in the occupied voxels that no triangle passes through (the rims that
+    /// conservative contours and the standard band add around facets).
+    exact_rims: bool,
+    /// Two planes in a voxel next to an edge: its own and the nearest other plane of a
+    /// neighbouring voxel, as a convex (both) or concave (either) wedge of inside.
+    wedges: bool,
 }
 
-const VARIANTS: [(&str, Variant); 4] = [
-    ("rule", Variant { empty_crossings: false, exact_occluders: false, exact_source: false }),
-    ("empty-crossings", Variant { empty_crossings: true, exact_occluders: false, exact_source: false }),
-    ("exact-occluders", Variant { empty_crossings: false, exact_occluders: true, exact_source: false }),
-    ("exact-source", Variant { empty_crossings: false, exact_occluders: false, exact_source: true }),
+const RULE: Variant = Variant {
+    empty_crossings: false,
+    exact_occluders: false,
+    exact_source: false,
+    receiver: Receiver::Window,
+    exact_creases: false,
+    exact_rims: false,
+    wedges: false,
+};
+
+const VARIANTS: [(&str, Variant); 22] = [
+    ("rule", RULE),
+    ("empty-crossings", Variant { empty_crossings: true, ..RULE }),
+    ("exact-occluders", Variant { exact_occluders: true, ..RULE }),
+    ("exact-source", Variant { exact_source: true, ..RULE }),
+    ("point", Variant { receiver: Receiver::Point, ..RULE }),
+    ("point+exact", Variant { receiver: Receiver::Point, exact_occluders: true, ..RULE }),
+    ("point+creases", Variant { receiver: Receiver::Point, exact_creases: true, ..RULE }),
+    ("point+rims", Variant { receiver: Receiver::Point, exact_rims: true, ..RULE }),
+    ("point+creases+rims", Variant { receiver: Receiver::Point, exact_creases: true, exact_rims: true, ..RULE }),
+    ("creases+rims", Variant { exact_creases: true, exact_rims: true, ..RULE }),
+    (
+        "nearest0+creases+rims",
+        Variant { receiver: Receiver::Nearest(0), exact_creases: true, exact_rims: true, ..RULE },
+    ),
+    (
+        "nearest1+creases+rims",
+        Variant { receiver: Receiver::Nearest(1), exact_creases: true, exact_rims: true, ..RULE },
+    ),
+    ("nearest0+exact", Variant { receiver: Receiver::Nearest(0), exact_occluders: true, ..RULE }),
+    ("nearest1+exact", Variant { receiver: Receiver::Nearest(1), exact_occluders: true, ..RULE }),
+    ("exact+source", Variant { exact_occluders: true, exact_source: true, ..RULE }),
+    ("nearest0+source", Variant { receiver: Receiver::Nearest(0), exact_source: true, ..RULE }),
+    ("point+exact+source", Variant { receiver: Receiver::Point, exact_occluders: true, exact_source: true, ..RULE }),
+    (
+        "nearest0+exact+source",
+        Variant { receiver: Receiver::Nearest(0), exact_occluders: true, exact_source: true, ..RULE },
+    ),
+    (
+        "nearest1+exact+source",
+        Variant { receiver: Receiver::Nearest(1), exact_occluders: true, exact_source: true, ..RULE },
+    ),
+    ("wedges", Variant { wedges: true, ..RULE }),
+    ("point+wedges", Variant { receiver: Receiver::Point, wedges: true, ..RULE }),
+    ("nearest0+wedges", Variant { receiver: Receiver::Nearest(0), wedges: true, ..RULE }),
 ];
+
+/// Fraction bits of the one ray a point receiver walks.
+const POINT_F: u32 = 8;
 
 type Surfaces<'a> = &'a (dyn Fn(i64, i64, i64) -> Option<Surface> + Sync);
 type Columns<'a> = &'a (dyn Fn(i64, i64) -> Option<Visible> + Sync);
@@ -69,6 +156,10 @@ struct Walk<'a> {
     voxel: f64,
     /// Rays from the light itself (the `exact-source` variant).
     exact_source: bool,
+    /// Fraction bits of the rays walked (0 but for point receivers).
+    f: u32,
+    /// Voxels two planes of the mesh pass through, and voxels a triangle passes through.
+    creases: &'a Sampled,
 }
 
 impl Walk<'_> {
@@ -84,10 +175,10 @@ impl Walk<'_> {
     /// rounding (`⌊x + ½⌋`, exact) of the true ray from the light.
     fn voxel(&self, dir: usize, a: i64, b: i64, k: i64) -> [i64; 3] {
         if !self.exact_source {
-            return ray_voxel(self.n, self.src, dir, a, b, self.d, 0, k);
+            return ray_voxel(self.n, self.src, dir, a, b, self.d, self.f, k);
         }
         let (w, sign, ua, va) = dir_axes(dir);
-        let scale = self.d as i128;
+        let scale = (self.d as i128) << self.f;
         let across = |c: i64, o: i64| ((c as i128 + 8) * scale + o as i128 * self.t16(dir, k)).div_euclid(16 * scale);
         let mut p = [0; 3];
         p[w] = self.sv[w] + sign * k;
@@ -96,13 +187,20 @@ impl Walk<'_> {
         p
     }
 
+    /// Whether `var` takes the occluder in voxel p as exact.
+    fn exact_at(&self, var: Variant, p: [i64; 3]) -> bool {
+        var.exact_occluders
+            || (var.exact_creases && self.creases.creases.contains(&p))
+            || (var.exact_rims && !self.creases.touched.contains(&p))
+    }
+
     /// `plane_value` of the oracle, or the same scaled plane value at the true ray's point.
     fn value(&self, s: &Surface, p: [i64; 3], dir: usize, a: i64, b: i64, t: i64) -> i128 {
         if !self.exact_source {
-            return plane_value(s, p[0], p[1], self.src, dir, a, b, self.d, 0, t);
+            return plane_value(s, p[0], p[1], self.src, dir, a, b, self.d, self.f, t);
         }
         let (w, sign, ua, va) = dir_axes(dir);
-        let (df, tt) = (self.d as i128, self.t16(dir, t));
+        let (df, tt) = ((self.d as i128) << self.f, self.t16(dir, t));
         let reference = [p[0] as i128, p[1] as i128, s.lo as i128];
         let mut lp = [0i128; 3];
         lp[w] = 16 * df * (self.sv[w] as i128 + sign as i128 * t as i128 - reference[w]);
@@ -133,8 +231,9 @@ impl Walk<'_> {
         let dist = t + self.t16(dir, 0) as f64 / 16.0;
         let mut p = [0.0; 3];
         p[w] = self.sv[w] as f64 + sg as f64 * t;
-        p[ua] = self.src[ua] as f64 / 16.0 + a as f64 * dist / self.d as f64;
-        p[va] = self.src[va] as f64 / 16.0 + b as f64 * dist / self.d as f64;
+        let df = self.d as f64 * (1u64 << self.f) as f64;
+        p[ua] = self.src[ua] as f64 / 16.0 + a as f64 * dist / df;
+        p[va] = self.src[va] as f64 / 16.0 + b as f64 * dist / df;
         p
     }
 
@@ -162,14 +261,15 @@ impl Walk<'_> {
 
     /// One ray by the plane rule (`rc2_tests::oracle::lit`'s walk, restated) with `var`'s
     /// replacements; pushes the columns whose visible surface it lights.
-    fn ray(&self, dir: usize, a: i64, b: i64, var: Variant, out: &mut Vec<[i64; 2]>) {
+    /// Returns the layer where the ray stops (`None`: it left the grid).
+    fn ray(&self, dir: usize, a: i64, b: i64, var: Variant, out: &mut Vec<[i64; 2]>) -> Option<i64> {
         let (n, d, z_ray) = (self.n, self.d, dir >= 4);
         let mut terminal: Option<(Surface, [i64; 3], i64)> = None;
         let (mut column, mut outside, mut from_empty) = (None, false, false);
         for k in 0..=d {
             let p = self.voxel(dir, a, b, k);
             if p.iter().any(|&c| !(0..n).contains(&c)) {
-                return;
+                return None;
             }
             let next = self.voxel(dir, a, b, k + 1);
             let stays = z_ray && k < d && p[0] == next[0] && p[1] == next[1];
@@ -188,14 +288,28 @@ impl Walk<'_> {
             let from_outside = std::mem::take(&mut outside);
             // Rule 2: a terminal ray dies.
             if let Some((s, q, tk)) = terminal.take() {
-                let dies = if var.exact_occluders {
+                let dies = if self.exact_at(var, q) {
                     self.meets_mesh(dir, a, b, tk as f64, k as f64)
                 } else {
                     !var.empty_crossings || own.is_some() || self.crossed_in_occupied(&s, q, (dir, a, b), tk, k)
                 };
                 if dies {
-                    return;
+                    return Some(k);
                 }
+            }
+            if let Some(w) = own.and(if var.wedges { self.wedge(p) } else { None }) {
+                let at = |i: i64| self.point(dir, a, b, (k - 1) as f64 + i as f64 / 16.0);
+                let in_cube = |q: [f64; 3]| (0..3).all(|j| (q[j] - p[j] as f64).abs() <= 0.5);
+                if let Some(i) = (0..=32).find(|&i| {
+                    let q = at(i);
+                    in_cube(q) && if i == 0 { w.inside(q) } else { w.enters(at(i - 1), q) }
+                }) {
+                    return Some(k - 1 + (i + 15) / 16);
+                }
+                column = (z_ray && stays).then_some(own.unwrap().lo);
+                outside = !stays;
+                from_empty = false;
+                continue;
             }
             // Rule 3: empty space.
             let Some(s) = own else {
@@ -209,21 +323,21 @@ impl Walk<'_> {
             let (was, now, then, faces) =
                 (sigma(&s, prev), sigma(&s, k), sigma(&s, k + 1), self.source_in_front(&s, p, dir));
             let stop = |t0: i64| {
-                if var.exact_occluders {
+                if self.exact_at(var, p) {
                     self.meets_mesh(dir, a, b, t0 as f64, k as f64)
                 } else {
                     !var.empty_crossings || self.crossed_in_occupied(&s, p, (dir, a, b), t0, k)
                 }
             };
             if was != now && stop(prev) {
-                return;
+                return Some(k);
             }
             let behind = ((from_empty && (faces || !s.two_sided)) || (from_outside && faces)) && !was && !now;
             if behind && stop(0) {
-                return;
+                return Some(k);
             }
             if z_ray && stays && column.is_some_and(|c| c != s.lo) {
-                return;
+                return Some(k);
             }
             if now != then {
                 terminal = Some((s, p, k));
@@ -232,15 +346,268 @@ impl Walk<'_> {
             outside = now && !stays;
             from_empty = false;
         }
+        None
+    }
+
+    /// Voxel p's wedge: its own plane and, of its 26 neighbours' planes of another normal
+    /// passing within a voxel of its centre, the nearest, if the two say which side is inside.
+    fn wedge(&self, p: [i64; 3]) -> Option<Wedge> {
+        let own = (self.surfaces)(p[0], p[1], p[2])?;
+        let a = Placed { s: own, col: [p[0], p[1]] };
+        let centre = p.map(|c| c as f64);
+        let mut best: Option<(f64, Placed, [i64; 3])> = None;
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let q = [p[0] + dx, p[1] + dy, p[2] + dz];
+                    if q.iter().any(|&c| !(0..self.n).contains(&c)) {
+                        continue;
+                    }
+                    let Some(s) = (self.surfaces)(q[0], q[1], q[2]) else { continue };
+                    if s.two_sided != own.two_sided || (s.nx, s.ny, s.nz) == (own.nx, own.ny, own.nz) {
+                        continue;
+                    }
+                    let b = Placed { s, col: [q[0], q[1]] };
+                    let dist = b.distance(centre).abs();
+                    if dist < 1.0 && best.as_ref().is_none_or(|(d, _, _)| dist < *d) {
+                        best = Some((dist, b, q));
+                    }
+                }
+            }
+        }
+        let (_, b, q) = best?;
+        // Each plane's point nearest its own voxel's centre: on the other's inner side at a
+        // convex edge, on its outer side at a concave one.
+        let (ca, cb) = (a.foot(centre), b.foot(q.map(|c| c as f64)));
+        let (ga, gb) = (b.distance(ca), a.distance(cb));
+        let convex = match (own.two_sided, ga < 0.0, gb < 0.0) {
+            (true, _, _) => None,
+            (false, true, true) => Some(true),
+            (false, false, false) => Some(false),
+            _ => return None,
+        };
+        Some(Wedge { a, b, convex, sides: (ga > 0.0, gb > 0.0) })
+    }
+
+    /// A point or nearest-ray receiver: whether column c's visible surface is lit.
+    fn receiver_lit(&self, c: [i64; 2], v: &Visible, var: Variant) -> bool {
+        let s = &v.plane;
+        // The plane at the column's centre: g = nz/2¹⁶·dz + e = 0.
+        let z = v.z_v as f64 - 65536.0 * s.e as f64 / s.nz as f64;
+        let p = [c[0] as f64, c[1] as f64, z];
+        let scale = self.d as f64 * (1u64 << self.f) as f64;
+        let Some((dir, k, a, b)) = (0..6).find_map(|dir| {
+            let (w, sign, ua, va) = dir_axes(dir);
+            let k = sign as f64 * (p[w] - self.sv[w] as f64);
+            // The ray's distance along the axis from its origin (the layer-0 point, or the light).
+            let dist = k + self.t16(dir, 0) as f64 / 16.0;
+            let a = (p[ua] - self.src[ua] as f64 / 16.0) * scale / dist;
+            let b = (p[va] - self.src[va] as f64 / 16.0) * scale / dist;
+            (k > 0.0 && dist > 0.0 && a.abs() <= scale && b.abs() <= scale).then_some((dir, k, a, b))
+        }) else {
+            return false;
+        };
+        if !self.source_in_front(s, [c[0], c[1], v.z_v], dir) {
+            return false;
+        }
+        if var.receiver == Receiver::Point {
+            let stop = self.ray(dir, a.round() as i64, b.round() as i64, var, &mut Vec::new());
+            return stop.is_none_or(|t| t as f64 >= k.ceil());
+        }
+        let Some((ra, rb)) = self.nearest_through(dir, [c[0], c[1]], s, v.z_v, a, b) else {
+            return false;
+        };
+        let mut out = Vec::new();
+        self.ray(dir, ra, rb, var, &mut out);
+        out.contains(&c)
+    }
+
+    /// Of the lattice rays (f = `self.f`) whose path crosses voxel (c, z_v) or (c, z_v + 1) on
+    /// the outer side of the column's visible plane, the one nearest (a, b).
+    fn nearest_through(
+        &self,
+        dir: usize,
+        c: [i64; 2],
+        plane: &Surface,
+        z_v: i64,
+        a: f64,
+        b: f64,
+    ) -> Option<(i64, i64)> {
+        let (w, sign, ua, va) = dir_axes(dir);
+        let scale = (self.d as i128) << self.f;
+        // The offsets t whose voxel across the axis is q at layer k (`voxel`'s rounding):
+        // 16·scale·q ≤ (src + 8)·scale + t·t16(k) < 16·scale·(q + 1).
+        let range = |src: i64, q: i64, den: i128| {
+            let lo = 16 * scale * q as i128 - (src as i128 + 8) * scale;
+            let hi = lo + 16 * scale - 1;
+            (lo.div_euclid(den) + i128::from(lo.rem_euclid(den) != 0), hi.div_euclid(den))
+        };
+        let mut best: Option<(f64, i64, i64)> = None;
+        for z in [z_v, z_v + 1] {
+            let q = [c[0], c[1], z];
+            let k = sign * (q[w] - self.sv[w]);
+            let den = self.t16(dir, k);
+            if k <= 0 || den <= 0 {
+                continue;
+            }
+            let (a0, a1) = range(self.src[ua], q[ua], den);
+            let (b0, b1) = range(self.src[va], q[va], den);
+            let (a0, a1, b0, b1) = (a0.max(-scale), a1.min(scale), b0.max(-scale), b1.min(scale));
+            if a0 > a1 || b0 > b1 {
+                continue;
+            }
+            // Only rays on the plane's outer side there (rule 1's test), searched near (a, b).
+            let (ca, cb) = ((a.round() as i128).clamp(a0, a1), (b.round() as i128).clamp(b0, b1));
+            let outer = |ta: i64, tb: i64| {
+                self.value(plane, q, dir, ta, tb, k) > 0 || self.value(plane, q, dir, ta, tb, (k - 1).max(0)) > 0
+            };
+            for ta in (ca - 24).max(a0)..=(ca + 24).min(a1) {
+                for tb in (cb - 24).max(b0)..=(cb + 24).min(b1) {
+                    let dist = (ta as f64 - a).powi(2) + (tb as f64 - b).powi(2);
+                    if best.is_none_or(|(d, _, _)| dist < d) && outer(ta as i64, tb as i64) {
+                        best = Some((dist, ta as i64, tb as i64));
+                    }
+                }
+            }
+        }
+        best.map(|(_, ta, tb)| (ta, tb))
+    }
+}
+
+/// A stored plane with the column it is referenced to.
+#[derive(Clone, Copy)]
+struct Placed {
+    s: Surface,
+    col: [i64; 2],
+}
+
+impl Placed {
+    /// Signed distance (voxels) of point q from the plane, positive outside.
+    fn distance(&self, q: [f64; 3]) -> f64 {
+        let s = &self.s;
+        let n = [s.nx as f64, s.ny as f64, s.nz as f64 / 65536.0];
+        let g = n[0] * (q[0] - self.col[0] as f64)
+            + n[1] * (q[1] - self.col[1] as f64)
+            + n[2] * (q[2] - s.lo as f64)
+            + s.e as f64;
+        g / (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt()
+    }
+
+    /// The point of the plane nearest q.
+    fn foot(&self, q: [f64; 3]) -> [f64; 3] {
+        let s = &self.s;
+        let n = [s.nx as f64, s.ny as f64, s.nz as f64 / 65536.0];
+        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let d = self.distance(q);
+        [0, 1, 2].map(|i| q[i] - d * n[i] / len)
+    }
+}
+
+/// Two planes near an edge: a solid's convex (both) or concave (either) wedge of inside, or
+/// a sheet bent along the edge (each plane on its own side of the other).
+struct Wedge {
+    a: Placed,
+    b: Placed,
+    /// For a solid: whether the edge is convex.
+    convex: Option<bool>,
+    /// The side of the other plane each plane's real part lies on.
+    sides: (bool, bool),
+}
+
+impl Wedge {
+    fn inside(&self, q: [f64; 3]) -> bool {
+        let (ia, ib) = (self.a.distance(q) < 0.0, self.b.distance(q) < 0.0);
+        match self.convex {
+            Some(true) => ia && ib,
+            Some(false) => ia || ib,
+            None => false,
+        }
+    }
+
+    /// Whether the step q0 → q1 enters the inside, or crosses a real part of the sheet.
+    fn enters(&self, q0: [f64; 3], q1: [f64; 3]) -> bool {
+        if self.convex.is_some() {
+            return !self.inside(q0) && self.inside(q1);
+        }
+        let crosses = |p: &Placed, o: &Placed, side: bool| {
+            let (g0, g1) = (p.distance(q0), p.distance(q1));
+            if (g0 > 0.0) == (g1 > 0.0) {
+                return false;
+            }
+            let t = g0 / (g0 - g1);
+            let x = [0, 1, 2].map(|i| q0[i] + t * (q1[i] - q0[i]));
+            (o.distance(x) > 0.0) == side
+        };
+        crosses(&self.a, &self.b, self.sides.0) || crosses(&self.b, &self.a, self.sides.1)
+    }
+}
+
+/// Voxels of the mesh found by sampling every triangle at a tenth of a voxel.
+struct Sampled {
+    /// Voxels that triangles of two different planes pass through.
+    creases: std::collections::HashSet<[i64; 3]>,
+    /// Voxels a triangle passes through.
+    touched: std::collections::HashSet<[i64; 3]>,
+}
+
+/// Voxels (centre coordinates rounded) that triangles of two different planes pass through,
+/// found by sampling every triangle at a tenth of a voxel.
+fn crease_voxels(tris: &[[[f64; 3]; 3]], origin: [f64; 3], voxel: f64) -> Sampled {
+    let mut planes: std::collections::HashMap<[i64; 3], Vec<[i64; 4]>> = Default::default();
+    let mut per_column: std::collections::HashMap<[i64; 2], std::collections::HashSet<usize>> = Default::default();
+    for (ti, t) in tris.iter().enumerate() {
+        let q = t.map(|p| [0, 1, 2].map(|i| (p[i] - origin[i]) / voxel - 0.5));
+        let e1 = [0, 1, 2].map(|i| q[1][i] - q[0][i]);
+        let e2 = [0, 1, 2].map(|i| q[2][i] - q[0][i]);
+        let nrm = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+        let len = nrm.iter().map(|c| c * c).sum::<f64>().sqrt();
+        if len == 0.0 {
+            continue;
+        }
+        let u = nrm.map(|c| c / len);
+        let off = u[0] * q[0][0] + u[1] * q[0][1] + u[2] * q[0][2];
+        let key = [
+            (u[0] * 1e3).round() as i64,
+            (u[1] * 1e3).round() as i64,
+            (u[2] * 1e3).round() as i64,
+            (off * 100.0).round() as i64,
+        ];
+        let steps = (e1.iter().chain(e2.iter()).map(|c| c.abs()).fold(0.0, f64::max) * 10.0).ceil() as usize + 1;
+        for i in 0..=steps {
+            for j in 0..=steps - i {
+                let (s, r) = (i as f64 / steps as f64, j as f64 / steps as f64);
+                let v = [0, 1, 2].map(|c| (q[0][c] + s * e1[c] + r * e2[c]).round() as i64);
+                per_column.entry([v[0], v[1]]).or_default().insert(ti);
+                let e = planes.entry(v).or_default();
+                if !e.contains(&key) {
+                    e.push(key);
+                }
+            }
+        }
+    }
+    let counts: Vec<usize> = per_column.values().map(|t| t.len()).collect();
+    let mean = counts.iter().sum::<usize>() as f64 / counts.len().max(1) as f64;
+    println!(
+        "triangles through a column: mean {mean:.1}, max {} over {} columns",
+        counts.iter().max().unwrap_or(&0),
+        counts.len()
+    );
+    Sampled {
+        creases: planes.iter().filter(|(_, k)| k.len() > 1).map(|(v, _)| *v).collect(),
+        touched: planes.into_keys().collect(),
     }
 }
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let (Some(scene), Some(n)) = (args.first(), args.get(1).and_then(|s| s.parse::<u32>().ok())) else {
-        eprintln!("usage: lit_bounds SCENE N [VARIANT ...]  (variants: rule empty-crossings exact-occluders)");
+        eprintln!("usage: lit_bounds SCENE N [VARIANT ...]  (variants: see the file's doc)");
         std::process::exit(2);
     };
+    if let Some(bad) = args.iter().skip(2).find(|a| VARIANTS.iter().all(|(name, _)| name != a)) {
+        eprintln!("lit_bounds: unknown variant {bad}");
+        std::process::exit(2);
+    }
     let chosen: Vec<_> =
         VARIANTS.iter().filter(|(name, _)| args.len() < 3 || args[2..].iter().any(|a| a == name)).collect();
     let mesh = host_sim::scene::load(scene).unwrap_or_else(|e| {
@@ -254,8 +621,10 @@ fn main() {
         reference_image(&mesh, &loaded, &lights, &RenderConfig::diffusion(LightConfig::default(), NormalMode::Facet))
             .expect("reference");
     let (triangles, facets) = host_sim::truth::refrender::mesh_triangles(&mesh).expect("triangles");
+    let creases = crease_voxels(&triangles, loaded.fit.origin, loaded.fit.voxel);
     let exact = Reference::new(triangles, facets).expect("reference mesh");
     let (surfaces, columns) = (common::surfaces_of(&loaded.grid), common::columns_of(&loaded.grid));
+    println!("{} voxels with two planes or more, {} with a triangle", creases.creases.len(), creases.touched.len());
     let cell_lights = host_sim::machine::shade::point_lights(&lights);
     println!(
         "{scene} n = {n}: variant, shadow disagreement, PSNR, pixels darker / brighter than the reference (light 1)"
@@ -281,19 +650,32 @@ fn main() {
                 origin: loaded.fit.origin,
                 voxel: loaded.fit.voxel,
                 exact_source: var.exact_source,
+                f: match var.receiver {
+                    Receiver::Window => 0,
+                    Receiver::Point => POINT_F,
+                    Receiver::Nearest(f) => f,
+                },
+                creases: &creases,
             };
             let m = walk.d;
-            let cols: Vec<[i64; 2]> = (0..6usize)
-                .into_par_iter()
-                .flat_map_iter(|dir| (-m..=m).map(move |a| (dir, a)))
-                .flat_map_iter(|(dir, a)| {
-                    let mut out = Vec::new();
-                    for b in -m..=m {
-                        walk.ray(dir, a, b, *var, &mut out);
-                    }
-                    out
-                })
-                .collect();
+            let cols: Vec<[i64; 2]> = if var.receiver != Receiver::Window {
+                let all: Vec<[i64; 2]> = (0..n as i64).flat_map(|x| (0..n as i64).map(move |y| [x, y])).collect();
+                all.into_par_iter()
+                    .filter(|&c| columns(c[0], c[1]).is_some_and(|v| walk.receiver_lit(c, &v, *var)))
+                    .collect()
+            } else {
+                (0..6usize)
+                    .into_par_iter()
+                    .flat_map_iter(|dir| (-m..=m).map(move |a| (dir, a)))
+                    .flat_map_iter(|(dir, a)| {
+                        let mut out = Vec::new();
+                        for b in -m..=m {
+                            walk.ray(dir, a, b, *var, &mut out);
+                        }
+                        out
+                    })
+                    .collect()
+            };
             for c in cols {
                 *lit.entry(c).or_insert(0) |= 1 << i;
             }
