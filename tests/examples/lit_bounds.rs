@@ -4,6 +4,7 @@
 //!
 //! ```text
 //! cargo run --release -p rc2-tests --example lit_bounds -- teapot-floor 128 [VARIANT ...]
+//! cargo run --release -p rc2-tests --example lit_bounds -- ../shared/scenes/fandisk.obj 256 --light 0.8,0.3,0.7
 //! ```
 //!
 //! Variants (all by default):
@@ -36,12 +37,16 @@
 //! * `point+exact+source`, `nearest0+exact+source`, `nearest1+exact+source` — the same with
 //!   the rays from the light itself (`exact-source`), and two of the three parts without the
 //!   third: `exact+source` (the machine's receivers), `nearest0+source` (its occluders);
+//! * `…complete…` — the same with *complete* exact occluders, which also stop a ray where its
+//!   segment meets a triangle that the rule lets it through (a voxel keeps one plane):
+//!   `complete+source`, `point+complete`, `point+complete+source` (the ideal: the reference's
+//!   own test but for the lattice rays), `nearest0+complete+source`, `nearest1+complete+source`;
 //! * `wedges`, `point+wedges`, `nearest0+wedges` — a try at creases and rims with what cells
 //!   hold: a voxel next to another plane (within a voxel of its centre, in one of its 26
 //!   neighbours) takes the two planes as a solid's convex or concave wedge, or as a sheet
 //!   bent along their line.
 //!
-//! f = 0, standard + conservative surfaces, the scene's own lights, the fitted view. f64
+//! f = 0, standard + conservative surfaces, the scene's own lights (or `--light`), the fitted view. f64
 //! arithmetic where the variants need it: an experiment, not a cell.
 
 use cell_core::shade::NormalMode;
@@ -85,6 +90,8 @@ struct Variant {
     /// Exact occluders in the occupied voxels that no triangle passes through (the rims that
     /// conservative contours and the standard band add around facets).
     exact_rims: bool,
+    /// Exact occluders also stop a ray where the rule lets it through a triangle.
+    complete: bool,
     /// Two planes in a voxel next to an edge: its own and the nearest other plane of a
     /// neighbouring voxel, as a convex (both) or concave (either) wedge of inside.
     wedges: bool,
@@ -97,10 +104,11 @@ const RULE: Variant = Variant {
     receiver: Receiver::Window,
     exact_creases: false,
     exact_rims: false,
+    complete: false,
     wedges: false,
 };
 
-const VARIANTS: [(&str, Variant); 22] = [
+const VARIANTS: [(&str, Variant); 27] = [
     ("rule", RULE),
     ("empty-crossings", Variant { empty_crossings: true, ..RULE }),
     ("exact-occluders", Variant { exact_occluders: true, ..RULE }),
@@ -132,10 +140,18 @@ const VARIANTS: [(&str, Variant); 22] = [
         "nearest1+exact+source",
         Variant { receiver: Receiver::Nearest(1), exact_occluders: true, exact_source: true, ..RULE },
     ),
+    ("complete+source", Variant { complete: true, receiver: Receiver::Window, ..POINT_EXACT_SOURCE }),
+    ("point+complete", Variant { complete: true, exact_source: false, ..POINT_EXACT_SOURCE }),
+    ("point+complete+source", Variant { complete: true, ..POINT_EXACT_SOURCE }),
+    ("nearest0+complete+source", Variant { complete: true, receiver: Receiver::Nearest(0), ..POINT_EXACT_SOURCE }),
+    ("nearest1+complete+source", Variant { complete: true, receiver: Receiver::Nearest(1), ..POINT_EXACT_SOURCE }),
     ("wedges", Variant { wedges: true, ..RULE }),
     ("point+wedges", Variant { receiver: Receiver::Point, wedges: true, ..RULE }),
     ("nearest0+wedges", Variant { receiver: Receiver::Nearest(0), wedges: true, ..RULE }),
 ];
+
+const POINT_EXACT_SOURCE: Variant =
+    Variant { receiver: Receiver::Point, exact_occluders: true, exact_source: true, ..RULE };
 
 /// Fraction bits of the one ray a point receiver walks.
 const POINT_F: u32 = 8;
@@ -284,6 +300,9 @@ impl Walk<'_> {
                 {
                     out.push([p[0], p[1]]);
                 }
+            }
+            if var.complete && k > 0 && self.meets_mesh(dir, a, b, (k - 1) as f64, k as f64) {
+                return Some(k);
             }
             let from_outside = std::mem::take(&mut outside);
             // Rule 2: a terminal ray dies.
@@ -599,9 +618,23 @@ fn crease_voxels(tris: &[[[f64; 3]; 3]], origin: [f64; 3], voxel: f64) -> Sample
 }
 
 fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    // `--light X,Y,Z` (grid-normalised, repeatable), as `render` takes it.
+    let mut cli_lights = Vec::new();
+    while let Some(i) = args.iter().position(|a| a == "--light") {
+        let parsed = args.get(i + 1).and_then(|v| {
+            let c: Vec<f64> = v.split(',').filter_map(|c| c.parse().ok()).collect();
+            <[f64; 3]>::try_from(c).ok()
+        });
+        let Some(l) = parsed else {
+            eprintln!("lit_bounds: --light takes X,Y,Z");
+            std::process::exit(2);
+        };
+        cli_lights.push(l);
+        args.drain(i..i + 2);
+    }
     let (Some(scene), Some(n)) = (args.first(), args.get(1).and_then(|s| s.parse::<u32>().ok())) else {
-        eprintln!("usage: lit_bounds SCENE N [VARIANT ...]  (variants: see the file's doc)");
+        eprintln!("usage: lit_bounds SCENE N [VARIANT ...] [--light X,Y,Z ...]  (variants: see the file's doc)");
         std::process::exit(2);
     };
     if let Some(bad) = args.iter().skip(2).find(|a| VARIANTS.iter().all(|(name, _)| name != a)) {
@@ -616,7 +649,10 @@ fn main() {
     });
     let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
     let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).expect("load");
-    let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).expect("lights");
+    let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &cli_lights).unwrap_or_else(|e| {
+        eprintln!("{e:#}");
+        std::process::exit(2)
+    });
     let reference =
         reference_image(&mesh, &loaded, &lights, &RenderConfig::diffusion(LightConfig::default(), NormalMode::Facet))
             .expect("reference");
