@@ -27,7 +27,8 @@
 //! ([`crate::trace`]), and a cell replaying one decodes them off its links like beams.
 //! A token is not a [`Message`]: cells never see one, a board's link driver dispatches on the
 //! raw frame's kind ([`read_frame`]), and an image that runs no detector (the production cell,
-//! whose flash budget is counted to the byte) carries no token decoder.
+//! whose flash budget is counted to the byte) carries no token decoder. The board exercises'
+//! own frames, kinds `0x60`–`0x70`, are listed in [`board`].
 //!
 //! `seq` is the link-level sequence number (for acknowledgement and retransmission); a trace
 //! leaves it 0.
@@ -806,6 +807,79 @@ pub fn get_reflect_ray(r: &mut Reader<'_>) -> Result<ReflectRay, DecodeError> {
 }
 
 // ---------------------------------------------------------------------------------------------
+
+/// Frame kinds of the board exercises (`firmware/src/bin/board`: a QEMU board per tile of
+/// the grid, UART links between boards, the host on a serial port), host ↔ board and board ↔
+/// board, in the framing of this module. A cell never sees them: a board's link driver
+/// dispatches on the raw frame's kind ([`read_frame`]). Defined here, once, for the firmware
+/// and for the host-side tests that drive it (which cannot link the firmware's crate).
+pub mod board {
+    // The link exercise (`firmware/src/bin/board/main.rs`).
+    /// Host → board: id u8, neighbour ids on links E, N, W, S (4 × u8, `0xFF`: no link), frames
+    /// per link u16.
+    pub const KIND_CONFIG: u8 = 0x60;
+    /// Board → host: id u8, then per link E, N, W, S: received u16, mismatches u16, then the
+    /// link's counters (sent, acked, retransmitted, duplicates, skipped: 5 × u32) and the UART's
+    /// overruns u32.
+    pub const KIND_REPORT: u8 = 0x61;
+    /// Board → neighbour: one data frame of the exercise.
+    pub const KIND_DATA: u8 = 0x62;
+
+    // The termination exercise (`safra.rs`), whose start, declaration and query the tile
+    // exercise reuses.
+    /// Host → board: the termination exercise's configuration: id u8, neighbour ids on E, N, W,
+    /// S (4 × u8, `0xFF`: none), ring position u8, ring length u8, link to the next ring position
+    /// u8 (0 … 3: E, N, W, S), busy time per item u16 (µs), children per item u8 (1 or 2).
+    pub const KIND_TERM_CONFIG: u8 = 0x63;
+    /// Host → board and board → board: a work item, ttl u8, id u32.
+    pub const KIND_WORK: u8 = 0x64;
+    /// Host → ring position 0: start detecting termination.
+    pub const KIND_START: u8 = 0x65;
+    /// Ring position 0 → host: termination of a phase declared (the phase, u16: 0, the work's,
+    /// then 1, the empty phase whose token told every board of the first declaration).
+    pub const KIND_DONE: u8 = 0x66;
+    /// Host → board: send your state.
+    pub const KIND_QUERY: u8 = 0x67;
+    /// Board → host: id u8, processed u32, work frames sent u32 and received u32 (between
+    /// boards), injected u32 (from the host), still queued u32 (queue and outgoing children), the
+    /// termination counter i32, tokens forwarded u32, overflows u32, the neighbour links'
+    /// retransmissions u32 and skipped bytes u32, and late work u32 (items received or processed
+    /// after the board learned that phase 0 was declared).
+    pub const KIND_STATE: u8 = 0x68;
+
+    // The tile exercise (`tiles.rs`): cells of the grid on each board.
+    /// Host → board: the tile exercise's configuration: id u8, neighbour ids on E, N, W, S
+    /// (4 × u8, `0xFF`: none), ring position u8, ring length u8, link to the next ring position u8
+    /// (0 … 3), tile origin x0 u16, y0 u16, tile side u8 (≤ the board's `SIDE`, 4), grid side n u16, depth u16.
+    pub const KIND_TILE_CONFIG: u8 = 0x69;
+    /// Host → board: the light setup, a whole `cell_core::trace` light record (its frame with
+    /// its own CRC).
+    pub const KIND_TILE_LIGHT: u8 = 0x6A;
+    /// Host → board 0 and board → board: a pipeline packet at pipeline row y: y u16, then
+    /// `wire::put_pipe`.
+    pub const KIND_PIPE: u8 = 0x6B;
+    /// Board → board: a row packet at cell (x, y): x u16, y u16, then `wire::put_row`.
+    pub const KIND_ROW_AT: u8 = 0x6C;
+    /// Board → board: a beam for cell (x, y): x u16, y u16, then `wire::put_beam`.
+    pub const KIND_TILE_BEAM: u8 = 0x6D;
+    /// Board → host: one cell: x u16, y u16, dexels u8, lit runs u8, dexel-store overflows u32,
+    /// lost voxels u32, lit-store overflows u32, still busy u32 (0 or 1: a beam left in the cell),
+    /// its pixel (a flag u8, 1 when shaded, and rgb 3 × u8: `cell_core::shade::cell_pixel` under
+    /// the light setup's lit rule with the [`KIND_TILE_SHADE`] inputs; flag 0 without a visible
+    /// surface or before the shading record came), then up to `REPORTED` (16)
+    /// dexels (lo u16, hi u16, facet u32) and as many lit runs (lo u16, hi u16, mask u32).
+    pub const KIND_TILE_CELL: u8 = 0x6E;
+    /// Host → board: the shading inputs (materials, lights, ambient, eye), a whole
+    /// `cell_core::trace` shading record; the cells shade their pixels when the host asks for the
+    /// report, after the lighting was declared.
+    pub const KIND_TILE_SHADE: u8 = 0x70;
+    /// Board → host: id u8, then u32 each: basic frames sent, basic frames received, frames
+    /// forwarded (diagonal beams), tokens forwarded, late work, overflows and bad frames, beams
+    /// misrouted, loading items processed, cell steps, peak arrived beams, peak work list, the
+    /// neighbour links' retransmissions and skipped bytes, the stack's peak in bytes (the board's
+    /// whole state lives on it); then the termination counter i32.
+    pub const KIND_TILE_STATE: u8 = 0x6F;
+}
 
 #[cfg(test)]
 mod tests {

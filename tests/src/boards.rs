@@ -29,12 +29,7 @@ pub const SIDE: usize = 2;
 pub const LINK_BUF: usize = 320;
 /// No neighbour.
 pub const NONE: u8 = 0xFF;
-/// Frame kinds the termination and tile exercises share (firmware/src/bin/board/safra.rs):
-/// start the detection (host → ring position 0), a phase declared (ring position 0 → host,
-/// the phase u16), send your state (host → board).
-pub const KIND_START: u8 = 0x65;
-pub const KIND_DONE: u8 = 0x66;
-pub const KIND_QUERY: u8 = 0x67;
+pub use cell_core::wire::board::{KIND_DONE, KIND_QUERY, KIND_START};
 
 /// The board image, built once per test binary under `tmp` (the test's
 /// `env!("CARGO_TARGET_TMPDIR")`, which only integration tests see).

@@ -28,6 +28,7 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
+use cell_core::wire::board::{KIND_CONFIG, KIND_REPORT, KIND_STATE, KIND_TERM_CONFIG, KIND_WORK};
 use rc2_tests::boards::{
     board_config, board_elf, boot, neighbour, ring_config, Booted, Faults, Slow, CLEAN, KIND_QUERY, ONE_GRID, SIDE,
 };
@@ -37,9 +38,6 @@ use rc2_tests::qemu;
 const COUNT: u16 = 120;
 /// The whole run (boot, exercise, reports) must end within this.
 const GRID_TIMEOUT: Duration = Duration::from_secs(60);
-/// Frame kinds of the exercise (firmware/src/bin/board/main.rs).
-const KIND_CONFIG: u8 = 0x60;
-const KIND_REPORT: u8 = 0x61;
 
 /// One link of a board's report.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -170,10 +168,6 @@ fn corrupted_and_dropped_bytes_between_boards_are_recovered_by_the_link() {
     assert!(retransmitted > 0 && skipped > 0, "faults were injected, so the links must have repaired some");
 }
 
-/// Frame kinds of the termination exercise (firmware/src/bin/board/safra.rs).
-const KIND_TERM_CONFIG: u8 = 0x63;
-const KIND_WORK: u8 = 0x64;
-const KIND_STATE: u8 = 0x68;
 /// A workload: the host's items (board, ttl), children per item, busy time per item (µs).
 #[derive(Clone, Copy, Debug)]
 struct Work {

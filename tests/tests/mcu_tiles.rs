@@ -32,6 +32,9 @@ use cell_core::beam::Source;
 use cell_core::facet::PipelinePacket;
 use cell_core::shade::{NormalMode, ShadeParams};
 use cell_core::trace::{write_event, Event, LightSetup, ShadeSetup};
+use cell_core::wire::board::{
+    KIND_PIPE, KIND_TILE_CELL, KIND_TILE_CONFIG, KIND_TILE_LIGHT, KIND_TILE_SHADE, KIND_TILE_STATE,
+};
 use cell_core::wire::{put_pipe, PutExt, SliceWriter};
 use host_sim::machine::async_tiles::{run, AsyncConfig};
 use host_sim::machine::diffuse::{source_at, LightConfig};
@@ -48,13 +51,6 @@ const N: u32 = 8;
 const TILE: u32 = N / SIDE as u32;
 /// A run (boot, loading, lighting, reports) must end within this.
 const TIMEOUT: Duration = Duration::from_secs(90);
-/// Frame kinds of the tile exercise (firmware/src/bin/board/tiles.rs).
-const KIND_TILE_CONFIG: u8 = 0x69;
-const KIND_TILE_LIGHT: u8 = 0x6A;
-const KIND_PIPE: u8 = 0x6B;
-const KIND_TILE_CELL: u8 = 0x6E;
-const KIND_TILE_STATE: u8 = 0x6F;
-const KIND_TILE_SHADE: u8 = 0x70;
 /// The light, in fractions of the scene's box (x, y up, z).
 const LIGHT: [f64; 3] = [0.4, 0.5, 0.45];
 /// Dexels and lit runs a cell report carries at most (the board's `REPORTED`).

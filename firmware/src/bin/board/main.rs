@@ -66,6 +66,7 @@ mod vectors;
 
 use cell_core::serial::{SerialLink, SerialStats};
 use cell_core::termination::Token;
+use cell_core::wire::board::{KIND_CONFIG, KIND_DATA, KIND_REPORT};
 use cell_core::wire::{put_token, SliceWriter, KIND_TOKEN};
 use cortex_m_rt::entry;
 use embedded_io::ReadReady;
@@ -76,15 +77,6 @@ use defmt_semihosting as _;
 
 use uart::Uart;
 
-/// Host → board: id u8, neighbour ids on links E, N, W, S (4 × u8, `0xFF`: no link), frames
-/// per link u16.
-pub const KIND_CONFIG: u8 = 0x60;
-/// Board → host: id u8, then per link E, N, W, S: received u16, mismatches u16, then the
-/// link's counters (sent, acked, retransmitted, duplicates, skipped: 5 × u32) and the UART's
-/// overruns u32.
-pub const KIND_REPORT: u8 = 0x61;
-/// Board → neighbour: one data frame of the exercise.
-pub const KIND_DATA: u8 = 0x62;
 /// Bytes per link buffer: the longest frame, a row packet between boards in the tile exercise
 /// (3 + 1 + 4 + 73 + 8 × 20 + 4 = 245 B), or a cell's report (3 + 1 + 22 + 2 × 16 × 8 + 4 =
 /// 286 B).

@@ -34,30 +34,12 @@
 //! silently; the host sizes its injection below it.
 
 use cell_core::termination::{Action, Node, Token};
+use cell_core::wire::board::{KIND_DONE, KIND_QUERY, KIND_START, KIND_STATE, KIND_TERM_CONFIG, KIND_WORK};
 use cell_core::wire::{get_token, Reader, KIND_TOKEN};
 use heapless::{Deque, Vec};
 
 use crate::{send_token, Board, LINKS, NONE};
 
-/// Host → board: the termination exercise's configuration: id u8, neighbour ids on E, N, W,
-/// S (4 × u8, `0xFF`: none), ring position u8, ring length u8, link to the next ring position
-/// u8 (0 … 3: E, N, W, S), busy time per item u16 (µs), children per item u8 (1 or 2).
-pub const KIND_TERM_CONFIG: u8 = 0x63;
-/// Host → board and board → board: a work item, ttl u8, id u32.
-pub const KIND_WORK: u8 = 0x64;
-/// Host → ring position 0: start detecting termination.
-pub const KIND_START: u8 = 0x65;
-/// Ring position 0 → host: termination of a phase declared (the phase, u16: 0, the work's,
-/// then 1, the empty phase whose token told every board of the first declaration).
-pub const KIND_DONE: u8 = 0x66;
-/// Host → board: send your state.
-pub const KIND_QUERY: u8 = 0x67;
-/// Board → host: id u8, processed u32, work frames sent u32 and received u32 (between
-/// boards), injected u32 (from the host), still queued u32 (queue and outgoing children), the
-/// termination counter i32, tokens forwarded u32, overflows u32, the neighbour links'
-/// retransmissions u32 and skipped bytes u32, and late work u32 (items received or processed
-/// after the board learned that phase 0 was declared).
-pub const KIND_STATE: u8 = 0x68;
 /// Items a board can hold: more than the host ever injects in all (each board can hold every
 /// item of the run, so a board always takes what arrives: no cycle of full queues).
 pub const QUEUE: usize = 1024;

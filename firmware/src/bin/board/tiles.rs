@@ -53,48 +53,19 @@ use cell_core::shade::cell_pixel;
 use cell_core::termination::{Action, Node, Token};
 use cell_core::trace::{self, kind, LightSetup, ShadeSetup};
 use cell_core::voxelize::PipelineCell;
+use cell_core::wire::board::{
+    KIND_DONE, KIND_PIPE, KIND_QUERY, KIND_ROW_AT, KIND_START, KIND_TILE_BEAM, KIND_TILE_CELL, KIND_TILE_CONFIG,
+    KIND_TILE_LIGHT, KIND_TILE_SHADE, KIND_TILE_STATE,
+};
 use cell_core::wire::{
     get_beam, get_pipe, get_row, get_token, put_beam, put_pipe, put_row, read_frame, ByteSink, PutExt, Reader,
     SliceWriter, KIND_TOKEN,
 };
 use heapless::{Deque, Vec};
 
-use crate::safra::{KIND_DONE, KIND_QUERY, KIND_START};
 use cell_core::serial::SerialLink;
 
 use crate::{send_token, stack, Board, LINKS, LINK_BUF, NONE, TIMEOUT_US};
-
-/// Host → board: the tile exercise's configuration: id u8, neighbour ids on E, N, W, S
-/// (4 × u8, `0xFF`: none), ring position u8, ring length u8, link to the next ring position u8
-/// (0 … 3), tile origin x0 u16, y0 u16, tile side u8 (≤ [`SIDE`]), grid side n u16, depth u16.
-pub const KIND_TILE_CONFIG: u8 = 0x69;
-/// Host → board: the light setup, a whole `cell_core::trace` light record (its frame with
-/// its own CRC).
-pub const KIND_TILE_LIGHT: u8 = 0x6A;
-/// Host → board 0 and board → board: a pipeline packet at pipeline row y: y u16, then
-/// `wire::put_pipe`.
-pub const KIND_PIPE: u8 = 0x6B;
-/// Board → board: a row packet at cell (x, y): x u16, y u16, then `wire::put_row`.
-pub const KIND_ROW_AT: u8 = 0x6C;
-/// Board → board: a beam for cell (x, y): x u16, y u16, then `wire::put_beam`.
-pub const KIND_TILE_BEAM: u8 = 0x6D;
-/// Board → host: one cell: x u16, y u16, dexels u8, lit runs u8, dexel-store overflows u32,
-/// lost voxels u32, lit-store overflows u32, still busy u32 (0 or 1: a beam left in the cell),
-/// its pixel (a flag u8, 1 when shaded, and rgb 3 × u8: `cell_core::shade::cell_pixel` under
-/// the light setup's lit rule with the [`KIND_TILE_SHADE`] inputs; flag 0 without a visible
-/// surface or before the shading record came), then up to [`REPORTED`]
-/// dexels (lo u16, hi u16, facet u32) and as many lit runs (lo u16, hi u16, mask u32).
-pub const KIND_TILE_CELL: u8 = 0x6E;
-/// Host → board: the shading inputs (materials, lights, ambient, eye), a whole
-/// `cell_core::trace` shading record; the cells shade their pixels when the host asks for the
-/// report, after the lighting was declared.
-pub const KIND_TILE_SHADE: u8 = 0x70;
-/// Board → host: id u8, then u32 each: basic frames sent, basic frames received, frames
-/// forwarded (diagonal beams), tokens forwarded, late work, overflows and bad frames, beams
-/// misrouted, loading items processed, cell steps, peak arrived beams, peak work list, the
-/// neighbour links' retransmissions and skipped bytes, the stack's peak in bytes (the board's
-/// whole state lives on it); then the termination counter i32.
-pub const KIND_TILE_STATE: u8 = 0x6F;
 
 /// Largest tile side: the board's state is sized for [`SIDE`]² cells (board-memory.x).
 pub const SIDE: usize = 4;
