@@ -41,7 +41,8 @@
 //!   segment meets a triangle that the rule lets it through (a voxel keeps one plane):
 //!   `complete+source`, `point+complete`, `point+complete+source` (the ideal: the reference's
 //!   own test but for the lattice rays), `nearest0+complete+source`, `nearest1+complete+source`,
-//!   and `point+complete+source+free`, the ideal without the column rule (a ±z ray that stays
+//!   and `point+complete+source+free`, the ideal without the column rule (`free`: the
+//!   machine without it) (a ±z ray that stays
 //!   in its column is stopped by the column's next dexel, for the machine's no-deadlock
 //!   argument);
 //! * `wedges`, `point+wedges`, `nearest0+wedges` — a try at creases and rims with what cells
@@ -95,8 +96,8 @@ struct Variant {
     exact_rims: bool,
     /// Exact occluders also stop a ray where the rule lets it through a triangle.
     complete: bool,
-    /// With `complete`: no column rule (a ±z ray staying in its column is not stopped by its
-    /// column's next dexel; triangles stop it).
+    /// No column rule (a ±z ray staying in its column is not stopped by its column's next
+    /// dexel: the rule's other stops, or triangles, stop it).
     free_columns: bool,
     /// Two planes in a voxel next to an edge: its own and the nearest other plane of a
     /// neighbouring voxel, as a convex (both) or concave (either) wedge of inside.
@@ -115,7 +116,7 @@ const RULE: Variant = Variant {
     wedges: false,
 };
 
-const VARIANTS: [(&str, Variant); 28] = [
+const VARIANTS: [(&str, Variant); 29] = [
     ("rule", RULE),
     ("empty-crossings", Variant { empty_crossings: true, ..RULE }),
     ("exact-occluders", Variant { exact_occluders: true, ..RULE }),
@@ -152,6 +153,7 @@ const VARIANTS: [(&str, Variant); 28] = [
     ("point+complete+source", Variant { complete: true, ..POINT_EXACT_SOURCE }),
     ("nearest0+complete+source", Variant { complete: true, receiver: Receiver::Nearest(0), ..POINT_EXACT_SOURCE }),
     ("nearest1+complete+source", Variant { complete: true, receiver: Receiver::Nearest(1), ..POINT_EXACT_SOURCE }),
+    ("free", Variant { free_columns: true, ..RULE }),
     ("point+complete+source+free", Variant { complete: true, free_columns: true, ..POINT_EXACT_SOURCE }),
     ("wedges", Variant { wedges: true, ..RULE }),
     ("point+wedges", Variant { receiver: Receiver::Point, wedges: true, ..RULE }),
@@ -363,7 +365,7 @@ impl Walk<'_> {
             if behind && stop(0) {
                 return Some(k);
             }
-            if z_ray && stays && column.is_some_and(|c| c != s.lo) && !(var.complete && var.free_columns) {
+            if z_ray && stays && column.is_some_and(|c| c != s.lo) && !var.free_columns {
                 return Some(k);
             }
             if now != then {
