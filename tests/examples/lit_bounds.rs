@@ -7,48 +7,39 @@
 //! cargo run --release -p rc2-tests --example lit_bounds -- ../shared/scenes/fandisk.obj 256 --light 0.8,0.3,0.7
 //! ```
 //!
-//! Variants (all by default):
-//! * `rule` — the plane rule as the machine runs it (the image equals `render --view fitted`);
+//! A variant is `rule` (the plane rule as the machine runs it: the image equals
+//! `render --view fitted`) or parts joined by `+`; without variants, those of BENCHMARKS
+//! ([`DEFAULT_VARIANTS`]). Occluders:
 //! * `empty-crossings` — a plane crossed (rule 4's crossing, the terminal step, "behind after
 //!   empty space") stops a ray only where the crossing point lies in an occupied voxel;
-//! * `exact-occluders` — a ray is stopped exactly where its segment meets a triangle of the
-//!   mesh (f64), wherever the rule would stop it: occluders exactly as thin as the mesh;
-//! * `exact-source` — the lattice rays leave from the light itself: the machine's ray at layer
-//!   k of a face is `S + (u, v)·k/D` with S the light across the face's axis (sixteenths) but
-//!   its voxel's centre along it (§4.3's layers are whole voxels from the source voxel), up to
-//!   half a voxel from the light; here the ray's distance along the axis is counted from the
-//!   light, `k − δ`, so every ray is a true ray from the light.
+//! * `exact` (also `exact-occluders`) — wherever the rule would stop a ray, it is stopped only
+//!   if its segment meets a triangle of the mesh (f64);
+//! * `complete` — `exact`, and a ray also stops wherever its segment meets a triangle that the
+//!   rule lets it through (a voxel keeps one plane): occluders exactly the mesh;
+//! * `creases`, `rims` — `exact` only in the voxels two planes of the mesh pass through, or in
+//!   the occupied voxels no triangle passes through (the conservative contour and the standard
+//!   band around edges; triangles sampled every tenth of a voxel);
+//! * `wedges` — creases and rims with what cells hold: a voxel next to another plane (within a
+//!   voxel of its centre, in one of its 26 neighbours) takes the two planes as a solid's convex
+//!   or concave wedge, or as a sheet bent along their line;
+//! * `free` — no column rule (a ±z ray that stays in its column stops at the column's next
+//!   dexel, for the machine's no-deadlock argument).
 //!
-//! The receiving side of the machine: a pixel is lit by any lattice ray through its two
-//! bracketing voxels on the light's side of its plane; at f = 0 about one or two rays cross a
-//! pixel's footprint, a region around the point the reference samples. Variants that change it
-//! (`Receiver`), alone or with exact occluders in part of the voxels:
+//! The source: `source` (also `exact-source`) — the lattice rays leave from the light itself:
+//! the machine's ray at layer k of a face is `S + (u, v)·k/D` with S the light across the
+//! face's axis (sixteenths) but its voxel's centre along it (§4.3's layers are whole voxels from
+//! the source voxel), up to half a voxel from the light; here the ray's distance along the axis
+//! is counted from the light, `k − δ`, so every ray is a true ray from the light.
+//!
+//! The receivers. The machine lights a pixel by any lattice ray through its two bracketing
+//! voxels on the light's side of its plane; at f = 0 about one or two rays cross a pixel's
+//! footprint, a region around the point the reference samples. Instead:
 //! * `point` — lit iff the ray to the pixel's own point (the visible plane on the column's
-//!   centre line; a lattice ray at f = 8) gets there, the machine's occluders on the way;
-//! * `point+exact` — the same past exact occluders: the ideal, what the reference computes;
-//! * `point+creases`, `point+rims`, `point+creases+rims`, `creases+rims` — exact occluders
-//!   only in voxels two planes of the mesh pass through (creases), or in occupied voxels no
-//!   triangle passes through (rims: the conservative contour and the standard band around
-//!   edges), the plane rule elsewhere (triangles sampled every tenth of a voxel);
-//! * `nearest0+creases+rims`, `nearest1+creases+rims`, `nearest0+exact`, `nearest1+exact` —
-//!   a receiver a cell can evaluate: one lattice ray at f = 0 or 1, the one nearest the
-//!   pixel's point among those whose path crosses its bracketing voxels on the plane's outer
-//!   side, must reach it;
-//! * `point+exact+source`, `nearest0+exact+source`, `nearest1+exact+source` — the same with
-//!   the rays from the light itself (`exact-source`), and two of the three parts without the
-//!   third: `exact+source` (the machine's receivers), `nearest0+source` (its occluders);
-//! * `…complete…` — the same with *complete* exact occluders, which also stop a ray where its
-//!   segment meets a triangle that the rule lets it through (a voxel keeps one plane):
-//!   `complete+source`, `point+complete`, `point+complete+source` (the ideal: the reference's
-//!   own test but for the lattice rays), `nearest0+complete+source`, `nearest1+complete+source`,
-//!   and `point+complete+source+free`, the ideal without the column rule (`free`: the
-//!   machine without it) (a ±z ray that stays
-//!   in its column is stopped by the column's next dexel, for the machine's no-deadlock
-//!   argument);
-//! * `wedges`, `point+wedges`, `nearest0+wedges` — a try at creases and rims with what cells
-//!   hold: a voxel next to another plane (within a voxel of its centre, in one of its 26
-//!   neighbours) takes the two planes as a solid's convex or concave wedge, or as a sheet
-//!   bent along their line.
+//!   centre line; a lattice ray at f = 8) gets there: with `complete+source`, the reference's
+//!   own test but for the lattice rays;
+//! * `nearest0`, `nearest1` — a receiver a cell can evaluate: one lattice ray at f = 0 or 1,
+//!   the one nearest the pixel's point among those whose path crosses its bracketing voxels on
+//!   the plane's outer side, must reach it.
 //!
 //! f = 0, standard + conservative surfaces, the scene's own lights (or `--light`), the fitted view. f64
 //! arithmetic where the variants need it: an experiment, not a cell.
@@ -116,52 +107,56 @@ const RULE: Variant = Variant {
     wedges: false,
 };
 
-const VARIANTS: [(&str, Variant); 29] = [
-    ("rule", RULE),
-    ("empty-crossings", Variant { empty_crossings: true, ..RULE }),
-    ("exact-occluders", Variant { exact_occluders: true, ..RULE }),
-    ("exact-source", Variant { exact_source: true, ..RULE }),
-    ("point", Variant { receiver: Receiver::Point, ..RULE }),
-    ("point+exact", Variant { receiver: Receiver::Point, exact_occluders: true, ..RULE }),
-    ("point+creases", Variant { receiver: Receiver::Point, exact_creases: true, ..RULE }),
-    ("point+rims", Variant { receiver: Receiver::Point, exact_rims: true, ..RULE }),
-    ("point+creases+rims", Variant { receiver: Receiver::Point, exact_creases: true, exact_rims: true, ..RULE }),
-    ("creases+rims", Variant { exact_creases: true, exact_rims: true, ..RULE }),
-    (
-        "nearest0+creases+rims",
-        Variant { receiver: Receiver::Nearest(0), exact_creases: true, exact_rims: true, ..RULE },
-    ),
-    (
-        "nearest1+creases+rims",
-        Variant { receiver: Receiver::Nearest(1), exact_creases: true, exact_rims: true, ..RULE },
-    ),
-    ("nearest0+exact", Variant { receiver: Receiver::Nearest(0), exact_occluders: true, ..RULE }),
-    ("nearest1+exact", Variant { receiver: Receiver::Nearest(1), exact_occluders: true, ..RULE }),
-    ("exact+source", Variant { exact_occluders: true, exact_source: true, ..RULE }),
-    ("nearest0+source", Variant { receiver: Receiver::Nearest(0), exact_source: true, ..RULE }),
-    ("point+exact+source", Variant { receiver: Receiver::Point, exact_occluders: true, exact_source: true, ..RULE }),
-    (
-        "nearest0+exact+source",
-        Variant { receiver: Receiver::Nearest(0), exact_occluders: true, exact_source: true, ..RULE },
-    ),
-    (
-        "nearest1+exact+source",
-        Variant { receiver: Receiver::Nearest(1), exact_occluders: true, exact_source: true, ..RULE },
-    ),
-    ("complete+source", Variant { complete: true, receiver: Receiver::Window, ..POINT_EXACT_SOURCE }),
-    ("point+complete", Variant { complete: true, exact_source: false, ..POINT_EXACT_SOURCE }),
-    ("point+complete+source", Variant { complete: true, ..POINT_EXACT_SOURCE }),
-    ("nearest0+complete+source", Variant { complete: true, receiver: Receiver::Nearest(0), ..POINT_EXACT_SOURCE }),
-    ("nearest1+complete+source", Variant { complete: true, receiver: Receiver::Nearest(1), ..POINT_EXACT_SOURCE }),
-    ("free", Variant { free_columns: true, ..RULE }),
-    ("point+complete+source+free", Variant { complete: true, free_columns: true, ..POINT_EXACT_SOURCE }),
-    ("wedges", Variant { wedges: true, ..RULE }),
-    ("point+wedges", Variant { receiver: Receiver::Point, wedges: true, ..RULE }),
-    ("nearest0+wedges", Variant { receiver: Receiver::Nearest(0), wedges: true, ..RULE }),
+/// The variants BENCHMARKS quotes, run when none is named.
+const DEFAULT_VARIANTS: [&str; 22] = [
+    "rule",
+    "empty-crossings",
+    "exact-occluders",
+    "exact-source",
+    "point",
+    "point+exact",
+    "point+creases",
+    "point+rims",
+    "point+creases+rims",
+    "creases+rims",
+    "nearest0+creases+rims",
+    "nearest1+creases+rims",
+    "complete+source",
+    "nearest0+source",
+    "point+complete",
+    "point+complete+source",
+    "nearest0+complete+source",
+    "nearest1+complete+source",
+    "free",
+    "point+complete+source+free",
+    "wedges",
+    "nearest0+wedges",
 ];
 
-const POINT_EXACT_SOURCE: Variant =
-    Variant { receiver: Receiver::Point, exact_occluders: true, exact_source: true, ..RULE };
+/// A variant from its name: `rule`, or parts joined by `+` (see the file's doc).
+fn parse_variant(name: &str) -> Option<Variant> {
+    if name == "rule" {
+        return Some(RULE);
+    }
+    let mut v = RULE;
+    for part in name.split('+') {
+        match part {
+            "point" => v.receiver = Receiver::Point,
+            "nearest0" => v.receiver = Receiver::Nearest(0),
+            "nearest1" => v.receiver = Receiver::Nearest(1),
+            "exact" | "exact-occluders" => v.exact_occluders = true,
+            "complete" => (v.exact_occluders, v.complete) = (true, true),
+            "creases" => v.exact_creases = true,
+            "rims" => v.exact_rims = true,
+            "empty-crossings" => v.empty_crossings = true,
+            "source" | "exact-source" => v.exact_source = true,
+            "free" => v.free_columns = true,
+            "wedges" => v.wedges = true,
+            _ => return None,
+        }
+    }
+    Some(v)
+}
 
 /// Fraction bits of the one ray a point receiver walks.
 const POINT_F: u32 = 8;
@@ -647,12 +642,16 @@ fn main() {
         eprintln!("usage: lit_bounds SCENE N [VARIANT ...] [--light X,Y,Z ...]  (variants: see the file's doc)");
         std::process::exit(2);
     };
-    if let Some(bad) = args.iter().skip(2).find(|a| VARIANTS.iter().all(|(name, _)| name != a)) {
-        eprintln!("lit_bounds: unknown variant {bad}");
-        std::process::exit(2);
+    let names: Vec<&str> =
+        if args.len() > 2 { args[2..].iter().map(String::as_str).collect() } else { DEFAULT_VARIANTS.to_vec() };
+    let mut chosen = Vec::new();
+    for name in names {
+        let Some(var) = parse_variant(name) else {
+            eprintln!("lit_bounds: unknown variant {name} (parts: see the file's doc)");
+            std::process::exit(2);
+        };
+        chosen.push((name, var));
     }
-    let chosen: Vec<_> =
-        VARIANTS.iter().filter(|(name, _)| args.len() < 3 || args[2..].iter().any(|a| a == name)).collect();
     let mesh = host_sim::scene::load(scene).unwrap_or_else(|e| {
         eprintln!("{scene}: {e:#}");
         std::process::exit(1)
@@ -680,7 +679,7 @@ fn main() {
         let lead = [0, 1, 2].map(|w| (src[w] - 16 * source_voxel(src)[w]) as f64 / 16.0);
         println!("light {}: voxel {:?}, the light {lead:+?} voxel from its centre", i + 1, source_voxel(src));
     }
-    for (name, var) in chosen {
+    for (name, var) in &chosen {
         let mut lit: BTreeMap<[i64; 2], u32> = BTreeMap::new();
         for (i, light) in lights.iter().enumerate() {
             let src =
