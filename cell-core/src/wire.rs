@@ -850,7 +850,8 @@ pub mod board {
     // The tile exercise (`tiles.rs`): cells of the grid on each board.
     /// Host → board: the tile exercise's configuration: id u8, neighbour ids on E, N, W, S
     /// (4 × u8, `0xFF`: none), ring position u8, ring length u8, link to the next ring position u8
-    /// (0 … 3), tile origin x0 u16, y0 u16, tile side u8 (≤ the board's `SIDE`, 4), grid side n u16, depth u16.
+    /// (0 … 3), tile origin x0 u16, y0 u16, tile side u8 (≤ the board's `SIDE`, 4), grid side
+    /// n u16, depth u16.
     pub const KIND_TILE_CONFIG: u8 = 0x69;
     /// Host → board: the light setup, a whole `cell_core::trace` light record (its frame with
     /// its own CRC).
@@ -866,19 +867,19 @@ pub mod board {
     /// lost voxels u32, lit-store overflows u32, still busy u32 (0 or 1: a beam left in the cell),
     /// its pixel (a flag u8, 1 when shaded, and rgb 3 × u8: `cell_core::shade::cell_pixel` under
     /// the light setup's lit rule with the [`KIND_TILE_SHADE`] inputs; flag 0 without a visible
-    /// surface or before the shading record came), then up to `REPORTED` (16)
-    /// dexels (lo u16, hi u16, facet u32) and as many lit runs (lo u16, hi u16, mask u32).
+    /// surface or before the shading record came), then up to `REPORTED` (16) dexels (lo u16,
+    /// hi u16, facet u32) and as many lit runs (lo u16, hi u16, mask u32).
     pub const KIND_TILE_CELL: u8 = 0x6E;
-    /// Host → board: the shading inputs (materials, lights, ambient, eye), a whole
-    /// `cell_core::trace` shading record; the cells shade their pixels when the host asks for the
-    /// report, after the lighting was declared.
-    pub const KIND_TILE_SHADE: u8 = 0x70;
     /// Board → host: id u8, then u32 each: basic frames sent, basic frames received, frames
     /// forwarded (diagonal beams), tokens forwarded, late work, overflows and bad frames, beams
     /// misrouted, loading items processed, cell steps, peak arrived beams, peak work list, the
     /// neighbour links' retransmissions and skipped bytes, the stack's peak in bytes (the board's
     /// whole state lives on it); then the termination counter i32.
     pub const KIND_TILE_STATE: u8 = 0x6F;
+    /// Host → board: the shading inputs (materials, lights, ambient, eye), a whole
+    /// `cell_core::trace` shading record; the cells shade their pixels when the host asks for the
+    /// report, after the lighting was declared.
+    pub const KIND_TILE_SHADE: u8 = 0x70;
 }
 
 #[cfg(test)]
