@@ -180,7 +180,7 @@ struct Walk<'a> {
     /// Fraction bits of the rays walked (0 but for point receivers).
     f: u32,
     /// Voxels two planes of the mesh pass through, and voxels a triangle passes through.
-    creases: &'a Sampled,
+    sampled: &'a Sampled,
 }
 
 impl Walk<'_> {
@@ -211,8 +211,8 @@ impl Walk<'_> {
     /// Whether `var` takes the occluder in voxel p as exact.
     fn exact_at(&self, var: Variant, p: [i64; 3]) -> bool {
         var.exact_occluders
-            || (var.exact_creases && self.creases.creases.contains(&p))
-            || (var.exact_rims && !self.creases.touched.contains(&p))
+            || (var.exact_creases && self.sampled.creases.contains(&p))
+            || (var.exact_rims && !self.sampled.touched.contains(&p))
     }
 
     /// `plane_value` of the oracle, or the same scaled plane value at the true ray's point.
@@ -321,7 +321,7 @@ impl Walk<'_> {
                     return Some(k);
                 }
             }
-            if let Some(w) = own.and(if var.wedges { self.wedge(p) } else { None }) {
+            if let Some(w) = var.wedges.then(|| self.wedge(p)).flatten() {
                 let at = |i: i64| self.point(dir, a, b, (k - 1) as f64 + i as f64 / 16.0);
                 let in_cube = |q: [f64; 3]| (0..3).all(|j| (q[j] - p[j] as f64).abs() <= 0.5);
                 if let Some(i) = (0..=32).find(|&i| {
@@ -330,7 +330,7 @@ impl Walk<'_> {
                 }) {
                     return Some(k - 1 + (i + 15) / 16);
                 }
-                column = (z_ray && stays).then_some(own.unwrap().lo);
+                column = (z_ray && stays).then_some(w.a.s.lo);
                 outside = !stays;
                 from_empty = false;
                 continue;
@@ -506,22 +506,25 @@ struct Placed {
 }
 
 impl Placed {
+    /// The stored normal (z with its 16 extra fraction bits removed) and its length.
+    fn normal(&self) -> ([f64; 3], f64) {
+        let n = [self.s.nx as f64, self.s.ny as f64, self.s.nz as f64 / 65536.0];
+        (n, (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt())
+    }
+
     /// Signed distance (voxels) of point q from the plane, positive outside.
     fn distance(&self, q: [f64; 3]) -> f64 {
-        let s = &self.s;
-        let n = [s.nx as f64, s.ny as f64, s.nz as f64 / 65536.0];
+        let (n, len) = self.normal();
         let g = n[0] * (q[0] - self.col[0] as f64)
             + n[1] * (q[1] - self.col[1] as f64)
-            + n[2] * (q[2] - s.lo as f64)
-            + s.e as f64;
-        g / (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt()
+            + n[2] * (q[2] - self.s.lo as f64)
+            + self.s.e as f64;
+        g / len
     }
 
     /// The point of the plane nearest q.
     fn foot(&self, q: [f64; 3]) -> [f64; 3] {
-        let s = &self.s;
-        let n = [s.nx as f64, s.ny as f64, s.nz as f64 / 65536.0];
-        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let (n, len) = self.normal();
         let d = self.distance(q);
         [0, 1, 2].map(|i| q[i] - d * n[i] / len)
     }
@@ -574,9 +577,10 @@ struct Sampled {
     touched: std::collections::HashSet<[i64; 3]>,
 }
 
-/// Voxels (centre coordinates rounded) that triangles of two different planes pass through,
-/// found by sampling every triangle at a tenth of a voxel.
-fn crease_voxels(tris: &[[[f64; 3]; 3]], origin: [f64; 3], voxel: f64) -> Sampled {
+/// The voxels (centre coordinates rounded) the mesh's triangles pass through, and those that
+/// triangles of two different planes pass through, found by sampling every triangle at a tenth
+/// of a voxel; prints how many triangles pass through an occupied column.
+fn sample_mesh(tris: &[[[f64; 3]; 3]], origin: [f64; 3], voxel: f64) -> Sampled {
     let mut planes: std::collections::HashMap<[i64; 3], Vec<[i64; 4]>> = Default::default();
     let mut per_column: std::collections::HashMap<[i64; 2], std::collections::HashSet<usize>> = Default::default();
     for (ti, t) in tris.iter().enumerate() {
@@ -666,10 +670,10 @@ fn main() {
         reference_image(&mesh, &loaded, &lights, &RenderConfig::diffusion(LightConfig::default(), NormalMode::Facet))
             .expect("reference");
     let (triangles, facets) = host_sim::truth::refrender::mesh_triangles(&mesh).expect("triangles");
-    let creases = crease_voxels(&triangles, loaded.fit.origin, loaded.fit.voxel);
+    let sampled = sample_mesh(&triangles, loaded.fit.origin, loaded.fit.voxel);
     let exact = Reference::new(triangles, facets).expect("reference mesh");
     let (surfaces, columns) = (common::surfaces_of(&loaded.grid), common::columns_of(&loaded.grid));
-    println!("{} voxels with two planes or more, {} with a triangle", creases.creases.len(), creases.touched.len());
+    println!("{} voxels with two planes or more, {} with a triangle", sampled.creases.len(), sampled.touched.len());
     let cell_lights = host_sim::machine::shade::point_lights(&lights);
     println!(
         "{scene} n = {n}: variant, shadow disagreement, PSNR, pixels darker / brighter than the reference (light 1)"
@@ -700,7 +704,7 @@ fn main() {
                     Receiver::Point => POINT_F,
                     Receiver::Nearest(f) => f,
                 },
-                creases: &creases,
+                sampled: &sampled,
             };
             let m = walk.d;
             let cols: Vec<[i64; 2]> = if var.receiver != Receiver::Window {
