@@ -79,7 +79,7 @@
 //! # Beams under the plane rule
 //!
 //! For one plane and one layer t, the rays with σ_t form a half-plane of the (u, v) lattice: an
-//! exact affine function `V(a, b, t) = K₀ + K₁·t + 16·t·(c_b·a + c_g·b)` of the lattice offsets
+//! exact affine function `V(a, b, t) = K₀ + 16·t·(K_w + c_b·a + c_g·b)` of the lattice offsets
 //! a, b has the sign of g ([`RayPlane`]). So in each column of a beam's rectangle (fixed a) the
 //! rays a test holds for are a prefix or a suffix ([`Test::interval`]), and columns with the same
 //! prefixes and suffixes for every test form *runs* (found by binary search: each boundary is
@@ -125,9 +125,14 @@ pub enum LitRule {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RayPlane {
     k0: i128,
-    k1: i128,
+    kw: i128,
     cb: i128,
     cg: i128,
+    /// How far (sixteenths of a voxel) the rays' origin lies behind layer 0's centre plane
+    /// along the direction: the point of parameter t is at distance `T = max(16·t − lead, 0)`
+    /// sixteenths from the origin. 0 for rays from the source voxel's centre plane (the
+    /// machine's), `s·(S_w − 16·V_w)` for rays from the light itself ([`crate::occluder`]).
+    lead: i64,
     /// A facet of an open surface ([`crate::plane::TWO_SIDED`]): rule 4 reads "behind" only
     /// when the plane faces the source (see the module doc). Only a voxel's own plane reads it,
     /// not the visible surface's.
@@ -155,13 +160,26 @@ impl RayPlane {
             + c[u] * (df * s16(u) - l * reference[u] as i128)
             + c[v] * (df * s16(v) - l * reference[v] as i128)
             + (1i128 << 16) * l * plane.e as i128;
-        RayPlane { k0, k1: c[w] * l * dir.sign() as i128, cb: c[u], cg: c[v], two_sided: plane.two_sided() }
+        RayPlane { k0, kw: c[w] * df * dir.sign() as i128, cb: c[u], cg: c[v], lead: 0, two_sided: plane.two_sided() }
     }
 
-    /// `2¹⁶·L·g` at ray (a, b)'s point of parameter t.
+    /// A plane given by its coefficients: `value(a, b, t) = k0 + T·(kw + cb·a + cg·b)` with
+    /// `T = max(16·t − lead, 0)` (see [`RayPlane::value`]). The caller keeps every term within
+    /// `i128` ([`crate::occluder`] documents its budget).
+    pub(crate) const fn from_coefficients(k0: i128, kw: i128, cb: i128, cg: i128, lead: i64) -> Self {
+        RayPlane { k0, kw, cb, cg, lead, two_sided: false }
+    }
+
+    /// 16 × the distance along the direction from the rays' origin to the point of parameter
+    /// t, clamped at the origin: `max(16·t − lead, 0)`.
+    fn t16(&self, t: i64) -> i128 {
+        (16 * t as i128 - self.lead as i128).max(0)
+    }
+
+    /// `2¹⁶·L·g` at ray (a, b)'s point of parameter t (for a dexel's plane: `k0 + 16·t·(kw +
+    /// cb·a + cg·b)`).
     pub fn value(&self, a: i64, b: i64, t: i64) -> i128 {
-        let t = t as i128;
-        self.k0 + self.k1 * t + 16 * t * (self.cb * a as i128 + self.cg * b as i128)
+        self.k0 + self.t16(t) * (self.kw + self.cb * a as i128 + self.cg * b as i128)
     }
 
     /// Whether the plane faces the source: g(Se) > 0 (the same for every ray: p(0) = Se).
@@ -205,13 +223,13 @@ impl Test {
     /// `(first, last)`, empty when first > last.
     pub fn interval(&self, along: Along, fixed: i64, lo: i64, hi: i64) -> (i64, i64) {
         let p = &self.plane;
-        let t = self.t as i128;
+        let tt = p.t16(self.t);
         let (fixed_c, free_c) = match along {
             Along::V => (p.cb, p.cg),
             Along::U => (p.cg, p.cb),
         };
-        let a = p.k0 + p.k1 * t + 16 * t * fixed_c * fixed as i128;
-        let b = 16 * t * free_c;
+        let a = p.k0 + tt * (p.kw + fixed_c * fixed as i128);
+        let b = tt * free_c;
         if b == 0 {
             return if a > 0 { (lo, hi) } else { (hi.saturating_add(1), hi) };
         }
@@ -616,7 +634,7 @@ mod tests {
 
     #[test]
     fn verdicts_by_hand() {
-        let p = RayPlane { k0: 1, k1: 0, cb: 0, cg: 0, two_sided: false };
+        let p = RayPlane { k0: 1, kw: 0, cb: 0, cg: 0, lead: 0, two_sided: false };
         // Own plane only: bits (σ₋, σ_k, σ_{k+1}).
         let v = Visit::new(3, Arrival::NONE, Some(p), None, None, false);
         let out = |bits, stays| v.verdict(bits, stays).out;
