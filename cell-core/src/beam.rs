@@ -332,6 +332,36 @@ impl Source {
     }
 }
 
+/// Where the rays of a source leave from along their direction's axis. Across it they leave
+/// from the light; along it, from the source voxel's centre plane (§4.3's layers are whole
+/// voxels from the source voxel: the machine's rays, whose voxel at layer k is
+/// `⌊x_s + u·k/D + ½⌋`) or from the light itself. The lit rules and occluders read a ray's
+/// point at layer t at the distance `T = 16·t − lead` sixteenths from its origin
+/// ([`crate::lit::RayPlane`], [`crate::occluder`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Origin {
+    /// The source voxel's centre plane (lead = 0): the machine's rays.
+    SourceVoxel,
+    /// The light itself: true rays from the source.
+    Light,
+}
+
+impl Origin {
+    /// The origin of `source`'s rays in `dir`, in sixteenths of a voxel (voxel centres at
+    /// multiples of 16), and its lead: how far it lies behind layer 0's centre plane along
+    /// `dir`, `s·(O_w − 16·V_w)` ∈ (−8, 8] (0 for [`Origin::SourceVoxel`]).
+    pub fn point(self, source: &Source, dir: Direction) -> ([i64; 3], i64) {
+        let w = dir.principal().index();
+        let mut o = source.pos.map(|c| c.to_bits() as i64);
+        let voxel_w = 16 * source.voxel()[w] as i64;
+        if self == Origin::SourceVoxel {
+            o[w] = voxel_w;
+        }
+        (o, dir.sign() as i64 * (o[w] - voxel_w))
+    }
+}
+
 /// Layer k: the slab w = w₀ + s·k at principal distance k from the source voxel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

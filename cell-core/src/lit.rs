@@ -104,7 +104,7 @@
 //! |16·t·c·a| ≤ 2⁴·2¹⁷·2³⁰·2³¹, every term is below 2⁸³: `i128`, exact, for every f and D the beam
 //! budget of [`crate::beam`] admits.
 
-use crate::beam::{Direction, FarDistance, FracBits, Source};
+use crate::beam::{Direction, FarDistance, FracBits, Origin, Source};
 use crate::plane::DexelPlane;
 use heapless::Vec;
 
@@ -140,7 +140,8 @@ pub struct RayPlane {
 }
 
 impl RayPlane {
-    /// The plane of a dexel of column (x, y) whose first voxel is `lo` (`reference` = (x, y, lo)).
+    /// The plane of a dexel of column (x, y) whose first voxel is `lo` (`reference` = (x, y, lo)),
+    /// along the machine's rays ([`Origin::SourceVoxel`]).
     pub fn new<F: FracBits>(
         plane: &DexelPlane,
         reference: [i64; 3],
@@ -148,19 +149,29 @@ impl RayPlane {
         dir: Direction,
         far: FarDistance<F>,
     ) -> Self {
+        Self::from_origin(plane, reference, source, dir, far, Origin::SourceVoxel)
+    }
+
+    /// [`RayPlane::new`] along rays leaving from `origin`.
+    pub fn from_origin<F: FracBits>(
+        plane: &DexelPlane,
+        reference: [i64; 3],
+        source: &Source,
+        dir: Direction,
+        far: FarDistance<F>,
+        origin: Origin,
+    ) -> Self {
         let df = far.scaled() as i128;
         let l = 16 * df;
         let c = [(plane.nx as i128) << 16, (plane.ny as i128) << 16, plane.nz as i128];
         let w = dir.principal().index();
         let (ua, va) = dir.transverse();
         let (u, v) = (ua.index(), va.index());
-        let sv = source.voxel();
-        let s16 = |i: usize| source.pos[i].to_bits() as i128;
-        let k0 = c[w] * l * (sv[w] as i128 - reference[w] as i128)
-            + c[u] * (df * s16(u) - l * reference[u] as i128)
-            + c[v] * (df * s16(v) - l * reference[v] as i128)
-            + (1i128 << 16) * l * plane.e as i128;
-        RayPlane { k0, kw: c[w] * df * dir.sign() as i128, cb: c[u], cg: c[v], lead: 0, two_sided: plane.two_sided() }
+        let (o, lead) = origin.point(source, dir);
+        // L·(O − reference) per axis, O in sixteenths.
+        let rel = |i: usize| df * o[i] as i128 - l * reference[i] as i128;
+        let k0 = c[w] * rel(w) + c[u] * rel(u) + c[v] * rel(v) + (1i128 << 16) * l * plane.e as i128;
+        RayPlane { k0, kw: c[w] * df * dir.sign() as i128, cb: c[u], cg: c[v], lead, two_sided: plane.two_sided() }
     }
 
     /// A plane given by its coefficients: `value(a, b, t) = k0 + T·(kw + cb·a + cg·b)` with
@@ -551,6 +562,32 @@ mod tests {
                 p[w] = src.voxel()[w] as f64 + dir.sign() as f64 * t as f64;
                 p[ua.index()] = src.pos[ua.index()].to_num::<f64>() + (a as f64 / 2.0) * t as f64 / 15.0;
                 p[va.index()] = src.pos[va.index()].to_num::<f64>() + (b as f64 / 2.0) * t as f64 / 15.0;
+                let g = 1200.0 * (p[0] - 6.0) - 16384.0 * (p[1] - 9.0) + 300.0 * (p[2] - 4.0) - 777.0;
+                let want = g * 65536.0 * 16.0 * 30.0;
+                let got = rp.value(a, b, t) as f64;
+                assert!((got - want).abs() <= want.abs() * 1e-12 + 1e-3, "{dir:?} {a} {b} {t}: {got} vs {want}");
+            }
+        }
+    }
+
+    /// `from_origin` with rays from the light: the point of layer t lies on layer t's centre
+    /// plane, `t − lead/16` voxels from the light along the axis.
+    #[test]
+    fn ray_plane_from_the_light_is_scaled_g() {
+        let src = Source::new(SourceId(0), [5.25, 7.4375, 3.0625].map(SourceCoord::from_num));
+        let far = FarDistance::<frac::U1>::new(15).unwrap();
+        let plane = DexelPlane { id: 0, nx: 1200, ny: -16384, nz: 300 << 16, e: -777 };
+        for dir in Direction::ALL {
+            let rp = RayPlane::from_origin(&plane, [6, 9, 4], &src, dir, far, Origin::Light);
+            let w = dir.principal().index();
+            let (ua, va) = dir.transverse();
+            let light = src.pos.map(|c| c.to_num::<f64>());
+            for (a, b, t) in [(7i64, -3i64, 2i64), (-30, 30, 9), (13, 1, 15), (0, 0, 1)] {
+                let mut p = [0f64; 3];
+                p[w] = src.voxel()[w] as f64 + dir.sign() as f64 * t as f64;
+                let dist = dir.sign() as f64 * (p[w] - light[w]);
+                p[ua.index()] = light[ua.index()] + (a as f64 / 2.0) * dist / 15.0;
+                p[va.index()] = light[va.index()] + (b as f64 / 2.0) * dist / 15.0;
                 let g = 1200.0 * (p[0] - 6.0) - 16384.0 * (p[1] - 9.0) + 300.0 * (p[2] - 4.0) - 777.0;
                 let want = g * 65536.0 * 16.0 * 30.0;
                 let got = rp.value(a, b, t) as f64;
