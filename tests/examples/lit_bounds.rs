@@ -16,6 +16,15 @@
 //!   if its segment meets a triangle of the mesh (f64);
 //! * `complete` — `exact`, and a ray also stops wherever its segment meets a triangle that the
 //!   rule lets it through (a voxel keeps one plane): occluders exactly the mesh;
+//! * `own` — `exact` with only what a voxel's dexel knows: the triangles of its own plane near
+//!   it (a ray crossing a neighbouring facet in that voxel is let through: light leaks);
+//! * `local` — `complete` with what the two cells of a step know: segment [k − 1, k] is
+//!   tested against the triangles through the columns of the ray's voxels at layers k − 1 and k
+//!   (triangles sampled every tenth of a voxel);
+//! * `cell`, `cellC` — `local` as a cell runs it: the loaded facets' lattice triangles, kept by
+//!   every column they cross (`cell_core::occluder::Triangle::crosses_column`; at most C per
+//!   column, in stream order, with `cellC`), tested by `cell_core::occluder::Occluder` in exact
+//!   integers;
 //! * `creases`, `rims` — `exact` only in the voxels two planes of the mesh pass through, or in
 //!   the occupied voxels no triangle passes through (the conservative contour and the standard
 //!   band around edges; triangles sampled every tenth of a voxel);
@@ -44,6 +53,10 @@
 //! f = 0, standard + conservative surfaces, the scene's own lights (or `--light`), the fitted view. f64
 //! arithmetic where the variants need it: an experiment, not a cell.
 
+use cell_core::beam::{frac, Direction, FarDistance, FracBits, Origin, Source, SourceCoord, SourceId};
+use cell_core::occluder::{Occluder, Triangle};
+use cell_core::receiver::target;
+use cell_core::visible::VisibleSurface;
 use cell_core::shade::NormalMode;
 use host_sim::jobs::render::{reference_image, RenderConfig};
 use host_sim::machine::diffuse::LightConfig;
@@ -71,6 +84,9 @@ enum Receiver {
     /// nearest the exact ray to the surface's point — a sample the cell can name from its own
     /// geometry.
     Nearest(u32),
+    /// `Nearest` as a cell computes it (`cell_core::receiver::target`, exact integers, from the
+    /// machine's visible surface): the target ray must reach its voxel.
+    Target(u32),
 }
 
 /// Which parts of the rule are replaced by exact geometry.
@@ -87,6 +103,16 @@ struct Variant {
     exact_rims: bool,
     /// Exact occluders also stop a ray where the rule lets it through a triangle.
     complete: bool,
+    /// Exact occluders from what the voxel's own dexel knows: the triangles of its own plane
+    /// (near it) instead of the whole mesh.
+    own_plane: bool,
+    /// Exact occluders from what the two cells a step joins know: segment [k − 1, k] is tested
+    /// against the triangles through the columns of the ray's voxels at layers k − 1 and k.
+    local: bool,
+    /// `local` with what a cell runs: the lattice triangles of the loaded facets, kept by the
+    /// columns they cross (`Triangle::crosses_column`, at most this many per column, in stream
+    /// order) and tested by `cell_core::occluder::Occluder` in exact integers.
+    cell: Option<usize>,
     /// No column rule (a ±z ray staying in its column is not stopped by its column's next
     /// dexel: the rule's other stops, or triangles, stop it).
     free_columns: bool,
@@ -103,6 +129,9 @@ const RULE: Variant = Variant {
     exact_creases: false,
     exact_rims: false,
     complete: false,
+    own_plane: false,
+    local: false,
+    cell: None,
     free_columns: false,
     wedges: false,
 };
@@ -144,8 +173,16 @@ fn parse_variant(name: &str) -> Option<Variant> {
             "point" => v.receiver = Receiver::Point,
             "nearest0" => v.receiver = Receiver::Nearest(0),
             "nearest1" => v.receiver = Receiver::Nearest(1),
+            "target0" => v.receiver = Receiver::Target(0),
+            "target1" => v.receiver = Receiver::Target(1),
             "exact" | "exact-occluders" => v.exact_occluders = true,
             "complete" => (v.exact_occluders, v.complete) = (true, true),
+            "own" => (v.exact_occluders, v.own_plane) = (true, true),
+            "local" => (v.exact_occluders, v.complete, v.local) = (true, true, true),
+            "cell" => (v.exact_occluders, v.complete, v.cell) = (true, true, Some(usize::MAX)),
+            p if p.starts_with("cell") => {
+                (v.exact_occluders, v.complete, v.cell) = (true, true, Some(p[4..].parse().ok()?));
+            }
             "creases" => v.exact_creases = true,
             "rims" => v.exact_rims = true,
             "empty-crossings" => v.empty_crossings = true,
@@ -181,6 +218,12 @@ struct Walk<'a> {
     f: u32,
     /// Voxels two planes of the mesh pass through, and voxels a triangle passes through.
     sampled: &'a Sampled,
+    /// Each column's visible surface as the machine keeps it.
+    visible: &'a (dyn Fn(i64, i64) -> Option<VisibleSurface> + Sync),
+    /// The cells' triangle stores and this light's occluders (`cell` variants).
+    cells: &'a CellStores,
+    /// `cells`' occluders of each triangle for this light, by direction.
+    occluders: &'a [[Option<Occluder>; 6]],
 }
 
 impl Walk<'_> {
@@ -264,6 +307,68 @@ impl Walk<'_> {
         !self.mesh.visible(world(self.point(dir, a, b, t0)), world(self.point(dir, a, b, t1)), &[])
     }
 
+    /// Whether segment [k − 1, k] of the ray meets a triangle through the column of its voxel
+    /// at layer k − 1 or k: what the two cells of the step know.
+    fn meets_local(&self, dir: usize, a: i64, b: i64, k: i64) -> bool {
+        let (q0, q1) = (self.point(dir, a, b, (k - 1) as f64), self.point(dir, a, b, k as f64));
+        [self.voxel(dir, a, b, k - 1), self.voxel(dir, a, b, k)].iter().any(|v| {
+            self.sampled
+                .by_column
+                .get(&[v[0], v[1]])
+                .is_some_and(|ts| ts.iter().any(|&t| segment_meets_triangle(q0, q1, &self.sampled.tris[t])))
+        })
+    }
+
+    /// `meets_local` as a cell runs it: the first `cap` triangles of each column's store, by
+    /// the exact occluder test.
+    fn meets_cell(&self, dir: usize, a: i64, b: i64, k: i64, cap: usize) -> bool {
+        let (p, q) = (self.voxel(dir, a, b, k - 1), self.voxel(dir, a, b, k));
+        let cols = if (p[0], p[1]) == (q[0], q[1]) { &[[q[0], q[1]]][..] } else { &[[p[0], p[1]], [q[0], q[1]]][..] };
+        cols.iter().any(|c| {
+            self.cells.by_column.get(c).is_some_and(|ts| {
+                ts.iter().take(cap).any(|&t| self.occluders[t][dir].is_some_and(|o| o.meets(a, b, k)))
+            })
+        })
+    }
+
+    /// `meets_mesh`, or with `own` only the triangles of the plane of `s` (voxel p) that pass
+    /// through p or its 26 neighbours.
+    #[allow(clippy::too_many_arguments)]
+    fn meets(&self, var: Variant, s: &Surface, p: [i64; 3], dir: usize, a: i64, b: i64, t0: f64, t1: f64) -> bool {
+        if let Some(cap) = var.cell {
+            return self.meets_cell(dir, a, b, t1.round() as i64, cap);
+        }
+        if var.local {
+            return self.meets_local(dir, a, b, t1.round() as i64);
+        }
+        if !var.own_plane {
+            return self.meets_mesh(dir, a, b, t0, t1);
+        }
+        let placed = Placed { s: *s, col: [p[0], p[1]] };
+        let (nrm, len) = placed.normal();
+        let (q0, q1) = (self.point(dir, a, b, t0), self.point(dir, a, b, t1));
+        // The triangles near p, with how parallel to the stored plane each is (vertices are
+        // snapped to the loading lattice, so coplanar ones agree only to about 10⁻³).
+        let mut cands: Vec<(f64, usize)> = Vec::new();
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let Some(ids) = self.sampled.near.get(&[p[0] + dx, p[1] + dy, p[2] + dz]) else { continue };
+                    for &t in ids {
+                        let tri = &self.sampled.tris[t];
+                        let tn = cross(sub(tri[1], tri[0]), sub(tri[2], tri[0]));
+                        let tl = dot(tn, tn).sqrt();
+                        if tl > 0.0 && tri.iter().all(|v| placed.distance(*v).abs() < 0.15) && !cands.iter().any(|c| c.1 == t) {
+                            cands.push(((dot(tn, nrm) / (tl * len)).abs(), t));
+                        }
+                    }
+                }
+            }
+        }
+        let best = cands.iter().map(|c| c.0).fold(0.0, f64::max);
+        cands.iter().any(|&(c, t)| c >= best - 1e-5 && segment_meets_triangle(q0, q1, &self.sampled.tris[t]))
+    }
+
     /// Where the ray crosses the plane of `s` (voxel p) between layers t0 and t1: in voxel
     /// coordinates, if it does.
     fn crossing(&self, s: &Surface, p: [i64; 3], (dir, a, b): (usize, i64, i64), t0: i64, t1: i64) -> Option<[f64; 3]> {
@@ -306,14 +411,23 @@ impl Walk<'_> {
                     out.push([p[0], p[1]]);
                 }
             }
-            if var.complete && k > 0 && self.meets_mesh(dir, a, b, (k - 1) as f64, k as f64) {
+            let met = |t0: i64| {
+                if let Some(cap) = var.cell {
+                    self.meets_cell(dir, a, b, k, cap)
+                } else if var.local {
+                    self.meets_local(dir, a, b, k)
+                } else {
+                    self.meets_mesh(dir, a, b, t0 as f64, k as f64)
+                }
+            };
+            if var.complete && k > 0 && met(k - 1) {
                 return Some(k);
             }
             let from_outside = std::mem::take(&mut outside);
             // Rule 2: a terminal ray dies.
             if let Some((s, q, tk)) = terminal.take() {
                 let dies = if self.exact_at(var, q) {
-                    self.meets_mesh(dir, a, b, tk as f64, k as f64)
+                    self.meets(var, &s, q, dir, a, b, tk as f64, k as f64)
                 } else {
                     !var.empty_crossings || own.is_some() || self.crossed_in_occupied(&s, q, (dir, a, b), tk, k)
                 };
@@ -348,7 +462,7 @@ impl Walk<'_> {
                 (sigma(&s, prev), sigma(&s, k), sigma(&s, k + 1), self.source_in_front(&s, p, dir));
             let stop = |t0: i64| {
                 if self.exact_at(var, p) {
-                    self.meets_mesh(dir, a, b, t0 as f64, k as f64)
+                    self.meets(var, &s, p, dir, a, b, t0 as f64, k as f64)
                 } else {
                     !var.empty_crossings || self.crossed_in_occupied(&s, p, (dir, a, b), t0, k)
                 }
@@ -415,6 +529,9 @@ impl Walk<'_> {
 
     /// A point or nearest-ray receiver: whether column c's visible surface is lit.
     fn receiver_lit(&self, c: [i64; 2], v: &Visible, var: Variant) -> bool {
+        if let Receiver::Target(f) = var.receiver {
+            return self.target_lit(c, f, var);
+        }
         let s = &v.plane;
         // The plane at the column's centre: g = nz/2¹⁶·dz + e = 0.
         let z = v.z_v as f64 - 65536.0 * s.e as f64 / s.nz as f64;
@@ -444,6 +561,22 @@ impl Walk<'_> {
         let mut out = Vec::new();
         self.ray(dir, ra, rb, var, &mut out);
         out.contains(&c)
+    }
+
+    /// The cell's receiver: whether column c's target ray reaches its voxel.
+    fn target_lit(&self, c: [i64; 2], f: u32, var: Variant) -> bool {
+        let Some(vis) = (self.visible)(c[0], c[1]) else { return false };
+        let source = Source::new(SourceId(0), self.src.map(|x| SourceCoord::from_bits(x as i32)));
+        let origin = if self.exact_source { Origin::Light } else { Origin::SourceVoxel };
+        let (x, y, n) = (c[0] as i32, c[1] as i32, self.n as u32);
+        let t = match f {
+            0 => target(x, y, &vis, &source, FarDistance::<frac::U0>::new(n - 1).expect("far"), origin),
+            _ => target(x, y, &vis, &source, FarDistance::<frac::U1>::new(n - 1).expect("far"), origin),
+        };
+        let Some(t) = t else { return false };
+        let dir = (0..6).find(|&d| oracle_direction(d) == t.dir).expect("six directions");
+        let stop = self.ray(dir, t.a, t.b, var, &mut Vec::new());
+        stop.is_none_or(|k| k >= t.layer as i64)
     }
 
     /// Of the lattice rays (f = `self.f`) whose path crosses voxel (c, z_v) or (c, z_v + 1) on
@@ -569,8 +702,120 @@ impl Wedge {
     }
 }
 
+/// The loaded facets' lattice triangles (sixteenths, voxel centres at multiples of 16) and the
+/// triangles each column keeps, in stream order.
+struct CellStores {
+    tris: Vec<Triangle>,
+    by_column: std::collections::HashMap<[i64; 2], Vec<usize>>,
+}
+
+impl CellStores {
+    fn new(polygons: &[Vec<[i64; 3]>], n: i64) -> Self {
+        let mut tris = Vec::new();
+        for poly in polygons {
+            // The precompute's lattice is X = 16·x + 8.
+            let v: Vec<[i32; 3]> = poly.iter().map(|p| p.map(|c| (c - 8) as i32)).collect();
+            for k in 1..v.len().saturating_sub(1) {
+                tris.extend(Triangle::new([v[0], v[k], v[k + 1]]));
+            }
+        }
+        let mut by_column: std::collections::HashMap<[i64; 2], Vec<usize>> = Default::default();
+        for (i, t) in tris.iter().enumerate() {
+            let range = |c: usize| {
+                let lo = t.v.iter().map(|v| v[c] as i64).min().unwrap_or(0);
+                let hi = t.v.iter().map(|v| v[c] as i64).max().unwrap_or(0);
+                ((lo - 8).div_euclid(16).max(0), (hi + 8 + 15).div_euclid(16).min(n - 1))
+            };
+            let ((x0, x1), (y0, y1)) = (range(0), range(1));
+            for x in x0..=x1 {
+                for y in y0..=y1 {
+                    if t.crosses_column(x as i32, y as i32) {
+                        by_column.entry([x, y]).or_default().push(i);
+                    }
+                }
+            }
+        }
+        let mut sizes: Vec<usize> = by_column.values().map(Vec::len).collect();
+        sizes.sort_unstable();
+        let over = |cap: usize| sizes.iter().filter(|&&s| s > cap).count();
+        println!(
+            "cell stores: {} triangles, {} columns keep one or more: mean {:.1}, median {}, max {}; over 16 / 32 / 64: {} / {} / {} columns",
+            tris.len(),
+            sizes.len(),
+            sizes.iter().sum::<usize>() as f64 / sizes.len().max(1) as f64,
+            sizes.get(sizes.len() / 2).unwrap_or(&0),
+            sizes.last().unwrap_or(&0),
+            over(16),
+            over(32),
+            over(64)
+        );
+        CellStores { tris, by_column }
+    }
+
+    /// Each triangle's occluder for the rays of one light (source position in sixteenths) in
+    /// each direction, at f fraction bits.
+    fn occluders(&self, src: [i64; 3], n: u32, f: u32, exact_source: bool) -> Vec<[Option<Occluder>; 6]> {
+        let source = Source::new(SourceId(0), src.map(|c| SourceCoord::from_bits(c as i32)));
+        let origin = if exact_source { Origin::Light } else { Origin::SourceVoxel };
+        fn build<F: FracBits>(t: &Triangle, s: &Source, n: u32, o: Origin) -> [Option<Occluder>; 6] {
+            let far = FarDistance::<F>::new(n - 1).expect("far distance");
+            [0, 1, 2, 3, 4, 5].map(|dir| Occluder::new(t, s, oracle_direction(dir), far, o))
+        }
+        self.tris
+            .par_iter()
+            .map(|t| match f {
+                0 => build::<frac::U0>(t, &source, n, origin),
+                1 => build::<frac::U1>(t, &source, n, origin),
+                _ => build::<frac::U8>(t, &source, n, origin),
+            })
+            .collect()
+    }
+}
+
+/// The cell's direction of the oracle's direction index (`dir_axes`).
+fn oracle_direction(dir: usize) -> Direction {
+    let (w, sign, _, _) = dir_axes(dir);
+    Direction::ALL.into_iter().find(|d| d.principal().index() == w && d.sign() as i64 == sign).expect("six directions")
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|i| a[i] - b[i])
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Whether segment q0–q1 meets triangle `t` (Möller–Trumbore, closed).
+fn segment_meets_triangle(q0: [f64; 3], q1: [f64; 3], t: &[[f64; 3]; 3]) -> bool {
+    let d = [0, 1, 2].map(|i| q1[i] - q0[i]);
+    let e1 = [0, 1, 2].map(|i| t[1][i] - t[0][i]);
+    let e2 = [0, 1, 2].map(|i| t[2][i] - t[0][i]);
+    let h = cross(d, e2);
+    let det = dot(e1, h);
+    if det.abs() < 1e-12 {
+        return false;
+    }
+    let s = [0, 1, 2].map(|i| q0[i] - t[0][i]);
+    let u = dot(s, h) / det;
+    let q = cross(s, e1);
+    let v = dot(d, q) / det;
+    let w = dot(e2, q) / det;
+    (0.0..=1.0).contains(&u) && v >= 0.0 && u + v <= 1.0 && (0.0..=1.0).contains(&w)
+}
+
 /// Voxels of the mesh found by sampling every triangle at a tenth of a voxel.
 struct Sampled {
+    /// The triangles in voxel-centre coordinates.
+    tris: Vec<[[f64; 3]; 3]>,
+    /// The triangles passing through each column.
+    by_column: std::collections::HashMap<[i64; 2], Vec<usize>>,
+    /// The triangles passing through each voxel.
+    near: std::collections::HashMap<[i64; 3], Vec<usize>>,
     /// Voxels that triangles of two different planes pass through.
     creases: std::collections::HashSet<[i64; 3]>,
     /// Voxels a triangle passes through.
@@ -583,8 +828,11 @@ struct Sampled {
 fn sample_mesh(tris: &[[[f64; 3]; 3]], origin: [f64; 3], voxel: f64) -> Sampled {
     let mut planes: std::collections::HashMap<[i64; 3], Vec<[i64; 4]>> = Default::default();
     let mut per_column: std::collections::HashMap<[i64; 2], std::collections::HashSet<usize>> = Default::default();
+    let mut near: std::collections::HashMap<[i64; 3], Vec<usize>> = Default::default();
+    let mut in_voxels = Vec::new();
     for (ti, t) in tris.iter().enumerate() {
         let q = t.map(|p| [0, 1, 2].map(|i| (p[i] - origin[i]) / voxel - 0.5));
+        in_voxels.push(q);
         let e1 = [0, 1, 2].map(|i| q[1][i] - q[0][i]);
         let e2 = [0, 1, 2].map(|i| q[2][i] - q[0][i]);
         let nrm = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
@@ -606,6 +854,10 @@ fn sample_mesh(tris: &[[[f64; 3]; 3]], origin: [f64; 3], voxel: f64) -> Sampled 
                 let (s, r) = (i as f64 / steps as f64, j as f64 / steps as f64);
                 let v = [0, 1, 2].map(|c| (q[0][c] + s * e1[c] + r * e2[c]).round() as i64);
                 per_column.entry([v[0], v[1]]).or_default().insert(ti);
+                let at = near.entry(v).or_default();
+                if at.last() != Some(&ti) {
+                    at.push(ti);
+                }
                 let e = planes.entry(v).or_default();
                 if !e.contains(&key) {
                     e.push(key);
@@ -621,6 +873,9 @@ fn sample_mesh(tris: &[[[f64; 3]; 3]], origin: [f64; 3], voxel: f64) -> Sampled 
         counts.len()
     );
     Sampled {
+        by_column: per_column.iter().map(|(c, ts)| (*c, ts.iter().copied().collect())).collect(),
+        tris: in_voxels,
+        near,
         creases: planes.iter().filter(|(_, k)| k.len() > 1).map(|(v, _)| *v).collect(),
         touched: planes.into_keys().collect(),
     }
@@ -672,7 +927,14 @@ fn main() {
     let (triangles, facets) = host_sim::truth::refrender::mesh_triangles(&mesh).expect("triangles");
     let sampled = sample_mesh(&triangles, loaded.fit.origin, loaded.fit.voxel);
     let exact = Reference::new(triangles, facets).expect("reference mesh");
+    let stores = if chosen.iter().any(|(_, v)| v.cell.is_some()) {
+        let prepared = host_sim::precompute::prepare(&mesh, &cfg).expect("precompute");
+        CellStores::new(&prepared.polygons, n as i64)
+    } else {
+        CellStores { tris: Vec::new(), by_column: Default::default() }
+    };
     let (surfaces, columns) = (common::surfaces_of(&loaded.grid), common::columns_of(&loaded.grid));
+    let visible_of = |x: i64, y: i64| loaded.grid.cell(x as u32, y as u32).visible;
     println!("{} voxels with two planes or more, {} with a triangle", sampled.creases.len(), sampled.touched.len());
     let cell_lights = host_sim::machine::shade::point_lights(&lights);
     println!(
@@ -688,6 +950,13 @@ fn main() {
         for (i, light) in lights.iter().enumerate() {
             let src =
                 host_sim::machine::diffuse::source_at(i, *light, n).expect("source").pos.map(|c| c.to_bits() as i64);
+            let f = match var.receiver {
+                Receiver::Window => 0,
+                Receiver::Point => POINT_F,
+                Receiver::Nearest(f) | Receiver::Target(f) => f,
+            };
+            let occluders =
+                if var.cell.is_some() { stores.occluders(src, n, f, var.exact_source) } else { Vec::new() };
             let walk = Walk {
                 n: n as i64,
                 d: n as i64 - 1,
@@ -699,12 +968,11 @@ fn main() {
                 origin: loaded.fit.origin,
                 voxel: loaded.fit.voxel,
                 exact_source: var.exact_source,
-                f: match var.receiver {
-                    Receiver::Window => 0,
-                    Receiver::Point => POINT_F,
-                    Receiver::Nearest(f) => f,
-                },
+                f,
                 sampled: &sampled,
+                cells: &stores,
+                visible: &visible_of,
+                occluders: &occluders,
             };
             let m = walk.d;
             let cols: Vec<[i64; 2]> = if var.receiver != Receiver::Window {
