@@ -50,6 +50,9 @@
 //!   the one nearest the pixel's point among those whose path crosses its bracketing voxels on
 //!   the plane's outer side, must reach it.
 //!
+//! `--cuts` (window receivers) also counts, per variant, the (face, voxel) groups the rays visit
+//! and those where some rays stop and others go on: where a cell must cut its beams.
+//!
 //! f = 0, standard + conservative surfaces, the scene's own lights (or `--light`), the fitted view. f64
 //! arithmetic where the variants need it: an experiment, not a cell.
 
@@ -772,6 +775,48 @@ impl CellStores {
     }
 }
 
+/// How often the rays one cell holds at a layer (one face's rays in one voxel: what its beams
+/// there carry) meet different fates: some stop, some go on. Each such group needs its beams
+/// cut; the count of groups visited is what the machine's beam steps grow with.
+struct Cuts {
+    n: usize,
+    /// Per (face, voxel): bit 0 a ray went on, bit 1 a ray stopped.
+    fate: Vec<std::sync::atomic::AtomicU8>,
+}
+
+impl Cuts {
+    fn new(n: usize) -> Self {
+        Cuts { n, fate: (0..6 * n * n * n).map(|_| std::sync::atomic::AtomicU8::new(0)).collect() }
+    }
+
+    fn record(&self, walk: &Walk, dir: usize, a: i64, b: i64, stop: Option<i64>) {
+        let last = stop.unwrap_or(walk.d);
+        for k in 0..=last {
+            let p = walk.voxel(dir, a, b, k);
+            if p.iter().any(|&c| !(0..self.n as i64).contains(&c)) {
+                break;
+            }
+            let i = ((dir * self.n + p[0] as usize) * self.n + p[1] as usize) * self.n + p[2] as usize;
+            let bit = if stop == Some(k) { 2 } else { 1 };
+            self.fate[i].fetch_or(bit, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+
+    fn report(&self, name: &str, light: usize) {
+        let (mut visited, mut mixed) = (0u64, 0u64);
+        for f in &self.fate {
+            let v = f.load(std::sync::atomic::Ordering::Relaxed);
+            visited += (v != 0) as u64;
+            mixed += (v == 3) as u64;
+        }
+        println!(
+            "{name} light {}: {visited} (face, voxel) groups visited, {mixed} with rays that stop and rays that go on ({:.2} %)",
+            light + 1,
+            100.0 * mixed as f64 / visited.max(1) as f64
+        );
+    }
+}
+
 /// The cell's direction of the oracle's direction index (`dir_axes`).
 fn oracle_direction(dir: usize) -> Direction {
     let (w, sign, _, _) = dir_axes(dir);
@@ -884,6 +929,8 @@ fn sample_mesh(tris: &[[[f64; 3]; 3]], origin: [f64; 3], voxel: f64) -> Sampled 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
     // `--light X,Y,Z` (grid-normalised, repeatable), as `render` takes it.
+    // `--cuts`: count the (face, voxel) groups of rays whose fates differ there (see `Cuts`).
+    let cuts_flag = args.iter().position(|a| a == "--cuts").map(|i| args.remove(i)).is_some();
     let mut cli_lights = Vec::new();
     while let Some(i) = args.iter().position(|a| a == "--light") {
         let parsed = args.get(i + 1).and_then(|v| {
@@ -981,17 +1028,25 @@ fn main() {
                     .filter(|&c| columns(c[0], c[1]).is_some_and(|v| walk.receiver_lit(c, &v, *var)))
                     .collect()
             } else {
-                (0..6usize)
+                let cuts = cuts_flag.then(|| Cuts::new(n as usize));
+                let cols = (0..6usize)
                     .into_par_iter()
                     .flat_map_iter(|dir| (-m..=m).map(move |a| (dir, a)))
                     .flat_map_iter(|(dir, a)| {
                         let mut out = Vec::new();
                         for b in -m..=m {
-                            walk.ray(dir, a, b, *var, &mut out);
+                            let stop = walk.ray(dir, a, b, *var, &mut out);
+                            if let Some(c) = &cuts {
+                                c.record(&walk, dir, a, b, stop);
+                            }
                         }
                         out
                     })
-                    .collect()
+                    .collect();
+                if let Some(c) = cuts {
+                    c.report(name, i);
+                }
+                cols
             };
             for c in cols {
                 *lit.entry(c).or_insert(0) |= 1 << i;
