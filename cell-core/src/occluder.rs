@@ -222,7 +222,13 @@ impl Occluder {
         let rel = [0, 1, 2].map(|i| sub(tri.vertex(i), o));
         let edges = [(0, 1), (1, 2), (2, 0)].map(|(i, j)| {
             let m = cross(rel[i], rel[j]);
-            RayPlane::from_coefficients(0, 2 * orient * m[w] * sign * nn + 1, 2 * orient * m[u], 2 * orient * m[v], lead)
+            RayPlane::from_coefficients(
+                0,
+                2 * orient * m[w] * sign * nn + 1,
+                2 * orient * m[u],
+                2 * orient * m[v],
+                lead,
+            )
         });
         Some(Occluder { plane, edges })
     }
@@ -380,7 +386,11 @@ mod tests {
                     let mut per_ray = 0;
                     for k in 0..=far.get() as i64 {
                         let want = oracle(&poly, o, dir, nn, lead, (a, b), k);
-                        assert_eq!(occ.meets(a, b, k), want, "{tri:?} {src:?} {dir:?} {origin:?} ray ({a}, {b}) layer {k}");
+                        assert_eq!(
+                            occ.meets(a, b, k),
+                            want,
+                            "{tri:?} {src:?} {dir:?} {origin:?} ray ({a}, {b}) layer {k}"
+                        );
                         per_ray += want as u32;
                         checked += 1;
                     }
@@ -519,9 +529,13 @@ mod tests {
     /// overlap iff a vertex of one lies in the other or two of their edges meet.
     fn overlaps(p: [[i64; 2]; 3], c: [i64; 2]) -> bool {
         let sq = [[c[0] - 8, c[1] - 8], [c[0] + 8, c[1] - 8], [c[0] + 8, c[1] + 8], [c[0] - 8, c[1] + 8]];
-        let orient = |a: [i64; 2], b: [i64; 2], q: [i64; 2]| ((b[0] - a[0]) * (q[1] - a[1]) - (b[1] - a[1]) * (q[0] - a[0])).signum();
+        let orient = |a: [i64; 2], b: [i64; 2], q: [i64; 2]| {
+            ((b[0] - a[0]) * (q[1] - a[1]) - (b[1] - a[1]) * (q[0] - a[0])).signum()
+        };
         let on = |a: [i64; 2], b: [i64; 2], q: [i64; 2]| {
-            orient(a, b, q) == 0 && (a[0].min(b[0])..=a[0].max(b[0])).contains(&q[0]) && (a[1].min(b[1])..=a[1].max(b[1])).contains(&q[1])
+            orient(a, b, q) == 0
+                && (a[0].min(b[0])..=a[0].max(b[0])).contains(&q[0])
+                && (a[1].min(b[1])..=a[1].max(b[1])).contains(&q[1])
         };
         let meet = |a: [i64; 2], b: [i64; 2], p: [i64; 2], q: [i64; 2]| {
             let (d1, d2, d3, d4) = (orient(a, b, p), orient(a, b, q), orient(p, q, a), orient(p, q, b));

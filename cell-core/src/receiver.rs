@@ -221,9 +221,17 @@ mod tests {
     /// The oracle: every lattice ray of the face, its voxel at the layer and its side of the
     /// plane from the definitions (the ray's point as an exact fraction, the plane function of
     /// [`crate::plane`]), the exact squared distance; no search window.
-    fn brute<F: FracBits>(x: i64, y: i64, vis: &VisibleSurface, src: &Source, far: FarDistance<F>, origin: Origin) -> Option<Target> {
+    fn brute<F: FracBits>(
+        x: i64,
+        y: i64,
+        vis: &VisibleSurface,
+        src: &Source,
+        far: FarDistance<F>,
+        origin: Origin,
+    ) -> Option<Target> {
         let g = POINT_UNITS as i128;
-        let p = [g * x as i128, g * y as i128, (2 * g * vis.num as i128 + vis.den as i128).div_euclid(2 * vis.den as i128)];
+        let p =
+            [g * x as i128, g * y as i128, (2 * g * vis.num as i128 + vis.den as i128).div_euclid(2 * vis.den as i128)];
         let nn = far.scaled() as i128;
         let sv = src.voxel();
         let mut found = None;

@@ -59,8 +59,8 @@
 use cell_core::beam::{frac, Direction, FarDistance, FracBits, Origin, Source, SourceCoord, SourceId};
 use cell_core::occluder::{Occluder, Triangle};
 use cell_core::receiver::target;
-use cell_core::visible::VisibleSurface;
 use cell_core::shade::NormalMode;
+use cell_core::visible::VisibleSurface;
 use host_sim::jobs::render::{reference_image, RenderConfig};
 use host_sim::machine::diffuse::LightConfig;
 use host_sim::machine::shade::Seen;
@@ -361,7 +361,10 @@ impl Walk<'_> {
                         let tri = &self.sampled.tris[t];
                         let tn = cross(sub(tri[1], tri[0]), sub(tri[2], tri[0]));
                         let tl = dot(tn, tn).sqrt();
-                        if tl > 0.0 && tri.iter().all(|v| placed.distance(*v).abs() < 0.15) && !cands.iter().any(|c| c.1 == t) {
+                        if tl > 0.0
+                            && tri.iter().all(|v| placed.distance(*v).abs() < 0.15)
+                            && !cands.iter().any(|c| c.1 == t)
+                        {
                             cands.push(((dot(tn, nrm) / (tl * len)).abs(), t));
                         }
                     }
@@ -1002,8 +1005,7 @@ fn main() {
                 Receiver::Point => POINT_F,
                 Receiver::Nearest(f) | Receiver::Target(f) => f,
             };
-            let occluders =
-                if var.cell.is_some() { stores.occluders(src, n, f, var.exact_source) } else { Vec::new() };
+            let occluders = if var.cell.is_some() { stores.occluders(src, n, f, var.exact_source) } else { Vec::new() };
             let walk = Walk {
                 n: n as i64,
                 d: n as i64 - 1,
