@@ -17,8 +17,8 @@
 //! replacing the rule's stops by the triangles a ray's segment meets is what the occluder side
 //! needs, and it is *local*: testing segment [k − 1, k] only against the triangles through the
 //! columns of the ray's voxels at layers k − 1 and k gives the same images as testing the whole
-//! mesh (the same pixels on teapot-floor, cow-floor, Cornell and the fandisk; one pixel of
-//! bureau1 at n = 256). So a cell keeps the triangles that pass through its column
+//! mesh (to a pixel on teapot-floor and cow-floor at n = 128 and 256 and on bureau1 at 256). So
+//! a cell keeps the triangles that pass through its column
 //! ([`Triangle::crosses_column`], [`TriangleStore`]) and cuts beams by them (this module).
 //!
 //! # Geometry
@@ -81,9 +81,11 @@
 //!
 //! # Sizes
 //!
-//! A [`Triangle`] is 36 bytes (nine `i32`); a [`TriangleStore<N>`] is 36·N + 8. Measured on the
-//! oracle's sampling, a column is crossed by 1.4–2.3 triangles on average on the meshes at
-//! n = 128–512 (up to 179 along a dense silhouette at n = 128), 3.7–9.7 on bureau1.
+//! A [`Triangle`] is 36 bytes (nine `i32`); a [`TriangleStore<N>`] is 36·N + 8 on the MCU.
+//! [`Triangle::crosses_column`] keeps 1.4–2.4 triangles per column on average on teapot-floor
+//! and cow-floor at n = 128–512, 5–9 on the fandisk, 4–11 on bureau1, up to 206 in a column
+//! along a dense silhouette; a store of 64 loses at most 0.32 dB on them (BENCHMARKS, "What the
+//! cell's own arithmetic gives").
 //!
 //! # Example
 //!
@@ -118,8 +120,9 @@ pub const COORD_LIMIT: i64 = 1 << 23;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Triangle {
-    /// The vertices, each (x, y, z).
-    pub v: [[i32; 3]; 3],
+    /// The vertices, each (x, y, z), within [`COORD_LIMIT`] (checked by [`Triangle::new`]: the
+    /// bit budget rests on it).
+    v: [[i32; 3]; 3],
 }
 
 fn sub(p: [i64; 3], q: [i64; 3]) -> [i128; 3] {
@@ -140,6 +143,11 @@ impl Triangle {
         v.iter().flatten().all(|&c| (c as i64).abs() <= COORD_LIMIT).then_some(Triangle { v })
     }
 
+    /// The vertices, each (x, y, z).
+    pub const fn vertices(&self) -> [[i32; 3]; 3] {
+        self.v
+    }
+
     fn vertex(&self, i: usize) -> [i64; 3] {
         self.v[i].map(i64::from)
     }
@@ -156,9 +164,9 @@ impl Triangle {
     pub fn crosses_column(&self, x: i32, y: i32) -> bool {
         let p = self.v.map(|c| [c[0] as i64, c[1] as i64]);
         let (cx, cy) = (16 * x as i64, 16 * y as i64);
-        let (lo_x, hi_x) = (p.iter().map(|q| q[0]).min(), p.iter().map(|q| q[0]).max());
-        let (lo_y, hi_y) = (p.iter().map(|q| q[1]).min(), p.iter().map(|q| q[1]).max());
-        if hi_x < Some(cx - 8) || lo_x > Some(cx + 8) || hi_y < Some(cy - 8) || lo_y > Some(cy + 8) {
+        let lo = |i: usize| p[0][i].min(p[1][i]).min(p[2][i]);
+        let hi = |i: usize| p[0][i].max(p[1][i]).max(p[2][i]);
+        if hi(0) < cx - 8 || lo(0) > cx + 8 || hi(1) < cy - 8 || lo(1) > cy + 8 {
             return false;
         }
         let corners = [[cx - 8, cy - 8], [cx + 8, cy - 8], [cx + 8, cy + 8], [cx - 8, cy + 8]];

@@ -728,8 +728,8 @@ impl CellStores {
         let mut by_column: std::collections::HashMap<[i64; 2], Vec<usize>> = Default::default();
         for (i, t) in tris.iter().enumerate() {
             let range = |c: usize| {
-                let lo = t.v.iter().map(|v| v[c] as i64).min().unwrap_or(0);
-                let hi = t.v.iter().map(|v| v[c] as i64).max().unwrap_or(0);
+                let lo = t.vertices().iter().map(|v| v[c] as i64).min().unwrap_or(0);
+                let hi = t.vertices().iter().map(|v| v[c] as i64).max().unwrap_or(0);
                 ((lo - 8).div_euclid(16).max(0), (hi + 8 + 15).div_euclid(16).min(n - 1))
             };
             let ((x0, x1), (y0, y1)) = (range(0), range(1));
