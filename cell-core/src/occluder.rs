@@ -527,6 +527,16 @@ mod tests {
                 }
             }
         }
+        // The column test at the limits: columns at the triangle's corners and anywhere an i32
+        // reaches.
+        for v in tris {
+            let tri = Triangle::new(v).unwrap();
+            for (x, y) in [(l / 16, l / 16), (-l / 16, l / 16), (0, 0), (i32::MAX, i32::MIN), (i32::MIN, 0)] {
+                let _ = tri.crosses_column(x, y);
+            }
+            assert!(tri.crosses_column(l / 16, l / 16) || tri.crosses_column(-l / 16, l / 16));
+            assert!(!tri.crosses_column(i32::MAX, i32::MIN));
+        }
         assert!(Triangle::new([[l + 1, 0, 0], [0; 3], [0; 3]]).is_none());
         let far_src = source16([COORD_LIMIT + 16, 0, 0]);
         let tri = Triangle::new(tris[0]).unwrap();
