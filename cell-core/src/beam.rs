@@ -350,7 +350,7 @@ pub enum Origin {
 impl Origin {
     /// The origin of `source`'s rays in `dir`, in sixteenths of a voxel (voxel centres at
     /// multiples of 16), and its lead: how far it lies behind layer 0's centre plane along
-    /// `dir`, `s·(O_w − 16·V_w)` ∈ (−8, 8] (0 for [`Origin::SourceVoxel`]).
+    /// `dir`, `s·(O_w − 16·V_w)` ∈ [−8, 8] (0 for [`Origin::SourceVoxel`]).
     pub fn point(self, source: &Source, dir: Direction) -> ([i64; 3], i64) {
         let w = dir.principal().index();
         let mut o = source.pos.map(|c| c.to_bits() as i64);

@@ -79,7 +79,8 @@
 //! # Beams under the plane rule
 //!
 //! For one plane and one layer t, the rays with σ_t form a half-plane of the (u, v) lattice: an
-//! exact affine function `V(a, b, t) = K₀ + 16·t·(K_w + c_b·a + c_g·b)` of the lattice offsets
+//! exact affine function `V(a, b, t) = K₀ + T·(K_w + c_b·a + c_g·b)` (T = 16·t for the machine's
+//! rays, `16·t − lead` from the light: [`crate::beam::Origin`]) of the lattice offsets
 //! a, b has the sign of g ([`RayPlane`]). So in each column of a beam's rectangle (fixed a) the
 //! rays a test holds for are a prefix or a suffix ([`Test::interval`]), and columns with the same
 //! prefixes and suffixes for every test form *runs* (found by binary search: each boundary is
@@ -193,7 +194,8 @@ impl RayPlane {
         self.k0 + self.t16(t) * (self.kw + self.cb * a as i128 + self.cg * b as i128)
     }
 
-    /// Whether the plane faces the source: g(Se) > 0 (the same for every ray: p(0) = Se).
+    /// Whether the plane faces the source: g > 0 at the rays' origin (T = 0, the same point for
+    /// every ray: Se for the machine's rays, the light for [`Origin::Light`]).
     pub fn faces_source(&self) -> bool {
         self.k0 > 0
     }
@@ -205,7 +207,7 @@ impl RayPlane {
 pub struct Test {
     /// The plane.
     pub plane: RayPlane,
-    /// The ray parameter (a layer, ≥ 0).
+    /// The ray parameter (a layer ≥ 0; −1 reads as the rays' origin, T = 0).
     pub t: i64,
 }
 
@@ -574,24 +576,31 @@ mod tests {
     /// plane, `t − lead/16` voxels from the light along the axis.
     #[test]
     fn ray_plane_from_the_light_is_scaled_g() {
-        let src = Source::new(SourceId(0), [5.25, 7.4375, 3.0625].map(SourceCoord::from_num));
         let far = FarDistance::<frac::U1>::new(15).unwrap();
         let plane = DexelPlane { id: 0, nx: 1200, ny: -16384, nz: 300 << 16, e: -777 };
+        // Leads of every sign, and ±8 (a light on a voxel boundary).
+        let sources = [[5.25, 7.4375, 3.0625], [5.5, 6.5, 2.5625], [4.9375, 7.5, 3.4375]];
         for dir in Direction::ALL {
-            let rp = RayPlane::from_origin(&plane, [6, 9, 4], &src, dir, far, Origin::Light);
-            let w = dir.principal().index();
-            let (ua, va) = dir.transverse();
-            let light = src.pos.map(|c| c.to_num::<f64>());
-            for (a, b, t) in [(7i64, -3i64, 2i64), (-30, 30, 9), (13, 1, 15), (0, 0, 1)] {
-                let mut p = [0f64; 3];
-                p[w] = src.voxel()[w] as f64 + dir.sign() as f64 * t as f64;
-                let dist = dir.sign() as f64 * (p[w] - light[w]);
-                p[ua.index()] = light[ua.index()] + (a as f64 / 2.0) * dist / 15.0;
-                p[va.index()] = light[va.index()] + (b as f64 / 2.0) * dist / 15.0;
-                let g = 1200.0 * (p[0] - 6.0) - 16384.0 * (p[1] - 9.0) + 300.0 * (p[2] - 4.0) - 777.0;
-                let want = g * 65536.0 * 16.0 * 30.0;
-                let got = rp.value(a, b, t) as f64;
-                assert!((got - want).abs() <= want.abs() * 1e-12 + 1e-3, "{dir:?} {a} {b} {t}: {got} vs {want}");
+            for pos in sources {
+                let src = Source::new(SourceId(0), pos.map(SourceCoord::from_num));
+                let rp = RayPlane::from_origin(&plane, [6, 9, 4], &src, dir, far, Origin::Light);
+                let w = dir.principal().index();
+                let (ua, va) = dir.transverse();
+                let light = src.pos.map(|c| c.to_num::<f64>());
+                for (a, b, t) in [(7i64, -3i64, 2i64), (-30, 30, 9), (13, 1, 15), (0, 0, 1)] {
+                    let mut p = [0f64; 3];
+                    p[w] = src.voxel()[w] as f64 + dir.sign() as f64 * t as f64;
+                    let dist = dir.sign() as f64 * (p[w] - light[w]);
+                    p[ua.index()] = light[ua.index()] + (a as f64 / 2.0) * dist / 15.0;
+                    p[va.index()] = light[va.index()] + (b as f64 / 2.0) * dist / 15.0;
+                    let g = 1200.0 * (p[0] - 6.0) - 16384.0 * (p[1] - 9.0) + 300.0 * (p[2] - 4.0) - 777.0;
+                    let want = g * 65536.0 * 16.0 * 30.0;
+                    let got = rp.value(a, b, t) as f64;
+                    assert!(
+                        (got - want).abs() <= want.abs() * 1e-12 + 1e-3,
+                        "{dir:?} {pos:?} {a} {b} {t}: {got} vs {want}"
+                    );
+                }
             }
         }
     }

@@ -28,7 +28,7 @@
 //! and [`Direction`] (w, sign s, transverse u, v) leave from an origin O ([`Origin`]): the
 //! light's transverse coordinates, and along w either the source voxel's centre (the machine's
 //! rays today, [`crate::beam`]'s `⌊x_s + u·k/D + ½⌋`) or the light itself ([`Origin::point`]). With
-//! `lead = s·(O_w − 16·V_w)` (V the source voxel; 0 or in (−8, 8]) the point of lattice ray
+//! `lead = s·(O_w − 16·V_w)` (V the source voxel; 0 or in [−8, 8]) the point of lattice ray
 //! (a, b) (offsets in steps of 2^−f, N = D·2^f) at layer t's centre plane lies
 //! `T = 16·t − lead` sixteenths from O along w:
 //!
@@ -57,7 +57,7 @@
 //!
 //! Each condition is the sign of an affine function of (a, b) for a fixed layer: five
 //! [`Test`]s ([`Occluder::tests`]) — the three edges (`2·sgn(Δ)·E_ij + 1 > 0`, i.e.
-//! `sgn(Δ)·E_ij ≥ 0`, at any layer) and the plane at layers k − 1 and k — read by the same
+//! `sgn(Δ)·E_ij ≥ 0`, read at layer 1 where T > 0) and the plane at layers k − 1 and k — read by the same
 //! [`crate::lit::segments`], [`crate::lit::uniform`] and [`crate::lit::run_end`] that cut beams
 //! under the plane rule; [`Occluder::stops`] turns their bits into the verdict.
 //!
@@ -422,12 +422,12 @@ mod tests {
     #[test]
     fn beam_segments_are_uniform() {
         let mut s = 11u64;
-        let mut cut = 0;
+        let (mut cut, mut whole) = (0, 0);
         for _ in 0..200 {
             let (tri, src, dir, far, origin) = random_config::<frac::U1>(&mut s);
             let Some(occ) = Occluder::new(&tri, &src, dir, far, origin) else { continue };
             let nn = far.scaled();
-            let k = 1 + (lcg(&mut s) % far.get() as u64) as i64;
+            let k = (lcg(&mut s) % (far.get() as u64 + 1)) as i64;
             let tests = occ.tests(k);
             let (a0, a1) = (r(&mut s, nn), r(&mut s, nn));
             let (b0, b1) = (r(&mut s, nn), r(&mut s, nn));
@@ -443,12 +443,13 @@ mod tests {
                 }
             }
             if let Some(bits) = uniform(&tests, (a0, a1), (b0, b1)) {
+                whole += 1;
                 for (a, b) in (a0..=a1).flat_map(|a| (b0..=b1).map(move |b| (a, b))) {
                     assert_eq!(Occluder::stops(bits), occ.meets(a, b, k));
                 }
             }
         }
-        assert!(cut > 100, "triangles cut the beams ({cut} cuts)");
+        assert!(cut > 100 && whole > 10, "beams cut ({cut} cuts) and whole ({whole})");
     }
 
     /// A planar quad cut along its diagonal into two triangles stops exactly the rays that the
@@ -496,7 +497,8 @@ mod tests {
     }
 
     /// Every term at the bit budget's limits, with overflow checks on (the test profile): no
-    /// panic, and the signs agree with f64 where f64 is clear.
+    /// panic. (Points in a box of side 2l give cross products up to (2l)² = 2⁴⁸ per component,
+    /// half the budget's 2⁴⁹.)
     #[test]
     fn arithmetic_at_the_limits() {
         let l = COORD_LIMIT as i32;

@@ -3,8 +3,8 @@
 //! **Invariant: a cell's target ray for a light is the lattice ray nearest the exact ray from
 //! the rays' origin to the pixel's point, among the rays that occupy one of the two voxels
 //! bracketing the visible surface at their layer and lie on the surface's outer side there
-//! (rule 1 of [`crate::lit`]); it is found in exact integer arithmetic, the same on every
-//! machine, once per light.**
+//! (rule 1 of [`crate::lit`]), searched within [`SEARCH`] lattice steps of the exact ray; it is
+//! found in exact integer arithmetic, the same on every machine, once per light.**
 //!
 //! # Why
 //!
