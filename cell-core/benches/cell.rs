@@ -1,7 +1,8 @@
 //! Criterion benchmarks of what one cell does per step: the loading wave's row cell
 //! (`row_span`, `Cell::load_step`, `DexelStore::insert`), the beam split at several layers and
 //! fraction bits, the tests of the sibling wait and the empty-frustum skip, the lighting FIFO
-//! (`LightCell::accept` with and without merging, `step`), and the shading of one pixel.
+//! (`LightCell::accept` with and without merging, `step`), the exact occluders' and the
+//! receiver's tests beside the plane rule's, and the shading of one pixel.
 //!
 //! `cargo bench -p cell-core` (results in BENCHMARKS.md). Not part of `cargo test`: benches are
 //! built only with `--benches`/`--all-targets`, and then run once per case as a smoke test.
@@ -13,15 +14,22 @@
 
 use std::hint::black_box;
 
-use cell_core::beam::{frac, Beam, Direction, FarDistance, FracBits, Layer, RayRange, Source, SourceId, SplitOrder};
+use cell_core::beam::{
+    frac, Beam, Direction, FarDistance, FracBits, Layer, Origin, RayRange, Source, SourceId, SplitOrder,
+};
 use cell_core::cell::{Cell, DEFAULT_DEXELS};
 use cell_core::dexel::{DexelStore, FacetTag};
 use cell_core::facet::{FacetBox, RowEdge, RowPacket};
 use cell_core::light::{Activity, BeamMsg, LightCell, LightEnv, Policy, SubBeamBounds};
+use cell_core::lit::{segments, uniform, Along, RayPlane, Segments, Test};
 use cell_core::normal::NormalCode;
+use cell_core::occluder::{Occluder, Triangle};
 use cell_core::occupancy::Occupancy8;
+use cell_core::plane::DexelPlane;
+use cell_core::receiver::target;
 use cell_core::shade::{shade, shading_normal, Material, NormalMode, PointLight, ShadeParams};
 use cell_core::units::Span;
+use cell_core::visible::VisibleSurface;
 use cell_core::voxelize::row_span;
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
 
@@ -351,5 +359,74 @@ fn bench_shade(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench_voxelize, bench_split, bench_skips, bench_fifo, bench_shade);
+/// The exact occluders' work beside the plane rule's, on the beam a cell really receives (+x,
+/// layer 16, n = 256): building a triangle's tests (once per light and direction), deciding a
+/// whole beam by them (`uniform`), cutting one column of it (`segments`); the plane rule's
+/// three tests of a dexel's plane, built at each visit; the column test a loading cell runs per
+/// triangle, and the receiver's target, once per light.
+fn bench_occluders(c: &mut Criterion) {
+    let n = 256u32;
+    let src = Source::at_voxel(SourceId(0), [100, 128, 140]).expect("fits");
+    let far = FarDistance::<frac::U0>::new(n - 1).expect("within the bit budget");
+    let dir = Direction::PosX;
+    let k = 16i64;
+    let (beam, voxel) = beam_at(&src, far, dir, k as u32);
+    let c16 = voxel.map(|v| 16 * v as i32);
+    // A triangle across the beam's voxel, and the same three voxels aside.
+    let triangle = |off: i32| {
+        Triangle::new([
+            [c16[0] + 4, c16[1] - 40 + off, c16[2] - 40],
+            [c16[0] - 4, c16[1] + 40 + off, c16[2] - 8],
+            [c16[0], c16[1] - 8 + off, c16[2] + 40],
+        ])
+        .expect("within the limits")
+    };
+    let bits = |r: RayRange<frac::U0>| (r.lo().to_bits() as i64, r.hi().to_bits() as i64);
+    let (u, v) = (bits(beam.u()), bits(beam.v()));
+    let mut g = c.benchmark_group("occluders");
+    for (name, tri) in [("across", triangle(0)), ("aside", triangle(48))] {
+        let occ = Occluder::new(&tri, &src, dir, far, Origin::SourceVoxel).expect("seen from the source");
+        let whole = uniform(&occ.tests(k), u, v).is_some();
+        let id = format!("{name}_{}", if whole { "whole" } else { "cut" });
+        g.bench_function(BenchmarkId::new("occluder_new", &id), |b| {
+            b.iter(|| Occluder::new(black_box(&tri), &src, dir, far, Origin::SourceVoxel))
+        });
+        g.bench_function(BenchmarkId::new("uniform_5_tests", &id), |b| {
+            b.iter(|| uniform(&black_box(&occ).tests(k), u, v))
+        });
+        g.bench_function(BenchmarkId::new("segments_one_column", &id), |b| {
+            let mut seg = Segments::new();
+            b.iter(|| {
+                segments(&black_box(&occ).tests(k), Along::V, u.0, v.0, v.1, &mut seg);
+                seg.len()
+            })
+        });
+    }
+    let plane = DexelPlane { id: 0, nx: 16384, ny: 1200, nz: -(300 << 16), e: 0 };
+    g.bench_function("plane_rule_new_and_uniform_3_tests", |b| {
+        b.iter(|| {
+            let rp = RayPlane::new(black_box(&plane), voxel, &src, dir, far);
+            uniform(&[k - 1, k, k + 1].map(|t| Test { plane: rp, t }), u, v)
+        })
+    });
+    let tri = triangle(0);
+    g.bench_function("crosses_column", |b| b.iter(|| black_box(&tri).crosses_column(voxel[0] as i32, voxel[1] as i32)));
+    // A surface facing the source 60.5 voxels above it (z* = 200.5), seen from column (110, 130).
+    let floor = VisibleSurface {
+        num: 401,
+        den: 2,
+        facet: 0,
+        material: 0,
+        normal: NormalCode::default(),
+        plane: DexelPlane { id: 0, nx: 0, ny: 0, nz: -(16384 << 16), e: 8192 },
+        z_v: 200,
+    };
+    assert!(target(110, 130, &floor, &src, far, Origin::SourceVoxel).is_some());
+    g.bench_function("receiver_target", |b| {
+        b.iter(|| target(110, 130, black_box(&floor), &src, far, Origin::SourceVoxel))
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench_voxelize, bench_split, bench_skips, bench_fifo, bench_occluders, bench_shade);
 criterion_main!(benches);
