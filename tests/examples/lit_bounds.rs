@@ -140,7 +140,7 @@ const RULE: Variant = Variant {
 };
 
 /// The variants BENCHMARKS quotes, run when none is named.
-const DEFAULT_VARIANTS: [&str; 22] = [
+const DEFAULT_VARIANTS: [&str; 31] = [
     "rule",
     "empty-crossings",
     "exact-occluders",
@@ -163,6 +163,15 @@ const DEFAULT_VARIANTS: [&str; 22] = [
     "point+complete+source+free",
     "wedges",
     "nearest0+wedges",
+    "own",
+    "local",
+    "nearest0+local",
+    "cell64",
+    "target0+cell64",
+    "target0+cell64+source",
+    "target1+cell64+source",
+    "target0+cell32+source",
+    "target0+cell16+source",
 ];
 
 /// A variant from its name: `rule`, or parts joined by `+` (see the file's doc).
