@@ -132,21 +132,27 @@ pub fn target<F: FracBits>(
     }
     let nn = far.scaled() as i128;
     let sv = source.voxel();
-    let dir = Direction::ALL.into_iter().find(|&dir| {
-        let (o, _) = origin.point(source, dir);
+    // The face: its rays' origin and lead, the exact ray's distance along the axis (`dist`,
+    // in 1/POINT_UNITS voxel) and its offsets scaled by dist (a = an/dist, b = bn/dist).
+    let (dir, o, lead, dist, an, bn) = Direction::ALL.into_iter().find_map(|dir| {
+        let (o, lead) = origin.point(source, dir);
         let (w, (u, v)) = (dir.principal().index(), dir.transverse());
         let dist = dir.sign() as i128 * (p[w] - 256 * o[w] as i128);
         let off = |i: usize| (p[i] - 256 * o[i] as i128) * nn;
-        dist > 0 && off(u.index()).abs() <= nn * dist && off(v.index()).abs() <= nn * dist
+        let (an, bn) = (off(u.index()), off(v.index()));
+        (dist > 0 && an.abs() <= nn * dist && bn.abs() <= nn * dist).then_some((dir, o, lead, dist, an, bn))
     })?;
-    let (o, lead) = origin.point(source, dir);
     if o.iter().any(|c| c.abs() > COORD_LIMIT) {
         return None;
     }
     let (w, (ua, va)) = (dir.principal().index(), dir.transverse());
     let (u, v) = (ua.index(), va.index());
-    let dist = dir.sign() as i128 * (p[w] - 256 * o[w] as i128);
-    let (an, bn) = ((p[u] - 256 * o[u] as i128) * nn, (p[v] - 256 * o[v] as i128) * nn);
+    // The visible plane along this face's rays (its reference voxel is the same for both
+    // bracketing voxels); a back face is lit by no ray.
+    let plane = RayPlane::from_origin(&vis.plane, [x as i64, y as i64, vis.z_v as i64], source, dir, far, origin);
+    if !plane.faces_source() {
+        return None;
+    }
     // (ta, tb) nearer (a, b) than (sa, sb): the sign of dist²·(D₁ − D₂) / dist.
     let nearer = |(ta, tb): (i64, i64), (sa, sb): (i64, i64)| {
         let (ta, tb, sa, sb) = (ta as i128, tb as i128, sa as i128, sb as i128);
@@ -170,10 +176,6 @@ pub fn target<F: FracBits>(
         let ((a0, a1), (b0, b1)) = (range(u), range(v));
         if a0 > a1 || b0 > b1 {
             continue;
-        }
-        let plane = RayPlane::from_origin(&vis.plane, [q[0], q[1], vis.z_v as i64], source, dir, far, origin);
-        if !plane.faces_source() {
-            return None;
         }
         let (ca, cb) = (round(an).clamp(a0, a1), round(bn).clamp(b0, b1));
         for ta in (ca - SEARCH as i128).max(a0)..=(ca + SEARCH as i128).min(a1) {

@@ -323,10 +323,10 @@ impl Walk<'_> {
     /// at layer k − 1 or k: what the two cells of the step know.
     fn meets_local(&self, dir: usize, a: i64, b: i64, k: i64) -> bool {
         let (q0, q1) = (self.point(dir, a, b, (k - 1) as f64), self.point(dir, a, b, k as f64));
-        [self.voxel(dir, a, b, k - 1), self.voxel(dir, a, b, k)].iter().any(|v| {
+        self.step_columns(dir, a, b, k).iter().any(|c| {
             self.sampled
                 .by_column
-                .get(&[v[0], v[1]])
+                .get(c)
                 .is_some_and(|ts| ts.iter().any(|&t| segment_meets_triangle(q0, q1, &self.sampled.tris[t])))
         })
     }
@@ -334,27 +334,42 @@ impl Walk<'_> {
     /// `meets_local` as a cell runs it: the first `cap` triangles of each column's store, by
     /// the exact occluder test.
     fn meets_cell(&self, dir: usize, a: i64, b: i64, k: i64, cap: usize) -> bool {
-        let (p, q) = (self.voxel(dir, a, b, k - 1), self.voxel(dir, a, b, k));
-        let cols = if (p[0], p[1]) == (q[0], q[1]) { &[[q[0], q[1]]][..] } else { &[[p[0], p[1]], [q[0], q[1]]][..] };
-        cols.iter().any(|c| {
+        self.step_columns(dir, a, b, k).iter().any(|c| {
             self.cells.by_column.get(c).is_some_and(|ts| {
                 ts.iter().take(cap).any(|&t| self.occluders[t][dir].is_some_and(|o| o.meets(a, b, k)))
             })
         })
     }
 
-    /// `meets_mesh`, or with `own` only the triangles of the plane of `s` (voxel p) that pass
+    /// The columns of the ray's voxels at layers k − 1 and k (one when they are the same).
+    fn step_columns(&self, dir: usize, a: i64, b: i64, k: i64) -> Vec<[i64; 2]> {
+        let (p, q) = (self.voxel(dir, a, b, k - 1), self.voxel(dir, a, b, k));
+        if (p[0], p[1]) == (q[0], q[1]) {
+            vec![[q[0], q[1]]]
+        } else {
+            vec![[p[0], p[1]], [q[0], q[1]]]
+        }
+    }
+
+    /// Whether the ray's segment between parameters t0 and t1 (= k) meets an occluder as the
+    /// variant holds them: a cell's store (`cell`), the two columns' sampled triangles
+    /// (`local`, both on [k − 1, k]), or the whole mesh.
+    fn meets_segment(&self, var: Variant, dir: usize, a: i64, b: i64, t0: f64, t1: f64) -> bool {
+        if let Some(cap) = var.cell {
+            self.meets_cell(dir, a, b, t1.round() as i64, cap)
+        } else if var.local {
+            self.meets_local(dir, a, b, t1.round() as i64)
+        } else {
+            self.meets_mesh(dir, a, b, t0, t1)
+        }
+    }
+
+    /// `meets_segment`, or with `own` only the triangles of the plane of `s` (voxel p) that pass
     /// through p or its 26 neighbours.
     #[allow(clippy::too_many_arguments)]
     fn meets(&self, var: Variant, s: &Surface, p: [i64; 3], dir: usize, a: i64, b: i64, t0: f64, t1: f64) -> bool {
-        if let Some(cap) = var.cell {
-            return self.meets_cell(dir, a, b, t1.round() as i64, cap);
-        }
-        if var.local {
-            return self.meets_local(dir, a, b, t1.round() as i64);
-        }
-        if !var.own_plane {
-            return self.meets_mesh(dir, a, b, t0, t1);
+        if var.cell.is_some() || var.local || !var.own_plane {
+            return self.meets_segment(var, dir, a, b, t0, t1);
         }
         let placed = Placed { s: *s, col: [p[0], p[1]] };
         let (nrm, len) = placed.normal();
@@ -426,16 +441,7 @@ impl Walk<'_> {
                     out.push([p[0], p[1]]);
                 }
             }
-            let met = |t0: i64| {
-                if let Some(cap) = var.cell {
-                    self.meets_cell(dir, a, b, k, cap)
-                } else if var.local {
-                    self.meets_local(dir, a, b, k)
-                } else {
-                    self.meets_mesh(dir, a, b, t0 as f64, k as f64)
-                }
-            };
-            if var.complete && k > 0 && met(k - 1) {
+            if var.complete && k > 0 && self.meets_segment(var, dir, a, b, (k - 1) as f64, k as f64) {
                 return Some(k);
             }
             let from_outside = std::mem::take(&mut outside);
