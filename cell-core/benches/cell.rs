@@ -14,9 +14,7 @@
 
 use std::hint::black_box;
 
-use cell_core::beam::{
-    frac, Beam, Direction, FarDistance, FracBits, Layer, Origin, RayRange, Source, SourceId, SplitOrder,
-};
+use cell_core::beam::{frac, Beam, Direction, FarDistance, FracBits, Layer, RayRange, Source, SourceId, SplitOrder};
 use cell_core::cell::{Cell, DEFAULT_DEXELS};
 use cell_core::dexel::{DexelStore, FacetTag};
 use cell_core::facet::{FacetBox, RowEdge, RowPacket};
@@ -385,11 +383,11 @@ fn bench_occluders(c: &mut Criterion) {
     let (u, v) = (bits(beam.u()), bits(beam.v()));
     let mut g = c.benchmark_group("occluders");
     for (name, tri) in [("across", triangle(0)), ("aside", triangle(48))] {
-        let occ = Occluder::new(&tri, &src, dir, far, Origin::SourceVoxel).expect("seen from the source");
+        let occ = Occluder::new(&tri, &src, dir, far).expect("seen from the source");
         let whole = uniform(&occ.tests(k), u, v).is_some();
         let id = format!("{name}_{}", if whole { "whole" } else { "cut" });
         g.bench_function(BenchmarkId::new("occluder_new", &id), |b| {
-            b.iter(|| Occluder::new(black_box(&tri), &src, dir, far, Origin::SourceVoxel))
+            b.iter(|| Occluder::new(black_box(&tri), &src, dir, far))
         });
         g.bench_function(BenchmarkId::new("uniform_5_tests", &id), |b| {
             b.iter(|| uniform(&black_box(&occ).tests(k), u, v))
@@ -421,10 +419,8 @@ fn bench_occluders(c: &mut Criterion) {
         plane: DexelPlane { id: 0, nx: 0, ny: 0, nz: -(16384 << 16), e: 8192 },
         z_v: 200,
     };
-    assert!(target(110, 130, &floor, &src, far, Origin::SourceVoxel).is_some());
-    g.bench_function("receiver_target", |b| {
-        b.iter(|| target(110, 130, black_box(&floor), &src, far, Origin::SourceVoxel))
-    });
+    assert!(target(110, 130, &floor, &src, far).is_some());
+    g.bench_function("receiver_target", |b| b.iter(|| target(110, 130, black_box(&floor), &src, far)));
     g.finish();
 }
 

@@ -41,14 +41,23 @@
 //! For a source at the origin these are the thesis's Y_med = (y + ½)(n − 1)/(x + 1)
 //! (§4.3.1.2), and its Y1, Y2 (§4.3.3) and U1, U2, V1, V2 (§4.3.4.2) with D = n − 1.
 //!
-//! U1, U2 are rationals. Writing u = a/2^f (a = `to_bits()`), x_s = b/2^g, m = k + 1 and
-//! c₁,₂ = 2^(g+1)·(x − x_s) ∓ 2^g, the test u < U1 is decided exactly by
+//! **Rays from the light** ([`Origin::Light`]). The thesis's rays leave from the source
+//! voxel's centre plane along their axis. Rays from the light itself are at
+//! `⌊x_s + u·T_k/(16·D) + ½⌋` at layer k, with `T_k = 16·k − lead` ([`Source::reach`]) and
+//! layer 1 the first slab whose centre plane lies ahead of the light ([`Source::slab`]; layer
+//! 0 is the source voxel, where every ray is still at the light). Then `k + 1` becomes
+//! `T_{k+1}/16` below and nothing else changes: `T_{k+1} − T_k ≤ 16`, so a ray still moves by
+//! at most one voxel per layer.
+//!
+//! U1, U2 are rationals. Writing u = a/2^f (a = `to_bits()`), x_s = b/2^g, q = 2·T_{k+1}
+//! (= (k + 1)·2^(g+1) for the thesis's rays) and c₁,₂ = 2^(g+1)·(x − x_s) ∓ 2^g, the test
+//! u < U1 is decided exactly by
 //!
 //! ```text
-//!   a · m·2^(g+1)  <  c₁ · D·2^f          (all in i64, no division, no rounding)
+//!   a · q  <  c₁ · D·2^f          (all in i64, no division, no rounding)
 //! ```
 //!
-//! and the lattice ray where a sub-beam starts is the exact ceiling ⌈c·D·2^f / (m·2^(g+1))⌉ —
+//! and the lattice ray where a sub-beam starts is the exact ceiling ⌈c·D·2^f / q⌉ —
 //! the "fixed-point Y_med": the smallest lattice value ≥ U, one integer division, computed
 //! only when a beam actually straddles a plane (most splits do not: two comparisons per axis
 //! decide that). [`split_planes`] returns U1, U2, V1, V2 as exact [`Ratio`]s.
@@ -66,9 +75,9 @@
 //! [`FarDistance::new`] checks:
 //!
 //! * `D·2^f ≤ 2³¹ − 1` — ±D must be a `FixedI32<F>`;
-//! * `D ≤ MAX_FAR = 2^(31−g) − 1 = 2²⁷ − 1` — then `|a·m·2^(g+1)| ≤ 2³¹·(2²⁷ − 1)·2⁵ < 2⁶³`, and
-//!   with c clamped to ±2^(g+1)(D + 1) (which changes no comparison: a plane beyond ±(D + 1)·D/m
-//!   is beyond every ray) `|c·D·2^f| ≤ 2³²·(2³¹ − 1) < 2⁶³`. Checked by `const` assertions.
+//! * `D ≤ MAX_FAR = 2^(31−g) − 1 = 2²⁷ − 1` — then `|a·q| ≤ 2³¹·(2²⁷ − 1)·2⁵ < 2⁶³` (q ≤
+//!   (k + 1)·2^(g+1) for either origin), and with c clamped to ±2^(g+1)(D + 1) (which changes
+//!   no comparison: a plane beyond ±(D + 1)·D·2^(g+1)/q ≥ ±(D + 1) is beyond every ray) `|c·D·2^f| ≤ 2³²·(2³¹ − 1) < 2⁶³`. Checked by `const` assertions.
 //!
 //! | f  | largest D ([`FarDistance::MAX`]) |
 //! |----|----------------------------------|
@@ -276,7 +285,7 @@ impl Direction {
         let (a, b) = self.transverse();
         let w = self.principal().index();
         let mut p = [0i64; 3];
-        p[w] = source.voxel()[w] as i64 + self.sign() as i64 * layer.0 as i64;
+        p[w] = source.slab(self, layer);
         p[a.index()] = at.u as i64;
         p[b.index()] = at.v as i64;
         p
@@ -299,19 +308,23 @@ impl Direction {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SourceId(pub u16);
 
-/// A point light source: its id and its position (voxel units, 2^−g lattice).
+/// A point light source: its id, its position (voxel units, 2^−g lattice) and where its rays
+/// leave from ([`Origin`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Source {
     /// The id every beam of this source carries.
     pub id: SourceId,
     /// (x, y, z) in voxel units; voxel (i, j, k) has its centre at the integer point.
     pub pos: [SourceCoord; 3],
+    /// Where its rays leave from along each direction's axis.
+    pub origin: Origin,
 }
 
 impl Source {
-    /// A source at an arbitrary lattice position.
+    /// A source at an arbitrary lattice position, its rays from the source voxel's centre
+    /// plane (the thesis's rays, [`Origin::SourceVoxel`]).
     pub const fn new(id: SourceId, pos: [SourceCoord; 3]) -> Source {
-        Source { id, pos }
+        Source { id, pos, origin: Origin::SourceVoxel }
     }
 
     /// A source at the centre of voxel `v` (the thesis's case); `None` if a coordinate does not
@@ -321,7 +334,12 @@ impl Source {
         for (p, &c) in pos.iter_mut().zip(v.iter()) {
             *p = SourceCoord::checked_from_num(c)?;
         }
-        Some(Source { id, pos })
+        Some(Source::new(id, pos))
+    }
+
+    /// The same source with its rays leaving from `origin`.
+    pub const fn with_origin(self, origin: Origin) -> Source {
+        Source { origin, ..self }
     }
 
     /// The source voxel: nearest centre, round half up (⌊p + ½⌋ per axis).
@@ -330,39 +348,89 @@ impl Source {
         // |raw| ≤ 2^31 so the result is within ±2^27 + 1: it fits i32.
         self.pos.map(|p| ((p.to_bits() as i64 + half) >> G) as i32)
     }
+
+    /// How far (sixteenths of a voxel) the rays' origin lies ahead of the centre plane of the
+    /// slab [`Source::slab`] puts behind layer 1 along `dir`: 0 for [`Origin::SourceVoxel`],
+    /// `s·(S_w − 16·w₀)` ∈ [0, 16) for [`Origin::Light`].
+    #[cfg_attr(not(feature = "rays-from-light"), allow(unused_variables))]
+    pub fn lead(&self, dir: Direction) -> i64 {
+        match self.origin {
+            Origin::SourceVoxel => 0,
+            #[cfg(feature = "rays-from-light")]
+            Origin::Light => {
+                let p = self.pos[dir.principal().index()].to_bits() as i64;
+                (dir.sign() as i64 * p).rem_euclid(16)
+            }
+        }
+    }
+
+    /// `T_k`: 16 × the distance along `dir` from the rays' origin to layer k's centre plane,
+    /// `max(16·k − lead, 0)` — the rays' point at layer k is the origin plus `T_k/16` times
+    /// their direction `(s, u/D, v/D)`. `16·k` for [`Origin::SourceVoxel`]; 0 at layer 0 for
+    /// either origin. Below 2³¹ for every layer ≤ [`MAX_FAR`].
+    pub fn reach(&self, dir: Direction, layer: Layer) -> i64 {
+        (16 * layer.0 as i64 - self.lead(dir)).max(0)
+    }
+
+    /// The principal coordinate of layer k's voxels along `dir`: the source voxel's at layer
+    /// 0 (its rays are all at their origin, which lies in it), and `w₀ + s·k` for k ≥ 1, where
+    /// w₀ is the last slab whose centre plane is at or behind the origin: the source voxel's
+    /// for [`Origin::SourceVoxel`]; for [`Origin::Light`] the source voxel's or the one behind
+    /// it, so that layer 1 is the source voxel's slab or the next one and a ray moves at most
+    /// one voxel across from any layer to the next (`T_{k+1} − T_k ≤ 16`).
+    pub fn slab(&self, dir: Direction, layer: Layer) -> i64 {
+        let w = dir.principal().index();
+        if layer.0 == 0 {
+            return self.voxel()[w] as i64;
+        }
+        let s = dir.sign() as i64;
+        let w0 = match self.origin {
+            Origin::SourceVoxel => self.voxel()[w] as i64,
+            // ⌊S_w/16⌋ for s = +1, ⌈S_w/16⌉ for s = −1.
+            #[cfg(feature = "rays-from-light")]
+            Origin::Light => s * (s * self.pos[w].to_bits() as i64).div_euclid(16),
+        };
+        w0 + s * layer.0 as i64
+    }
+
+    /// The layer k ≥ 1 whose voxels lie in slab `w` along `dir` (the inverse of
+    /// [`Source::slab`] past layer 0; ≤ 0 for slabs at or behind layer 1's).
+    pub fn layer_at(&self, dir: Direction, w: i64) -> i64 {
+        dir.sign() as i64 * (w - self.slab(dir, Layer(1))) + 1
+    }
+
+    /// Where its rays leave from along `dir`, in sixteenths of a voxel (voxel centres at
+    /// multiples of 16): the light across the axis, and along it the source voxel's centre
+    /// plane ([`Origin::SourceVoxel`]) or the light ([`Origin::Light`]).
+    pub fn ray_origin(&self, dir: Direction) -> [i64; 3] {
+        let w = dir.principal().index();
+        let mut o = self.pos.map(|c| c.to_bits() as i64);
+        if self.origin == Origin::SourceVoxel {
+            o[w] = 16 * self.voxel()[w] as i64;
+        }
+        o
+    }
 }
 
 /// Where the rays of a source leave from along their direction's axis. Across it they leave
 /// from the light; along it, from the source voxel's centre plane (§4.3's layers are whole
-/// voxels from the source voxel: the machine's rays, whose voxel at layer k is
-/// `⌊x_s + u·k/D + ½⌋`) or from the light itself. The lit rules and occluders read a ray's
-/// point at layer t at the distance `T = 16·t − lead` sixteenths from its origin
-/// ([`crate::lit::RayPlane`], [`crate::occluder`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+/// voxels from the source voxel: the thesis's rays, whose voxel at layer k is
+/// `⌊x_s + u·k/D + ½⌋`) or from the light itself (`⌊x_s + u·T_k/(16·D) + ½⌋`,
+/// [`Source::reach`]). The split, the lit rules and the occluders read a ray's point at layer
+/// k at `T_k` sixteenths from its origin along the axis.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Origin {
-    /// The source voxel's centre plane (lead = 0): the machine's rays.
+    /// The source voxel's centre plane (lead = 0): the thesis's rays.
+    #[default]
     SourceVoxel,
-    /// The light itself: true rays from the source.
+    /// The light itself: true rays from the source (feature `rays-from-light`, on by default).
+    #[cfg(feature = "rays-from-light")]
     Light,
 }
 
-impl Origin {
-    /// The origin of `source`'s rays in `dir`, in sixteenths of a voxel (voxel centres at
-    /// multiples of 16), and its lead: how far it lies behind layer 0's centre plane along
-    /// `dir`, `s·(O_w − 16·V_w)` ∈ [−8, 8] (0 for [`Origin::SourceVoxel`]).
-    pub fn point(self, source: &Source, dir: Direction) -> ([i64; 3], i64) {
-        let w = dir.principal().index();
-        let mut o = source.pos.map(|c| c.to_bits() as i64);
-        let voxel_w = 16 * source.voxel()[w] as i64;
-        if self == Origin::SourceVoxel {
-            o[w] = voxel_w;
-        }
-        (o, dir.sign() as i64 * (o[w] - voxel_w))
-    }
-}
-
-/// Layer k: the slab w = w₀ + s·k at principal distance k from the source voxel.
+/// Layer k: the slab w = w₀ + s·k at principal distance k from the source voxel (from the slab
+/// behind the light for some faces of rays from the light: [`Source::slab`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Layer(pub u32);
@@ -839,8 +907,9 @@ impl<F: FracBits> Beam<F> {
             return self.u == RayRange::full(far) && self.v == RayRange::full(far);
         }
         let (ua, va) = self.dir.transverse();
-        AxisPlanes::new(source.pos[ua.index()], at.u, far, m).spans(self.u, far)
-            && AxisPlanes::new(source.pos[va.index()], at.v, far, m).spans(self.v, far)
+        let q = 2 * source.reach(self.dir, self.layer);
+        AxisPlanes::new(source.pos[ua.index()], at.u, far, q).spans(self.u, far)
+            && AxisPlanes::new(source.pos[va.index()], at.v, far, q).spans(self.v, far)
     }
 
     /// The voxel of the beam's (u_min, v_min) ray at the beam's layer — the beam's voxel when it
@@ -903,11 +972,11 @@ impl<F: FracBits> Beam<F> {
             return Err(BeamError::OutsideFarSquare);
         }
         let (ua, va) = self.dir.transverse();
-        // m = k + 1 ≤ D ≤ MAX_FAR.
-        let m = self.layer.0 as i64 + 1;
-        let cu = split_axis(self.u, source.pos[ua.index()], at.u, far, m);
-        let cv = split_axis(self.v, source.pos[va.index()], at.v, far, m);
+        // k + 1 ≤ D ≤ MAX_FAR, so 0 < T_{k+1} ≤ 16·(k + 1) < 2³¹.
         let next = Layer(self.layer.0 + 1);
+        let q = 2 * source.reach(self.dir, next);
+        let cu = split_axis(self.u, source.pos[ua.index()], at.u, far, q);
+        let cv = split_axis(self.v, source.pos[va.index()], at.v, far, q);
         let sub = |offset, u, v| SubBeam { offset, beam: Beam { u, v, layer: next, ..*self } };
         if order.row_major {
             // The default order, du outer and dv inner: a missing u piece skips its whole row.
@@ -932,9 +1001,10 @@ impl<F: FracBits> Beam<F> {
     }
 }
 
-/// The two planes of voxel x at layer m on one transverse axis, scaled so that a lattice ray
-/// a (`to_bits`) compares with one multiplication: u < U1 ⇔ a·q < n1, u ≥ U2 ⇔ a·q ≥ n2
-/// (see the module doc for the budget: every product is < 2⁶³ in magnitude).
+/// The two planes of voxel x at a layer m on one transverse axis, scaled so that a lattice ray
+/// a (`to_bits`) compares with one multiplication: u < U1 ⇔ a·q < n1, u ≥ U2 ⇔ a·q ≥ n2, with
+/// q = 2·T_m ([`Source::reach`]; 32·m for the thesis's rays). See the module doc for the
+/// budget: every product is < 2⁶³ in magnitude.
 #[derive(Clone, Copy)]
 struct AxisPlanes {
     q: i64,
@@ -943,9 +1013,10 @@ struct AxisPlanes {
 }
 
 impl AxisPlanes {
-    fn new<F: FracBits>(src: SourceCoord, x: i32, far: FarDistance<F>, m: i64) -> Self {
-        let q = m << (G + 1); // m·2^(g+1) < 2^32
-        let limit = (far.get() as i64 + 1) << (G + 1); // planes beyond ±(D+1)·D/m
+    fn new<F: FracBits>(src: SourceCoord, x: i32, far: FarDistance<F>, q: i64) -> Self {
+        // 0 < q = 2·T_m ≤ m·2^(g+1) < 2^32. Planes beyond ±(D+1)·16·D/T_m (beyond every ray:
+        // T_m ≤ 16·m ≤ 16·D).
+        let limit = (far.get() as i64 + 1) << (G + 1);
         let r = 2 * (((x as i64) << G) - src.to_bits() as i64); // 2^(g+1)·(x − x_s), |r| < 2^37
         let c1 = (r - (1 << G)).clamp(-limit, limit);
         let c2 = (r + (1 << G)).clamp(-limit, limit);
@@ -953,7 +1024,7 @@ impl AxisPlanes {
         AxisPlanes { q, n1: c1 * n, n2: c2 * n }
     }
 
-    /// 0, 1, 2: ray a occupies voxel x − 1, x, x + 1 at layer m.
+    /// 0, 1, 2: ray a occupies voxel x − 1, x, x + 1 at the planes' layer.
     fn class(self, a: i64) -> usize {
         let aq = a * self.q;
         if aq < self.n1 {
@@ -977,9 +1048,10 @@ impl AxisPlanes {
 
 /// The lattice rays (`to_bits` units, `lo ..= hi`, empty when lo > hi) of one transverse axis
 /// that stay in voxel coordinate `x` from layer k to layer k + 1 (the split's middle class),
-/// for the cell at `x` and source coordinate `src`: `⌈n1/q⌉ ..= ⌈n2/q⌉ − 1`.
-pub fn staying_rays<F: FracBits>(src: SourceCoord, x: i32, far: FarDistance<F>, layer: Layer) -> (i64, i64) {
-    let AxisPlanes { q, n1, n2 } = AxisPlanes::new(src, x, far, layer.0 as i64 + 1);
+/// for the cell at `x` and source coordinate `src`: `⌈n1/q⌉ ..= ⌈n2/q⌉ − 1`. `reach` is
+/// `T_{k+1}` ([`Source::reach`] of layer k + 1: 16·(k + 1) for the thesis's rays), > 0.
+pub fn staying_rays<F: FracBits>(src: SourceCoord, x: i32, far: FarDistance<F>, reach: i64) -> (i64, i64) {
+    let AxisPlanes { q, n1, n2 } = AxisPlanes::new(src, x, far, 2 * reach);
     (ceil_div(n1, q), ceil_div(n2, q) - 1)
 }
 
@@ -988,17 +1060,17 @@ const fn ceil_div(n: i64, q: i64) -> i64 {
     -((-n).div_euclid(q))
 }
 
-/// The rays of `range` that go to x − 1, x, x + 1 (indices 0, 1, 2) at layer m = k + 1, for the
-/// cell at transverse coordinate `x` and source coordinate `src`. See the module doc for the
-/// budget: every product below is < 2⁶³ in magnitude.
+/// The rays of `range` that go to x − 1, x, x + 1 (indices 0, 1, 2) at layer k + 1 (q = 2·T_{k+1}),
+/// for the cell at transverse coordinate `x` and source coordinate `src`. See the module doc
+/// for the budget: every product below is < 2⁶³ in magnitude.
 fn split_axis<F: FracBits>(
     range: RayRange<F>,
     src: SourceCoord,
     x: i32,
     far: FarDistance<F>,
-    m: i64,
+    q: i64,
 ) -> [Option<RayRange<F>>; 3] {
-    let planes = AxisPlanes::new(src, x, far, m);
+    let planes = AxisPlanes::new(src, x, far, q);
     let AxisPlanes { q, n1, n2 } = planes;
     let class = |a: i64| planes.class(a);
     let lo = range.lo.to_bits() as i64;
@@ -1027,7 +1099,8 @@ fn split_axis<F: FracBits>(
 // Oracles and exact planes
 // ---------------------------------------------------------------------------------------------
 
-/// The transverse voxel `(⌊x_s + u·k/D + ½⌋, ⌊y_s + v·k/D + ½⌋)` of ray (u, v) at layer k,
+/// The transverse voxel `(⌊x_s + u·T_k/(16·D) + ½⌋, ⌊y_s + v·T_k/(16·D) + ½⌋)` of ray (u, v)
+/// at layer k (`T_k` = [`Source::reach`]: `(⌊x_s + u·k/D + ½⌋, …)` for the thesis's rays),
 /// computed directly in `i128` (independently of the split). Exact for every input with
 /// |u|, |v| ≤ D; saturates at the `i64` ends otherwise (rays that do not exist).
 pub fn trace_ray_voxel<F: FracBits>(
@@ -1041,18 +1114,19 @@ pub fn trace_ray_voxel<F: FracBits>(
     let (ua, va) = dir.transverse();
     let f = F::U32;
     let d = far.get();
+    let t = source.reach(dir, k);
     (
-        trace_axis(source.pos[ua.index()].to_bits(), u.to_bits(), f, d, k.0),
-        trace_axis(source.pos[va.index()].to_bits(), v.to_bits(), f, d, k.0),
+        trace_axis(source.pos[ua.index()].to_bits(), u.to_bits(), f, d, t),
+        trace_axis(source.pos[va.index()].to_bits(), v.to_bits(), f, d, t),
     )
 }
 
-/// ⌊b/2^g + (a/2^f)·k/D + ½⌋ over the common denominator 2^(f+g+1)·D (all < 2¹⁰⁰).
-fn trace_axis(b: i32, a: i32, f: u32, d: u32, k: u32) -> i64 {
+/// ⌊b/2^g + (a/2^f)·t/(2^g·D) + ½⌋ over the common denominator 2^(f+g+1)·D (all < 2¹⁰⁰).
+fn trace_axis(b: i32, a: i32, f: u32, d: u32, t: i64) -> i64 {
     let d = d as i128;
     let pf = 1i128 << f;
     let den = (pf << (G + 1)) * d;
-    let num = (b as i128) * (pf << 1) * d + (a as i128) * (k as i128) * (1i128 << (G + 1)) + (pf << G) * d;
+    let num = (b as i128) * (pf << 1) * d + 2 * (a as i128) * (t as i128) + (pf << G) * d;
     num.div_euclid(den).clamp(i64::MIN as i128, i64::MAX as i128) as i64
 }
 
@@ -1116,7 +1190,7 @@ impl Ord for Ratio {
 /// to u + 1 iff u ≥ `u2`; the same for v.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SplitPlanes {
-    /// U1 = (x − x_s − ½)·D/(k + 1).
+    /// U1 = (x − x_s − ½)·D/(k + 1) (`16·D/T_{k+1}` for rays from the light).
     pub u1: Ratio,
     /// U2 = (x − x_s + ½)·D/(k + 1) (the thesis's Y_med).
     pub u2: Ratio,
@@ -1137,7 +1211,7 @@ pub fn split_planes<F: FracBits>(
     at: Transverse,
 ) -> Option<SplitPlanes> {
     let (ua, va) = dir.transverse();
-    let den = (layer.0 as i64 + 1) << (G + 1);
+    let den = 2 * source.reach(dir, Layer(layer.0 + 1));
     let d = far.get() as i64;
     let plane = |src: SourceCoord, x: i32, sign: i64| -> Option<Ratio> {
         let c = 2 * (((x as i64) << G) - src.to_bits() as i64) + sign * (1 << G);
@@ -1265,7 +1339,7 @@ mod tests {
     fn split_axis_single_class_is_identity() {
         let far = FarDistance::<U0>::new(8).unwrap();
         let r = RayRange::<U0>::new(FarOffset::from_num(0), FarOffset::from_num(0)).unwrap();
-        let out = split_axis(r, SourceCoord::ZERO, 0, far, 1);
+        let out = split_axis(r, SourceCoord::ZERO, 0, far, 32);
         assert_eq!(out, [None, Some(r), None]);
     }
 

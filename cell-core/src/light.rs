@@ -23,6 +23,14 @@
 //! one self-destined sub-beam of a split (the processed beam frees its slot). Boundary cells
 //! never wait. Hence every beam is eventually processed.
 //!
+//! One split may keep more than one sub-beam: with rays from the light
+//! ([`crate::beam::Origin::Light`]) a ±x or ±y face whose layer 1 is the source voxel's slab
+//! sends the source cell's layer-0 beam to up to three voxels of its own column (one per z).
+//! Nothing enters the source column from outside (beams only move away from it), so its FIFO
+//! holds only the emitter's initial beams and its own ±z beams staying in the column, which
+//! leave within D layers; with a FIFO of at least [`MIN_FA_FROM_LIGHT`] slots that split
+//! eventually fits (the emitter adds a beam only where there is room).
+//!
 //! **Quiescence** (§4.4.4): [`Activity`] counts beams in flight (in FIFOs, output buffers and
 //! not yet emitted by a source); it is shared state, guarded by `critical-section` (on an MCU
 //! the FIFO producer side runs in a link interrupt). It is exact: it is incremented before a
@@ -34,7 +42,7 @@ use critical_section::Mutex;
 use heapless::Vec;
 
 use crate::beam::{
-    staying_rays, Beam, Direction, FarDistance, FarOffset, FracBits, RayRange, Source, SplitOrder, Transverse,
+    staying_rays, Beam, Direction, FarDistance, FarOffset, FracBits, Layer, RayRange, Source, SplitOrder, Transverse,
 };
 use crate::cell::Cell;
 use crate::dexel::{Dexel, DexelStore};
@@ -54,6 +62,10 @@ pub const MAX_HOLD: u16 = i16::MAX as u16;
 /// with no beam refused for room, so no change of the lengths can unblock it. Buffers hold at
 /// most 127 messages, so a real length word is never all ones.
 const ANY_LENGTHS: u64 = u64::MAX;
+
+/// The smallest FIFO (the `fa` a host runs with) for sources whose rays leave from the light
+/// (see the module doc's no-deadlock argument).
+pub const MIN_FA_FROM_LIGHT: usize = 3;
 
 /// One bit per light source (sources are diffused one after another; at most 32).
 pub type SourceMask = u32;
@@ -1119,6 +1131,15 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         let (after_empty, after_outside) = (*after_empty, *after_outside);
         debug_assert_eq!(env.bounds, SubBeamBounds::new(env.n, env.depth, env.skip, env.source));
         let bounds = &env.bounds;
+        // The principal step to the next layer: one voxel, but none from layer 0 (the source
+        // voxel) when layer 1 is the source voxel's slab (rays from the light, [`Source::slab`]).
+        let w = dir.principal().index();
+        let step_w = match beam.layer().0 {
+            0 if cfg!(feature = "rays-from-light") => {
+                (env.source.slab(dir, Layer(1)) - env.source.slab(dir, Layer(0))) as i8
+            }
+            _ => dir.sign(),
+        };
         let split = beam.split_each(env.source, env.far, at, env.order, |sb| {
             let (terminal, local) = match decide(sb.offset) {
                 Sub::Send(t, l) => (t, l),
@@ -1128,7 +1149,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                     return;
                 }
             };
-            let d = dir.displacement(sb.offset);
+            let mut d = dir.displacement(sb.offset);
+            d[w] = step_w;
             let to = [pos[0] + d[0] as i64, pos[1] + d[1] as i64, pos[2] + d[2] as i64];
             if bounds.keeps(dir, to) {
                 let target = match Port::from_delta(d[0], d[1]) {
@@ -1288,8 +1310,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             return None;
         }
         let (ua, va) = dir.transverse();
-        let su = staying_rays(env.source.pos[ua.index()], self.x as i32, env.far, b.layer());
-        let sv = staying_rays(env.source.pos[va.index()], self.y as i32, env.far, b.layer());
+        let reach = env.source.reach(dir, Layer(b.layer().0 + 1));
+        let su = staying_rays(env.source.pos[ua.index()], self.x as i32, env.far, reach);
+        let sv = staying_rays(env.source.pos[va.index()], self.y as i32, env.far, reach);
         Some((su, sv))
     }
 

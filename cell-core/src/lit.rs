@@ -105,7 +105,7 @@
 //! |16·t·c·a| ≤ 2⁴·2¹⁷·2³⁰·2³¹, every term is below 2⁸³: `i128`, exact, for every f and D the beam
 //! budget of [`crate::beam`] admits.
 
-use crate::beam::{Direction, FarDistance, FracBits, Origin, Source};
+use crate::beam::{Direction, FarDistance, FracBits, Source};
 use crate::plane::DexelPlane;
 use heapless::Vec;
 
@@ -142,7 +142,7 @@ pub struct RayPlane {
 
 impl RayPlane {
     /// The plane of a dexel of column (x, y) whose first voxel is `lo` (`reference` = (x, y, lo)),
-    /// along the machine's rays ([`Origin::SourceVoxel`]).
+    /// along the rays of `source` in `dir` (from its [`crate::beam::Origin`]).
     pub fn new<F: FracBits>(
         plane: &DexelPlane,
         reference: [i64; 3],
@@ -150,25 +150,13 @@ impl RayPlane {
         dir: Direction,
         far: FarDistance<F>,
     ) -> Self {
-        Self::from_origin(plane, reference, source, dir, far, Origin::SourceVoxel)
-    }
-
-    /// [`RayPlane::new`] along rays leaving from `origin`.
-    pub fn from_origin<F: FracBits>(
-        plane: &DexelPlane,
-        reference: [i64; 3],
-        source: &Source,
-        dir: Direction,
-        far: FarDistance<F>,
-        origin: Origin,
-    ) -> Self {
         let df = far.scaled() as i128;
         let l = 16 * df;
         let c = [(plane.nx as i128) << 16, (plane.ny as i128) << 16, plane.nz as i128];
         let w = dir.principal().index();
         let (ua, va) = dir.transverse();
         let (u, v) = (ua.index(), va.index());
-        let (o, lead) = origin.point(source, dir);
+        let (o, lead) = (source.ray_origin(dir), source.lead(dir));
         // L·(O − reference) per axis, O in sixteenths.
         let rel = |i: usize| df * o[i] as i128 - l * reference[i] as i128;
         let k0 = c[w] * rel(w) + c[u] * rel(u) + c[v] * rel(v) + (1i128 << 16) * l * plane.e as i128;
@@ -195,7 +183,7 @@ impl RayPlane {
     }
 
     /// Whether the plane faces the source: g > 0 at the rays' origin (T = 0, the same point for
-    /// every ray: Se for the machine's rays, the light for [`Origin::Light`]).
+    /// every ray: Se for the machine's rays, the light for [`crate::beam::Origin::Light`]).
     pub fn faces_source(&self) -> bool {
         self.k0 > 0
     }
@@ -541,7 +529,7 @@ impl Visit {
 mod tests {
     extern crate std;
     use super::*;
-    use crate::beam::{frac, Layer, SourceCoord, SourceId};
+    use crate::beam::{frac, Layer, Origin, SourceCoord, SourceId};
 
     fn lcg(s: &mut u64) -> u64 {
         *s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
@@ -572,8 +560,8 @@ mod tests {
         }
     }
 
-    /// `from_origin` with rays from the light: the point of layer t lies on layer t's centre
-    /// plane, `t − lead/16` voxels from the light along the axis.
+    /// Rays from the light: the point of layer t lies on the centre plane of layer t's slab
+    /// ([`Source::slab`]), `T_t/16` voxels from the light along the axis.
     #[test]
     fn ray_plane_from_the_light_is_scaled_g() {
         let far = FarDistance::<frac::U1>::new(15).unwrap();
@@ -582,14 +570,14 @@ mod tests {
         let sources = [[5.25, 7.4375, 3.0625], [5.5, 6.5, 2.5625], [4.9375, 7.5, 3.4375]];
         for dir in Direction::ALL {
             for pos in sources {
-                let src = Source::new(SourceId(0), pos.map(SourceCoord::from_num));
-                let rp = RayPlane::from_origin(&plane, [6, 9, 4], &src, dir, far, Origin::Light);
+                let src = Source::new(SourceId(0), pos.map(SourceCoord::from_num)).with_origin(Origin::Light);
+                let rp = RayPlane::new(&plane, [6, 9, 4], &src, dir, far);
                 let w = dir.principal().index();
                 let (ua, va) = dir.transverse();
                 let light = src.pos.map(|c| c.to_num::<f64>());
                 for (a, b, t) in [(7i64, -3i64, 2i64), (-30, 30, 9), (13, 1, 15), (0, 0, 1)] {
                     let mut p = [0f64; 3];
-                    p[w] = src.voxel()[w] as f64 + dir.sign() as f64 * t as f64;
+                    p[w] = src.slab(dir, Layer(t as u32)) as f64;
                     let dist = dir.sign() as f64 * (p[w] - light[w]);
                     p[ua.index()] = light[ua.index()] + (a as f64 / 2.0) * dist / 15.0;
                     p[va.index()] = light[va.index()] + (b as f64 / 2.0) * dist / 15.0;

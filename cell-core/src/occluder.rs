@@ -25,19 +25,19 @@
 //!
 //! Coordinates are in sixteenths of a voxel (the loading lattice of [`crate::voxelize`] and the
 //! source lattice of [`crate::beam`]), voxel centres at multiples of 16. The rays of one source
-//! and [`Direction`] (w, sign s, transverse u, v) leave from an origin O ([`Origin`]): the
-//! light's transverse coordinates, and along w either the source voxel's centre (the machine's
-//! rays today, [`crate::beam`]'s `⌊x_s + u·k/D + ½⌋`) or the light itself ([`Origin::point`]). With
-//! `lead = s·(O_w − 16·V_w)` (V the source voxel; 0 or in [−8, 8]) the point of lattice ray
-//! (a, b) (offsets in steps of 2^−f, N = D·2^f) at layer t's centre plane lies
-//! `T = 16·t − lead` sixteenths from O along w:
+//! and [`Direction`] (w, sign s, transverse u, v) leave from an origin O
+//! ([`Source::ray_origin`]): the light's transverse coordinates, and along w either the source
+//! voxel's centre (the thesis's rays, [`crate::beam`]'s `⌊x_s + u·k/D + ½⌋`) or the light itself
+//! ([`crate::beam::Origin::Light`]). With its lead ([`Source::lead`]: 0, or in [0, 16) from the last centre
+//! plane at or behind the light) the point of lattice ray (a, b) (offsets in steps of 2^−f,
+//! N = D·2^f) at layer t's centre plane lies `T = 16·t − lead` sixteenths from O along w:
 //!
 //! ```text
 //!   16·p(T) = O + (T/N)·d(a, b),      d = s·N·e_w + a·e_u + b·e_v
 //! ```
 //!
 //! The segment of layer k is `T ∈ [T(k − 1), T(k)]`, clamped at O (`T ≥ 0`): at k = 0 it is the
-//! piece from the light to layer 0's centre plane (empty for the machine's rays).
+//! the origin itself (layer 0's rays are all at O).
 //!
 //! A triangle (V₀, V₁, V₂) with normal n = (V₁ − V₀) × (V₂ − V₀) stops ray (a, b) at layer k iff
 //!
@@ -90,7 +90,7 @@
 //! # Example
 //!
 //! ```
-//! use cell_core::beam::{frac, Direction, FarDistance, Origin, Source, SourceId};
+//! use cell_core::beam::{frac, Direction, FarDistance, Source, SourceId};
 //! use cell_core::occluder::{Occluder, Triangle, TriangleStore};
 //!
 //! // A light at the centre of voxel (0, 0, 0); a triangle across the +z axis at z = 4.5.
@@ -101,14 +101,14 @@
 //! let mut store = TriangleStore::<4>::new();
 //! assert!(tri.crosses_column(0, 0) && !tri.crosses_column(3, 0));
 //! assert!(store.push(tri));
-//! let occ = Occluder::new(&tri, &source, Direction::PosZ, far, Origin::SourceVoxel).unwrap();
+//! let occ = Occluder::new(&tri, &source, Direction::PosZ, far).unwrap();
 //! // The axis ray crosses z = 4.5 between layers 4 and 5: stopped in layer 5's segment only.
 //! assert!(occ.meets(0, 0, 5) && !occ.meets(0, 0, 4) && !occ.meets(0, 0, 6));
 //! // Ray (8, 0) is at x = 4.5 there, beside the triangle: never stopped.
 //! assert!(!(0..=8).any(|k| occ.meets(8, 0, k)));
 //! ```
 
-use crate::beam::{Direction, FarDistance, FracBits, Origin, Source};
+use crate::beam::{Direction, FarDistance, FracBits, Source};
 use crate::lit::{RayPlane, Test};
 use heapless::Vec;
 
@@ -203,18 +203,12 @@ impl Occluder {
     /// The occluder of `tri` for rays of `source` in `dir` from `origin`; `None` if the
     /// triangle stops no ray (zero area, or seen edge-on from the origin) or the origin lies
     /// outside [`COORD_LIMIT`].
-    pub fn new<F: FracBits>(
-        tri: &Triangle,
-        source: &Source,
-        dir: Direction,
-        far: FarDistance<F>,
-        origin: Origin,
-    ) -> Option<Occluder> {
+    pub fn new<F: FracBits>(tri: &Triangle, source: &Source, dir: Direction, far: FarDistance<F>) -> Option<Occluder> {
         let w = dir.principal().index();
         let (u, v) = dir.transverse();
         let (u, v) = (u.index(), v.index());
         let sign = dir.sign() as i128;
-        let (o, lead) = origin.point(source, dir);
+        let (o, lead) = (source.ray_origin(dir), source.lead(dir));
         if o.iter().any(|c| c.abs() > COORD_LIMIT) {
             return None;
         }
@@ -301,7 +295,7 @@ impl<const N: usize> TriangleStore<N> {
 mod tests {
     extern crate std;
     use super::*;
-    use crate::beam::{frac, SourceCoord, SourceId};
+    use crate::beam::{frac, Origin, SourceCoord, SourceId};
     use crate::lit::{segments, spans, uniform, Along, Segments};
     use core::cmp::Ordering;
     use std::vec::Vec as StdVec;
@@ -366,10 +360,11 @@ mod tests {
         let dir = Direction::ALL[(lcg(s) % 6) as usize];
         let far = FarDistance::<F>::new(4 + (lcg(s) % 6) as u32).unwrap();
         let origin = if lcg(s) % 2 == 0 { Origin::SourceVoxel } else { Origin::Light };
-        (Triangle::new(v).unwrap(), src, dir, far, origin)
+        (Triangle::new(v).unwrap(), src.with_origin(origin), dir, far, origin)
     }
 
-    /// The origin and lead, restated from the module doc.
+    /// The origin and lead, restated from the module doc and [`Source::lead`]: from the light,
+    /// the lead is measured from the last centre plane at or behind it (in [0, 16)).
     fn origin_and_lead(src: &Source, dir: Direction, origin: Origin) -> ([i64; 3], i64) {
         let w = dir.principal().index();
         let mut o = src.pos.map(|c| c.to_bits() as i64);
@@ -377,7 +372,8 @@ mod tests {
         if origin == Origin::SourceVoxel {
             o[w] = vw;
         }
-        (o, dir.sign() as i64 * (o[w] - vw))
+        let lead = dir.sign() as i64 * (o[w] - vw);
+        (o, if lead < 0 { lead + 16 } else { lead })
     }
 
     fn meets_like_the_oracle<F: FracBits>(seed: u64) {
@@ -385,7 +381,7 @@ mod tests {
         let (mut stops, mut checked) = (0, 0);
         for _ in 0..60 {
             let (tri, src, dir, far, origin) = random_config::<F>(&mut s);
-            let Some(occ) = Occluder::new(&tri, &src, dir, far, origin) else { continue };
+            let Some(occ) = Occluder::new(&tri, &src, dir, far) else { continue };
             let (o, lead) = origin_and_lead(&src, dir, origin);
             let poly = [0, 1, 2].map(|i| tri.vertex(i));
             let nn = far.scaled();
@@ -424,8 +420,8 @@ mod tests {
         let mut s = 11u64;
         let (mut cut, mut whole) = (0, 0);
         for _ in 0..200 {
-            let (tri, src, dir, far, origin) = random_config::<frac::U1>(&mut s);
-            let Some(occ) = Occluder::new(&tri, &src, dir, far, origin) else { continue };
+            let (tri, src, dir, far, _) = random_config::<frac::U1>(&mut s);
+            let Some(occ) = Occluder::new(&tri, &src, dir, far) else { continue };
             let nn = far.scaled();
             let k = (lcg(&mut s) % (far.get() as u64 + 1)) as i64;
             let tests = occ.tests(k);
@@ -478,7 +474,7 @@ mod tests {
             for dir in Direction::ALL {
                 for origin in [Origin::SourceVoxel, Origin::Light] {
                     let occ: StdVec<Occluder> =
-                        halves.iter().filter_map(|h| Occluder::new(h, &src, dir, far, origin)).collect();
+                        halves.iter().filter_map(|h| Occluder::new(h, &src.with_origin(origin), dir, far)).collect();
                     let (o, lead) = origin_and_lead(&src, dir, origin);
                     for a in -8..=8 {
                         for b in -8..=8 {
@@ -515,7 +511,7 @@ mod tests {
             for src in [source16([-(COORD_LIMIT - 8); 3]), source16([COORD_LIMIT - 8, -(COORD_LIMIT - 8), 0])] {
                 for dir in Direction::ALL {
                     for origin in [Origin::SourceVoxel, Origin::Light] {
-                        let Some(occ) = Occluder::new(&tri, &src, dir, far, origin) else { continue };
+                        let Some(occ) = Occluder::new(&tri, &src.with_origin(origin), dir, far) else { continue };
                         for (a, b) in [(nn, nn), (-nn, nn), (nn, -nn), (-nn, -nn), (0, 0)] {
                             for k in [0, 1, big_t / 2, big_t] {
                                 let _ = occ.meets(a, b, k);
@@ -542,7 +538,7 @@ mod tests {
         assert!(Triangle::new([[l + 1, 0, 0], [0; 3], [0; 3]]).is_none());
         let far_src = source16([COORD_LIMIT + 16, 0, 0]);
         let tri = Triangle::new(tris[0]).unwrap();
-        assert!(Occluder::new(&tri, &far_src, Direction::PosY, far, Origin::Light).is_none());
+        assert!(Occluder::new(&tri, &far_src.with_origin(Origin::Light), Direction::PosY, far).is_none());
     }
 
     /// The oracle for [`Triangle::crosses_column`]: the closed projected triangle and square

@@ -22,15 +22,15 @@
 //! The pixel's point is P = (x, y, z\*) with z\* = num/den the visible surface's exact depth
 //! ([`VisibleSurface`]), rounded to [`POINT_UNITS`]⁻¹ voxel along z (a ray's choice, not a
 //! test: the rounding moves the point by 2⁻¹³ voxel at most). With the rays' origin O and lead
-//! ([`Origin::point`]):
+//! ([`Source::ray_origin`], [`Source::lead`]):
 //!
 //! 1. the face: the first direction of [`Direction::ALL`] along which P lies at a positive
 //!    distance from O with the exact ray's offsets `a = (P_u − O_u)·N/dist`,
 //!    `b = (P_v − O_v)·N/dist` within ±N (N = D·2^f; the pyramids share their boundaries);
 //! 2. the candidates: for each bracketing voxel q = (x, y, z_v) and (x, y, z_v + 1) at layer
-//!    k = s·(q_w − V_w) with 1 ≤ k ≤ D, the lattice rays whose voxel at layer k is q (the
+//!    k with 1 ≤ k ≤ D ([`Source::layer_at`]), the lattice rays whose voxel at layer k is q (the
 //!    rounding of [`crate::beam`] from O: `⌊(O_u + T·a/N)/16 + ½⌋ = q_u`, T = 16k − lead) and
-//!    on the visible plane's outer side at layer k or k − 1 ([`RayPlane::from_origin`]),
+//!    on the visible plane's outer side at layer k or k − 1 ([`RayPlane::new`]),
 //!    a plane that faces the origin (rule 1: a back face is lit by no ray);
 //! 3. the nearest to (a, b) in the lattice's (u, v) metric, within [`SEARCH`] steps of the exact
 //!    ray's rounding clamped to each voxel's rectangle of rays; ties go to the first found
@@ -48,7 +48,7 @@
 //! # Example
 //!
 //! ```
-//! use cell_core::beam::{frac, Direction, FarDistance, Origin, Source, SourceId};
+//! use cell_core::beam::{frac, Direction, FarDistance, Source, SourceId};
 //! use cell_core::normal::NormalCode;
 //! use cell_core::plane::DexelPlane;
 //! use cell_core::receiver::target;
@@ -61,11 +61,11 @@
 //! let floor = VisibleSurface { num: 19, den: 2, facet: 0, material: 0, normal: NormalCode::default(), plane, z_v: 9 };
 //! // Column (8, 5): the exact ray has offsets (2.53, −1.26); the nearest lattice ray that
 //! // reaches voxel (8, 5, 9) at layer 9 on the floor's light side is (3, −1).
-//! let t = target(8, 5, &floor, &source, far, Origin::SourceVoxel).unwrap();
+//! let t = target(8, 5, &floor, &source, far).unwrap();
 //! assert_eq!((t.dir, t.layer, t.z, t.a, t.b), (Direction::PosZ, 9, 9, 3, -1));
 //! ```
 
-use crate::beam::{Beam, Direction, FarDistance, FracBits, Origin, Source};
+use crate::beam::{Beam, Direction, FarDistance, FracBits, Source};
 use crate::lit::RayPlane;
 use crate::occluder::COORD_LIMIT;
 use crate::visible::VisibleSurface;
@@ -118,7 +118,6 @@ pub fn target<F: FracBits>(
     vis: &VisibleSurface,
     source: &Source,
     far: FarDistance<F>,
-    origin: Origin,
 ) -> Option<Target> {
     let g = POINT_UNITS as i128;
     let (num, den) = (vis.num as i128, vis.den as i128);
@@ -131,11 +130,10 @@ pub fn target<F: FracBits>(
         return None;
     }
     let nn = far.scaled() as i128;
-    let sv = source.voxel();
     // The face: its rays' origin and lead, the exact ray's distance along the axis (`dist`,
     // in 1/POINT_UNITS voxel) and its offsets scaled by dist (a = an/dist, b = bn/dist).
     let (dir, o, lead, dist, an, bn) = Direction::ALL.into_iter().find_map(|dir| {
-        let (o, lead) = origin.point(source, dir);
+        let (o, lead) = (source.ray_origin(dir), source.lead(dir));
         let (w, (u, v)) = (dir.principal().index(), dir.transverse());
         let dist = dir.sign() as i128 * (p[w] - 256 * o[w] as i128);
         let off = |i: usize| (p[i] - 256 * o[i] as i128) * nn;
@@ -149,7 +147,7 @@ pub fn target<F: FracBits>(
     let (u, v) = (ua.index(), va.index());
     // The visible plane along this face's rays (its reference voxel is the same for both
     // bracketing voxels); a back face is lit by no ray.
-    let plane = RayPlane::from_origin(&vis.plane, [x as i64, y as i64, vis.z_v as i64], source, dir, far, origin);
+    let plane = RayPlane::new(&vis.plane, [x as i64, y as i64, vis.z_v as i64], source, dir, far);
     if !plane.faces_source() {
         return None;
     }
@@ -162,7 +160,7 @@ pub fn target<F: FracBits>(
     let mut best: Option<Target> = None;
     for zq in [vis.z_v as i64, vis.z_v as i64 + 1] {
         let q = [x as i64, y as i64, zq];
-        let k = dir.sign() as i64 * (q[w] - sv[w] as i64);
+        let k = source.layer_at(dir, q[w]);
         if k < 1 || k > far.get() as i64 {
             continue;
         }
@@ -195,7 +193,7 @@ pub fn target<F: FracBits>(
 mod tests {
     extern crate std;
     use super::*;
-    use crate::beam::{frac, FarOffset, Layer, RayRange, SourceCoord, SourceId};
+    use crate::beam::{frac, FarOffset, Layer, Origin, RayRange, SourceCoord, SourceId};
     use crate::normal::NormalCode;
     use crate::plane::DexelPlane;
 
@@ -223,22 +221,14 @@ mod tests {
     /// The oracle: every lattice ray of the face, its voxel at the layer and its side of the
     /// plane from the definitions (the ray's point as an exact fraction, the plane function of
     /// [`crate::plane`]), the exact squared distance; no search window.
-    fn brute<F: FracBits>(
-        x: i64,
-        y: i64,
-        vis: &VisibleSurface,
-        src: &Source,
-        far: FarDistance<F>,
-        origin: Origin,
-    ) -> Option<Target> {
+    fn brute<F: FracBits>(x: i64, y: i64, vis: &VisibleSurface, src: &Source, far: FarDistance<F>) -> Option<Target> {
         let g = POINT_UNITS as i128;
         let p =
             [g * x as i128, g * y as i128, (2 * g * vis.num as i128 + vis.den as i128).div_euclid(2 * vis.den as i128)];
         let nn = far.scaled() as i128;
-        let sv = src.voxel();
         let mut found = None;
         for dir in Direction::ALL {
-            let (o, lead) = origin.point(src, dir);
+            let o = src.ray_origin(dir);
             let (w, (ua, va)) = (dir.principal().index(), dir.transverse());
             let (u, v) = (ua.index(), va.index());
             let s = dir.sign() as i128;
@@ -250,22 +240,27 @@ mod tests {
             let mut best: Option<(i128, Target)> = None;
             for zq in [vis.z_v as i64, vis.z_v as i64 + 1] {
                 let q = [x, y, zq];
-                let k = s as i64 * (q[w] - sv[w] as i64);
-                if k < 1 || k > far.get() as i64 {
+                // The voxel's centre plane lies `tq` sixteenths from the origin along the
+                // axis: a layer whose T is tq, the layer before it 16 sixteenths (or the
+                // origin) back; the layers are numbered from the slab whose centre plane is
+                // the last one at or behind the origin (T ≡ −lead mod 16).
+                let tq = s as i64 * (16 * q[w] - o[w]);
+                let k = (tq + (-tq).rem_euclid(16)) / 16;
+                if tq <= 0 || k > far.get() as i64 {
                     continue;
                 }
                 for a in -nn..=nn {
                     for b in -nn..=nn {
-                        // 16·N·p at parameter t: N·O + T·(s·N, a, b) on (w, u, v).
-                        let at = |t: i64| {
-                            let tt = (16 * t - lead).max(0) as i128;
+                        // 16·N·p at distance tt: N·O + tt·(s·N, a, b) on (w, u, v).
+                        let at = |tt: i64| {
+                            let tt = tt.max(0) as i128;
                             let mut m = o.map(|c| nn * c as i128);
                             m[w] += tt * s * nn;
                             m[u] += tt * a;
                             m[v] += tt * b;
                             m
                         };
-                        let m = at(k);
+                        let m = at(tq);
                         let voxel = m.map(|c| (c + 8 * nn).div_euclid(16 * nn));
                         if voxel != [q[0] as i128, q[1] as i128, q[2] as i128] {
                             continue;
@@ -278,10 +273,10 @@ mod tests {
                                 + ((pl.e as i128) << 16) * 16 * nn
                                 > 0
                         };
-                        if !side(at(-1)) {
+                        if !side(at(0)) {
                             return None;
                         }
-                        if !(side(m) || side(at(k - 1))) {
+                        if !(side(m) || side(at(tq - 16))) {
                             continue;
                         }
                         let d2 = (a * dist - an).pow(2) + (b * dist - bn).pow(2);
@@ -304,6 +299,8 @@ mod tests {
             let d = r(&mut s, 6, 14);
             let far = FarDistance::<F>::new(d as u32).unwrap();
             let src = Source::new(SourceId(0), [0; 3].map(|_| SourceCoord::from_bits(r(&mut s, 0, 16 * d) as i32)));
+            let origin = if lcg(&mut s) % 2 == 0 { Origin::SourceVoxel } else { Origin::Light };
+            let src = src.with_origin(origin);
             let (x, y) = (r(&mut s, 0, d), r(&mut s, 0, d));
             let den = r(&mut s, 1, 999);
             let num = r(&mut s, 0, d * den);
@@ -317,10 +314,9 @@ mod tests {
                 e: (-(m as f64) * frac_z).round() as i32 + r(&mut s, -40, 40) as i32,
             };
             let vis = surface(num, den, plane);
-            let origin = if lcg(&mut s) % 2 == 0 { Origin::SourceVoxel } else { Origin::Light };
-            let want = brute(x, y, &vis, &src, far, origin);
-            let got = target(x as i32, y as i32, &vis, &src, far, origin);
-            assert_eq!(got, want, "column ({x}, {y}) z* = {num}/{den} {plane:?} {src:?} {origin:?} D = {d}");
+            let want = brute(x, y, &vis, &src, far);
+            let got = target(x as i32, y as i32, &vis, &src, far);
+            assert_eq!(got, want, "column ({x}, {y}) z* = {num}/{den} {plane:?} {src:?} D = {d}");
             if want.is_some() {
                 some += 1
             } else {
@@ -342,7 +338,7 @@ mod tests {
         let src = Source::at_voxel(SourceId(0), [6, 6, 0]).unwrap();
         // A floor at z* = 9.5, normal up (toward the viewer at −z), under the light.
         let vis = surface(19, 2, DexelPlane { id: 0, nx: 0, ny: 0, nz: -(16384 << 16), e: 8192 });
-        let t = target(8, 5, &vis, &src, far, Origin::SourceVoxel).unwrap();
+        let t = target(8, 5, &vis, &src, far).unwrap();
         assert_eq!((t.dir, t.layer, t.z), (Direction::PosZ, 9, 9), "a +z ray, into the voxel above the floor");
         let beam = |dir, layer, u: (i32, i32), v: (i32, i32)| {
             let range = |(lo, hi): (i32, i32)| RayRange::new(FarOffset::from_num(lo), FarOffset::from_num(hi)).unwrap();

@@ -13,8 +13,8 @@ use std::collections::HashSet;
 
 use cell_core::beam::frac::{U0, U1, U12, U16, U2, U20, U24, U3, U30, U4, U8};
 use cell_core::beam::{
-    split_planes, trace_ray_voxel, Beam, BeamError, Direction, FarDistance, FarOffset, FracBits, Layer, Offset, Ratio,
-    RayRange, Source, SourceCoord, SourceId, SplitOrder, SubBeam, Transverse, SOURCE_FRAC_BITS,
+    split_planes, trace_ray_voxel, Beam, BeamError, Direction, FarDistance, FarOffset, FracBits, Layer, Offset, Origin,
+    Ratio, RayRange, Source, SourceCoord, SourceId, SplitOrder, SubBeam, Transverse, SOURCE_FRAC_BITS,
 };
 use proptest::prelude::*;
 
@@ -29,24 +29,43 @@ fn src(raw: [i32; 3]) -> Source {
     Source::new(SID, raw.map(SourceCoord::from_bits))
 }
 
-/// Integer and fractional sources (raw units of 1/16 voxel).
+/// Integer and fractional sources (raw units of 1/16 voxel), with the thesis's rays and with
+/// rays from the light.
 fn sources() -> Vec<Source> {
-    vec![
+    let thesis = [
         src([0, 0, 0]),
         src([48, -32, 80]), // (3, −2, 5)
         src([8, 8, 8]),     // (½, ½, ½): every first plane is a tie
         src([4, -12, 24]),  // (¼, −¾, 1½)
         src([-17, 47, 8]),  // (−1.0625, 2.9375, ½)
         src([1, -1, -7]),   // (1/16, −1/16, −7/16)
-    ]
+    ];
+    let light = thesis.map(|s| s.with_origin(Origin::Light));
+    thesis.into_iter().chain(light).collect()
 }
 
-/// Brute-force rounding (thesis §4.3): the x whose centre is nearest to x_s + u·k/D, ties up,
-/// i.e. the unique x with −½ ≤ value − x < ½, found by search.
-fn spec_voxel(b: i64, a: i64, f: u32, d: i64, k: i64) -> i64 {
-    // value = b/16 + a·k/(2^f·D) = num/den
+/// 16 × the distance along `dir` from the rays' origin to the centre plane of layer k, from
+/// the definitions: the thesis's rays leave from the source voxel's centre plane (16·k); rays
+/// from the light meet, at layer k ≥ 1, the k-th voxel centre plane strictly ahead of the light
+/// (found by listing the planes near it), and are at the light at layer 0.
+fn spec_reach(s: &Source, dir: Direction, k: i64) -> i64 {
+    if s.origin == Origin::SourceVoxel || k == 0 {
+        return 16 * k;
+    }
+    let p = s.pos[dir.principal().index()].to_bits() as i64;
+    let sign = dir.sign() as i64;
+    let mut ahead: Vec<i64> = (-300..=300).map(|c: i64| sign * (16 * c - p)).filter(|&t| t > 0).collect();
+    ahead.sort();
+    ahead[k as usize - 1]
+}
+
+/// Brute-force rounding (thesis §4.3): the x whose centre is nearest to x_s + u·t/(16·D) (t:
+/// [`spec_reach`]; 16·k for the thesis's rays), ties up, i.e. the unique x with
+/// −½ ≤ value − x < ½, found by search.
+fn spec_voxel(b: i64, a: i64, f: u32, d: i64, t: i64) -> i64 {
+    // value = b/16 + a·t/(16·2^f·D) = num/den
     let den = 16 * (1i64 << f) * d;
-    let num = b * (1i64 << f) * d + a * k * 16;
+    let num = b * (1i64 << f) * d + a * t;
     let mut found = None;
     for x in -200..=200 {
         let diff2 = 2 * (num - x * den); // 2·den·(value − x)
@@ -69,13 +88,15 @@ fn trace_oracle_matches_brute_force_rounding() {
                 for dir in Direction::ALL {
                     let (ua, va) = dir.transverse();
                     for k in 0..=d {
+                        let t = spec_reach(&s, dir, k as i64);
+                        assert_eq!(s.reach(dir, Layer(k)), t, "{s:?} {dir:?} layer {k}");
                         for a in -n..=n {
                             let b = (a * 3) % (n + 1); // some v too
                             let got = trace_ray_voxel(&s, dir, off::<F>(a), off::<F>(b), far, Layer(k));
                             let bu = s.pos[ua.index()].to_bits() as i64;
                             let bv = s.pos[va.index()].to_bits() as i64;
-                            assert_eq!(got.0, spec_voxel(bu, a, f, d as i64, k as i64));
-                            assert_eq!(got.1, spec_voxel(bv, b, f, d as i64, k as i64));
+                            assert_eq!(got.0, spec_voxel(bu, a, f, d as i64, t));
+                            assert_eq!(got.1, spec_voxel(bv, b, f, d as i64, t));
                         }
                     }
                 }
@@ -163,8 +184,24 @@ fn exhaustive<F: FracBits>() {
                 for k in 0..=d {
                     let total: u64 = layer.iter().map(|(b, _)| b.ray_count()).sum();
                     assert_eq!(total, far.rays_per_face(), "layer {k} does not cover the face");
+                    // The layer's slab: the source voxel's at layer 0, else the one whose centre
+                    // plane lies `spec_reach` ahead of the rays' origin; layer 1 is the source
+                    // voxel's slab or the next one.
+                    let w = dir.principal().index();
+                    let o = match s.origin {
+                        Origin::SourceVoxel => 16 * s.voxel()[w] as i64,
+                        Origin::Light => s.pos[w].to_bits() as i64,
+                    };
+                    let slab = match k {
+                        0 => s.voxel()[w] as i64,
+                        _ => (o + dir.sign() as i64 * spec_reach(&s, dir, k as i64)).div_euclid(16),
+                    };
+                    assert_eq!(s.slab(dir, Layer(k)), slab, "{s:?} {dir:?} layer {k}");
+                    let first = dir.sign() as i64 * (s.slab(dir, Layer(1)) - s.voxel()[w] as i64);
+                    assert!(first == 0 || first == 1, "{s:?} {dir:?}: layer 1 {first} slabs ahead");
                     for (b, at) in &layer {
                         assert_eq!(b.layer(), Layer(k));
+                        assert_eq!(dir.voxel(&s, Layer(k), *at)[w], slab);
                         assert!(b.occupies(&s, far, *at));
                         assert_eq!(b.voxel(&s, far), Some(*at));
                     }
@@ -211,7 +248,10 @@ fn initial_beams_overlap_exactly_on_the_cube_edges() {
     fn run<F: FracBits>(d: u32) {
         let far = FarDistance::<F>::new(d).unwrap();
         let n = far.scaled();
-        for s in sources() {
+        // The thesis's rays: from the light, two faces sample an edge ray on different planes
+        // (each face's layers are its own axis's centre planes, ahead of the light by different
+        // leads), so their voxels differ.
+        for s in sources().into_iter().filter(|s| s.origin == Origin::SourceVoxel) {
             let mut dirs: HashSet<[i64; 3]> = HashSet::new();
             let mut emitted = 0u128;
             // 3D voxels of each distinct direction's ray, per layer: both faces must agree.

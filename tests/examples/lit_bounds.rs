@@ -247,6 +247,14 @@ impl Walk<'_> {
         16 * t as i128 - (sign * lead) as i128
     }
 
+    /// How many layers cell_core's numbering of this face's layers is ahead of the walk's:
+    /// from the light, a face whose light lies behind the source voxel's centre plane numbers
+    /// its layers from the slab behind ([`Source::slab`]); the walk's layer k is its k + 1.
+    fn shift(&self, dir: usize) -> i64 {
+        let (w, sign, _, _) = dir_axes(dir);
+        (self.exact_source && sign * (self.src[w] - 16 * self.sv[w]) < 0) as i64
+    }
+
     /// The voxel of ray (dir, a, b) at layer k: the oracle's [`ray_voxel`], or the same
     /// rounding (`⌊x + ½⌋`, exact) of the true ray from the light.
     fn voxel(&self, dir: usize, a: i64, b: i64, k: i64) -> [i64; 3] {
@@ -336,6 +344,7 @@ impl Walk<'_> {
     fn meets_cell(&self, dir: usize, a: i64, b: i64, k: i64, cap: usize) -> bool {
         self.step_columns(dir, a, b, k).iter().any(|c| {
             self.cells.by_column.get(c).is_some_and(|ts| {
+                let k = k + self.shift(dir);
                 ts.iter().take(cap).any(|&t| self.occluders[t][dir].is_some_and(|o| o.meets(a, b, k)))
             })
         })
@@ -587,17 +596,17 @@ impl Walk<'_> {
     /// The cell's receiver: whether column c's target ray reaches its voxel.
     fn target_lit(&self, c: [i64; 2], f: u32, var: Variant) -> bool {
         let Some(vis) = (self.visible)(c[0], c[1]) else { return false };
-        let source = Source::new(SourceId(0), self.src.map(|x| SourceCoord::from_bits(x as i32)));
         let origin = if self.exact_source { Origin::Light } else { Origin::SourceVoxel };
+        let source = Source::new(SourceId(0), self.src.map(|x| SourceCoord::from_bits(x as i32))).with_origin(origin);
         let (x, y, n) = (c[0] as i32, c[1] as i32, self.n as u32);
         let t = match f {
-            0 => target(x, y, &vis, &source, FarDistance::<frac::U0>::new(n - 1).expect("far"), origin),
-            _ => target(x, y, &vis, &source, FarDistance::<frac::U1>::new(n - 1).expect("far"), origin),
+            0 => target(x, y, &vis, &source, FarDistance::<frac::U0>::new(n - 1).expect("far")),
+            _ => target(x, y, &vis, &source, FarDistance::<frac::U1>::new(n - 1).expect("far")),
         };
         let Some(t) = t else { return false };
         let dir = (0..6).find(|&d| oracle_direction(d) == t.dir).expect("six directions");
         let stop = self.ray(dir, t.a, t.b, var, &mut Vec::new());
-        stop.is_none_or(|k| k >= t.layer as i64)
+        stop.is_none_or(|k| k >= t.layer as i64 - self.shift(dir))
     }
 
     /// Of the lattice rays (f = `self.f`) whose path crosses voxel (c, z_v) or (c, z_v + 1) on
@@ -776,18 +785,18 @@ impl CellStores {
     /// Each triangle's occluder for the rays of one light (source position in sixteenths) in
     /// each direction, at f fraction bits.
     fn occluders(&self, src: [i64; 3], n: u32, f: u32, exact_source: bool) -> Vec<[Option<Occluder>; 6]> {
-        let source = Source::new(SourceId(0), src.map(|c| SourceCoord::from_bits(c as i32)));
         let origin = if exact_source { Origin::Light } else { Origin::SourceVoxel };
-        fn build<F: FracBits>(t: &Triangle, s: &Source, n: u32, o: Origin) -> [Option<Occluder>; 6] {
+        let source = Source::new(SourceId(0), src.map(|c| SourceCoord::from_bits(c as i32))).with_origin(origin);
+        fn build<F: FracBits>(t: &Triangle, s: &Source, n: u32) -> [Option<Occluder>; 6] {
             let far = FarDistance::<F>::new(n - 1).expect("far distance");
-            [0, 1, 2, 3, 4, 5].map(|dir| Occluder::new(t, s, oracle_direction(dir), far, o))
+            [0, 1, 2, 3, 4, 5].map(|dir| Occluder::new(t, s, oracle_direction(dir), far))
         }
         self.tris
             .par_iter()
             .map(|t| match f {
-                0 => build::<frac::U0>(t, &source, n, origin),
-                1 => build::<frac::U1>(t, &source, n, origin),
-                _ => build::<frac::U8>(t, &source, n, origin),
+                0 => build::<frac::U0>(t, &source, n),
+                1 => build::<frac::U1>(t, &source, n),
+                _ => build::<frac::U8>(t, &source, n),
             })
             .collect()
     }

@@ -5,7 +5,7 @@
 //! thesis-timing variant and every knob). Also: coverage of the empty scene, conservation,
 //! termination on adversarial sources, and the cycle counts we claim.
 
-use cell_core::beam::{FracBits, Source, SourceCoord, SourceId};
+use cell_core::beam::{FracBits, Origin, Source, SourceCoord, SourceId};
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use host_sim::machine::diffuse::{diffuse, LightConfig, Lighting};
@@ -14,7 +14,7 @@ use host_sim::machine::timing::{Emission, Timing};
 use host_sim::precompute::{LoadConfig, Q};
 use proptest::prelude::*;
 use rc2_tests::oracle::lit::trace_all_plane;
-use rc2_tests::oracle::rays::trace_all;
+use rc2_tests::oracle::rays::{trace_all, trace_all_from_light};
 use std::collections::BTreeMap;
 
 type G = Grid<64>;
@@ -37,7 +37,8 @@ fn sources(src16: &[[i64; 3]]) -> Vec<Source> {
 }
 
 fn light<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) -> Lighting<F> {
-    diffuse::<F, 64>(g, &sources(src16), &cfg, |_, _| {}).expect("diffusion terminates without loss")
+    let sources: Vec<Source> = sources(src16).into_iter().map(|s| s.with_origin(cfg.rays)).collect();
+    diffuse::<F, 64>(g, &sources, &cfg, |_, _| {}).expect("diffusion terminates without loss")
 }
 
 /// Beam diffusion == per-ray tracing under the configured lit rule: lit voxels, masks, the
@@ -45,12 +46,12 @@ fn light<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) -> Lighting<F
 fn check_against_rays<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) -> Result<(), TestCaseError> {
     let n = g.n as i64;
     let l = light::<F>(g, src16, cfg);
-    let want = match cfg.rule {
-        LitRule::Thesis => {
-            let occupied = |x: i64, y: i64, z: i64| g.cell(x as u32, y as u32).store.occupied(z as u16).is_some();
-            trace_all(n, &occupied, src16, n - 1, F::U32)
-        }
-        LitRule::Plane => {
+    let occupied = |x: i64, y: i64, z: i64| g.cell(x as u32, y as u32).store.occupied(z as u16).is_some();
+    let want = match (cfg.rule, cfg.rays) {
+        (LitRule::Thesis, Origin::SourceVoxel) => trace_all(n, &occupied, src16, n - 1, F::U32),
+        (LitRule::Thesis, Origin::Light) => trace_all_from_light(n, &occupied, src16, n - 1, F::U32),
+        (LitRule::Plane, Origin::Light) => panic!("the plane rule's oracle restates the thesis's rays only"),
+        (LitRule::Plane, Origin::SourceVoxel) => {
             let o = trace_all_plane(n, &common::surfaces_of(g), &common::columns_of(g), src16, n - 1, F::U32);
             let got: BTreeMap<[i64; 2], u64> = l
                 .cells
@@ -129,6 +130,35 @@ proptest! {
         let tris: Vec<[[i64; 3]; 3]> = raw_tris.iter().map(|t| t.map(|p| p.map(|c| c * m / 1000))).collect();
         let src16: Vec<[i64; 3]> = raw_src.iter().map(|p| p.map(|c| c * 16 * (n as i64 - 1) / 1000)).collect();
         let g = grid_with(n, &tris);
+        cell_core::with_frac_bits!(f, F => check_against_rays::<F>(&g, &src16, cfg)).unwrap()?;
+    }
+
+    /// Rays from the light (`Origin::Light`: each face's layers on the voxel centre planes
+    /// ahead of the light, the first split possibly inside the source voxel's slab) under the
+    /// thesis's rule, against the per-ray oracle that walks each ray from that definition;
+    /// sources anywhere on the 1/16 lattice, on voxel boundaries included.
+    #[test]
+    fn rays_from_the_light_match_per_ray_tracing(
+        n in 5u32..=11,
+        raw_tris in prop::collection::vec(prop::array::uniform3(prop::array::uniform3(0i64..=1000)), 0..4),
+        raw_src in prop::collection::vec([0i64..=1000, 0..=1000, 0..=1000], 1..3),
+        boundary in any::<bool>(),
+        f in prop::sample::select(vec![0u32, 1, 2]),
+        cfg in config(),
+    ) {
+        let m = Q * n as i64;
+        let tris: Vec<[[i64; 3]; 3]> = raw_tris.iter().map(|t| t.map(|p| p.map(|c| c * m / 1000))).collect();
+        let src16: Vec<[i64; 3]> = raw_src
+            .iter()
+            .map(|p| p.map(|c| {
+                let c = c * 16 * (n as i64 - 1) / 1000;
+                if boundary { c - c.rem_euclid(16) + 8 } else { c }
+            }))
+            .collect();
+        let g = grid_with(n, &tris);
+        // The source cell's first split may keep three beams: a FIFO of at least three.
+        let fa = cfg.fa.max(cell_core::light::MIN_FA_FROM_LIGHT);
+        let cfg = LightConfig { rule: LitRule::Thesis, rays: Origin::Light, fa, ..cfg };
         cell_core::with_frac_bits!(f, F => check_against_rays::<F>(&g, &src16, cfg)).unwrap()?;
     }
 }

@@ -383,9 +383,34 @@ pub struct LightOpts {
     /// `--sigma naive --contour projected --frac-bits 0 --policy wavefront`).
     #[arg(long, value_enum, default_value_t = LitRuleArg::Plane)]
     pub lit_rule: LitRuleArg,
+    /// Where each face's rays leave from along its axis: `voxel` (default), the source voxel's
+    /// centre plane, so that layer k is k whole voxels from it (thesis §4.3); `light`, the
+    /// light itself, so that the rays are true rays from the source wherever it sits in its
+    /// voxel (a light on a voxel boundary is half a voxel off along the axis otherwise). Same
+    /// split, same cost.
+    #[arg(long, value_enum, default_value_t = RaysFromArg::Voxel)]
+    pub rays_from: RaysFromArg,
     /// Classic shadow rays instead of diffusion.
     #[command(flatten)]
     pub classic: crate::cli::phase_args::ClassicOpts,
+}
+
+/// Where rays leave from ([`cell_core::beam::Origin`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum RaysFromArg {
+    /// The source voxel's centre plane (thesis §4.3).
+    Voxel,
+    /// The light itself.
+    Light,
+}
+
+impl From<RaysFromArg> for cell_core::beam::Origin {
+    fn from(a: RaysFromArg) -> Self {
+        match a {
+            RaysFromArg::Voxel => cell_core::beam::Origin::SourceVoxel,
+            RaysFromArg::Light => cell_core::beam::Origin::Light,
+        }
+    }
 }
 
 /// The lit rule ([`cell_core::lit`]).

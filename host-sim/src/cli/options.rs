@@ -41,6 +41,7 @@ impl From<&LightOpts> for LightingOptions {
                 skip_hidden: false,
                 frustum_blocks: FrustumBlocks::default(),
                 rule: a.lit_rule.into(),
+                rays: a.rays_from.into(),
                 timing: Timing::RC2,
                 stop_at: None,
             },
@@ -55,6 +56,12 @@ impl From<&LightOpts> for LightingOptions {
 impl RenderArgs {
     /// Refuse radiosity options without `--radiosity`: they would change nothing.
     pub fn check(&self) -> anyhow::Result<()> {
+        let classic = self.light.classic.lighting == LightingArg::Classic;
+        if classic && self.light.rays_from == crate::cli::RaysFromArg::Light {
+            anyhow::bail!(
+                "--rays-from light is a diffusion option: classic shadow rays are traced to the light itself"
+            );
+        }
         let stray = self.radiosity_opts.first_given().or(self.radiosity_display.map(|_| "--radiosity-display"));
         match stray {
             Some(flag) if !self.radiosity => anyhow::bail!("{flag} is a radiosity option: add --radiosity"),

@@ -139,6 +139,11 @@ fn reflections<F: FracBits>(
 /// The job's lights (grid-normalised positions) and the cell sources at them.
 fn lights_of(job: &TraceJob<'_>, scene: &LoadedScene) -> Result<(Vec<[f64; 3]>, Vec<Source>)> {
     let lights = crate::machine::loaded::resolve_lights(job.mesh, scene, &job.lights)?;
+    if job.light.rays != cell_core::beam::Origin::SourceVoxel {
+        // A trace's header names the lights by position only: its replay (host and firmware)
+        // rebuilds the thesis's rays.
+        bail!("traces record the thesis's rays only: drop --rays-from light");
+    }
     let sources = lights.iter().enumerate().map(|(i, p)| source_at(i, *p, job.load.n)).collect::<Result<_>>()?;
     Ok((lights, sources))
 }

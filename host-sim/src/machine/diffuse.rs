@@ -19,7 +19,7 @@
 //! which beams exist but nothing moves is a deadlock: reported as an error, never a hang.
 
 use anyhow::{bail, Result};
-use cell_core::beam::{Beam, Direction, FarDistance, FracBits, Source, SourceId, SplitOrder};
+use cell_core::beam::{Beam, Direction, FarDistance, FracBits, Origin, Source, SourceId, SplitOrder};
 use cell_core::light::RaySink;
 use cell_core::light::{
     Activity, ActivityDelta, BeamMsg, FrustumSummary, LightCell, LightCounters, LightEnv, OccupiedBox, Policy, Port,
@@ -88,6 +88,10 @@ pub struct LightConfig {
     pub frustum_blocks: FrustumBlocks,
     /// The lit rule ([`cell_core::lit`]): the plane rule (default) or the thesis's.
     pub rule: LitRule,
+    /// Where the sources' rays leave from along each face's axis ([`Origin`]): the source
+    /// voxel's centre plane (the thesis's rays, default) or the light itself. Applied to the
+    /// sources the jobs make from light positions ([`LightConfig::source`]).
+    pub rays: Origin,
     /// The timing rules the thesis leaves open ([`Timing`]; default: rc2's). Exact: changes
     /// cycles, messages and FIFO occupancy, never lit voxels.
     pub timing: Timing,
@@ -187,9 +191,18 @@ impl Default for LightConfig {
             skip_hidden: false,
             frustum_blocks: FrustumBlocks::default(),
             rule: LitRule::Plane,
+            rays: Origin::SourceVoxel,
             timing: Timing::RC2,
             stop_at: None,
         }
+    }
+}
+
+impl LightConfig {
+    /// Light `id` at `pos` (voxel units) on an `n` grid ([`source_at`]), its rays leaving from
+    /// [`LightConfig::rays`].
+    pub fn source(&self, id: usize, pos: [f64; 3], n: u32) -> Result<Source> {
+        Ok(source_at(id, pos, n)?.with_origin(self.rays))
     }
 }
 
@@ -428,6 +441,10 @@ pub(crate) fn check_light_run<F: FracBits>(n: u32, sources: &[Source], cfg: &Lig
     }
     if cfg.fa == 0 || cfg.fa > FA_CAP {
         bail!("--fa {} is out of range: 1 ..= {FA_CAP} (the FIFO capacity compiled into a cell)", cfg.fa);
+    }
+    let min_fa = cell_core::light::MIN_FA_FROM_LIGHT;
+    if cfg.fa < min_fa && sources.iter().any(|s| s.origin == cell_core::beam::Origin::Light) {
+        bail!("--fa {} is too small for rays from the light: the source cell's first split may keep three beams (at least {min_fa})", cfg.fa);
     }
     let far = FarDistance::<F>::new(n - 1).ok_or_else(|| {
         anyhow::anyhow!(

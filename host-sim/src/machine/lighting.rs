@@ -7,7 +7,7 @@ use cell_core::beam::FracBits;
 use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::light::{BeamMsg, Policy};
 
-use crate::machine::diffuse::{diffuse, source_at, DiffusionCounts, LightConfig, Lighting, SourceReport};
+use crate::machine::diffuse::{diffuse, DiffusionCounts, LightConfig, Lighting, SourceReport};
 use crate::machine::loaded::LoadedScene;
 
 use crate::machine::capacity::HostLightCell;
@@ -84,7 +84,7 @@ pub fn run_diffusion<F: FracBits>(
     progress: impl FnMut(usize, u64),
 ) -> Result<(Lighting<F>, LightStats)> {
     let n = scene.grid.n;
-    let sources = lights.iter().enumerate().map(|(i, p)| source_at(i, *p, n)).collect::<Result<Vec<_>>>()?;
+    let sources = lights.iter().enumerate().map(|(i, p)| cfg.source(i, *p, n)).collect::<Result<Vec<_>>>()?;
     let t0 = Instant::now();
     let lighting = diffuse::<F, DEFAULT_DEXELS>(&scene.grid, &sources, cfg, progress)?;
     check_lit_overflow(&lighting)?;

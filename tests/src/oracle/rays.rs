@@ -307,6 +307,20 @@ pub fn trace_all_naive(
     d: i64,
     f: u32,
 ) -> RayOutcome {
+    trace_each(sources, d, f, |src, dir, a, b| match trace_ray(n, occupied, src, dir, a, b, d, f) {
+        Fate::Absorbed { voxel, .. } => Some(voxel),
+        Fate::Exited { .. } => None,
+    })
+}
+
+/// Every ray `(dir, a, b)` of every source walked by `absorbed_at` (the voxel that absorbs it,
+/// if one does), tallied.
+fn trace_each(
+    sources: &[[i64; 3]],
+    d: i64,
+    f: u32,
+    absorbed_at: impl Fn([i64; 3], usize, i64, i64) -> Option<[i64; 3]>,
+) -> RayOutcome {
     check_params(d, f);
     assert!(sources.len() <= 64, "at most 64 sources (mask bits), got {}", sources.len());
     let m = d << f;
@@ -316,18 +330,65 @@ pub fn trace_all_naive(
             for a in -m..=m {
                 for b in -m..=m {
                     out.rays_emitted += 1;
-                    match trace_ray(n, occupied, src, dir, a, b, d, f) {
-                        Fate::Absorbed { voxel, .. } => {
+                    match absorbed_at(src, dir, a, b) {
+                        Some(voxel) => {
                             out.rays_absorbed += 1;
                             *out.lit.entry(voxel).or_insert(0) |= 1 << i;
                         }
-                        Fate::Exited { .. } => out.rays_exited += 1,
+                        None => out.rays_exited += 1,
                     }
                 }
             }
         }
     }
     out
+}
+
+/// The voxel of ray `(dir, a, b)` of `src` at layer `k` for **rays from the light itself**
+/// (`cell_core::beam::Origin::Light`), from the definition: at layer 0 every ray is at the
+/// light, in the source voxel; at layer k ≥ 1 it meets the k-th voxel centre plane strictly
+/// ahead of the light along `dir` (principal coordinate c with `s·(16·c − src_w) > 0`), at
+/// distance `T = s·(16·c − src_w)` sixteenths from the light along the axis, and its transverse
+/// coordinates round `src_u/16 + (a/2^f)·T/(16·D)` half up.
+#[allow(clippy::too_many_arguments)] // the ray's full coordinates, as the definition states them
+pub fn ray_voxel_from_light(src: [i64; 3], dir: usize, a: i64, b: i64, d: i64, f: u32, k: i64) -> [i64; 3] {
+    check_params(d, f);
+    let (w, s, ua, va) = dir_axes(dir);
+    if k == 0 {
+        return source_voxel(src);
+    }
+    // The first centre plane strictly ahead of the light, then k − 1 more.
+    let mut c = src[w].div_euclid(16) - s;
+    while s * (16 * c - src[w]) <= 0 {
+        c += s;
+    }
+    c += s * (k - 1);
+    let t = (s * (16 * c - src[w])) as i128;
+    let scale = (d as i128) << f;
+    let across = |src_c: i64, a: i64| ((src_c as i128 + 8) * scale + t * a as i128).div_euclid(16 * scale) as i64;
+    let mut out = [0i64; 3];
+    out[w] = c;
+    out[ua] = across(src[ua], a);
+    out[va] = across(src[va], b);
+    out
+}
+
+/// [`trace_all_naive`] for rays from the light ([`ray_voxel_from_light`]): every ray walked on
+/// its own, absorbed by the first occupied voxel (the thesis's rule), exited past layer `D` or
+/// out of the grid. Use only for small `D·2^f`.
+pub fn trace_all_from_light(
+    n: i64,
+    occupied: &dyn Fn(i64, i64, i64) -> bool,
+    sources: &[[i64; 3]],
+    d: i64,
+    f: u32,
+) -> RayOutcome {
+    trace_each(sources, d, f, |src, dir, a, b| {
+        (0..=d)
+            .map(|k| ray_voxel_from_light(src, dir, a, b, d, f, k))
+            .take_while(|&p| in_grid(n, p))
+            .find(|p| occupied(p[0], p[1], p[2]))
+    })
 }
 
 /// Voxels of an empty `n³` grid that no ray of `src` occupies at any layer (coverage oracle,
@@ -678,5 +739,37 @@ mod tests {
         assert_eq!(o.rays_emitted, 6 * 481 * 481);
         eprintln!("trace_all n=16 D=15 f=4: {:?} ({} lit)", el, o.lit.len());
         assert!(el.as_secs_f64() < 2.0, "too slow: {el:?}");
+    }
+
+    /// Rays from a light at a voxel centre are the thesis's rays; from anywhere, a ray moves
+    /// at most one voxel per layer on every axis (the split's premise), and layer 1 is the
+    /// source voxel's slab or the next.
+    #[test]
+    fn rays_from_the_light() {
+        let (d, f) = (7, 1);
+        let m = d << f;
+        for src in [[48, 32, 80], [56, 40, 88], [52, 27, 71], [40, 41, 73]] {
+            let centred = src.iter().all(|c| c % 16 == 0);
+            for dir in 0..6 {
+                for a in -m..=m {
+                    for b in (-m..=m).step_by(3) {
+                        let path: Vec<[i64; 3]> =
+                            (0..=d).map(|k| ray_voxel_from_light(src, dir, a, b, d, f, k)).collect();
+                        if centred {
+                            let thesis: Vec<[i64; 3]> =
+                                (0..=d).map(|k| ray_voxel(0, src, dir, a, b, d, f, k)).collect();
+                            assert_eq!(path, thesis, "{src:?} {dir} ({a}, {b})");
+                        }
+                        for k in 0..d as usize {
+                            let step: Vec<i64> = (0..3).map(|i| (path[k + 1][i] - path[k][i]).abs()).collect();
+                            assert!(step.iter().all(|&c| c <= 1), "{src:?} {dir} ({a}, {b}) layer {k}: {path:?}");
+                        }
+                        let (w, s, _, _) = dir_axes(dir);
+                        let first = s * (path[1][w] - source_voxel(src)[w]);
+                        assert!(first == 0 || first == 1, "{src:?} {dir}: layer 1 at {first}");
+                    }
+                }
+            }
+        }
     }
 }
