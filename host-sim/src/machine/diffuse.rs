@@ -414,8 +414,14 @@ pub fn diffuse_shot<F: FracBits, const D: usize>(
     rays: &dyn RaySink<F>,
     progress: impl FnMut(usize, u64),
 ) -> Result<Lighting<F>> {
-    if cfg.rule != LitRule::Thesis || cfg.faults.is_some() || cfg.skip_dead_directions {
-        bail!("a radiosity shot runs under the thesis's lit rule, on perfect links, without the dead-direction skip");
+    if cfg.rule != LitRule::Thesis
+        || cfg.rays != Origin::SourceVoxel
+        || cfg.faults.is_some()
+        || cfg.skip_dead_directions
+    {
+        bail!(
+            "a radiosity shot runs under the thesis's lit rule and rays, on perfect links, without the dead-direction skip"
+        );
     }
     let sources = std::slice::from_ref(source);
     let far = check_light_run::<F>(grid.n, sources, cfg)?;

@@ -57,11 +57,13 @@ pub struct RadiosityConfig {
 }
 
 impl RadiosityConfig {
-    /// The lighting defaults made fit for shooting: the thesis's lit rule, the dead-direction
-    /// skip off (a shot emits its own beams), the full lit store.
+    /// The lighting defaults made fit for shooting: the thesis's lit rule and rays (a shot's
+    /// rays leave from its patch's voxel), the dead-direction skip off (a shot emits its own
+    /// beams), the full lit store.
     pub fn new(light: LightConfig, stop_fraction: f64, max_shots: usize) -> Self {
         let light = LightConfig {
             rule: LitRule::Thesis,
+            rays: cell_core::beam::Origin::SourceVoxel,
             skip_dead_directions: false,
             lit_visible_only: false,
             skip_hidden: false,
