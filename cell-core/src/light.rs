@@ -24,12 +24,15 @@
 //! never wait. Hence every beam is eventually processed.
 //!
 //! One split may keep more than one sub-beam: with rays from the light
-//! ([`crate::beam::Origin::Light`]) a ±x or ±y face whose layer 1 is the source voxel's slab
-//! sends the source cell's layer-0 beam to up to three voxels of its own column (one per z).
-//! Nothing enters the source column from outside (beams only move away from it), so its FIFO
-//! holds only the emitter's initial beams and its own ±z beams staying in the column, which
-//! leave within D layers; with a FIFO of at least [`MIN_FA_FROM_LIGHT`] slots that split
-//! eventually fits (the emitter adds a beam only where there is room).
+//! (`beam::Origin::Light`) a ±x or ±y face whose layer 1 is the source voxel's slab sends the
+//! source cell's layer-0 beam to up to three voxels of its own column (one per z), and under
+//! the plane rule the beam may be peeled, its entry staying. Nothing enters the source column
+//! from outside (beams only move away from it), and the emitter hands the source cell an
+//! initial beam only when no earlier one waits there ([`LightCell::can_accept_initial`]): its
+//! FIFO holds one layer-0 beam at most, its own ±z beams staying in the column (one entry per
+//! chain, gone within D layers) and layer-1 beams that leave the column. So with a FIFO of at
+//! least [`MIN_FA_FROM_LIGHT`] slots (the entry, kept while peeled, and three) the layer-0
+//! beam eventually goes.
 //!
 //! **Quiescence** (§4.4.4): [`Activity`] counts beams in flight (in FIFOs, output buffers and
 //! not yet emitted by a source); it is shared state, guarded by `critical-section` (on an MCU
@@ -65,7 +68,7 @@ const ANY_LENGTHS: u64 = u64::MAX;
 
 /// The smallest FIFO (the `fa` a host runs with) for sources whose rays leave from the light
 /// (see the module doc's no-deadlock argument).
-pub const MIN_FA_FROM_LIGHT: usize = 3;
+pub const MIN_FA_FROM_LIGHT: usize = 4;
 
 /// One bit per light source (sources are diffused one after another; at most 32).
 pub type SourceMask = u32;
@@ -1006,6 +1009,16 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     /// Whether the FIFO can take one more beam under limit `fa` (the credit a link checks).
     pub fn can_accept(&self, fa: usize) -> bool {
         self.fifo.len() < fa.min(FA)
+    }
+
+    /// Whether the source emitter may hand this cell (the source's) its next initial beam of
+    /// `source` under limit `fa`: room, and for rays from the light no earlier initial beam
+    /// still waiting (its split may keep three beams in the column: the module doc's
+    /// no-deadlock argument).
+    pub fn can_accept_initial(&self, fa: usize, source: &Source) -> bool {
+        self.can_accept(fa)
+            && (source.origin == crate::beam::Origin::SourceVoxel
+                || !self.fifo.iter().any(|m| m.beam.layer().0 == 0 && m.beam.source() == source.id))
     }
 
     /// Deliver a beam into the FIFO (a link, or the source emitter). The caller checked

@@ -13,7 +13,7 @@ use host_sim::machine::grid::Grid;
 use host_sim::machine::timing::{Emission, Timing};
 use host_sim::precompute::{LoadConfig, Q};
 use proptest::prelude::*;
-use rc2_tests::oracle::lit::trace_all_plane;
+use rc2_tests::oracle::lit::{trace_all_plane, trace_all_plane_from_light};
 use rc2_tests::oracle::rays::{trace_all, trace_all_from_light};
 use std::collections::BTreeMap;
 
@@ -50,9 +50,12 @@ fn check_against_rays<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) 
     let want = match (cfg.rule, cfg.rays) {
         (LitRule::Thesis, Origin::SourceVoxel) => trace_all(n, &occupied, src16, n - 1, F::U32),
         (LitRule::Thesis, Origin::Light) => trace_all_from_light(n, &occupied, src16, n - 1, F::U32),
-        (LitRule::Plane, Origin::Light) => panic!("the plane rule's oracle restates the thesis's rays only"),
-        (LitRule::Plane, Origin::SourceVoxel) => {
-            let o = trace_all_plane(n, &common::surfaces_of(g), &common::columns_of(g), src16, n - 1, F::U32);
+        (LitRule::Plane, origin) => {
+            let (surfaces, columns) = (common::surfaces_of(g), common::columns_of(g));
+            let o = match origin {
+                Origin::SourceVoxel => trace_all_plane(n, &surfaces, &columns, src16, n - 1, F::U32),
+                Origin::Light => trace_all_plane_from_light(n, &surfaces, &columns, src16, n - 1, F::U32),
+            };
             let got: BTreeMap<[i64; 2], u64> = l
                 .cells
                 .iter()
@@ -134,9 +137,9 @@ proptest! {
     }
 
     /// Rays from the light (`Origin::Light`: each face's layers on the voxel centre planes
-    /// ahead of the light, the first split possibly inside the source voxel's slab) under the
-    /// thesis's rule, against the per-ray oracle that walks each ray from that definition;
-    /// sources anywhere on the 1/16 lattice, on voxel boundaries included.
+    /// ahead of the light, the first split possibly inside the source voxel's slab) under both
+    /// lit rules, against the per-ray oracles that walk each ray from that definition; sources
+    /// anywhere on the 1/16 lattice, on voxel boundaries included.
     #[test]
     fn rays_from_the_light_match_per_ray_tracing(
         n in 5u32..=11,
@@ -151,14 +154,20 @@ proptest! {
         let src16: Vec<[i64; 3]> = raw_src
             .iter()
             .map(|p| p.map(|c| {
+                // Inside the grid: a boundary source rounds up, so not on the last one.
                 let c = c * 16 * (n as i64 - 1) / 1000;
-                if boundary { c - c.rem_euclid(16) + 8 } else { c }
+                let b = c - c.rem_euclid(16) + 8;
+                match (boundary, b > 16 * (n as i64 - 1)) {
+                    (false, _) => c,
+                    (true, false) => b,
+                    (true, true) => b - 16,
+                }
             }))
             .collect();
         let g = grid_with(n, &tris);
-        // The source cell's first split may keep three beams: a FIFO of at least three.
+        // The source cell's first split may keep four slots (`MIN_FA_FROM_LIGHT`).
         let fa = cfg.fa.max(cell_core::light::MIN_FA_FROM_LIGHT);
-        let cfg = LightConfig { rule: LitRule::Thesis, rays: Origin::Light, fa, ..cfg };
+        let cfg = LightConfig { rays: Origin::Light, fa, ..cfg };
         cell_core::with_frac_bits!(f, F => check_against_rays::<F>(&g, &src16, cfg)).unwrap()?;
     }
 }

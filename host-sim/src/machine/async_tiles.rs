@@ -661,9 +661,12 @@ impl<F: FracBits> Executor<F> {
         }
         // The source cell's next initial beam.
         if let Some(m) = self.boards[b].emit.front().copied() {
-            let sv = sources[m.beam.source().0 as usize].voxel();
+            let source = &sources[m.beam.source().0 as usize];
+            let sv = source.voxel();
             let s = (sv[1] as u32 * n + sv[0] as u32) as usize;
-            if self.cells[s].can_accept(fa) && self.cells[s].accept(m, light.merge, &self.activity).is_ok() {
+            if self.cells[s].can_accept_initial(fa, source)
+                && self.cells[s].accept(m, light.merge, &self.activity).is_ok()
+            {
                 self.boards[b].emit.pop_front();
             }
         }

@@ -450,7 +450,7 @@ pub(crate) fn check_light_run<F: FracBits>(n: u32, sources: &[Source], cfg: &Lig
     }
     let min_fa = cell_core::light::MIN_FA_FROM_LIGHT;
     if cfg.fa < min_fa && sources.iter().any(|s| s.origin == cell_core::beam::Origin::Light) {
-        bail!("--fa {} is too small for rays from the light: the source cell's first split may keep three beams (at least {min_fa})", cfg.fa);
+        bail!("--fa {} is too small for rays from the light: the source cell's first split may keep four FIFO slots (at least {min_fa})", cfg.fa);
     }
     let far = FarDistance::<F>::new(n - 1).ok_or_else(|| {
         anyhow::anyhow!(
@@ -1116,7 +1116,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
     fn emit_one(&mut self) -> bool {
         let Some(b) = self.next_initial else { return false };
         let s_idx = self.s_idx;
-        if !self.cells[s_idx].can_accept(self.env.fa) {
+        if !self.cells[s_idx].can_accept_initial(self.env.fa, self.env.source) {
             return false;
         }
         let msg = BeamMsg::new(b, self.sv[2] as u16);

@@ -50,10 +50,17 @@
 //!    the column takes V's dexel as its state.
 //!
 //! The thesis's rule (§5.5.5) is [`super::rays::trace_all`].
+//!
+//! **Rays from the light** ([`RaysFrom::Light`], [`trace_all_plane_from_light`]): the same rule
+//! on the rays of [`super::rays::ray_voxel_from_light`], whose point at layer t lies on the t-th
+//! voxel centre plane strictly ahead of the light (at the light for t = 0) instead of t voxels
+//! from `Se`.
 
 use std::collections::BTreeMap;
 
-use super::rays::{dir_axes, ray_voxel, rays_per_source, source_voxel, transverse, Fate, RayOutcome};
+use super::rays::{
+    dir_axes, light_layer, ray_voxel, ray_voxel_from_light, rays_per_source, source_voxel, transverse, Fate, RayOutcome,
+};
 
 /// The plane a surface voxel's dexel stores, or a column's visible surface (see the module doc).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -115,20 +122,60 @@ pub fn plane_value(
     f: u32,
     t: i64,
 ) -> i128 {
+    plane_value_on(s, x, y, RaysFrom::Voxel, src, dir, a, b, d, f, t)
+}
+
+/// Where the rays leave from along their axis: the source voxel's centre plane (the thesis's
+/// rays, the module doc's `Se`) or the light itself ([`super::rays::ray_voxel_from_light`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RaysFrom {
+    /// The source voxel's centre plane: the point of layer t is `t` voxels from it.
+    Voxel,
+    /// The light: the point of layer t ≥ 1 lies on the t-th voxel centre plane strictly ahead
+    /// of the light ([`light_layer`]), the point of layer 0 at the light.
+    Light,
+}
+
+/// [`plane_value`] for rays leaving from `from`: `2¹⁶·L·g` at the ray's point at layer t, the
+/// origin O (sixteenths) plus `T/16` times `(s, a/N, b/N)` with T its distance along the axis.
+#[allow(clippy::too_many_arguments)] // the ray's full coordinates, as the definition states them
+pub fn plane_value_on(
+    s: &Surface,
+    x: i64,
+    y: i64,
+    from: RaysFrom,
+    src: [i64; 3],
+    dir: usize,
+    a: i64,
+    b: i64,
+    d: i64,
+    f: u32,
+    t: i64,
+) -> i128 {
     let (w, sign, ua, va) = dir_axes(dir);
     let l = 16 * ((d as i128) << f);
     let df = (d as i128) << f;
     let reference = [x as i128, y as i128, s.lo as i128];
-    // L·(p_i(t) − reference_i), exactly.
+    let (mut o, tt) = (src.map(|c| c as i128), 16 * t as i128);
+    let tt = match from {
+        RaysFrom::Voxel => {
+            o[w] = 16 * source_voxel(src)[w] as i128;
+            tt
+        }
+        RaysFrom::Light if t == 0 => 0,
+        RaysFrom::Light => light_layer(src, dir, t).1 as i128,
+    };
+    // L·(p_i(t) − reference_i), exactly: N·O_i + T·(s·N, a, b)_i − L·reference_i.
     let mut lp = [0i128; 3];
-    lp[w] = l * (source_voxel(src)[w] as i128 + sign as i128 * t as i128 - reference[w]);
-    lp[ua] = df * src[ua] as i128 + 16 * a as i128 * t as i128 - l * reference[ua];
-    lp[va] = df * src[va] as i128 + 16 * b as i128 * t as i128 - l * reference[va];
+    lp[w] = df * o[w] + sign as i128 * df * tt - l * reference[w];
+    lp[ua] = df * o[ua] + a as i128 * tt - l * reference[ua];
+    lp[va] = df * o[va] + b as i128 * tt - l * reference[va];
     (s.nx as i128 * lp[0] + s.ny as i128 * lp[1]) * 65536 + s.nz as i128 * lp[2] + 65536 * l * s.e as i128
 }
 
 /// One ray: its parameters and walk state.
 struct Ray {
+    from: RaysFrom,
     src: [i64; 3],
     dir: usize,
     a: i64,
@@ -143,13 +190,22 @@ struct Ray {
 }
 
 impl Ray {
-    fn new(src: [i64; 3], dir: usize, a: i64, b: i64, d: i64, f: u32) -> Self {
-        Ray { src, dir, a, b, d, f, terminal: false, column: None, outside: false }
+    fn new(from: RaysFrom, src: [i64; 3], dir: usize, a: i64, b: i64, d: i64, f: u32) -> Self {
+        Ray { from, src, dir, a, b, d, f, terminal: false, column: None, outside: false }
     }
 
     /// σ_t of plane `s` in column (x, y).
     fn sigma(&self, s: &Surface, x: i64, y: i64, t: i64) -> bool {
-        plane_value(s, x, y, self.src, self.dir, self.a, self.b, self.d, self.f, t) > 0
+        plane_value_on(s, x, y, self.from, self.src, self.dir, self.a, self.b, self.d, self.f, t) > 0
+    }
+
+    /// The ray's voxel at layer k.
+    fn voxel(&self, n: i64, k: i64) -> [i64; 3] {
+        let (src, dir, a, b, d, f) = (self.src, self.dir, self.a, self.b, self.d, self.f);
+        match self.from {
+            RaysFrom::Voxel => ray_voxel(n, src, dir, a, b, d, f, k),
+            RaysFrom::Light => ray_voxel_from_light(src, dir, a, b, d, f, k),
+        }
     }
 
     /// The rule at layer k in voxel `p` (occupied by `own`, with the column's visible surface
@@ -248,18 +304,30 @@ pub fn trace_ray_plane(
     lit: &mut Vec<[i64; 3]>,
     lit_visible: &mut Vec<[i64; 2]>,
 ) -> Fate {
-    let mut ray = Ray::new(src, dir, a, b, d, f);
+    walk_ray(Ray::new(RaysFrom::Voxel, src, dir, a, b, d, f), n, surfaces, columns, lit, lit_visible)
+}
+
+/// [`trace_ray_plane`] for any [`RaysFrom`].
+fn walk_ray(
+    mut ray: Ray,
+    n: i64,
+    surfaces: Surfaces<'_>,
+    columns: Columns<'_>,
+    lit: &mut Vec<[i64; 3]>,
+    lit_visible: &mut Vec<[i64; 2]>,
+) -> Fate {
+    let (dir, d) = (ray.dir, ray.d);
     let mut k = 0;
     let mut from_empty = false;
     loop {
         if k > d {
             return Fate::Exited { k };
         }
-        let p = ray_voxel(n, src, dir, a, b, d, f, k);
+        let p = ray.voxel(n, k);
         if !in_grid(n, p) {
             return Fate::Exited { k };
         }
-        let next = ray_voxel(n, src, dir, a, b, d, f, k + 1);
+        let next = ray.voxel(n, k + 1);
         let (mut l, mut lv) = (false, false);
         let own = surfaces(p[0], p[1], p[2]);
         let from_outside = ray.outside;
@@ -298,6 +366,31 @@ pub fn trace_all_plane_naive(
     d: i64,
     f: u32,
 ) -> PlaneOutcome {
+    trace_all_plane_each(RaysFrom::Voxel, n, surfaces, columns, sources, d, f)
+}
+
+/// [`trace_all_plane_naive`] for rays from the light itself ([`RaysFrom::Light`]): every ray
+/// walked on its own. For small `D·2^f`.
+pub fn trace_all_plane_from_light(
+    n: i64,
+    surfaces: Surfaces<'_>,
+    columns: Columns<'_>,
+    sources: &[[i64; 3]],
+    d: i64,
+    f: u32,
+) -> PlaneOutcome {
+    trace_all_plane_each(RaysFrom::Light, n, surfaces, columns, sources, d, f)
+}
+
+fn trace_all_plane_each(
+    from: RaysFrom,
+    n: i64,
+    surfaces: Surfaces<'_>,
+    columns: Columns<'_>,
+    sources: &[[i64; 3]],
+    d: i64,
+    f: u32,
+) -> PlaneOutcome {
     assert!(sources.len() <= 64, "at most 64 sources (mask bits)");
     let m = d << f;
     let mut out = PlaneOutcome::default();
@@ -309,7 +402,8 @@ pub fn trace_all_plane_naive(
                     out.rays.rays_emitted += 1;
                     lit.clear();
                     vis.clear();
-                    match trace_ray_plane(n, surfaces, columns, src, dir, a, b, d, f, &mut lit, &mut vis) {
+                    let ray = Ray::new(from, src, dir, a, b, d, f);
+                    match walk_ray(ray, n, surfaces, columns, &mut lit, &mut vis) {
                         Fate::Absorbed { .. } => out.rays.rays_absorbed += 1,
                         Fate::Exited { .. } => out.rays.rays_exited += 1,
                     }
@@ -411,7 +505,7 @@ pub fn trace_all_plane(
                     }
                     for a in *alo..=*ahi {
                         for b in *blo..=*bhi {
-                            let mut ray = Ray::new(src, dir, a, b, d, f);
+                            let mut ray = Ray::new(RaysFrom::Voxel, src, dir, a, b, d, f);
                             let mut absorbed = false;
                             let mut at = 0usize; // next index into `visits`
                             let mut k = visits[0];
@@ -686,5 +780,21 @@ mod tests {
         let got = trace_all_plane(n, &surf, &none_visible, &[src], n - 1, 1);
         let want = super::super::rays::trace_all(n, &|x, y, z| wall(x, y, z), &[src], n - 1, 1);
         assert_eq!(got.rays, want);
+    }
+
+    /// Rays from a light at a voxel centre are the thesis's rays: the same plane values at
+    /// every layer.
+    #[test]
+    fn rays_from_a_centred_light_are_the_thesis_rays() {
+        let s = Surface { lo: 3, nx: 1200, ny: -16384, nz: 300 << 16, e: -777, two_sided: false };
+        let src = [80, 48, 32];
+        for dir in 0..6 {
+            for (a, b) in [(0, 0), (7, -3), (-20, 20), (13, 1)] {
+                for t in 0..=10 {
+                    let light = plane_value_on(&s, 6, 2, RaysFrom::Light, src, dir, a, b, 10, 1, t);
+                    assert_eq!(light, plane_value(&s, 6, 2, src, dir, a, b, 10, 1, t), "{dir} ({a}, {b}) layer {t}");
+                }
+            }
+        }
     }
 }

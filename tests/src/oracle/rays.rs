@@ -344,6 +344,20 @@ fn trace_each(
     out
 }
 
+/// For rays from the light, layer `k ≥ 1` of direction `dir`: the principal coordinate c of
+/// the k-th voxel centre plane strictly ahead of the light `src` (sixteenths), and its distance
+/// `T = s·(16·c − src_w)` > 0 from the light in sixteenths.
+pub fn light_layer(src: [i64; 3], dir: usize, k: i64) -> (i64, i64) {
+    let (w, s, _, _) = dir_axes(dir);
+    // The first centre plane strictly ahead of the light, then k − 1 more.
+    let mut c = src[w].div_euclid(16) - s;
+    while s * (16 * c - src[w]) <= 0 {
+        c += s;
+    }
+    c += s * (k - 1);
+    (c, s * (16 * c - src[w]))
+}
+
 /// The voxel of ray `(dir, a, b)` of `src` at layer `k` for **rays from the light itself**
 /// (`cell_core::beam::Origin::Light`), from the definition: at layer 0 every ray is at the
 /// light, in the source voxel; at layer k ≥ 1 it meets the k-th voxel centre plane strictly
@@ -353,17 +367,12 @@ fn trace_each(
 #[allow(clippy::too_many_arguments)] // the ray's full coordinates, as the definition states them
 pub fn ray_voxel_from_light(src: [i64; 3], dir: usize, a: i64, b: i64, d: i64, f: u32, k: i64) -> [i64; 3] {
     check_params(d, f);
-    let (w, s, ua, va) = dir_axes(dir);
+    let (w, _, ua, va) = dir_axes(dir);
     if k == 0 {
         return source_voxel(src);
     }
-    // The first centre plane strictly ahead of the light, then k − 1 more.
-    let mut c = src[w].div_euclid(16) - s;
-    while s * (16 * c - src[w]) <= 0 {
-        c += s;
-    }
-    c += s * (k - 1);
-    let t = (s * (16 * c - src[w])) as i128;
+    let (c, t) = light_layer(src, dir, k);
+    let t = t as i128;
     let scale = (d as i128) << f;
     let across = |src_c: i64, a: i64| ((src_c as i128 + 8) * scale + t * a as i128).div_euclid(16 * scale) as i64;
     let mut out = [0i64; 3];
