@@ -448,6 +448,12 @@ pub(crate) fn check_light_run<F: FracBits>(n: u32, sources: &[Source], cfg: &Lig
     if cfg.fa == 0 || cfg.fa > FA_CAP {
         bail!("--fa {} is out of range: 1 ..= {FA_CAP} (the FIFO capacity compiled into a cell)", cfg.fa);
     }
+    if let Some((i, s)) = sources.iter().enumerate().find(|(_, s)| {
+        let v = s.voxel();
+        v[0] < 0 || v[1] < 0 || v[0] >= n as i32 || v[1] >= n as i32 || !(0..=u16::MAX as i32).contains(&v[2])
+    }) {
+        bail!("light {} is in voxel {:?}, outside the {n} × {n} grid of cells", i + 1, s.voxel());
+    }
     let min_fa = cell_core::light::MIN_FA_FROM_LIGHT;
     if cfg.fa < min_fa && sources.iter().any(|s| s.origin == cell_core::beam::Origin::Light) {
         bail!("--fa {} is too small for rays from the light: the source cell's first split may keep four FIFO slots (at least {min_fa})", cfg.fa);
@@ -1681,6 +1687,24 @@ mod tests {
             }
         }
         lists
+    }
+
+    /// A source whose voxel lies outside the grid, or rays from the light with a FIFO too small
+    /// for the source cell's first split, are refused before any cell is touched.
+    #[test]
+    fn light_runs_refuse_bad_sources() {
+        let cfg = LightConfig::default();
+        let at = |p: [f64; 3]| Source::new(SourceId(0), p.map(SourceCoord::from_num));
+        assert!(check_light_run::<U0>(8, &[at([7.0, 7.0, 7.0])], &cfg).is_ok());
+        for outside in [[7.5, 0.0, 0.0], [0.0, -0.5625, 0.0], [0.0, 0.0, -1.0]] {
+            let err = check_light_run::<U0>(8, &[at(outside)], &cfg).unwrap_err().to_string();
+            assert!(err.contains("outside the 8 × 8 grid"), "{outside:?}: {err}");
+        }
+        let light = at([3.5, 3.0, 3.0]).with_origin(cell_core::beam::Origin::Light);
+        let small = LightConfig { fa: cell_core::light::MIN_FA_FROM_LIGHT - 1, ..cfg };
+        assert!(check_light_run::<U0>(8, &[light], &small).unwrap_err().to_string().contains("too small"));
+        let enough = LightConfig { fa: cell_core::light::MIN_FA_FROM_LIGHT, ..cfg };
+        assert!(check_light_run::<U0>(8, &[light], &enough).is_ok());
     }
 
     proptest! {
