@@ -77,7 +77,8 @@
 //! * `D·2^f ≤ 2³¹ − 1` — ±D must be a `FixedI32<F>`;
 //! * `D ≤ MAX_FAR = 2^(31−g) − 1 = 2²⁷ − 1` — then `|a·q| ≤ 2³¹·(2²⁷ − 1)·2⁵ < 2⁶³` (q ≤
 //!   (k + 1)·2^(g+1) for either origin), and with c clamped to ±2^(g+1)(D + 1) (which changes
-//!   no comparison: a plane beyond ±(D + 1)·D·2^(g+1)/q ≥ ±(D + 1) is beyond every ray) `|c·D·2^f| ≤ 2³²·(2³¹ − 1) < 2⁶³`. Checked by `const` assertions.
+//!   no comparison: a plane beyond ±(D + 1)·D·2^(g+1)/q ≥ ±(D + 1) is beyond every ray)
+//!   `|c·D·2^f| ≤ 2³²·(2³¹ − 1) < 2⁶³`. Checked by `const` assertions.
 //!
 //! | f  | largest D ([`FarDistance::MAX`]) |
 //! |----|----------------------------------|
