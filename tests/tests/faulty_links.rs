@@ -1,9 +1,11 @@
 //! Faulty links: every transfer goes through the wire codec (frame + CRC-32) and a
 //! seeded fault injector that corrupts and drops data frames and acknowledgements. Corrupted
 //! frames must never be applied, and with acknowledgement and retransmission a run must light
-//! exactly the voxels a clean run lights and give the same image bytes, in more cycles.
+//! exactly the voxels a clean run lights and give the same image bytes, in more cycles (with
+//! the thesis's rays and with rays from the light).
 
 use cell_core::beam::frac::U0;
+use cell_core::beam::Origin;
 use cell_core::light::Policy;
 use cell_core::shade::NormalMode;
 use host_sim::machine::diffuse::LightConfig;
@@ -15,14 +17,17 @@ use host_sim::precompute::LoadConfig;
 
 #[test]
 fn faulty_links_light_exactly_what_clean_links_light() {
-    for (scene, n, policy) in
-        [("cornell", 32, Policy::Wavefront), ("teapot-floor", 24, Policy::Thesis), ("cornell", 24, Policy::Radial)]
-    {
+    for (scene, n, policy, rays) in [
+        ("cornell", 32, Policy::Wavefront, Origin::SourceVoxel),
+        ("teapot-floor", 24, Policy::Thesis, Origin::SourceVoxel),
+        ("cornell", 24, Policy::Radial, Origin::SourceVoxel),
+        ("cornell", 24, Policy::Wavefront, Origin::Light),
+    ] {
         let mesh = host_sim::scene::load(scene).unwrap();
         let loaded = load_scene(&mesh, &LoadConfig::thin(n)).unwrap();
         let lights = resolve_lights(&mesh, &loaded, &[]).unwrap();
         let run = |faults: Option<LinkFaults>| {
-            let cfg = LightConfig { fa: 4, policy, merge: policy.by_layer(), faults, ..Default::default() };
+            let cfg = LightConfig { fa: 4, policy, merge: policy.by_layer(), faults, rays, ..Default::default() };
             let (l, stats) = run_diffusion::<U0>(&mesh, &loaded, &lights, &cfg, |_, _| {}).unwrap();
             let img = shade_grid(&mesh, &loaded, &point_lights(&lights), &l, NormalMode::Facet);
             (l.lit_voxels().collect::<Vec<_>>(), img.rgb, stats)
