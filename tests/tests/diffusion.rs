@@ -13,8 +13,8 @@ use host_sim::machine::grid::Grid;
 use host_sim::machine::timing::{Emission, Timing};
 use host_sim::precompute::{LoadConfig, Q};
 use proptest::prelude::*;
-use rc2_tests::oracle::lit::{trace_all_plane, trace_all_plane_from_light};
-use rc2_tests::oracle::rays::{trace_all, trace_all_from_light};
+use rc2_tests::oracle::lit::{trace_all_plane, trace_all_plane_naive_from};
+use rc2_tests::oracle::rays::{trace_all, trace_all_naive_from, RaysFrom};
 use std::collections::BTreeMap;
 
 type G = Grid<64>;
@@ -49,12 +49,14 @@ fn check_against_rays<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) 
     let occupied = |x: i64, y: i64, z: i64| g.cell(x as u32, y as u32).store.occupied(z as u16).is_some();
     let want = match (cfg.rule, cfg.rays) {
         (LitRule::Thesis, Origin::SourceVoxel) => trace_all(n, &occupied, src16, n - 1, F::U32),
-        (LitRule::Thesis, Origin::Light) => trace_all_from_light(n, &occupied, src16, n - 1, F::U32),
+        (LitRule::Thesis, Origin::Light) => trace_all_naive_from(RaysFrom::Light, n, &occupied, src16, n - 1, F::U32),
         (LitRule::Plane, origin) => {
             let (surfaces, columns) = (common::surfaces_of(g), common::columns_of(g));
             let o = match origin {
                 Origin::SourceVoxel => trace_all_plane(n, &surfaces, &columns, src16, n - 1, F::U32),
-                Origin::Light => trace_all_plane_from_light(n, &surfaces, &columns, src16, n - 1, F::U32),
+                Origin::Light => {
+                    trace_all_plane_naive_from(RaysFrom::Light, n, &surfaces, &columns, src16, n - 1, F::U32)
+                }
             };
             let got: BTreeMap<[i64; 2], u64> = l
                 .cells

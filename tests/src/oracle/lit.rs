@@ -51,16 +51,15 @@
 //!
 //! The thesis's rule (§5.5.5) is [`super::rays::trace_all`].
 //!
-//! **Rays from the light** ([`RaysFrom::Light`], [`trace_all_plane_from_light`]): the same rule
+//! **Rays from the light** ([`RaysFrom::Light`], [`trace_all_plane_naive_from`]): the same rule
 //! on the rays of [`super::rays::ray_voxel_from_light`], whose point at layer t lies on the t-th
 //! voxel centre plane strictly ahead of the light (at the light for t = 0) instead of t voxels
 //! from `Se`.
 
 use std::collections::BTreeMap;
 
-use super::rays::{
-    dir_axes, light_layer, ray_voxel, ray_voxel_from_light, rays_per_source, source_voxel, transverse, Fate, RayOutcome,
-};
+pub use super::rays::RaysFrom;
+use super::rays::{dir_axes, light_layer, rays_per_source, source_voxel, transverse, Fate, RayOutcome};
 
 /// The plane a surface voxel's dexel stores, or a column's visible surface (see the module doc).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -123,17 +122,6 @@ pub fn plane_value(
     t: i64,
 ) -> i128 {
     plane_value_on(s, x, y, RaysFrom::Voxel, src, dir, a, b, d, f, t)
-}
-
-/// Where the rays leave from along their axis: the source voxel's centre plane (the thesis's
-/// rays, the module doc's `Se`) or the light itself ([`super::rays::ray_voxel_from_light`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum RaysFrom {
-    /// The source voxel's centre plane: the point of layer t is `t` voxels from it.
-    Voxel,
-    /// The light: the point of layer t ≥ 1 lies on the t-th voxel centre plane strictly ahead
-    /// of the light ([`light_layer`]), the point of layer 0 at the light.
-    Light,
 }
 
 /// [`plane_value`] for rays leaving from `from`: `2¹⁶·L·g` at the ray's point at layer t, the
@@ -200,12 +188,8 @@ impl Ray {
     }
 
     /// The ray's voxel at layer k.
-    fn voxel(&self, n: i64, k: i64) -> [i64; 3] {
-        let (src, dir, a, b, d, f) = (self.src, self.dir, self.a, self.b, self.d, self.f);
-        match self.from {
-            RaysFrom::Voxel => ray_voxel(n, src, dir, a, b, d, f, k),
-            RaysFrom::Light => ray_voxel_from_light(src, dir, a, b, d, f, k),
-        }
+    fn voxel(&self, k: i64) -> [i64; 3] {
+        self.from.voxel(self.src, self.dir, self.a, self.b, self.d, self.f, k)
     }
 
     /// The rule at layer k in voxel `p` (occupied by `own`, with the column's visible surface
@@ -323,11 +307,11 @@ fn walk_ray(
         if k > d {
             return Fate::Exited { k };
         }
-        let p = ray.voxel(n, k);
+        let p = ray.voxel(k);
         if !in_grid(n, p) {
             return Fate::Exited { k };
         }
-        let next = ray.voxel(n, k + 1);
+        let next = ray.voxel(k + 1);
         let (mut l, mut lv) = (false, false);
         let own = surfaces(p[0], p[1], p[2]);
         let from_outside = ray.outside;
@@ -366,23 +350,13 @@ pub fn trace_all_plane_naive(
     d: i64,
     f: u32,
 ) -> PlaneOutcome {
-    trace_all_plane_each(RaysFrom::Voxel, n, surfaces, columns, sources, d, f)
+    trace_all_plane_naive_from(RaysFrom::Voxel, n, surfaces, columns, sources, d, f)
 }
 
-/// [`trace_all_plane_naive`] for rays from the light itself ([`RaysFrom::Light`]): every ray
-/// walked on its own. For small `D·2^f`.
-pub fn trace_all_plane_from_light(
-    n: i64,
-    surfaces: Surfaces<'_>,
-    columns: Columns<'_>,
-    sources: &[[i64; 3]],
-    d: i64,
-    f: u32,
-) -> PlaneOutcome {
-    trace_all_plane_each(RaysFrom::Light, n, surfaces, columns, sources, d, f)
-}
-
-fn trace_all_plane_each(
+/// [`trace_all_plane_naive`] for rays leaving from `from` (the only oracle of the plane rule
+/// for rays from the light, [`RaysFrom::Light`]): every ray walked on its own. For small
+/// `D·2^f`.
+pub fn trace_all_plane_naive_from(
     from: RaysFrom,
     n: i64,
     surfaces: Surfaces<'_>,

@@ -135,9 +135,48 @@ fn in_grid(n: i64, p: [i64; 3]) -> bool {
     p.iter().all(|&c| (0..n).contains(&c))
 }
 
+/// Where the rays leave from along their axis: the source voxel's centre plane (the thesis's
+/// rays, [`ray_voxel`]) or the light itself ([`ray_voxel_from_light`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RaysFrom {
+    /// The source voxel's centre plane: layer k is k voxels from it.
+    Voxel,
+    /// The light: layer k ≥ 1 lies on the k-th voxel centre plane strictly ahead of it
+    /// ([`light_layer`]), layer 0 at the light.
+    Light,
+}
+
+impl RaysFrom {
+    /// The voxel of ray `(dir, a, b)` of `src` at layer `k` ([`ray_voxel`] or
+    /// [`ray_voxel_from_light`]).
+    #[allow(clippy::too_many_arguments)] // the ray's full coordinates, as the definition states them
+    pub fn voxel(self, src: [i64; 3], dir: usize, a: i64, b: i64, d: i64, f: u32, k: i64) -> [i64; 3] {
+        match self {
+            RaysFrom::Voxel => ray_voxel(0, src, dir, a, b, d, f, k),
+            RaysFrom::Light => ray_voxel_from_light(src, dir, a, b, d, f, k),
+        }
+    }
+}
+
 /// Walks one ray by the definition (one [`ray_voxel`] per layer).
 #[allow(clippy::too_many_arguments)]
 pub fn trace_ray(
+    n: i64,
+    occupied: &dyn Fn(i64, i64, i64) -> bool,
+    src: [i64; 3],
+    dir: usize,
+    a: i64,
+    b: i64,
+    d: i64,
+    f: u32,
+) -> Fate {
+    trace_ray_from(RaysFrom::Voxel, n, occupied, src, dir, a, b, d, f)
+}
+
+/// [`trace_ray`] for rays leaving from `from`.
+#[allow(clippy::too_many_arguments)]
+pub fn trace_ray_from(
+    from: RaysFrom,
     n: i64,
     occupied: &dyn Fn(i64, i64, i64) -> bool,
     src: [i64; 3],
@@ -152,7 +191,7 @@ pub fn trace_ray(
         if k > d {
             return Fate::Exited { k };
         }
-        let p = ray_voxel(n, src, dir, a, b, d, f, k);
+        let p = from.voxel(src, dir, a, b, d, f, k);
         if !in_grid(n, p) {
             return Fate::Exited { k };
         }
@@ -307,19 +346,17 @@ pub fn trace_all_naive(
     d: i64,
     f: u32,
 ) -> RayOutcome {
-    trace_each(sources, d, f, |src, dir, a, b| match trace_ray(n, occupied, src, dir, a, b, d, f) {
-        Fate::Absorbed { voxel, .. } => Some(voxel),
-        Fate::Exited { .. } => None,
-    })
+    trace_all_naive_from(RaysFrom::Voxel, n, occupied, sources, d, f)
 }
 
-/// Every ray `(dir, a, b)` of every source walked by `absorbed_at` (the voxel that absorbs it,
-/// if one does), tallied.
-fn trace_each(
+/// [`trace_all_naive`] for rays leaving from `from` ([`trace_ray_from`]).
+pub fn trace_all_naive_from(
+    from: RaysFrom,
+    n: i64,
+    occupied: &dyn Fn(i64, i64, i64) -> bool,
     sources: &[[i64; 3]],
     d: i64,
     f: u32,
-    absorbed_at: impl Fn([i64; 3], usize, i64, i64) -> Option<[i64; 3]>,
 ) -> RayOutcome {
     check_params(d, f);
     assert!(sources.len() <= 64, "at most 64 sources (mask bits), got {}", sources.len());
@@ -330,12 +367,12 @@ fn trace_each(
             for a in -m..=m {
                 for b in -m..=m {
                     out.rays_emitted += 1;
-                    match absorbed_at(src, dir, a, b) {
-                        Some(voxel) => {
+                    match trace_ray_from(from, n, occupied, src, dir, a, b, d, f) {
+                        Fate::Absorbed { voxel, .. } => {
                             out.rays_absorbed += 1;
                             *out.lit.entry(voxel).or_insert(0) |= 1 << i;
                         }
-                        None => out.rays_exited += 1,
+                        Fate::Exited { .. } => out.rays_exited += 1,
                     }
                 }
             }
@@ -380,24 +417,6 @@ pub fn ray_voxel_from_light(src: [i64; 3], dir: usize, a: i64, b: i64, d: i64, f
     out[ua] = across(src[ua], a);
     out[va] = across(src[va], b);
     out
-}
-
-/// [`trace_all_naive`] for rays from the light ([`ray_voxel_from_light`]): every ray walked on
-/// its own, absorbed by the first occupied voxel (the thesis's rule), exited past layer `D` or
-/// out of the grid. Use only for small `D·2^f`.
-pub fn trace_all_from_light(
-    n: i64,
-    occupied: &dyn Fn(i64, i64, i64) -> bool,
-    sources: &[[i64; 3]],
-    d: i64,
-    f: u32,
-) -> RayOutcome {
-    trace_each(sources, d, f, |src, dir, a, b| {
-        (0..=d)
-            .map(|k| ray_voxel_from_light(src, dir, a, b, d, f, k))
-            .take_while(|&p| in_grid(n, p))
-            .find(|p| occupied(p[0], p[1], p[2]))
-    })
 }
 
 /// Voxels of an empty `n³` grid that no ray of `src` occupies at any layer (coverage oracle,
