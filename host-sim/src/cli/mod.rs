@@ -387,7 +387,8 @@ pub struct LightOpts {
     /// centre plane, so that layer k is k whole voxels from it (thesis §4.3); `light`, the
     /// light itself, so that the rays are true rays from the source wherever it sits in its
     /// voxel (a light on a voxel boundary is half a voxel off along the axis otherwise). Same
-    /// split, same cost.
+    /// split arithmetic; more beams (2–41 % on the built-in scenes, BENCHMARKS.md); needs
+    /// `--fa` ≥ 4; not for classic lighting or `trace`.
     #[arg(long, value_enum, default_value_t = RaysFromArg::Voxel)]
     pub rays_from: RaysFromArg,
     /// Classic shadow rays instead of diffusion.
