@@ -11,9 +11,12 @@
 //! * [`flood`] — flood fill from outside the grid and leaks into the mesh's interior.
 //! * [`rays`] — per-ray lighting under the thesis's rule (§4.1.5, §5.5.5).
 //! * [`lit`] — per-ray lighting under the plane-aware rule (§5.5.6).
+//! * [`exact`] — per-ray fates under exact occluders: the triangles kept by the columns a ray
+//!   passes through, each met in one segment of its walk (§5.5.6).
 //! * [`shadow`] — classic shadow rays under the plane principle, by brute force (§4.1.2).
 
 pub mod brute;
+pub mod exact;
 pub mod flood;
 pub mod inside;
 pub mod lines;
