@@ -303,6 +303,7 @@ fn bench_fifo(c: &mut Criterion) {
         hold: 0,
         frustum: None,
         rays: None,
+        occluders: None,
     };
     let empty = cell_core::cell::Cell::<DEFAULT_DEXELS>::new(0, 0);
     let mut wall = cell_core::cell::Cell::<DEFAULT_DEXELS>::new(0, 0);
@@ -393,7 +394,7 @@ fn bench_occluders(c: &mut Criterion) {
             b.iter(|| uniform(&black_box(&occ).tests(k), u, v))
         });
         g.bench_function(BenchmarkId::new("segments_one_column", &id), |b| {
-            let mut seg = Segments::new();
+            let mut seg: Segments = Segments::new();
             b.iter(|| {
                 segments(&black_box(&occ).tests(k), Along::V, u.0, v.0, v.1, &mut seg);
                 seg.len()

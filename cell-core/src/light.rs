@@ -49,7 +49,8 @@ use crate::beam::{
 };
 use crate::cell::Cell;
 use crate::dexel::{Dexel, DexelStore};
-use crate::lit::{run_end, segments, spans, uniform, Along, Arrival, LitRule, Notch, Out, RayPlane, Segments, Visit};
+use crate::lit::{spans, uniform, Along, Arrival, LitRule, Notch, Out, RayPlane, Rule, Segments, Visit};
+use crate::occluder::{ColumnOccluders, ExactVisit, EXACT_SEGMENTS};
 use crate::occupancy::FrustumTest;
 use crate::units::{Coord, Depth};
 
@@ -610,6 +611,9 @@ pub struct LightCounters {
     pub merged: u64,
     /// Cycles in which every beam that could go waited for its siblings ([`LightEnv::hold`]).
     pub held_cycles: u64,
+    /// Exact-occluder visits judged ray by ray ([`crate::occluder::ExactVisit::per_ray`]: more
+    /// undecided triangles than one visit tests at once).
+    pub per_ray_visits: u32,
 }
 
 /// Where the rays of a processed beam end, for a diffusion that carries energy (a radiosity
@@ -684,6 +688,9 @@ pub struct LightEnv<'a, F: FracBits> {
     /// Compiled only with the `ray-sink` feature (a default one; ignored without it).
     /// `None`: off (the ordinary diffusion).
     pub rays: Option<&'a dyn RaySink<F>>,
+    /// The columns' triangles and target rays, for [`LitRule::Exact`] (`None`: no triangle, no
+    /// target: nothing is stopped or lit). Read by no other rule.
+    pub occluders: Option<&'a dyn ColumnOccluders>,
 }
 
 /// What a cell did in one cycle.
@@ -725,6 +732,9 @@ struct Fate<'s, F: FracBits> {
     after_outside: bool,
     /// Where the rays end, when the environment has a [`RaySink`].
     events: Option<&'s mut RayEvents<F>>,
+    /// The exact-occluder visit judged ray by ray ([`LightCounters::per_ray_visits`]).
+    #[cfg(feature = "exact-occluders")]
+    per_ray: bool,
 }
 
 /// A beam's sub-beams and where each goes (at most nine).
@@ -756,6 +766,8 @@ impl<'s, F: FracBits> Fate<'s, F> {
             keep: None,
             after_empty: false,
             after_outside: false,
+            #[cfg(feature = "exact-occluders")]
+            per_ray: false,
         }
     }
 
@@ -772,10 +784,14 @@ impl<'s, F: FracBits> Fate<'s, F> {
         self.keep = None;
         self.after_empty = false;
         self.after_outside = false;
+        #[cfg(feature = "exact-occluders")]
+        {
+            self.per_ray = false;
+        }
     }
 }
 
-#[derive(Clone, Copy, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Target {
     SelfFifo,
     Out(Port),
@@ -1067,6 +1083,11 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         match env.rule {
             LitRule::Thesis => self.thesis_fate(m, &cell.store, env, f),
             LitRule::Plane => self.plane_fate(m, cell, env, f),
+            #[cfg(feature = "exact-occluders")]
+            LitRule::Exact => self.exact_fate(m, env, f),
+            // Without the feature (a firmware image) no trace can name the rule: the plane's.
+            #[cfg(not(feature = "exact-occluders"))]
+            LitRule::Exact => self.plane_fate(m, cell, env, f),
         }
     }
 
@@ -1253,7 +1274,74 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             }
             return;
         }
-        self.peel(m, own.map(|d| d.span), &visit, stay, env, f);
+        let carry = self.carried(m, own.map(|d| d.span), k, &visit);
+        self.peel::<_, { 2 * crate::lit::MAX_TESTS + 1 }>(m, visit, &|_| None, stay, carry, env, f);
+    }
+
+    /// The exact-occluder rule ([`crate::occluder::ExactVisit`]) at this beam's voxel.
+    #[cfg(feature = "exact-occluders")]
+    fn exact_fate(&self, m: &BeamMsg<F>, env: &LightEnv<'_, F>, f: &mut Fate<'_, F>) {
+        let b = &m.beam;
+        let dir = b.direction();
+        let k = b.layer().0 as i64;
+        let (u, v) = (lattice(b.u()), lattice(b.v()));
+        let triangles = env.occluders.map_or(&[][..], |o| o.triangles(self.x, self.y));
+        let notch = m.local.notch().map(|n| n.t1 as i64);
+        let visit = ExactVisit::new(triangles, env.source, dir, env.far, k, (u, v), b.is_terminal(), notch);
+        f.per_ray = visit.per_ray();
+        // The receiver: the column's target ray, if this beam brings it here (absent rays were
+        // absorbed earlier; a terminal or absorbed one still arrived).
+        let target = env.occluders.and_then(|o| o.target(self.x, self.y));
+        if let Some(t) = target.filter(|t| t.z == m.z as i64 && t.in_beam(b)) {
+            let arrived = visit.verdict(visit.bits(t.a, t.b), false).out.present();
+            f.visible = arrived;
+            f.lit = arrived;
+        }
+        if visit.is_plain() {
+            if m.local == Local::NONE && !f.visible && self.frustum_skips(m, env, f) {
+                return;
+            }
+            self.route(b, m.z, env, f, |_| Sub::Send(false, Local::NONE));
+            return;
+        }
+        let stay = self.staying(b, env);
+        // Staying rays carry the notch of this column's triangles since they entered it, unless
+        // every ray of the rectangle had the same verdict (then none is missing).
+        let carry = match (visit.is_uniform(), notch) {
+            (true, _) => Local::NONE,
+            (false, t1) => Local::notched(Notch {
+                state: 0,
+                t1: t1.unwrap_or((k - 1).max(0)) as u16,
+                t2: k as u16,
+                fresh: false,
+                front: false,
+            }),
+        };
+        if visit.is_uniform() {
+            let out = visit.verdict(0, false);
+            let stays = visit.verdict(0, true);
+            match out.out {
+                Out::Absent => {}
+                Out::Absorbed => f.absorbed = b.ray_count(),
+                Out::Continue | Out::Terminal => {
+                    let send = out.out == Out::Terminal;
+                    let stay_sub = Sub::Send(stays.out == Out::Terminal, carry);
+                    self.route(b, m.z, env, f, |o| {
+                        if o == STAY && stay.is_some() {
+                            stay_sub
+                        } else {
+                            Sub::Send(send, Local::NONE)
+                        }
+                    });
+                }
+            }
+            return;
+        }
+        let revisit = |b: &Beam<F>| {
+            let (u, v) = (lattice(b.u()), lattice(b.v()));
+            Some(ExactVisit::new(triangles, env.source, dir, env.far, k, (u, v), b.is_terminal(), notch))
+        };
+        self.peel::<_, EXACT_SEGMENTS>(m, visit, &revisit, stay, carry, env, f);
     }
 
     /// The local state a ±z beam's staying rays carry to the next layer of this column (see
@@ -1285,25 +1373,33 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     #[cfg(debug_assertions)]
     fn present_rays<const D: usize>(&self, m: &BeamMsg<F>, cell: &Cell<D>, env: &LightEnv<'_, F>) -> u64 {
         let b = &m.beam;
-        let Some((n, d)) = m.local.notch().and_then(|n| cell.store.occupied(n.state).map(|d| (n, d))) else {
+        let Some(n) = m.local.notch() else {
+            return b.ray_count();
+        };
+        let (u, v) = (lattice(b.u()), lattice(b.v()));
+        let (dir, k) = (b.direction(), b.layer().0 as i64);
+        if env.rule == LitRule::Exact {
+            let triangles = env.occluders.map_or(&[][..], |o| o.triangles(self.x, self.y));
+            let visit = ExactVisit::new(triangles, env.source, dir, env.far, k, (u, v), false, Some(n.t1 as i64));
+            return Self::count_present::<_, EXACT_SEGMENTS>(&visit, u, v);
+        }
+        let Some(d) = cell.store.occupied(n.state) else {
             return b.ray_count();
         };
         let (x, y) = (self.x as i64, self.y as i64);
-        let plane = RayPlane::new(&d.plane, [x, y, d.span.lo as i64], env.source, b.direction(), env.far);
-        let visit = Visit::new(
-            b.layer().0 as i64,
-            Arrival::NONE,
-            None,
-            Some((plane, Notch { fresh: false, ..n })),
-            None,
-            false,
-        );
-        let (u, v) = (lattice(b.u()), lattice(b.v()));
-        let mut seg = Segments::new();
+        let plane = RayPlane::new(&d.plane, [x, y, d.span.lo as i64], env.source, dir, env.far);
+        let visit = Visit::new(k, Arrival::NONE, None, Some((plane, Notch { fresh: false, ..n })), None, false);
+        Self::count_present::<_, { 2 * crate::lit::MAX_TESTS + 1 }>(&visit, u, v)
+    }
+
+    /// The rays of rectangle `u × v` that `visit` finds present (not cut out by a notch).
+    #[cfg(debug_assertions)]
+    fn count_present<R: Rule, const C: usize>(visit: &R, u: (i64, i64), v: (i64, i64)) -> u64 {
+        let mut seg = Segments::<C>::new();
         let (mut line, mut present) = (u.0, 0u64);
         while line <= u.1 {
-            let end = run_end(&visit.tests, Along::V, line, u.1, v.0, v.1);
-            segments(&visit.tests, Along::V, line, v.0, v.1, &mut seg);
+            let end = visit.run_end(Along::V, line, u.1, v.0, v.1);
+            visit.line(Along::V, line, v.0, v.1, &mut seg);
             for (start, stop, bits) in spans(&seg, v.1) {
                 if visit.verdict(bits, false).out.present() {
                     present += (end - line + 1) as u64 * (stop - start + 1) as u64;
@@ -1335,18 +1431,20 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     /// before and after the staying rays, then the rows below and above them), so that what is
     /// left is always a rectangle; the staying rays go last, as one beam, and the entry is
     /// consumed.
-    fn peel(
+    #[allow(clippy::too_many_arguments)]
+    fn peel<R: Rule, const C: usize>(
         &self,
         m: &BeamMsg<F>,
-        own: Option<crate::units::Span>,
-        visit: &Visit,
+        mut visit: R,
+        revisit: &dyn Fn(&Beam<F>) -> Option<R>,
         stay: Option<((i64, i64), (i64, i64))>,
+        carry: Local,
         env: &LightEnv<'_, F>,
         f: &mut Fate<'_, F>,
     ) {
         let mut beam = m.beam;
         let mut piece = m.local.piece;
-        let mut seg = Segments::new();
+        let mut seg = Segments::<C>::new();
         loop {
             let (a0, a1) = lattice(beam.u());
             let (b0, b1) = lattice(beam.v());
@@ -1370,14 +1468,14 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             };
             let Some((along, upward, from, to, cross)) = region else {
                 // Only staying rays are left: one beam to this column's next voxel.
-                self.peel_staying(m, beam, own, visit, env, f);
+                self.peel_staying::<R, C>(m, beam, &visit, carry, env, f);
                 return;
             };
-            let end = run_end(&visit.tests, along, from, to, cross.0, cross.1);
+            let end = visit.run_end(along, from, to, cross.0, cross.1);
             let lines = (from.min(end), from.max(end));
 
             let width = (lines.1 - lines.0 + 1) as u64;
-            segments(&visit.tests, along, from, cross.0, cross.1, &mut seg);
+            visit.line(along, from, cross.0, cross.1, &mut seg);
             let (mut present, mut sent, mut count) = (0u64, 0u64, 0u8);
             let mut emit = None;
             for (start, stop, bits) in spans(&seg, cross.1) {
@@ -1425,6 +1523,11 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 return;
             }
             beam = beam.with_rays(range::<F>(shrunk.0), range::<F>(shrunk.1));
+            // A visit that depends on the rectangle is taken again on what is left: the same
+            // visit the next step will take on it, so a run's pieces are cut alike in every step.
+            if let Some(v) = revisit(&beam) {
+                visit = v;
+            }
             if emit.is_some() {
                 f.keep = Some(BeamMsg { beam, local: Local { piece: 0, ..m.local }, ..*m });
                 return;
@@ -1435,23 +1538,23 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     /// The last step of a peeled ±z beam: `beam` holds only rays that stay in the column. Those
     /// that go on become one beam for the next voxel of the column ([`LightCell::carried`]); the
     /// entry is consumed.
-    fn peel_staying(
+    fn peel_staying<R: Rule, const C: usize>(
         &self,
         m: &BeamMsg<F>,
         beam: Beam<F>,
-        own: Option<crate::units::Span>,
-        visit: &Visit,
+        visit: &R,
+        carry: Local,
         env: &LightEnv<'_, F>,
         f: &mut Fate<'_, F>,
     ) {
         let (u, v) = (lattice(beam.u()), lattice(beam.v()));
         let (mut present, mut going, mut dying) = (0u64, 0u64, 0u64);
-        let mut seg = Segments::new();
+        let mut seg = Segments::<C>::new();
         let mut line = u.0;
         while line <= u.1 {
-            let end = run_end(&visit.tests, Along::V, line, u.1, v.0, v.1);
+            let end = visit.run_end(Along::V, line, u.1, v.0, v.1);
             let width = (end - line + 1) as u64;
-            segments(&visit.tests, Along::V, line, v.0, v.1, &mut seg);
+            visit.line(Along::V, line, v.0, v.1, &mut seg);
             for (start, stop, bits) in spans(&seg, v.1) {
                 let verdict = visit.verdict(bits, true);
                 f.lit |= verdict.lit;
@@ -1471,7 +1574,6 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         }
         f.absorbed += present - going;
         if going > 0 {
-            let carry = self.carried(m, own, beam.layer().0 as i64, visit);
             let mut decide = |_| Sub::Send(false, carry);
             self.route_counted(&beam, m.z, env, f, &mut decide, &mut |_, _| (going, dying));
         }
@@ -1680,14 +1782,15 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     /// entry still holds the rectangle of pieces already sent).
     #[cfg(debug_assertions)]
     fn check_conservation<const D: usize>(&self, i: usize, fate: &Fate<'_, F>, cell: &Cell<D>, env: &LightEnv<'_, F>) {
-        if env.rule == LitRule::Plane && self.fifo[i].local.piece == 0 && fate.keep.is_none_or(|k| k.local.piece == 0) {
+        if env.rule != LitRule::Thesis && self.fifo[i].local.piece == 0 && fate.keep.is_none_or(|k| k.local.piece == 0)
+        {
             let before = self.present_rays(&self.fifo[i], cell, env);
             let subs: u64 = fate.subs.iter().map(|(_, s)| self.present_rays(s, cell, env)).sum();
             let kept = fate.keep.as_ref().map_or(0, |k| self.present_rays(k, cell, env));
             debug_assert_eq!(
                 before,
                 fate.absorbed + fate.exited + fate.skipped + subs + kept,
-                "rays of {:?} at ({}, {}, {}): absorbed {} exited {} skipped {} subs {} kept {}",
+                "rays of {:?} at ({}, {}, {}): absorbed {} exited {} skipped {} subs {} kept {} ({:?}, {:?})",
                 self.fifo[i],
                 self.x,
                 self.y,
@@ -1696,7 +1799,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 fate.exited,
                 fate.skipped,
                 subs,
-                kept
+                kept,
+                fate.subs,
+                fate.keep
             );
         }
     }
@@ -1725,6 +1830,10 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         self.counters.rays_absorbed += fate.absorbed;
         self.counters.rays_exited += fate.exited;
         self.counters.rays_skipped += fate.skipped;
+        #[cfg(feature = "exact-occluders")]
+        {
+            self.counters.per_ray_visits += fate.per_ray as u32;
+        }
         if fate.lit {
             self.mark_lit(m.z, cell, env);
         }
@@ -1757,7 +1866,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             LitRule::Thesis => !env.lit_visible_only || cell.store.dexels().first().is_some_and(|d| d.span.lo == z),
             // The image reads the visible surface's mark; the lit store is for the lit set,
             // restricted to the two voxels bracketing the visible surface.
-            LitRule::Plane => !env.lit_visible_only || cell.visible.is_some_and(|v| v.brackets(z as i64)),
+            LitRule::Plane | LitRule::Exact => {
+                !env.lit_visible_only || cell.visible.is_some_and(|v| v.brackets(z as i64))
+            }
         };
         if shown && !self.lit.mark(z, env.source_bit) {
             self.counters.lit_overflows += 1;
@@ -1847,6 +1958,7 @@ mod tests {
             frustum: None,
             rays: None,
             bounds: SubBeamBounds::new(n, n, None, source),
+            occluders: None,
         }
     }
 

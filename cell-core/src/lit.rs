@@ -119,6 +119,47 @@ pub enum LitRule {
     /// column's visible surface from its own plane.
     #[default]
     Plane,
+    /// Exact occluders ([`crate::occluder::ExactVisit`]): a ray is stopped where its segment
+    /// meets a triangle kept by the columns of its voxels at the segment's two ends; a column's
+    /// visible surface is lit iff its one target ray ([`crate::receiver`]) reaches it.
+    Exact,
+}
+
+/// A visit's tests and the verdict on rays by their bits: what [`crate::light`] cuts and peels
+/// beams by, under the plane rule ([`Visit`]) and exact occluders
+/// ([`crate::occluder::ExactVisit`]).
+pub trait Rule {
+    /// The tests, in the order the bits read them.
+    fn tests(&self) -> &[Test];
+    /// The verdict on rays whose test bits are `bits`; `stays`: they stay in the column.
+    fn verdict(&self, bits: u64, stays: bool) -> Verdict;
+    /// Whether rays with these bits are on the outside of the voxel's plane at this layer
+    /// ([`Arrival::after_outside`] for the next voxel).
+    fn outside(&self, bits: u64) -> bool;
+    /// Cut line `lo ..= hi` (along `along`, the other offset at `fixed`) into segments of
+    /// equal bits: [`segments`] of the tests.
+    fn line<const C: usize>(&self, along: Along, fixed: i64, lo: i64, hi: i64, out: &mut Segments<C>) {
+        segments(self.tests(), along, fixed, lo, hi, out)
+    }
+    /// The last line of a run of lines cut alike from `start` toward `end`: [`run_end`] of
+    /// the tests.
+    fn run_end(&self, along: Along, start: i64, end: i64, lo: i64, hi: i64) -> i64 {
+        run_end(self.tests(), along, start, end, lo, hi)
+    }
+}
+
+impl Rule for Visit {
+    fn tests(&self) -> &[Test] {
+        &self.tests
+    }
+
+    fn verdict(&self, bits: u64, stays: bool) -> Verdict {
+        Visit::verdict(self, bits, stays)
+    }
+
+    fn outside(&self, bits: u64) -> bool {
+        Visit::outside(self, bits)
+    }
 }
 
 /// A dexel's plane seen along the rays of one source and direction: `V(a, b, t)` has the sign of
@@ -251,15 +292,18 @@ impl Test {
 pub const MAX_TESTS: usize = 8;
 
 /// Segments of a line of rays: `(first offset, test bits)`, each up to the next one's first
-/// offset − 1 (the last up to the line's end). At most one cut per test end.
-pub type Segments = Vec<(i64, u8), { 2 * MAX_TESTS + 1 }>;
+/// offset − 1 (the last up to the line's end). At most one cut per test end: `C` ≥ twice the
+/// tests plus one (the plane rule's [`MAX_TESTS`] by default, [`crate::occluder::MAX_EXACT_TESTS`]
+/// for exact occluders).
+pub type Segments<const C: usize = { 2 * MAX_TESTS + 1 }> = Vec<(i64, u64), C>;
 
 /// Split `lo ..= hi` (along `along`, the other offset at `fixed`) into segments on which every
 /// test in `tests` has one value (bit i: test i holds).
-pub fn segments(tests: &[Test], along: Along, fixed: i64, lo: i64, hi: i64, out: &mut Segments) {
+pub fn segments<const C: usize>(tests: &[Test], along: Along, fixed: i64, lo: i64, hi: i64, out: &mut Segments<C>) {
+    debug_assert!(C > 2 * tests.len() && tests.len() <= 64);
     out.clear();
-    let mut cuts: Vec<i64, { 2 * MAX_TESTS + 1 }> = Vec::new();
-    let mut spans: Vec<(i64, i64), MAX_TESTS> = Vec::new();
+    let mut cuts: Vec<i64, C> = Vec::new();
+    let mut spans: Vec<(i64, i64), C> = Vec::new();
     let _ = cuts.push(lo);
     for t in tests {
         let (f, l) = t.interval(along, fixed, lo, hi);
@@ -275,27 +319,27 @@ pub fn segments(tests: &[Test], along: Along, fixed: i64, lo: i64, hi: i64, out:
         }
     }
     for &c in &cuts {
-        let bits = spans.iter().enumerate().fold(0u8, |m, (i, &(f, l))| m | (((f <= c && c <= l) as u8) << i));
+        let bits = spans.iter().enumerate().fold(0u64, |m, (i, &(f, l))| m | (((f <= c && c <= l) as u64) << i));
         let _ = out.push((c, bits));
     }
 }
 
 /// The segments of [`segments`] as `(start, stop, bits)`, inclusive, the last ending at `hi`
 /// (the `hi` that split them).
-pub fn spans(seg: &Segments, hi: i64) -> impl Iterator<Item = (i64, i64, u8)> + '_ {
+pub fn spans<const C: usize>(seg: &Segments<C>, hi: i64) -> impl Iterator<Item = (i64, i64, u64)> + '_ {
     seg.iter().enumerate().map(move |(i, &(start, bits))| (start, seg.get(i + 1).map_or(hi, |s| s.0 - 1), bits))
 }
 
 /// Whether every test in `tests` has the same value on the whole rectangle `[a0, a1] × [b0, b1]`
 /// (a test holds on a half-plane: it is constant on a rectangle iff it agrees on the corners).
-pub fn uniform(tests: &[Test], a: (i64, i64), b: (i64, i64)) -> Option<u8> {
-    let mut bits = 0u8;
+pub fn uniform(tests: &[Test], a: (i64, i64), b: (i64, i64)) -> Option<u64> {
+    let mut bits = 0u64;
     for (i, t) in tests.iter().enumerate() {
         let c = [t.holds(a.0, b.0), t.holds(a.0, b.1), t.holds(a.1, b.0), t.holds(a.1, b.1)];
         if c.iter().any(|&x| x != c[0]) {
             return None;
         }
-        bits |= (c[0] as u8) << i;
+        bits |= (c[0] as u64) << i;
     }
     Some(bits)
 }
@@ -481,13 +525,13 @@ impl Visit {
     /// Whether rays with test bits `bits` are on the outside of the voxel's plane at this
     /// layer (σ_k; false in an empty voxel): what [`Arrival::after_outside`] records for the
     /// next voxel.
-    pub fn outside(&self, bits: u8) -> bool {
+    pub fn outside(&self, bits: u64) -> bool {
         self.own.is_some_and(|(i, _, _)| bits >> (i + 1) & 1 == 1)
     }
 
     /// The verdict on rays whose test bits are `bits`; `stays`: they stay in the column (a ±z
     /// beam's rays whose voxel at the next layer is in this column).
-    pub fn verdict(&self, bits: u8, stays: bool) -> Verdict {
+    pub fn verdict(&self, bits: u64, stays: bool) -> Verdict {
         let bit = |i: usize| bits >> i & 1 == 1;
         let mut v = Verdict { out: Out::Continue, lit: false, visible: false };
         let mut terminal = self.arrival.terminal;
@@ -627,14 +671,14 @@ mod tests {
                         assert_eq!(f <= x && x <= l, t.holds(a, b), "{t:?} {along:?} {x}");
                     }
                 }
-                let mut seg = Segments::new();
+                let mut seg: Segments = Segments::new();
                 segments(&tests, along, fixed, lo, hi, &mut seg);
                 assert_eq!(seg[0].0, lo);
                 for (start, end, bits) in spans(&seg, hi) {
                     assert!(start <= end);
                     for x in start..=end {
                         let (a, b) = at(x);
-                        let want = tests.iter().enumerate().fold(0u8, |m, (j, t)| m | ((t.holds(a, b) as u8) << j));
+                        let want = tests.iter().enumerate().fold(0u64, |m, (j, t)| m | ((t.holds(a, b) as u64) << j));
                         assert_eq!(bits, want);
                     }
                 }
@@ -645,7 +689,7 @@ mod tests {
             for (start, end) in [(a0, a1), (a1, a0)] {
                 let e = run_end(&tests, Along::V, start, end, lo, hi);
                 let seg_of = |x: i64| {
-                    let mut g = Segments::new();
+                    let mut g: Segments = Segments::new();
                     segments(&tests, Along::V, x, lo, hi, &mut g);
                     g
                 };

@@ -197,7 +197,7 @@ pub struct Occluder {
 }
 
 /// Bits of [`Occluder::tests`] that must all hold (the three edges).
-const EDGE_BITS: u8 = 0b111;
+const EDGE_BITS: u64 = 0b111;
 
 impl Occluder {
     /// The occluder of `tri` for rays of `source` in `dir` from `origin`; `None` if the
@@ -245,13 +245,21 @@ impl Occluder {
 
     /// Whether rays with test bits `bits` (bit i: test i of [`Occluder::tests`] holds) are
     /// stopped: inside every edge, and σ differs at the segment's ends.
-    pub const fn stops(bits: u8) -> bool {
+    pub const fn stops(bits: u64) -> bool {
         bits & EDGE_BITS == EDGE_BITS && (bits >> 3 & 1) != (bits >> 4 & 1)
+    }
+
+    /// The seven tests of [`ExactVisit`] at layer k: the three edges, then σ at k − 1, k, k + 1
+    /// and at `t1` (the notch's start).
+    fn exact_tests(&self, k: i64, t1: i64) -> [Test; PER_TRIANGLE] {
+        let [e0, e1, e2, prev, now] = self.tests(k);
+        let at = |t: i64| Test { plane: self.plane, t };
+        [e0, e1, e2, prev, now, at(k + 1), at(t1)]
     }
 
     /// Whether ray (a, b) is stopped by the triangle in layer k's segment.
     pub fn meets(&self, a: i64, b: i64, k: i64) -> bool {
-        let bits = self.tests(k).iter().enumerate().fold(0u8, |m, (i, t)| m | ((t.holds(a, b) as u8) << i));
+        let bits = self.tests(k).iter().enumerate().fold(0u64, |m, (i, t)| m | ((t.holds(a, b) as u64) << i));
         Self::stops(bits)
     }
 }
@@ -288,6 +296,283 @@ impl<const N: usize> TriangleStore<N> {
     /// Triangles that did not fit.
     pub fn overflows(&self) -> u32 {
         self.overflows
+    }
+}
+
+/// What the cells know under the exact-occluder rule ([`crate::lit::LitRule::Exact`]), column
+/// by column: the triangles each keeps ([`Triangle::crosses_column`], loaded with its facets)
+/// and its target ray for the source being diffused ([`crate::receiver::target`], computed
+/// once per source from the column's visible surface). A firmware cell answers for itself from
+/// its [`TriangleStore`]; a host holds all columns at once.
+pub trait ColumnOccluders: core::fmt::Debug + Sync {
+    /// The triangles column (x, y) keeps.
+    fn triangles(&self, x: crate::units::Coord, y: crate::units::Coord) -> &[Triangle];
+    /// Column (x, y)'s target ray for the current source (`None`: no ray lights its pixel).
+    fn target(&self, x: crate::units::Coord, y: crate::units::Coord) -> Option<crate::receiver::Target>;
+}
+
+/// Most triangles one [`ExactVisit`] reads tests for (those it cannot decide on the whole
+/// rectangle, seven tests each in a 64-bit word); with more, it judges ray by ray.
+pub const MAX_EXACT_TRIANGLES: usize = 9;
+
+/// Tests per undecided triangle: three edges, σ at k − 1, k, k + 1, and at the notch's t₁.
+const PER_TRIANGLE: usize = 7;
+
+/// Most tests of one [`ExactVisit`].
+pub const MAX_EXACT_TESTS: usize = MAX_EXACT_TRIANGLES * PER_TRIANGLE;
+
+/// Segment capacity for an [`ExactVisit`]'s lines ([`crate::lit::Segments`]).
+pub const EXACT_SEGMENTS: usize = 2 * MAX_EXACT_TESTS + 1;
+
+/// What the triangles of one column do to one beam at one layer under the exact-occluder rule
+/// ([`crate::lit::LitRule::Exact`]).
+///
+/// At layer k in column C, a ray of the beam
+/// * is *absent* if the beam carries a notch from t₁ (rays of a ±z beam that stayed in C) and
+///   a triangle of C meets it between t₁ and k − 1 (it was absorbed at an earlier layer of C);
+/// * is *absorbed* if the beam is terminal, or a triangle of C meets it in segment k (the
+///   receiver's half: [k − 1, k] against its own triangles);
+/// * goes on otherwise; if it leaves C and a triangle of C meets it in segment k + 1 it goes
+///   on *terminal* (the sender's half: the next column does not know C's triangles), and a
+///   terminal ray is absorbed at the next voxel. A ray staying in C goes on plain: C tests
+///   segment k + 1 itself at the next layer.
+///
+/// So a ray is stopped at the first layer k whose segment meets a triangle kept by the column
+/// of its voxel at k − 1 or at k. Triangles whose tests are constant on the beam's rectangle
+/// are decided once; the others' tests cut the beam like the plane rule's
+/// ([`crate::lit::Rule`]). With more than [`MAX_EXACT_TRIANGLES`] undecided, the visit judges
+/// each ray against every triangle and cuts lines where the verdict changes (*per-ray*: slower,
+/// the same verdicts).
+#[derive(Clone, Debug)]
+pub struct ExactVisit<'a, F: FracBits> {
+    tests: Vec<Test, MAX_EXACT_TESTS>,
+    /// Decided on the whole rectangle: some triangle removes every ray (absent), absorbs every
+    /// ray, makes every leaving ray terminal.
+    absent: bool,
+    absorbed: bool,
+    terminal: bool,
+    /// The beam arrived terminal.
+    arrival_terminal: bool,
+    /// The notch's start t₁ (the tests include σ at t₁).
+    notch: Option<i64>,
+    /// Too many undecided triangles: each ray is judged on its own.
+    per_ray: bool,
+    triangles: &'a [Triangle],
+    source: &'a Source,
+    dir: Direction,
+    far: FarDistance<F>,
+    k: i64,
+}
+
+/// A per-ray verdict's code in the test bits: its `Out` for rays leaving the column (bits
+/// 0–1) and staying in it (bits 2–3).
+fn out_code(o: crate::lit::Out) -> u64 {
+    use crate::lit::Out;
+    match o {
+        Out::Absent => 0,
+        Out::Absorbed => 1,
+        Out::Continue => 2,
+        Out::Terminal => 3,
+    }
+}
+
+fn code_out(c: u64) -> crate::lit::Out {
+    use crate::lit::Out;
+    match c & 3 {
+        0 => Out::Absent,
+        1 => Out::Absorbed,
+        2 => Out::Continue,
+        _ => Out::Terminal,
+    }
+}
+
+impl<'a, F: FracBits> ExactVisit<'a, F> {
+    /// The visit at layer `k` of a beam with lattice rectangle `a × b` (inclusive), terminal or
+    /// not, with the notch start `notch` (for a ±z beam that stayed in its column), in a column
+    /// keeping `triangles`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        triangles: &'a [Triangle],
+        source: &'a Source,
+        dir: Direction,
+        far: FarDistance<F>,
+        k: i64,
+        (a, b): ((i64, i64), (i64, i64)),
+        arrival_terminal: bool,
+        notch: Option<i64>,
+    ) -> Self {
+        let mut v = ExactVisit {
+            tests: Vec::new(),
+            absent: false,
+            absorbed: false,
+            terminal: false,
+            arrival_terminal,
+            notch,
+            per_ray: false,
+            triangles,
+            source,
+            dir,
+            far,
+            k,
+        };
+        let corners = [(a.0, b.0), (a.0, b.1), (a.1, b.0), (a.1, b.1)];
+        for tri in triangles {
+            let Some(occ) = Occluder::new(tri, source, dir, far) else { continue };
+            let tests = occ.exact_tests(k, notch.unwrap_or(k - 1));
+            // Per test: Some(value) when constant on the rectangle.
+            let mut fixed = [None; PER_TRIANGLE];
+            for (i, t) in tests.iter().enumerate() {
+                let c = corners.map(|(a, b)| t.holds(a, b));
+                fixed[i] = c.iter().all(|&x| x == c[0]).then_some(c[0]);
+            }
+            if fixed[..3].contains(&Some(false)) {
+                continue; // outside an edge everywhere: meets no ray
+            }
+            let sigma = &fixed[3..];
+            if sigma.iter().all(|s| s.is_some() && *s == sigma[0]) {
+                continue; // no ray crosses the plane between t₁ and k + 1
+            }
+            if fixed.iter().all(Option::is_some) {
+                let bits = fixed.iter().enumerate().fold(0u64, |m, (i, x)| m | ((*x == Some(true)) as u64) << i);
+                let (absent, absorbed, terminal) = Self::triangle(bits, notch.is_some());
+                v.absent |= absent;
+                v.absorbed |= absorbed;
+                v.terminal |= terminal;
+                continue;
+            }
+            if v.tests.len() + PER_TRIANGLE > MAX_EXACT_TESTS {
+                v.per_ray = true;
+                v.tests.clear();
+                break;
+            }
+            for t in tests {
+                let _ = v.tests.push(t);
+            }
+        }
+        v
+    }
+
+    /// One triangle's verdict on rays with its seven test bits: (absent, absorbed, terminal).
+    fn triangle(bits: u64, notched: bool) -> (bool, bool, bool) {
+        let inside = bits & 0b111 == 0b111;
+        let s = |i: u32| bits >> i & 1 == 1;
+        (inside && notched && s(6) != s(3), inside && s(3) != s(4), inside && s(4) != s(5))
+    }
+
+    /// Whether the visit judges ray by ray (more than [`MAX_EXACT_TRIANGLES`] undecided
+    /// triangles): counted by the cell ([`crate::light::LightCounters::per_ray_visits`]).
+    pub const fn per_ray(&self) -> bool {
+        self.per_ray
+    }
+
+    /// Whether no test is needed and nothing happens: every ray of the beam goes on plain.
+    pub fn is_plain(&self) -> bool {
+        self.is_uniform() && !(self.absent || self.absorbed || self.terminal || self.arrival_terminal)
+    }
+
+    /// Whether every ray has the same verdict (no test to read).
+    pub fn is_uniform(&self) -> bool {
+        self.tests.is_empty() && !self.per_ray
+    }
+
+    /// The verdict on rays from the flags and the triangles' bits.
+    fn out(&self, (mut absent, mut absorbed, mut terminal): (bool, bool, bool), stays: bool) -> crate::lit::Out {
+        use crate::lit::Out;
+        absent |= self.absent;
+        absorbed |= self.absorbed;
+        terminal |= self.terminal;
+        if absent {
+            Out::Absent
+        } else if self.arrival_terminal || absorbed {
+            Out::Absorbed
+        } else if terminal && !stays {
+            Out::Terminal
+        } else {
+            Out::Continue
+        }
+    }
+
+    /// Ray (a, b) judged against every triangle of the column.
+    fn judge(&self, a: i64, b: i64) -> (bool, bool, bool) {
+        let mut acc = (false, false, false);
+        for tri in self.triangles {
+            let Some(occ) = Occluder::new(tri, self.source, self.dir, self.far) else { continue };
+            let bits = occ
+                .exact_tests(self.k, self.notch.unwrap_or(self.k - 1))
+                .iter()
+                .enumerate()
+                .fold(0u64, |m, (i, t)| m | (t.holds(a, b) as u64) << i);
+            let (x, y, z) = Self::triangle(bits, self.notch.is_some());
+            acc = (acc.0 | x, acc.1 | y, acc.2 | z);
+        }
+        acc
+    }
+
+    /// The bits [`crate::lit::Rule::verdict`] reads for ray (a, b): its tests', or per ray its
+    /// verdicts' codes.
+    pub fn bits(&self, a: i64, b: i64) -> u64 {
+        if self.per_ray {
+            let j = self.judge(a, b);
+            return out_code(self.out(j, false)) | out_code(self.out(j, true)) << 2;
+        }
+        self.tests.iter().enumerate().fold(0u64, |m, (i, t)| m | (t.holds(a, b) as u64) << i)
+    }
+}
+
+impl<F: FracBits> crate::lit::Rule for ExactVisit<'_, F> {
+    fn tests(&self) -> &[Test] {
+        &self.tests
+    }
+
+    fn verdict(&self, bits: u64, stays: bool) -> crate::lit::Verdict {
+        let out = if self.per_ray {
+            code_out(bits >> (2 * stays as u32))
+        } else {
+            let mut acc = (false, false, false);
+            for i in 0..self.tests.len() / PER_TRIANGLE {
+                let (x, y, z) = Self::triangle(bits >> (i * PER_TRIANGLE), self.notch.is_some());
+                acc = (acc.0 | x, acc.1 | y, acc.2 | z);
+            }
+            self.out(acc, stays)
+        };
+        crate::lit::Verdict { out, lit: false, visible: false }
+    }
+
+    fn outside(&self, _bits: u64) -> bool {
+        false
+    }
+
+    fn line<const C: usize>(
+        &self,
+        along: crate::lit::Along,
+        fixed: i64,
+        lo: i64,
+        hi: i64,
+        out: &mut crate::lit::Segments<C>,
+    ) {
+        if !self.per_ray {
+            return crate::lit::segments(&self.tests, along, fixed, lo, hi, out);
+        }
+        out.clear();
+        for x in lo..=hi {
+            let (a, b) = match along {
+                crate::lit::Along::V => (fixed, x),
+                crate::lit::Along::U => (x, fixed),
+            };
+            let bits = self.bits(a, b);
+            if out.last().is_none_or(|l| l.1 != bits) && out.push((x, bits)).is_err() {
+                // More verdict changes on one line than segments: the rest of the line takes
+                // the last verdict (never met; the host's conservation check would fail).
+                break;
+            }
+        }
+    }
+
+    fn run_end(&self, along: crate::lit::Along, start: i64, end: i64, lo: i64, hi: i64) -> i64 {
+        if self.per_ray {
+            return start; // one line at a time
+        }
+        crate::lit::run_end(&self.tests, along, start, end, lo, hi)
     }
 }
 
@@ -428,7 +713,7 @@ mod tests {
             let (a0, a1) = (r(&mut s, nn), r(&mut s, nn));
             let (b0, b1) = (r(&mut s, nn), r(&mut s, nn));
             let (a0, a1, b0, b1) = (a0.min(a1), a0.max(a1), b0.min(b1), b0.max(b1));
-            let mut seg = Segments::new();
+            let mut seg: Segments = Segments::new();
             for a in a0..=a1 {
                 segments(&tests, Along::V, a, b0, b1, &mut seg);
                 cut += seg.len() - 1;

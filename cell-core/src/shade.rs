@@ -622,7 +622,7 @@ pub fn cell_pixel<const D: usize>(
 ) -> Option<Pixel> {
     match rule {
         crate::lit::LitRule::Thesis => pixel(cell.x, cell.y, &cell.store, reached, materials, lights, params),
-        crate::lit::LitRule::Plane => {
+        crate::lit::LitRule::Plane | crate::lit::LitRule::Exact => {
             cell.visible.as_ref().map(|v| surface_pixel(cell.x, cell.y, v, visible_lit, materials, lights, params))
         }
     }

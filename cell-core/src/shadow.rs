@@ -193,7 +193,10 @@ impl<const FA: usize> ShadowCell<FA> {
         let first = cell.store.dexels().first().map(|d| (0, d.span.lo));
         self.emitter = match env.rule {
             LitRule::Thesis => Emitter { surface: false, next: first },
-            LitRule::Plane => Emitter { surface: cell.visible.is_some(), next: first.filter(|_| env.all_voxels) },
+            // Classic shadow rays have no exact occluders: they run the plane principle.
+            LitRule::Plane | LitRule::Exact => {
+                Emitter { surface: cell.visible.is_some(), next: first.filter(|_| env.all_voxels) }
+            }
         };
         self.launch(cell, env).map(|_| ())
     }
@@ -243,7 +246,7 @@ impl<const FA: usize> ShadowCell<FA> {
                     .map_err(err(z as i32))?;
                 Ok(Some(if i == 0 && z == d.span.lo { ray.for_surface() } else { ray }))
             }
-            LitRule::Plane => {
+            LitRule::Plane | LitRule::Exact => {
                 let centre = [cell.x as i32, cell.y as i32, z as i32].map(|v| v * Q);
                 ShadowRay::on_plane(centre, &d.plane, d.span.lo as i32, env.source, d.facet).map_err(err(z as i32))
             }

@@ -5,17 +5,21 @@
 //! thesis-timing variant and every knob). Also: coverage of the empty scene, conservation,
 //! termination on adversarial sources, and the cycle counts we claim.
 
-use cell_core::beam::{FracBits, Origin, Source, SourceCoord, SourceId};
+use cell_core::beam::{Direction, FarDistance, FracBits, Origin, Source, SourceCoord, SourceId};
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
+use cell_core::receiver::target;
 use host_sim::machine::diffuse::{diffuse, LightConfig, Lighting};
 use host_sim::machine::grid::Grid;
+use host_sim::machine::occluders::ColumnTriangles;
 use host_sim::machine::timing::{Emission, Timing};
 use host_sim::precompute::{LoadConfig, Q};
 use proptest::prelude::*;
+use rc2_tests::oracle::exact;
 use rc2_tests::oracle::lit::{trace_all_plane, trace_all_plane_naive_from};
+use rc2_tests::oracle::rays::{dir_axes, RayOutcome};
 use rc2_tests::oracle::rays::{trace_all, trace_all_naive_from, RaysFrom};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 type G = Grid<64>;
 
@@ -25,7 +29,56 @@ fn grid_with(n: u32, tris: &[[[i64; 3]; 3]]) -> G {
     let cfg = LoadConfig::watertight(n);
     let mut g = G::new(n, n);
     g.load_wave(&common::packets_of(tris, &cfg), |_| {});
+    let polygons: Vec<Vec<[i64; 3]>> = tris.iter().map(|t| t.to_vec()).collect();
+    g.triangles = ColumnTriangles::from_polygons(&polygons, n).expect("triangles in range");
     g
+}
+
+/// The exact-occluder oracle's lighting of `g` (`rc2_tests::oracle::exact`, every ray walked
+/// on its own against the scene's triangles): the rays' fates, the visible surfaces lit (a
+/// column is lit by a source iff its target ray, `cell_core::receiver::target`, reaches its
+/// layer) and, as lit voxels, the target voxels of the lit columns.
+fn exact_oracle<F: FracBits>(g: &G, src16: &[[i64; 3]], origin: Origin) -> (RayOutcome, BTreeMap<[i64; 2], u64>) {
+    let n = g.n as i64;
+    let from = match origin {
+        Origin::SourceVoxel => RaysFrom::Voxel,
+        Origin::Light => RaysFrom::Light,
+    };
+    // The scene's triangles, from the columns that keep them (voxel-centre sixteenths).
+    let tris: BTreeSet<[[i64; 3]; 3]> = (0..g.n)
+        .flat_map(|y| (0..g.n).map(move |x| (x, y)))
+        .flat_map(|(x, y)| g.triangles.column(x, y).iter().map(|t| t.vertices().map(|v| v.map(i64::from))))
+        .collect();
+    let tris: Vec<[[i64; 3]; 3]> = tris.into_iter().collect();
+    let scene = exact::Scene::new(n, &tris);
+    let far = FarDistance::<F>::new(g.n - 1).expect("far distance");
+    let mut out = RayOutcome { lit: BTreeMap::new(), rays_emitted: 0, rays_absorbed: 0, rays_exited: 0 };
+    let mut visible = BTreeMap::new();
+    for (si, &s) in src16.iter().enumerate() {
+        let counts = exact::trace_all_exact(&scene, s, from, F::U32);
+        out.rays_absorbed += counts.stopped;
+        out.rays_exited += counts.exited;
+        out.rays_emitted += counts.stopped + counts.exited;
+        let source = sources(&[s])[0].with_origin(origin);
+        for c in &g.cells {
+            let Some(t) = c.visible.as_ref().and_then(|v| target(c.x as i32, c.y as i32, v, &source, far)) else {
+                continue;
+            };
+            let dir = (0..6).find(|&d| oracle_direction(d) == t.dir).expect("six directions");
+            let fate = exact::trace_ray_exact(&scene, s, from, F::U32, dir, t.a, t.b);
+            if exact::reaches(fate, t.layer as i64) {
+                *visible.entry([c.x as i64, c.y as i64]).or_insert(0) |= 1u64 << si;
+                *out.lit.entry([c.x as i64, c.y as i64, t.z]).or_insert(0) |= 1u64 << si;
+            }
+        }
+    }
+    (out, visible)
+}
+
+/// The cell's direction of the oracle's face `dir`.
+fn oracle_direction(dir: usize) -> Direction {
+    let (w, sign, _, _) = dir_axes(dir);
+    Direction::ALL.into_iter().find(|d| d.principal().index() == w && d.sign() as i64 == sign).expect("six faces")
 }
 
 fn sources(src16: &[[i64; 3]]) -> Vec<Source> {
@@ -39,6 +92,11 @@ fn sources(src16: &[[i64; 3]]) -> Vec<Source> {
 fn light<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) -> Lighting<F> {
     let sources: Vec<Source> = sources(src16).into_iter().map(|s| s.with_origin(cfg.rays)).collect();
     diffuse::<F, 64>(g, &sources, &cfg, |_, _| {}).expect("diffusion terminates without loss")
+}
+
+/// The columns whose visible surface the diffusion lit, with their source masks.
+fn visible_lit<F: FracBits>(l: &Lighting<F>) -> BTreeMap<[i64; 2], u64> {
+    l.cells.iter().filter(|c| c.visible_lit != 0).map(|c| ([c.x as i64, c.y as i64], c.visible_lit as u64)).collect()
 }
 
 /// Beam diffusion == per-ray tracing under the configured lit rule: lit voxels, masks, the
@@ -58,14 +116,13 @@ fn check_against_rays<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) 
                     trace_all_plane_naive_from(RaysFrom::Light, n, &surfaces, &columns, src16, n - 1, F::U32)
                 }
             };
-            let got: BTreeMap<[i64; 2], u64> = l
-                .cells
-                .iter()
-                .filter(|c| c.visible_lit != 0)
-                .map(|c| ([c.x as i64, c.y as i64], c.visible_lit as u64))
-                .collect();
-            prop_assert_eq!(&got, &o.visible, "visible surfaces lit differ (f = {}, {:?})", F::U32, cfg);
+            prop_assert_eq!(&visible_lit(&l), &o.visible, "visible surfaces lit differ (f = {}, {:?})", F::U32, cfg);
             o.rays
+        }
+        (LitRule::Exact, origin) => {
+            let (rays, visible) = exact_oracle::<F>(g, src16, origin);
+            prop_assert_eq!(&visible_lit(&l), &visible, "visible surfaces lit differ (f = {}, {:?})", F::U32, cfg);
+            rays
         }
     };
     let got: BTreeMap<[i64; 3], u64> = l.lit_voxels().map(|(v, m)| (v.map(|c| c as i64), m as u64)).collect();
@@ -98,12 +155,17 @@ fn all_timings() -> Vec<Timing> {
 }
 
 fn config() -> impl Strategy<Value = LightConfig> {
+    config_of(vec![LitRule::Thesis, LitRule::Plane])
+}
+
+/// [`config`] drawing its lit rule from `rules`.
+fn config_of(rules: Vec<LitRule>) -> impl Strategy<Value = LightConfig> {
     (
         prop::sample::select(vec![1usize, 2, 3, 5, 16, 64]),
         prop::sample::select(vec![Policy::Thesis, Policy::Wavefront, Policy::Radial]),
         any::<bool>(),
         any::<bool>(),
-        prop::sample::select(vec![LitRule::Thesis, LitRule::Plane]),
+        prop::sample::select(rules),
         prop::sample::select(all_timings()),
     )
         .prop_map(|(fa, policy, merge, skip, rule, timing)| LightConfig {
@@ -138,6 +200,31 @@ proptest! {
         cell_core::with_frac_bits!(f, F => check_against_rays::<F>(&g, &src16, cfg)).unwrap()?;
     }
 
+    /// Exact occluders (`LitRule::Exact`): a ray stops where its segment meets a triangle the
+    /// columns of its two voxels keep, a pixel is lit iff its target ray gets there — against
+    /// the oracle that walks each ray against the triangles (`oracle::exact`), for both ray
+    /// origins, every policy, FIFO size, merging, skip and timing. Facets on the loading
+    /// lattice, so rays through edges and vertices are common.
+    #[test]
+    fn exact_occluders_match_per_ray_tracing(
+        n in 5u32..=11,
+        raw_tris in prop::collection::vec(prop::array::uniform3(prop::array::uniform3(0i64..=20)), 0..6),
+        raw_src in prop::collection::vec([0i64..=1000, 0..=1000, 0..=1000], 1..3),
+        light_origin in any::<bool>(),
+        f in prop::sample::select(vec![0u32, 1, 2]),
+        cfg in config_of(vec![LitRule::Exact]),
+    ) {
+        let tris: Vec<[[i64; 3]; 3]> = raw_tris.iter().map(|t| t.map(|p| p.map(|c| c * 8 * n as i64 / 10))).collect();
+        let src16: Vec<[i64; 3]> = raw_src.iter().map(|p| p.map(|c| c * 16 * (n as i64 - 1) / 1000)).collect();
+        let g = grid_with(n, &tris);
+        let (rays, fa) = match light_origin {
+            true => (Origin::Light, cfg.fa.max(cell_core::light::MIN_FA_FROM_LIGHT)),
+            false => (Origin::SourceVoxel, cfg.fa),
+        };
+        let cfg = LightConfig { rays, fa, ..cfg };
+        cell_core::with_frac_bits!(f, F => check_against_rays::<F>(&g, &src16, cfg)).unwrap()?;
+    }
+
     /// Rays from the light (`Origin::Light`: each face's layers on the voxel centre planes
     /// ahead of the light, the first split possibly inside the source voxel's slab) under both
     /// lit rules, against the per-ray oracles that walk each ray from that definition; sources
@@ -149,7 +236,7 @@ proptest! {
         raw_src in prop::collection::vec([0i64..=1000, 0..=1000, 0..=1000], 1..3),
         boundary in any::<bool>(),
         f in prop::sample::select(vec![0u32, 1, 2]),
-        cfg in config(),
+        cfg in config_of(vec![LitRule::Thesis, LitRule::Plane, LitRule::Exact]),
     ) {
         let m = Q * n as i64;
         let tris: Vec<[[i64; 3]; 3]> = raw_tris.iter().map(|t| t.map(|p| p.map(|c| c * m / 1000))).collect();
@@ -215,7 +302,7 @@ fn adversarial_sources() {
         let g = grid_with(n, tris);
         for p in positions {
             for policy in [Policy::Thesis, Policy::Wavefront, Policy::Radial] {
-                for rule in [LitRule::Thesis, LitRule::Plane] {
+                for rule in [LitRule::Thesis, LitRule::Plane, LitRule::Exact] {
                     let merge = policy.by_layer();
                     let cfg = LightConfig { fa: 2, policy, merge, record_visits: false, rule, ..Default::default() };
                     check_against_rays::<cell_core::beam::frac::U2>(&g, &[p], cfg)
@@ -243,7 +330,7 @@ fn every_timing_lights_the_oracles_voxels() {
     let src = [[100, 60, 120]];
     for timing in all_timings() {
         for policy in [Policy::Thesis, Policy::Wavefront, Policy::Radial] {
-            for rule in [LitRule::Thesis, LitRule::Plane] {
+            for rule in [LitRule::Thesis, LitRule::Plane, LitRule::Exact] {
                 let cfg = LightConfig { fa: 2, policy, merge: policy.by_layer(), rule, timing, ..Default::default() };
                 check_against_rays::<cell_core::beam::frac::U0>(&g, &src, cfg)
                     .unwrap_or_else(|e| panic!("{timing:?} {policy:?} {rule:?}: {e}"));

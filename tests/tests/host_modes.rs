@@ -183,7 +183,7 @@ fn visible_only_lit_store_gives_the_same_image() {
                 let c = grid.cell(p[0], p[1]);
                 match rule {
                     LitRule::Thesis => c.store.dexels().first().is_some_and(|d| d.span.lo as u32 == p[2]),
-                    LitRule::Plane => c.visible.is_some_and(|v| v.brackets(p[2] as i64)),
+                    LitRule::Plane | LitRule::Exact => c.visible.is_some_and(|v| v.brackets(p[2] as i64)),
                 }
             };
             let want: Vec<_> = full.lit.iter().filter(|(p, _)| visible(p)).cloned().collect();

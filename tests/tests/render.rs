@@ -122,6 +122,7 @@ fn oracle_image(mesh: &Mesh, loaded: &LoadedScene, lights: &[[f64; 3]], rule: Li
             let lit = trace_all(n, &occupied, &src16, n - 1, f).lit;
             Seen::FirstVoxel(Box::new(move |x, y, z| lit.get(&[x as i64, y as i64, z as i64]).map_or(0, |&m| m as u32)))
         }
+        LitRule::Exact => panic!("exact occluders are checked ray by ray in tests/diffusion.rs, not here"),
     };
     host_sim::machine::shade::shade_grid_with(mesh, loaded, &cell_lights, &seen, NormalMode::Facet)
 }

@@ -125,7 +125,7 @@ fn render<F: FracBits>(mesh: &Mesh, n: u32, setup: &Setup) -> (Image, host_sim::
         let (x, y) = (i as u32 % n, i as u32 / n);
         let cell = loaded.grid.cell(x, y);
         let shown = match setup.rule {
-            LitRule::Plane => cell.visible.as_ref().map(|v| v.material as usize),
+            LitRule::Plane | LitRule::Exact => cell.visible.as_ref().map(|v| v.material as usize),
             LitRule::Thesis => cell.store.dexels().first().map(|d| d.material as usize),
         };
         if shown != floor {

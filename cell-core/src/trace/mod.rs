@@ -222,6 +222,8 @@ impl LightSetup {
             hold: self.hold,
             frustum: None,
             rays: None,
+            // A trace carries no triangles: the host refuses to trace exact occluders.
+            occluders: None,
         })
     }
 }

@@ -421,6 +421,11 @@ pub enum LitRuleArg {
     Thesis,
     /// Stopped only by a plane crossed there; each pixel lit from its visible surface's plane.
     Plane,
+    /// Exact occluders: a ray is stopped where it meets a triangle its cells keep; each pixel
+    /// is lit iff its one target ray (the lattice ray nearest the ray to its point) arrives.
+    /// Diffusion only (classic shadow rays run the plane rule); not on the asynchronous boards
+    /// or in traces.
+    Exact,
 }
 
 impl From<LitRuleArg> for cell_core::lit::LitRule {
@@ -428,6 +433,7 @@ impl From<LitRuleArg> for cell_core::lit::LitRule {
         match a {
             LitRuleArg::Thesis => cell_core::lit::LitRule::Thesis,
             LitRuleArg::Plane => cell_core::lit::LitRule::Plane,
+            LitRuleArg::Exact => cell_core::lit::LitRule::Exact,
         }
     }
 }

@@ -209,7 +209,7 @@ fn render_classic<F: FracBits>(
     let r = {
         let seen = match classic_cfg.rule {
             LitRule::Thesis => Seen::FirstVoxel(Box::new(|x, y, _| cl.mask(x, y))),
-            LitRule::Plane => Seen::Surface(Box::new(|x, y| cl.mask(x, y))),
+            LitRule::Plane | LitRule::Exact => Seen::Surface(Box::new(|x, y| cl.mask(x, y))),
         };
         shade(input, cfg, &seen, stats, light_seconds)
     };

@@ -53,6 +53,7 @@ use cell_core::beam::{FracBits, Source, SplitOrder};
 use cell_core::facet::{PipelinePacket, RowPacket};
 use cell_core::light::{Activity, ActivityDelta, BeamMsg, LightCell, LightEnv, Port};
 use cell_core::link::{Link, PerfectLink, Sent};
+use cell_core::lit::LitRule;
 use cell_core::termination::{Action, Node, Token};
 use cell_core::voxelize::PipelineCell;
 use cell_core::wire::TokenFrame;
@@ -281,6 +282,9 @@ pub fn run<F: FracBits>(
     if light.skip_receding || light.skip_dead_directions || light.skip_frustum || light.skip_hidden {
         bail!("the asynchronous boards run without the skips that need a whole-grid reduction after loading");
     }
+    if light.rule == LitRule::Exact {
+        bail!("the asynchronous boards load no triangles: exact occluders run on the synchronous grid");
+    }
     if light.faults.is_some() || light.hold > 0 || light.stop_at.is_some() || light.record_visits {
         bail!("the asynchronous boards run on their own wires, without a sibling wait, snapshot or visit record");
     }
@@ -293,7 +297,7 @@ pub fn run<F: FracBits>(
     ex.schedule(0, |ex, b| ex.step_loading(b, &mut grid), |_, _, _| {})?;
     let order = SplitOrder::default();
     let all = AllSources::plain(&grid, sources, light, far);
-    let envs: Vec<LightEnv<'_, F>> = sources.iter().enumerate().map(|(i, s)| all.env(s, i, &order)).collect();
+    let envs: Vec<LightEnv<'_, F>> = sources.iter().enumerate().map(|(i, s)| all.env(s, i, &order, None)).collect();
     ex.light(&grid, sources, &envs, light)?;
     drop(envs);
     let reports = sources

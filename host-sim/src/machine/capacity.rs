@@ -9,7 +9,9 @@ use cell_core::radiosity::{IndirectPixel, PatchRuns, Received};
 use cell_core::reflect_cell::ReflectCell;
 use cell_core::shadow::ShadowCell;
 
-pub use cell_core::cell::{DEFAULT_DEXELS, FA_CAP, LIT_CAP, OB_CAP, REFLECT_FA_CAP, SEND_CAP, SHADOW_FA_CAP, WAIT_CAP};
+pub use cell_core::cell::{
+    DEFAULT_DEXELS, FA_CAP, LIT_CAP, OB_CAP, REFLECT_FA_CAP, SEND_CAP, SHADOW_FA_CAP, TRIANGLE_CAP, WAIT_CAP,
+};
 
 /// The host's lighting cell type.
 pub type HostLightCell<F> = LightCell<F, FA_CAP, OB_CAP, LIT_CAP>;

@@ -26,6 +26,7 @@ use cell_core::light::{
     SourceMask, Step, SubBeamBounds,
 };
 use cell_core::lit::LitRule;
+use cell_core::occluder::ColumnOccluders;
 use cell_core::occupancy::{BlockRow, FrustumTest, Occupancy16, Occupancy32, Occupancy8, OccupancySummary};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Relaxed};
@@ -36,6 +37,7 @@ use crate::machine::capacity::{HostLightCell, FA_CAP};
 use crate::machine::faults::{fault_counts, FaultCounts, FaultInjector, FaultTally, LinkFaults, Wire};
 use crate::machine::grid::Grid;
 use crate::machine::links::{self, lossless, sure, CellInbox, GridLinks, HostLink, Took, BACK};
+use crate::machine::occluders::SourceOccluders;
 use crate::machine::tap::{Tap, Tracer};
 use crate::machine::tiles::{merge_sorted, prefetch, prefetch_ends, tiles};
 use crate::machine::timing::Timing;
@@ -256,6 +258,9 @@ pub struct DiffusionCounts {
     pub peak_link_load: u64,
     /// Chebyshev distance (cells) from that link's sending cell to the source's column.
     pub peak_link_distance: u32,
+    /// Beam steps judged ray by ray under exact occluders (more undecided triangles than
+    /// `cell_core::occluder::MAX_EXACT_TRIANGLES`): same verdicts, more arithmetic.
+    pub per_ray_visits: u64,
 }
 
 impl DiffusionCounts {
@@ -276,6 +281,7 @@ impl DiffusionCounts {
         self.peak_fifo = self.peak_fifo.max(o.peak_fifo);
         self.blocked_cell_cycles += o.blocked_cell_cycles;
         self.held_cell_cycles += o.held_cell_cycles;
+        self.per_ray_visits += o.per_ray_visits;
         self.peak_active_cells = self.peak_active_cells.max(o.peak_active_cells);
         if o.peak_link_load > self.peak_link_load {
             self.peak_link_load = o.peak_link_load;
@@ -496,6 +502,9 @@ fn check_recording(cfg: &LightConfig, tapped: bool) -> Result<()> {
     if cfg.lit_visible_only && tapped {
         bail!("a cell trace records the whole lit store: record without --lit-visible-only");
     }
+    if cfg.rule == LitRule::Exact && tapped {
+        bail!("a cell trace carries no triangles: record under --lit-rule plane or thesis");
+    }
     Ok(())
 }
 
@@ -533,7 +542,8 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
         let mut reports = Vec::new();
         let mut visited = cfg.record_visits.then(|| vec![false; (grid.n * grid.n * grid.depth) as usize]);
         for (si, src) in self.sources.iter().enumerate() {
-            let env = self.env(src, si, &order);
+            let occluders = (cfg.rule == LitRule::Exact).then(|| SourceOccluders::new(self.grid, src, self.far));
+            let env = self.env(src, si, &order, occluders.as_ref().map(|o| o as &dyn ColumnOccluders));
             let before: Vec<LightCounters> = cells.iter().map(|c| c.counters).collect();
             for c in cells.iter_mut() {
                 c.counters.max_layer = 0;
@@ -560,7 +570,13 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
     }
 
     /// The lighting environment of source `si`.
-    pub(crate) fn env<'e>(&'e self, src: &'e Source, si: usize, order: &'e SplitOrder) -> LightEnv<'e, F> {
+    pub(crate) fn env<'e>(
+        &'e self,
+        src: &'e Source,
+        si: usize,
+        order: &'e SplitOrder,
+        occluders: Option<&'e dyn ColumnOccluders>,
+    ) -> LightEnv<'e, F> {
         let (cfg, grid, occupied) = (self.cfg, self.grid, self.occupied);
         LightEnv {
             source: src,
@@ -580,6 +596,7 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
             hold: cfg.hold,
             frustum: self.frustum.map(Summary::test),
             rays: self.shot.map(|s| s.rays),
+            occluders,
         }
     }
 }
@@ -600,6 +617,7 @@ fn add_cell_counts<F: FracBits>(rep: &mut SourceReport, cells: &[HostLightCell<F
         rep.counts.rays_skipped += (k.rays_skipped - b.rays_skipped) as u128;
         rep.counts.blocked_cell_cycles += k.blocked_cycles - b.blocked_cycles;
         rep.counts.held_cell_cycles += k.held_cycles - b.held_cycles;
+        rep.counts.per_ray_visits += (k.per_ray_visits - b.per_ray_visits) as u64;
         rep.counts.peak_fifo = rep.counts.peak_fifo.max(k.peak_fifo);
         if processed > 0 {
             rep.counts.lb_distance = rep.counts.lb_distance.max(k.max_layer as u64 + 1);
@@ -612,11 +630,13 @@ fn add_cell_counts<F: FracBits>(rep: &mut SourceReport, cells: &[HostLightCell<F
 fn check_conservation(si: usize, c: &DiffusionCounts) -> Result<()> {
     if c.rays_emitted != c.rays_absorbed + c.rays_exited + c.rays_skipped {
         bail!(
-            "ray conservation violated for source {si}: emitted {} ≠ absorbed {} + exited {} + skipped {}",
+            "ray conservation violated for source {si}: emitted {} ≠ absorbed {} + exited {} + skipped {} \
+             ({} steps judged ray by ray)",
             c.rays_emitted,
             c.rays_absorbed,
             c.rays_exited,
-            c.rays_skipped
+            c.rays_skipped,
+            c.per_ray_visits
         );
     }
     Ok(())
@@ -1590,6 +1610,16 @@ fn summarise<const B: usize, R: BlockRow, const D: usize>(
     for c in &grid.cells {
         let (x, y) = (c.x as u32, c.y as u32);
         match (visible_only, rule) {
+            (false, LitRule::Exact) => {
+                // A ray meets a triangle within one voxel of its voxels at the segment's ends,
+                // and every point of a triangle lies in an occupied voxel: a beam can do
+                // something only near an occupied voxel, or at its target.
+                if let Some((lo, hi)) = active_span(c, grid.depth, rule) {
+                    for (nx, ny) in neighbourhood(x, y, grid.n) {
+                        s.mark_span(nx, ny, lo as u32, hi as u32);
+                    }
+                }
+            }
             (false, _) => {
                 s.mark_column(x, y, c.store.dexels());
                 // Under the plane rule a ray may light the pixel in an empty voxel bracketing
@@ -1603,7 +1633,7 @@ fn summarise<const B: usize, R: BlockRow, const D: usize>(
                     s.mark_span(x, y, d.span.lo as u32, d.span.lo as u32);
                 }
             }
-            (true, LitRule::Plane) => {
+            (true, LitRule::Plane | LitRule::Exact) => {
                 if let Some(v) = c.visible {
                     let top = grid.depth as i64 - 1;
                     let (lo, hi) = ((v.z_v as i64).clamp(0, top), (v.z_v as i64 + 1).clamp(0, top));
@@ -1623,9 +1653,15 @@ fn active_span<const D: usize>(c: &cell_core::cell::Cell<D>, depth: u32, rule: L
     let ds = c.store.dexels();
     let occupied = ds.first().zip(ds.last()).map(|(f, l)| (f.span.lo, l.span.hi));
     let top = depth as i64 - 1;
+    // Under exact occluders a segment ending in a voxel next to an occupied one may meet a
+    // triangle: the occupied span grows by one voxel each way.
+    let occupied = match rule {
+        LitRule::Exact => occupied.map(|(lo, hi)| (lo.saturating_sub(1), (hi as i64 + 1).min(top) as u16)),
+        _ => occupied,
+    };
     let bracket = match rule {
         LitRule::Thesis => None,
-        LitRule::Plane => c.visible.map(|v| {
+        LitRule::Plane | LitRule::Exact => c.visible.map(|v| {
             let (lo, hi) = ((v.z_v as i64).clamp(0, top), (v.z_v as i64 + 1).clamp(0, top));
             (lo as u16, hi as u16)
         }),
@@ -1642,11 +1678,20 @@ pub fn occupied_box<const D: usize>(grid: &Grid<D>, rule: LitRule) -> OccupiedBo
     let mut b = OccupiedBox { lo: [u16::MAX; 3], hi: [0; 3] };
     for c in &grid.cells {
         if let Some((lo, hi)) = active_span(c, grid.depth, rule) {
-            b.lo = [b.lo[0].min(c.x), b.lo[1].min(c.y), b.lo[2].min(lo)];
-            b.hi = [b.hi[0].max(c.x), b.hi[1].max(c.y), b.hi[2].max(hi)];
+            // Exact occluders: one column more each way ([`active_span`]).
+            let g = (rule == LitRule::Exact) as u16;
+            let last = grid.n.saturating_sub(1) as u16;
+            b.lo = [b.lo[0].min(c.x.saturating_sub(g)), b.lo[1].min(c.y.saturating_sub(g)), b.lo[2].min(lo)];
+            b.hi = [b.hi[0].max((c.x + g).min(last)), b.hi[1].max((c.y + g).min(last)), b.hi[2].max(hi)];
         }
     }
     b
+}
+
+/// Column (x, y) and its (up to) eight neighbours inside an n × n grid.
+fn neighbourhood(x: u32, y: u32, n: u32) -> impl Iterator<Item = (u32, u32)> {
+    let (x0, x1, y0, y1) = (x.saturating_sub(1), (x + 1).min(n - 1), y.saturating_sub(1), (y + 1).min(n - 1));
+    (y0..=y1).flat_map(move |ny| (x0..=x1).map(move |nx| (nx, ny)))
 }
 
 /// A source at a position in voxel units (1/16-voxel lattice), checked to lie in the grid.

@@ -42,6 +42,9 @@ pub struct Grid<const D: usize> {
     pub depth: u32,
     /// Cells, row-major (`y·n + x`).
     pub cells: Vec<Cell<D>>,
+    /// The triangles each column keeps for exact occluders, loaded with the facets (empty
+    /// until then).
+    pub triangles: crate::machine::occluders::ColumnTriangles,
 }
 
 impl<const D: usize> Grid<D> {
@@ -53,7 +56,7 @@ impl<const D: usize> Grid<D> {
                 cells.push(Cell::new(x as u16, y as u16));
             }
         }
-        Grid { n, depth, cells }
+        Grid { n, depth, cells, triangles: Default::default() }
     }
 
     /// The cell at (x, y).

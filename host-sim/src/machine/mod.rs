@@ -19,6 +19,7 @@
 //! * [`radiosity`] — progressive radiosity on the grid: one beam diffusion per shot carrying
 //!   its rays' energy, per-patch accumulators, the costed reduction and the supervisor;
 //!   [`indirect`] shows its solution: each cell's indirect light, broadcast and costed.
+//! * [`occluders`] — exact occluders: the triangles each column keeps, its target rays.
 //! * [`limits`] — host memory checks before allocating a grid.
 //! * [`async_tiles`] — the grid as asynchronous boards (tiles of cells, random link delays, no
 //!   global cycle) whose phases end by distributed termination detection
@@ -37,6 +38,7 @@ pub mod links;
 pub mod load;
 pub mod loaded;
 pub mod network;
+pub mod occluders;
 pub mod radiosity;
 pub mod reflect;
 pub mod sequential;

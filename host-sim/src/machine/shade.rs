@@ -68,7 +68,7 @@ pub enum Seen<'a> {
 pub fn seen<F: FracBits>(lighting: &crate::machine::diffuse::Lighting<F>) -> Seen<'_> {
     match lighting.rule {
         LitRule::Thesis => Seen::FirstVoxel(Box::new(|x, y, z| lighting.mask(x, y, z))),
-        LitRule::Plane => Seen::Surface(Box::new(|x, y| lighting.visible_mask(x, y))),
+        LitRule::Plane | LitRule::Exact => Seen::Surface(Box::new(|x, y| lighting.visible_mask(x, y))),
     }
 }
 
