@@ -44,7 +44,7 @@ pub struct Grid<const D: usize> {
     pub cells: Vec<Cell<D>>,
     /// The triangles each column keeps for exact occluders, loaded with the facets (empty
     /// until then).
-    pub triangles: crate::machine::occluders::ColumnTriangles,
+    pub triangles: crate::machine::triangles::ColumnTriangles,
 }
 
 impl<const D: usize> Grid<D> {

@@ -216,7 +216,7 @@ pub fn voxelize_tapped<const D: usize>(
         }
     };
     let t2 = Instant::now();
-    grid.triangles = crate::machine::occluders::ColumnTriangles::from_polygons(&prepared.polygons, cfg.n)?;
+    grid.triangles = crate::machine::triangles::ColumnTriangles::from_polygons(&prepared.polygons, cfg.n)?;
     let summary = grid.summary();
     let fit = prepared.fit.expect("prepare always fits");
     let cell = std::mem::size_of::<Cell<D>>() + std::mem::size_of::<RowPacket>();

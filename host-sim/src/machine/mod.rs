@@ -19,7 +19,8 @@
 //! * [`radiosity`] — progressive radiosity on the grid: one beam diffusion per shot carrying
 //!   its rays' energy, per-patch accumulators, the costed reduction and the supervisor;
 //!   [`indirect`] shows its solution: each cell's indirect light, broadcast and costed.
-//! * [`occluders`] — exact occluders: the triangles each column keeps, its target rays.
+//! * [`triangles`] — the triangles each column keeps for exact occluders; [`occluders`] — those
+//!   triangles and each column's target ray for one source.
 //! * [`limits`] — host memory checks before allocating a grid.
 //! * [`async_tiles`] — the grid as asynchronous boards (tiles of cells, random link delays, no
 //!   global cycle) whose phases end by distributed termination detection
@@ -46,4 +47,5 @@ pub mod shade;
 pub mod tap;
 pub mod tiles;
 pub mod timing;
+pub mod triangles;
 pub mod wave_ref;

@@ -1,113 +1,14 @@
-//! Exact occluders on the grid (thesis §5.5.6; `cell_core::occluder`): the triangles each
-//! column keeps, loaded with the facets, and each column's target ray for a source.
-//!
-//! A cell keeps the lattice triangles of the facets whose projection meets its column's square
-//! (`Triangle::crosses_column`), at most [`TRIANGLE_CAP`] in stream order; the triangles a full
-//! column leaves out are counted ([`ColumnTriangles::overflows`]). The host holds every
-//! column's store in one array (CSR: a column's triangles are a slice), not n² fixed stores:
-//! a firmware cell's `TriangleStore<64>` is 2.3 KB, the host's columns keep 1–11 triangles on
-//! average.
+//! Exact occluders on the grid for one source (thesis §5.5.6; `cell_core::occluder`): each
+//! column's triangles ([`crate::machine::triangles`]) and its target ray.
 
-use anyhow::{bail, Result};
 use cell_core::beam::{FarDistance, FracBits, Source};
 use cell_core::occluder::{ColumnOccluders, Triangle};
 use cell_core::receiver::{target, Target};
 use cell_core::units::Coord;
 use rayon::prelude::*;
 
-use crate::machine::capacity::TRIANGLE_CAP;
 use crate::machine::grid::Grid;
-
-/// Every column's triangles (empty when the scene was loaded without them).
-#[derive(Clone, Debug, Default)]
-pub struct ColumnTriangles {
-    n: u32,
-    /// Column `i = y·n + x` holds `tris[start[i] .. start[i + 1]]` (empty `start`: none).
-    start: Vec<u32>,
-    tris: Vec<Triangle>,
-    overflows: u64,
-}
-
-impl ColumnTriangles {
-    /// The stores of an n × n grid loaded from `polygons` (planar convex polygons on the
-    /// loading lattice, `X = 16·x + 8` sixteenths, as `precompute::prepare` makes them), each
-    /// cut into a fan of triangles.
-    pub fn from_polygons(polygons: &[Vec<[i64; 3]>], n: u32) -> Result<Self> {
-        let mut tris = Vec::new();
-        for poly in polygons {
-            // Voxel centres at multiples of 16.
-            let v: Vec<[i32; 3]> = poly.iter().map(|p| p.map(|c| (c - 8) as i32)).collect();
-            for k in 1..v.len().saturating_sub(1) {
-                let Some(t) = Triangle::new([v[0], v[k], v[k + 1]]) else {
-                    bail!("a facet of the loaded scene lies outside the exact occluders' coordinate range");
-                };
-                tris.push(t);
-            }
-        }
-        let cols = n as usize * n as usize;
-        let mut per: Vec<Vec<Triangle>> = vec![Vec::new(); cols];
-        let mut overflows = 0u64;
-        for t in &tris {
-            let range = |c: usize| {
-                let (lo, hi) = t
-                    .vertices()
-                    .iter()
-                    .fold((i64::MAX, i64::MIN), |(lo, hi), v| (lo.min(v[c] as i64), hi.max(v[c] as i64)));
-                ((lo - 8).div_euclid(16).max(0), (hi + 8 + 15).div_euclid(16).min(n as i64 - 1))
-            };
-            let ((x0, x1), (y0, y1)) = (range(0), range(1));
-            for y in y0..=y1 {
-                for x in x0..=x1 {
-                    if t.crosses_column(x as i32, y as i32) {
-                        let col = &mut per[(y * n as i64 + x) as usize];
-                        if col.len() < TRIANGLE_CAP {
-                            col.push(*t);
-                        } else {
-                            overflows += 1;
-                        }
-                    }
-                }
-            }
-        }
-        let mut start = Vec::with_capacity(cols + 1);
-        let mut flat = Vec::new();
-        start.push(0);
-        for col in per {
-            flat.extend(col);
-            start.push(flat.len() as u32);
-        }
-        Ok(ColumnTriangles { n, start, tris: flat, overflows })
-    }
-
-    /// The triangles column (x, y) keeps.
-    pub fn column(&self, x: u32, y: u32) -> &[Triangle] {
-        if self.start.is_empty() || x >= self.n || y >= self.n {
-            return &[];
-        }
-        let i = (y * self.n + x) as usize;
-        &self.tris[self.start[i] as usize..self.start[i + 1] as usize]
-    }
-
-    /// Whether the stores were loaded (a grid loaded without them has none).
-    pub fn loaded(&self) -> bool {
-        !self.start.is_empty()
-    }
-
-    /// Triangles kept, over all columns.
-    pub fn kept(&self) -> usize {
-        self.tris.len()
-    }
-
-    /// Triangles left out by full columns.
-    pub fn overflows(&self) -> u64 {
-        self.overflows
-    }
-
-    /// The largest number of triangles one column keeps.
-    pub fn max_per_column(&self) -> usize {
-        self.start.windows(2).map(|w| (w[1] - w[0]) as usize).max().unwrap_or(0)
-    }
-}
+use crate::machine::triangles::ColumnTriangles;
 
 /// What the cells know for one source: their triangles and their target rays
 /// (`cell_core::receiver::target` from each column's visible surface, computed in parallel).
