@@ -10,6 +10,9 @@
 #                   wavefront): the figures the project used to quote
 #   classic-plane   --lighting classic (shadow rays from the visible surface, plane principle)
 #   classic-thesis  --lighting classic --lit-rule thesis (from voxel centres, the thesis's test)
+#   exact           --lit-rule exact --rays-from light (exact occluders, target rays, rays from
+#                   the light: the three parts of exact shadow edges)
+#   exact-voxel     --lit-rule exact with the thesis's rays (from the source voxel)
 # NS (default "128 256") and SCENES (default "cornell teapot-floor cow-floor bureau1") choose the
 # runs. Writes bench-out/lit-rules.csv and prints it as a table.
 set -euo pipefail
@@ -32,6 +35,8 @@ for n in $NS; do
         thesis-thin) opts=(--lit-rule thesis --sigma naive --contour projected --frac-bits 0 --policy wavefront) ;;
         classic-plane) opts=(--lighting classic) ;;
         classic-thesis) opts=(--lighting classic --lit-rule thesis) ;;
+        exact) opts=(--lit-rule exact --rays-from light) ;;
+        exact-voxel) opts=(--lit-rule exact) ;;
         *) echo "unknown method $m" >&2; exit 2 ;;
       esac
       o=bench-out/lit-$scene-$n-$m
