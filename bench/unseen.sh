@@ -7,7 +7,8 @@
 #   MESHES  default: suzanne fandisk cow teapot (looked up in ../shared/scenes/NAME.obj)
 #   LIGHTS  default: 0.2,0.9,0.1 0.9,0.5,0.2 0.5,0.05,0.5 0.1,0.2,0.9 (grid-normalised)
 #   NS      default: 256
-#   METHODS default: "plane classic" (plane: the defaults; classic: --lighting classic)
+#   METHODS default: "plane classic" (plane: the defaults; classic: --lighting classic; exact:
+#           --lit-rule exact --rays-from light)
 #   ROTATE  default: none. Rotations of each mesh to render instead of the mesh as stored, each
 #           a sequence of axis and angle in radians applied in order (x0.6y0.9: 0.6 about x,
 #           then 0.9 about y); "none" is the mesh as stored. The rotated OBJ is written to
@@ -63,6 +64,7 @@ for n in $NS; do
         case $m in
           plane) opts=() ;;
           classic) opts=(--lighting classic) ;;
+          exact) opts=(--lit-rule exact --rays-from light) ;;
           *) echo "unknown method $m" >&2; exit 2 ;;
         esac
         o=bench-out/unseen/$mesh-$light-$n-$m

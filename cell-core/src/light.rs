@@ -49,7 +49,7 @@ use crate::beam::{
 };
 use crate::cell::Cell;
 use crate::dexel::{Dexel, DexelStore};
-use crate::lit::{spans, uniform, Along, Arrival, LitRule, Notch, Out, RayPlane, Rule, Segments, Visit};
+use crate::lit::{spans, uniform, Along, Arrival, LitRule, Notch, Out, RayPlane, Rule, Segments, Verdict, Visit};
 use crate::occluder::{ColumnOccluders, ExactVisit, EXACT_SEGMENTS};
 use crate::occupancy::FrustumTest;
 use crate::units::{Coord, Depth};
@@ -1471,15 +1471,19 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 self.peel_staying::<R, C>(m, beam, &visit, carry, env, f);
                 return;
             };
-            let end = visit.run_end(along, from, to, cross.0, cross.1);
+            visit.line(along, from, cross.0, cross.1, &mut seg);
+            let end = if R::BY_VERDICT {
+                let mut next = Segments::<C>::new();
+                crate::lit::verdict_run_end(&visit, along, (from, to), cross, &seg, &mut next)
+            } else {
+                visit.run_end(along, from, to, cross.0, cross.1)
+            };
             let lines = (from.min(end), from.max(end));
 
             let width = (lines.1 - lines.0 + 1) as u64;
-            visit.line(along, from, cross.0, cross.1, &mut seg);
             let (mut present, mut sent, mut count) = (0u64, 0u64, 0u8);
             let mut emit = None;
-            for (start, stop, bits) in spans(&seg, cross.1) {
-                let v = visit.verdict(bits, false);
+            let mut pieces = |(start, stop, v, outside): (i64, i64, Verdict, bool)| {
                 f.lit |= v.lit;
                 f.visible |= v.visible;
                 let rays = width * (stop - start + 1) as u64;
@@ -1488,11 +1492,17 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 }
                 if v.out.goes_on() {
                     if count == piece {
-                        emit = Some((start, stop, v.out == Out::Terminal, visit.outside(bits)));
+                        emit = Some((start, stop, v.out == Out::Terminal, outside));
                     }
                     count += 1;
                     sent += rays;
                 }
+            };
+            if R::BY_VERDICT {
+                crate::lit::verdict_spans(&visit, &seg, cross.1, false).for_each(&mut pieces);
+            } else {
+                spans(&seg, cross.1)
+                    .for_each(|(a, b, bits)| pieces((a, b, visit.verdict(bits, false), visit.outside(bits))));
             }
             if let Some((start, stop, terminal, outside)) = emit {
                 let (u, v) = match along {

@@ -129,6 +129,12 @@ pub enum LitRule {
 /// beams by, under the plane rule ([`Visit`]) and exact occluders
 /// ([`crate::occluder::ExactVisit`]).
 pub trait Rule {
+    /// Whether a beam is cut by verdicts rather than by tests: neighbouring segments of a line
+    /// with the same verdict go on as one piece, and a run takes in the next lines while their
+    /// verdicts fall alike ([`verdict_run_end`]). The rays' fates are the same either way; the
+    /// pieces are fewer where a test's line crosses rays that it does not change (a triangle's
+    /// edge beside its plane's crossing).
+    const BY_VERDICT: bool = false;
     /// The tests, in the order the bits read them.
     fn tests(&self) -> &[Test];
     /// The verdict on rays whose test bits are `bits`; `stays`: they stay in the column.
@@ -160,6 +166,54 @@ impl Rule for Visit {
     fn outside(&self, bits: u64) -> bool {
         Visit::outside(self, bits)
     }
+}
+
+/// The spans of a line's segments ([`spans`]) with neighbours of the same verdict and
+/// [`Rule::outside`] joined: `(start, stop, verdict, outside)`.
+pub fn verdict_spans<'a, R: Rule, const C: usize>(
+    rule: &'a R,
+    seg: &'a Segments<C>,
+    hi: i64,
+    stays: bool,
+) -> impl Iterator<Item = (i64, i64, Verdict, bool)> + 'a {
+    let mut it =
+        spans(seg, hi).map(move |(a, b, bits)| (a, b, rule.verdict(bits, stays), rule.outside(bits))).peekable();
+    core::iter::from_fn(move || {
+        let (start, mut stop, v, o) = it.next()?;
+        while let Some(&(_, s, v2, o2)) = it.peek() {
+            if (v2, o2) != (v, o) {
+                break;
+            }
+            stop = s;
+            it.next();
+        }
+        Some((start, stop, v, o))
+    })
+}
+
+/// The last line, moving from `start` toward `end`, of a run of lines whose verdict spans
+/// ([`verdict_spans`], rays leaving the column) equal those of line `start` across `lo ..= hi`:
+/// [`Rule::run_end`]'s run, then line by line while the verdicts fall alike. `seg` holds line
+/// `start`'s segments; `next` is scratch.
+pub fn verdict_run_end<R: Rule, const C: usize>(
+    rule: &R,
+    along: Along,
+    (start, end): (i64, i64),
+    (lo, hi): (i64, i64),
+    seg: &Segments<C>,
+    next: &mut Segments<C>,
+) -> i64 {
+    let step = if end >= start { 1 } else { -1 };
+    let mut last = rule.run_end(along, start, end, lo, hi);
+    while last != end {
+        let line = last + step;
+        rule.line(along, line, lo, hi, next);
+        if !verdict_spans(rule, seg, hi, false).eq(verdict_spans(rule, next, hi, false)) {
+            break;
+        }
+        last = rule.run_end(along, line, end, lo, hi);
+    }
+    last
 }
 
 /// A dexel's plane seen along the rays of one source and direction: `V(a, b, t)` has the sign of
@@ -580,6 +634,24 @@ mod tests {
         *s >> 33
     }
 
+    /// A uniform integer in `-m ..= m`.
+    fn rnd(s: &mut u64, m: u64) -> i64 {
+        (lcg(s) % (2 * m + 1)) as i64 - m as i64
+    }
+
+    /// A random dexel plane near voxel (6, 6, 6), seen along `dir`.
+    fn random_plane(s: &mut u64, src: &Source, dir: Direction, far: FarDistance<frac::U2>) -> RayPlane {
+        let plane = DexelPlane {
+            id: 0,
+            nx: rnd(s, 16384) as i16,
+            ny: rnd(s, 16384) as i16,
+            nz: (rnd(s, 16384) << 16) as i32,
+            e: rnd(s, 30000) as i32,
+        };
+        let reference = [rnd(s, 8) + 6, rnd(s, 8) + 6, rnd(s, 8) + 6];
+        RayPlane::new(&plane, reference, src, dir, far)
+    }
+
     /// `value` against the definition, in f64 where it is exact enough: g at the ray's point.
     #[test]
     fn ray_plane_value_is_scaled_g() {
@@ -644,17 +716,9 @@ mod tests {
         let src = Source::new(SourceId(0), [4.5, 6.0, 2.25].map(SourceCoord::from_num));
         let far = FarDistance::<frac::U2>::new(12).unwrap();
         for _ in 0..300 {
-            let r = |s: &mut u64, m: u64| (lcg(s) % (2 * m + 1)) as i64 - m as i64;
-            let plane = DexelPlane {
-                id: 0,
-                nx: r(&mut s, 16384) as i16,
-                ny: r(&mut s, 16384) as i16,
-                nz: (r(&mut s, 16384) << 16) as i32,
-                e: r(&mut s, 30000) as i32,
-            };
+            let r = rnd;
             let dir = Direction::ALL[(lcg(&mut s) % 6) as usize];
-            let reference = [r(&mut s, 8) + 6, r(&mut s, 8) + 6, r(&mut s, 8) + 6];
-            let rp = RayPlane::new(&plane, reference, &src, dir, far);
+            let rp = random_plane(&mut s, &src, dir, far);
             let tests: std::vec::Vec<Test> = (0..3).map(|_| Test { plane: rp, t: (lcg(&mut s) % 13) as i64 }).collect();
             let (lo, hi) = (r(&mut s, 48), r(&mut s, 48));
             let (lo, hi) = (lo.min(hi), lo.max(hi));
@@ -708,6 +772,85 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A rule of three tests whose verdict depends on two of them (the third cuts lines but
+    /// never changes a verdict, as a triangle's edge does beside its plane's crossing).
+    struct Toy(std::vec::Vec<Test>);
+
+    impl Rule for Toy {
+        const BY_VERDICT: bool = true;
+        fn tests(&self) -> &[Test] {
+            &self.0
+        }
+        fn verdict(&self, bits: u64, _stays: bool) -> Verdict {
+            let out = if bits & 0b11 == 0b11 { Out::Absorbed } else { Out::Continue };
+            Verdict { out, lit: false, visible: false }
+        }
+        fn outside(&self, _bits: u64) -> bool {
+            false
+        }
+    }
+
+    /// Verdict spans join exactly the neighbours of equal verdict, and a verdict run holds the
+    /// lines whose rays, one by one, have the start line's verdicts (the next line's differ).
+    #[test]
+    fn verdict_spans_and_runs_match_every_ray() {
+        let mut s = 11u64;
+        let src = Source::new(SourceId(0), [4.5, 6.0, 2.25].map(SourceCoord::from_num));
+        let far = FarDistance::<frac::U2>::new(12).unwrap();
+        let r = rnd;
+        let mut joined = 0;
+        for _ in 0..300 {
+            let dir = Direction::ALL[(lcg(&mut s) % 6) as usize];
+            let tests: std::vec::Vec<Test> = (0..3)
+                .map(|_| Test { plane: random_plane(&mut s, &src, dir, far), t: (lcg(&mut s) % 13) as i64 })
+                .collect();
+            let toy = Toy(tests);
+            let (lo, hi) = (r(&mut s, 48), r(&mut s, 48));
+            let (lo, hi) = (lo.min(hi), lo.max(hi));
+            let per_ray = |line: i64| -> std::vec::Vec<Out> {
+                (lo..=hi)
+                    .map(|x| {
+                        let bits =
+                            toy.0.iter().enumerate().fold(0u64, |m, (j, t)| m | ((t.holds(line, x) as u64) << j));
+                        toy.verdict(bits, false).out
+                    })
+                    .collect()
+            };
+            let mut seg: Segments = Segments::new();
+            let mut next: Segments = Segments::new();
+            let line = r(&mut s, 40);
+            toy.line(Along::V, line, lo, hi, &mut seg);
+            let want = per_ray(line);
+            let mut prev: Option<Out> = None;
+            let mut x = lo;
+            for (start, stop, v, _) in verdict_spans(&toy, &seg, hi, false) {
+                assert_eq!(start, x);
+                assert_ne!(prev, Some(v.out), "neighbours of equal verdict are joined");
+                assert!(want[(start - lo) as usize..=(stop - lo) as usize].iter().all(|&o| o == v.out));
+                prev = Some(v.out);
+                x = stop + 1;
+            }
+            assert_eq!(x, hi + 1);
+            let end = line + r(&mut s, 40);
+            let e = verdict_run_end(&toy, Along::V, (line, end), (lo, hi), &seg, &mut next);
+            let step = if end >= line { 1 } else { -1 };
+            let mut y = line;
+            loop {
+                assert_eq!(per_ray(y), want, "line {y} in the run {line}..={e}");
+                if y == e {
+                    break;
+                }
+                y += step;
+            }
+            if e != end {
+                assert_ne!(per_ray(e + step), want, "the run stops where the verdicts change");
+            }
+            joined += (e - run_end(&toy.0, Along::V, line, end, lo, hi)).abs();
+        }
+        // The test exercises what verdicts add: runs longer than the tests' own.
+        assert!(joined > 0);
     }
 
     #[test]

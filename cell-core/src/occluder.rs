@@ -520,6 +520,8 @@ impl<'a, F: FracBits> ExactVisit<'a, F> {
 }
 
 impl<F: FracBits> crate::lit::Rule for ExactVisit<'_, F> {
+    const BY_VERDICT: bool = true;
+
     fn tests(&self) -> &[Test] {
         &self.tests
     }
