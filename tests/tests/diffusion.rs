@@ -444,3 +444,41 @@ fn thesis_shape_and_our_policy() {
     assert!(a.len() > 1000);
     assert_eq!(a, lit(Policy::Wavefront, true));
 }
+
+/// Each column keeps, in stream order, the first `TRIANGLE_CAP` of the triangles whose
+/// projection meets its square by the oracle's own test (`exact::keeps`), and the triangles a
+/// full column leaves out are counted, one per (triangle, column): random triangles plus a stack
+/// of 80 over one column, more than it keeps.
+#[test]
+fn column_stores_keep_what_the_oracle_says() {
+    use host_sim::machine::capacity::TRIANGLE_CAP;
+    let n = 12u32;
+    let mut s = 0x5eed_u64;
+    let mut next = |m: i64| {
+        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (s >> 33) as i64 % m
+    };
+    // Loading-lattice sixteenths (voxel x spans 16x ..= 16x + 16).
+    let mut polys: Vec<Vec<[i64; 3]>> =
+        (0..40).map(|_| (0..3).map(|_| [next(192), next(192), next(192)]).collect()).collect();
+    polys
+        .extend((0..80).map(|i| vec![[80 + i % 7, 80, 8 + 2 * i], [100, 84 + i % 5, 8 + 2 * i], [88, 100, 9 + 2 * i]]));
+    let stores = ColumnTriangles::from_polygons(&polys, n).expect("in range");
+    // The oracle's coordinates: voxel centres at multiples of 16.
+    let tris: Vec<exact::Tri> = polys.iter().map(|p| [p[0], p[1], p[2]].map(|v| v.map(|c| c - 8))).collect();
+    let mut left_out = 0u64;
+    let mut full = 0;
+    for y in 0..n {
+        for x in 0..n {
+            let want: Vec<exact::Tri> = tris.iter().filter(|t| exact::keeps(t, x as i64, y as i64)).copied().collect();
+            let got: Vec<exact::Tri> =
+                stores.column(x, y).iter().map(|t| t.vertices().map(|v| v.map(i64::from))).collect();
+            let kept = want.len().min(TRIANGLE_CAP);
+            assert_eq!(got, want[..kept], "column ({x}, {y})");
+            left_out += (want.len() - kept) as u64;
+            full += (want.len() > TRIANGLE_CAP) as usize;
+        }
+    }
+    assert!(full > 0, "the stack overfills a column");
+    assert_eq!(stores.overflows(), left_out);
+}

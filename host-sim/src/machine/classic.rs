@@ -584,6 +584,7 @@ pub fn run_classic<F: FracBits>(
         totals,
         lit_voxels: cl.masks.iter().filter(|&&m| m != 0).count() as u64,
         lit_overflows: 0,
+        triangle_overflows: 0,
         bytes_beam_message: std::mem::size_of::<ShadowRay>(),
         bytes_light_cell: size_of::<HostShadowCell>() + size_of::<crate::machine::network::HostRouter<u8>>(),
         sources,

@@ -42,6 +42,9 @@ pub struct LightStats {
     pub lit_voxels: u64,
     /// Lit marks lost to a full lit store (non-zero is an error).
     pub lit_overflows: u64,
+    /// Under exact occluders, the triangles left out of full columns (`TRIANGLE_CAP`; light
+    /// passes where they stand); 0 under the other rules.
+    pub triangle_overflows: u64,
     /// `size_of` a beam message.
     pub bytes_beam_message: usize,
     /// `size_of` a cell's lighting state (FIFO, output buffers, lit runs, counters).
@@ -124,6 +127,11 @@ pub fn run_diffusion<F: FracBits>(
         totals,
         lit_voxels: lighting.lit_voxels().count() as u64,
         lit_overflows: lighting.lit_overflows(),
+        triangle_overflows: if cfg.rule == cell_core::lit::LitRule::Exact {
+            scene.grid.triangles.overflows()
+        } else {
+            0
+        },
         bytes_beam_message: std::mem::size_of::<BeamMsg<F>>(),
         bytes_light_cell: std::mem::size_of::<HostLightCell<F>>(),
         sources: r.clone(),
