@@ -12,14 +12,14 @@
 
 use cell_core::beam::frac::U0;
 use cell_core::beam::{Origin, Source};
-use cell_core::facet::PipelinePacket;
+use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
 use host_sim::machine::async_tiles::{run, AsyncConfig, AsyncRun, SlowBoard};
 use host_sim::machine::diffuse::LightConfig;
 use host_sim::machine::lighting::run_diffusion;
 use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
 use host_sim::machine::shade::{point_lights, shade_grid};
-use host_sim::precompute::{prepare, LoadConfig};
+use host_sim::precompute::{prepare, LoadConfig, Prepared};
 use host_sim::scene::Mesh;
 
 /// The synchronous grid's results beside what the boards need.
@@ -28,7 +28,7 @@ struct Case {
     loaded: LoadedScene,
     lights: Vec<[f64; 3]>,
     sources: Vec<Source>,
-    packets: Vec<PipelinePacket>,
+    prepared: Prepared,
     light: LightConfig,
     lit: Vec<([u32; 3], u32)>,
     visible: Vec<u32>,
@@ -37,25 +37,25 @@ struct Case {
 
 /// The Cornell box (its blocks cast shadows) at side n under two lights, on the synchronous
 /// grid, with the lighting defaults less the skips that need a whole-grid reduction, its rays
-/// from `rays`.
-fn case(n: u32, rays: Origin) -> Case {
+/// from `rays`, under lit rule `rule`.
+fn case(n: u32, rays: Origin, rule: LitRule) -> Case {
     let mesh = host_sim::scene::load("cornell").unwrap();
     let cfg = LoadConfig::watertight(n);
     let loaded = load_scene(&mesh, &cfg).unwrap();
     let lights = resolve_lights(&mesh, &loaded, &[[0.5, 0.8, 0.45], [0.2, 0.4, 0.3]]).unwrap();
-    let light = LightConfig { skip_receding: false, skip_dead_directions: false, rays, ..Default::default() };
+    let light = LightConfig { skip_receding: false, skip_dead_directions: false, rays, rule, ..Default::default() };
     let sources = lights.iter().enumerate().map(|(i, p)| light.source(i, *p, n).unwrap()).collect();
     let (l, _) = run_diffusion::<U0>(&mesh, &loaded, &lights, &light, |_, _| {}).unwrap();
     let img = shade_grid(&mesh, &loaded, &point_lights(&lights), &l, NormalMode::Facet);
     let visible = (0..n * n).map(|i| l.visible_mask(i % n, i / n)).collect();
     let lit = l.lit_voxels().collect();
-    let packets = prepare(&mesh, &cfg).unwrap().packets;
-    Case { mesh, loaded, lights, sources, packets, light, lit, visible, rgb: img.rgb }
+    let prepared = prepare(&mesh, &cfg).unwrap();
+    Case { mesh, loaded, lights, sources, prepared, light, lit, visible, rgb: img.rgb }
 }
 
 impl Case {
     fn run(&self, cfg: &AsyncConfig) -> AsyncRun<U0> {
-        run::<U0>(&self.packets, self.loaded.grid.n, &self.sources, &self.light, cfg).unwrap()
+        run::<U0>(&self.prepared, self.loaded.grid.n, &self.sources, &self.light, cfg).unwrap()
     }
 
     /// The boards' dexel stores, lit voxels, visible-surface masks and pixels equal the grid's.
@@ -95,7 +95,7 @@ fn check_termination(r: &AsyncRun<U0>, phases: usize, what: &str) {
 
 #[test]
 fn boards_load_and_light_what_the_grid_does() {
-    let c = case(32, Origin::SourceVoxel);
+    let c = case(32, Origin::SourceVoxel, LitRule::Plane);
     assert!(c.lit.len() > 100 && c.rgb.iter().any(|p| p[0] > 0), "a lit scene");
     for (tile, seed) in [(16, 1), (16, 2), (8, 3), (8, 4)] {
         let cfg = AsyncConfig { tile, seed, ..Default::default() };
@@ -110,13 +110,28 @@ fn boards_load_and_light_what_the_grid_does() {
 /// the boards' emitter waits as the grid's does).
 #[test]
 fn boards_light_rays_from_the_light_as_the_grid_does() {
-    let c = case(32, Origin::Light);
+    let c = case(32, Origin::Light, LitRule::Plane);
     assert!(c.sources.iter().all(|s| s.origin == Origin::Light));
-    assert_ne!(c.lit, case(32, Origin::SourceVoxel).lit, "these lights are off their voxels' centres");
+    assert_ne!(c.lit, case(32, Origin::SourceVoxel, LitRule::Plane).lit, "these lights are off their voxels' centres");
     for (tile, seed) in [(16, 5), (8, 6)] {
         let cfg = AsyncConfig { tile, seed, ..Default::default() };
         let r = c.run(&cfg);
         let what = format!("rays from the light, B = {tile}, seed {seed}");
+        check_termination(&r, 1 + c.sources.len(), &what);
+        c.check_same(r, &what);
+    }
+}
+
+/// The same under exact occluders: the boards' columns keep the triangles the grid's do, and
+/// each source's target rays are the grid's.
+#[test]
+fn boards_light_exact_occluders_as_the_grid_does() {
+    let c = case(32, Origin::Light, LitRule::Exact);
+    assert_ne!(c.lit, case(32, Origin::Light, LitRule::Plane).lit, "exact occluders change what is lit");
+    for (tile, seed) in [(16, 7), (8, 8)] {
+        let cfg = AsyncConfig { tile, seed, ..Default::default() };
+        let r = c.run(&cfg);
+        let what = format!("exact occluders, B = {tile}, seed {seed}");
         check_termination(&r, 1 + c.sources.len(), &what);
         c.check_same(r, &what);
     }
@@ -130,7 +145,7 @@ fn slow_schedule(seed: u64) -> AsyncConfig {
 
 #[test]
 fn a_slow_board_never_makes_the_ring_declare_early() {
-    let c = case(16, Origin::SourceVoxel);
+    let c = case(16, Origin::SourceVoxel, LitRule::Plane);
     for seed in [5, 6] {
         let r = c.run(&slow_schedule(seed));
         let what = format!("slow board 1, seed {seed}");
@@ -146,7 +161,7 @@ fn a_ring_without_counters_declares_early() {
     // The mutation check: the same ring and schedule, the nodes told of no basic message (no
     // counters, no colours): it declares when it finds every board passive, while the slow
     // board's messages are still on the wires. The executor's ground truth catches it.
-    let c = case(16, Origin::SourceVoxel);
+    let c = case(16, Origin::SourceVoxel, LitRule::Plane);
     let r = c.run(&AsyncConfig { counting: false, ..slow_schedule(5) });
     let early = r.early.expect("the ring without counters declared early");
     assert!(early.in_flight > 0, "{early:?}");

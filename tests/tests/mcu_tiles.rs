@@ -84,16 +84,18 @@ fn case() -> Case {
     let lights = resolve_lights(&mesh, &loaded, &[LIGHT]).unwrap();
     let sources: Vec<Source> = lights.iter().enumerate().map(|(i, p)| source_at(i, *p, N).unwrap()).collect();
     let light = LightConfig { skip_receding: false, skip_dead_directions: false, ..Default::default() };
-    let packets = prepare(&mesh, &cfg).unwrap().packets;
-    let r = run::<U0>(&packets, N, &sources, &light, &AsyncConfig { tile: TILE, ..Default::default() }).unwrap();
+    let prepared = prepare(&mesh, &cfg).unwrap();
+    let packets = &prepared.packets;
+    let r = run::<U0>(&prepared, N, &sources, &light, &AsyncConfig { tile: TILE, ..Default::default() }).unwrap();
     assert_eq!(r.early, None);
     // The same box without its blocks (the last ten faces; the first six, the box and its
     // lamp, fit the grid the same way and come first, so they keep their facet ids).
     let walls = 6;
     let empty = Mesh { faces: mesh.faces[..walls].to_vec(), ..mesh.clone() };
-    let empty_packets = prepare(&empty, &cfg).unwrap().packets;
+    let empty_prepared = prepare(&empty, &cfg).unwrap();
+    let empty_packets = &empty_prepared.packets;
     assert_eq!(empty_packets[..], packets[..empty_packets.len()], "the box's packets are the same without the blocks");
-    let e = run::<U0>(&empty_packets, N, &sources, &light, &AsyncConfig { tile: TILE, ..Default::default() }).unwrap();
+    let e = run::<U0>(&empty_prepared, N, &sources, &light, &AsyncConfig { tile: TILE, ..Default::default() }).unwrap();
     let with_blocks: std::collections::BTreeSet<[u32; 3]> = r.lighting.lit_voxels().map(|(v, _)| v).collect();
     let wall_voxel = |[x, y, z]: [u32; 3]| {
         let c = r.grid.cell(x, y);
@@ -125,7 +127,7 @@ fn case() -> Case {
         let i = *y as usize * N as usize + *x as usize;
         view.2 = img.covered[i].then_some(img.rgb[i]);
     }
-    Case { packets, source: sources[0], light, depth, shade, cells, shadowed }
+    Case { packets: packets.clone(), source: sources[0], light, depth, shade, cells, shadowed }
 }
 
 impl Case {

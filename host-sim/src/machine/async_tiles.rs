@@ -54,6 +54,7 @@ use cell_core::facet::{PipelinePacket, RowPacket};
 use cell_core::light::{Activity, ActivityDelta, BeamMsg, LightCell, LightEnv, Port};
 use cell_core::link::{Link, PerfectLink, Sent};
 use cell_core::lit::LitRule;
+use cell_core::occluder::ColumnOccluders;
 use cell_core::termination::{Action, Node, Token};
 use cell_core::voxelize::PipelineCell;
 use cell_core::wire::TokenFrame;
@@ -62,6 +63,9 @@ use crate::machine::capacity::HostLightCell;
 use crate::machine::diffuse::{check_light_run, initial_beams, AllSources, LightConfig, Lighting, SourceReport};
 use crate::machine::grid::LightGrid;
 use crate::machine::links::{sure, CellInbox, Took, BACK};
+use crate::machine::occluders::SourceOccluders;
+use crate::machine::triangles::ColumnTriangles;
+use crate::precompute::Prepared;
 use crate::rng::Rng;
 
 /// How the boards are cut and scheduled.
@@ -268,9 +272,11 @@ struct Board<F: FracBits> {
     next_step: u64,
 }
 
-/// Run the loading and lighting phases of `packets` and `sources` on asynchronous boards.
+/// Run the loading and lighting phases of a prepared scene's facets and `sources` on
+/// asynchronous boards. Under exact occluders each column keeps its triangles as the
+/// synchronous grid's do (loaded with the facets, [`crate::machine::triangles`]).
 pub fn run<F: FracBits>(
-    packets: &[PipelinePacket],
+    prepared: &Prepared,
     n: u32,
     sources: &[Source],
     light: &LightConfig,
@@ -282,9 +288,6 @@ pub fn run<F: FracBits>(
     if light.skip_receding || light.skip_dead_directions || light.skip_frustum || light.skip_hidden {
         bail!("the asynchronous boards run without the skips that need a whole-grid reduction after loading");
     }
-    if light.rule == LitRule::Exact {
-        bail!("the asynchronous boards load no triangles: exact occluders run on the synchronous grid");
-    }
     if light.faults.is_some() || light.hold > 0 || light.stop_at.is_some() || light.record_visits {
         bail!("the asynchronous boards run on their own wires, without a sibling wait, snapshot or visit record");
     }
@@ -292,12 +295,22 @@ pub fn run<F: FracBits>(
         bail!("too many sources, or a zero delay or pause bound");
     }
     let far = check_light_run::<F>(n, sources, light)?;
-    let mut ex = Executor::<F>::new(packets, n, sources.len(), cfg)?;
+    let mut ex = Executor::<F>::new(&prepared.packets, n, sources.len(), cfg)?;
     let mut grid = LightGrid::new(n, n);
     ex.schedule(0, |ex, b| ex.step_loading(b, &mut grid), |_, _, _| {})?;
+    if light.rule == LitRule::Exact {
+        grid.triangles = ColumnTriangles::from_polygons(&prepared.polygons, n)?;
+    }
     let order = SplitOrder::default();
     let all = AllSources::plain(&grid, sources, light, far);
-    let envs: Vec<LightEnv<'_, F>> = sources.iter().enumerate().map(|(i, s)| all.env(s, i, &order, None)).collect();
+    let occluders: Vec<Option<SourceOccluders<'_>>> =
+        sources.iter().map(|s| (light.rule == LitRule::Exact).then(|| SourceOccluders::new(&grid, s, far))).collect();
+    let envs: Vec<LightEnv<'_, F>> = sources
+        .iter()
+        .zip(&occluders)
+        .enumerate()
+        .map(|(i, (s, o))| all.env(s, i, &order, o.as_ref().map(|o| o as &dyn ColumnOccluders)))
+        .collect();
     ex.light(&grid, sources, &envs, light)?;
     drop(envs);
     let reports = sources
