@@ -7,8 +7,10 @@
 //! Traces: every `*.rc2t` file of `$RC2_TRACE_DIR` (the QEMU test records them from a host-sim
 //! run and points this variable at them), or of `firmware/traces/`, and of the directories
 //! directly under it (a small committed set: the light phase in `traces/`, a classic
-//! shadow-ray run in `traces/shadow-rays/`, a reflection run in `traces/reflections/`; the
-//! commands that record them are in docs/FIRMWARE.md). They become
+//! shadow-ray run in `traces/shadow-rays/`, a reflection run in `traces/reflections/`, exact
+//! occluders with rays from the light in `traces/exact/` — embedded only with the features
+//! `exact-occluders` and `rays-from-light`; the commands that record them are in
+//! docs/FIRMWARE.md). They become
 //! `TRACES: &[(&str, &[u8])]` in `$OUT_DIR/traces.rs` via `include_bytes!`, named by their
 //! path under the directory.
 //!
@@ -55,7 +57,12 @@ fn main() {
             .collect()
     };
     let top = list(&dir);
-    let mut files: Vec<PathBuf> = top.iter().filter(|p| p.is_dir()).flat_map(list).chain(top.iter().cloned()).collect();
+    // `exact/` holds traces of exact occluders with rays from the light: an image built without
+    // those cell-core features would refuse them.
+    let exact = env::var_os("CARGO_FEATURE_EXACT_OCCLUDERS").is_some()
+        && env::var_os("CARGO_FEATURE_RAYS_FROM_LIGHT").is_some();
+    let sets = top.iter().filter(|p| p.is_dir() && (exact || !p.ends_with("exact")));
+    let mut files: Vec<PathBuf> = sets.flat_map(list).chain(top.iter().cloned()).collect();
     files.retain(|p| p.is_file() && p.extension().is_some_and(|x| x == "rc2t"));
     files.sort();
     let mut src = String::from(

@@ -50,7 +50,9 @@ use crate::beam::{
 use crate::cell::Cell;
 use crate::dexel::{Dexel, DexelStore};
 use crate::lit::{spans, uniform, Along, Arrival, LitRule, Notch, Out, RayPlane, Rule, Segments, Verdict, Visit};
-use crate::occluder::{ColumnOccluders, ExactVisit, EXACT_SEGMENTS};
+use crate::occluder::ColumnOccluders;
+#[cfg(feature = "exact-occluders")]
+use crate::occluder::{ExactVisit, EXACT_SEGMENTS};
 use crate::occupancy::FrustumTest;
 use crate::units::{Coord, Depth};
 
@@ -1233,7 +1235,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             .visible
             .filter(|v| v.brackets(m.z as i64))
             .map(|v| RayPlane::new(&v.plane, [x, y, v.z_v as i64], env.source, dir, env.far));
-        let visit = Visit::new(k, Arrival::of(b), own.map(plane), state, visible, other);
+        let mut visit = Visit::new(k, Arrival::of(b), own.map(plane), state, visible, other);
         f.after_empty = own.is_none();
         f.after_outside = false;
         if visit.is_plain() {
@@ -1275,7 +1277,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             return;
         }
         let carry = self.carried(m, own.map(|d| d.span), k, &visit);
-        self.peel::<_, { 2 * crate::lit::MAX_TESTS + 1 }>(m, visit, &|_| None, stay, carry, env, f);
+        self.peel::<_, { 2 * crate::lit::MAX_TESTS + 1 }>(m, &mut visit, &|_, _| {}, stay, carry, env, f);
     }
 
     /// The exact-occluder rule ([`crate::occluder::ExactVisit`]) at this beam's voxel.
@@ -1287,7 +1289,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         let (u, v) = (lattice(b.u()), lattice(b.v()));
         let triangles = env.occluders.map_or(&[][..], |o| o.triangles(self.x, self.y));
         let notch = m.local.notch().map(|n| n.t1 as i64);
-        let visit = ExactVisit::new(triangles, env.source, dir, env.far, k, (u, v), b.is_terminal(), notch);
+        let mut visit = ExactVisit::new(triangles, env.source, dir, env.far, k, (u, v), b.is_terminal(), notch);
         f.per_ray = visit.per_ray();
         // The receiver: the column's target ray, if this beam brings it here (absent rays were
         // absorbed earlier; a terminal or absorbed one still arrived).
@@ -1337,11 +1339,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             }
             return;
         }
-        let revisit = |b: &Beam<F>| {
-            let (u, v) = (lattice(b.u()), lattice(b.v()));
-            Some(ExactVisit::new(triangles, env.source, dir, env.far, k, (u, v), b.is_terminal(), notch))
-        };
-        self.peel::<_, EXACT_SEGMENTS>(m, visit, &revisit, stay, carry, env, f);
+        let revisit =
+            |b: &Beam<F>, v: &mut ExactVisit<'_, F>| v.rejudge((lattice(b.u()), lattice(b.v())), b.is_terminal());
+        self.peel::<_, EXACT_SEGMENTS>(m, &mut visit, &revisit, stay, carry, env, f);
     }
 
     /// The local state a ±z beam's staying rays carry to the next layer of this column (see
@@ -1378,6 +1378,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         };
         let (u, v) = (lattice(b.u()), lattice(b.v()));
         let (dir, k) = (b.direction(), b.layer().0 as i64);
+        #[cfg(feature = "exact-occluders")]
         if env.rule == LitRule::Exact {
             let triangles = env.occluders.map_or(&[][..], |o| o.triangles(self.x, self.y));
             let visit = ExactVisit::new(triangles, env.source, dir, env.far, k, (u, v), false, Some(n.t1 as i64));
@@ -1435,8 +1436,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     fn peel<R: Rule, const C: usize>(
         &self,
         m: &BeamMsg<F>,
-        mut visit: R,
-        revisit: &dyn Fn(&Beam<F>) -> Option<R>,
+        visit: &mut R,
+        revisit: &dyn Fn(&Beam<F>, &mut R),
         stay: Option<((i64, i64), (i64, i64))>,
         carry: Local,
         env: &LightEnv<'_, F>,
@@ -1468,13 +1469,13 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             };
             let Some((along, upward, from, to, cross)) = region else {
                 // Only staying rays are left: one beam to this column's next voxel.
-                self.peel_staying::<R, C>(m, beam, &visit, carry, env, f);
+                self.peel_staying::<R, C>(m, beam, visit, carry, env, f);
                 return;
             };
             visit.line(along, from, cross.0, cross.1, &mut seg);
             let end = if R::BY_VERDICT {
                 let mut next = Segments::<C>::new();
-                crate::lit::verdict_run_end(&visit, along, (from, to), cross, &seg, &mut next)
+                crate::lit::verdict_run_end(&*visit, along, (from, to), cross, &seg, &mut next)
             } else {
                 visit.run_end(along, from, to, cross.0, cross.1)
             };
@@ -1499,7 +1500,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 }
             };
             if R::BY_VERDICT {
-                crate::lit::verdict_spans(&visit, &seg, cross.1, false).for_each(&mut pieces);
+                crate::lit::verdict_spans(&*visit, &seg, cross.1, false).for_each(&mut pieces);
             } else {
                 spans(&seg, cross.1)
                     .for_each(|(a, b, bits)| pieces((a, b, visit.verdict(bits, false), visit.outside(bits))));
@@ -1535,9 +1536,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             beam = beam.with_rays(range::<F>(shrunk.0), range::<F>(shrunk.1));
             // A visit that depends on the rectangle is taken again on what is left: the same
             // visit the next step will take on it, so a run's pieces are cut alike in every step.
-            if let Some(v) = revisit(&beam) {
-                visit = v;
-            }
+            revisit(&beam, visit);
             if emit.is_some() {
                 f.keep = Some(BeamMsg { beam, local: Local { piece: 0, ..m.local }, ..*m });
                 return;

@@ -415,8 +415,29 @@ impl<'a, F: FracBits> ExactVisit<'a, F> {
             far,
             k,
         };
+        v.sort_triangles((a, b));
+        v
+    }
+
+    /// The same visit taken again, in place, on rectangle `a × b` of the same beam's rays
+    /// (what is left of it after a run was peeled off), terminal or not: no second visit on
+    /// the stack (each holds up to [`MAX_EXACT_TESTS`] tests, 5.5 KB on the MCU).
+    pub fn rejudge(&mut self, rect: ((i64, i64), (i64, i64)), arrival_terminal: bool) {
+        (self.absent, self.absorbed, self.terminal, self.per_ray) = (false, false, false, false);
+        self.arrival_terminal = arrival_terminal;
+        self.tests.clear();
+        self.sort_triangles(rect);
+    }
+
+    /// Sort the column's triangles for rectangle `a × b`: those decided on the whole rectangle
+    /// set the flags, the others leave their tests (or, past [`MAX_EXACT_TRIANGLES`], make the
+    /// visit judge ray by ray).
+    #[inline(never)]
+    fn sort_triangles(&mut self, (a, b): ((i64, i64), (i64, i64))) {
+        let (source, dir, far, k, notch) = (self.source, self.dir, self.far, self.k, self.notch);
+        let v = self;
         let corners = [(a.0, b.0), (a.0, b.1), (a.1, b.0), (a.1, b.1)];
-        for tri in triangles {
+        for tri in v.triangles {
             let Some(occ) = Occluder::new(tri, source, dir, far) else { continue };
             let tests = occ.exact_tests(k, notch.unwrap_or(k - 1));
             // Per test: Some(value) when constant on the rectangle.
@@ -449,7 +470,6 @@ impl<'a, F: FracBits> ExactVisit<'a, F> {
                 let _ = v.tests.push(t);
             }
         }
-        v
     }
 
     /// One triangle's verdict on rays with its seven test bits: (absent, absorbed, terminal).

@@ -17,6 +17,14 @@ pub fn exit(ok: bool) -> ! {
     }
 }
 
+/// A fault (a bus error; a stack grown over the statics, which leaves garbage pointers) ends
+/// QEMU with failure and the faulting address, instead of spinning until the test's timeout.
+#[cortex_m_rt::exception]
+unsafe fn HardFault(ef: &cortex_m_rt::ExceptionFrame) -> ! {
+    heprintln!("hard fault at pc {:#010x}", ef.pc());
+    exit(false)
+}
+
 #[panic_handler]
 fn panic(info: &PanicInfo) -> ! {
     heprintln!("panic: {}", info);

@@ -82,6 +82,24 @@ pub fn re_encode<F: FracBits>(bytes: &[u8], mut change: impl FnMut(&mut Event<'_
     changed.then_some(out)
 }
 
+/// The trace without its triangle records (exact occluders: the column's triangles),
+/// re-encoded; `None` when it has none.
+pub fn drop_triangles<F: FracBits>(bytes: &[u8]) -> Option<Vec<u8>> {
+    let mut p = Parser::<F>::new(bytes);
+    let (mut out, mut dropped) = (Vec::new(), 0usize);
+    let mut buf = [0u8; 2048];
+    while let Some(ev) = p.next_event() {
+        let ev = ev.ok()?;
+        if matches!(ev, Event::Triangle(_)) {
+            dropped += 1;
+            continue;
+        }
+        let len = write_event(&ev, &mut buf).ok()?;
+        out.extend_from_slice(&buf[..len]);
+    }
+    (dropped > 0).then_some(out)
+}
+
 /// The trace with one byte flipped in the middle of the first ray frame a link delivers
 /// (`Recv` with a shadow or reflected ray), the record re-encoded around it: the record's CRC
 /// is valid, the ray frame's own CRC (the link's) is not, as for a byte corrupted on the wire.

@@ -3,7 +3,8 @@
 //! cell through them on an emulated Cortex-M4F (QEMU `mps2-an386`): frames arrive through the
 //! link interrupt, go out through `embedded-hal` links. Every phase is there: loading and one
 //! light of the Cornell box (and an open scene with the sibling wait and the frustum skip), the
-//! classic shadow-ray phase and the reflection phase ([`ray_traces`]). The firmware prints the
+//! same light under exact occluders with rays from the light ([`exact_traces`]), the classic
+//! shadow-ray phase and the reflection phase ([`ray_traces`]). The firmware prints the
 //! digest of each cell's outputs and final state; this test checks each equals the digest the
 //! host computed from its own grid run. Altered traces ride along and must fail: flipped bytes
 //! (a CRC refuses them: a trace record's, or a ray frame's own on the link receive path) and
@@ -21,6 +22,7 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use cell_core::beam::frac::U0;
+use cell_core::beam::Origin;
 use cell_core::lit::LitRule;
 use cell_core::ray::Connectivity;
 use cell_core::reflect::ReflectNormal;
@@ -32,18 +34,25 @@ use host_sim::machine::reflect::ReflectConfig;
 use host_sim::precompute::LoadConfig;
 use rc2_tests::qemu::{self, QEMU};
 use rc2_tests::traces::{
-    brighten_reflect_answers, cornell_job_cells, corrupt_first_ray_frame, flip_shadow_answers, mutate_row_material,
-    trace_job,
+    brighten_reflect_answers, cornell_job_cells, corrupt_first_ray_frame, drop_triangles, flip_shadow_answers,
+    mutate_row_material, trace_job,
 };
 
 const QEMU_TIMEOUT: Duration = Duration::from_secs(60);
 
 /// Build the firmware in release mode, with the traces of `traces`, into a target directory of
 /// this test's own.
-fn build_firmware(traces: &Path) -> PathBuf {
-    let target_dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("firmware");
-    qemu::build_firmware(&target_dir, Some(traces), &[]).join("rc2-firmware")
+/// Build the firmware in release mode, with the traces of `traces` and the cargo arguments
+/// `args`, into target directory `target` of this test's own (one per test: they run at once).
+fn build_firmware(target: &str, traces: &Path, args: &[&str]) -> PathBuf {
+    let target_dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(target);
+    qemu::build_firmware(&target_dir, Some(traces), args).join("rc2-firmware")
 }
+
+/// The replay image with cell-core's exact occluders and rays from the light (features the
+/// production image leaves out, and whose 31 KB of code would not leave the other traces room
+/// in the 256 KiB of flash): it replays the traces of [`exact_traces`] on their own.
+const EXACT_FEATURES: [&str; 4] = ["--bin", "rc2-firmware", "--features", "exact-occluders,rays-from-light"];
 
 /// The production image (`firmware/src/bin/cell`, built with the replay image by the same
 /// `cargo build --release`): its code and read-only data, and its whole flash (vector table
@@ -278,6 +287,24 @@ fn light_traces(dir: &Path) -> (Vec<(String, CellTrace)>, u64) {
     (named.collect(), corner_digest)
 }
 
+/// Exact occluders with rays from the light (`x_…`): the Cornell box at n = 32, its corner,
+/// centre, source and busiest cells; the cells take their triangles from the trace and compute
+/// their target rays themselves. `z_no_triangles.rc2t` is the busiest cell's trace without its
+/// triangle records: a valid trace that must not reach the busiest cell's digest. Returns the
+/// traces by name and the busiest cell's digest.
+fn exact_traces(dir: &Path) -> (Vec<(String, CellTrace)>, u64) {
+    let (mesh, load, light, cells) = cornell_job_cells(32);
+    let light = LightConfig { rule: LitRule::Exact, rays: Origin::Light, ..light };
+    let job = TraceJob { busiest: true, ..trace_job(&mesh, load, light, cells) };
+    let traces = record::<U0>(&job).expect("record traces under exact occluders");
+    let busiest = traces.last().expect("the busiest cell");
+    let without = drop_triangles::<U0>(&busiest.bytes).expect("the busiest cell keeps triangles");
+    std::fs::write(dir.join("z_no_triangles.rc2t"), without).unwrap();
+    let digest = busiest.digest;
+    let named = traces.into_iter().map(|t| (format!("x_cell_{}_{}.rc2t", t.x, t.y), t));
+    (named.inspect(|(name, t)| std::fs::write(dir.join(name), &t.bytes).unwrap()).collect(), digest)
+}
+
 /// The ray phases on the MCU, recorded at n = 32 (small traces, a few KB each): the Cornell box
 /// lit by classic shadow rays under the plane rule (6-connected walks, the plane segment's
 /// 64-bit arithmetic) and under the thesis's rule with 26-connected rays from every occupied
@@ -380,6 +407,11 @@ fn check_altered(got: &HashMap<String, Result<u64, String>>, changed: &[(&str, u
             got.get(name)
         );
     }
+    check_changed(got, changed);
+}
+
+/// Each re-encoded change replayed to another digest than the original's.
+fn check_changed(got: &HashMap<String, Result<u64, String>>, changed: &[(&str, u64)]) {
     for &(name, original) in changed {
         match got.get(name) {
             Some(Ok(d)) => assert_ne!(*d, original, "{name}: a changed value must change the digest"),
@@ -400,7 +432,7 @@ fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
     let (rays, [shadow, mirror]) = ray_traces(&dir);
 
     let t0 = Instant::now();
-    let elf = build_firmware(&dir);
+    let elf = build_firmware("firmware", &dir, &[]);
     let t_build = t0.elapsed();
     check_production_image(&elf.with_file_name("cell"));
     run_production_image(&elf.with_file_name("cell"));
@@ -413,4 +445,34 @@ fn firmware_replays_cornell_traces_bit_identical_to_the_host() {
     check_altered(&got, &changed);
     // The flipped traces make the firmware report failure through its exit code.
     assert_eq!(code, Some(1), "the firmware must exit with EXIT_FAILURE when a trace fails:\n{out}");
+}
+
+/// Exact occluders with rays from the light on the Cortex-M4F: the replay image built with
+/// those features replays the Cornell box's cells (their triangles from the trace, their
+/// target rays computed in the cell) to the host grid's digests; the busiest cell's trace
+/// without its triangles fails (the cell sends other beams than the trace's neighbours take)
+/// or replays to another digest.
+#[test]
+fn firmware_replays_exact_occluder_traces_bit_identical_to_the_host() {
+    if !qemu::tools_present("firmware_replays_exact_occluder_traces_bit_identical_to_the_host") {
+        return;
+    }
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("qemu-exact-traces");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let (traces, busiest) = exact_traces(&dir);
+    let elf = build_firmware("firmware-exact", &dir, &EXACT_FEATURES);
+    let (code, out) = run_qemu(&elf);
+    let got = parse_output(&out);
+    check_digests(&got, &traces, &out);
+    let failed = match got.get("z_no_triangles.rc2t") {
+        Some(Ok(d)) => {
+            assert_ne!(*d, busiest, "the triangles must matter:\n{out}");
+            false
+        }
+        Some(Err(_)) => true,
+        None => panic!("no result for z_no_triangles.rc2t:\n{out}"),
+    };
+    let want = if failed { 1 } else { 0 };
+    assert_eq!(code, Some(want), "the exact-occluder traces replay, the one without triangles aside:\n{out}");
 }

@@ -1,18 +1,20 @@
 //! Cell traces on the host: every cell of small grids is recorded during a real grid
 //! run and replayed through a fresh `cell_core` cell (the code the firmware runs); the digest of
 //! outputs and final state must equal the one the grid computed, for both scheduling policies,
-//! with and without merging, with integer and fractional rays, and for the ray phases: the
+//! with and without merging, with integer and fractional rays, under exact occluders with rays
+//! from the light (the column's triangles in the trace, the target ray computed by the cell),
+//! and for the ray phases: the
 //! classic shadow rays (both lit rules, 6-, 18- and 26-connected rays, routers that refuse
 //! answers) and the reflections. Altered traces must fail: any flipped byte, any truncation, a
 //! re-encoded changed value, a dropped record. The traces committed for the firmware
-//! (`firmware/traces/` and its `shadow-rays/` and `reflections/`) replay to their recorded
+//! (`firmware/traces/` and its `shadow-rays/`, `reflections/` and `exact/`) replay to their recorded
 //! digests and are exactly what their documented commands record today.
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use cell_core::beam::frac::{U0, U2};
-use cell_core::beam::FracBits;
+use cell_core::beam::{FracBits, Origin};
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use cell_core::ray::Connectivity;
@@ -48,10 +50,15 @@ fn check_all_with<F: FracBits>(scene: &str, n: u32, light: LightConfig) {
     let (policy, merge) = (light.policy, light.merge);
     let traces = all_cells::<F>(scene, n, light);
     assert_eq!(traces.len(), (n * n) as usize);
+    check_traces::<F>(&traces, &format!("{scene} n={n} {policy:?} merge={merge} f={}", F::U32));
+}
+
+/// Every trace replays to its digest, and the traces agree with each other.
+fn check_traces<F: FracBits>(traces: &[CellTrace], what: &str) {
     let (mut beams, mut sent) = (0u64, 0u64);
-    for t in &traces {
-        let (d, st) = replay_fn::<F>()(&t.bytes).unwrap_or_else(|e| panic!("cell ({}, {}): {e:?}", t.x, t.y));
-        assert_eq!(d, t.digest, "{scene} n={n} {policy:?} merge={merge} f={}: cell ({}, {})", F::U32, t.x, t.y);
+    for t in traces {
+        let (d, st) = replay_fn::<F>()(&t.bytes).unwrap_or_else(|e| panic!("{what}: cell ({}, {}): {e:?}", t.x, t.y));
+        assert_eq!(d, t.digest, "{what}: cell ({}, {})", t.x, t.y);
         beams += st.received as u64;
         sent += st.sent as u64;
     }
@@ -78,17 +85,50 @@ fn every_cell_replays_with_the_sibling_wait_and_the_frustum_skip() {
     check_all_with::<U2>("cornell", 16, LightConfig { hold: 8, ..light });
 }
 
-fn busiest_trace() -> CellTrace {
+/// Exact occluders with rays from the light: every cell replays to the grid's digest, its
+/// triangles from the trace, its target ray computed by the cell itself (the watertight
+/// surfaces: open and closed meshes, two fraction counts).
+#[test]
+fn every_cell_replays_under_exact_occluders_with_rays_from_the_light() {
+    let exact = LightConfig { rule: LitRule::Exact, rays: Origin::Light, record_visits: false, ..Default::default() };
+    for (scene, n) in [("cornell", 16), ("teapot-floor", 16)] {
+        let mesh = host_sim::scene::load(scene).unwrap();
+        let cells = (0..n).flat_map(|y| (0..n).map(move |x| [x, y])).collect();
+        let traces = record::<U0>(&trace_job(&mesh, LoadConfig::watertight(n), exact, cells)).unwrap();
+        let triangles: usize = traces.iter().map(|t| triangle_records(&t.bytes)).sum();
+        assert!(triangles > 0, "{scene}: the cells keep triangles");
+        check_traces::<U0>(&traces, &format!("{scene} n={n} exact"));
+    }
+    let cornell = host_sim::scene::load("cornell").unwrap();
+    let cells = (0..16).flat_map(|y| (0..16).map(move |x| [x, y])).collect();
+    let traces = record::<U2>(&trace_job(&cornell, LoadConfig::watertight(16), exact, cells)).unwrap();
+    check_traces::<U2>(&traces, "cornell n=16 exact f=2");
+}
+
+fn triangle_records(bytes: &[u8]) -> usize {
+    Parser::<U0>::new(bytes).filter(|e| matches!(e, Ok(Event::Triangle(_)))).count()
+}
+
+fn busiest_trace_with(light: LightConfig) -> CellTrace {
     let mesh = host_sim::scene::load("cornell").unwrap();
     let load = LoadConfig::thin(24);
-    let light =
-        LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, record_visits: false, ..Default::default() };
     let job = TraceJob { busiest: true, ..trace_job(&mesh, load, light, Vec::new()) };
     record::<U0>(&job).unwrap().pop().unwrap()
 }
 
+fn busiest_trace() -> CellTrace {
+    busiest_trace_with(LightConfig {
+        fa: 16,
+        policy: Policy::Wavefront,
+        merge: true,
+        record_visits: false,
+        ..Default::default()
+    })
+}
+
 /// Every flipped byte, every truncation of `t` fails to replay; every record dropped (but the
-/// header and the end) fails or changes the digest; returns how many records were dropped.
+/// header and the end) fails or changes the digest — triangle records together: a triangle
+/// that no ray of this cell meets changes nothing; returns how many records were dropped.
 fn altered_traces_fail(t: &CellTrace) -> usize {
     let replay = replay_fn::<U0>();
     assert_eq!(replay(&t.bytes).unwrap().0, t.digest);
@@ -114,9 +154,17 @@ fn altered_traces_fail(t: &CellTrace) -> usize {
     };
     for skip in 1..events.len() - 1 {
         let kind = events[skip][0];
+        if kind == cell_core::trace::kind::TRIANGLE {
+            continue;
+        }
         let b: Vec<u8> = events.iter().enumerate().filter(|(i, _)| *i != skip).flat_map(|(_, e)| e.clone()).collect();
         if let Ok((d, _)) = replay(&b) {
             assert_ne!(d, t.digest, "dropping record {skip} (kind {kind:#x}) left the digest unchanged");
+        }
+    }
+    if let Some(b) = rc2_tests::traces::drop_triangles::<U0>(&t.bytes) {
+        if let Ok((d, _)) = replay(&b) {
+            assert_ne!(d, t.digest, "dropping the triangle records left the digest unchanged");
         }
     }
     events.len() - 2
@@ -125,6 +173,10 @@ fn altered_traces_fail(t: &CellTrace) -> usize {
 #[test]
 fn every_flipped_byte_every_truncation_and_every_dropped_record_fails() {
     assert!(altered_traces_fail(&busiest_trace()) > 10);
+    // Under exact occluders too: a dropped triangle record changes what the cell does.
+    let exact = busiest_trace_with(LightConfig { rule: LitRule::Exact, rays: Origin::Light, ..Default::default() });
+    assert!(triangle_records(&exact.bytes) > 0, "the busiest cell keeps triangles");
+    assert!(altered_traces_fail(&exact) > 10);
 }
 
 #[test]
@@ -347,8 +399,27 @@ fn light_records_carry_the_wait_and_the_summary() {
 /// The committed trace sets: (directory under `firmware/traces/`, the `host-sim trace`
 /// arguments that record them, the `--out` directory left out). docs/FIRMWARE.md gives the same
 /// commands.
-const COMMITTED: [(&str, &[&str]); 3] = [
+const COMMITTED: [(&str, &[&str]); 4] = [
     ("", &["--n", "32", "--view", "fitted", "--cell", "5,7", "--cell", "16,16", "--busiest"]),
+    (
+        "exact",
+        &[
+            "cornell",
+            "--n",
+            "32",
+            "--view",
+            "fitted",
+            "--lit-rule",
+            "exact",
+            "--rays-from",
+            "light",
+            "--cell",
+            "5,7",
+            "--cell",
+            "16,16",
+            "--busiest",
+        ],
+    ),
     (
         "shadow-rays",
         &["cornell", "--n", "32", "--view", "fitted", "--lighting", "classic", "--cell", "16,16", "--cell", "20,10"],
@@ -430,7 +501,10 @@ fn check_committed_set(sub: &str, committed: &BTreeMap<String, Vec<u8>>) {
         assert_eq!(digest, want, "{sub}/{file}: host replay {digest:016x}, digests.json {want:016x}");
         assert_eq!(stats.records as u64, field("records"), "{sub}/{file}: records");
         assert!(stats.received > 0 && stats.steps > 0, "{sub}/{file}: nothing reached the cell ({stats:?})");
-        if !sub.is_empty() {
+        if sub == "exact" {
+            let triangles = Parser::<U0>::new(bytes).filter(|e| matches!(e, Ok(Event::Triangle(_)))).count();
+            assert!(triangles > 0, "{sub}/{file}: no triangle records");
+        } else if !sub.is_empty() {
             let [rays, taken, answers, ..] = ray_records(bytes);
             assert!(rays > 0 && taken > 0 && answers > 0, "{sub}/{file}: the ray phase left no trace");
         }

@@ -7,7 +7,7 @@
 //! |---|---|---|
 //! | `0x40` | [`Event::Header`] | magic `RC2T` u32, version u8, x u16, y u16, depth u32, frac bits u8, dexel capacity u16, FIFO capacity u16, output buffer u8, lit runs u16 |
 //! | `0x41` | [`Event::Row`] | a row packet arriving from the west (loading, §3.9) |
-//! | `0x42` | [`Event::Light`] | a source's diffusion starts: source id u16, position 3×i32 (1/16 voxel), n u32, depth u32, D u32, policy u8, FIFO limit u16, merge u8, source bit u32, skip u8 (+ occupied box lo, hi 6×u16 when 1); from version 3: sibling wait u16, frustum u8 (+ the summary's 8 × 8 block rows, 64 × u8 bit masks over z, when 1), lit rule u8 (0 thesis, 1 plane) |
+//! | `0x42` | [`Event::Light`] | a source's diffusion starts: source id u16, position 3×i32 (1/16 voxel), n u32, depth u32, D u32, policy u8, FIFO limit u16, merge u8, source bit u32, skip u8 (+ occupied box lo, hi 6×u16 when 1); from version 3: sibling wait u16, frustum u8 (+ the summary's 8 × 8 block rows, 64 × u8 bit masks over z, when 1), lit rule u8 (low nibble: 0 thesis, 1 plane, 2 exact occluders; from version 6 the high nibble is the rays' origin: 0 the source voxel, 1 the light) |
 //! | `0x43` | [`Event::Inject`] | the source emitter hands this cell an initial beam |
 //! | `0x44` | [`Event::Recv`] | link `port` delivers a beam (or, in a ray phase, a ray): port u8 + the link frame as on the wire (its own CRC) |
 //! | `0x45` | [`Event::Step`] | `count` u32 compute cycles |
@@ -21,6 +21,7 @@
 //! | `0x4d` | [`Event::Refused`] | one compute cycle of the ray phase in which the router refused the answer the cell offered |
 //! | `0x4e` | [`Event::Take`] | the neighbour on `port` took the ray of output slot (class, port): class u8 (0 for shadow rays), port u8 |
 //! | `0x4f` | [`Event::PhaseEnd`] | the ray phase ended (a source's, for shadow rays) |
+//! | `0x50` | [`Event::Triangle`] | under exact occluders, after the light record: one triangle the column keeps for the source's diffusion ([`crate::occluder::Triangle`], its vertices 9×i32 in sixteenths of a voxel), in the column's order; the cell computes its target ray itself ([`crate::receiver::target`]) |
 //!
 //! In the ray phases ([`rays`]) a `Step` record counts cycles of the phase's cell in which its
 //! router took any answer offered, and `Recv` carries a ray frame ([`crate::wire::RayMsg`]). A
@@ -42,7 +43,7 @@
 
 use heapless::Vec;
 
-use crate::beam::{FarDistance, FracBits, Source, SourceCoord, SourceId, SplitOrder};
+use crate::beam::{FarDistance, FracBits, Origin, Source, SourceCoord, SourceId, SplitOrder};
 use crate::cell::{Cell, REFLECT_FA_CAP, SEND_CAP, SHADOW_FA_CAP, WAIT_CAP};
 use crate::facet::RowPacket;
 use crate::light::{
@@ -50,6 +51,7 @@ use crate::light::{
 };
 use crate::link::{self, Link, Sent};
 use crate::lit::LitRule;
+use crate::occluder::Triangle;
 use crate::reflect::Answer;
 use crate::shade::{cell_pixel, CameraView, Eye, Material, NormalMode, Pixel, PointLight, ShadeParams};
 use crate::units::{Coord, Depth};
@@ -65,9 +67,10 @@ pub use rays::{Rays, ReflectSetup, ShadowSetup};
 pub const MAGIC: u32 = u32::from_le_bytes(*b"RC2T");
 /// Trace format version (5: row packets carry their facet's plane and contour pushes, beams
 /// their terminal and after-empty flags, the light record the lit rule; the visible surface's
-/// plane faces the viewer). Earlier versions are refused: they were recorded under other
+/// plane faces the viewer; 6: the light record carries the rays' origin, and exact occluders
+/// their column's triangles). Earlier versions are refused: they were recorded under other
 /// rules, and their replays would not reach their digests.
-pub const VERSION: u8 = 5;
+pub const VERSION: u8 = 6;
 /// Record kinds.
 pub mod kind {
     /// [`super::Event::Header`].
@@ -102,6 +105,8 @@ pub mod kind {
     pub const TAKE: u8 = 0x4e;
     /// [`super::Event::PhaseEnd`].
     pub const PHASE_END: u8 = 0x4f;
+    /// [`super::Event::Triangle`].
+    pub const TRIANGLE: u8 = 0x50;
 }
 /// Most lights a shading record carries.
 pub const MAX_LIGHTS: usize = 8;
@@ -222,7 +227,8 @@ impl LightSetup {
             hold: self.hold,
             frustum: None,
             rays: None,
-            // A trace carries no triangles: the host refuses to trace exact occluders.
+            // Under exact occluders the column's triangles come in their own records
+            // ([`Event::Triangle`]): the replayer adds them (`Replayer::light_cycles`).
             occluders: None,
         })
     }
@@ -291,6 +297,8 @@ pub enum Event<'a, F: FracBits> {
     },
     /// The ray phase ended (a source's, for shadow rays).
     PhaseEnd,
+    /// Under exact occluders: a triangle the column keeps for the current source.
+    Triangle(Triangle),
 }
 
 /// Why a trace could not be replayed (a value, never a panic).
@@ -375,6 +383,12 @@ pub fn write_event<F: FracBits>(ev: &Event<'_, F>, buf: &mut [u8]) -> Result<usi
         Event::Refused => write_frame(buf, kind::REFUSED, |_| Ok(())),
         Event::Take { class, port } => write_frame(buf, kind::TAKE, |w| rays::put_take(w, *class, *port)),
         Event::PhaseEnd => write_frame(buf, kind::PHASE_END, |_| Ok(())),
+        Event::Triangle(t) => write_frame(buf, kind::TRIANGLE, |w| {
+            for c in t.vertices().iter().flatten() {
+                w.i32(*c)?;
+            }
+            Ok(())
+        }),
     }
 }
 
@@ -413,7 +427,17 @@ fn put_light_setup(w: &mut SliceWriter<'_>, s: &LightSetup) -> Result<(), Encode
             }
         }
     }
-    w.u8(matches!(s.rule, LitRule::Plane) as u8)
+    let rule = match s.rule {
+        LitRule::Thesis => 0,
+        LitRule::Plane => 1,
+        LitRule::Exact => 2,
+    };
+    let origin: u8 = match s.source.origin {
+        Origin::SourceVoxel => 0,
+        #[cfg(feature = "rays-from-light")]
+        Origin::Light => 1,
+    };
+    w.u8(rule | origin << 4)
 }
 
 /// Write a shading record's payload (the layout is in the module's table).
@@ -549,9 +573,18 @@ pub fn get_light_setup(
         rule: LitRule::Thesis,
     };
     s.frustum = frustum(r, s.n, s.depth)?;
-    s.rule = match r.u8()? {
+    let code = r.u8()?;
+    s.rule = match code & 0x0f {
         0 => LitRule::Thesis,
         1 => LitRule::Plane,
+        #[cfg(feature = "exact-occluders")]
+        2 => LitRule::Exact,
+        _ => return Err(DecodeError::BadValue("lit rule").into()),
+    };
+    s.source.origin = match code >> 4 {
+        0 => Origin::SourceVoxel,
+        #[cfg(feature = "rays-from-light")]
+        1 => Origin::Light,
         _ => return Err(DecodeError::BadValue("lit rule").into()),
     };
     Ok(s)
@@ -635,10 +668,26 @@ impl<'a, F: FracBits> Parser<'a, F> {
             kind::REFUSED => Event::Refused,
             kind::TAKE => rays::get_take(&mut r)?,
             kind::PHASE_END => Event::PhaseEnd,
+            kind::TRIANGLE => {
+                let mut v = [[0i32; 3]; 3];
+                for c in v.iter_mut().flatten() {
+                    *c = r.i32()?;
+                }
+                Event::Triangle(Triangle::new(v).ok_or(DecodeError::BadValue("triangle vertex beyond the bit budget"))?)
+            }
             k => return Err(DecodeError::UnknownKind(k).into()),
         };
         r.finish()?;
         Ok(ev)
+    }
+}
+
+/// The records one by one ([`Parser::next_event`]), ending after the first error.
+impl<'a, F: FracBits> Iterator for Parser<'a, F> {
+    type Item = Result<Event<'a, F>, ReplayError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        self.next_event()
     }
 }
 
@@ -817,6 +866,9 @@ pub struct Replayer<
     /// What the classic shadow-ray phases lit: the sources whose rays reached the visible
     /// surface, and the lit rule (`None`: no classic phase ran; the pixel reads the lit store).
     pub shadow_lit: Option<(SourceMask, LitRule)>,
+    /// Under exact occluders, the column's triangles and target ray for the current source.
+    #[cfg(feature = "exact-occluders")]
+    column: ReplayColumn,
     setup: Option<LightSetup>,
     shade: Option<ShadeSetup>,
     depth: u32,
@@ -866,6 +918,8 @@ impl<
             pixel: None,
             rays: Rays::Idle,
             shadow_lit: None,
+            #[cfg(feature = "exact-occluders")]
+            column: ReplayColumn::new(),
             setup: None,
             shade: None,
             depth: 0,
@@ -887,6 +941,8 @@ impl<
             pixel,
             rays,
             shadow_lit,
+            #[cfg(feature = "exact-occluders")]
+            column,
             setup,
             shade,
             depth,
@@ -901,6 +957,8 @@ impl<
         *stats = ReplayStats::default();
         *rays = Rays::Idle;
         (*pixel, *shadow_lit, *setup, *shade) = (None, None, None, None);
+        #[cfg(feature = "exact-occluders")]
+        column.clear();
         (*depth, *started, *ended, *order) = (0, false, false, SplitOrder::default());
         *digest = Digester::new();
     }
@@ -978,9 +1036,12 @@ impl<
                 // The host restarts the per-source peaks at each source.
                 self.light.counters.max_layer = 0;
                 self.light.counters.peak_fifo = 0;
+                #[cfg(feature = "exact-occluders")]
+                self.column.start::<F, D>(&self.cell, &s)?;
                 self.setup = Some(s);
                 self.rays = Rays::Idle;
             }
+            Event::Triangle(t) => self.triangle(t)?,
             Event::Inject(m) => self.accept(m)?,
             Event::Recv { port, frame } => self.receive_frame(port, frame)?,
             Event::Step(n) if !matches!(self.rays, Rays::Idle) => {
@@ -1020,11 +1081,31 @@ impl<
         Ok(())
     }
 
+    /// A triangle the column keeps for the current source (exact occluders only).
+    fn triangle(&mut self, t: Triangle) -> Result<(), ReplayError> {
+        let setup = self.setup.ok_or(ReplayError::NoLightSetup)?;
+        if setup.rule != LitRule::Exact {
+            return Err(DecodeError::BadValue("a triangle outside exact occluders").into());
+        }
+        #[cfg(feature = "exact-occluders")]
+        return self.column.triangles.push(t).then_some(()).ok_or(ReplayError::CapacityMismatch);
+        #[cfg(not(feature = "exact-occluders"))]
+        {
+            let _ = t;
+            Err(DecodeError::BadValue("a triangle outside exact occluders").into())
+        }
+    }
+
     /// `n` compute cycles of the light cell.
     fn light_cycles(&mut self, n: u32) -> Result<(), ReplayError> {
         let setup = self.setup.ok_or(ReplayError::NoLightSetup)?;
         let order = self.order;
-        let env = setup.env(&order)?;
+        #[allow(unused_mut)]
+        let mut env = setup.env(&order)?;
+        #[cfg(feature = "exact-occluders")]
+        if setup.rule == LitRule::Exact {
+            env.occluders = Some(&self.column);
+        }
         for _ in 0..n {
             let r = self.light.step(&self.cell, &env, &self.activity);
             self.digest.step(r);
@@ -1066,6 +1147,54 @@ impl<
         let mut digest = core::mem::take(&mut self.digest);
         digest.state(&self.cell, &self.light, self.pixel);
         Ok(digest.finish())
+    }
+}
+
+/// The column's exact occluders as a replayed cell holds them ([`crate::occluder`]): the
+/// triangles its trace hands it after each light record, and the target ray it computes from
+/// its own visible surface when the record arrives ([`crate::receiver::target`], as the host's
+/// cells do).
+#[cfg(feature = "exact-occluders")]
+#[derive(Debug)]
+struct ReplayColumn {
+    triangles: crate::occluder::TriangleStore<{ crate::cell::TRIANGLE_CAP }>,
+    target: Option<crate::receiver::Target>,
+}
+
+#[cfg(feature = "exact-occluders")]
+impl ReplayColumn {
+    const fn new() -> Self {
+        ReplayColumn { triangles: crate::occluder::TriangleStore::new(), target: None }
+    }
+
+    fn clear(&mut self) {
+        self.triangles = crate::occluder::TriangleStore::new();
+        self.target = None;
+    }
+
+    /// A source's diffusion starts: no triangles yet, and the target ray of `cell`'s visible
+    /// surface under exact occluders.
+    fn start<F: FracBits, const D: usize>(&mut self, cell: &Cell<D>, s: &LightSetup) -> Result<(), ReplayError> {
+        self.clear();
+        if s.rule == LitRule::Exact {
+            let far = FarDistance::new(s.far).ok_or(ReplayError::BadFar)?;
+            self.target = cell
+                .visible
+                .as_ref()
+                .and_then(|v| crate::receiver::target::<F>(cell.x as i32, cell.y as i32, v, &s.source, far));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(feature = "exact-occluders")]
+impl crate::occluder::ColumnOccluders for ReplayColumn {
+    fn triangles(&self, _x: Coord, _y: Coord) -> &[Triangle] {
+        self.triangles.triangles()
+    }
+
+    fn target(&self, _x: Coord, _y: Coord) -> Option<crate::receiver::Target> {
+        self.target
     }
 }
 

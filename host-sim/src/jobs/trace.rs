@@ -18,7 +18,7 @@ use cell_core::shade::{cell_pixel, Eye, NormalMode, ShadeParams};
 use cell_core::trace::{Event, ShadeSetup, MAX_LIGHTS, MAX_MATERIALS};
 
 use crate::jobs::light::{unsupported_frac_bits, LightingOptions};
-use crate::machine::diffuse::{diffuse_tapped, source_at, FrustumBlocks, LightConfig, Lighting};
+use crate::machine::diffuse::{diffuse_tapped, FrustumBlocks, LightConfig, Lighting};
 use crate::machine::tap::{CellRecorder, Tap};
 
 use crate::machine::capacity::{HostLightCell, FA_CAP, LIT_CAP, OB_CAP};
@@ -139,12 +139,7 @@ fn reflections<F: FracBits>(
 /// The job's lights (grid-normalised positions) and the cell sources at them.
 fn lights_of(job: &TraceJob<'_>, scene: &LoadedScene) -> Result<(Vec<[f64; 3]>, Vec<Source>)> {
     let lights = crate::machine::loaded::resolve_lights(job.mesh, scene, &job.lights)?;
-    if job.light.rays != cell_core::beam::Origin::SourceVoxel {
-        // A trace's header names the lights by position only: its replay (host and firmware)
-        // rebuilds the thesis's rays.
-        bail!("traces record the thesis's rays only: drop --rays-from light");
-    }
-    let sources = lights.iter().enumerate().map(|(i, p)| source_at(i, *p, job.load.n)).collect::<Result<_>>()?;
+    let sources = lights.iter().enumerate().map(|(i, p)| job.light.source(i, *p, job.load.n)).collect::<Result<_>>()?;
     Ok((lights, sources))
 }
 

@@ -16,6 +16,7 @@ use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::facet::RowPacket;
 use cell_core::light::{BeamMsg, FrustumSummary, LightEnv, Port, Step};
 use cell_core::link::{Link, Sent};
+use cell_core::lit::LitRule;
 use cell_core::reflect::Answer;
 use cell_core::reflect_cell::{ReflectAnswer, ReflectCell};
 use cell_core::shadow::{ShadowAnswer, ShadowCell, ShadowStep};
@@ -214,6 +215,14 @@ impl Tap {
             rule: env.rule,
         };
         self.all::<F>(&Event::Light(s));
+        // Exact occluders: each cell's own triangles follow (its target ray it computes itself).
+        if let Some(occ) = env.occluders.filter(|_| env.rule == LitRule::Exact) {
+            for r in &mut self.recorders {
+                for t in occ.triangles(r.x as u16, r.y as u16) {
+                    r.push::<F>(&Event::Triangle(*t));
+                }
+            }
+        }
     }
 
     /// Every recorder: `f(grid index, recorder)`.
