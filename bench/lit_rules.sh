@@ -1,25 +1,25 @@
 #!/usr/bin/env bash
 # The lit rules against the f64 reference (thesis §5.5.5–5.5.6): for each scene and n, render
-# with the plane rule (the default) and the thesis's rule, by beam diffusion and by classic
-# shadow rays, and collect shadow disagreement, PSNR, cycles, beams and wall time.
-# Configurations (METHODS, default all):
-#   plane           the defaults: plane rule, standard + conservative surfaces, f = 0, radial
+# with exact occluders (the default), the plane rule and the thesis's rule, by beam diffusion
+# and by classic shadow rays, and collect shadow disagreement, PSNR, cycles, beams and wall time.
+# Configurations (METHODS, default all but exact-voxel):
+#   exact           the defaults: exact occluders, target rays, rays from the light (the three
+#                   parts of exact shadow edges); standard + conservative surfaces, f = 0, radial
+#   plane           --lit-rule plane --rays-from voxel (the former default)
 #   plane-f1        the same with --frac-bits 1 (twice the rays per axis: the accuracy knob)
-#   thesis          --lit-rule thesis on the same surfaces, f and policy (the rule alone)
-#   thesis-thin     --lit-rule thesis with the former defaults (naive + projected, f = 0,
-#                   wavefront): the figures the project used to quote
+#   thesis          --lit-rule thesis --rays-from voxel on the same surfaces, f and policy
+#   thesis-thin     --lit-rule thesis with the thesis's setup (naive + projected, f = 0,
+#                   wavefront, rays from the source voxel): the figures the project used to quote
 #   classic-plane   --lighting classic (shadow rays from the visible surface, plane principle)
 #   classic-thesis  --lighting classic --lit-rule thesis (from voxel centres, the thesis's test)
-#   exact           --lit-rule exact --rays-from light (exact occluders, target rays, rays from
-#                   the light: the three parts of exact shadow edges)
-#   exact-voxel     --lit-rule exact with the thesis's rays (from the source voxel)
+#   exact-voxel     exact occluders with the thesis's rays (from the source voxel)
 # NS (default "128 256") and SCENES (default "cornell teapot-floor cow-floor bureau1") choose the
 # runs. Writes bench-out/lit-rules.csv and prints it as a table.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 NS=${NS:-"128 256"}
 SCENES=${SCENES:-"cornell teapot-floor cow-floor bureau1"}
-METHODS=${METHODS:-"plane plane-f1 thesis thesis-thin classic-plane classic-thesis"}
+METHODS=${METHODS:-"exact plane plane-f1 thesis thesis-thin classic-plane classic-thesis"}
 mkdir -p bench-out
 cargo build --release -q -p host-sim
 B=./target/release/host-sim
@@ -29,14 +29,14 @@ for n in $NS; do
   for scene in $SCENES; do
     for m in $METHODS; do
       case $m in
-        plane) opts=() ;;
-        plane-f1) opts=(--frac-bits 1) ;;
-        thesis) opts=(--lit-rule thesis) ;;
-        thesis-thin) opts=(--lit-rule thesis --sigma naive --contour projected --frac-bits 0 --policy wavefront) ;;
+        plane) opts=(--lit-rule plane --rays-from voxel) ;;
+        plane-f1) opts=(--lit-rule plane --rays-from voxel --frac-bits 1) ;;
+        thesis) opts=(--lit-rule thesis --rays-from voxel) ;;
+        thesis-thin) opts=(--lit-rule thesis --rays-from voxel --sigma naive --contour projected --frac-bits 0 --policy wavefront) ;;
         classic-plane) opts=(--lighting classic) ;;
         classic-thesis) opts=(--lighting classic --lit-rule thesis) ;;
-        exact) opts=(--lit-rule exact --rays-from light) ;;
-        exact-voxel) opts=(--lit-rule exact) ;;
+        exact) opts=() ;;
+        exact-voxel) opts=(--lit-rule exact --rays-from voxel) ;;
         *) echo "unknown method $m" >&2; exit 2 ;;
       esac
       o=bench-out/lit-$scene-$n-$m

@@ -3,8 +3,8 @@
 #   docs/cornell{,.reference,.diff}.png       render cornell --n 128 --reference (its camera)
 #   docs/teapot-floor{,.reference,.diff}.png  render teapot-floor --n 256 --reference
 #   docs/grazing.png  the tall block's front face, lit by the Cornell light at a degree or two
-#                     (n = 256, fitted view, ×2): thesis's rule with the former defaults | plane rule (default,
-#                     f = 0) | plane rule at f = 1 | f64 reference
+#                     (n = 256, fitted view, ×2), before and after: the thesis's rule and setup |
+#                     plane rule (the former default) | exact occluders (the default) | f64 reference
 # Needs python3 with Pillow (`pip install pillow`) for the grazing montage.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -14,15 +14,15 @@ $B render cornell --n 128 --reference --quiet --out docs/cornell.png
 $B render teapot-floor --n 256 --reference --quiet --out docs/teapot-floor.png
 T=$(mktemp -d)
 $B render cornell --n 256 --view fitted --quiet --out "$T/thesis.png" \
-  --lit-rule thesis --sigma naive --contour projected --frac-bits 0 --policy wavefront
-$B render cornell --n 256 --view fitted --reference --quiet --out "$T/plane.png"
-$B render cornell --n 256 --view fitted --quiet --frac-bits 1 --out "$T/plane-f1.png"
+  --lit-rule thesis --rays-from voxel --sigma naive --contour projected --frac-bits 0 --policy wavefront
+$B render cornell --n 256 --view fitted --quiet --lit-rule plane --rays-from voxel --out "$T/plane.png"
+$B render cornell --n 256 --view fitted --reference --quiet --out "$T/exact.png"
 python3 - "$T" <<'PY'
 import sys
 from PIL import Image
 t = sys.argv[1]
 box = (50, 95, 140, 235)  # the tall block's front face at n = 256
-panels = [Image.open(f"{t}/{p}.png").convert("RGB").crop(box) for p in ("thesis", "plane", "plane-f1", "plane.reference")]
+panels = [Image.open(f"{t}/{p}.png").convert("RGB").crop(box) for p in ("thesis", "plane", "exact", "exact.reference")]
 w, h = panels[0].size
 gap = 5
 out = Image.new("RGB", (4 * w + 3 * gap, h), "white")

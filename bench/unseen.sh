@@ -1,14 +1,14 @@
 #!/usr/bin/env bash
 # Meshes under lights of their own, as a new user would try them: each mesh of MESHES (OBJ files
 # of ../shared/scenes or any path) under each light of LIGHTS, rendered at each n of NS with
-# `render MESH --light L --reference`, by the defaults (beam diffusion, plane rule) and by classic
-# shadow rays. Writes bench-out/unseen.csv (shadow disagreement, PSNR, light cycles per run) and
+# `render MESH --light L --reference`, by the defaults (beam diffusion, exact occluders), by the
+# plane rule and by classic shadow rays. Writes bench-out/unseen.csv (shadow disagreement, PSNR, light cycles per run) and
 # prints the mean and the worst run per method and n.
 #   MESHES  default: suzanne fandisk cow teapot (looked up in ../shared/scenes/NAME.obj)
 #   LIGHTS  default: 0.2,0.9,0.1 0.9,0.5,0.2 0.5,0.05,0.5 0.1,0.2,0.9 (grid-normalised)
 #   NS      default: 256
-#   METHODS default: "plane classic" (plane: the defaults; classic: --lighting classic; exact:
-#           --lit-rule exact --rays-from light)
+#   METHODS default: "exact plane classic" (exact: the defaults; plane: --lit-rule plane
+#           --rays-from voxel, the former default; classic: --lighting classic)
 #   ROTATE  default: none. Rotations of each mesh to render instead of the mesh as stored, each
 #           a sequence of axis and angle in radians applied in order (x0.6y0.9: 0.6 about x,
 #           then 0.9 about y); "none" is the mesh as stored. The rotated OBJ is written to
@@ -20,7 +20,7 @@ cd "$(dirname "$0")/.."
 MESHES=${MESHES:-"suzanne fandisk cow teapot"}
 LIGHTS=${LIGHTS:-"0.2,0.9,0.1 0.9,0.5,0.2 0.5,0.05,0.5 0.1,0.2,0.9"}
 NS=${NS:-256}
-METHODS=${METHODS:-"plane classic"}
+METHODS=${METHODS:-"exact plane classic"}
 ROTATE=${ROTATE:-none}
 mkdir -p bench-out/unseen
 cargo build --release -q -p host-sim
@@ -62,9 +62,9 @@ for n in $NS; do
     for light in $LIGHTS; do
       for m in $METHODS; do
         case $m in
-          plane) opts=() ;;
+          plane) opts=(--lit-rule plane --rays-from voxel) ;;
           classic) opts=(--lighting classic) ;;
-          exact) opts=(--lit-rule exact --rays-from light) ;;
+          exact) opts=() ;;
           *) echo "unknown method $m" >&2; exit 2 ;;
         esac
         o=bench-out/unseen/$mesh-$light-$n-$m

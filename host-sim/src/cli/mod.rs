@@ -375,22 +375,28 @@ pub struct LightOpts {
     /// policy only; at most 4096.
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u16).range(0..=4096))]
     pub hold: u16,
-    /// The lit rule: `plane` (default) stops a ray only where it crosses the plane of the facet
-    /// owning the voxel it is in, lights only facets facing the source, and lights each pixel's
-    /// exact visible surface from that surface's own plane: right at grazing angles (thesis
-    /// §5.5.6). `thesis`: a beam entering an occupied voxel lights it and stops (§5.5.5), and the
-    /// pixel shows the first occupied voxel of its column (today's figures: add
-    /// `--sigma naive --contour projected --frac-bits 0 --policy wavefront`).
-    #[arg(long, value_enum, default_value_t = LitRuleArg::Plane)]
-    pub lit_rule: LitRuleArg,
-    /// Where each face's rays leave from along its axis: `voxel` (default), the source voxel's
-    /// centre plane, so that layer k is k whole voxels from it (thesis §4.3); `light`, the
-    /// light itself, so that the rays are true rays from the source wherever it sits in its
-    /// voxel (a light on a voxel boundary is half a voxel off along the axis otherwise). Same
-    /// split arithmetic; more beams (2–41 % on the built-in scenes, BENCHMARKS.md); needs
-    /// `--fa` ≥ 4; not for classic lighting or `trace`.
-    #[arg(long, value_enum, default_value_t = RaysFromArg::Voxel)]
-    pub rays_from: RaysFromArg,
+    /// The lit rule. `exact` (the default with diffusion, except in `trace`): exact occluders —
+    /// each cell keeps the scene's triangles through its column and a ray is stopped where it
+    /// meets one; each pixel is lit iff its one target ray (the lattice ray nearest the exact
+    /// ray to its point) arrives: right at grazing angles and at shadow edges (thesis §5.5.6;
+    /// about 2× the host's light seconds of `plane`, 0.75–1.2× its cycles, BENCHMARKS.md).
+    /// `plane` (the default with `--lighting classic` and in `trace`): a ray is stopped only
+    /// where it crosses the plane of the facet owning the voxel it is in, and each pixel is lit
+    /// from its visible surface's own plane. `thesis`: a beam entering an occupied voxel lights
+    /// it and stops (§5.5.5), and the pixel shows the first occupied voxel of its column (the
+    /// thesis's figures: add `--sigma naive --contour projected --frac-bits 0 --policy
+    /// wavefront --rays-from voxel`).
+    #[arg(long, value_enum)]
+    pub lit_rule: Option<LitRuleArg>,
+    /// Where each face's rays leave from along its axis: `light` (the default with diffusion,
+    /// except in `trace`), the light itself, so that the rays are true rays from the source
+    /// wherever it sits in its voxel; `voxel` (the default with `--lighting classic` and in
+    /// `trace`), the source voxel's centre plane, so that layer k is k whole voxels from it
+    /// (thesis §4.3; a light on a voxel boundary is half a voxel off along the axis). Same split
+    /// arithmetic; `light` takes 2–41 % more beams (BENCHMARKS.md) and needs `--fa` ≥ 4; not
+    /// for classic lighting.
+    #[arg(long, value_enum)]
+    pub rays_from: Option<RaysFromArg>,
     /// Classic shadow rays instead of diffusion.
     #[command(flatten)]
     pub classic: crate::cli::phase_args::ClassicOpts,
@@ -423,9 +429,23 @@ pub enum LitRuleArg {
     Plane,
     /// Exact occluders: a ray is stopped where it meets a triangle its cells keep; each pixel
     /// is lit iff its one target ray (the lattice ray nearest the ray to its point) arrives.
-    /// Diffusion only (classic shadow rays run the plane rule); not on the asynchronous boards
-    /// or in traces.
+    /// Diffusion only (classic shadow rays run the plane rule).
     Exact,
+}
+
+impl LightOpts {
+    /// The lit rule and rays' origin asked for, or the defaults: exact occluders with rays from
+    /// the light for diffusion, the plane rule from the source voxel for classic shadow rays
+    /// and when `accurate` is false (the `trace` job: what the firmware's default image runs).
+    pub fn rule_and_rays(&self, accurate: bool) -> (cell_core::lit::LitRule, cell_core::beam::Origin) {
+        let classic = self.classic.lighting == crate::cli::phase_args::LightingArg::Classic;
+        let (rule, rays) = if accurate && !classic {
+            (LitRuleArg::Exact, RaysFromArg::Light)
+        } else {
+            (LitRuleArg::Plane, RaysFromArg::Voxel)
+        };
+        (self.lit_rule.unwrap_or(rule).into(), self.rays_from.unwrap_or(rays).into())
+    }
 }
 
 impl From<LitRuleArg> for cell_core::lit::LitRule {

@@ -20,8 +20,12 @@ use crate::jobs::voxelize::VoxelizeOptions;
 use crate::machine::diffuse::{FrustumBlocks, LightConfig};
 use crate::machine::timing::{Emission, Timing};
 
-impl From<&LightOpts> for LightingOptions {
-    fn from(a: &LightOpts) -> Self {
+impl LightOpts {
+    /// The jobs' lighting options; `accurate`: the defaults are exact occluders with rays from
+    /// the light ([`LightOpts::rule_and_rays`]).
+    fn options(&self, accurate: bool) -> LightingOptions {
+        let a = self;
+        let (rule, rays) = a.rule_and_rays(accurate);
         LightingOptions {
             lights: a.lights.clone(),
             frac_bits: a.frac_bits,
@@ -40,15 +44,15 @@ impl From<&LightOpts> for LightingOptions {
                 skip_frustum: a.skip_frustum,
                 skip_hidden: false,
                 frustum_blocks: FrustumBlocks::default(),
-                rule: a.lit_rule.into(),
-                rays: a.rays_from.into(),
+                rule,
+                rays,
                 timing: Timing::RC2,
                 stop_at: None,
             },
             lit_visible_only: a.lit_visible_only,
             skip_hidden: a.skip_hidden,
             frustum_blocks: a.frustum_blocks.map(Into::into),
-            classic: (a.classic.lighting == LightingArg::Classic).then(|| a.classic.config(a.fa, a.lit_rule.into())),
+            classic: (a.classic.lighting == LightingArg::Classic).then(|| a.classic.config(a.fa, rule)),
         }
     }
 }
@@ -57,7 +61,7 @@ impl RenderArgs {
     /// Refuse radiosity options without `--radiosity`: they would change nothing.
     pub fn check(&self) -> anyhow::Result<()> {
         let classic = self.light.classic.lighting == LightingArg::Classic;
-        if classic && self.light.rays_from == crate::cli::RaysFromArg::Light {
+        if classic && self.light.rays_from == Some(crate::cli::RaysFromArg::Light) {
             anyhow::bail!(
                 "--rays-from light is a diffusion option: classic shadow rays are traced to the light itself"
             );
@@ -72,7 +76,7 @@ impl RenderArgs {
 
 impl From<&RenderArgs> for RenderOptions {
     fn from(a: &RenderArgs) -> Self {
-        let (fa, rule) = (a.light.fa, a.light.lit_rule.into());
+        let (fa, (rule, _)) = (a.light.fa, a.light.rule_and_rays(true));
         RenderOptions {
             radiosity: a.radiosity.then(|| RenderRadiosity {
                 solve: (&a.radiosity_opts).into(),
@@ -81,7 +85,7 @@ impl From<&RenderArgs> for RenderOptions {
             scene: a.load.scene.clone(),
             view: a.load.camera.choice(),
             load: a.load.config(DEFAULT_N),
-            light: (&a.light).into(),
+            light: a.light.options(true),
             normals: a.normals.into(),
             reflections: (a.reflect.reflections > 0).then(|| a.reflect.config(fa, &a.light.classic.config(fa, rule))),
             out: a.out.clone(),
@@ -98,7 +102,7 @@ impl From<&LightArgs> for LightOptions {
             scene: a.load.scene.clone(),
             view: a.load.camera.choice(),
             load: a.load.config(DEFAULT_N),
-            light: (&a.light).into(),
+            light: a.light.options(true),
             stats: a.stats.clone(),
             lit_out: a.lit_out.clone(),
             dump_lit: a.dump_lit.clone(),
@@ -113,9 +117,9 @@ impl From<&TraceArgs> for TraceOptions {
             scene: a.load.scene.clone(),
             view: a.load.camera.choice(),
             load: a.load.config(TRACE_N),
-            light: (&a.light).into(),
+            light: a.light.options(false),
             reflections: (a.reflect.reflections > 0).then(|| {
-                let (fa, rule) = (a.light.fa, a.light.lit_rule.into());
+                let (fa, (rule, _)) = (a.light.fa, a.light.rule_and_rays(false));
                 a.reflect.config(fa, &a.light.classic.config(fa, rule))
             }),
             cells: a.cells.clone(),

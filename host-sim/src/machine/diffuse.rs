@@ -462,7 +462,10 @@ pub(crate) fn check_light_run<F: FracBits>(n: u32, sources: &[Source], cfg: &Lig
     }
     let min_fa = cell_core::light::MIN_FA_FROM_LIGHT;
     if cfg.fa < min_fa && sources.iter().any(|s| s.origin == cell_core::beam::Origin::Light) {
-        bail!("--fa {} is too small for rays from the light: the source cell's first split may keep four FIFO slots (at least {min_fa})", cfg.fa);
+        bail!(
+            "--fa {} is too small for rays from the light (the default): the source cell's first split may keep four FIFO slots (at least {min_fa}); for a smaller FIFO, --rays-from voxel",
+            cfg.fa
+        );
     }
     let far = FarDistance::<F>::new(n - 1).ok_or_else(|| {
         anyhow::anyhow!(

@@ -22,7 +22,7 @@ use cell_core::wire::{BEAM_PAYLOAD, HEADER, MAX_FRAME, ROW_PAYLOAD_BASE, TRAILER
 
 use crate::machine::diffuse::{FrustumBlocks, LightConfig};
 
-use crate::machine::capacity::{FA_CAP, LIT_CAP, OB_CAP};
+use crate::machine::capacity::{FA_CAP, LIT_CAP, OB_CAP, TRIANGLE_CAP};
 use crate::machine::lighting::run_diffusion;
 use crate::machine::loaded::{load_scene, resolve_lights};
 use crate::precompute::LoadConfig;
@@ -91,6 +91,13 @@ pub struct Audit {
     /// 8, 16 and 32 blocks per axis (`--frustum-blocks`); not in the totals, which are those of
     /// a cell without the skips.
     pub frustum_summary: [usize; 3],
+    /// The column's triangle store under exact occluders (`--lit-rule exact`, the default with
+    /// diffusion): `TRIANGLE_CAP` triangles of 36 B and a count; not in the totals.
+    pub triangle_store: usize,
+    /// The most triangles one column of this scene keeps, and that column.
+    pub used_triangles: usize,
+    /// See `used_triangles`.
+    pub used_triangles_cell: [u32; 2],
     /// What a cell holds for one source's diffusion (the light setup; its frustum summary
     /// is the 8-block one) and, while it shades, the shading inputs (lights and materials).
     pub bytes_light_setup: usize,
@@ -169,6 +176,7 @@ struct Peaks {
     dexels: (usize, [u32; 2]),
     fifo: (usize, [u32; 2]),
     lit_runs: (usize, [u32; 2]),
+    triangles: (usize, [u32; 2]),
 }
 
 /// Load and light a scene, and find the peaks of its cells.
@@ -184,6 +192,7 @@ fn peaks(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig) -> Result<Peaks> {
     };
     for c in &loaded.grid.cells {
         raise(&mut p.dexels, c.store.dexels().len(), c.x, c.y);
+        raise(&mut p.triangles, loaded.grid.triangles.column(c.x as u32, c.y as u32).len(), c.x, c.y);
     }
     for c in &lighting.cells {
         raise(&mut p.fifo, c.counters.peak_fifo as usize, c.x, c.y);
@@ -223,6 +232,9 @@ pub fn audit(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig, elfs: &[PathBuf
         static_light_cell: static_light,
         static_total,
         frustum_summary: [FrustumBlocks::B8, FrustumBlocks::B16, FrustumBlocks::B32].map(FrustumBlocks::bytes),
+        triangle_store: size_of::<cell_core::occluder::TriangleStore<TRIANGLE_CAP>>(),
+        used_triangles: p.triangles.0,
+        used_triangles_cell: p.triangles.1,
         bytes_light_setup: size_of::<LightSetup>(),
         bytes_shade_setup: size_of::<ShadeSetup>(),
         capacity_dexels: DEFAULT_DEXELS,
@@ -271,6 +283,10 @@ fn print_ram(a: &Audit) {
     let [s8, s16, s32] = a.frustum_summary;
     println!(
         "with --skip-frustum or --skip-hidden, add the occupancy summary: {s8} B (--frustum-blocks 8), {s16} B (16), {s32} B (32)"
+    );
+    println!(
+        "with exact occluders (--lit-rule exact, the default with diffusion), add the column's triangle store: {} B ({TRIANGLE_CAP} × 36 B); this scene keeps at most {} triangles in a column, cell {:?}",
+        a.triangle_store, a.used_triangles, a.used_triangles_cell
     );
     println!(
         "per phase, besides the stores: the light setup {} B (lighting), the shading inputs {} B (shading, on the stack)",
