@@ -155,6 +155,15 @@ fn bad_arguments_fail_clearly() {
         (&["render", "--n", "16", "--skip-hidden", "maybe"], "--skip-hidden"),
         (&["light", "--n", "16", "--skip-frustum", "true", "--frustum-blocks", "12"], "--frustum-blocks"),
         (
+            &["render", "--n", "16", "--lighting", "classic", "--lit-rule", "exact"],
+            "--lit-rule exact is a diffusion option",
+        ),
+        (
+            &["light", "--n", "16", "--lighting", "classic", "--rays-from", "light"],
+            "--rays-from light is a diffusion option",
+        ),
+        (&["render", "--n", "16", "--fa", "2"], "--rays-from voxel"),
+        (
             &[
                 "trace",
                 "--n",

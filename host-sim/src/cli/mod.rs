@@ -429,7 +429,7 @@ pub enum LitRuleArg {
     Plane,
     /// Exact occluders: a ray is stopped where it meets a triangle its cells keep; each pixel
     /// is lit iff its one target ray (the lattice ray nearest the ray to its point) arrives.
-    /// Diffusion only (classic shadow rays run the plane rule).
+    /// Diffusion only (refused with `--lighting classic`).
     Exact,
 }
 
@@ -784,12 +784,18 @@ fn dispatch(command: Command) -> Result<()> {
             a.check()?;
             jobs::render::run(&(&a).into())
         }
-        Command::Light(a) => jobs::light::run(&(&a).into()),
+        Command::Light(a) => {
+            a.light.check()?;
+            jobs::light::run(&(&a).into())
+        }
         Command::DiffusionTable(a) => jobs::table::run(&(&a).into()),
         Command::LightAccuracy(a) => jobs::accuracy::run(&(&a).into()),
         Command::Bench(a) => jobs::bench::run(&(&a).into()),
         Command::Audit(a) => jobs::audit::run(&(&a).into()),
-        Command::Trace(a) => jobs::trace::run(&(&a).into()),
+        Command::Trace(a) => {
+            a.light.check()?;
+            jobs::trace::run(&(&a).into())
+        }
         Command::Radiosity(a) => jobs::radiosity::run(&(&a).into()),
         Command::Scenes => {
             jobs::scenes::list();

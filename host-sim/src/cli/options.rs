@@ -21,6 +21,24 @@ use crate::machine::diffuse::{FrustumBlocks, LightConfig};
 use crate::machine::timing::{Emission, Timing};
 
 impl LightOpts {
+    /// Refuse diffusion-only options with classic shadow rays: they would be ignored.
+    pub fn check(&self) -> anyhow::Result<()> {
+        if self.classic.lighting != LightingArg::Classic {
+            return Ok(());
+        }
+        if self.rays_from == Some(crate::cli::RaysFromArg::Light) {
+            anyhow::bail!(
+                "--rays-from light is a diffusion option: classic shadow rays are traced to the light itself"
+            );
+        }
+        if self.lit_rule == Some(crate::cli::LitRuleArg::Exact) {
+            anyhow::bail!(
+                "--lit-rule exact is a diffusion option: classic shadow rays run the plane rule (--lit-rule plane, their default) or the thesis's"
+            );
+        }
+        Ok(())
+    }
+
     /// The jobs' lighting options; `accurate`: the defaults are exact occluders with rays from
     /// the light ([`LightOpts::rule_and_rays`]).
     fn options(&self, accurate: bool) -> LightingOptions {
@@ -58,14 +76,10 @@ impl LightOpts {
 }
 
 impl RenderArgs {
-    /// Refuse radiosity options without `--radiosity`: they would change nothing.
+    /// Refuse diffusion-only options with classic shadow rays, and radiosity options without
+    /// `--radiosity`: they would change nothing.
     pub fn check(&self) -> anyhow::Result<()> {
-        let classic = self.light.classic.lighting == LightingArg::Classic;
-        if classic && self.light.rays_from == Some(crate::cli::RaysFromArg::Light) {
-            anyhow::bail!(
-                "--rays-from light is a diffusion option: classic shadow rays are traced to the light itself"
-            );
-        }
+        self.light.check()?;
         let stray = self.radiosity_opts.first_given().or(self.radiosity_display.map(|_| "--radiosity-display"));
         match stray {
             Some(flag) if !self.radiosity => anyhow::bail!("{flag} is a radiosity option: add --radiosity"),
