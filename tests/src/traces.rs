@@ -66,38 +66,49 @@ pub fn brighten_reflect_answers<F: FracBits>(bytes: &[u8]) -> Option<Vec<u8>> {
     })
 }
 
-/// The trace with every record `change` changes (it says whether it did) re-encoded, so every
-/// CRC is valid; `None` when it changed none (or the trace does not parse).
-pub fn re_encode<F: FracBits>(bytes: &[u8], mut change: impl FnMut(&mut Event<'_, F>) -> bool) -> Option<Vec<u8>> {
+/// What [`rewrite`] does with one record.
+enum Edit {
+    /// Write it as it is.
+    Keep,
+    /// Write it as changed in place.
+    Changed,
+    /// Leave it out.
+    Drop,
+}
+
+/// The trace with every record re-encoded after `edit` saw it (so every CRC is valid); `None`
+/// when no record was changed or dropped (or the trace does not parse).
+fn rewrite<F: FracBits>(bytes: &[u8], mut edit: impl FnMut(&mut Event<'_, F>) -> Edit) -> Option<Vec<u8>> {
     let mut p = Parser::<F>::new(bytes);
     let mut out = Vec::new();
-    let mut changed = false;
+    let mut edited = false;
     let mut buf = [0u8; 2048];
     while let Some(ev) = p.next_event() {
         let mut ev = ev.ok()?;
-        changed |= change(&mut ev);
+        match edit(&mut ev) {
+            Edit::Keep => {}
+            Edit::Changed => edited = true,
+            Edit::Drop => {
+                edited = true;
+                continue;
+            }
+        }
         let len = write_event(&ev, &mut buf).ok()?;
         out.extend_from_slice(&buf[..len]);
     }
-    changed.then_some(out)
+    edited.then_some(out)
+}
+
+/// The trace with every record `change` changes (it says whether it did) re-encoded, so every
+/// CRC is valid; `None` when it changed none (or the trace does not parse).
+pub fn re_encode<F: FracBits>(bytes: &[u8], mut change: impl FnMut(&mut Event<'_, F>) -> bool) -> Option<Vec<u8>> {
+    rewrite::<F>(bytes, |ev| if change(ev) { Edit::Changed } else { Edit::Keep })
 }
 
 /// The trace without its triangle records (exact occluders: the column's triangles),
 /// re-encoded; `None` when it has none.
 pub fn drop_triangles<F: FracBits>(bytes: &[u8]) -> Option<Vec<u8>> {
-    let mut p = Parser::<F>::new(bytes);
-    let (mut out, mut dropped) = (Vec::new(), 0usize);
-    let mut buf = [0u8; 2048];
-    while let Some(ev) = p.next_event() {
-        let ev = ev.ok()?;
-        if matches!(ev, Event::Triangle(_)) {
-            dropped += 1;
-            continue;
-        }
-        let len = write_event(&ev, &mut buf).ok()?;
-        out.extend_from_slice(&buf[..len]);
-    }
-    (dropped > 0).then_some(out)
+    rewrite::<F>(bytes, |ev| if matches!(ev, Event::Triangle(_)) { Edit::Drop } else { Edit::Keep })
 }
 
 /// The trace with one byte flipped in the middle of the first ray frame a link delivers

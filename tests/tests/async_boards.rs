@@ -58,6 +58,17 @@ impl Case {
         run::<U0>(&self.prepared, self.loaded.grid.n, &self.sources, &self.light, cfg).unwrap()
     }
 
+    /// For each (board side, seed): every phase declared in time, and the boards' results equal
+    /// the grid's ([`Case::check_same`]); `what` names the case in messages.
+    fn check_boards(&self, runs: &[(u32, u64)], what: &str) {
+        for &(tile, seed) in runs {
+            let r = self.run(&AsyncConfig { tile, seed, ..Default::default() });
+            let what = format!("{what} B = {tile}, seed {seed}");
+            check_termination(&r, 1 + self.sources.len(), &what);
+            self.check_same(r, &what);
+        }
+    }
+
     /// The boards' dexel stores, lit voxels, visible-surface masks and pixels equal the grid's.
     fn check_same(&self, r: AsyncRun<U0>, what: &str) {
         let n = self.loaded.grid.n;
@@ -97,13 +108,7 @@ fn check_termination(r: &AsyncRun<U0>, phases: usize, what: &str) {
 fn boards_load_and_light_what_the_grid_does() {
     let c = case(32, Origin::SourceVoxel, LitRule::Plane);
     assert!(c.lit.len() > 100 && c.rgb.iter().any(|p| p[0] > 0), "a lit scene");
-    for (tile, seed) in [(16, 1), (16, 2), (8, 3), (8, 4)] {
-        let cfg = AsyncConfig { tile, seed, ..Default::default() };
-        let r = c.run(&cfg);
-        let what = format!("B = {tile}, seed {seed}");
-        check_termination(&r, 1 + c.sources.len(), &what);
-        c.check_same(r, &what);
-    }
+    c.check_boards(&[(16, 1), (16, 2), (8, 3), (8, 4)], "");
 }
 
 /// The same with rays from the light (the source cell's first splits keep beams in its column;
@@ -113,13 +118,7 @@ fn boards_light_rays_from_the_light_as_the_grid_does() {
     let c = case(32, Origin::Light, LitRule::Plane);
     assert!(c.sources.iter().all(|s| s.origin == Origin::Light));
     assert_ne!(c.lit, case(32, Origin::SourceVoxel, LitRule::Plane).lit, "these lights are off their voxels' centres");
-    for (tile, seed) in [(16, 5), (8, 6)] {
-        let cfg = AsyncConfig { tile, seed, ..Default::default() };
-        let r = c.run(&cfg);
-        let what = format!("rays from the light, B = {tile}, seed {seed}");
-        check_termination(&r, 1 + c.sources.len(), &what);
-        c.check_same(r, &what);
-    }
+    c.check_boards(&[(16, 5), (8, 6)], "rays from the light");
 }
 
 /// The same under exact occluders: the boards' columns keep the triangles the grid's do, and
@@ -128,13 +127,7 @@ fn boards_light_rays_from_the_light_as_the_grid_does() {
 fn boards_light_exact_occluders_as_the_grid_does() {
     let c = case(32, Origin::Light, LitRule::Exact);
     assert_ne!(c.lit, case(32, Origin::Light, LitRule::Plane).lit, "exact occluders change what is lit");
-    for (tile, seed) in [(16, 7), (8, 8)] {
-        let cfg = AsyncConfig { tile, seed, ..Default::default() };
-        let r = c.run(&cfg);
-        let what = format!("exact occluders, B = {tile}, seed {seed}");
-        check_termination(&r, 1 + c.sources.len(), &what);
-        c.check_same(r, &what);
-    }
+    c.check_boards(&[(16, 7), (8, 8)], "exact occluders");
 }
 
 /// Board 1's every message spends 300 to 308 ticks on its wire.

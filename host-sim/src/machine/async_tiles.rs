@@ -298,13 +298,14 @@ pub fn run<F: FracBits>(
     let mut ex = Executor::<F>::new(&prepared.packets, n, sources.len(), cfg)?;
     let mut grid = LightGrid::new(n, n);
     ex.schedule(0, |ex, b| ex.step_loading(b, &mut grid), |_, _, _| {})?;
-    if light.rule == LitRule::Exact {
+    let exact = light.rule == LitRule::Exact;
+    if exact {
         grid.triangles = ColumnTriangles::from_polygons(&prepared.polygons, n)?;
     }
     let order = SplitOrder::default();
     let all = AllSources::plain(&grid, sources, light, far);
     let occluders: Vec<Option<SourceOccluders<'_>>> =
-        sources.iter().map(|s| (light.rule == LitRule::Exact).then(|| SourceOccluders::new(&grid, s, far))).collect();
+        sources.iter().map(|s| exact.then(|| SourceOccluders::new(&grid, s, far))).collect();
     let envs: Vec<LightEnv<'_, F>> = sources
         .iter()
         .zip(&occluders)

@@ -16,7 +16,6 @@ use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::facet::RowPacket;
 use cell_core::light::{BeamMsg, FrustumSummary, LightEnv, Port, Step};
 use cell_core::link::{Link, Sent};
-use cell_core::lit::LitRule;
 use cell_core::reflect::Answer;
 use cell_core::reflect_cell::{ReflectAnswer, ReflectCell};
 use cell_core::shadow::{ShadowAnswer, ShadowCell, ShadowStep};
@@ -215,8 +214,9 @@ impl Tap {
             rule: env.rule,
         };
         self.all::<F>(&Event::Light(s));
-        // Exact occluders: each cell's own triangles follow (its target ray it computes itself).
-        if let Some(occ) = env.occluders.filter(|_| env.rule == LitRule::Exact) {
+        // Exact occluders (the only rule given occluders): each cell's own triangles follow (its
+        // target ray it computes itself).
+        if let Some(occ) = env.occluders {
             for r in &mut self.recorders {
                 for t in occ.triangles(r.x as u16, r.y as u16) {
                     r.push::<F>(&Event::Triangle(*t));
