@@ -2,6 +2,7 @@
 # Regenerates the README's pictures in docs/ with the current defaults:
 #   docs/cornell{,.reference,.diff}.png       render cornell --n 128 --reference (its camera)
 #   docs/teapot-floor{,.reference,.diff}.png  render teapot-floor --n 256 --reference
+#   docs/cornell-camera-256.png  render cornell --n 256 --reference: machine | reference | difference
 #   docs/grazing.png  the tall block's front face, lit by the Cornell light at a degree or two
 #                     (n = 256, fitted view, ×2), before and after: the thesis's rule and setup |
 #                     plane rule (the former default) | exact occluders (the default) | f64 reference
@@ -13,6 +14,18 @@ B=./target/release/host-sim
 $B render cornell --n 128 --reference --quiet --out docs/cornell.png
 $B render teapot-floor --n 256 --reference --quiet --out docs/teapot-floor.png
 T=$(mktemp -d)
+$B render cornell --n 256 --reference --quiet --out "$T/camera.png"
+python3 - "$T" <<'PY'
+import sys
+from PIL import Image
+t = sys.argv[1]
+panels = [Image.open(f"{t}/camera{p}.png").convert("RGB") for p in ("", ".reference", ".diff")]
+w, h = panels[0].size
+out = Image.new("RGB", (3 * w, h))
+for i, p in enumerate(panels):
+    out.paste(p, (i * w, 0))
+out.save("docs/cornell-camera-256.png")
+PY
 $B render cornell --n 256 --view fitted --quiet --out "$T/thesis.png" \
   --lit-rule thesis --rays-from voxel --sigma naive --contour projected --frac-bits 0 --policy wavefront
 $B render cornell --n 256 --view fitted --quiet --lit-rule plane --rays-from voxel --out "$T/plane.png"
@@ -31,4 +44,4 @@ for i, p in enumerate(panels):
 out.resize((out.width * 2, out.height * 2), Image.NEAREST).save("docs/grazing.png")
 PY
 rm -r "$T"
-echo "wrote docs/cornell*.png docs/teapot-floor*.png docs/grazing.png"
+echo "wrote docs/cornell*.png docs/teapot-floor*.png docs/cornell-camera-256.png docs/grazing.png"

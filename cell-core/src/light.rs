@@ -1874,10 +1874,10 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         let shown = match env.rule {
             LitRule::Thesis => !env.lit_visible_only || cell.store.dexels().first().is_some_and(|d| d.span.lo == z),
             // The image reads the visible surface's mark; the lit store is for the lit set,
-            // restricted to the two voxels bracketing the visible surface.
-            LitRule::Plane | LitRule::Exact => {
-                !env.lit_visible_only || cell.visible.is_some_and(|v| v.brackets(z as i64))
-            }
+            // restricted to the two voxels bracketing the visible surface (and under exact
+            // occluders the one in front of them, where the target ray may arrive).
+            LitRule::Plane => !env.lit_visible_only || cell.visible.is_some_and(|v| v.brackets(z as i64)),
+            LitRule::Exact => !env.lit_visible_only || cell.visible.is_some_and(|v| v.receives(z as i64)),
         };
         if shown && !self.lit.mark(z, env.source_bit) {
             self.counters.lit_overflows += 1;

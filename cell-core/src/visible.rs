@@ -98,6 +98,13 @@ impl VisibleSurface {
         z == self.z_v as i64 || z == self.z_v as i64 + 1
     }
 
+    /// Whether voxel `z` may hold the column's target ray under exact occluders
+    /// ([`crate::receiver`]): the two bracketing voxels or the one in front of them
+    /// (z_v − 1 ..= z_v + 1).
+    pub fn receives(&self, z: i64) -> bool {
+        (self.z_v as i64 - 1..=self.z_v as i64 + 1).contains(&z)
+    }
+
     /// Whether the surface lies nearer the viewer than `other` (smaller z\*).
     pub fn nearer_than(&self, other: &VisibleSurface) -> bool {
         (self.num as i128) * (other.den as i128) < (other.num as i128) * (self.den as i128)

@@ -167,12 +167,14 @@ fn loading_wave_all_cells_equals_active_cells() {
 /// Keeping lit marks for visible voxels only (`--lit-visible-only`) is a skip of work no one
 /// sees: the image bytes and cycles are those of the full lit store, and the lit set is exactly
 /// the full one restricted to the voxels the image reads — each column's first occupied voxel
-/// under the thesis's rule, the two voxels bracketing its visible surface under the plane rule.
+/// under the thesis's rule, the two voxels bracketing its visible surface under the plane rule,
+/// and those or the one in front of them (where the target ray arrives) under exact occluders.
 #[test]
 fn visible_only_lit_store_gives_the_same_image() {
-    for (scene, n) in [("cornell", 32), ("teapot-floor", 24), ("bureau1", 32)] {
+    let mut in_front_lit = 0;
+    for (scene, n) in [("cornell", 64), ("teapot-floor", 24), ("bureau1", 32)] {
         let s = setup(scene, n);
-        for rule in [LitRule::Thesis, LitRule::Plane] {
+        for rule in [LitRule::Thesis, LitRule::Plane, LitRule::Exact] {
             let full = run(&s, LightConfig { rule, ..Default::default() }, 2);
             let vis = run(&s, LightConfig { lit_visible_only: true, rule, ..Default::default() }, 2);
             assert_eq!(vis.png, full.png, "{scene} {rule:?}: image");
@@ -183,14 +185,28 @@ fn visible_only_lit_store_gives_the_same_image() {
                 let c = grid.cell(p[0], p[1]);
                 match rule {
                     LitRule::Thesis => c.store.dexels().first().is_some_and(|d| d.span.lo as u32 == p[2]),
-                    LitRule::Plane | LitRule::Exact => c.visible.is_some_and(|v| v.brackets(p[2] as i64)),
+                    LitRule::Plane => c.visible.is_some_and(|v| v.brackets(p[2] as i64)),
+                    LitRule::Exact => c.visible.is_some_and(|v| v.receives(p[2] as i64)),
                 }
             };
             let want: Vec<_> = full.lit.iter().filter(|(p, _)| visible(p)).cloned().collect();
             assert_eq!(vis.lit, want, "{scene} {rule:?}: lit set restricted to visible voxels");
-            assert!(want.len() < full.lit.len(), "{scene}: hidden lit voxels exist, so the test compares something");
+            match rule {
+                LitRule::Exact => {
+                    // Only target voxels are lit, some of them in front of the surface.
+                    assert_eq!(want.len(), full.lit.len(), "{scene}: exact occluders light target voxels only");
+                    let in_front =
+                        |p: &[u32; 3]| grid.cell(p[0], p[1]).visible.is_some_and(|v| v.z_v as i64 - 1 == p[2] as i64);
+                    in_front_lit += want.iter().filter(|(p, _)| in_front(p)).count();
+                }
+                _ => assert!(
+                    want.len() < full.lit.len(),
+                    "{scene}: hidden lit voxels exist, so the test compares something"
+                ),
+            }
         }
     }
+    assert!(in_front_lit > 0, "some target ray arrives in front of its surface, so the test keeps those marks");
 }
 
 /// The sibling wait (`--hold`) is exact: the same lit voxels and image for every wait, fewer

@@ -1634,15 +1634,23 @@ fn summarise<const B: usize, R: BlockRow, const D: usize>(
                 }
             }
             (true, LitRule::Plane | LitRule::Exact) => {
-                if let Some(v) = c.visible {
-                    let top = grid.depth as i64 - 1;
-                    let (lo, hi) = ((v.z_v as i64).clamp(0, top), (v.z_v as i64 + 1).clamp(0, top));
+                if let Some((lo, hi)) = c.visible.map(|v| receiver_span(&v, grid.depth, rule)) {
                     s.mark_span(x, y, lo as u32, hi as u32);
                 }
             }
         }
     }
     s
+}
+
+/// The voxels of a column where a ray may light its pixel, clipped to the grid: the two
+/// bracketing its visible surface under the plane rule, and the one in front of them too under
+/// exact occluders (where the target ray may arrive, `cell_core::receiver`).
+fn receiver_span(v: &cell_core::visible::VisibleSurface, depth: u32, rule: LitRule) -> (u16, u16) {
+    let top = depth as i64 - 1;
+    let front = (rule == LitRule::Exact) as i64;
+    let (lo, hi) = ((v.z_v as i64 - front).clamp(0, top), (v.z_v as i64 + 1).clamp(0, top));
+    (lo as u16, hi as u16)
 }
 
 /// The depths of column `c` where a beam can do something besides passing: its occupied
@@ -1661,10 +1669,7 @@ fn active_span<const D: usize>(c: &cell_core::cell::Cell<D>, depth: u32, rule: L
     };
     let bracket = match rule {
         LitRule::Thesis => None,
-        LitRule::Plane | LitRule::Exact => c.visible.map(|v| {
-            let (lo, hi) = ((v.z_v as i64).clamp(0, top), (v.z_v as i64 + 1).clamp(0, top));
-            (lo as u16, hi as u16)
-        }),
+        LitRule::Plane | LitRule::Exact => c.visible.map(|v| receiver_span(&v, depth, rule)),
     };
     match (occupied, bracket) {
         (Some(a), Some(b)) => Some((a.0.min(b.0), a.1.max(b.1))),
