@@ -274,7 +274,18 @@ impl RayPlane {
     /// `2¹⁶·L·g` at ray (a, b)'s point of parameter t (for a dexel's plane: `k0 + 16·t·(kw +
     /// cb·a + cg·b)`).
     pub fn value(&self, a: i64, b: i64, t: i64) -> i128 {
-        self.k0 + self.t16(t) * (self.kw + self.cb * a as i128 + self.cg * b as i128)
+        self.k0 + self.t16(t) * self.form(a, b)
+    }
+
+    /// The part of [`RayPlane::value`] that depends on the ray only: `value = k0 + T·form`.
+    pub(crate) fn form(&self, a: i64, b: i64) -> i128 {
+        self.kw + self.cb * a as i128 + self.cg * b as i128
+    }
+
+    /// Whether the value is positive at parameter t for a ray whose [`RayPlane::form`] is
+    /// `form` (several layers of one ray for the price of one form).
+    pub(crate) fn positive_with(&self, form: i128, t: i64) -> bool {
+        self.k0 + self.t16(t) * form > 0
     }
 
     /// Whether the plane faces the source: g > 0 at the rays' origin (T = 0, the same point for

@@ -196,14 +196,24 @@ pub struct Occluder {
     edges: [RayPlane; 3],
 }
 
-/// Bits of [`Occluder::tests`] that must all hold (the three edges).
-const EDGE_BITS: u64 = 0b111;
+/// A triangle's plane seen along the rays of one source and direction, before its edges: what
+/// [`ExactVisit`] reads first, since most triangles of a column are decided by the plane alone
+/// (no ray crosses it near the beam) and need no edge.
+#[derive(Clone, Copy, Debug)]
+struct Seen {
+    plane: RayPlane,
+    /// The rays' origin, the direction's axes and sign, N and the edges' orientation (sgn Δ).
+    o: [i64; 3],
+    axes: (usize, usize, usize),
+    sign: i128,
+    nn: i128,
+    orient: i128,
+    lead: i64,
+}
 
-impl Occluder {
-    /// The occluder of `tri` for rays of `source` in `dir` from `origin`; `None` if the
-    /// triangle stops no ray (zero area, or seen edge-on from the origin) or the origin lies
-    /// outside [`COORD_LIMIT`].
-    pub fn new<F: FracBits>(tri: &Triangle, source: &Source, dir: Direction, far: FarDistance<F>) -> Option<Occluder> {
+impl Seen {
+    /// The plane of `tri` along `source`'s rays in `dir`; `None` as for [`Occluder::new`].
+    fn new<F: FracBits>(tri: &Triangle, source: &Source, dir: Direction, far: FarDistance<F>) -> Option<Seen> {
         let w = dir.principal().index();
         let (u, v) = dir.transverse();
         let (u, v) = (u.index(), v.index());
@@ -221,18 +231,31 @@ impl Occluder {
         }
         let orient: i128 = if k0 < 0 { 1 } else { -1 };
         let plane = RayPlane::from_coefficients(k0, n[w] * sign * nn, n[u], n[v], lead);
-        let rel = [0, 1, 2].map(|i| sub(tri.vertex(i), o));
+        Some(Seen { plane, o, axes: (w, u, v), sign, nn, orient, lead })
+    }
+
+    /// The whole occluder: the plane and the three edges.
+    fn occluder(&self, tri: &Triangle) -> Occluder {
+        let (w, u, v) = self.axes;
+        let rel = [0, 1, 2].map(|i| sub(tri.vertex(i), self.o));
         let edges = [(0, 1), (1, 2), (2, 0)].map(|(i, j)| {
             let m = cross(rel[i], rel[j]);
-            RayPlane::from_coefficients(
-                0,
-                2 * orient * m[w] * sign * nn + 1,
-                2 * orient * m[u],
-                2 * orient * m[v],
-                lead,
-            )
+            let o = 2 * self.orient;
+            RayPlane::from_coefficients(0, o * m[w] * self.sign * self.nn + 1, o * m[u], o * m[v], self.lead)
         });
-        Some(Occluder { plane, edges })
+        Occluder { plane: self.plane, edges }
+    }
+}
+
+/// Bits of [`Occluder::tests`] that must all hold (the three edges).
+const EDGE_BITS: u64 = 0b111;
+
+impl Occluder {
+    /// The occluder of `tri` for rays of `source` in `dir` from `origin`; `None` if the
+    /// triangle stops no ray (zero area, or seen edge-on from the origin) or the origin lies
+    /// outside [`COORD_LIMIT`].
+    pub fn new<F: FracBits>(tri: &Triangle, source: &Source, dir: Direction, far: FarDistance<F>) -> Option<Occluder> {
+        Seen::new(tri, source, dir, far).map(|seen| seen.occluder(tri))
     }
 
     /// The five tests at layer k, in the order [`Occluder::stops`] reads their bits: the three
@@ -389,8 +412,10 @@ fn code_out(c: u64) -> crate::lit::Out {
 impl<'a, F: FracBits> ExactVisit<'a, F> {
     /// The visit at layer `k` of a beam with lattice rectangle `a × b` (inclusive), terminal or
     /// not, with the notch start `notch` (for a ±z beam that stayed in its column), in a column
-    /// keeping `triangles`.
+    /// keeping `triangles`. Inlined so that the visit (up to 6 KB of tests) is built where the
+    /// caller keeps it, not copied there.
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     pub fn new(
         triangles: &'a [Triangle],
         source: &'a Source,
@@ -437,22 +462,38 @@ impl<'a, F: FracBits> ExactVisit<'a, F> {
         let (source, dir, far, k, notch) = (self.source, self.dir, self.far, self.k, self.notch);
         let v = self;
         let corners = [(a.0, b.0), (a.0, b.1), (a.1, b.0), (a.1, b.1)];
+        // Some(value) when a test is constant on the rectangle.
+        let fixed_on = |t: &Test| {
+            let c = corners.map(|(a, b)| t.holds(a, b));
+            c.iter().all(|&x| x == c[0]).then_some(c[0])
+        };
+        let t1 = notch.unwrap_or(k - 1);
         for tri in v.triangles {
-            let Some(occ) = Occluder::new(tri, source, dir, far) else { continue };
-            let tests = occ.exact_tests(k, notch.unwrap_or(k - 1));
-            // Per test: Some(value) when constant on the rectangle.
+            // The plane first: most triangles are crossed by no ray near this layer, and their
+            // edges are never built.
+            let Some(seen) = Seen::new(tri, source, dir, far) else { continue };
+            // No ray crosses the plane between t₁ and k + 1: σ is monotone along each ray, so
+            // its sign at the earliest and the latest of those layers, at the rectangle's
+            // corners, decides it.
+            let forms = corners.map(|(a, b)| seen.plane.form(a, b));
+            let sigma_at = |t: i64| forms.map(|f| seen.plane.positive_with(f, t));
+            let (first, last) = (sigma_at(t1.min(k - 1)), sigma_at(t1.max(k + 1)));
+            if first == last && first.iter().all(|&x| x == first[0]) {
+                continue;
+            }
+            let sigma = [k - 1, k, k + 1, t1].map(|t| {
+                let c = sigma_at(t);
+                c.iter().all(|&x| x == c[0]).then_some(c[0])
+            });
+            let tests = seen.occluder(tri).exact_tests(k, t1);
             let mut fixed = [None; PER_TRIANGLE];
-            for (i, t) in tests.iter().enumerate() {
-                let c = corners.map(|(a, b)| t.holds(a, b));
-                fixed[i] = c.iter().all(|&x| x == c[0]).then_some(c[0]);
+            for (i, t) in tests[..3].iter().enumerate() {
+                fixed[i] = fixed_on(t);
             }
             if fixed[..3].contains(&Some(false)) {
                 continue; // outside an edge everywhere: meets no ray
             }
-            let sigma = &fixed[3..];
-            if sigma.iter().all(|s| s.is_some() && *s == sigma[0]) {
-                continue; // no ray crosses the plane between t₁ and k + 1
-            }
+            fixed[3..].copy_from_slice(&sigma);
             if fixed.iter().all(Option::is_some) {
                 let bits = fixed.iter().enumerate().fold(0u64, |m, (i, x)| m | ((*x == Some(true)) as u64) << i);
                 let (absent, absorbed, terminal) = Self::triangle(bits, notch.is_some());

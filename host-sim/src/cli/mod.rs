@@ -379,7 +379,7 @@ pub struct LightOpts {
     /// each cell keeps the scene's triangles through its column and a ray is stopped where it
     /// meets one; each pixel is lit iff its one target ray (the lattice ray nearest the exact
     /// ray to its point) arrives: right at grazing angles and at shadow edges (thesis §5.5.6;
-    /// about 2× the host's light seconds of `plane`, 0.75–1.2× its cycles, BENCHMARKS.md).
+    /// 1.4–3.2× the host's light seconds of `plane`, 0.75–1.3× its cycles, BENCHMARKS.md).
     /// `plane` (the default with `--lighting classic` and in `trace`): a ray is stopped only
     /// where it crosses the plane of the facet owning the voxel it is in, and each pixel is lit
     /// from its visible surface's own plane. `thesis`: a beam entering an occupied voxel lights
