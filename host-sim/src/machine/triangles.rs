@@ -28,6 +28,13 @@ impl ColumnTriangles {
     /// loading lattice, `X = 16·x + 8` sixteenths, as `precompute::prepare` makes them), each
     /// cut into a fan of triangles.
     pub fn from_polygons(polygons: &[Vec<[i64; 3]>], n: u32) -> Result<Self> {
+        Self::from_polygons_keeping(polygons, n, TRIANGLE_CAP)
+    }
+
+    /// [`ColumnTriangles::from_polygons`] with columns of `cap` triangles instead of the cell's
+    /// [`TRIANGLE_CAP`]: what exact occluders do with stores that never fill (an experiment:
+    /// `usize::MAX` keeps every triangle).
+    pub fn from_polygons_keeping(polygons: &[Vec<[i64; 3]>], n: u32, cap: usize) -> Result<Self> {
         let mut tris = Vec::new();
         for poly in polygons {
             // Voxel centres at multiples of 16.
@@ -55,7 +62,7 @@ impl ColumnTriangles {
                 for x in x0..=x1 {
                     if t.crosses_column(x as i32, y as i32) {
                         let col = &mut per[(y * n as i64 + x) as usize];
-                        if col.len() < TRIANGLE_CAP {
+                        if col.len() < cap {
                             col.push(*t);
                         } else {
                             overflows += 1;
