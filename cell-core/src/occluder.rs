@@ -412,10 +412,8 @@ fn code_out(c: u64) -> crate::lit::Out {
 impl<'a, F: FracBits> ExactVisit<'a, F> {
     /// The visit at layer `k` of a beam with lattice rectangle `a × b` (inclusive), terminal or
     /// not, with the notch start `notch` (for a ±z beam that stayed in its column), in a column
-    /// keeping `triangles`. Inlined so that the visit (up to 6 KB of tests) is built where the
-    /// caller keeps it, not copied there.
+    /// keeping `triangles`.
     #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
     pub fn new(
         triangles: &'a [Triangle],
         source: &'a Source,
