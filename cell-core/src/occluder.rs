@@ -460,11 +460,9 @@ impl<'a, F: FracBits> ExactVisit<'a, F> {
         let (source, dir, far, k, notch) = (self.source, self.dir, self.far, self.k, self.notch);
         let v = self;
         let corners = [(a.0, b.0), (a.0, b.1), (a.1, b.0), (a.1, b.1)];
-        // Some(value) when a test is constant on the rectangle.
-        let fixed_on = |t: &Test| {
-            let c = corners.map(|(a, b)| t.holds(a, b));
-            c.iter().all(|&x| x == c[0]).then_some(c[0])
-        };
+        // Some(value) when a test's values at the corners agree: it is constant on the rectangle.
+        let constant = |c: [bool; 4]| c.iter().all(|&x| x == c[0]).then_some(c[0]);
+        let fixed_on = |t: &Test| constant(corners.map(|(a, b)| t.holds(a, b)));
         let t1 = notch.unwrap_or(k - 1);
         for tri in v.triangles {
             // The plane first: most triangles are crossed by no ray near this layer, and their
@@ -476,13 +474,10 @@ impl<'a, F: FracBits> ExactVisit<'a, F> {
             let forms = corners.map(|(a, b)| seen.plane.form(a, b));
             let sigma_at = |t: i64| forms.map(|f| seen.plane.positive_with(f, t));
             let (first, last) = (sigma_at(t1.min(k - 1)), sigma_at(t1.max(k + 1)));
-            if first == last && first.iter().all(|&x| x == first[0]) {
+            if first == last && constant(first).is_some() {
                 continue;
             }
-            let sigma = [k - 1, k, k + 1, t1].map(|t| {
-                let c = sigma_at(t);
-                c.iter().all(|&x| x == c[0]).then_some(c[0])
-            });
+            let sigma = [k - 1, k, k + 1, t1].map(|t| constant(sigma_at(t)));
             let tests = seen.occluder(tri).exact_tests(k, t1);
             let mut fixed = [None; PER_TRIANGLE];
             for (i, t) in tests[..3].iter().enumerate() {
