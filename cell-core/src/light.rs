@@ -1295,9 +1295,10 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         // absorbed earlier; a terminal or absorbed one still arrived).
         let target = env.occluders.and_then(|o| o.target(self.x, self.y));
         if let Some(t) = target.filter(|t| t.z == m.z as i64 && t.in_beam(b)) {
-            let arrived = visit.verdict(visit.bits(t.a, t.b), false).out.present();
-            f.visible = arrived;
-            f.lit = arrived;
+            // It arrived, and no triangle of this column shadows the pixel from close by.
+            let lit = visit.verdict(visit.bits(t.a, t.b), false).out.present() && !t.shadowed_by(triangles);
+            f.visible = lit;
+            f.lit = lit;
         }
         if visit.is_plain() {
             if m.local == Local::NONE && !f.visible && self.frustum_skips(m, env, f) {

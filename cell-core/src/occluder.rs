@@ -125,15 +125,15 @@ pub struct Triangle {
     v: [[i32; 3]; 3],
 }
 
-fn sub(p: [i64; 3], q: [i64; 3]) -> [i128; 3] {
+pub(crate) fn sub(p: [i64; 3], q: [i64; 3]) -> [i128; 3] {
     [0, 1, 2].map(|i| (p[i] - q[i]) as i128)
 }
 
-fn cross(p: [i128; 3], q: [i128; 3]) -> [i128; 3] {
+pub(crate) fn cross(p: [i128; 3], q: [i128; 3]) -> [i128; 3] {
     [p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]]
 }
 
-fn dot(p: [i128; 3], q: [i128; 3]) -> i128 {
+pub(crate) fn dot(p: [i128; 3], q: [i128; 3]) -> i128 {
     p[0] * q[0] + p[1] * q[1] + p[2] * q[2]
 }
 

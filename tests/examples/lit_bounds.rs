@@ -46,6 +46,9 @@
 //! * `point` — lit iff the ray to the pixel's own point (the visible plane on the column's
 //!   centre line; a lattice ray at f = 8) gets there: with `complete+source`, the reference's
 //!   own test but for the lattice rays;
+//! * `truth` — no lattice: lit iff the machine's visible point faces the light and the f64 mesh
+//!   lets it see it (the reference's own test at the machine's point, started 0.05 voxel
+//!   toward the light): what is left is the error of the surfaces the machine sees;
 //! * `nearest0`, `nearest1` — a receiver a cell can evaluate: one lattice ray at f = 0 or 1,
 //!   the one nearest the pixel's point among those whose path crosses its bracketing voxels on
 //!   the plane's outer side, must reach it.
@@ -88,8 +91,14 @@ enum Receiver {
     /// geometry.
     Nearest(u32),
     /// `Nearest` as a cell computes it (`cell_core::receiver::target`, exact integers, from the
-    /// machine's visible surface): the target ray must reach its voxel.
+    /// machine's visible surface): the target ray must reach its voxel, and the column's
+    /// triangles must not cross the contact segment (`Target::shadowed_by`).
     Target(u32),
+    /// No lattice: lit iff the machine's visible point (the column's centre line on its
+    /// visible facet's plane, z\*) faces the light and sees it through the mesh itself (f64,
+    /// its own facet ignored) — the reference's test at the machine's point. What is left is
+    /// the error of the surface the machine sees, not of its light.
+    Truth,
 }
 
 /// Which parts of the rule are replaced by exact geometry.
@@ -140,7 +149,7 @@ const RULE: Variant = Variant {
 };
 
 /// The variants BENCHMARKS quotes, run when none is named.
-const DEFAULT_VARIANTS: [&str; 31] = [
+const DEFAULT_VARIANTS: [&str; 32] = [
     "rule",
     "empty-crossings",
     "exact-occluders",
@@ -172,6 +181,7 @@ const DEFAULT_VARIANTS: [&str; 31] = [
     "target1+cell64+source",
     "target0+cell32+source",
     "target0+cell16+source",
+    "truth",
 ];
 
 /// A variant from its name: `rule`, or parts joined by `+` (see the file's doc).
@@ -187,6 +197,7 @@ fn parse_variant(name: &str) -> Option<Variant> {
             "nearest1" => v.receiver = Receiver::Nearest(1),
             "target0" => v.receiver = Receiver::Target(0),
             "target1" => v.receiver = Receiver::Target(1),
+            "truth" => v.receiver = Receiver::Truth,
             "exact" | "exact-occluders" => v.exact_occluders = true,
             "complete" => (v.exact_occluders, v.complete) = (true, true),
             "own" => (v.exact_occluders, v.own_plane) = (true, true),
@@ -206,6 +217,9 @@ fn parse_variant(name: &str) -> Option<Variant> {
     }
     Some(v)
 }
+
+/// How far (voxels) toward the light the `truth` receiver starts its segment.
+const TRUTH_OFFSET: f64 = 0.05;
 
 /// Fraction bits of the one ray a point receiver walks.
 const POINT_F: u32 = 8;
@@ -559,8 +573,10 @@ impl Walk<'_> {
 
     /// A point or nearest-ray receiver: whether column c's visible surface is lit.
     fn receiver_lit(&self, c: [i64; 2], v: &Visible, var: Variant) -> bool {
-        if let Receiver::Target(f) = var.receiver {
-            return self.target_lit(c, f, var);
+        match var.receiver {
+            Receiver::Target(f) => return self.target_lit(c, f, var),
+            Receiver::Truth => return self.truth_lit(c),
+            _ => {}
         }
         let s = &v.plane;
         // The plane at the column's centre: g = nz/2¹⁶·dz + e = 0.
@@ -593,6 +609,25 @@ impl Walk<'_> {
         out.contains(&c)
     }
 
+    /// [`Receiver::Truth`]: the reference's test at the machine's visible point.
+    fn truth_lit(&self, c: [i64; 2]) -> bool {
+        let Some(vis) = (self.visible)(c[0], c[1]) else { return false };
+        let z = vis.num as f64 / vis.den as f64;
+        let world = |p: [f64; 3]| [0, 1, 2].map(|i| self.origin[i] + (p[i] + 0.5) * self.voxel);
+        let light = self.src.map(|s| s as f64 / 16.0);
+        let p = [c[0] as f64, c[1] as f64, z];
+        // The visible plane (oriented toward the viewer) at p: the light must be on its side.
+        let s = &vis.plane;
+        let g = |q: [f64; 3]| {
+            s.nx as f64 * (q[0] - p[0]) + s.ny as f64 * (q[1] - p[1]) + s.nz as f64 / 65536.0 * (q[2] - p[2])
+        };
+        // Start a hair toward the light: at z* exactly, the neighbouring facets of the same
+        // surface (their own lattice planes) shadow the point by rounding.
+        let len = (0..3).map(|i| (light[i] - p[i]).powi(2)).sum::<f64>().sqrt();
+        let p = [0, 1, 2].map(|i| p[i] + TRUTH_OFFSET * (light[i] - p[i]) / len);
+        g(light) > 0.0 && self.mesh.visible(world(p), world(light), &[vis.facet])
+    }
+
     /// The cell's receiver: whether column c's target ray reaches its voxel.
     fn target_lit(&self, c: [i64; 2], f: u32, var: Variant) -> bool {
         let Some(vis) = (self.visible)(c[0], c[1]) else { return false };
@@ -606,7 +641,12 @@ impl Walk<'_> {
         let Some(t) = t else { return false };
         let dir = (0..6).find(|&d| oracle_direction(d) == t.dir).expect("six directions");
         let stop = self.ray(dir, t.a, t.b, var, &mut Vec::new());
-        stop.is_none_or(|k| k >= t.layer as i64 - self.shift(dir))
+        // The cell's contact test: its own triangles (its store's first `cap`) against the
+        // segment from the light to just in front of the pixel.
+        let cap = var.cell.unwrap_or(usize::MAX);
+        let own = self.cells.by_column.get(&c).map_or(&[][..], |ts| &ts[..ts.len().min(cap)]);
+        let tris: Vec<Triangle> = own.iter().map(|&i| self.cells.tris[i]).collect();
+        stop.is_none_or(|k| k >= t.layer as i64 - self.shift(dir)) && !t.shadowed_by(&tris)
     }
 
     /// Of the lattice rays (f = `self.f`) whose path crosses voxel (c, z_v) or (c, z_v + 1) on
@@ -1025,7 +1065,7 @@ fn main() {
             let src =
                 host_sim::machine::diffuse::source_at(i, *light, n).expect("source").pos.map(|c| c.to_bits() as i64);
             let f = match var.receiver {
-                Receiver::Window => 0,
+                Receiver::Window | Receiver::Truth => 0,
                 Receiver::Point => POINT_F,
                 Receiver::Nearest(f) | Receiver::Target(f) => f,
             };

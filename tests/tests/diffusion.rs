@@ -8,7 +8,8 @@
 use cell_core::beam::{Direction, FarDistance, FracBits, Origin, Source, SourceCoord, SourceId};
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
-use cell_core::receiver::target;
+use cell_core::occluder::Triangle;
+use cell_core::receiver::{target, Target, POINT_UNITS};
 use host_sim::machine::diffuse::{diffuse, LightConfig, Lighting};
 use host_sim::machine::grid::Grid;
 use host_sim::machine::timing::{Emission, Timing};
@@ -66,7 +67,12 @@ fn exact_oracle<F: FracBits>(g: &G, src16: &[[i64; 3]], origin: Origin) -> (RayO
             };
             let dir = (0..6).find(|&d| oracle_direction(d) == t.dir).expect("six directions");
             let fate = exact::trace_ray_exact(&scene, s, from, F::U32, dir, t.a, t.b);
-            if exact::reaches(fate, t.layer as i64) {
+            // A triangle of the column crossing the contact segment shadows the pixel.
+            let kept = scene.kept(c.x as i64, c.y as i64);
+            let contact = t.contact.is_some_and(|[x0, x1]| {
+                kept.iter().any(|&i| exact::segment_crosses(&scene.triangles[i], x0, x1, POINT_UNITS / 16))
+            });
+            if exact::reaches(fate, t.layer as i64) && !contact {
                 *visible.entry([c.x as i64, c.y as i64]).or_insert(0) |= 1u64 << si;
                 *out.lit.entry([c.x as i64, c.y as i64, t.z]).or_insert(0) |= 1u64 << si;
             }
@@ -481,4 +487,43 @@ fn column_stores_keep_what_the_oracle_says() {
     }
     assert!(full > 0, "the stack overfills a column");
     assert_eq!(stores.overflows(), left_out);
+}
+
+/// The receiver's contact test (`cell_core::receiver::Target::shadowed_by`, Plücker signs) is
+/// the oracle's exact crossing point in the closed triangle (`exact::segment_crosses`), on
+/// random segments and triangles and on segments ending exactly on a vertex, an edge's middle
+/// or the triangle's plane.
+#[test]
+fn contact_test_matches_the_rational_crossing() {
+    let mut s = 0xc0ffee_u64;
+    let mut next = |lo: i64, hi: i64| {
+        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        lo + (s >> 33) as i64 % (hi - lo + 1)
+    };
+    let scale = POINT_UNITS / 16;
+    let (mut crossed, mut missed) = ([0u32; 4], [0u32; 4]);
+    for i in 0..40_000 {
+        let tri: exact::Tri = [0; 3].map(|_| [0; 3].map(|_| next(-48, 48)));
+        let x0 = [0; 3].map(|_| next(-48 * scale, 48 * scale));
+        let kind = i % 4;
+        let x1 = match kind {
+            0 => [0; 3].map(|_| next(-48 * scale, 48 * scale)),
+            1 => tri[0].map(|c| c * scale),
+            2 => [0, 1, 2].map(|c| (tri[1][c] + tri[2][c]) * scale / 2),
+            // A point of the plane: x0 moved along the triangle's edges.
+            _ => [0, 1, 2].map(|c| {
+                tri[0][c] * scale + (tri[1][c] - tri[0][c]) * scale / 4 + (tri[2][c] - tri[0][c]) * scale * 3 / 4
+            }),
+        };
+        let want = exact::segment_crosses(&tri, x0, x1, scale);
+        let cell_tri = Triangle::new(tri.map(|v| v.map(|c| c as i32))).expect("small");
+        let t = Target { dir: Direction::PosZ, layer: 1, z: 0, a: 0, b: 0, contact: Some([x0, x1]) };
+        assert_eq!(t.shadowed_by(&[cell_tri]), want, "{tri:?} from {x0:?} to {x1:?}");
+        if want {
+            crossed[kind] += 1
+        } else {
+            missed[kind] += 1
+        }
+    }
+    assert!(crossed.iter().chain(&missed).all(|&c| c > 100), "every kind both ways: {crossed:?} / {missed:?}");
 }

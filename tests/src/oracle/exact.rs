@@ -388,6 +388,46 @@ impl Ray {
     }
 }
 
+/// Whether the segment [x0, x1] crosses the closed triangle `tri` (vertices in sixteenths of a
+/// voxel, the segment in `scale`ths of a sixteenth): its ends lie strictly on the positive side
+/// of the plane (n·(X − V₀) > 0) and not, in either order, and the crossing point X* — an exact
+/// fraction — lies in the closed triangle, tested in the coordinate plane across n's largest
+/// component. The contact test of `cell_core::receiver` (`Target::shadowed_by`), by other
+/// arithmetic: the cell's sums Plücker signs. Checked `i128` (small scenes only).
+///
+/// # Panics
+/// If an intermediate value leaves `i128` (coordinates beyond about 2²⁰).
+pub fn segment_crosses(tri: &Tri, x0: [i64; 3], x1: [i64; 3], scale: i64) -> bool {
+    let v = tri.map(|p| p.map(|c| c * scale));
+    let nrm = cross(sub(v[1], v[0]), sub(v[2], v[0]));
+    let h = |x: [i64; 3]| {
+        let r = sub(x, v[0]);
+        (0..3).try_fold(0i128, |acc, i| acc.checked_add(nrm[i].checked_mul(r[i])?)).expect("oracle: i128")
+    };
+    let (h0, h1) = (h(x0), h(x1));
+    if (h0 > 0) == (h1 > 0) {
+        return false;
+    }
+    // X* = x0 + t·(x1 − x0), t = h0/(h0 − h1): den·X* = den·x0 + h0·(x1 − x0).
+    let den = h0 - h1;
+    let xs: [i128; 3] = [0, 1, 2].map(|i| {
+        let step = h0.checked_mul((x1[i] - x0[i]) as i128).expect("oracle: i128");
+        den.checked_mul(x0[i] as i128).and_then(|a| a.checked_add(step)).expect("oracle: i128")
+    });
+    let m = (0..3).max_by_key(|&c| nrm[c].abs()).unwrap_or(0);
+    let (i, j) = ((m + 1) % 3, (m + 2) % 3);
+    // orient(V_a, V_b, X*)·den, in the (i, j) plane; inside iff each has the sign of n_m·den.
+    let want = nrm[m].signum() * den.signum();
+    (0..3).all(|e| {
+        let (pa, pb) = (v[e], v[(e + 1) % 3]);
+        let (ex, ey) = ((pb[i] - pa[i]) as i128, (pb[j] - pa[j]) as i128);
+        let rx = xs[i] - den * pa[i] as i128;
+        let ry = xs[j] - den * pa[j] as i128;
+        let o = ex.checked_mul(ry).zip(ey.checked_mul(rx)).map(|(p, q)| p - q).expect("oracle: i128");
+        o.signum() * want >= 0
+    })
+}
+
 /// Walks ray `(dir, a, b)` of `src` (from `from`, `f` fraction bits) through `scene`, with
 /// `D = n − 1` (module doc's walk).
 ///
