@@ -5,7 +5,9 @@
 //! bracketing the visible surface or the voxel in front of them at their layer and lie on the
 //! surface's outer side there (rule 1 of [`crate::lit`]), searched within [`SEARCH`] lattice
 //! steps of the exact ray; it is found in exact integer arithmetic, the same on every machine,
-//! once per light.**
+//! once per light. The pixel is lit iff that ray arrives at its voxel and no triangle the
+//! column keeps crosses its contact segment (the exact segment from the light to
+//! [`CONTACT_GAP`] in front of the pixel).**
 //!
 //! # Why
 //!
