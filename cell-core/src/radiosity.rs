@@ -37,7 +37,7 @@
 //!
 //! # What the host precomputes, what the cell computes
 //!
-//! The host precomputes, per shot: the source position (1/16 voxel, the ordinary [`Source`]),
+//! The host precomputes, per shot: the source position (1/16 voxel, the ordinary [`crate::beam::Source`]),
 //! the patch normal (three `f32`), and the six initial beams clipped to the lattice rays whose
 //! squares reach the front hemisphere ([`front_rays`]; the others carry 0 quanta anyway). The
 //! cell computes the quanta of every beam it absorbs or drops out of the grid: four corners,
