@@ -41,7 +41,7 @@
 //! is the exact segment from the emitter's surface point A to the source B, walked 6-connected
 //! (the voxels it passes through, with the parameter interval `[t_in, t_out]` of its part in
 //! each, [`Line::exit`]), and an occupied voxel stops it **only if the segment crosses that
-//! voxel's own plane inside it** ([`crate::plane`]: σ = [g > 0] differs at the segment's entry
+//! voxel's own plane inside it** ([`crate::plane`]: σ = \[g > 0\] differs at the segment's entry
 //! into and exit from the voxel):
 //!
 //! * crossing from the plane's outward side to its inward side (*entering*) always stops it;
