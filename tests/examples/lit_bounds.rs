@@ -49,9 +49,15 @@
 //! * `truth` — no lattice: lit iff the machine's visible point faces the light and the f64 mesh
 //!   lets it see it (the reference's own test at the machine's point, started 0.05 voxel
 //!   toward the light): what is left is the error of the surfaces the machine sees;
+//! * `reference` — no light at all: each covered pixel takes the reference's own lit flags
+//!   (what shading and coverage alone cost);
 //! * `nearest0`, `nearest1` — a receiver a cell can evaluate: one lattice ray at f = 0 or 1,
 //!   the one nearest the pixel's point among those whose path crosses its bracketing voxels on
 //!   the plane's outer side, must reach it.
+//!
+//! Each variant's line ends with its wrong pixels (light 1) sorted by what the machine shows
+//! there ([`Why`]): the reference's facet (`light`), a coincident surface (`coincident`), a
+//! surface past a silhouette edge the vertex lattice moved (`edge`), or `other`.
 //!
 //! `--cuts` (window receivers) also counts, per variant, the (face, voxel) groups the rays visit
 //! and those where some rays stop and others go on: where a cell must cut its beams.
@@ -66,6 +72,7 @@ use cell_core::shade::NormalMode;
 use cell_core::visible::VisibleSurface;
 use host_sim::jobs::render::{reference_image, RenderConfig};
 use host_sim::machine::diffuse::LightConfig;
+use host_sim::machine::loaded::LoadedScene;
 use host_sim::machine::shade::Seen;
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
 use host_sim::truth::visibility::Reference;
@@ -99,6 +106,9 @@ enum Receiver {
     /// its own facet ignored) — the reference's test at the machine's point. What is left is
     /// the error of the surface the machine sees, not of its light.
     Truth,
+    /// No light at all: each covered pixel takes the reference's own lit flags. What is left is
+    /// the error of the shading and the coverage, the PSNR no lit rule can pass.
+    Reference,
 }
 
 /// Which parts of the rule are replaced by exact geometry.
@@ -149,7 +159,7 @@ const RULE: Variant = Variant {
 };
 
 /// The variants BENCHMARKS quotes, run when none is named.
-const DEFAULT_VARIANTS: [&str; 32] = [
+const DEFAULT_VARIANTS: [&str; 33] = [
     "rule",
     "empty-crossings",
     "exact-occluders",
@@ -182,6 +192,7 @@ const DEFAULT_VARIANTS: [&str; 32] = [
     "target0+cell32+source",
     "target0+cell16+source",
     "truth",
+    "reference",
 ];
 
 /// A variant from its name: `rule`, or parts joined by `+` (see the file's doc).
@@ -198,6 +209,7 @@ fn parse_variant(name: &str) -> Option<Variant> {
             "target0" => v.receiver = Receiver::Target(0),
             "target1" => v.receiver = Receiver::Target(1),
             "truth" => v.receiver = Receiver::Truth,
+            "reference" => v.receiver = Receiver::Reference,
             "exact" | "exact-occluders" => v.exact_occluders = true,
             "complete" => (v.exact_occluders, v.complete) = (true, true),
             "own" => (v.exact_occluders, v.own_plane) = (true, true),
@@ -1061,11 +1073,16 @@ fn main() {
     }
     for (name, var) in &chosen {
         let mut lit: BTreeMap<[i64; 2], u32> = BTreeMap::new();
-        for (i, light) in lights.iter().enumerate() {
+        if var.receiver == Receiver::Reference {
+            for (i, c) in loaded.grid.cells.iter().enumerate().filter(|&(i, _)| reference.covered[i]) {
+                lit.insert([c.x as i64, c.y as i64], reference.lit[i]);
+            }
+        }
+        for (i, light) in lights.iter().enumerate().filter(|_| var.receiver != Receiver::Reference) {
             let src =
                 host_sim::machine::diffuse::source_at(i, *light, n).expect("source").pos.map(|c| c.to_bits() as i64);
             let f = match var.receiver {
-                Receiver::Window | Receiver::Truth => 0,
+                Receiver::Window | Receiver::Truth | Receiver::Reference => 0,
                 Receiver::Point => POINT_F,
                 Receiver::Nearest(f) | Receiver::Target(f) => f,
             };
@@ -1129,6 +1146,68 @@ fn main() {
                 std::cmp::Ordering::Equal => {}
             }
         }
-        println!("{name:>16}  {:5.2} %  {:5.2} dB  {darker} / {brighter}", c.shadow_disagreement_pct, c.psnr_db);
+        let why = Why::of(&img.lit, &reference, &loaded, &exact);
+        println!(
+            "{name:>16}  {:5.2} %  {:5.2} dB  {darker} / {brighter}  (light {}, coincident {}, edge {}, other {})",
+            c.shadow_disagreement_pct, c.psnr_db, why.light, why.coincident, why.edge, why.other
+        );
+    }
+}
+
+/// The pixels whose lit flags differ from the reference's (light 1), by what the machine sees
+/// there:
+/// * `light` — the reference's own facet: the light's error;
+/// * `coincident` — a facet parallel to the reference's within 1/16 voxel of its point: of two
+///   nearly coincident surfaces (a drawer's front and its frame, the two sides of a sheet) the
+///   1/16-voxel vertex lattice put the other in front;
+/// * `edge` — another surface, which the reference's own ray meets once moved 1/32 voxel or less
+///   across the view: a silhouette edge the lattice moved onto the pixel's centre line;
+/// * `other` — anything else (a neighbouring facet across a crease, ...).
+#[derive(Default)]
+struct Why {
+    light: usize,
+    coincident: usize,
+    edge: usize,
+    other: usize,
+}
+
+impl Why {
+    fn of(
+        lit: &[u32],
+        reference: &host_sim::truth::refrender::RefImage,
+        loaded: &LoadedScene,
+        mesh: &Reference,
+    ) -> Why {
+        let (o, vx) = (loaded.fit.origin, loaded.fit.voxel);
+        // Where the reference's view ray through (x, y) meets the mesh: depth (voxels), normal.
+        let hit = |x: f64, y: f64| {
+            let from = [o[0] + (x + 0.5) * vx, o[1] + (y + 0.5) * vx, o[2] - vx];
+            mesh.first_hit(from, [0.0, 0.0, 1.0], f64::MAX, &[]).map(|(t, _, nrm)| (t / vx - 1.5, nrm))
+        };
+        let mut why = Why::default();
+        for (i, cell) in loaded.grid.cells.iter().enumerate() {
+            let Some(vis) = cell.visible else { continue };
+            if !reference.covered[i] || (lit[i] ^ reference.lit[i]) & 1 == 0 {
+                continue;
+            }
+            let (x, y, z) = (cell.x as f64, cell.y as f64, vis.num as f64 / vis.den as f64);
+            let p = &vis.plane;
+            let m = [p.nx as f64, p.ny as f64, p.nz as f64 / 65536.0];
+            let parallel = |r: [f64; 3]| dot(m, r).abs() >= 0.999 * dot(m, m).sqrt() * dot(r, r).sqrt();
+            let moved = || {
+                (1..=16).map(|k| k as f64 / 512.0).any(|d| {
+                    [(d, 0.0), (-d, 0.0), (0.0, d), (0.0, -d)]
+                        .iter()
+                        .any(|&(dx, dy)| hit(x + dx, y + dy).is_some_and(|(r, _)| (r - z).abs() <= 0.5))
+                })
+            };
+            match hit(x, y) {
+                _ if vis.facet == reference.facet[i] => why.light += 1,
+                Some((r, nrm)) if (r - z).abs() <= 1.0 / 16.0 && parallel(nrm) => why.coincident += 1,
+                Some((r, _)) if (r - z).abs() > 0.5 && moved() => why.edge += 1,
+                _ => why.other += 1,
+            }
+        }
+        why
     }
 }
