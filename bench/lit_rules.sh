@@ -10,7 +10,9 @@
 #   thesis          --lit-rule thesis --rays-from voxel on the same surfaces, f and policy
 #   thesis-thin     --lit-rule thesis with the thesis's setup (naive + projected, f = 0,
 #                   wavefront, rays from the source voxel): the figures the project used to quote
-#   classic-plane   --lighting classic (shadow rays from the visible surface, plane principle)
+#   classic         --lighting classic (shadow rays from the visible surface, each tested
+#                   against the triangles of the columns it crosses: exact occluders)
+#   classic-plane   --lighting classic --lit-rule plane (the plane principle)
 #   classic-thesis  --lighting classic --lit-rule thesis (from voxel centres, the thesis's test)
 #   exact-voxel     exact occluders with the thesis's rays (from the source voxel)
 # NS (default "128 256") and SCENES (default "cornell teapot-floor cow-floor bureau1") choose the
@@ -19,7 +21,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 NS=${NS:-"128 256"}
 SCENES=${SCENES:-"cornell teapot-floor cow-floor bureau1"}
-METHODS=${METHODS:-"exact plane plane-f1 thesis thesis-thin classic-plane classic-thesis"}
+METHODS=${METHODS:-"exact plane plane-f1 thesis thesis-thin classic classic-plane classic-thesis"}
 mkdir -p bench-out
 cargo build --release -q -p host-sim
 B=./target/release/host-sim
@@ -33,7 +35,8 @@ for n in $NS; do
         plane-f1) opts=(--lit-rule plane --rays-from voxel --frac-bits 1) ;;
         thesis) opts=(--lit-rule thesis --rays-from voxel) ;;
         thesis-thin) opts=(--lit-rule thesis --rays-from voxel --sigma naive --contour projected --frac-bits 0 --policy wavefront) ;;
-        classic-plane) opts=(--lighting classic) ;;
+        classic) opts=(--lighting classic) ;;
+        classic-plane) opts=(--lighting classic --lit-rule plane) ;;
         classic-thesis) opts=(--lighting classic --lit-rule thesis) ;;
         exact) opts=() ;;
         exact-voxel) opts=(--lit-rule exact --rays-from voxel) ;;

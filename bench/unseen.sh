@@ -8,7 +8,8 @@
 #   LIGHTS  default: 0.2,0.9,0.1 0.9,0.5,0.2 0.5,0.05,0.5 0.1,0.2,0.9 (grid-normalised)
 #   NS      default: 256
 #   METHODS default: "exact plane classic" (exact: the defaults; plane: --lit-rule plane
-#           --rays-from voxel, the former default; classic: --lighting classic)
+#           --rays-from voxel, the former default; classic: --lighting classic, under exact
+#           occluders; classic-plane: --lighting classic --lit-rule plane)
 #   ROTATE  default: none. Rotations of each mesh to render instead of the mesh as stored, each
 #           a sequence of axis and angle in radians applied in order (x0.6y0.9: 0.6 about x,
 #           then 0.9 about y); "none" is the mesh as stored. The rotated OBJ is written to
@@ -64,6 +65,7 @@ for n in $NS; do
         case $m in
           plane) opts=(--lit-rule plane --rays-from voxel) ;;
           classic) opts=(--lighting classic) ;;
+          classic-plane) opts=(--lighting classic --lit-rule plane) ;;
           exact) opts=() ;;
           *) echo "unknown method $m" >&2; exit 2 ;;
         esac

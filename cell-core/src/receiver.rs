@@ -111,6 +111,7 @@
 use crate::beam::{Beam, Direction, FarDistance, FracBits, Source};
 use crate::lit::RayPlane;
 use crate::occluder::{cross, dot, sub, Triangle, COORD_LIMIT};
+use crate::plane::DexelPlane;
 use crate::visible::VisibleSurface;
 
 /// Units per voxel of the pixel's point.
@@ -166,7 +167,7 @@ pub const CONTACT_GAP: i128 = 1 << 12;
 /// triangle's plane value `h = n·(X − V₀)` is positive at exactly one end, and with
 /// d = x1 − x0 the three `E_ij = d·((V_i − x0) × (V_j − x0))` (whose sum is n·d) all have
 /// the sign of n·d or are zero.
-fn crosses_segment(tri: &Triangle, x0: [i64; 3], x1: [i64; 3]) -> bool {
+pub(crate) fn crosses_segment(tri: &Triangle, x0: [i64; 3], x1: [i64; 3]) -> bool {
     let scale = POINT_UNITS / 16;
     let v = tri.vertices().map(|c| c.map(|x| x as i64 * scale));
     let n = tri.normal();
@@ -184,13 +185,26 @@ fn crosses_segment(tri: &Triangle, x0: [i64; 3], x1: [i64; 3]) -> bool {
 /// in 1/[`POINT_UNITS`] voxel) of column (x, y) with visible surface `vis`: `[s, x1]` with x1
 /// the point of [s, p] where the plane's value is [`CONTACT_GAP`], rounded to the unit grid.
 fn contact_segment(vis: &VisibleSurface, (x, y): (i32, i32), s: [i64; 3], p: [i64; 3]) -> Option<[[i64; 3]; 2]> {
+    contact_point(&vis.plane, (x, y), vis.z_v, s, p).map(|x1| [s, x1])
+}
+
+/// The near end of the contact segment from the light `s` to point `p` (both in
+/// 1/[`POINT_UNITS`] voxel) of a surface of plane `pl` (column (x, y), reference voxel `z_ref`):
+/// the point of [s, p] where the plane's value is [`CONTACT_GAP`], rounded to the unit grid;
+/// `None` when the light is not farther than the gap in front of the plane, or `p` not nearer.
+pub(crate) fn contact_point(
+    pl: &DexelPlane,
+    (x, y): (i32, i32),
+    z_ref: i32,
+    s: [i64; 3],
+    p: [i64; 3],
+) -> Option<[i64; 3]> {
     let g = POINT_UNITS as i128;
-    let pl = &vis.plane;
     // 2¹⁶·POINT_UNITS·g at q (module doc's bit budget: below 2⁶⁵).
     let value = |q: [i64; 3]| {
         ((pl.nx as i128) << 16) * (q[0] as i128 - g * x as i128)
             + ((pl.ny as i128) << 16) * (q[1] as i128 - g * y as i128)
-            + pl.nz as i128 * (q[2] as i128 - g * vis.z_v as i128)
+            + pl.nz as i128 * (q[2] as i128 - g * z_ref as i128)
             + ((pl.e as i128) << 16) * g
     };
     let gap = (CONTACT_GAP * g) << 16;
@@ -200,8 +214,7 @@ fn contact_segment(vis: &VisibleSurface, (x, y): (i32, i32), s: [i64; 3], p: [i6
     }
     // x1 = s + σ·(p − s), σ = (vs − gap)/(vs − vp) ∈ (0, 1].
     let (num, den) = (vs - gap, vs - vp);
-    let x1 = [0, 1, 2].map(|i| s[i] + ((2 * num * (p[i] - s[i]) as i128 + den).div_euclid(2 * den)) as i64);
-    Some([s, x1])
+    Some([0, 1, 2].map(|i| s[i] + ((2 * num * (p[i] - s[i]) as i128 + den).div_euclid(2 * den)) as i64))
 }
 
 /// ⌈n/d⌉ for d > 0.

@@ -9,6 +9,16 @@
 //! addressed to the emitter. The emitter's router hands the answer back to the emitter's cell,
 //! which records it ([`ShadowCell::deliver`]).
 //!
+//! **Lit rules.** Under the thesis's rule a ray leaves each emitting voxel's centre and any
+//! occupied voxel of another facet stops it; under the plane rule it leaves the visible surface
+//! and stops only where it crosses a voxel's plane ([`crate::ray`]); under exact occluders
+//! ([`LitRule::Exact`], cell-core's `exact-occluders` feature) it walks the same line and the
+//! triangles of each column it enters, handed to [`ShadowCell::step`], are tested once against
+//! the exact segment from the light to ¼ voxel in front of the surface
+//! ([`ShadowRay::exact`]): the segment against every triangle of the scene, unless a column's
+//! store was full. A surface whose plane turns away from the source emits no ray (counted in
+//! [`ShadowCounters::back_facing`]).
+//!
 //! **Bounded stores, counted overflow.** The ray FIFO holds at most `FA` rays (a const generic:
 //! `size_of::<ShadowCell<FA>>()` is the cell's RAM for this phase) and the run-time limit
 //! [`ShadowEnv::fa`] ≤ `FA` is the credit a neighbour checks ([`ShadowCell::can_accept`]) before
@@ -55,7 +65,7 @@
 //! let mut answers = Vec::new();
 //! let mut steps = 0;
 //! while cell.busy() {
-//!     let s = cell.step(&col.store, |a| {
+//!     let s = cell.step(&col.store, &[], |a| {
 //!         answers.push(a);
 //!         true
 //!     });
@@ -76,7 +86,9 @@ use crate::cell::Cell;
 use crate::dexel::DexelStore;
 use crate::light::{Port, SourceMask};
 use crate::lit::LitRule;
-use crate::ray::{lattice_depth, Connectivity, LineError, RayStep, ShadowRay, Q};
+use crate::occluder::Triangle;
+use crate::ray::{lattice_depth, Connectivity, LineError, RayStep, RayWalk, ShadowRay, Q};
+use crate::receiver::POINT_UNITS;
 use crate::route::Routed;
 use crate::units::Depth;
 
@@ -87,6 +99,12 @@ pub const ANSWER_SURFACE: u8 = 2;
 
 /// An answer on its way back to the emitter: payload bits [`ANSWER_LIT`], [`ANSWER_SURFACE`].
 pub type ShadowAnswer = Routed<u8>;
+
+/// Whether `rule` runs exact occluders here: [`LitRule::Exact`] with cell-core's
+/// `exact-occluders` feature (without it a cell runs the plane principle for that rule).
+fn exact_occluders(rule: LitRule) -> bool {
+    cfg!(feature = "exact-occluders") && rule == LitRule::Exact
+}
 
 /// What the cells need to know about the phase for one source.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -193,7 +211,6 @@ impl<const FA: usize> ShadowCell<FA> {
         let first = cell.store.dexels().first().map(|d| (0, d.span.lo));
         self.emitter = match env.rule {
             LitRule::Thesis => Emitter { surface: false, next: first },
-            // Classic shadow rays have no exact occluders: they run the plane principle.
             LitRule::Plane | LitRule::Exact => {
                 Emitter { surface: cell.visible.is_some(), next: first.filter(|_| env.all_voxels) }
             }
@@ -228,9 +245,18 @@ impl<const FA: usize> ShadowCell<FA> {
         let err = |z: i32| move |error| EmitError { z, error };
         if core::mem::take(&mut self.emitter.surface) {
             let v = cell.visible.as_ref().expect("the plane rule emits from a visible surface");
-            let a = [cell.x as i32 * Q, cell.y as i32 * Q, lattice_depth(v.num, v.den)];
-            let ray = ShadowRay::on_plane(a, &v.plane, v.z_v, env.source, v.facet).map_err(err(v.z_v))?;
-            return Ok(ray.map(ShadowRay::for_surface));
+            let ray = if exact_occluders(env.rule) {
+                // The pixel's point z* on the 1/POINT_UNITS grid, as the receiver takes it.
+                let (g, den) = (POINT_UNITS as i128, v.den as i128);
+                let z = (2 * g * v.num as i128 + den).div_euclid(2 * den);
+                let z = i64::try_from(z).map_err(|_| err(v.z_v)(LineError::CoordinateTooLarge))?;
+                let p = [cell.x as i64 * POINT_UNITS, cell.y as i64 * POINT_UNITS, z];
+                ShadowRay::exact(p, &v.plane, v.z_v, env.source, v.facet)
+            } else {
+                let a = [cell.x as i32 * Q, cell.y as i32 * Q, lattice_depth(v.num, v.den)];
+                ShadowRay::on_plane(a, &v.plane, v.z_v, env.source, v.facet)
+            };
+            return Ok(ray.map_err(err(v.z_v))?.map(ShadowRay::for_surface));
         }
         let (i, z) = self.emitter.next.expect("emission left");
         let dexels = cell.store.dexels();
@@ -245,6 +271,10 @@ impl<const FA: usize> ShadowCell<FA> {
                 let ray = ShadowRay::new([cell.x, cell.y, z], env.source, env.connectivity, d.facet)
                     .map_err(err(z as i32))?;
                 Ok(Some(if i == 0 && z == d.span.lo { ray.for_surface() } else { ray }))
+            }
+            LitRule::Plane | LitRule::Exact if exact_occluders(env.rule) => {
+                let p = [cell.x as i64, cell.y as i64, z as i64].map(|v| v * POINT_UNITS);
+                ShadowRay::exact(p, &d.plane, d.span.lo as i32, env.source, d.facet).map_err(err(z as i32))
             }
             LitRule::Plane | LitRule::Exact => {
                 let centre = [cell.x as i32, cell.y as i32, z as i32].map(|v| v * Q);
@@ -267,14 +297,22 @@ impl<const FA: usize> ShadowCell<FA> {
 
     /// One voxel of work on the FIFO's head (see the module doc). `send` offers an answer to the
     /// cell's router and says whether it took it.
+    ///
+    /// `triangles` are the column's own (exact occluders; empty otherwise): a ray under exact
+    /// occluders is tested against them in its first voxel of the column
+    /// ([`ShadowRay::advance_exact`]).
     pub fn step<const D: usize>(
         &mut self,
         store: &DexelStore<D>,
+        triangles: &[Triangle],
         send: impl FnOnce(ShadowAnswer) -> bool,
     ) -> ShadowStep {
         let Some(head) = self.fifo.pop_front() else { return ShadowStep::Idle };
         let mut ray = head;
-        let step = ray.advance(store);
+        let step = match ray.walk {
+            RayWalk::Exact(_) => ray.advance_exact(triangles),
+            _ => ray.advance(store),
+        };
         let done = match step {
             RayStep::Shadow | RayStep::Lit => {
                 let lit = step == RayStep::Lit;
@@ -416,11 +454,14 @@ mod tests {
         let e = ShadowEnv { source: [Q, Q, 3 * Q], ..env(false, 4) };
         let mut cell = ShadowCell::<4>::new();
         cell.start(&col, &e).unwrap();
-        assert_eq!(cell.step(&col.store, |_| true), ShadowStep::Moved); // z = 2 → 3
+        assert_eq!(cell.step(&col.store, &[], |_| true), ShadowStep::Moved); // z = 2 → 3
         let head = *cell.fifo().next().unwrap();
-        assert_eq!(cell.step(&col.store, |_| false), ShadowStep::Blocked, "the router refuses");
+        assert_eq!(cell.step(&col.store, &[], |_| false), ShadowStep::Blocked, "the router refuses");
         assert_eq!((cell.counters.blocked, *cell.fifo().next().unwrap()), (1, head));
-        assert_eq!(cell.step(&col.store, |a| a.payload == ANSWER_LIT | ANSWER_SURFACE), ShadowStep::Answered(true));
+        assert_eq!(
+            cell.step(&col.store, &[], |a| a.payload == ANSWER_LIT | ANSWER_SURFACE),
+            ShadowStep::Answered(true)
+        );
         assert!(!cell.busy());
         assert_eq!(cell.counters.steps, 2);
     }
@@ -434,12 +475,12 @@ mod tests {
         cell.start(&col, &e).unwrap();
         let ray = *cell.fifo().next().unwrap();
         cell.accept(ray).unwrap();
-        assert_eq!(cell.step(&col.store, |_| true), ShadowStep::Moved);
+        assert_eq!(cell.step(&col.store, &[], |_| true), ShadowStep::Moved);
         assert!(cell.out(Port::E).is_some() && cell.has_out());
-        assert_eq!(cell.step(&col.store, |_| true), ShadowStep::Blocked, "the east slot is taken");
+        assert_eq!(cell.step(&col.store, &[], |_| true), ShadowStep::Blocked, "the east slot is taken");
         assert!(cell.take_out(Port::E).is_some());
         assert!(!cell.has_out());
-        assert_eq!(cell.step(&col.store, |_| true), ShadowStep::Moved);
+        assert_eq!(cell.step(&col.store, &[], |_| true), ShadowStep::Moved);
     }
 
     #[test]

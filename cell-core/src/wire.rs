@@ -77,8 +77,10 @@ use crate::dexel::FacetTag;
 use crate::facet::{FacetBox, PipeEdge, PipelinePacket, RowEdge, RowPacket, MAX_EDGES};
 use crate::light::BeamMsg;
 use crate::normal::NormalCode;
+use crate::occluder::COORD_LIMIT;
 use crate::plane::FacetPlane;
-use crate::ray::{Line, PlaneWalk, ShadowRay, LINE_BYTES, MAX_COORD, MAX_SPAN};
+use crate::ray::{ExactWalk, Line, PlaneWalk, RayWalk, ShadowRay, LINE_BYTES, MAX_COORD, MAX_SPAN};
+use crate::receiver::POINT_UNITS;
 use crate::reflect::ReflectRay;
 use crate::termination::Token;
 use crate::voxelize::{worst_case_g, worst_case_t, MAX_LATTICE_Q, MAX_LATTICE_SPAN};
@@ -721,37 +723,52 @@ impl RayMsg {
 }
 
 /// Write a shadow ray's fields (payload after `seq`): its line ([`Line::put`]), emitter 2×u16,
-/// facet u32, emitter z i32, flags u8 (bit 0 fresh, bit 1 surface, bit 2 plane state), grace
-/// u8, and under the plane rule A 3×i32, D 3×i32, own plane u32, t_in 2×i32, own g 2×i64.
+/// facet u32, emitter z i32, flags u8 (bit 0 fresh, bit 1 surface, bit 2 plane state, bit 3
+/// exact state, bit 4 its column untested, bit 5 its segment's near end), grace u8; under the
+/// plane rule A 3×i32, D 3×i32, own plane u32, t_in 2×i32, own g 2×i64; under exact occluders
+/// the source 3×i32 and the near end 3×i64.
 pub fn put_shadow_ray<S: ByteSink + ?Sized>(w: &mut S, ray: &ShadowRay) -> Result<(), EncodeError> {
     ray.line.put(w)?;
     w.u16(ray.emitter[0])?;
     w.u16(ray.emitter[1])?;
     w.u32(ray.facet)?;
     w.i32(ray.emitter_z)?;
-    w.u8(ray.fresh as u8 | (ray.surface as u8) << 1 | (ray.plane.is_some() as u8) << 2)?;
+    let state = match &ray.walk {
+        RayWalk::Thesis => 0,
+        RayWalk::Plane(_) => 4,
+        RayWalk::Exact(e) => 8 | (e.untested as u8) << 4 | (e.near.is_some() as u8) << 5,
+    };
+    w.u8(ray.fresh as u8 | (ray.surface as u8) << 1 | state)?;
     w.u8(ray.grace)?;
-    if let Some(p) = &ray.plane {
-        p.a.iter().chain(&p.d).try_for_each(|&c| w.i32(c))?;
-        w.u32(p.own)?;
-        w.i32(p.t_in.0)?;
-        w.i32(p.t_in.1)?;
-        w.i64(p.own_g.0)?;
-        w.i64(p.own_g.1)?;
+    match &ray.walk {
+        RayWalk::Thesis => {}
+        RayWalk::Plane(p) => {
+            p.a.iter().chain(&p.d).try_for_each(|&c| w.i32(c))?;
+            w.u32(p.own)?;
+            w.i32(p.t_in.0)?;
+            w.i32(p.t_in.1)?;
+            w.i64(p.own_g.0)?;
+            w.i64(p.own_g.1)?;
+        }
+        RayWalk::Exact(e) => {
+            e.source.iter().try_for_each(|&c| w.i32(c))?;
+            e.near.iter().flatten().try_for_each(|&c| w.i64(c))?;
+        }
     }
     Ok(())
 }
 
 /// Read a shadow ray written by [`put_shadow_ray`] (its line and segment checked: see
-/// [`Line::get`]; t_in within [0, 1]).
+/// [`Line::get`]; t_in within [0, 1]; an exact segment's ends within the occluders' range).
 pub fn get_shadow_ray(r: &mut Reader<'_>) -> Result<ShadowRay, DecodeError> {
     let line = Line::get(r)?;
     let emitter = [r.u16()?, r.u16()?];
     let (facet, emitter_z, flags, grace) = (r.u32()?, r.i32()?, r.u8()?, r.u8()?);
-    if flags >> 3 != 0 {
+    let (plane, exact) = (flags & 4 != 0, flags & 8 != 0);
+    if flags >> 6 != 0 || (plane && exact) || (!exact && flags & 0x30 != 0) {
         return Err(DecodeError::BadValue("shadow ray flags"));
     }
-    let plane = if flags & 4 != 0 {
+    let walk = if plane {
         let a = [r.i32()?, r.i32()?, r.i32()?];
         let d = [r.i32()?, r.i32()?, r.i32()?];
         let own = r.u32()?;
@@ -764,11 +781,21 @@ pub fn get_shadow_ray(r: &mut Reader<'_>) -> Result<ShadowRay, DecodeError> {
         if !in_budget {
             return Err(DecodeError::BadValue("shadow ray segment"));
         }
-        Some(PlaneWalk { a, d, own, t_in, own_g })
+        RayWalk::Plane(PlaneWalk { a, d, own, t_in, own_g })
+    } else if exact {
+        let source = [r.i32()?, r.i32()?, r.i32()?];
+        let near = if flags & 32 != 0 { Some([r.i64()?, r.i64()?, r.i64()?]) } else { None };
+        let limit = COORD_LIMIT * (POINT_UNITS / 16);
+        let in_budget =
+            source.iter().all(|&c| (c as i64).abs() <= COORD_LIMIT) && near.iter().flatten().all(|c| c.abs() <= limit);
+        if !in_budget {
+            return Err(DecodeError::BadValue("shadow ray segment"));
+        }
+        RayWalk::Exact(ExactWalk { near, source, untested: flags & 16 != 0 })
     } else {
-        None
+        RayWalk::Thesis
     };
-    Ok(ShadowRay { line, emitter, facet, emitter_z, fresh: flags & 1 != 0, grace, surface: flags & 2 != 0, plane })
+    Ok(ShadowRay { line, emitter, facet, emitter_z, fresh: flags & 1 != 0, grace, surface: flags & 2 != 0, walk })
 }
 
 /// Write a reflected ray's fields (payload after `seq`): its line ([`Line::put`]), direction
@@ -1212,6 +1239,14 @@ mod tests {
         }
         let plane_ray = ShadowRay::on_plane([5 * Q, 6 * Q, 70], &plane, 4, [50 * Q, 3 * Q, -30 * Q], 2).unwrap();
         rays.push(RayMsg::Shadow(plane_ray.expect("the plane faces the source")));
+        // Under exact occluders: with its segment, and without (the source within the gap).
+        let p = [5 * 4096, 6 * 4096, 4 * 4096 + 1234];
+        let exact = ShadowRay::exact(p, &plane, 4, [50 * Q, 3 * Q, -30 * Q], 2).unwrap().expect("faces it");
+        assert!(matches!(exact.walk, crate::ray::RayWalk::Exact(ExactWalk { near: Some(_), untested: true, .. })));
+        rays.push(RayMsg::Shadow(exact));
+        let mut blind = exact;
+        blind.walk = crate::ray::RayWalk::Exact(ExactWalk { near: None, source: [1, 2, 3], untested: false });
+        rays.push(RayMsg::Shadow(blind));
         for ray in rays {
             let mut buf = [0u8; MAX_RAY_FRAME + 8];
             let n = ray.emit(7, &mut buf).unwrap();
@@ -1224,7 +1259,7 @@ mod tests {
         // The longest: the plane rule's segment on a line with a pending voxel.
         let mut longest = ShadowRay::new([0, 0, 0], [3 * Q, 3 * Q, 3 * Q], Connectivity::Eighteen, 0).unwrap();
         while longest.line.step().is_some_and(|v| v != [1, 1, 0] && v != [1, 0, 1] && v != [0, 1, 1]) {}
-        longest.plane = plane_ray.map(|r| r.plane.unwrap());
+        longest.walk = plane_ray.expect("faces it").walk;
         let mut buf = [0u8; MAX_RAY_FRAME + 8];
         assert_eq!(RayMsg::Shadow(longest).emit(0, &mut buf), Ok(MAX_RAY_FRAME));
     }
@@ -1251,10 +1286,21 @@ mod tests {
             RayMsg::parse_payload(raw).map(|_| ())
         };
         assert_eq!(frame(&ray, None), Ok(()));
-        assert_eq!(frame(&ray, Some(0x08)), Err(DecodeError::BadValue("shadow ray flags")));
+        for bad in [0x40, 0x0c, 0x10, 0x20] {
+            assert_eq!(frame(&ray, Some(bad)), Err(DecodeError::BadValue("shadow ray flags")), "{bad:#x}");
+        }
         let mut walk = ray;
-        walk.plane = Some(PlaneWalk { a: [0; 3], d: [1; 3], own: 0, t_in: (2, 1), own_g: (0, 0) });
+        walk.walk = RayWalk::Plane(PlaneWalk { a: [0; 3], d: [1; 3], own: 0, t_in: (2, 1), own_g: (0, 0) });
         assert_eq!(frame(&walk, None), Err(DecodeError::BadValue("shadow ray segment")));
+        let limit = COORD_LIMIT * (POINT_UNITS / 16);
+        for (near, source) in [([limit, 0, -limit], [0; 3]), ([0; 3], [COORD_LIMIT as i32, 0, 0])] {
+            walk.walk = RayWalk::Exact(ExactWalk { near: Some(near), source, untested: true });
+            assert_eq!(frame(&walk, None), Ok(()), "at the limits");
+        }
+        for (near, source) in [([limit + 1, 0, 0], [0; 3]), ([0; 3], [0, 0, -(COORD_LIMIT as i32) - 1])] {
+            walk.walk = RayWalk::Exact(ExactWalk { near: Some(near), source, untested: true });
+            assert_eq!(frame(&walk, None), Err(DecodeError::BadValue("shadow ray segment")));
+        }
         let mut raw = [0u8; 4];
         raw[0] = KIND_SHADOW_RAY;
         assert_eq!(

@@ -155,8 +155,8 @@ fn bad_arguments_fail_clearly() {
         (&["render", "--n", "16", "--skip-hidden", "maybe"], "--skip-hidden"),
         (&["light", "--n", "16", "--skip-frustum", "true", "--frustum-blocks", "12"], "--frustum-blocks"),
         (
-            &["render", "--n", "16", "--lighting", "classic", "--lit-rule", "exact"],
-            "--lit-rule exact is a diffusion option",
+            &["render", "--n", "16", "--lighting", "classic", "--lit-rule", "exact", "--ray-connectivity", "18"],
+            "use --ray-connectivity 6",
         ),
         (
             &["light", "--n", "16", "--lighting", "classic", "--rays-from", "light"],

@@ -230,8 +230,8 @@ fn classic_answers_match_a_per_ray_oracle() {
 #[test]
 fn classic_plane_answers_match_the_segment_oracle() {
     use cell_core::lit::LitRule;
-    use cell_core::ray::{Connectivity, Q};
-    use host_sim::machine::classic::{classic, ClassicConfig};
+    use cell_core::ray::Q;
+    use host_sim::machine::classic::classic;
     use host_sim::precompute::LoadConfig;
 
     for (scene, extra) in [("cornell", [3.0, 20.0, 9.5]), ("teapot-floor", [30.0, 2.0, 4.0])] {
@@ -255,45 +255,111 @@ fn classic_plane_answers_match_the_segment_oracle() {
                 }
             }
         }
-        let lit: u64 = want.iter().map(|m| m.count_ones() as u64).sum();
-        assert!(lit > 0 && lit < emitters * lights.len() as u64, "{scene}: both lit and shadowed surfaces");
-        for (fa, route) in [(1, RoutePolicy::DiagonalFirst), (2, RoutePolicy::Adaptive), (16, RoutePolicy::Adaptive)] {
-            let c = ClassicConfig {
-                fa,
-                connectivity: Connectivity::Six,
-                route,
-                all_voxels: false,
-                bias: 0,
-                rule: LitRule::Plane,
-            };
-            let cl =
-                classic(&loaded, &lights, &c, |_, _| {}).unwrap_or_else(|e| panic!("{scene} FA {fa} {route:?}: {e}"));
-            assert_eq!(cl.masks, want, "{scene} FA {fa} {route:?}");
-            let t = &cl.totals;
-            assert_eq!(t.rays + t.back_facing, emitters * lights.len() as u64, "one ray per surface facing a source");
-            assert_eq!(t.answers, t.rays, "one answer per ray");
-            assert_eq!(t.lit, lit, "each lit answer delivered once");
-        }
-        let all = ClassicConfig {
-            fa: 4,
-            connectivity: Connectivity::Six,
-            route: RoutePolicy::Adaptive,
-            all_voxels: true,
-            bias: 0,
-            rule: LitRule::Plane,
-        };
-        let cl = classic(&loaded, &lights, &all, |_, _| {}).unwrap();
-        assert_eq!(cl.masks, want, "{scene}: all voxels");
-        let per_light = emitters + cl.totals.voxels;
-        assert_eq!(cl.totals.rays + cl.totals.back_facing, per_light * lights.len() as u64);
-        // The plane principle walks the exact segment: other connectivities are refused.
-        let c26 = ClassicConfig { connectivity: Connectivity::TwentySix, ..all };
-        let e = classic(&loaded, &lights, &c26, |_, _| {}).err().expect("26-connected plane rays are refused");
-        assert!(e.to_string().contains("--ray-connectivity 6"), "{e}");
+        let all = check_classic(scene, &loaded, &lights, LitRule::Plane, &want, emitters);
         // A source outside the grid is an error, not a ray walking off it.
         let e = classic(&loaded, &[[n as f64 + 0.5, 3.0, 3.0]], &all, |_, _| {}).err().expect("outside source");
         assert!(e.to_string().contains("outside the grid"), "{e}");
     }
+}
+
+/// `scene` loaded on an n³ grid with thick surfaces and triangle stores that never fill (the
+/// cells' code, larger stores: a full store lets light through, which the oracle does not
+/// model), and its lattice triangles (sixteenths, voxel centres at multiples of 16): the fan of
+/// each prepared polygon, as the stores cut it.
+fn exact_scene(scene: &str, n: u32) -> (host_sim::machine::loaded::LoadedScene, Vec<[[i64; 3]; 3]>) {
+    let mesh = host_sim::scene::load(scene).unwrap();
+    let cfg = host_sim::precompute::LoadConfig::watertight(n);
+    let mut loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
+    let prepared = host_sim::precompute::prepare(&mesh, &cfg).unwrap();
+    loaded.grid.triangles =
+        host_sim::machine::triangles::ColumnTriangles::from_polygons_keeping(&prepared.polygons, n, usize::MAX)
+            .unwrap();
+    let mut tris = Vec::new();
+    for poly in &prepared.polygons {
+        let v: Vec<[i64; 3]> = poly.iter().map(|p| p.map(|c| c - 8)).collect();
+        tris.extend((1..v.len().saturating_sub(1)).map(|k| [v[0], v[k], v[k + 1]]));
+    }
+    (loaded, tris)
+}
+
+/// Classic shadow rays under exact occluders: the lit state the cells assemble (each column
+/// testing its own triangles against the exact segment as the ray passes) equals the segment
+/// tested against every triangle of the scene (`rc2_tests::oracle::shadow::lit_exact`), on the
+/// Cornell box and the teapot on its floor with two sources each (one low and grazing), small
+/// FIFOs and both routing policies, no column's store full; every occupied voxel emitting gives
+/// the same image state.
+#[test]
+fn classic_exact_answers_match_every_triangle() {
+    use cell_core::lit::LitRule;
+    use cell_core::ray::Q;
+
+    for (scene, extra) in [("cornell", [3.0, 20.0, 9.5]), ("teapot-floor", [30.0, 2.0, 4.0])] {
+        let mesh = host_sim::scene::load(scene).unwrap();
+        let n = 32;
+        let (loaded, tris) = exact_scene(scene, n);
+        let mut lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
+        lights.push(extra);
+        let grid = &loaded.grid;
+        let (mut want, mut emitters, mut plane_differs) = (vec![0u32; (n * n) as usize], 0u64, 0);
+        let occ = common::occupants_of(grid);
+        for (i, c) in grid.cells.iter().enumerate() {
+            let Some(e) = common::emitter_of(grid, c.x as u32, c.y as u32) else { continue };
+            emitters += 1;
+            for (s, l) in lights.iter().enumerate() {
+                let b = l.map(|v| (v * Q as f64).round() as i64);
+                let lit = rc2_tests::oracle::shadow::lit_exact(&e, b, &tris);
+                want[i] |= (lit as u32) << s;
+                plane_differs += (lit != rc2_tests::oracle::shadow::lit(&e, b, &occ)) as u32;
+            }
+        }
+        assert!(plane_differs > 0, "{scene}: exact occluders and the plane rule differ somewhere");
+        check_classic(scene, &loaded, &lights, LitRule::Exact, &want, emitters);
+    }
+}
+
+/// Runs the classic phase of `loaded` under `rule` with FIFOs of 1, 2 and 16 and both
+/// routings, then with every occupied voxel emitting: each gives `want` (the oracle's masks,
+/// both lit and shadowed surfaces among them), one ray per surface facing a source, one answer
+/// per ray and each lit answer delivered once; 26-connected rays are refused. Returns the
+/// every-voxel configuration.
+fn check_classic(
+    scene: &str,
+    loaded: &host_sim::machine::loaded::LoadedScene,
+    lights: &[[f64; 3]],
+    rule: cell_core::lit::LitRule,
+    want: &[u32],
+    emitters: u64,
+) -> host_sim::machine::classic::ClassicConfig {
+    use cell_core::ray::Connectivity;
+    use host_sim::machine::classic::{classic, ClassicConfig};
+    let lit: u64 = want.iter().map(|m| m.count_ones() as u64).sum();
+    assert!(lit > 0 && lit < emitters * lights.len() as u64, "{scene}: both lit and shadowed surfaces");
+    let base = ClassicConfig {
+        fa: 1,
+        connectivity: Connectivity::Six,
+        route: RoutePolicy::Adaptive,
+        all_voxels: false,
+        bias: 0,
+        rule,
+    };
+    for (fa, route) in [(1, RoutePolicy::DiagonalFirst), (2, RoutePolicy::Adaptive), (16, RoutePolicy::Adaptive)] {
+        let c = ClassicConfig { fa, route, ..base };
+        let cl = classic(loaded, lights, &c, |_, _| {}).unwrap_or_else(|e| panic!("{scene} FA {fa} {route:?}: {e}"));
+        assert_eq!(cl.masks, want, "{scene} {rule:?} FA {fa} {route:?}");
+        let t = &cl.totals;
+        assert_eq!(t.rays + t.back_facing, emitters * lights.len() as u64, "one ray per surface facing a source");
+        assert_eq!(t.answers, t.rays, "one answer per ray");
+        assert_eq!(t.lit, lit, "each lit answer delivered once");
+    }
+    let all = ClassicConfig { fa: 4, all_voxels: true, ..base };
+    let cl = classic(loaded, lights, &all, |_, _| {}).unwrap();
+    assert_eq!(cl.masks, want, "{scene} {rule:?}: all voxels");
+    assert_eq!(cl.totals.rays + cl.totals.back_facing, (emitters + cl.totals.voxels) * lights.len() as u64);
+    // Both rules walk the exact segment: other connectivities are refused.
+    let c26 = ClassicConfig { connectivity: Connectivity::TwentySix, ..all };
+    let e = classic(loaded, lights, &c26, |_, _| {}).err().expect("26-connected rays are refused");
+    assert!(e.to_string().contains("--ray-connectivity 6"), "{e}");
+    all
 }
 
 /// The same against random sources (anywhere in the grid, on and off the lattice's voxel
@@ -327,6 +393,25 @@ mod random_sources {
             for cell in grid.cells.iter() {
                 let want = common::emitter_of(grid, cell.x as u32, cell.y as u32).map_or(0, |e| {
                     lights16.iter().enumerate().filter(|(_, b)| rc2_tests::oracle::shadow::lit(&e, **b, &occ)).map(|(s, _)| 1u32 << s).sum()
+                });
+                prop_assert_eq!(cl.mask(cell.x as u32, cell.y as u32), want, "{} cell ({}, {})", scene, cell.x, cell.y);
+            }
+        }
+
+        #[test]
+        fn classic_exact_matches_the_oracle(
+            scene in prop::sample::select(vec!["cornell", "teapot-floor", "cow-floor"]),
+            lights16 in prop::collection::vec(prop::array::uniform3(0i64..=240), 1..=2),
+            fa in 1usize..=3,
+        ) {
+            let (loaded, tris) = super::exact_scene(scene, 16);
+            let lights: Vec<[f64; 3]> = lights16.iter().map(|l| l.map(|c| c as f64 / Q as f64)).collect();
+            let grid = &loaded.grid;
+            let c = ClassicConfig { fa, connectivity: Connectivity::Six, route: RoutePolicy::Adaptive, all_voxels: false, bias: 0, rule: LitRule::Exact };
+            let cl = classic(&loaded, &lights, &c, |_, _| {}).unwrap();
+            for cell in grid.cells.iter() {
+                let want = common::emitter_of(grid, cell.x as u32, cell.y as u32).map_or(0, |e| {
+                    lights16.iter().enumerate().filter(|(_, b)| rc2_tests::oracle::shadow::lit_exact(&e, **b, &tris)).map(|(s, _)| 1u32 << s).sum()
                 });
                 prop_assert_eq!(cl.mask(cell.x as u32, cell.y as u32), want, "{} cell ({}, {})", scene, cell.x, cell.y);
             }

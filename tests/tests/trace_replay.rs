@@ -242,7 +242,8 @@ fn classic(rule: LitRule, connectivity: Connectivity, all_voxels: bool, fa: usiz
 /// The classic shadow-ray phase in the cell: every cell of a 16 × 16 Cornell box replays to
 /// the grid's digest under the plane rule (exact segments, 6-connected), under the thesis's
 /// rule with 26- and 18-connected rays from every occupied voxel, with small FIFOs and
-/// dimension-ordered routing that make routers refuse answers, and with two sources.
+/// dimension-ordered routing that make routers refuse answers, with two sources, and under
+/// exact occluders (the column's triangles recorded after each source's setup).
 #[test]
 fn every_cell_replays_the_classic_shadow_ray_phase() {
     let plane =
@@ -256,7 +257,13 @@ fn every_cell_replays_the_classic_shadow_ray_phase() {
     }
     assert!(refused > 0, "no router refused an answer: the Refused record went untested");
     let two = vec![[0.3, 0.8, 0.4], [0.7, 0.3, 0.6]];
-    let k = check_ray_phase("cornell", 16, two, Some(classic(LitRule::Plane, Connectivity::Six, false, 4)), None);
+    let k =
+        check_ray_phase("cornell", 16, two.clone(), Some(classic(LitRule::Plane, Connectivity::Six, false, 4)), None);
+    assert_eq!(k[4], 2 * 256, "one phase end per cell and source");
+    // Exact occluders: each cell's triangles follow its setup record; every voxel emitting.
+    let cfg =
+        ClassicConfig { route: RoutePolicy::DiagonalFirst, ..classic(LitRule::Exact, Connectivity::Six, true, 2) };
+    let k = check_ray_phase("cornell", 16, two, Some(cfg), None);
     assert_eq!(k[4], 2 * 256, "one phase end per cell and source");
 }
 

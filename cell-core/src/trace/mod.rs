@@ -14,14 +14,14 @@
 //! | `0x46` | [`Event::Grant`] | the neighbour on `port` took the head of that output buffer |
 //! | `0x47` | [`Event::Shade`] | ambient 3×f32, normal mode u8, lights (count u8, pos+colour 6×f32), materials (count u8, 13×f32), then for a camera ([`crate::shade::Eye::Camera`]) perspective u8, n width near far 4×f32 |
 //! | `0x48` | [`Event::End`] | end of the trace |
-//! | `0x49` | [`Event::Shadow`] | a source's classic shadow-ray phase starts ([`ShadowSetup`]): source 3×i32 (1/16 voxel), lit rule u8, ray connectivity u8 (6, 18, 26), every voxel emits u8, bias u8, FIFO limit u16, source bit u32, FIFO capacity u16 |
+//! | `0x49` | [`Event::Shadow`] | a source's classic shadow-ray phase starts ([`ShadowSetup`]): source 3×i32 (1/16 voxel), lit rule u8 (0 thesis, 1 plane, 2 exact occluders: the column's triangles follow), ray connectivity u8 (6, 18, 26), every voxel emits u8, bias u8, FIFO limit u16, source bit u32, FIFO capacity u16 |
 //! | `0x4a` | [`Event::Reflect`] | the reflection phase starts ([`ReflectSetup`]): depth u8, threshold f32, normal u8 (0 facet, 1 face), skip own facet u8, connectivity u8, FIFO limit u16, span i32, n u32, depth u32, capacities (FIFO per class, wait table, send queue) 3×u16, Kr (count u8, f32 each) |
 //! | `0x4b` | [`Event::ShadowAnswer`] | the cell's router delivers a shadow-ray answer: payload u8 ([`crate::shadow::ANSWER_LIT`], [`crate::shadow::ANSWER_SURFACE`]) |
 //! | `0x4c` | [`Event::ReflectAnswer`] | the cell's router delivers a reflection answer: wait-table slot u16, intensity 3×u16 (Q12) |
 //! | `0x4d` | [`Event::Refused`] | one compute cycle of the ray phase in which the router refused the answer the cell offered |
 //! | `0x4e` | [`Event::Take`] | the neighbour on `port` took the ray of output slot (class, port): class u8 (0 for shadow rays), port u8 |
 //! | `0x4f` | [`Event::PhaseEnd`] | the ray phase ended (a source's, for shadow rays) |
-//! | `0x50` | [`Event::Triangle`] | under exact occluders, after the light record: one triangle the column keeps for the source's diffusion ([`crate::occluder::Triangle`], its vertices 9×i32 in sixteenths of a voxel), in the column's order; the cell computes its target ray itself ([`crate::receiver::target`]) |
+//! | `0x50` | [`Event::Triangle`] | under exact occluders, after the light record or the shadow setup record: one triangle the column keeps for the source's diffusion or shadow rays ([`crate::occluder::Triangle`], its vertices 9×i32 in sixteenths of a voxel), in the column's order; the cell computes its target ray itself ([`crate::receiver::target`]) |
 //!
 //! In the ray phases ([`rays`]) a `Step` record counts cycles of the phase's cell in which its
 //! router took any answer offered, and `Recv` carries a ray frame ([`crate::wire::RayMsg`]). A
@@ -1081,10 +1081,14 @@ impl<
         Ok(())
     }
 
-    /// A triangle the column keeps for the current source (exact occluders only).
+    /// A triangle the column keeps for the current source (exact occluders only): its
+    /// diffusion, or its classic shadow rays.
     fn triangle(&mut self, t: Triangle) -> Result<(), ReplayError> {
-        let setup = self.setup.ok_or(ReplayError::NoLightSetup)?;
-        if setup.rule != LitRule::Exact {
+        let rule = match &self.rays {
+            rays::Rays::Shadow(_, s) => s.env.rule,
+            _ => self.setup.ok_or(ReplayError::NoLightSetup)?.rule,
+        };
+        if rule != LitRule::Exact {
             return Err(DecodeError::BadValue("a triangle outside exact occluders").into());
         }
         #[cfg(feature = "exact-occluders")]

@@ -146,7 +146,11 @@ fn flag(r: &mut Reader<'_>, what: &'static str) -> Result<bool, DecodeError> {
 pub(super) fn put_shadow_setup(w: &mut SliceWriter<'_>, s: &ShadowSetup) -> Result<(), EncodeError> {
     let e = &s.env;
     e.source.iter().try_for_each(|&c| w.i32(c))?;
-    w.u8(matches!(e.rule, LitRule::Plane) as u8)?;
+    w.u8(match e.rule {
+        LitRule::Thesis => 0,
+        LitRule::Plane => 1,
+        LitRule::Exact => 2,
+    })?;
     w.u8(connectivity_code(e.connectivity))?;
     w.u8(e.all_voxels as u8)?;
     w.u8(e.bias)?;
@@ -158,7 +162,14 @@ pub(super) fn put_shadow_setup(w: &mut SliceWriter<'_>, s: &ShadowSetup) -> Resu
 /// The payload of a shadow setup record.
 pub(super) fn get_shadow_setup(r: &mut Reader<'_>) -> Result<ShadowSetup, DecodeError> {
     let source = [r.i32()?, r.i32()?, r.i32()?];
-    let rule = if flag(r, "lit rule")? { LitRule::Plane } else { LitRule::Thesis };
+    let rule = match r.u8()? {
+        0 => LitRule::Thesis,
+        1 => LitRule::Plane,
+        // The column's triangles follow in their own records ([`super::Event::Triangle`]).
+        #[cfg(feature = "exact-occluders")]
+        2 => LitRule::Exact,
+        _ => return Err(DecodeError::BadValue("lit rule")),
+    };
     let connectivity = connectivity_of(r.u8()?)?;
     let all_voxels = flag(r, "emitters")?;
     let (bias, fa) = (r.u8()?, r.u16()? as usize);
@@ -360,6 +371,9 @@ impl<
         if !(1..=SFA).contains(&s.env.fa) {
             return Err(DecodeError::BadValue("shadow FIFO limit").into());
         }
+        // Under exact occluders the column's triangles follow this record.
+        #[cfg(feature = "exact-occluders")]
+        self.column.clear();
         // Built in place: a cell-sized temporary would take the firmware's stack.
         self.rays = Rays::Shadow(ShadowCell::new(), s);
         let Rays::Shadow(cell, s) = &mut self.rays else { return Err(ReplayError::NoPhaseSetup) };
@@ -393,7 +407,11 @@ impl<
         match &mut self.rays {
             Rays::Idle => return Err(ReplayError::NoPhaseSetup),
             Rays::Shadow(cell, s) => {
-                let step = cell.step(&self.cell.store, |a| {
+                #[cfg(feature = "exact-occluders")]
+                let triangles = self.column.triangles.triangles();
+                #[cfg(not(feature = "exact-occluders"))]
+                let triangles = &[];
+                let step = cell.step(&self.cell.store, triangles, |a| {
                     if takes {
                         digest.shadow_answer(&a);
                     }

@@ -375,14 +375,15 @@ pub struct LightOpts {
     /// policy only; at most 4096.
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u16).range(0..=4096))]
     pub hold: u16,
-    /// The lit rule. `exact` (the default with diffusion, except in `trace`): exact occluders —
-    /// each cell keeps the scene's triangles through its column and a ray is stopped where it
-    /// meets one; each pixel is lit iff its one target ray (the lattice ray nearest the exact
-    /// ray to its point) arrives: right at grazing angles and at shadow edges (thesis §5.5.6;
-    /// 1.4–3.2× the host's light seconds of `plane`, 0.75–1.3× its cycles, BENCHMARKS.md).
-    /// `plane` (the default with `--lighting classic` and in `trace`): a ray is stopped only
-    /// where it crosses the plane of the facet owning the voxel it is in, and each pixel is lit
-    /// from its visible surface's own plane. `thesis`: a beam entering an occupied voxel lights
+    /// The lit rule. `exact` (the default, except in `trace`): exact occluders — each cell
+    /// keeps the scene's triangles through its column and a ray is stopped where it meets one;
+    /// with diffusion each pixel is lit iff its one target ray (the lattice ray nearest the
+    /// exact ray to its point) arrives: right at grazing angles and at shadow edges (thesis
+    /// §5.5.6; 1.4–3.2× the host's light seconds of `plane`, 0.75–1.3× its cycles,
+    /// BENCHMARKS.md); a classic shadow ray is tested against the triangles of each column it
+    /// enters. `plane` (the default in `trace`): a ray is stopped only where it crosses the
+    /// plane of the facet owning the voxel it is in, and each pixel is lit from its visible
+    /// surface's own plane. `thesis`: a beam entering an occupied voxel lights
     /// it and stops (§5.5.5), and the pixel shows the first occupied voxel of its column (the
     /// thesis's figures: add `--sigma naive --contour projected --frac-bits 0 --policy
     /// wavefront --rays-from voxel`).
@@ -427,22 +428,22 @@ pub enum LitRuleArg {
     Thesis,
     /// Stopped only by a plane crossed there; each pixel lit from its visible surface's plane.
     Plane,
-    /// Exact occluders: a ray is stopped where it meets a triangle its cells keep; each pixel
-    /// is lit iff its one target ray (the lattice ray nearest the ray to its point) arrives.
-    /// Diffusion only (refused with `--lighting classic`).
+    /// Exact occluders: a ray is stopped where it meets a triangle its cells keep; with
+    /// diffusion each pixel is lit iff its one target ray (the lattice ray nearest the ray to
+    /// its point) arrives.
     Exact,
 }
 
 impl LightOpts {
-    /// The lit rule and rays' origin asked for, or the defaults: exact occluders with rays from
-    /// the light for diffusion, the plane rule from the source voxel for classic shadow rays
-    /// and when `accurate` is false (the `trace` job: what the firmware's default image runs).
+    /// The lit rule and rays' origin asked for, or the defaults: exact occluders (with rays
+    /// from the light for diffusion), and the plane rule from the source voxel when `accurate`
+    /// is false (the `trace` job: what the firmware's default image runs).
     pub fn rule_and_rays(&self, accurate: bool) -> (cell_core::lit::LitRule, cell_core::beam::Origin) {
         let classic = self.classic.lighting == crate::cli::phase_args::LightingArg::Classic;
-        let (rule, rays) = if accurate && !classic {
-            (LitRuleArg::Exact, RaysFromArg::Light)
-        } else {
-            (LitRuleArg::Plane, RaysFromArg::Voxel)
+        let (rule, rays) = match (accurate, classic) {
+            (true, false) => (LitRuleArg::Exact, RaysFromArg::Light),
+            (true, true) => (LitRuleArg::Exact, RaysFromArg::Voxel),
+            (false, _) => (LitRuleArg::Plane, RaysFromArg::Voxel),
         };
         (self.lit_rule.unwrap_or(rule).into(), self.rays_from.unwrap_or(rays).into())
     }

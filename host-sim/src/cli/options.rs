@@ -31,11 +31,6 @@ impl LightOpts {
                 "--rays-from light is a diffusion option: classic shadow rays are traced to the light itself"
             );
         }
-        if self.lit_rule == Some(crate::cli::LitRuleArg::Exact) {
-            anyhow::bail!(
-                "--lit-rule exact is a diffusion option: classic shadow rays run the plane rule (--lit-rule plane, their default) or the thesis's"
-            );
-        }
         Ok(())
     }
 

@@ -48,7 +48,9 @@ pub struct ClassicOpts {
     pub emitters: EmittersArg,
     /// Shadow bias of classic rays: the first K voxels after the emitter's are not tested, so
     /// a ray ignores the neighbouring facets of its own object (shadow acne) but misses shadows
-    /// cast within K voxels. 0 (default) = only the emitter's own facet is ignored.
+    /// cast within K voxels. 0 (default) = only the emitter's own facet is ignored. The thesis's
+    /// and the plane rule only: under exact occluders a ray's segment starts ¼ voxel in front
+    /// of its surface.
     #[arg(long, default_value_t = 0)]
     pub shadow_bias: u8,
 }

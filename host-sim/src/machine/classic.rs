@@ -9,7 +9,11 @@
 //! ([`cell_core::visible`]), the ray is the exact segment from that point, and a voxel stops it
 //! only where the segment crosses the voxel's own plane (the plane principle of
 //! [`cell_core::ray`]); a surface whose plane turns away from the source emits no ray (it is in
-//! its own shadow, counted as `back_facing`). What one cell holds and does is
+//! its own shadow, counted as `back_facing`). Under exact occluders ([`LitRule::Exact`]) the
+//! ray walks the same line and each column it enters tests its own triangles
+//! ([`crate::machine::triangles`]) once against the exact segment from the light to ¼ voxel in
+//! front of the pixel's point ([`ShadowRay::advance_exact`]): the segment tested against every
+//! triangle of the scene, as long as no column's store is full. What one cell holds and does is
 //! [`cell_core::shadow::ShadowCell`] (its FIFO of [`SHADOW_FA_CAP`] rays, one output slot per
 //! link, its emission, its answers); this module schedules the cells. Cycle model, per cycle:
 //! 1. **compute**: every cell with rays takes its FIFO's head and does one voxel of work
@@ -37,14 +41,13 @@ use std::mem::size_of;
 use std::time::Instant;
 
 use anyhow::{bail, Result};
-use cell_core::beam::frac::U0;
 use cell_core::beam::FracBits;
 use cell_core::light::{Port, SourceMask};
 use cell_core::lit::LitRule;
 use cell_core::ray::{Connectivity, ShadowRay};
 use cell_core::route::RoutePolicy;
 use cell_core::shadow::{EmitError, ShadowCell, ShadowEnv, ShadowStep};
-use cell_core::trace::{Event, ShadowSetup};
+use cell_core::trace::ShadowSetup;
 use cell_core::wire::RayMsg;
 
 use crate::machine::diffuse::{DiffusionCounts, SourceReport};
@@ -198,10 +201,10 @@ pub fn classic_tapped(
     for (i, &l) in lights.iter().enumerate() {
         crate::machine::diffuse::source_at(i, l, n)?;
     }
-    if cfg.rule == LitRule::Plane && cfg.connectivity != Connectivity::Six {
+    if cfg.rule != LitRule::Thesis && cfg.connectivity != Connectivity::Six {
         bail!(
-            "the plane rule walks the exact segment (6-connected): use --ray-connectivity 6, or \
-             --lit-rule thesis for {}-connected rays",
+            "the plane rule and exact occluders walk the exact segment (6-connected): use \
+             --ray-connectivity 6, or --lit-rule thesis for {}-connected rays",
             cfg.connectivity.k()
         );
     }
@@ -308,7 +311,7 @@ impl<'a> ClassicRun<'a> {
             fa: cfg.fa,
         };
         if let Some(t) = tap.as_deref_mut() {
-            t.all::<U0>(&Event::Shadow(ShadowSetup { env, source_bit: 1 << si, fifo: SHADOW_FA_CAP as u16 }));
+            t.shadow_setup(ShadowSetup { env, source_bit: 1 << si, fifo: SHADOW_FA_CAP as u16 }, &grid.triangles);
         }
         let mut cells: Vec<HostShadowCell> = (0..n * n).map(|_| ShadowCell::new()).collect();
         let (mut active, mut emitters) = (Vec::new(), 0);
@@ -366,7 +369,7 @@ impl<'a> ClassicRun<'a> {
             let c = &mut cells[i];
             let col = &self.grid.cells[i];
             let mut offered = None;
-            let step = c.step(&col.store, |m| {
+            let step = c.step(&col.store, self.grid.triangles.column(col.x as u32, col.y as u32), |m| {
                 let took = net.can_inject(i, m.dest) && net.inject(i, m);
                 offered = Some((m, took));
                 took

@@ -16,10 +16,11 @@ use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::facet::RowPacket;
 use cell_core::light::{BeamMsg, FrustumSummary, LightEnv, Port, Step};
 use cell_core::link::{Link, Sent};
+use cell_core::lit::LitRule;
 use cell_core::reflect::Answer;
 use cell_core::reflect_cell::{ReflectAnswer, ReflectCell};
 use cell_core::shadow::{ShadowAnswer, ShadowCell, ShadowStep};
-use cell_core::trace::{write_event, Digester, Event, Header, LightSetup, Replayer, ShadeSetup};
+use cell_core::trace::{write_event, Digester, Event, Header, LightSetup, Replayer, ShadeSetup, ShadowSetup};
 use cell_core::wire::{Message, RayMsg, MAX_RAY_FRAME};
 
 use super::capacity::{FA_CAP, LIT_CAP, OB_CAP};
@@ -220,6 +221,20 @@ impl Tap {
             for r in &mut self.recorders {
                 for t in occ.triangles(r.x as u16, r.y as u16) {
                     r.push::<F>(&Event::Triangle(*t));
+                }
+            }
+        }
+    }
+
+    /// A source's classic shadow-ray phase: its setup record, and under exact occluders each
+    /// cell's own triangles after it.
+    pub fn shadow_setup(&mut self, setup: ShadowSetup, triangles: &crate::machine::triangles::ColumnTriangles) {
+        let exact = setup.env.rule == LitRule::Exact;
+        self.all::<U0>(&Event::Shadow(setup));
+        if exact {
+            for r in &mut self.recorders {
+                for t in triangles.column(r.x, r.y) {
+                    r.push::<U0>(&Event::Triangle(*t));
                 }
             }
         }
