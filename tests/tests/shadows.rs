@@ -14,7 +14,8 @@ use cell_core::beam::frac::U0;
 use cell_core::beam::{FracBits, Origin};
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
-use host_sim::jobs::render::{RenderConfig, RenderInput};
+use host_sim::jobs::render::{RenderConfig, RenderInput, RenderLighting};
+use host_sim::machine::classic::ClassicConfig;
 use host_sim::machine::diffuse::LightConfig;
 use host_sim::machine::shade::Image;
 use host_sim::machine::triangles::ColumnTriangles;
@@ -99,6 +100,8 @@ struct Setup {
     rays: Origin,
     /// Triangles a column keeps under exact occluders (`None`: the cell's `TRIANGLE_CAP`).
     triangle_cap: Option<usize>,
+    /// Classic shadow rays instead of diffusion.
+    classic: bool,
 }
 
 /// `render`'s defaults: tunnel-free surfaces, exact occluders, rays from the light.
@@ -108,6 +111,7 @@ const DEFAULT: Setup = Setup {
     rule: LitRule::Exact,
     rays: Origin::Light,
     triangle_cap: None,
+    classic: false,
 };
 
 /// The default with stores that never fill: exact occluders themselves.
@@ -115,6 +119,9 @@ const UNBOUNDED: Setup = Setup { triangle_cap: Some(usize::MAX), ..DEFAULT };
 
 /// The former default: the plane rule, rays from the source voxel.
 const PLANE: Setup = Setup { rule: LitRule::Plane, rays: Origin::SourceVoxel, ..DEFAULT };
+
+/// Classic shadow rays under exact occluders (their default), stores that never fill.
+const CLASSIC: Setup = Setup { classic: true, rays: Origin::SourceVoxel, ..UNBOUNDED };
 
 /// `render` with the job's defaults for `setup` (visible-only lit store, hidden-voxel skip),
 /// the reference image and which pixels face which source.
@@ -139,7 +146,18 @@ fn render<F: FracBits>(
         skip_hidden: true,
         ..LightConfig::default()
     };
-    let rcfg = RenderConfig::diffusion(light, cell_core::shade::NormalMode::Facet);
+    let mut rcfg = RenderConfig::diffusion(light, cell_core::shade::NormalMode::Facet);
+    if setup.classic {
+        let c = ClassicConfig {
+            fa: 16,
+            connectivity: cell_core::ray::Connectivity::Six,
+            route: cell_core::route::RoutePolicy::Adaptive,
+            all_voxels: false,
+            bias: 0,
+            rule: setup.rule,
+        };
+        rcfg.lighting = RenderLighting::Classic(c);
+    }
     let reference = host_sim::jobs::render::reference_image(mesh, &loaded, &lights, &rcfg).unwrap();
     let input = RenderInput::new(mesh, &loaded, &lights).compared_with(&reference);
     let r = host_sim::jobs::render::render::<F>(&input, &rcfg, |_, _| {}).unwrap();
@@ -183,14 +201,21 @@ fn no_light_through_closed_meshes() {
     // Only closed meshes: where open parts pass through each other (the teapot's spout and
     // handle through its body) a voxel holds two surfaces and keeps one plane, and a ray may
     // cross the other surface there unseen (docs/LIGHTING.md, junctions). Exact occluders with
-    // stores that never fill and the plane rule let no light through; the default's stores
+    // stores that never fill (beams, or classic shadow rays) and the plane rule let no light
+    // through; the default's stores
     // (`TRIANGLE_CAP` per column) fill along these meshes' silhouettes at these n, and light
     // passes only where a full column left a triangle out (counted and reported).
-    let setups = [("exact, unbounded stores", &UNBOUNDED), ("plane", &PLANE), ("exact, the cell's stores", &DEFAULT)];
+    let setups = [
+        ("exact, unbounded stores", &UNBOUNDED),
+        ("plane", &PLANE),
+        ("exact, the cell's stores", &DEFAULT),
+        ("classic shadow rays, exact, unbounded stores", &CLASSIC),
+    ];
     for (scene, (name, setup)) in ["cow", "fandisk"].into_iter().flat_map(|s| setups.map(|x| (s, x))) {
         let mesh = closed_on_floor(scene);
         // The default lattice (f = 0) and the finer one the accuracy knob gives (f = 1).
-        for (n, f) in sizes().into_iter().flat_map(|n| [(n, 0), (n, 1)]) {
+        let fs: &[u32] = if setup.classic { &[0] } else { &[0, 1] };
+        for (n, f) in sizes().into_iter().flat_map(|n| fs.iter().map(move |&f| (n, f))) {
             let (image, _, behind, left_out) =
                 cell_core::with_frac_bits!(f, F => render::<F>(&mesh, n, setup)).unwrap();
             let (lit, total) = leaks(&image, &behind);
@@ -224,6 +249,7 @@ fn leaky_modes_do_leak() {
         rule: LitRule::Thesis,
         rays: Origin::SourceVoxel,
         triangle_cap: None,
+        classic: false,
     };
     let (image, _, behind, _) = render::<U0>(&mesh, 128, &thin);
     let (lit, total) = leaks(&image, &behind);

@@ -549,6 +549,10 @@ pub fn run_classic<F: FracBits>(
 ) -> Result<(ClassicLighting, LightStats)> {
     let t0 = Instant::now();
     let cl = classic(scene, lights, cfg, progress)?;
+    let exact = cfg.rule == LitRule::Exact;
+    if exact {
+        crate::machine::lighting::check_triangle_overflow(&scene.grid);
+    }
     let wall = t0.elapsed().as_secs_f64();
     let as_diffusion = |c: &ClassicCounts| DiffusionCounts {
         cycles: c.cycles,
@@ -587,7 +591,7 @@ pub fn run_classic<F: FracBits>(
         totals,
         lit_voxels: cl.masks.iter().filter(|&&m| m != 0).count() as u64,
         lit_overflows: 0,
-        triangle_overflows: 0,
+        triangle_overflows: if exact { scene.grid.triangles.overflows() } else { 0 },
         bytes_beam_message: std::mem::size_of::<ShadowRay>(),
         bytes_light_cell: size_of::<HostShadowCell>() + size_of::<crate::machine::network::HostRouter<u8>>(),
         sources,
