@@ -75,6 +75,9 @@
 //! each crossing point lies in a column that keeps the triangle: the answer is the segment
 //! tested against every triangle of the scene, as long as no column's store is full. The gap
 //! keeps the surface's own triangles from shadowing it; the voxels themselves stop nothing.
+//! The arithmetic and its bit budget are the contact test's ([`crate::receiver`], "Bit
+//! budget"): points and the source within [`crate::occluder::COORD_LIMIT`] sixteenths
+//! ([`ShadowRay::exact`] refuses others), exact in `i128`.
 //!
 //! *Arithmetic.* The ray carries A and D = B − A (lattice units, |A_i| ≤ 2²⁶, |D_i| ≤ 2²⁰),
 //! t_in = num/den with 0 ≤ num ≤ den ≤ 2²⁰ + Q, and its own plane's value along the segment.
