@@ -5,15 +5,16 @@
 //! column's visible surface emits one [`ShadowRay`] toward the source, walking an incremental
 //! line ([`cell_core::ray`]). Under the thesis's rule ([`LitRule::Thesis`]) the visible surface is
 //! the first occupied voxel of the column and the ray starts at its centre; under the plane rule
-//! ([`LitRule::Plane`], the default) it is the surface the column's centre line meets
+//! ([`LitRule::Plane`]) it is the surface the column's centre line meets
 //! ([`cell_core::visible`]), the ray is the exact segment from that point, and a voxel stops it
 //! only where the segment crosses the voxel's own plane (the plane principle of
 //! [`cell_core::ray`]); a surface whose plane turns away from the source emits no ray (it is in
-//! its own shadow, counted as `back_facing`). Under exact occluders ([`LitRule::Exact`]) the
-//! ray walks the same line and each column it enters tests its own triangles
-//! ([`crate::machine::triangles`]) once against the exact segment from the light to ¼ voxel in
-//! front of the pixel's point ([`ShadowRay::advance_exact`]): the segment tested against every
-//! triangle of the scene, as long as no column's store is full. What one cell holds and does is
+//! its own shadow, counted as `back_facing`). Under exact occluders ([`LitRule::Exact`], the
+//! default of the `light` and `render` jobs) the ray walks the same line and each column it
+//! enters tests its own triangles ([`crate::machine::triangles`]) once against the exact
+//! segment from the light to ¼ voxel in front of the pixel's point
+//! ([`ShadowRay::advance_exact`]): the segment tested against every triangle of the scene, as
+//! long as no column's store is full. What one cell holds and does is
 //! [`cell_core::shadow::ShadowCell`] (its FIFO of [`SHADOW_FA_CAP`] rays, one output slot per
 //! link, its emission, its answers); this module schedules the cells. Cycle model, per cycle:
 //! 1. **compute**: every cell with rays takes its FIFO's head and does one voxel of work
