@@ -222,6 +222,22 @@ fn ceil_div(n: i128, d: i128) -> i128 {
     -(-n).div_euclid(d)
 }
 
+/// The pixel's point P = (x, y, z\*) of column (x, y) with visible surface `vis`, in
+/// 1/[`POINT_UNITS`] voxel (z\* rounded half up: module doc, "Definition"); `None` beyond
+/// [`COORD_LIMIT`] or for a surface without a positive denominator.
+pub(crate) fn pixel_point(x: i32, y: i32, vis: &VisibleSurface) -> Option<[i64; 3]> {
+    let g = POINT_UNITS as i128;
+    let (num, den) = (vis.num as i128, vis.den as i128);
+    if den <= 0 {
+        return None;
+    }
+    let p = [g * x as i128, g * y as i128, (2 * g * num + den).div_euclid(2 * den)];
+    if p.iter().any(|c| c.abs() > (COORD_LIMIT as i128) * g / 16) {
+        return None;
+    }
+    Some(p.map(|c| c as i64))
+}
+
 /// The target ray of column (x, y), whose visible surface is `vis`, for `source`'s rays from
 /// `origin` (see the module doc); `None` if no ray qualifies or a coordinate lies outside
 /// [`COORD_LIMIT`].
@@ -232,16 +248,7 @@ pub fn target<F: FracBits>(
     source: &Source,
     far: FarDistance<F>,
 ) -> Option<Target> {
-    let g = POINT_UNITS as i128;
-    let (num, den) = (vis.num as i128, vis.den as i128);
-    if den <= 0 {
-        return None;
-    }
-    let z = (2 * g * num + den).div_euclid(2 * den);
-    let p = [g * x as i128, g * y as i128, z];
-    if p.iter().any(|c| c.abs() > (COORD_LIMIT as i128) * g / 16) {
-        return None;
-    }
+    let p = pixel_point(x, y, vis)?.map(i128::from);
     let nn = far.scaled() as i128;
     // The face: its rays' origin and lead, the exact ray's distance along the axis (`dist`,
     // in 1/POINT_UNITS voxel) and its offsets scaled by dist (a = an/dist, b = bn/dist).

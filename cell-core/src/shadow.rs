@@ -246,11 +246,9 @@ impl<const FA: usize> ShadowCell<FA> {
         if core::mem::take(&mut self.emitter.surface) {
             let v = cell.visible.as_ref().expect("the plane rule emits from a visible surface");
             let ray = if exact_occluders(env.rule) {
-                // The pixel's point z* on the 1/POINT_UNITS grid, as the receiver takes it.
-                let (g, den) = (POINT_UNITS as i128, v.den as i128);
-                let z = (2 * g * v.num as i128 + den).div_euclid(2 * den);
-                let z = i64::try_from(z).map_err(|_| err(v.z_v)(LineError::CoordinateTooLarge))?;
-                let p = [cell.x as i64 * POINT_UNITS, cell.y as i64 * POINT_UNITS, z];
+                // The pixel's point, as the receiver takes it.
+                let p = crate::receiver::pixel_point(cell.x as i32, cell.y as i32, v)
+                    .ok_or(err(v.z_v)(LineError::CoordinateTooLarge))?;
                 ShadowRay::exact(p, &v.plane, v.z_v, env.source, v.facet)
             } else {
                 let a = [cell.x as i32 * Q, cell.y as i32 * Q, lattice_depth(v.num, v.den)];

@@ -221,6 +221,31 @@ fn classic_answers_match_a_per_ray_oracle() {
     }
 }
 
+/// The sources at light positions `lights` (voxels) on the rays' 1/16 lattice.
+fn lattice(lights: &[[f64; 3]]) -> Vec<[i64; 3]> {
+    lights.iter().map(|l| l.map(|v| (v * cell_core::ray::Q as f64).round() as i64)).collect()
+}
+
+/// The oracle's lit masks of `grid`'s visible surfaces, in grid-cell order (bit s: source s at
+/// lattice point `sources[s]`, as `lit` decides it), and how many surfaces there are.
+fn oracle_masks(
+    grid: &host_sim::machine::grid::LightGrid,
+    sources: &[[i64; 3]],
+    lit: impl Fn(&rc2_tests::oracle::shadow::Emitter, [i64; 3]) -> bool,
+) -> (Vec<u32>, u64) {
+    let mut emitters = 0;
+    let masks = grid
+        .cells
+        .iter()
+        .map(|c| {
+            let Some(e) = common::emitter_of(grid, c.x as u32, c.y as u32) else { return 0 };
+            emitters += 1;
+            sources.iter().enumerate().filter(|&(_, &b)| lit(&e, b)).map(|(s, _)| 1u32 << s).sum()
+        })
+        .collect();
+    (masks, emitters)
+}
+
 /// Classic shadow rays under the plane principle (`cell_core::ray`, §4.1.2 with §5.5.6): the lit
 /// state the cells assemble equals the brute-force segment oracle
 /// (`rc2_tests::oracle::shadow`: every occupied voxel of the segment's box clipped on its
@@ -230,7 +255,6 @@ fn classic_answers_match_a_per_ray_oracle() {
 #[test]
 fn classic_plane_answers_match_the_segment_oracle() {
     use cell_core::lit::LitRule;
-    use cell_core::ray::Q;
     use host_sim::machine::classic::classic;
     use host_sim::precompute::LoadConfig;
 
@@ -241,20 +265,9 @@ fn classic_plane_answers_match_the_segment_oracle() {
         let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
         let mut lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
         lights.push(extra);
-        let grid = &loaded.grid;
-        let occ = common::occupants_of(grid);
-        let mut want = vec![0u32; (n * n) as usize];
-        let mut emitters = 0u64;
-        for (i, c) in grid.cells.iter().enumerate() {
-            let Some(e) = common::emitter_of(grid, c.x as u32, c.y as u32) else { continue };
-            emitters += 1;
-            for (s, l) in lights.iter().enumerate() {
-                let b = l.map(|v| (v * Q as f64).round() as i64);
-                if rc2_tests::oracle::shadow::lit(&e, b, &occ) {
-                    want[i] |= 1 << s;
-                }
-            }
-        }
+        let occ = common::occupants_of(&loaded.grid);
+        let (want, emitters) =
+            oracle_masks(&loaded.grid, &lattice(&lights), |e, b| rc2_tests::oracle::shadow::lit(e, b, &occ));
         let all = check_classic(scene, &loaded, &lights, LitRule::Plane, &want, emitters);
         // A source outside the grid is an error, not a ray walking off it.
         let e = classic(&loaded, &[[n as f64 + 0.5, 3.0, 3.0]], &all, |_, _| {}).err().expect("outside source");
@@ -291,7 +304,6 @@ fn exact_scene(scene: &str, n: u32) -> (host_sim::machine::loaded::LoadedScene, 
 #[test]
 fn classic_exact_answers_match_every_triangle() {
     use cell_core::lit::LitRule;
-    use cell_core::ray::Q;
 
     for (scene, extra) in [("cornell", [3.0, 20.0, 9.5]), ("teapot-floor", [30.0, 2.0, 4.0])] {
         let mesh = host_sim::scene::load(scene).unwrap();
@@ -299,20 +311,11 @@ fn classic_exact_answers_match_every_triangle() {
         let (loaded, tris) = exact_scene(scene, n);
         let mut lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
         lights.push(extra);
-        let grid = &loaded.grid;
-        let (mut want, mut emitters, mut plane_differs) = (vec![0u32; (n * n) as usize], 0u64, 0);
+        let (grid, sources) = (&loaded.grid, lattice(&lights));
+        let (want, emitters) = oracle_masks(grid, &sources, |e, b| rc2_tests::oracle::shadow::lit_exact(e, b, &tris));
         let occ = common::occupants_of(grid);
-        for (i, c) in grid.cells.iter().enumerate() {
-            let Some(e) = common::emitter_of(grid, c.x as u32, c.y as u32) else { continue };
-            emitters += 1;
-            for (s, l) in lights.iter().enumerate() {
-                let b = l.map(|v| (v * Q as f64).round() as i64);
-                let lit = rc2_tests::oracle::shadow::lit_exact(&e, b, &tris);
-                want[i] |= (lit as u32) << s;
-                plane_differs += (lit != rc2_tests::oracle::shadow::lit(&e, b, &occ)) as u32;
-            }
-        }
-        assert!(plane_differs > 0, "{scene}: exact occluders and the plane rule differ somewhere");
+        let (plane, _) = oracle_masks(grid, &sources, |e, b| rc2_tests::oracle::shadow::lit(e, b, &occ));
+        assert_ne!(want, plane, "{scene}: exact occluders and the plane rule differ somewhere");
         check_classic(scene, &loaded, &lights, LitRule::Exact, &want, emitters);
     }
 }
@@ -386,15 +389,12 @@ mod random_sources {
             let cfg = LoadConfig::watertight(n);
             let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
             let lights: Vec<[f64; 3]> = lights16.iter().map(|l| l.map(|c| c as f64 / Q as f64)).collect();
-            let grid = &loaded.grid;
-            let occ = common::occupants_of(grid);
+            let occ = common::occupants_of(&loaded.grid);
             let c = ClassicConfig { fa, connectivity: Connectivity::Six, route: RoutePolicy::Adaptive, all_voxels: false, bias: 0, rule: LitRule::Plane };
             let cl = classic(&loaded, &lights, &c, |_, _| {}).unwrap();
-            for cell in grid.cells.iter() {
-                let want = common::emitter_of(grid, cell.x as u32, cell.y as u32).map_or(0, |e| {
-                    lights16.iter().enumerate().filter(|(_, b)| rc2_tests::oracle::shadow::lit(&e, **b, &occ)).map(|(s, _)| 1u32 << s).sum()
-                });
-                prop_assert_eq!(cl.mask(cell.x as u32, cell.y as u32), want, "{} cell ({}, {})", scene, cell.x, cell.y);
+            let (want, _) = super::oracle_masks(&loaded.grid, &lights16, |e, b| rc2_tests::oracle::shadow::lit(e, b, &occ));
+            for (i, cell) in loaded.grid.cells.iter().enumerate() {
+                prop_assert_eq!(cl.masks[i], want[i], "{} cell ({}, {})", scene, cell.x, cell.y);
             }
         }
 
@@ -406,14 +406,11 @@ mod random_sources {
         ) {
             let (loaded, tris) = super::exact_scene(scene, 16);
             let lights: Vec<[f64; 3]> = lights16.iter().map(|l| l.map(|c| c as f64 / Q as f64)).collect();
-            let grid = &loaded.grid;
             let c = ClassicConfig { fa, connectivity: Connectivity::Six, route: RoutePolicy::Adaptive, all_voxels: false, bias: 0, rule: LitRule::Exact };
             let cl = classic(&loaded, &lights, &c, |_, _| {}).unwrap();
-            for cell in grid.cells.iter() {
-                let want = common::emitter_of(grid, cell.x as u32, cell.y as u32).map_or(0, |e| {
-                    lights16.iter().enumerate().filter(|(_, b)| rc2_tests::oracle::shadow::lit_exact(&e, **b, &tris)).map(|(s, _)| 1u32 << s).sum()
-                });
-                prop_assert_eq!(cl.mask(cell.x as u32, cell.y as u32), want, "{} cell ({}, {})", scene, cell.x, cell.y);
+            let (want, _) = super::oracle_masks(&loaded.grid, &lights16, |e, b| rc2_tests::oracle::shadow::lit_exact(e, b, &tris));
+            for (i, cell) in loaded.grid.cells.iter().enumerate() {
+                prop_assert_eq!(cl.masks[i], want[i], "{} cell ({}, {})", scene, cell.x, cell.y);
             }
         }
     }

@@ -17,6 +17,7 @@ use cell_core::facet::RowPacket;
 use cell_core::light::{BeamMsg, FrustumSummary, LightEnv, Port, Step};
 use cell_core::link::{Link, Sent};
 use cell_core::lit::LitRule;
+use cell_core::occluder::Triangle;
 use cell_core::reflect::Answer;
 use cell_core::reflect_cell::{ReflectAnswer, ReflectCell};
 use cell_core::shadow::{ShadowAnswer, ShadowCell, ShadowStep};
@@ -218,10 +219,16 @@ impl Tap {
         // Exact occluders (the only rule given occluders): each cell's own triangles follow (its
         // target ray it computes itself).
         if let Some(occ) = env.occluders {
-            for r in &mut self.recorders {
-                for t in occ.triangles(r.x as u16, r.y as u16) {
-                    r.push::<F>(&Event::Triangle(*t));
-                }
+            self.triangles::<F>(|x, y| occ.triangles(x as u16, y as u16));
+        }
+    }
+
+    /// After a setup record under exact occluders: each watched cell's own triangles,
+    /// `column(x, y)`, in the column's order.
+    fn triangles<'t, F: FracBits>(&mut self, column: impl Fn(u32, u32) -> &'t [Triangle]) {
+        for r in &mut self.recorders {
+            for t in column(r.x, r.y) {
+                r.push::<F>(&Event::Triangle(*t));
             }
         }
     }
@@ -232,11 +239,7 @@ impl Tap {
         let exact = setup.env.rule == LitRule::Exact;
         self.all::<U0>(&Event::Shadow(setup));
         if exact {
-            for r in &mut self.recorders {
-                for t in triangles.column(r.x, r.y) {
-                    r.push::<U0>(&Event::Triangle(*t));
-                }
-            }
+            self.triangles::<U0>(|x, y| triangles.column(x, y));
         }
     }
 
