@@ -52,9 +52,54 @@ pub struct RowEdge {
     pub c: i32,
     /// `g_i = a_i·x + b_i·y + d_i` at the current column.
     pub g: i64,
-    /// How far the conservative contour pushed the edge out (`g_i − off` is the facet's own
-    /// edge; 0 for the projected contour): the exact hit test of [`crate::visible`] uses it.
+    /// How far the conservative contour pushed the edge out, and whether the facet's own edge
+    /// holds its points ([`EdgeOff`]): the exact hit test of [`crate::visible`] uses it.
     pub off: i32,
+}
+
+impl RowEdge {
+    /// The edge's `off` field read ([`EdgeOff`]).
+    pub const fn off(&self) -> EdgeOff {
+        EdgeOff(self.off)
+    }
+}
+
+/// A contour edge's `off` field: the conservative push (`g_i − push` is the facet's own edge; 0
+/// for the projected contour), a multiple of 8 (½ voxel times the edge's lattice extent), and in
+/// bit 0 whether the facet's own edge **excludes** the points on it.
+///
+/// Vertices on the 1/16-voxel lattice move by up to 1/32 voxel, so an edge lying a fiftieth of
+/// a voxel beside a row of pixel centres in the world can land exactly on it; whether those
+/// centres meet the facet is then decided by the unrounded geometry, which only the host
+/// knows: it sets the bit where the world's edge lies inside the lattice edge (the centres on
+/// it are outside the world's facet). Two facets sharing an edge get opposite answers, so a
+/// point on their edge meets exactly one of them (or both, where the world's edge is the
+/// lattice's). Voxelization ignores the bit (`g_i` holds the push only).
+///
+/// ```
+/// use cell_core::facet::EdgeOff;
+///
+/// // A conservative edge pushed out by 24 units whose own points are outside the facet.
+/// let off = EdgeOff(24 | EdgeOff::STRICT);
+/// assert_eq!((off.push(), off.strict()), (24, true));
+/// assert_eq!((EdgeOff(24).push(), EdgeOff(24).strict()), (24, false));
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EdgeOff(pub i32);
+
+impl EdgeOff {
+    /// Bit 0 of `off`: the facet's own edge excludes its points.
+    pub const STRICT: i32 = 1;
+
+    /// The conservative push.
+    pub const fn push(self) -> i32 {
+        self.0 & !Self::STRICT
+    }
+
+    /// Whether the points on the facet's own edge are outside the facet.
+    pub const fn strict(self) -> bool {
+        self.0 & Self::STRICT != 0
+    }
 }
 
 /// One contour edge as a pipeline cell sees it (it also needs `b_i` to step down).
@@ -68,7 +113,7 @@ pub struct PipeEdge {
     pub c: i32,
     /// `g_i` at column (0, y).
     pub g: i64,
-    /// The conservative push (see [`RowEdge::off`]).
+    /// The conservative push and the edge's own-point rule ([`EdgeOff`]).
     pub off: i32,
 }
 

@@ -18,11 +18,14 @@
 //!
 //! The row packet at column (x, y) holds the facet's exact plane value along the column,
 //! `E(z) = P + c·z` ([`crate::facet::RowPacket::column_plane`]), and its contour edges
-//! `g_i + c_i·z ≥ 0` pushed out by `off_i` for the conservative contour. The centre line meets
+//! `g_i + c_i·z ≥ 0` pushed out by `off_i` (the push of [`crate::facet::EdgeOff`]) for the
+//! conservative contour. The centre line meets
 //! the plane at `z* = −P/c` (none when c = 0: the facet contains the view direction), and the
 //! point (x, y, z\*) lies on the facet iff it satisfies every edge without the push:
 //! `(g_i − off_i) + c_i·z* ≥ 0`, i.e. `(g_i − off_i)·den + c_i·num ≥ 0` with z\* = num/den,
-//! den > 0. (Each edge is a prism along the projection axis; a point of the plane is inside the
+//! den > 0 — or `> 0` for an edge the host marked strict, where the world's edge lies inside
+//! the lattice's ([`crate::facet::EdgeOff`]: a point exactly on a rounded edge follows the
+//! unrounded mesh). (Each edge is a prism along the projection axis; a point of the plane is inside the
 //! facet iff its projection is inside the projected polygon.) Depths compare by
 //! cross-multiplication. Everything is exact: `|g|·|c| < 2⁸⁶`, `|c_i|·|P| < 2⁸⁸` (`i128`).
 //!
@@ -131,7 +134,14 @@ pub fn hit(p: &RowPacket, depth: u32) -> Option<(i64, i64)> {
     if 2 * n < -d || 2 * n >= (2 * depth as i128 - 1) * d {
         return None;
     }
-    let inside = p.edges.iter().all(|e| (e.g as i128 - e.off as i128) * d + e.c as i128 * n >= 0);
+    let inside = p.edges.iter().all(|e| {
+        let v = (e.g as i128 - e.off().push() as i128) * d + e.c as i128 * n;
+        if e.off().strict() {
+            v > 0
+        } else {
+            v >= 0
+        }
+    });
     inside.then_some((num, den))
 }
 

@@ -74,7 +74,7 @@ use heapless::Vec;
 
 use crate::beam::{Beam, Direction, FarDistance, FarOffset, FracBits, Layer, RayRange, SourceId};
 use crate::dexel::FacetTag;
-use crate::facet::{FacetBox, PipeEdge, PipelinePacket, RowEdge, RowPacket, MAX_EDGES};
+use crate::facet::{EdgeOff, FacetBox, PipeEdge, PipelinePacket, RowEdge, RowPacket, MAX_EDGES};
 use crate::light::BeamMsg;
 use crate::normal::NormalCode;
 use crate::occluder::COORD_LIMIT;
@@ -485,7 +485,7 @@ pub fn get_row(r: &mut Reader<'_>) -> Result<RowPacket, DecodeError> {
         let ec = within(r.i32()? as i64, q * m, "edge coefficient beyond the bit budget")? as i32;
         let g = within(r.i64()?, worst_case_g(m, q), "edge value beyond the bit budget")?;
         let off = r.i32()?;
-        if !(0..=(q * m) as i32).contains(&off) {
+        if !(0..=(q * m) as i32 + EdgeOff::STRICT).contains(&off) {
             return Err(DecodeError::BadValue("edge push beyond the bit budget"));
         }
         // Cannot fail: count ≤ MAX_EDGES was checked.

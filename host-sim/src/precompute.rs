@@ -20,7 +20,7 @@
 
 use anyhow::{bail, Result};
 use cell_core::dexel::FacetTag;
-use cell_core::facet::{FacetBox, PipeEdge, PipelinePacket, MAX_EDGES};
+use cell_core::facet::{EdgeOff, FacetBox, PipeEdge, PipelinePacket, MAX_EDGES};
 use cell_core::normal::NormalCode;
 use cell_core::plane::FacetPlane;
 use cell_core::units::MAX_N;
@@ -103,7 +103,12 @@ pub struct Fit {
 impl Fit {
     /// Lattice coordinates of a world point (rounded to nearest).
     pub fn to_lattice(&self, p: [f64; 3]) -> [i64; 3] {
-        [0, 1, 2].map(|i| ((p[i] - self.origin[i]) / self.voxel * Q as f64).round() as i64)
+        self.to_lattice_f64(p).map(|c| c.round() as i64)
+    }
+
+    /// Lattice coordinates of a world point, unrounded.
+    pub fn to_lattice_f64(&self, p: [f64; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|i| (p[i] - self.origin[i]) / self.voxel * Q as f64)
     }
 
     /// World coordinates of a lattice point.
@@ -274,7 +279,22 @@ pub type PacketOrSkip = std::result::Result<PipelinePacket, Skip>;
 pub const MAX_LATTICE_COORD: u64 = 1 << 32;
 
 /// Build the packet of one planar convex lattice polygon (`Ok(Err(skip))`: skipped, with the reason).
+/// Its edges hold their points ([`facet_packet_of`] with the unrounded polygon decides).
 pub fn facet_packet(poly: &[[i64; 3]], tag: FacetTag, cfg: &LoadConfig) -> Result<PacketOrSkip> {
+    facet_packet_of(poly, None, tag, cfg)
+}
+
+/// [`facet_packet`] of a lattice polygon whose vertices were `world` before rounding (lattice
+/// units, [`Fit::to_lattice_f64`]): an edge whose unrounded counterpart lies inside it, by
+/// the sign of its edge function at the unrounded edge's midpoint, excludes its own points
+/// ([`cell_core::facet::EdgeOff`]), so a pixel centre the rounding put exactly on an edge
+/// meets the facet iff it meets the mesh's own.
+pub fn facet_packet_of(
+    poly: &[[i64; 3]],
+    world: Option<&[[f64; 3]]>,
+    tag: FacetTag,
+    cfg: &LoadConfig,
+) -> Result<PacketOrSkip> {
     // The i128 products below (normal · vertex) stay exact for |coordinate| ≤ 2^32 lattice
     // steps (normal components < 2^67, products < 2^101); a fitted mesh uses 0 ..= 16·n.
     if let Some(c) = poly.iter().flatten().find(|c| c.unsigned_abs() > MAX_LATTICE_COORD) {
@@ -318,8 +338,15 @@ pub fn facet_packet(poly: &[[i64; 3]], tag: FacetTag, cfg: &LoadConfig) -> Resul
         coef[ua] = -s * dv * q;
         coef[va] = s * du * q;
         let mut g0 = s * (du * (h - pi[va] as i128) - dv * (h - pi[ua] as i128));
-        let off = if conservative { h * (du.abs() + dv.abs()) } else { 0 };
-        g0 += off;
+        let push = if conservative { h * (du.abs() + dv.abs()) } else { 0 };
+        g0 += push;
+        // F at the unrounded edge's midpoint (lattice units): > 0, the mesh's edge lies inside.
+        let strict = world.is_some_and(|w| {
+            let mid = |k: usize| (w[i][k] + w[(i + 1) % w.len()][k]) / 2.0;
+            let f = du as f64 * (mid(va) - pi[va] as f64) - dv as f64 * (mid(ua) - pi[ua] as f64);
+            s as f64 * f > 0.0
+        });
+        let off = push | if strict { EdgeOff::STRICT as i128 } else { 0 };
         let e = PipeEdge {
             a: fits_i32(coef[0], "edge coefficient a_i")?,
             b: fits_i32(coef[1], "edge coefficient b_i")?,
@@ -537,7 +564,8 @@ pub fn prepare(mesh: &Mesh, cfg: &LoadConfig) -> Result<Prepared> {
     let mut planes = PlaneIds::default();
     let open = crate::scene::meshops::open_faces(mesh);
     for (fi, face) in mesh.faces.iter().enumerate() {
-        let lat: Vec<[i64; 3]> = face.verts.iter().map(|&v| fit.to_lattice(mesh.positions[v as usize])).collect();
+        let exact: Vec<[f64; 3]> = face.verts.iter().map(|&v| fit.to_lattice_f64(mesh.positions[v as usize])).collect();
+        let lat: Vec<[i64; 3]> = exact.iter().map(|c| c.map(|c| c.round() as i64)).collect();
         let (pieces, split) = match planar_pieces(lat.clone()) {
             Ok(pieces) => pieces,
             // Quantisation can fold a small polygon that is simple in the mesh: split the mesh's
@@ -566,7 +594,12 @@ pub fn prepare(mesh: &Mesh, cfg: &LoadConfig) -> Result<Prepared> {
                 normal: shading_normal(mesh, &fit, &piece, nrm),
                 plane: facet_plane(&piece, facet, open[fi], &mut planes),
             };
-            match facet_packet(&piece, tag, cfg)? {
+            // The piece's vertices before rounding (a lattice point two vertices share: the first).
+            let world: Vec<[f64; 3]> = piece
+                .iter()
+                .map(|p| lat.iter().position(|l| l == p).map_or(p.map(|c| c as f64), |k| exact[k]))
+                .collect();
+            match facet_packet_of(&piece, Some(&world), tag, cfg)? {
                 Ok(pkt) => {
                     out.packets.push(pkt);
                     out.polygons.push(piece);

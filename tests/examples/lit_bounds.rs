@@ -59,6 +59,9 @@
 //! there ([`Why`]): the reference's facet (`light`), a coincident surface (`coincident`), a
 //! surface past a silhouette edge the vertex lattice moved (`edge`), or `other`.
 //!
+//! `--refine` re-tests each variant's pixels on a shadow's edge (a covered 8-neighbour lit
+//! otherwise) with `truth` and prints how many.
+//!
 //! `--cuts` (window receivers) also counts, per variant, the (face, voxel) groups the rays visit
 //! and those where some rays stop and others go on: where a cell must cut its beams.
 //!
@@ -248,6 +251,8 @@ struct Walk<'a> {
     surfaces: Surfaces<'a>,
     columns: Columns<'a>,
     mesh: &'a Reference,
+    /// The mesh face of each facet id the machine loaded (the reference numbers faces).
+    source_face: &'a [u32],
     origin: [f64; 3],
     voxel: f64,
     /// Rays from the light itself (the `exact-source` variant).
@@ -637,7 +642,8 @@ impl Walk<'_> {
         // surface (their own lattice planes) shadow the point by rounding.
         let len = (0..3).map(|i| (light[i] - p[i]).powi(2)).sum::<f64>().sqrt();
         let p = [0, 1, 2].map(|i| p[i] + TRUTH_OFFSET * (light[i] - p[i]) / len);
-        g(light) > 0.0 && self.mesh.visible(world(p), world(light), &[vis.facet])
+        let face = self.source_face.get(vis.facet as usize).copied().unwrap_or(u32::MAX);
+        g(light) > 0.0 && self.mesh.visible(world(p), world(light), &[face])
     }
 
     /// The cell's receiver: whether column c's target ray reaches its voxel.
@@ -1010,6 +1016,7 @@ fn main() {
     // `--light X,Y,Z` (grid-normalised, repeatable), as `render` takes it.
     // `--cuts`: count the (face, voxel) groups of rays whose fates differ there (see `Cuts`).
     let cuts_flag = args.iter().position(|a| a == "--cuts").map(|i| args.remove(i)).is_some();
+    let refine_flag = args.iter().position(|a| a == "--refine").map(|i| args.remove(i)).is_some();
     let mut cli_lights = Vec::new();
     while let Some(i) = args.iter().position(|a| a == "--light") {
         let parsed = args.get(i + 1).and_then(|v| {
@@ -1095,6 +1102,7 @@ fn main() {
                 surfaces: &surfaces,
                 columns: &columns,
                 mesh: &exact,
+                source_face: &loaded.source_face,
                 origin: loaded.fit.origin,
                 voxel: loaded.fit.voxel,
                 exact_source: var.exact_source,
@@ -1131,6 +1139,7 @@ fn main() {
                 }
                 cols
             };
+            let cols = if refine_flag { refine(&walk, cols, n as i64) } else { cols };
             for c in cols {
                 *lit.entry(c).or_insert(0) |= 1 << i;
             }
@@ -1152,6 +1161,39 @@ fn main() {
             c.shadow_disagreement_pct, c.psnr_db, why.light, why.coincident, why.edge, why.other
         );
     }
+}
+
+/// `--refine`: each covered pixel with a covered 8-neighbour lit otherwise (a pixel on a
+/// shadow's edge) takes the [`Receiver::Truth`] answer, as one exact shadow ray from it would
+/// give: what re-testing only the edges of the diffused shadows could gain.
+fn refine(walk: &Walk, cols: Vec<[i64; 2]>, n: i64) -> Vec<[i64; 2]> {
+    let set: std::collections::HashSet<[i64; 2]> = cols.into_iter().collect();
+    let covered = |c: [i64; 2]| (walk.visible)(c[0], c[1]).is_some();
+    let mut out = Vec::new();
+    let mut refined = 0;
+    for x in 0..n {
+        for y in 0..n {
+            let c = [x, y];
+            if !covered(c) {
+                continue;
+            }
+            let me = set.contains(&c);
+            let edge = (-1..=1)
+                .flat_map(|dx| (-1..=1).map(move |dy| [x + dx, y + dy]))
+                .any(|q| q[0] >= 0 && q[1] >= 0 && q[0] < n && q[1] < n && covered(q) && set.contains(&q) != me);
+            let lit = if edge {
+                refined += 1;
+                walk.truth_lit(c)
+            } else {
+                me
+            };
+            if lit {
+                out.push(c);
+            }
+        }
+    }
+    eprintln!("refined {refined} pixels");
+    out
 }
 
 /// The pixels whose lit flags differ from the reference's (light 1), by what the machine sees
@@ -1202,7 +1244,7 @@ impl Why {
                 })
             };
             match hit(x, y) {
-                _ if vis.facet == reference.facet[i] => why.light += 1,
+                _ if loaded.source_face.get(vis.facet as usize) == Some(&reference.facet[i]) => why.light += 1,
                 Some((r, nrm)) if (r - z).abs() <= 1.0 / 16.0 && parallel(nrm) => why.coincident += 1,
                 Some((r, _)) if (r - z).abs() > 0.5 && moved() => why.edge += 1,
                 _ => why.other += 1,

@@ -292,6 +292,51 @@ fn segment_square_test() {
     assert!(!segment_meets_square([1.0, 0.0], [1.0, 3.0], [1.3, 2.0], 0.25));
 }
 
+/// A front quad over a back wall, its top edge `dy` voxel from the centre line of pixel row 20
+/// (n = 34: the wall's unit square spans 32 voxels, the row's centre line at y = 19.5/32).
+fn ledge(dy: f64) -> Mesh {
+    let top = (19.5 + dy) / 32.0;
+    let obj = format!(
+        "v 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\nv 0.2 0.2 0.5\nv 0.8 0.2 0.5\nv 0.8 {top} 0.5\nv 0.2 {top} 0.5\n\
+         f 1 2 3 4\nf 5 6 7 8\n"
+    );
+    host_sim::scene::mesh::load_obj_bytes("ledge", obj.as_bytes(), None).unwrap()
+}
+
+/// An edge a fiftieth of a voxel beside a row of pixel centres lands on it when its vertices
+/// are rounded to the 1/16-voxel lattice; the row then shows what the unrounded mesh shows
+/// there (the f64 reference's facet, pixel for pixel): the front quad with its edge just above
+/// the row, the wall with it just below, and the front quad with it exactly on the lattice
+/// (its points are its own). Before the host marked such edges ([`cell_core::facet::EdgeOff`])
+/// the row showed the front quad either way.
+#[test]
+fn a_row_of_pixel_centres_the_rounding_puts_on_an_edge_shows_the_mesh_side() {
+    let n = 34;
+    for dy in [0.02, -0.02, 0.0, 0.03, -0.03] {
+        let mesh = ledge(dy);
+        let (loaded, lights) = {
+            let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
+            let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
+            let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[[0.5, 0.5, 0.0]]).unwrap();
+            (loaded, lights)
+        };
+        let fit = loaded.fit;
+        assert_eq!(fit.to_lattice([0.5, (19.5 + dy) / 32.0, 0.5])[1], 16 * 20 + 8, "dy {dy}: the edge lands on row 20");
+        let rcfg = RenderConfig::diffusion(LightConfig::default(), NormalMode::Facet);
+        let reference = host_sim::jobs::render::reference_image(&mesh, &loaded, &lights, &rcfg).unwrap();
+        let mut front = 0;
+        for x in 10..=22 {
+            let i = (20 * n + x) as usize;
+            let vis = loaded.grid.cell(x, 20).visible.expect("the wall is behind every pixel");
+            let shown = loaded.source_face[vis.facet as usize];
+            assert!(reference.covered[i]);
+            assert_eq!(shown, reference.facet[i], "dy {dy}: pixel ({x}, 20) shows face {shown}");
+            front += (shown == 1) as u32;
+        }
+        assert_eq!(front > 0, dy >= 0.0, "dy {dy}: {front} pixels of row 20 show the front quad");
+    }
+}
+
 /// One quad, the plane y = z/2 (seen from z = −∞ it is tilted in screen space), wound `front`
 /// toward the viewer or away from it.
 fn tilted_sheet(front: bool) -> Mesh {
