@@ -14,6 +14,8 @@
 #                   against the triangles of the columns it crosses: exact occluders)
 #   classic-plane   --lighting classic --lit-rule plane (the plane principle)
 #   classic-thesis  --lighting classic --lit-rule thesis (from voxel centres, the thesis's test)
+#   refined         --lighting refined: the defaults, then one classic shadow ray (exact
+#                   occluders) from each pixel on a diffused shadow's edge (cycles: both phases)
 #   exact-voxel     exact occluders with the thesis's rays (from the source voxel)
 # NS (default "128 256") and SCENES (default "cornell teapot-floor cow-floor bureau1") choose the
 # runs. Writes bench-out/lit-rules.csv and prints it as a table.
@@ -39,6 +41,7 @@ for n in $NS; do
         classic-plane) opts=(--lighting classic --lit-rule plane) ;;
         classic-thesis) opts=(--lighting classic --lit-rule thesis) ;;
         exact) opts=() ;;
+        refined) opts=(--lighting refined) ;;
         exact-voxel) opts=(--lit-rule exact --rays-from voxel) ;;
         *) echo "unknown method $m" >&2; exit 2 ;;
       esac
@@ -48,7 +51,8 @@ for n in $NS; do
 import json, sys
 s = json.load(open(sys.argv[1])); l = s['light']; r = s['reference']
 work = l.get('beams_processed') or l.get('rays') or 0
-print(f"{sys.argv[2]},{sys.argv[3]},{sys.argv[4]},{l['cycles']},{work},{r['shadow_disagreement_pct']:.2f},"
+cycles = l['cycles'] + ((s.get('refine') or {}).get('cycles') or 0)
+print(f"{sys.argv[2]},{sys.argv[3]},{sys.argv[4]},{cycles},{work},{r['shadow_disagreement_pct']:.2f},"
       f"{r['psnr_db']:.2f},{s['light_seconds']:.2f},{s['wall_seconds']:.2f}")
 PY
       tail -1 "$CSV"

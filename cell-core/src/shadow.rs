@@ -164,6 +164,30 @@ pub struct ShadowCounters {
     pub overflows: u32,
 }
 
+/// Whether a pixel lies on the edge of a diffused shadow: it shows a surface, lit (`own`) or
+/// not by the source, and a neighbour that shows one (each of the 8 links brings the
+/// neighbour's bit, `None` where it shows nothing or there is no neighbour) has the other bit.
+///
+/// Shadow-edge refinement (rc2's, after diffusion; not the thesis's): the pixels on an edge are
+/// where the diffused answer may be off — its target ray passes up to half a voxel from the
+/// exact ray to the pixel — and they alone send a classic shadow ray, whose answer replaces
+/// the diffused one. One exchange of a bit per link and source finds them.
+///
+/// ```
+/// use cell_core::shadow::on_shadow_edge;
+///
+/// let dark = [Some(false); 8];
+/// assert!(!on_shadow_edge(Some(false), dark)); // inside a shadow
+/// let mut edge = dark;
+/// edge[3] = Some(true);
+/// assert!(on_shadow_edge(Some(false), edge)); // one lit neighbour
+/// assert!(!on_shadow_edge(None, edge)); // no surface, no ray
+/// assert!(!on_shadow_edge(Some(true), [None; 8])); // a pixel alone
+/// ```
+pub fn on_shadow_edge(own: Option<bool>, around: [Option<bool>; 8]) -> bool {
+    own.is_some_and(|o| around.iter().flatten().any(|&b| b != o))
+}
+
 /// Where the next emission comes from: the visible surface (plane rule), then the voxels of the
 /// dexels in order.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -216,6 +240,18 @@ impl<const FA: usize> ShadowCell<FA> {
             }
         };
         self.launch(cell, env).map(|_| ())
+    }
+
+    /// [`ShadowCell::start`] if `emit`, else nothing to emit: the cell only walks the rays that
+    /// reach it and records answers. Shadow-edge refinement starts the pixels
+    /// [`on_shadow_edge`] names this way.
+    pub fn start_if<const D: usize>(&mut self, cell: &Cell<D>, env: &ShadowEnv, emit: bool) -> Result<(), EmitError> {
+        if emit {
+            self.start(cell, env)
+        } else {
+            self.emitter = Emitter::default();
+            Ok(())
+        }
     }
 
     /// Emit rays while the FIFO is below the limit and emission is left; returns how many.

@@ -163,6 +163,13 @@ fn bad_arguments_fail_clearly() {
             "--rays-from light is a diffusion option",
         ),
         (&["render", "--n", "16", "--fa", "2"], "--rays-from voxel"),
+        (&["light", "--n", "16", "--lighting", "refined"], "is a render option"),
+        (&["trace", "--n", "16", "--lighting", "refined", "--out", "/nonexistent/t"], "not recorded by trace"),
+        (&["render", "--n", "16", "--lighting", "refined", "--lit-rule", "thesis"], "needs visible surfaces"),
+        (
+            &["render", "cornell-mirror", "--n", "16", "--lighting", "refined", "--reflections", "1"],
+            "without --reflections",
+        ),
         (
             &[
                 "trace",

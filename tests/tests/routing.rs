@@ -320,6 +320,79 @@ fn classic_exact_answers_match_every_triangle() {
     }
 }
 
+/// Shadow-edge refinement (`host_sim::machine::classic::refine_edges`, after diffusion): a
+/// pixel whose 8-neighbourhood holds a pixel lit otherwise by a source (computed here from
+/// the masks) takes the exact segment's answer for it (`oracle::shadow::lit_exact`, every
+/// triangle of the scene); every other pixel keeps its diffused bit. On the Cornell box and
+/// the teapot on its floor (n = 32, two sources each, one grazing), after diffusion under the
+/// plane rule and under exact occluders, FIFOs of 1 and 16 and both routings; the counters
+/// count the edges and the bits changed, and some bits do change.
+#[test]
+fn refined_shadow_edges_take_the_exact_answer_and_the_rest_keeps_the_diffused_one() {
+    use cell_core::beam::frac::U0;
+    use cell_core::lit::LitRule;
+    use host_sim::machine::classic::{refine_edges, ClassicConfig};
+    use host_sim::machine::diffuse::LightConfig;
+
+    let mut changed = 0;
+    for (scene, extra) in [("cornell", [3.0, 20.0, 9.5]), ("teapot-floor", [30.0, 2.0, 4.0])] {
+        let mesh = host_sim::scene::load(scene).unwrap();
+        let n = 32usize;
+        let (loaded, tris) = exact_scene(scene, n as u32);
+        let mut lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
+        lights.push(extra);
+        let (want, _) =
+            oracle_masks(&loaded.grid, &lattice(&lights), |e, b| rc2_tests::oracle::shadow::lit_exact(e, b, &tris));
+        for rule in [LitRule::Plane, LitRule::Exact] {
+            let lcfg = LightConfig { rule, ..LightConfig::default() };
+            let (lighting, _) =
+                host_sim::machine::lighting::run_diffusion::<U0>(&mesh, &loaded, &lights, &lcfg, |_, _| {}).unwrap();
+            let diffused: Vec<u32> =
+                (0..n * n).map(|i| lighting.visible_mask((i % n) as u32, (i / n) as u32)).collect();
+            let shows = |i: usize| loaded.grid.cells[i].visible.is_some();
+            for (fa, route) in [(1, RoutePolicy::DiagonalFirst), (16, RoutePolicy::Adaptive)] {
+                let cfg = ClassicConfig {
+                    fa,
+                    connectivity: cell_core::ray::Connectivity::Six,
+                    route,
+                    all_voxels: false,
+                    bias: 0,
+                    rule: LitRule::Exact,
+                };
+                let mut masks = diffused.clone();
+                let k = refine_edges(&loaded, &lights, &mut masks, &cfg, |_, _| {}).unwrap();
+                let (mut edges, mut diff) = (0, 0);
+                for i in (0..n * n).filter(|&i| shows(i)) {
+                    let (x, y) = ((i % n) as i64, (i / n) as i64);
+                    for s in 0..lights.len() {
+                        let bit = |m: u32| m >> s & 1;
+                        let edge = (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (x + dx, y + dy))).any(|(u, v)| {
+                            let j = v * n as i64 + u;
+                            (0..n as i64).contains(&u)
+                                && (0..n as i64).contains(&v)
+                                && shows(j as usize)
+                                && bit(diffused[j as usize]) != bit(diffused[i])
+                        });
+                        let expect = if edge { bit(want[i]) } else { bit(diffused[i]) };
+                        assert_eq!(
+                            bit(masks[i]),
+                            expect,
+                            "{scene} {rule:?} FA {fa}: pixel ({x}, {y}), source {s}, edge {edge}"
+                        );
+                        edges += edge as u64;
+                        diff += (bit(masks[i]) != bit(diffused[i])) as u64;
+                    }
+                }
+                assert!(edges > 0, "{scene} {rule:?}: shadow edges to refine");
+                assert_eq!((k.edge_pixels, k.changed), (edges, diff), "{scene} {rule:?} FA {fa}: counters");
+                assert_eq!(k.classic.rays + k.classic.back_facing, edges, "one ray per edge pixel");
+                changed += diff;
+            }
+        }
+    }
+    assert!(changed > 0, "the refinement changed some diffused bits");
+}
+
 /// Runs the classic phase of `loaded` under `rule` with FIFOs of 1, 2 and 16 and both
 /// routings, then with every occupied voxel emitting: each gives `want` (the oracle's masks,
 /// both lit and shadowed surfaces among them), one ray per surface facing a source, one answer

@@ -66,6 +66,7 @@ impl LightOpts {
             skip_hidden: a.skip_hidden,
             frustum_blocks: a.frustum_blocks.map(Into::into),
             classic: (a.classic.lighting == LightingArg::Classic).then(|| a.classic.config(a.fa, rule)),
+            refine: (a.classic.lighting == LightingArg::Refined).then(|| a.classic.config(a.fa, rule)),
         }
     }
 }

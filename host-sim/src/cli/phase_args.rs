@@ -18,6 +18,9 @@ pub enum LightingArg {
     Diffusion,
     /// One shadow ray per visible voxel and source, answers routed back (§4.1.2).
     Classic,
+    /// Beam diffusion, then one classic shadow ray from each pixel on a diffused shadow's edge
+    /// (a neighbour lit otherwise), whose answer replaces the diffused one (`render` only).
+    Refined,
 }
 
 /// Answer routing of the classic phase.
@@ -32,7 +35,9 @@ pub enum RouteArg {
 /// Command-line options of the classic phase (flattened into the lighting options).
 #[derive(clap::Args, Debug, Clone)]
 pub struct ClassicOpts {
-    /// Lighting method: diffusion (beams) or classic (shadow rays, answers routed back).
+    /// Lighting method: diffusion (beams), classic (shadow rays, answers routed back), or
+    /// refined (diffusion, then classic shadow rays from the pixels on shadow edges only:
+    /// bureau1 n = 128 29.3 → 33.7 dB, BENCHMARKS.md).
     #[arg(long, value_enum, default_value_t = LightingArg::Diffusion)]
     pub lighting: LightingArg,
     /// Connectivity of classic shadow rays: 6 (Amanatides–Woo; no surface thickness lets it

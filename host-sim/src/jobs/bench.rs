@@ -1,5 +1,6 @@
 //! `host-sim bench`: run time against error. Sweeps the knobs that trade speed for accuracy —
-//! fraction bits f, thickness, contour, the lit rule, normals, FIFO size, policy — renders each
+//! fraction bits f, thickness, contour, the lit rule and its rays' origin, shadow-edge
+//! refinement, normals, FIFO size, policy — renders each
 //! configuration, compares it with the f64 reference (ray-cast once per scene and n), and keeps
 //! machine cycles, wall time, bytes per cell, shadow disagreement and PSNR. The Pareto front is
 //! error against machine cycles.
@@ -9,11 +10,13 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Result;
+use cell_core::beam::Origin;
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
 
-use crate::jobs::render::{reference_image, render, RenderConfig, RenderInput, RenderStats};
+use crate::jobs::render::{reference_image, render, RenderConfig, RenderInput, RenderLighting, RenderStats};
+use crate::machine::classic::ClassicConfig;
 use crate::machine::diffuse::LightConfig;
 use crate::machine::lighting::policy_name;
 use crate::machine::loaded::{load_scene, resolve_lights};
@@ -40,6 +43,10 @@ pub struct Knobs {
     pub policy: Policy,
     /// The lit rule.
     pub rule: LitRule,
+    /// Where the rays leave from.
+    pub rays: Origin,
+    /// Shadow-edge refinement after diffusion (`--lighting refined`).
+    pub refine: bool,
 }
 
 impl Knobs {
@@ -51,7 +58,9 @@ impl Knobs {
         normals: NormalMode::Facet,
         fa: 16,
         policy: Policy::Radial,
-        rule: LitRule::Plane,
+        rule: LitRule::Exact,
+        rays: Origin::Light,
+        refine: false,
     };
 
     /// What `render` ran with no options before the plane rule: the thesis's rule on thin
@@ -62,13 +71,14 @@ impl Knobs {
         contour: Contour::Projected,
         policy: Policy::Wavefront,
         rule: LitRule::Thesis,
+        rays: Origin::SourceVoxel,
         ..Knobs::DEFAULT
     };
 
-    /// The CSV columns `f,thickness,contour,normals,fa,policy,rule,is_default`.
+    /// The CSV columns `f,thickness,contour,normals,fa,policy,rule,rays,refined,is_default`.
     fn csv(&self) -> String {
         format!(
-            "{},{:?},{:?},{:?},{},{},{:?},{}",
+            "{},{:?},{:?},{:?},{},{},{:?},{:?},{},{}",
             self.f,
             self.thickness,
             self.contour,
@@ -76,6 +86,8 @@ impl Knobs {
             self.fa,
             policy_name(self.policy),
             self.rule,
+            self.rays,
+            self.refine,
             *self == Knobs::DEFAULT
         )
     }
@@ -86,6 +98,12 @@ impl Knobs {
         let mut parts = vec![format!("f={}", self.f)];
         if self.rule != d.rule {
             parts.push(format!("{:?} rule", self.rule).to_lowercase());
+        }
+        if self.rays != d.rays {
+            parts.push(format!("rays from the {}", if self.rays == Origin::Light { "light" } else { "source voxel" }));
+        }
+        if self.refine {
+            parts.push("refined edges".into());
         }
         if self.thickness != d.thickness {
             parts.push(format!("{:?}", self.thickness).to_lowercase());
@@ -106,22 +124,26 @@ impl Knobs {
     }
 }
 
-/// The sweep: every (f, thickness, contour) combination under each lit rule at the default
-/// normals, FIFO and policy, the former default, then each remaining knob varied alone around
-/// the default.
+/// The sweep: every (f, thickness, contour) combination under each lit rule (exact occluders
+/// with rays from the light, the others from the source voxel) at the default normals, FIFO
+/// and policy, the former default, shadow-edge refinement at each f, then each remaining
+/// knob varied alone around the default.
 pub fn sweep(fs: &[u32]) -> Vec<Knobs> {
     let d = Knobs::DEFAULT;
     let mut v = Vec::new();
-    for rule in [LitRule::Plane, LitRule::Thesis] {
+    for (rule, rays) in
+        [(LitRule::Exact, Origin::Light), (LitRule::Plane, Origin::SourceVoxel), (LitRule::Thesis, Origin::SourceVoxel)]
+    {
         for &f in fs {
             for thickness in [Thickness::Naive, Thickness::Thesis, Thickness::Standard] {
                 for contour in [Contour::Projected, Contour::Conservative] {
-                    v.push(Knobs { f, thickness, contour, rule, ..d });
+                    v.push(Knobs { f, thickness, contour, rule, rays, ..d });
                 }
             }
         }
     }
     v.push(Knobs::THESIS_FORMER);
+    v.extend(fs.iter().map(|&f| Knobs { f, refine: true, ..d }));
     v.push(Knobs { normals: NormalMode::Face, ..d });
     for fa in [4, 64] {
         v.push(Knobs { fa, ..d });
@@ -180,7 +202,7 @@ pub fn run_bench(
     let mut csv = crate::report::files::create(csv_path)?;
     writeln!(
         csv,
-        "scene,n,f,thickness,contour,normals,fa,policy,rule,is_default,load_cycles,light_cycles,shade_cycles,cycles,t_over_lb,beams,bytes_per_cell,wall_seconds,shadow_disagreement_pct,coverage_disagreement_pct,psnr_db,pareto"
+        "scene,n,f,thickness,contour,normals,fa,policy,rule,rays,refined,is_default,load_cycles,light_cycles,shade_cycles,cycles,t_over_lb,beams,bytes_per_cell,wall_seconds,shadow_disagreement_pct,coverage_disagreement_pct,psnr_db,pareto"
     )?;
     let knobs = sweep(fs);
     let names: Vec<&str> = meshes.iter().map(|m| m.name.as_str()).collect();
@@ -246,10 +268,24 @@ fn measure(mesh: &Mesh, n: u32, k: &Knobs, reference: &mut Option<RefImage>) -> 
             merge: k.policy.by_layer(),
             record_visits: false,
             rule: k.rule,
+            rays: k.rays,
             ..Default::default()
         },
         k.normals,
     );
+    let rcfg = if k.refine {
+        let rays = ClassicConfig {
+            fa: k.fa.min(crate::machine::capacity::SHADOW_FA_CAP),
+            connectivity: cell_core::ray::Connectivity::Six,
+            route: cell_core::route::RoutePolicy::Adaptive,
+            all_voxels: false,
+            bias: 0,
+            rule: k.rule,
+        };
+        RenderConfig { lighting: RenderLighting::Refined(rays), ..rcfg }
+    } else {
+        rcfg
+    };
     if reference.is_none() {
         *reference = Some(reference_image(mesh, &loaded, &lights, &rcfg)?);
     }
@@ -258,7 +294,8 @@ fn measure(mesh: &Mesh, n: u32, k: &Knobs, reference: &mut Option<RefImage>) -> 
         .unwrap_or_else(|| Err(anyhow::anyhow!("--frac-bits {} is not supported", k.f)))?;
     let st = r.stats;
     let cmp = st.reference.expect("compared with the reference");
-    let cycles = st.light.load_cycles + st.light.totals.cycles + st.shade_cycles;
+    let refine_cycles = st.refine.as_ref().map_or(0, |r| r.cycles);
+    let cycles = st.light.load_cycles + st.light.totals.cycles + refine_cycles + st.shade_cycles;
     // A cell compiled for this FIFO size (the host compiles FA_CAP, limits at run time).
     let bytes = st.bytes_per_cell - (crate::machine::capacity::FA_CAP - k.fa) * st.light.bytes_beam_message;
     Ok(Measured { stats: st, cmp, cycles, bytes })
@@ -272,7 +309,7 @@ fn write_row(csv: &mut impl Write, scene: &str, n: u32, k: &Knobs, r: &Measured)
         "{scene},{n},{},{},{},{},{},{:.4},{},{},{:.4},{:.4},{:.4},{:.4},",
         k.csv(),
         st.light.load_cycles,
-        st.light.totals.cycles,
+        st.light.totals.cycles + st.refine.as_ref().map_or(0, |r| r.cycles),
         st.shade_cycles,
         r.cycles,
         st.light.t_over_lb,

@@ -44,6 +44,8 @@ pub struct LightingOptions {
     pub frustum_blocks: Option<FrustumBlocks>,
     /// Classic shadow rays instead of diffusion (`render`, `light`, `trace`).
     pub classic: Option<ClassicConfig>,
+    /// Shadow-edge refinement after diffusion, with these shadow rays (`render`).
+    pub refine: Option<ClassicConfig>,
 }
 
 impl LightingOptions {
@@ -111,6 +113,9 @@ fn run_with<F: FracBits>(o: &LightOptions) -> Result<()> {
     let loaded = load_scene(&mesh, &o.load)?;
     let lights = resolve_lights(&mesh, &loaded, &o.light.lights)?;
     let lcfg = o.light.config_for(false)?;
+    if o.light.refine.is_some() {
+        bail!("--lighting refined is a render option (it refines the pixels' lit state): use render");
+    }
     let pb = progress::bar(o.quiet, "light");
     if let Some(ccfg) = &o.light.classic {
         let (cl, stats) = run_classic::<F>(&mesh, &loaded, &lights, ccfg, progress::light(&pb))?;

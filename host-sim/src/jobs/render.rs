@@ -20,7 +20,7 @@ use cell_core::shade::NormalMode;
 
 use crate::jobs::light::{print_link_faults, surfaces, unsupported_frac_bits, LightingOptions};
 use crate::jobs::render_radiosity::{self, DisplayPsnr, RadiosityRenderStats, RenderRadiosity};
-use crate::machine::classic::{run_classic, ClassicConfig, ClassicCounts};
+use crate::machine::classic::{refine_edges, run_classic, ClassicConfig, ClassicCounts, RefineCounts};
 use crate::machine::diffuse::LightConfig;
 use crate::machine::indirect::Display;
 use crate::machine::lighting::{run_diffusion, LightStats};
@@ -63,6 +63,9 @@ pub struct RenderStats {
     pub reference: Option<crate::truth::compare::Comparison>,
     /// With `--radiosity`: the solution, its display and their costs.
     pub radiosity: Option<RadiosityRenderStats>,
+    /// With `--lighting refined`: the shadow-edge refinement's counters (its cycles come after
+    /// `light.cycles`).
+    pub refine: Option<RefineCounts>,
     /// Wall time: load, light, shade, reference.
     pub load_seconds: f64,
     /// Lighting wall time.
@@ -84,6 +87,9 @@ pub enum RenderLighting {
     Diffusion,
     /// One classic shadow ray per visible voxel and source, answers routed back (§4.1.2).
     Classic(ClassicConfig),
+    /// Beam diffusion, then shadow-edge refinement with these shadow rays
+    /// ([`crate::machine::classic::refine_edges`]).
+    Refined(ClassicConfig),
     /// Beam diffusion, then the reflection phase (§5.2): reflective visible voxels get
     /// `local + Kr · answer`, every other pixel is the plain render's.
     Reflections(ReflectConfig),
@@ -151,7 +157,9 @@ pub fn reference_image(
     let rl = ref_lights(&point_lights(light_positions));
     let refl = match &cfg.lighting {
         RenderLighting::Reflections(r) => RefReflect { depth: r.depth as u32, threshold: r.threshold as f64 },
-        RenderLighting::Diffusion | RenderLighting::Classic(_) => RefReflect { depth: 0, threshold: 0.0 },
+        RenderLighting::Diffusion | RenderLighting::Classic(_) | RenderLighting::Refined(_) => {
+            RefReflect { depth: 0, threshold: 0.0 }
+        }
     };
     crate::truth::refrender::render_reference_reflect(mesh, &scene.fit, scene.grid.n, &rl, [AMBIENT as f64; 3], &refl)
 }
@@ -180,6 +188,7 @@ pub fn render<F: FracBits>(
     match &cfg.lighting {
         RenderLighting::Diffusion => render_diffusion::<F>(input, cfg, progress),
         RenderLighting::Classic(c) => render_classic::<F>(input, cfg, c, progress),
+        RenderLighting::Refined(c) => render_refined::<F>(input, cfg, c, progress),
         RenderLighting::Reflections(r) => render_reflect::<F>(input, cfg, r, progress),
     }
 }
@@ -194,6 +203,27 @@ fn render_diffusion<F: FracBits>(
     let light_seconds = t0.elapsed().as_secs_f64();
     let rendered = shade(input, cfg, &seen(&lighting), lstats, light_seconds);
     Ok(rendered)
+}
+
+/// Diffusion, then shadow-edge refinement of the visible masks, then the same shading; the
+/// refinement's counters go into the statistics (`refine`).
+fn render_refined<F: FracBits>(
+    input: &RenderInput<'_>,
+    cfg: &RenderConfig,
+    classic_cfg: &ClassicConfig,
+    mut progress: impl FnMut(usize, u64),
+) -> Result<Rendered> {
+    let t0 = Instant::now();
+    let (lighting, lstats) = run_diffusion::<F>(input.mesh, input.scene, input.lights, &cfg.light, &mut progress)?;
+    let n = input.scene.grid.n;
+    let mut masks: Vec<cell_core::light::SourceMask> =
+        (0..n * n).map(|i| lighting.visible_mask(i % n, i / n)).collect();
+    let refine = refine_edges(input.scene, input.lights, &mut masks, classic_cfg, progress)?;
+    let light_seconds = t0.elapsed().as_secs_f64();
+    let seen = Seen::Surface(Box::new(|x, y| masks[(y * n + x) as usize]));
+    let mut r = shade(input, cfg, &seen, lstats, light_seconds);
+    r.stats.refine = Some(refine);
+    Ok(r)
 }
 
 /// Classic shadow rays, then the same shading and report as diffusion.
@@ -312,6 +342,7 @@ fn shade(
         peak_rss_mib: crate::machine::load::peak_rss_mib(),
         light: lstats,
         radiosity: None,
+        refine: None,
     };
     Rendered { image, stats, classic: None, reflections: None, direct_only }
 }
@@ -366,8 +397,14 @@ impl RenderOptions {
                 RenderLighting::Reflections(*r)
             }
             (None, Some(c)) => RenderLighting::Classic(*c),
-            (None, None) => RenderLighting::Diffusion,
+            (None, None) => match &self.light.refine {
+                Some(c) => RenderLighting::Refined(*c),
+                None => RenderLighting::Diffusion,
+            },
         };
+        if self.light.refine.is_some() && (self.reflections.is_some() || self.radiosity.is_some()) {
+            bail!("--lighting refined refines the direct light's image: run it without --reflections and --radiosity");
+        }
         let reflecting = self.reflections.is_some();
         if reflecting && self.radiosity.is_some() {
             bail!(
@@ -594,6 +631,12 @@ fn print_summary(load: &LoadConfig, r: &Rendered, written: &[String]) {
     );
     if let Some(c) = &r.classic {
         eprintln!("  {}", crate::machine::classic::summary(c));
+    }
+    if let Some(k) = &s.refine {
+        eprintln!(
+            "  shadow edges: {} (pixel, light) pairs re-tested by shadow rays, {} changed, {} more cycles",
+            k.edge_pixels, k.changed, k.cycles
+        );
     }
     if let Some(c) = &r.reflections {
         eprintln!("  {}", crate::machine::reflect::summary(c));

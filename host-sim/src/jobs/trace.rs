@@ -258,6 +258,9 @@ fn run_with<F: FracBits>(o: &TraceOptions) -> Result<()> {
         crate::scene::camera::ViewChoice::Auto if o.reflections.is_some() => crate::scene::camera::ViewChoice::Fitted,
         v => v,
     };
+    if o.light.refine.is_some() {
+        bail!("--lighting refined is not recorded by trace: record --lighting diffusion and --lighting classic");
+    }
     let mesh = crate::scene::camera::apply(crate::scene::load(&o.scene)?, &view, o.load.n)?;
     let job = TraceJob {
         mesh: &mesh,

@@ -31,6 +31,10 @@
 //!    and cycle, whatever its kind.
 //! 3. each router hands at most one answer per cycle to its cell, which records it.
 //!
+//! **Shadow-edge refinement** ([`refine_edges`], `render --lighting refined`) runs the same
+//! cycle model after diffusion with only the cells on a diffused shadow's edge emitting
+//! ([`cell_core::shadow::on_shadow_edge`], [`ShadowCell::start_if`]).
+//!
 //! **No deadlock**: every ray ends in the source's voxel and its cell steps go monotonically
 //! toward it (18/26 rays aim at the voxel's centre, see [`ShadowRay::new`]), so every ray
 //! move strictly decreases |x − x_s| + |y − y_s| and the cells' waits for FIFO space are
@@ -213,24 +217,27 @@ pub fn classic_tapped(
     let mut per_source = Vec::new();
     let mut totals = ClassicCounts::default();
     for (si, &l) in lights.iter().enumerate() {
-        let c = classic_one(scene, l, si, cfg, &mut masks, tap.as_deref_mut(), |c| progress(si, c))?;
+        let c = classic_one(scene, l, si, cfg, None, &mut masks, tap.as_deref_mut(), |c| progress(si, c))?;
         totals.add(&c);
         per_source.push(c);
     }
     Ok(ClassicLighting { n, masks, per_source, totals })
 }
 
-/// One source's classic run: the cycle loop over the phases of [`ClassicRun`].
+/// One source's classic run: the cycle loop over the phases of [`ClassicRun`]; `emit`: the
+/// cells that emit (`None`: all).
+#[allow(clippy::too_many_arguments)]
 fn classic_one(
     scene: &LoadedScene,
     light: [f64; 3],
     si: usize,
     cfg: &ClassicConfig,
+    emit: Option<&[bool]>,
     masks: &mut [SourceMask],
     tap: Option<&mut Tap>,
     mut progress: impl FnMut(u64),
 ) -> Result<ClassicCounts> {
-    let mut run = ClassicRun::new(scene, light, si, cfg, tap)?;
+    let mut run = ClassicRun::new(scene, light, si, cfg, emit, tap)?;
     while run.rays_in_flight > 0 || run.net.in_flight > 0 || run.emitters > 0 {
         let mut moved = run.compute()?;
         moved += run.answers();
@@ -298,6 +305,7 @@ impl<'a> ClassicRun<'a> {
         light: [f64; 3],
         si: usize,
         cfg: &'a ClassicConfig,
+        emit: Option<&[bool]>,
         mut tap: Option<&'a mut Tap>,
     ) -> Result<Self> {
         let grid = &scene.grid;
@@ -317,7 +325,7 @@ impl<'a> ClassicRun<'a> {
         let mut cells: Vec<HostShadowCell> = (0..n * n).map(|_| ShadowCell::new()).collect();
         let (mut active, mut emitters) = (Vec::new(), 0);
         for (i, c) in grid.cells.iter().enumerate() {
-            cells[i].start(c, &env).map_err(|e| emit_error(c, e))?;
+            cells[i].start_if(c, &env, emit.is_none_or(|e| e[i])).map_err(|e| emit_error(c, e))?;
             emitters += cells[i].emitting() as u64;
             if cells[i].busy() {
                 active.push(i as u32);
@@ -536,6 +544,73 @@ fn overflow_report<const FA: usize>(cells: &[ShadowCell<FA>], n: usize) -> Resul
         );
     }
     Ok(())
+}
+
+/// What shadow-edge refinement did, summed over sources.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct RefineCounts {
+    /// Cycles: one exchange of lit bits per source, then its shadow rays' run.
+    pub cycles: u64,
+    /// (pixel, source) pairs on a diffused shadow's edge: the rays sent.
+    pub edge_pixels: u64,
+    /// Of those, the pairs whose lit bit the ray's answer changed.
+    pub changed: u64,
+    /// Lit-bit messages of the exchanges (one per link from a cell that shows a surface).
+    pub exchange_messages: u64,
+    /// The shadow rays' run.
+    pub classic: ClassicCounts,
+}
+
+/// Shadow-edge refinement after diffusion ([`cell_core::shadow::on_shadow_edge`]): for each
+/// source, every cell that shows a surface sends its lit bit to its 8 neighbours (one cycle);
+/// the cells on an edge send one classic shadow ray each ([`classic`]'s cycle model, `cfg`'s
+/// rule), and its answer replaces their bit in `masks` (index y·n + x, the diffused visible
+/// masks).
+pub fn refine_edges(
+    scene: &LoadedScene,
+    lights: &[[f64; 3]],
+    masks: &mut [SourceMask],
+    cfg: &ClassicConfig,
+    mut progress: impl FnMut(usize, u64),
+) -> Result<RefineCounts> {
+    let n = scene.grid.n as usize;
+    if cfg.rule == LitRule::Thesis {
+        bail!("shadow-edge refinement needs visible surfaces: use --lit-rule exact or plane");
+    }
+    let mut k = RefineCounts::default();
+    for (si, &l) in lights.iter().enumerate() {
+        crate::machine::diffuse::source_at(si, l, scene.grid.n)?;
+        let bit: SourceMask = 1 << si;
+        let shows = |i: usize| scene.grid.cells[i].visible.is_some();
+        let own = |i: usize| shows(i).then_some(masks[i] & bit != 0);
+        let edge: Vec<bool> = (0..n * n)
+            .map(|i| {
+                let (x, y) = ((i % n) as i64, (i / n) as i64);
+                let around = Port::ALL.map(|p| {
+                    let (dx, dy) = p.delta();
+                    let (u, v) = (x + dx as i64, y + dy as i64);
+                    let inside = (0..n as i64).contains(&u) && (0..n as i64).contains(&v);
+                    if inside {
+                        own(v as usize * n + u as usize)
+                    } else {
+                        None
+                    }
+                });
+                cell_core::shadow::on_shadow_edge(own(i), around)
+            })
+            .collect();
+        k.exchange_messages += (0..n * n).filter(|&i| shows(i)).count() as u64 * 8;
+        k.edge_pixels += edge.iter().filter(|&&e| e).count() as u64;
+        let mut answers = vec![0; n * n];
+        let c = classic_one(scene, l, si, cfg, Some(&edge), &mut answers, None, |c| progress(si, c))?;
+        for i in (0..n * n).filter(|&i| edge[i]) {
+            k.changed += ((masks[i] ^ answers[i]) & bit != 0) as u64;
+            masks[i] = (masks[i] & !bit) | (answers[i] & bit);
+        }
+        k.cycles += 1 + c.cycles;
+        k.classic.add(&c);
+    }
+    Ok(k)
 }
 
 /// The classic phase as the `light`/`render` jobs report it: the lit state and a [`LightStats`]
