@@ -9,7 +9,8 @@
 #   NS      default: 256
 #   METHODS default: "exact plane classic" (exact: the defaults; plane: --lit-rule plane
 #           --rays-from voxel, the former default; classic: --lighting classic, under exact
-#           occluders; classic-plane: --lighting classic --lit-rule plane)
+#           occluders; classic-plane: --lighting classic --lit-rule plane; refined:
+#           --lighting refined, cycles of both phases)
 #   ROTATE  default: none. Rotations of each mesh to render instead of the mesh as stored, each
 #           a sequence of axis and angle in radians applied in order (x0.6y0.9: 0.6 about x,
 #           then 0.9 about y); "none" is the mesh as stored. The rotated OBJ is written to
@@ -67,6 +68,7 @@ for n in $NS; do
           classic) opts=(--lighting classic) ;;
           classic-plane) opts=(--lighting classic --lit-rule plane) ;;
           exact) opts=() ;;
+          refined) opts=(--lighting refined) ;;
           *) echo "unknown method $m" >&2; exit 2 ;;
         esac
         o=bench-out/unseen/$mesh-$light-$n-$m
@@ -74,7 +76,8 @@ for n in $NS; do
         python3 - "$o.json" "$mesh" "$light" "$n" "$m" >> "$CSV" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1])); r = s['reference']
-print(f"{sys.argv[2]},\"{sys.argv[3]}\",{sys.argv[4]},{sys.argv[5]},{r['shadow_disagreement_pct']:.2f},{r['psnr_db']:.2f},{s['light']['cycles']}")
+cycles = s['light']['cycles'] + ((s.get('refine') or {}).get('cycles') or 0)
+print(f"{sys.argv[2]},\"{sys.argv[3]}\",{sys.argv[4]},{sys.argv[5]},{r['shadow_disagreement_pct']:.2f},{r['psnr_db']:.2f},{cycles}")
 PY
       done
     done
