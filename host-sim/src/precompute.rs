@@ -6,7 +6,9 @@
 //!   empty space surrounds the mesh on its longest axis.
 //! * **Lattice**: vertex coordinates are rounded to `1/Q` voxel (`Q = 16`); lattice coordinate
 //!   `X = Q·x_vox + Q/2` where `x_vox` is the voxel-centre coordinate, so `0 ..= Q·n` spans the
-//!   grid from its low faces to its high faces.
+//!   grid from its low faces to its high faces. A contour edge whose unrounded counterpart lies
+//!   inside it is marked to exclude its own points ([`cell_core::facet::EdgeOff`]): a pixel
+//!   centre the rounding put exactly on an edge meets the facet iff it meets the mesh's own.
 //! * **Coefficients**: plane normal from an exact `i128` cross product, band half-width `Kσ`
 //!   per thickness mode, contour edges in the base plane most orthogonal to the normal (§3.6
 //!   "Simplification"), optionally pushed out by the voxel's half-extent (`conservative`).
