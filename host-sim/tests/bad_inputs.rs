@@ -166,6 +166,7 @@ fn bad_arguments_fail_clearly() {
         (&["light", "--n", "16", "--lighting", "refined"], "is a render option"),
         (&["trace", "--n", "16", "--lighting", "refined", "--out", "/nonexistent/t"], "not recorded by trace"),
         (&["render", "--n", "16", "--lighting", "refined", "--lit-rule", "thesis"], "needs visible surfaces"),
+        (&["render", "--n", "16", "--lighting", "refined", "--ray-connectivity", "18"], "use --ray-connectivity 6"),
         (
             &["render", "cornell-mirror", "--n", "16", "--lighting", "refined", "--reflections", "1"],
             "without --reflections",

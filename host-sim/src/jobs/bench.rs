@@ -247,6 +247,8 @@ pub fn run_bench(
 struct Measured {
     stats: RenderStats,
     cmp: Comparison,
+    /// Light cycles, shadow-edge refinement included.
+    light_cycles: u64,
     /// Load + light + shade cycles.
     cycles: u64,
     /// Bytes of a cell compiled for this FIFO size.
@@ -294,11 +296,11 @@ fn measure(mesh: &Mesh, n: u32, k: &Knobs, reference: &mut Option<RefImage>) -> 
         .unwrap_or_else(|| Err(anyhow::anyhow!("--frac-bits {} is not supported", k.f)))?;
     let st = r.stats;
     let cmp = st.reference.expect("compared with the reference");
-    let refine_cycles = st.refine.as_ref().map_or(0, |r| r.cycles);
-    let cycles = st.light.load_cycles + st.light.totals.cycles + refine_cycles + st.shade_cycles;
+    let light_cycles = st.light.totals.cycles + st.refine.as_ref().map_or(0, |r| r.cycles);
+    let cycles = st.light.load_cycles + light_cycles + st.shade_cycles;
     // A cell compiled for this FIFO size (the host compiles FA_CAP, limits at run time).
     let bytes = st.bytes_per_cell - (crate::machine::capacity::FA_CAP - k.fa) * st.light.bytes_beam_message;
-    Ok(Measured { stats: st, cmp, cycles, bytes })
+    Ok(Measured { stats: st, cmp, light_cycles, cycles, bytes })
 }
 
 /// The CSV row of one scene and configuration.
@@ -309,7 +311,7 @@ fn write_row(csv: &mut impl Write, scene: &str, n: u32, k: &Knobs, r: &Measured)
         "{scene},{n},{},{},{},{},{},{:.4},{},{},{:.4},{:.4},{:.4},{:.4},",
         k.csv(),
         st.light.load_cycles,
-        st.light.totals.cycles + st.refine.as_ref().map_or(0, |r| r.cycles),
+        r.light_cycles,
         st.shade_cycles,
         r.cycles,
         st.light.t_over_lb,

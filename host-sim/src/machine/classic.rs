@@ -197,6 +197,22 @@ pub fn classic_tapped(
     mut progress: impl FnMut(usize, u64),
 ) -> Result<ClassicLighting> {
     let n = scene.grid.n;
+    check_run(n, lights, cfg)?;
+    let mut masks = vec![0; (n * n) as usize];
+    let mut per_source = Vec::new();
+    let mut totals = ClassicCounts::default();
+    for (si, &l) in lights.iter().enumerate() {
+        let c = classic_one(scene, l, si, cfg, None, &mut masks, tap.as_deref_mut(), |c| progress(si, c))?;
+        totals.add(&c);
+        per_source.push(c);
+    }
+    Ok(ClassicLighting { n, masks, per_source, totals })
+}
+
+/// Refuse a classic run the cells cannot do: too many sources, a source outside the grid, a
+/// FIFO limit outside `1 ..= SHADOW_FA_CAP`, or rays other than 6-connected under the plane
+/// rule or exact occluders.
+fn check_run(n: u32, lights: &[[f64; 3]], cfg: &ClassicConfig) -> Result<()> {
     if lights.len() > cell_core::light::MAX_SOURCES {
         bail!("{} light sources: at most {} are supported", lights.len(), cell_core::light::MAX_SOURCES);
     }
@@ -213,15 +229,7 @@ pub fn classic_tapped(
             cfg.connectivity.k()
         );
     }
-    let mut masks = vec![0; (n * n) as usize];
-    let mut per_source = Vec::new();
-    let mut totals = ClassicCounts::default();
-    for (si, &l) in lights.iter().enumerate() {
-        let c = classic_one(scene, l, si, cfg, None, &mut masks, tap.as_deref_mut(), |c| progress(si, c))?;
-        totals.add(&c);
-        per_source.push(c);
-    }
-    Ok(ClassicLighting { n, masks, per_source, totals })
+    Ok(())
 }
 
 /// One source's classic run: the cycle loop over the phases of [`ClassicRun`]; `emit`: the
@@ -577,9 +585,9 @@ pub fn refine_edges(
     if cfg.rule == LitRule::Thesis {
         bail!("shadow-edge refinement needs visible surfaces: use --lit-rule exact or plane");
     }
+    check_run(scene.grid.n, lights, cfg)?;
     let mut k = RefineCounts::default();
     for (si, &l) in lights.iter().enumerate() {
-        crate::machine::diffuse::source_at(si, l, scene.grid.n)?;
         let bit: SourceMask = 1 << si;
         let shows = |i: usize| scene.grid.cells[i].visible.is_some();
         let own = |i: usize| shows(i).then_some(masks[i] & bit != 0);
