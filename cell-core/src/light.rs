@@ -1295,8 +1295,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         // absorbed earlier; a terminal or absorbed one still arrived).
         let target = env.occluders.and_then(|o| o.target(self.x, self.y));
         if let Some(t) = target.filter(|t| t.z == m.z as i64 && t.in_beam(b)) {
-            // It arrived, and no triangle of this column shadows the pixel from close by.
-            let lit = visit.verdict(visit.bits(t.a, t.b), false).out.present() && !t.shadowed_by(triangles);
+            // It arrived, and no triangle of this column or its neighbours shadows the pixel
+            // from close by.
+            let lit = visit.verdict(visit.bits(t.a, t.b), false).out.present() && !t.in_contact_shadow(triangles);
             f.visible = lit;
             f.lit = lit;
         }

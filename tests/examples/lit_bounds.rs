@@ -101,8 +101,9 @@ enum Receiver {
     /// geometry.
     Nearest(u32),
     /// `Nearest` as a cell computes it (`cell_core::receiver::target`, exact integers, from the
-    /// machine's visible surface): the target ray must reach its voxel, and the column's
-    /// triangles must not cross the contact segment (`Target::shadowed_by`).
+    /// machine's visible surface): the target ray must reach its voxel, and no triangle of the
+    /// column or its 8 neighbours may cross the contact segment (`Target::shadowed_by`, and the
+    /// neighbours' answers, `cell_core::receiver::crosses_any`).
     Target(u32),
     /// No lattice: lit iff the machine's visible point (the column's centre line on its
     /// visible facet's plane, z\*) faces the light and sees it through the mesh itself (f64,
@@ -659,11 +660,12 @@ impl Walk<'_> {
         let Some(t) = t else { return false };
         let dir = (0..6).find(|&d| oracle_direction(d) == t.dir).expect("six directions");
         let stop = self.ray(dir, t.a, t.b, var, &mut Vec::new());
-        // The cell's contact test: its own triangles (its store's first `cap`) against the
-        // segment from the light to just in front of the pixel.
+        // The cell's contact test: its own triangles and its 8 neighbours' (each store's first
+        // `cap`) against the segment from the light to just in front of the pixel.
         let cap = var.cell.unwrap_or(usize::MAX);
-        let own = self.cells.by_column.get(&c).map_or(&[][..], |ts| &ts[..ts.len().min(cap)]);
-        let tris: Vec<Triangle> = own.iter().map(|&i| self.cells.tris[i]).collect();
+        let kept = |q: [i64; 2]| self.cells.by_column.get(&q).map_or(&[][..], |ts| &ts[..ts.len().min(cap)]);
+        let around = (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| [c[0] + dx, c[1] + dy]));
+        let tris: Vec<Triangle> = around.flat_map(kept).map(|&i| self.cells.tris[i]).collect();
         stop.is_none_or(|k| k >= t.layer as i64 - self.shift(dir)) && !t.shadowed_by(&tris)
     }
 

@@ -9,7 +9,7 @@ use cell_core::beam::{Direction, FarDistance, FracBits, Origin, Source, SourceCo
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use cell_core::occluder::Triangle;
-use cell_core::receiver::{target, Target, POINT_UNITS};
+use cell_core::receiver::{crosses_any, target, POINT_UNITS};
 use host_sim::machine::diffuse::{diffuse, LightConfig, Lighting};
 use host_sim::machine::grid::Grid;
 use host_sim::machine::timing::{Emission, Timing};
@@ -67,8 +67,14 @@ fn exact_oracle<F: FracBits>(g: &G, src16: &[[i64; 3]], origin: Origin) -> (RayO
             };
             let dir = (0..6).find(|&d| oracle_direction(d) == t.dir).expect("six directions");
             let fate = exact::trace_ray_exact(&scene, s, from, F::U32, dir, t.a, t.b);
-            // A triangle of the column crossing the contact segment shadows the pixel.
-            let kept = scene.kept(c.x as i64, c.y as i64);
+            // A triangle kept by the column or one of its 8 neighbours crossing the contact
+            // segment shadows the pixel.
+            let (x, y) = (c.x as i64, c.y as i64);
+            let kept: Vec<usize> = (y - 1..=y + 1)
+                .flat_map(|v| (x - 1..=x + 1).map(move |u| (u, v)))
+                .filter(|&(u, v)| (0..n).contains(&u) && (0..n).contains(&v))
+                .flat_map(|(u, v)| scene.kept(u, v).iter().copied())
+                .collect();
             let contact = t.contact.is_some_and(|[x0, x1]| {
                 kept.iter().any(|&i| exact::segment_crosses(&scene.triangles[i], x0, x1, POINT_UNITS / 16))
             });
@@ -489,8 +495,9 @@ fn column_stores_keep_what_the_oracle_says() {
     assert_eq!(stores.overflows(), left_out);
 }
 
-/// The receiver's contact test (`cell_core::receiver::Target::shadowed_by`, Plücker signs) is
-/// the oracle's exact crossing point in the closed triangle (`exact::segment_crosses`), on
+/// The receiver's contact test (`cell_core::receiver::crosses_any`, behind
+/// `Target::shadowed_by` and the neighbours' answers; Plücker signs) is the oracle's exact
+/// crossing point in the closed triangle (`exact::segment_crosses`), on
 /// random segments and triangles and on segments ending exactly on a vertex, an edge's middle
 /// or a point inside the triangle.
 #[test]
@@ -515,8 +522,7 @@ fn contact_test_matches_the_rational_crossing() {
         };
         let want = exact::segment_crosses(&tri, x0, x1, scale);
         let cell_tri = Triangle::new(tri.map(|v| v.map(|c| c as i32))).expect("small");
-        let t = Target { dir: Direction::PosZ, layer: 1, z: 0, a: 0, b: 0, contact: Some([x0, x1]) };
-        assert_eq!(t.shadowed_by(&[cell_tri]), want, "{tri:?} from {x0:?} to {x1:?}");
+        assert_eq!(crosses_any(&[cell_tri], [x0, x1]), want, "{tri:?} from {x0:?} to {x1:?}");
         if want {
             crossed[kind] += 1
         } else {

@@ -11,6 +11,9 @@
 //!   centres against the unquantised mesh), a pixel may only be covered in one of the two
 //!   images where its centre lies within 1/32 voxel (the lattice's rounding, below) of the
 //!   edge of a projected triangle.
+//! * **Contact shadows from the neighbours.** The pixels only a neighbouring column's triangles
+//!   shadow (the oracle's rational crossing test) are unlit, and the f64 reference shadows
+//!   them up to the vertex lattice's rounding.
 //!
 //! Not asserted: how often the machine's shadows disagree with the f64 reference's. That is a
 //! property of the discrete method (rays on a lattice, surfaces as voxels and planes; see
@@ -383,4 +386,113 @@ fn a_tilted_sheet_is_lit_wherever_the_reference_sees_the_light() {
     }
     let (away, toward) = images.split_at(images.len() / 2);
     assert_eq!(away, toward, "the same lit pixels whichever way the sheet is wound");
+}
+
+/// The distance between segments [p0, p1] and [q0, q1] (f64; the closest points by clamped
+/// parameters, then each end against the other segment).
+fn segment_distance(p0: [f64; 3], p1: [f64; 3], q0: [f64; 3], q1: [f64; 3]) -> f64 {
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let at = |a: [f64; 3], d: [f64; 3], t: f64| [a[0] + t * d[0], a[1] + t * d[1], a[2] + t * d[2]];
+    let point_seg = |x: [f64; 3], a: [f64; 3], b: [f64; 3]| {
+        let d = sub(b, a);
+        let t = if dot(d, d) > 0.0 { (dot(sub(x, a), d) / dot(d, d)).clamp(0.0, 1.0) } else { 0.0 };
+        let e = sub(x, at(a, d, t));
+        dot(e, e).sqrt()
+    };
+    let (d1, d2, r) = (sub(p1, p0), sub(q1, q0), sub(p0, q0));
+    let (a, e, b, c, f) = (dot(d1, d1), dot(d2, d2), dot(d1, d2), dot(d1, r), dot(d2, r));
+    let den = a * e - b * b;
+    let mut best = [point_seg(p0, q0, q1), point_seg(p1, q0, q1), point_seg(q0, p0, p1), point_seg(q1, p0, p1)]
+        .into_iter()
+        .fold(f64::INFINITY, f64::min);
+    if den > 1e-12 {
+        let (s, t) = (((b * f - c * e) / den).clamp(0.0, 1.0), ((a * f - b * c) / den).clamp(0.0, 1.0));
+        let g = sub(at(p0, d1, s), at(q0, d2, t));
+        best = best.min(dot(g, g).sqrt());
+    }
+    best
+}
+
+#[test]
+fn segment_distance_by_hand() {
+    let d = segment_distance([0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 1.0, -1.0], [1.0, 1.0, 1.0]);
+    assert!((d - 1.0).abs() < 1e-12, "crossing lines a unit apart: {d}");
+    let d = segment_distance([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [3.0, 0.0, 0.0], [4.0, 0.0, 0.0]);
+    assert!((d - 2.0).abs() < 1e-12, "collinear, two apart: {d}");
+}
+
+/// The neighbours' contact answers (`cell_core::receiver`, "The neighbours' triangles") darken
+/// pixels the mesh shadows, up to the vertex lattice. On bureau1, whose poster, shelves and
+/// drawers cast shadows from within a voxel or two, the pixels whose contact segment a
+/// triangle of a neighbouring column crosses and none of their own column's does — found here
+/// with the oracle's rational crossing test (`oracle::exact::segment_crosses`, not the cell's
+/// Plücker signs) — exist and are unlit in the machine's image; and each is in shadow in the
+/// f64 reference unless the segment passes within the lattice's rounding of an edge of the
+/// triangle that crossed it (its vertices moved up to 1/32 voxel per axis: √3/32).
+#[test]
+fn the_neighbours_contact_answers_darken_pixels_the_mesh_shadows() {
+    use cell_core::beam::{frac::U0, FarDistance, Origin};
+    use cell_core::light::Port;
+    use cell_core::occluder::Triangle;
+    use cell_core::receiver::{target, POINT_UNITS};
+    use rc2_tests::oracle::exact::segment_crosses;
+    let n = 128;
+    let (mesh, loaded) = load("bureau1", n, Thickness::Standard, Contour::Conservative);
+    let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
+    let cfg = LightConfig {
+        rule: LitRule::Exact,
+        rays: Origin::Light,
+        lit_visible_only: true,
+        skip_hidden: true,
+        ..Default::default()
+    };
+    let rcfg = RenderConfig::diffusion(cfg, NormalMode::Facet);
+    let reference = host_sim::jobs::render::reference_image(&mesh, &loaded, &lights, &rcfg).unwrap();
+    let got = render::<U0>(&mesh, &loaded, &lights, cfg, Some(&reference)).image;
+    let source = cfg.source(0, lights[0], n).unwrap();
+    let far = FarDistance::<U0>::new(n - 1).unwrap();
+    // The triangles of column (x, y) the segment crosses.
+    let crossing = |x: i64, y: i64, seg: [[i64; 3]; 2]| -> Vec<Triangle> {
+        if !((0..n as i64).contains(&x) && (0..n as i64).contains(&y)) {
+            return Vec::new();
+        }
+        let tris = loaded.grid.triangles.column(x as u32, y as u32).iter();
+        tris.filter(|t| segment_crosses(&t.vertices().map(|v| v.map(i64::from)), seg[0], seg[1], POINT_UNITS / 16))
+            .copied()
+            .collect()
+    };
+    let voxels = |p: [i64; 3]| p.map(|c| c as f64 / POINT_UNITS as f64);
+    let (mut darkened, mut by_rounding) = (0, 0);
+    for c in &loaded.grid.cells {
+        let (x, y) = (c.x as i64, c.y as i64);
+        let Some(seg) = c.visible.and_then(|v| target(x as i32, y as i32, &v, &source, far)).and_then(|t| t.contact)
+        else {
+            continue;
+        };
+        let around: Vec<Triangle> = Port::ALL
+            .iter()
+            .map(|p| p.delta())
+            .flat_map(|(dx, dy)| crossing(x + dx as i64, y + dy as i64, seg))
+            .collect();
+        if around.is_empty() || !crossing(x, y, seg).is_empty() {
+            continue;
+        }
+        darkened += 1;
+        let i = (c.y as u32 * n + c.x as u32) as usize;
+        assert_eq!(got.lit[i] & 1, 0, "pixel ({x}, {y}): the machine lights it");
+        if reference.lit[i] & 1 != 0 {
+            // Vertices in sixteenths of a voxel from the voxel centres' lattice.
+            let near_edge = around.iter().any(|t| {
+                let v = t.vertices().map(|p| p.map(|c| c as f64 / 16.0));
+                (0..3).any(|e| {
+                    segment_distance(voxels(seg[0]), voxels(seg[1]), v[e], v[(e + 1) % 3]) <= 3f64.sqrt() / 32.0
+                })
+            });
+            assert!(near_edge, "pixel ({x}, {y}): the reference lights it, and no crossed edge lies within rounding");
+            by_rounding += 1;
+        }
+    }
+    println!("bureau1 n = {n}: {darkened} pixels in a contact shadow only a neighbour's triangles cast, {by_rounding} lit by the reference within the lattice's rounding");
+    assert!(darkened > 0, "bureau1 has shadows cast from one column over");
 }

@@ -22,6 +22,7 @@
 //! | `0x4e` | [`Event::Take`] | the neighbour on `port` took the ray of output slot (class, port): class u8 (0 for shadow rays), port u8 |
 //! | `0x4f` | [`Event::PhaseEnd`] | the ray phase ended (a source's, for shadow rays) |
 //! | `0x50` | [`Event::Triangle`] | under exact occluders, after the light record or the shadow setup record: one triangle the column keeps for the source's diffusion or shadow rays ([`crate::occluder::Triangle`], its vertices 9×i32 in sixteenths of a voxel), in the column's order; the cell computes its target ray itself ([`crate::receiver::target`]) |
+//! | `0x51` | [`Event::NeighbourContact`] | under exact occluders, after a light record's triangles, for a cell whose target ray has a contact segment: its 8 neighbours' answers to its contact query, OR-ed, u8 0/1, before any other record ([`crate::receiver`], "The neighbours' triangles"; a trace without it does not replay) |
 //!
 //! In the ray phases ([`rays`]) a `Step` record counts cycles of the phase's cell in which its
 //! router took any answer offered, and `Recv` carries a ray frame ([`crate::wire::RayMsg`]). A
@@ -107,6 +108,8 @@ pub mod kind {
     pub const PHASE_END: u8 = 0x4f;
     /// [`super::Event::Triangle`].
     pub const TRIANGLE: u8 = 0x50;
+    /// [`super::Event::NeighbourContact`].
+    pub const NEIGHBOUR_CONTACT: u8 = 0x51;
 }
 /// Most lights a shading record carries.
 pub const MAX_LIGHTS: usize = 8;
@@ -299,6 +302,9 @@ pub enum Event<'a, F: FracBits> {
     PhaseEnd,
     /// Under exact occluders: a triangle the column keeps for the current source.
     Triangle(Triangle),
+    /// Under exact occluders, for a cell with a contact segment: its 8 neighbours' answers to
+    /// its contact query, OR-ed ([`crate::receiver::Target::neighbour_shadow`]).
+    NeighbourContact(bool),
 }
 
 /// Why a trace could not be replayed (a value, never a panic).
@@ -389,6 +395,7 @@ pub fn write_event<F: FracBits>(ev: &Event<'_, F>, buf: &mut [u8]) -> Result<usi
             }
             Ok(())
         }),
+        Event::NeighbourContact(b) => write_frame(buf, kind::NEIGHBOUR_CONTACT, |w| w.u8(*b as u8)),
     }
 }
 
@@ -675,6 +682,10 @@ impl<'a, F: FracBits> Parser<'a, F> {
                 }
                 Event::Triangle(Triangle::new(v).ok_or(DecodeError::BadValue("triangle vertex beyond the bit budget"))?)
             }
+            kind::NEIGHBOUR_CONTACT => match r.u8()? {
+                b @ (0 | 1) => Event::NeighbourContact(b == 1),
+                _ => return Err(DecodeError::BadValue("a neighbour contact answer is 0 or 1").into()),
+            },
             k => return Err(DecodeError::UnknownKind(k).into()),
         };
         r.finish()?;
@@ -1023,6 +1034,11 @@ impl<
         if self.ended {
             return Err(ReplayError::BadEnd);
         }
+        // A target's contact segment needs its neighbours' answers before anything else happens.
+        #[cfg(feature = "exact-occluders")]
+        if self.column.awaiting && !matches!(ev, Event::Triangle(_) | Event::NeighbourContact(_)) {
+            return Err(DecodeError::BadValue("a light record's target lacks its neighbours' contact answers").into());
+        }
         match ev {
             Event::Header(h) => return self.start(h),
             _ if !self.started => return Err(ReplayError::BadHeader),
@@ -1042,6 +1058,7 @@ impl<
                 self.rays = Rays::Idle;
             }
             Event::Triangle(t) => self.triangle(t)?,
+            Event::NeighbourContact(b) => self.neighbour_contact(b)?,
             Event::Inject(m) => self.accept(m)?,
             Event::Recv { port, frame } => self.receive_frame(port, frame)?,
             Event::Step(n) if !matches!(self.rays, Rays::Idle) => {
@@ -1079,6 +1096,28 @@ impl<
         self.depth = h.depth;
         self.started = true;
         Ok(())
+    }
+
+    /// The neighbours' answers to the column's contact query (exact occluders, a diffusion's
+    /// target with a contact segment only, once, after the light record's triangles and before
+    /// anything else: a trace without them does not replay).
+    fn neighbour_contact(&mut self, shadowed: bool) -> Result<(), ReplayError> {
+        let bad = DecodeError::BadValue("a neighbour contact answer without a target's contact segment");
+        if !matches!(self.rays, Rays::Idle) || self.setup.ok_or(ReplayError::NoLightSetup)?.rule != LitRule::Exact {
+            return Err(bad.into());
+        }
+        #[cfg(feature = "exact-occluders")]
+        {
+            let t = self.column.target.filter(|_| self.column.awaiting).ok_or(bad)?;
+            self.column.target = Some(t.with_neighbour_answers(shadowed));
+            self.column.awaiting = false;
+            Ok(())
+        }
+        #[cfg(not(feature = "exact-occluders"))]
+        {
+            let _ = shadowed;
+            Err(bad.into())
+        }
     }
 
     /// A triangle the column keeps for the current source (exact occluders only): its
@@ -1163,17 +1202,20 @@ impl<
 struct ReplayColumn {
     triangles: crate::occluder::TriangleStore<{ crate::cell::TRIANGLE_CAP }>,
     target: Option<crate::receiver::Target>,
+    /// The target has a contact segment and its neighbours have not answered yet.
+    awaiting: bool,
 }
 
 #[cfg(feature = "exact-occluders")]
 impl ReplayColumn {
     const fn new() -> Self {
-        ReplayColumn { triangles: crate::occluder::TriangleStore::new(), target: None }
+        ReplayColumn { triangles: crate::occluder::TriangleStore::new(), target: None, awaiting: false }
     }
 
     fn clear(&mut self) {
         self.triangles = crate::occluder::TriangleStore::new();
         self.target = None;
+        self.awaiting = false;
     }
 
     /// A source's diffusion starts: no triangles yet, and the target ray of `cell`'s visible
@@ -1186,6 +1228,7 @@ impl ReplayColumn {
                 .visible
                 .as_ref()
                 .and_then(|v| crate::receiver::target::<F>(cell.x as i32, cell.y as i32, v, &s.source, far));
+            self.awaiting = self.target.is_some_and(|t| t.contact.is_some());
         }
         Ok(())
     }

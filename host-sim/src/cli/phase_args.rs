@@ -37,7 +37,7 @@ pub enum RouteArg {
 pub struct ClassicOpts {
     /// Lighting method: diffusion (beams), classic (shadow rays, answers routed back), or
     /// refined (diffusion, then classic shadow rays from the pixels on shadow edges only:
-    /// bureau1 n = 128 29.3 → 33.3 dB, BENCHMARKS.md).
+    /// bureau1 n = 128 31.9 → 33.7 dB, BENCHMARKS.md).
     #[arg(long, value_enum, default_value_t = LightingArg::Diffusion)]
     pub lighting: LightingArg,
     /// Connectivity of classic shadow rays: 6 (Amanatides–Woo; no surface thickness lets it

@@ -37,7 +37,7 @@ use crate::machine::capacity::{HostLightCell, FA_CAP};
 use crate::machine::faults::{fault_counts, FaultCounts, FaultInjector, FaultTally, LinkFaults, Wire};
 use crate::machine::grid::Grid;
 use crate::machine::links::{self, lossless, sure, CellInbox, GridLinks, HostLink, Took, BACK};
-use crate::machine::occluders::SourceOccluders;
+use crate::machine::occluders::{SourceOccluders, CONTACT_EXCHANGE_CYCLES};
 use crate::machine::tap::{Tap, Tracer};
 use crate::machine::tiles::{merge_sorted, prefetch, prefetch_ends, tiles};
 use crate::machine::timing::Timing;
@@ -560,6 +560,11 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
                 diffuse_one(grid, cells, links, (src, initial), si, &env, cfg, dead, rec, |c| progress(si, c))?;
             rep.position = src.pos.map(|p| p.to_num::<f64>());
             add_cell_counts(&mut rep, cells, &before);
+            if let Some(o) = &occluders {
+                // The contact exchange ran before the beams left.
+                rep.counts.cycles += CONTACT_EXCHANGE_CYCLES;
+                rep.counts.messages += o.exchange_messages();
+            }
             if cfg.stop_at.is_none_or(|t| rep.counts.cycles < t) {
                 check_conservation(si, &rep.counts)?;
             }

@@ -217,9 +217,15 @@ impl Tap {
         };
         self.all::<F>(&Event::Light(s));
         // Exact occluders (the only rule given occluders): each cell's own triangles follow (its
-        // target ray it computes itself).
+        // target ray it computes itself), then its neighbours' contact answers.
         if let Some(occ) = env.occluders {
             self.triangles::<F>(|x, y| occ.triangles(x as u16, y as u16));
+            // Then its neighbours' answers to its contact query, if it has a contact segment.
+            for r in &mut self.recorders {
+                if let Some(t) = occ.target(r.x as u16, r.y as u16).filter(|t| t.contact.is_some()) {
+                    r.push::<F>(&Event::NeighbourContact(t.neighbour_shadow));
+                }
+            }
         }
     }
 
