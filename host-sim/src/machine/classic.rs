@@ -58,7 +58,7 @@ use cell_core::wire::RayMsg;
 use crate::machine::diffuse::{DiffusionCounts, SourceReport};
 
 use crate::machine::capacity::{HostShadowCell, SHADOW_FA_CAP};
-use crate::machine::grid::LightGrid;
+use crate::machine::grid::{neighbour, LightGrid};
 use crate::machine::lighting::LightStats;
 use crate::machine::loaded::LoadedScene;
 use crate::machine::network::Network;
@@ -441,8 +441,7 @@ impl<'a> ClassicRun<'a> {
                 if self.link_used[link] || self.cells[i].out(p).is_none() {
                     continue;
                 }
-                let (dx, dy) = p.delta();
-                let j = (i as i64 + dy as i64 * n as i64 + dx as i64) as usize;
+                let j = neighbour(n as u32, i, p).expect("a ray leaves only toward a cell of the grid");
                 if !self.cells[j].can_accept(self.env.fa) {
                     continue;
                 }
@@ -593,17 +592,7 @@ pub fn refine_edges(
         let own = |i: usize| shows(i).then_some(masks[i] & bit != 0);
         let edge: Vec<bool> = (0..n * n)
             .map(|i| {
-                let (x, y) = ((i % n) as i64, (i / n) as i64);
-                let around = Port::ALL.map(|p| {
-                    let (dx, dy) = p.delta();
-                    let (u, v) = (x + dx as i64, y + dy as i64);
-                    let inside = (0..n as i64).contains(&u) && (0..n as i64).contains(&v);
-                    if inside {
-                        own(v as usize * n + u as usize)
-                    } else {
-                        None
-                    }
-                });
+                let around = Port::ALL.map(|p| neighbour(n as u32, i, p).and_then(own));
                 cell_core::shadow::on_shadow_edge(own(i), around)
             })
             .collect();

@@ -10,9 +10,19 @@
 
 use cell_core::cell::Cell;
 use cell_core::facet::{PipelinePacket, RowPacket};
+use cell_core::light::Port;
 use cell_core::voxelize::{row_span, PipelineCell};
 
 use crate::machine::tap::Tap;
+
+/// The index (y·n + x) of the neighbour of cell `i` (same indexing) across port `p`, if it
+/// lies inside the n × n grid.
+pub fn neighbour(n: u32, i: usize, p: Port) -> Option<usize> {
+    let (dx, dy) = p.delta();
+    let (x, y) = ((i % n as usize) as i64 + dx as i64, (i / n as usize) as i64 + dy as i64);
+    let inside = (0..n as i64).contains(&x) && (0..n as i64).contains(&y);
+    inside.then(|| (y * n as i64 + x) as usize)
+}
 
 /// Counters of one loading run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -174,5 +184,22 @@ impl<const D: usize> Grid<D> {
                 progress(i as u64);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn neighbours_lie_inside_the_grid_and_rows_do_not_wrap() {
+        let n = 3;
+        for p in Port::ALL {
+            let (dx, dy) = p.delta();
+            assert_eq!(neighbour(n, 4, p), Some((4 + 3 * dy as i64 + dx as i64) as usize), "the centre, {p:?}");
+        }
+        let count = |i: usize| Port::ALL.iter().filter(|&&p| neighbour(n, i, p).is_some()).count();
+        assert_eq!((count(0), count(8), count(5), count(1)), (3, 3, 5, 5), "corners three, edges five");
+        assert_eq!((neighbour(n, 2, Port::E), neighbour(n, 3, Port::W)), (None, None), "a row's ends do not wrap");
     }
 }

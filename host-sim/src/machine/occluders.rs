@@ -8,7 +8,7 @@ use cell_core::receiver::{crosses_any, target, Target};
 use cell_core::units::Coord;
 use rayon::prelude::*;
 
-use crate::machine::grid::Grid;
+use crate::machine::grid::{neighbour, Grid};
 use crate::machine::triangles::ColumnTriangles;
 
 /// Cycles of the contact exchange ([`cell_core::receiver`], "The neighbours' triangles"), once
@@ -46,15 +46,9 @@ impl<'a> SourceOccluders<'a> {
                 let Some((t, contact)) = t.and_then(|t| t.contact.map(|c| (t, c))) else {
                     return (*t, 0);
                 };
-                let (x, y) = ((i as u32 % n) as i64, (i as u32 / n) as i64);
-                let around: Vec<(u32, u32)> = Port::ALL
-                    .iter()
-                    .map(|p| p.delta())
-                    .map(|(dx, dy)| (x + dx as i64, y + dy as i64))
-                    .filter(|&(u, v)| (0..n as i64).contains(&u) && (0..n as i64).contains(&v))
-                    .map(|(u, v)| (u as u32, v as u32))
-                    .collect();
-                let shadowed = around.iter().any(|&(u, v)| crosses_any(tris.column(u, v), contact));
+                let around: Vec<usize> = Port::ALL.iter().filter_map(|&p| neighbour(n, i, p)).collect();
+                let column = |j: usize| tris.column(j as u32 % n, j as u32 / n);
+                let shadowed = around.iter().any(|&j| crosses_any(column(j), contact));
                 (Some(t.with_neighbour_answers(shadowed)), 2 * around.len() as u64)
             })
             .collect();

@@ -56,7 +56,7 @@ use cell_core::units::Depth;
 use cell_core::wire::RayMsg;
 
 use crate::machine::capacity::{HostReflectCell, REFLECT_FA_CAP, SEND_CAP, WAIT_CAP};
-use crate::machine::grid::LightGrid;
+use crate::machine::grid::{neighbour, LightGrid};
 use crate::machine::loaded::LoadedScene;
 use crate::machine::network::Network;
 use crate::machine::tap::Tap;
@@ -400,7 +400,7 @@ impl<'a> ReflectRun<'a> {
     ///     class if it has room and the link carried nothing else this cycle. Returns the rays
     ///     moved.
     fn ray_links(&mut self) -> u64 {
-        let (nn, fa, mut moved) = (self.grid.n as usize, self.renv.fa, 0);
+        let (n, fa, mut moved) = (self.grid.n, self.renv.fa, 0);
         for a in 0..self.active.len() {
             let i = self.active[a];
             if self.cells[i].outs() == 0 {
@@ -412,8 +412,7 @@ impl<'a> ReflectRun<'a> {
                     if self.link_used[link] || self.cells[i].out(c, p).is_none() {
                         continue;
                     }
-                    let (dx, dy) = p.delta();
-                    let j = (i as i64 + dy as i64 * nn as i64 + dx as i64) as usize;
+                    let j = neighbour(n, i, p).expect("a ray leaves only toward a cell of the grid");
                     if !self.cells[j].can_accept(c, fa) {
                         continue;
                     }
