@@ -2,8 +2,9 @@
 //! fraction bits f, thickness, contour, the lit rule and its rays' origin, shadow-edge
 //! refinement, normals, FIFO size, policy — renders each
 //! configuration, compares it with the f64 reference (ray-cast once per scene and n), and keeps
-//! machine cycles, wall time, bytes per cell, shadow disagreement and PSNR. The Pareto front is
-//! error against machine cycles.
+//! machine cycles, wall time, bytes per cell (the column's triangle store included under exact
+//! occluders; shadow-edge refinement's ray FIFO and router not, as diffusion's FIFO is idle
+//! by then), shadow disagreement and PSNR. The Pareto front is error against machine cycles.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -13,6 +14,7 @@ use anyhow::Result;
 use cell_core::beam::Origin;
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
+use cell_core::occluder::TriangleStore;
 use cell_core::shade::NormalMode;
 
 use crate::jobs::render::{reference_image, render, RenderConfig, RenderInput, RenderLighting, RenderStats};
@@ -298,8 +300,13 @@ fn measure(mesh: &Mesh, n: u32, k: &Knobs, reference: &mut Option<RefImage>) -> 
     let cmp = st.reference.expect("compared with the reference");
     let light_cycles = st.light.totals.cycles + st.refine.as_ref().map_or(0, |r| r.cycles);
     let cycles = st.light.load_cycles + light_cycles + st.shade_cycles;
-    // A cell compiled for this FIFO size (the host compiles FA_CAP, limits at run time).
-    let bytes = st.bytes_per_cell - (crate::machine::capacity::FA_CAP - k.fa) * st.light.bytes_beam_message;
+    // A cell compiled for this FIFO size (the host compiles FA_CAP, limits at run time), with
+    // its column's triangle store under exact occluders.
+    let store = match k.rule {
+        LitRule::Exact => std::mem::size_of::<TriangleStore<{ crate::machine::capacity::TRIANGLE_CAP }>>(),
+        _ => 0,
+    };
+    let bytes = st.bytes_per_cell - (crate::machine::capacity::FA_CAP - k.fa) * st.light.bytes_beam_message + store;
     Ok(Measured { stats: st, cmp, light_cycles, cycles, bytes })
 }
 
