@@ -73,14 +73,14 @@
 //! # The neighbours' triangles
 //!
 //! A shadow cast from within a voxel or two is often cast by a triangle the pixel's own column
-//! does not keep: the bottom edge of a poster on a wall, the side of a shelf, a drawer's lip,
-//! one column over. The contact segment passes through the neighbouring column there, the
-//! lattice target ray (up to half a voxel off the exact ray) misses the edge, and whole rows
-//! of pixels along such edges come out lit (bureau1 at n = 128: 15 pixels under the poster,
-//! 8 along a shelf's side). So once per light, after computing its target, a cell sends its
-//! contact segment's near end to its 8 neighbours (the light is known to all); each tests the
-//! segment from the light to it against its own triangles ([`crosses_any`], the same exact
-//! test) and answers one bit; the OR is [`Target::neighbour_shadow`]
+//! does not keep: the edge of a panel one column over. The contact segment passes through the
+//! neighbouring column there, the lattice target ray (up to half a voxel off the exact ray)
+//! misses the edge, and whole lines of pixels along such edges come out lit (bureau1 at
+//! n = 128: columns of 14, 7 and 5 pixels along its bookcase, 33 pixels in all). So once per
+//! light, after computing its target, a cell sends its contact segment's near end to its 8
+//! neighbours (the light is known to all); each tests the segment from the light to it against
+//! its own triangles ([`crosses_any`], the same exact test) and answers one bit; the OR is
+//! [`Target::neighbour_shadow`]
 //! ([`Target::with_neighbour_answers`]), and the pixel is lit only if it is clear too
 //! ([`Target::in_contact_shadow`]). Any crossing is a true one up to the vertex lattice (the
 //! segment is exact and ends [`CONTACT_GAP`] in front of the surface), so a neighbour darkens

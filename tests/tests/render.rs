@@ -423,7 +423,7 @@ fn segment_distance_by_hand() {
 }
 
 /// The neighbours' contact answers (`cell_core::receiver`, "The neighbours' triangles") darken
-/// pixels the mesh shadows, up to the vertex lattice. On bureau1, whose poster, shelves and
+/// pixels the mesh shadows, up to the vertex lattice. On bureau1, whose bookcase, shelves and
 /// drawers cast shadows from within a voxel or two, the pixels whose contact segment a
 /// triangle of a neighbouring column crosses and none of their own column's does — found here
 /// with the oracle's rational crossing test (`oracle::exact::segment_crosses`, not the cell's
