@@ -1651,9 +1651,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     /// One compute cycle (§4.4.1): pick a beam by `env.policy`, process it if the no-loss rule
     /// allows, else wait. `activity` counts beams in flight machine-wide.
     ///
-    /// Phases: [`Self::unchanged_wait`] (nothing changed since the last refusal),
-    /// [`Self::choose`] (the first beam whose sub-beams fit), [`Self::wait`] (none fits) or
-    /// [`Self::commit`] (take it, count it, mark what it lit, send its sub-beams).
+    /// Phases: `unchanged_wait` (nothing changed since the last refusal), `choose` (the first
+    /// beam whose sub-beams fit), `wait` (none fits) or `commit` (take it, count it, mark what
+    /// it lit, send its sub-beams).
     pub fn step<const D: usize>(&mut self, cell: &Cell<D>, env: &LightEnv<'_, F>, activity: &impl BeamTally) -> Step {
         if self.fifo.is_empty() {
             return Step::Idle;

@@ -82,13 +82,13 @@ pub struct RadiosityArgs {
     /// how far its own solution moves (its self-error, to set beside the machine's error).
     #[arg(long, requires = "reference")]
     pub reference_self_error: bool,
-    /// Per-patch CSV (default <scene>_patches.csv).
+    /// Per-patch CSV (default SCENE_patches.csv).
     #[arg(long)]
     pub patches_csv: Option<PathBuf>,
-    /// Per-shot CSV: residual, balance, cycles and messages of every shot (default <scene>_shots.csv).
+    /// Per-shot CSV: residual, balance, cycles and messages of every shot (default SCENE_shots.csv).
     #[arg(long)]
     pub shots_csv: Option<PathBuf>,
-    /// Plot of the residual against shots, PNG (default <scene>_residual.png): the machine's,
+    /// Plot of the residual against shots, PNG (default SCENE_residual.png): the machine's,
     /// and with --reference the f64 reference's beside it.
     #[arg(long)]
     pub residual_plot: Option<PathBuf>,
@@ -113,7 +113,7 @@ pub struct VoxelizeArgs {
     /// Dexels a cell can hold (a compile-time capacity; one of 8, 16, 32, 64, 128).
     #[arg(long, default_value_t = cell_core::cell::DEFAULT_DEXELS, value_parser = parse_capacity)]
     pub dexel_capacity: usize,
-    /// Output .binvox file (default: <scene>.binvox in the current directory).
+    /// Output .binvox file (default: SCENE.binvox in the current directory).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Write statistics as JSON to this file (schema in the README).

@@ -11,7 +11,7 @@
 //! * [`trace`] — record cell traces for the firmware; [`audit`] — a cell's RAM and flash.
 //! * [`radiosity`] — progressive radiosity on the grid, per-patch and per-shot CSV, the f64
 //!   reference's comparison.
-//! * [`bench`] — the speed/accuracy sweep and its Pareto front; [`dump`] — lit-voxel dumps.
+//! * [`mod@bench`] — the speed/accuracy sweep and its Pareto front; [`dump`] — lit-voxel dumps.
 
 pub mod accuracy;
 pub mod audit;

@@ -39,7 +39,7 @@
 //! It also records how many token hops each declaration came after true quiescence (the
 //! liveness bound of [`cell_core::termination`]: at most 3N). Nothing the boards do reads it.
 //!
-//! The lighting environment is the synchronous run's ([`AllSources::env`]) without the skips
+//! The lighting environment is the synchronous run's (`AllSources::env`) without the skips
 //! that need a reduction over the whole grid after loading (the receding-beam and
 //! dead-direction skips, the frustum summaries): [`run`] refuses a configuration with them, or
 //! with link faults, a sibling wait or a snapshot. Lit voxels and pixels do not depend on them

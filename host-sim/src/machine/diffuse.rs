@@ -141,7 +141,7 @@ pub enum Summary {
 }
 
 impl Summary {
-    /// The summary of the voxels where a beam can do something ([`active_span`]: the occupied
+    /// The summary of the voxels where a beam can do something (`active_span`: the occupied
     /// voxels, and under the plane rule the voxels bracketing each visible surface), or
     /// (`visible`) of the voxels the image reads only: each column's first occupied voxel under
     /// the thesis's rule, the two voxels bracketing its visible surface under the plane rule.
@@ -1683,7 +1683,7 @@ fn active_span<const D: usize>(c: &cell_core::cell::Cell<D>, depth: u32, rule: L
 }
 
 /// The bounding box of the grid's occupied voxels, and under the plane rule of the voxels that
-/// bracket its visible surfaces ([`active_span`]); `lo > hi` when there are none.
+/// bracket its visible surfaces (`active_span`); `lo > hi` when there are none.
 pub fn occupied_box<const D: usize>(grid: &Grid<D>, rule: LitRule) -> OccupiedBox {
     let mut b = OccupiedBox { lo: [u16::MAX; 3], hi: [0; 3] };
     for c in &grid.cells {

@@ -10,7 +10,7 @@
 //! 1. **host load** (once, with the patch runs): each cell gets the keys of its visible point —
 //!    the patch holding it ([`Display::Flat`]), or that patch's vertices with the point's
 //!    interpolation weights ([`Display::Smooth`], Gouraud's double linear interpolation of
-//!    §1.1.2 on vertex values, §1.3.1) — in its [`IndirectPixel`]. Geometry:
+//!    §1.1.2 on vertex values, §1.3.1) — in its [`cell_core::radiosity::IndirectPixel`]. Geometry:
 //!    [`crate::scene::patch_display`].
 //! 2. **supervisor**: patch j's display value is `k ⊙ (H_j + a)` ([`patch_values`]): its
 //!    indirect irradiance, plus §1.3.2's ambient term of the power still unshot (display only),
@@ -22,7 +22,7 @@
 //!    last R − 1 cycles later; R (n² − 1) messages. Costed, not simulated message by message
 //!    (as the shot broadcast): a cell keeps exactly the records its keys name, so the result
 //!    is the direct lookup [`show`] makes.
-//! 4. **cells**: `Ia = Σ w_k value(key_k)` ([`IndirectPixel::hear`]), then the shading step.
+//! 4. **cells**: `Ia = Σ w_k value(key_k)` ([`cell_core::radiosity::IndirectPixel::hear`]), then the shading step.
 //!
 //! **Invariant:** a cell's `Ia` is a convex combination of its keys' values (weights ≥ 0
 //! summing to 1): flat, its patch's value rounded to `f32`.

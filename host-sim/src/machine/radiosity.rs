@@ -7,8 +7,8 @@
 //!    (0, 0), which floods it over the grid: n − 1 cycles (Chebyshev distance), n² − 1 messages;
 //! 2. **diffusion** — [`diffuse_shot`] from the patch's centre pushed `offset` voxels along its
 //!    normal, initial beams restricted to the front hemisphere ([`front_rays`]), the thesis's
-//!    lit rule; every absorbed beam adds its quanta ([`beam_quanta`]) to the [`Received`] slot of
-//!    its voxel's patch ([`PatchRuns`], loaded once with the patches), every departed beam its
+//!    lit rule; every absorbed beam adds its quanta ([`beam_quanta`]) to the [`cell_core::radiosity::Received`] slot of
+//!    its voxel's patch ([`cell_core::radiosity::PatchRuns`], loaded once with the patches), every departed beam its
 //!    quanta to the rays that left;
 //! 3. **reduction** — sorted streams of (patch, quanta) merged westward along the rows, then
 //!    northward along column 0, to the supervisor at (0, 0): one message per entry and link, an

@@ -1,7 +1,7 @@
 //! Mirror reflections on the grid: the distributed ray tree (thesis §1.1, §1.3.2, ch. 5).
 //!
 //! After the light phase every voxel's lit state is known. Each cell whose visible voxel is
-//! reflective (`Kr > 0`, and `Kr` ≥ the threshold) emits a [`ReflectRay`] (the view direction
+//! reflective (`Kr > 0`, and `Kr` ≥ the threshold) emits a [`cell_core::reflect::ReflectRay`] (the view direction
 //! mirrored about its normal, [`cell_core::reflect`]) and waits. A ray walks voxel by voxel with
 //! the same cycle model as classic shadow rays ([`crate::machine::classic`]): one voxel step per cell and
 //! cycle, FIFOs of `fa` rays, one output buffer per link, one message per link and cycle, the
@@ -24,7 +24,7 @@
 //! **No deadlock, no loss.** Reflected rays go every way, so one FIFO shared by all of them
 //! could wait in a cycle (two cells, each full of rays for the other). Each cell therefore has
 //! one FIFO and one set of output buffers per **class** (the signs of the ray's x and y
-//! steps, [`ReflectRay::class`]): a line never steps against its class, so each cell move of a
+//! steps, [`cell_core::reflect::ReflectRay::class`]): a line never steps against its class, so each cell move of a
 //! class-q ray strictly increases φ_q = ±x ± y, and the waits for FIFO room within a class
 //! follow increasing φ_q: acyclic, and classes never wait for each other. A hit, an exit or a
 //! z step needs no room (the ray's FIFO slot is released or reused); a child ray waits in the

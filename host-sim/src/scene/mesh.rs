@@ -139,7 +139,7 @@ pub(super) fn obj_text<'a>(what: &str, bytes: &'a [u8]) -> Result<&'a str> {
 }
 
 /// Load a scene from OBJ bytes and optional MTL bytes (every `mtllib` resolves to them): the
-/// file-free entry point of [`load`], used by the fuzzer.
+/// file-free entry point of [`crate::scene::load`], used by the fuzzer.
 pub fn load_obj_bytes(name: &str, obj: &[u8], mtl: Option<&[u8]>) -> Result<Mesh> {
     let text = obj_text(name, obj)?;
     parse_obj(name, text, |_| match mtl {

@@ -141,7 +141,7 @@ pub fn orient(mesh: &mut Mesh) -> Orientation {
 /// (coincident faces of opposite windings cancel); beside a sheet it is fractional (about ∓½
 /// near a large flat one). A surface whose sampled faces all see whole numbers on both sides,
 /// within 0.1, is one-sided; every other open surface is two-sided, as are those left when
-/// the work reaches [`WINDING_BUDGET`].
+/// the work reaches `WINDING_BUDGET`.
 pub fn open_faces(mesh: &Mesh) -> Vec<bool> {
     let mut open = vec![false; mesh.faces.len()];
     let surfaces = surfaces(mesh);

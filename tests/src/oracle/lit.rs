@@ -272,7 +272,7 @@ fn stays_in_column(dir: usize, k: i64, d: i64, now: [i64; 3], next: [i64; 3]) ->
     dir >= 4 && k < d && now[0] == next[0] && now[1] == next[1]
 }
 
-/// Walks one ray by the rule, one [`ray_voxel`] per layer; the voxels it lit and the columns
+/// Walks one ray by the rule, one [`super::rays::ray_voxel`] per layer; the voxels it lit and the columns
 /// whose visible surface it lit.
 #[allow(clippy::too_many_arguments)]
 pub fn trace_ray_plane(

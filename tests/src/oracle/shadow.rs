@@ -16,7 +16,7 @@
 //! For each voxel V, the segment's part in V is `[t₀, t₁] = [0, 1] ∩ {t : A + t·(B − A) ∈ V}`.
 //! V *meets* the segment when t₀ < t₁. An occupied V whose dexel's plane id differs from the
 //! emitter's stops the segment when its plane g (see [`super::lit`]) changes sign across
-//! `[t₀, t₁]` (σ = [g > 0] differs at t₀ and t₁):
+//! `[t₀, t₁]` (σ = \[g > 0\] differs at t₀ and t₁):
 //!
 //! * from σ = 1 to σ = 0 (entering the plane's inward side): always;
 //! * from σ = 0 to σ = 1 (leaving it): unless the segment is, at t₀, within one normal unit
