@@ -25,42 +25,35 @@ pub struct SourceOccluders<'a> {
     n: u32,
     triangles: &'a ColumnTriangles,
     targets: Vec<Option<Target>>,
-    exchange_messages: u64,
 }
 
 impl<'a> SourceOccluders<'a> {
     /// The occluders of `grid` for `source` at far distance `far`.
     pub fn new<F: FracBits, const D: usize>(grid: &'a Grid<D>, source: &Source, far: FarDistance<F>) -> Self {
-        let n = grid.n;
-        let own: Vec<Option<Target>> = grid
+        let (n, tris) = (grid.n, &grid.triangles);
+        let column = |j: usize| tris.column(j as u32 % n, j as u32 / n);
+        let targets = grid
             .cells
             .par_iter()
-            .map(|c| c.visible.as_ref().and_then(|v| target(c.x as i32, c.y as i32, v, source, far)))
-            .collect();
-        let tris = &grid.triangles;
-        // The contact exchange: each neighbour inside the grid gets the query and answers it.
-        let answered: Vec<(Option<Target>, u64)> = own
-            .par_iter()
             .enumerate()
-            .map(|(i, t)| {
-                let Some((t, contact)) = t.and_then(|t| t.contact.map(|c| (t, c))) else {
-                    return (*t, 0);
-                };
-                let around: Vec<usize> = Port::ALL.iter().filter_map(|&p| neighbour(n, i, p)).collect();
-                let column = |j: usize| tris.column(j as u32 % n, j as u32 / n);
-                let shadowed = around.iter().any(|&j| crosses_any(column(j), contact));
-                (Some(t.with_neighbour_answers(shadowed)), 2 * around.len() as u64)
+            .map(|(i, c)| {
+                let t = c.visible.as_ref().and_then(|v| target(c.x as i32, c.y as i32, v, source, far))?;
+                // The contact exchange: each neighbour inside the grid answers the query.
+                let Some(contact) = t.contact else { return Some(t) };
+                let shadowed =
+                    Port::ALL.iter().filter_map(|&p| neighbour(n, i, p)).any(|j| crosses_any(column(j), contact));
+                Some(t.with_neighbour_answers(shadowed))
             })
             .collect();
-        let exchange_messages = answered.iter().map(|a| a.1).sum();
-        let targets = answered.into_iter().map(|a| a.0).collect();
-        SourceOccluders { n, triangles: tris, targets, exchange_messages }
+        SourceOccluders { n, triangles: tris, targets }
     }
 
-    /// Messages of the contact exchange (a query and an answer per link from each cell with a
-    /// contact segment).
+    /// Messages of the contact exchange: a query and an answer per link from each cell with a
+    /// contact segment to a neighbour inside the grid.
     pub fn exchange_messages(&self) -> u64 {
-        self.exchange_messages
+        let links = |i: usize| Port::ALL.iter().filter(|&&p| neighbour(self.n, i, p).is_some()).count() as u64;
+        let asking = self.targets.iter().enumerate().filter(|(_, t)| t.is_some_and(|t| t.contact.is_some()));
+        asking.map(|(i, _)| 2 * links(i)).sum()
     }
 }
 
