@@ -344,6 +344,7 @@ impl Source {
     }
 
     /// The source voxel: nearest centre, round half up (⌊p + ½⌋ per axis).
+    #[inline]
     pub fn voxel(&self) -> [i32; 3] {
         let half = 1i64 << (G - 1);
         // |raw| ≤ 2^31 so the result is within ±2^27 + 1: it fits i32.
@@ -354,6 +355,7 @@ impl Source {
     /// slab [`Source::slab`] puts behind layer 1 along `dir`: 0 for [`Origin::SourceVoxel`],
     /// `s·(S_w − 16·w₀)` ∈ [0, 16) for [`Origin::Light`].
     #[cfg_attr(not(feature = "rays-from-light"), allow(unused_variables))]
+    #[inline]
     pub fn lead(&self, dir: Direction) -> i64 {
         match self.origin {
             Origin::SourceVoxel => 0,
@@ -369,6 +371,7 @@ impl Source {
     /// `max(16·k − lead, 0)` — the rays' point at layer k is the origin plus `T_k/16` times
     /// their direction `(s, u/D, v/D)`. `16·k` for [`Origin::SourceVoxel`]; 0 at layer 0 for
     /// either origin. Below 2³¹ for every layer ≤ [`MAX_FAR`].
+    #[inline]
     pub fn reach(&self, dir: Direction, layer: Layer) -> i64 {
         (16 * layer.0 as i64 - self.lead(dir)).max(0)
     }
@@ -379,6 +382,7 @@ impl Source {
     /// for [`Origin::SourceVoxel`]; for [`Origin::Light`] the source voxel's or the one behind
     /// it, so that layer 1 is the source voxel's slab or the next one and a ray moves at most
     /// one voxel across from any layer to the next (`T_{k+1} − T_k ≤ 16`).
+    #[inline]
     pub fn slab(&self, dir: Direction, layer: Layer) -> i64 {
         let w = dir.principal().index();
         if layer.0 == 0 {

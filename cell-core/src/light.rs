@@ -52,7 +52,7 @@ use crate::dexel::{Dexel, DexelStore};
 use crate::lit::{spans, uniform, Along, Arrival, LitRule, Notch, Out, RayPlane, Rule, Segments, Verdict, Visit};
 use crate::occluder::ColumnOccluders;
 #[cfg(feature = "exact-occluders")]
-use crate::occluder::{ExactVisit, EXACT_SEGMENTS};
+use crate::occluder::{ExactTests, ExactVisit, EXACT_SEGMENTS};
 use crate::occupancy::FrustumTest;
 use crate::units::{Coord, Depth};
 
@@ -1289,7 +1289,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         let (u, v) = (lattice(b.u()), lattice(b.v()));
         let triangles = env.occluders.map_or(&[][..], |o| o.triangles(self.x, self.y));
         let notch = m.local.notch().map(|n| n.t1 as i64);
-        let mut visit = ExactVisit::new(triangles, env.source, dir, env.far, k, (u, v), b.is_terminal(), notch);
+        let mut tests = ExactTests::new();
+        let mut visit =
+            ExactVisit::new(&mut tests, triangles, env.source, dir, env.far, k, (u, v), b.is_terminal(), notch);
         f.per_ray = visit.per_ray();
         // The receiver: the column's target ray, if this beam brings it here (absent rays were
         // absorbed earlier; a terminal or absorbed one still arrived).
@@ -1342,7 +1344,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             return;
         }
         let revisit =
-            |b: &Beam<F>, v: &mut ExactVisit<'_, F>| v.rejudge((lattice(b.u()), lattice(b.v())), b.is_terminal());
+            |b: &Beam<F>, v: &mut ExactVisit<'_, '_, F>| v.rejudge((lattice(b.u()), lattice(b.v())), b.is_terminal());
         self.peel::<_, EXACT_SEGMENTS>(m, &mut visit, &revisit, stay, carry, env, f);
     }
 
@@ -1383,7 +1385,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         #[cfg(feature = "exact-occluders")]
         if env.rule == LitRule::Exact {
             let triangles = env.occluders.map_or(&[][..], |o| o.triangles(self.x, self.y));
-            let visit = ExactVisit::new(triangles, env.source, dir, env.far, k, (u, v), false, Some(n.t1 as i64));
+            let mut tests = ExactTests::new();
+            let visit =
+                ExactVisit::new(&mut tests, triangles, env.source, dir, env.far, k, (u, v), false, Some(n.t1 as i64));
             return Self::count_present::<_, EXACT_SEGMENTS>(&visit, u, v);
         }
         let Some(d) = cell.store.occupied(n.state) else {

@@ -152,9 +152,12 @@ impl Triangle {
         self.v[i].map(i64::from)
     }
 
-    /// n = (V₁ − V₀) × (V₂ − V₀), exact.
+    /// n = (V₁ − V₀) × (V₂ − V₀), exact: differences ≤ 2²⁴, so each product is below 2⁴⁸ and
+    /// each component below 2⁴⁹, in `i64` (the module doc's bit budget).
     pub fn normal(&self) -> [i128; 3] {
-        cross(sub(self.vertex(1), self.vertex(0)), sub(self.vertex(2), self.vertex(0)))
+        let d = |i: usize| [0, 1, 2].map(|c| self.v[i][c] as i64 - self.v[0][c] as i64);
+        let (p, q) = (d(1), d(2));
+        [p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]].map(i128::from)
     }
 
     /// Whether the triangle's projection on z meets the closed square of column (x, y)
@@ -331,7 +334,7 @@ pub trait ColumnOccluders: core::fmt::Debug + Sync {
     /// The triangles column (x, y) keeps.
     fn triangles(&self, x: crate::units::Coord, y: crate::units::Coord) -> &[Triangle];
     /// Column (x, y)'s target ray for the current source (`None`: no ray lights its pixel).
-    fn target(&self, x: crate::units::Coord, y: crate::units::Coord) -> Option<crate::receiver::Target>;
+    fn target(&self, x: crate::units::Coord, y: crate::units::Coord) -> Option<&crate::receiver::Target>;
 }
 
 /// Most triangles one [`ExactVisit`] reads tests for (those it cannot decide on the whole
@@ -343,6 +346,10 @@ const PER_TRIANGLE: usize = 7;
 
 /// Most tests of one [`ExactVisit`].
 pub const MAX_EXACT_TESTS: usize = MAX_EXACT_TRIANGLES * PER_TRIANGLE;
+
+/// The tests an [`ExactVisit`] reads, in a buffer its caller keeps (one per step on the stack, a
+/// local of its own: built inside the visit, the compiler cleared and moved all of it).
+pub type ExactTests = Vec<Test, MAX_EXACT_TESTS>;
 
 /// Segment capacity for an [`ExactVisit`]'s lines ([`crate::lit::Segments`]).
 pub const EXACT_SEGMENTS: usize = 2 * MAX_EXACT_TESTS + 1;
@@ -366,9 +373,11 @@ pub const EXACT_SEGMENTS: usize = 2 * MAX_EXACT_TESTS + 1;
 /// ([`crate::lit::Rule`]). With more than [`MAX_EXACT_TRIANGLES`] undecided, the visit judges
 /// each ray against every triangle and cuts lines where the verdict changes (*per-ray*: slower,
 /// the same verdicts).
-#[derive(Clone, Debug)]
-pub struct ExactVisit<'a, F: FracBits> {
-    tests: Vec<Test, MAX_EXACT_TESTS>,
+#[derive(Debug)]
+pub struct ExactVisit<'a, 't, F: FracBits> {
+    /// The undecided triangles' tests, in a buffer the caller owns ([`ExactTests`]): a visit
+    /// is built for every beam, and a 6 KB buffer inside it was cleared and copied each time.
+    tests: &'t mut ExactTests,
     /// Decided on the whole rectangle: some triangle removes every ray (absent), absorbs every
     /// ray, makes every leaving ray terminal.
     absent: bool,
@@ -409,12 +418,14 @@ fn code_out(c: u64) -> crate::lit::Out {
     }
 }
 
-impl<'a, F: FracBits> ExactVisit<'a, F> {
+impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
     /// The visit at layer `k` of a beam with lattice rectangle `a × b` (inclusive), terminal or
     /// not, with the notch start `notch` (for a ±z beam that stayed in its column), in a column
-    /// keeping `triangles`.
+    /// keeping `triangles`; its tests go to `tests` (whatever it held is dropped).
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     pub fn new(
+        tests: &'t mut ExactTests,
         triangles: &'a [Triangle],
         source: &'a Source,
         dir: Direction,
@@ -424,8 +435,9 @@ impl<'a, F: FracBits> ExactVisit<'a, F> {
         arrival_terminal: bool,
         notch: Option<i64>,
     ) -> Self {
+        tests.clear();
         let mut v = ExactVisit {
-            tests: Vec::new(),
+            tests,
             absent: false,
             absorbed: false,
             terminal: false,
@@ -573,11 +585,11 @@ impl<'a, F: FracBits> ExactVisit<'a, F> {
     }
 }
 
-impl<F: FracBits> crate::lit::Rule for ExactVisit<'_, F> {
+impl<F: FracBits> crate::lit::Rule for ExactVisit<'_, '_, F> {
     const BY_VERDICT: bool = true;
 
     fn tests(&self) -> &[Test] {
-        &self.tests
+        self.tests
     }
 
     fn verdict(&self, bits: u64, stays: bool) -> crate::lit::Verdict {

@@ -1240,8 +1240,8 @@ impl crate::occluder::ColumnOccluders for ReplayColumn {
         self.triangles.triangles()
     }
 
-    fn target(&self, _x: Coord, _y: Coord) -> Option<crate::receiver::Target> {
-        self.target
+    fn target(&self, _x: Coord, _y: Coord) -> Option<&crate::receiver::Target> {
+        self.target.as_ref()
     }
 }
 

@@ -62,7 +62,7 @@ impl ColumnOccluders for SourceOccluders<'_> {
         self.triangles.column(x as u32, y as u32)
     }
 
-    fn target(&self, x: Coord, y: Coord) -> Option<Target> {
-        self.targets.get(y as usize * self.n as usize + x as usize).copied().flatten()
+    fn target(&self, x: Coord, y: Coord) -> Option<&Target> {
+        self.targets.get(y as usize * self.n as usize + x as usize)?.as_ref()
     }
 }
