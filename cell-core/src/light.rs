@@ -1288,10 +1288,11 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         let k = b.layer().0 as i64;
         let (u, v) = (lattice(b.u()), lattice(b.v()));
         let triangles = env.occluders.map_or(&[][..], |o| o.triangles(self.x, self.y));
+        let seen = env.occluders.and_then(|o| o.seen(self.x, self.y));
         let notch = m.local.notch().map(|n| n.t1 as i64);
         let mut tests = ExactTests::new();
         let mut visit =
-            ExactVisit::new(&mut tests, triangles, env.source, dir, env.far, k, (u, v), b.is_terminal(), notch);
+            ExactVisit::new(&mut tests, triangles, seen, env.source, dir, env.far, k, (u, v), b.is_terminal(), notch);
         f.per_ray = visit.per_ray();
         // The receiver: the column's target ray, if this beam brings it here (absent rays were
         // absorbed earlier; a terminal or absorbed one still arrived).
@@ -1385,9 +1386,20 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         #[cfg(feature = "exact-occluders")]
         if env.rule == LitRule::Exact {
             let triangles = env.occluders.map_or(&[][..], |o| o.triangles(self.x, self.y));
+            let seen = env.occluders.and_then(|o| o.seen(self.x, self.y));
             let mut tests = ExactTests::new();
-            let visit =
-                ExactVisit::new(&mut tests, triangles, env.source, dir, env.far, k, (u, v), false, Some(n.t1 as i64));
+            let visit = ExactVisit::new(
+                &mut tests,
+                triangles,
+                seen,
+                env.source,
+                dir,
+                env.far,
+                k,
+                (u, v),
+                false,
+                Some(n.t1 as i64),
+            );
             return Self::count_present::<_, EXACT_SEGMENTS>(&visit, u, v);
         }
         let Some(d) = cell.store.occupied(n.state) else {

@@ -199,55 +199,87 @@ pub struct Occluder {
     edges: [RayPlane; 3],
 }
 
-/// A triangle's plane seen along the rays of one source and direction, before its edges: what
-/// [`ExactVisit`] reads first, since most triangles of a column are decided by the plane alone
-/// (no ray crosses it near the beam) and need no edge.
+/// The rays of one source and direction as [`Seen`] and [`Occluder`] read them: their origin,
+/// the direction's axes and sign, N and the origin's lead.
 #[derive(Clone, Copy, Debug)]
-struct Seen {
-    plane: RayPlane,
-    /// The rays' origin, the direction's axes and sign, N and the edges' orientation (sgn Δ).
+struct View {
     o: [i64; 3],
     axes: (usize, usize, usize),
     sign: i128,
     nn: i128,
-    orient: i128,
     lead: i64,
 }
 
-impl Seen {
-    /// The plane of `tri` along `source`'s rays in `dir`; `None` as for [`Occluder::new`].
-    fn new<F: FracBits>(tri: &Triangle, source: &Source, dir: Direction, far: FarDistance<F>) -> Option<Seen> {
+impl View {
+    /// `source`'s rays in `dir`; `None` if their origin lies outside [`COORD_LIMIT`].
+    fn new<F: FracBits>(source: &Source, dir: Direction, far: FarDistance<F>) -> Option<View> {
         let w = dir.principal().index();
         let (u, v) = dir.transverse();
-        let (u, v) = (u.index(), v.index());
-        let sign = dir.sign() as i128;
         let (o, lead) = (source.ray_origin(dir), source.lead(dir));
         if o.iter().any(|c| c.abs() > COORD_LIMIT) {
             return None;
         }
-        let nn = far.scaled() as i128;
+        let (sign, nn) = (dir.sign() as i128, far.scaled() as i128);
+        Some(View { o, axes: (w, u.index(), v.index()), sign, nn, lead })
+    }
+}
+
+/// A triangle's plane seen along the rays of one source and direction, before its edges: what
+/// [`ExactVisit`] reads first, since most triangles of a column are decided by the plane alone
+/// (no ray crosses it near the beam) and need no edge. It depends on the triangle, the source
+/// and the direction only, so a host may compute it once per source ([`SeenTable`]) instead of
+/// once per beam; a cell computes it where it needs it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Seen {
+    plane: RayPlane,
+    /// The edges' orientation (sgn Δ).
+    orient: i8,
+}
+
+impl Seen {
+    /// The plane of `tri` along the rays of `view`; `None` as for [`Occluder::new`].
+    fn new(tri: &Triangle, view: &View) -> Option<Seen> {
+        let (w, u, v) = view.axes;
         let n = tri.normal();
-        let k0 = nn * dot(n, sub(o, tri.vertex(0)));
+        let k0 = view.nn * dot(n, sub(view.o, tri.vertex(0)));
         // Δ = n·(V₀ − O) = −K₀/N: its sign orients the edge tests.
         if k0 == 0 {
             return None;
         }
-        let orient: i128 = if k0 < 0 { 1 } else { -1 };
-        let plane = RayPlane::from_coefficients(k0, n[w] * sign * nn, n[u], n[v], lead);
-        Some(Seen { plane, o, axes: (w, u, v), sign, nn, orient, lead })
+        let orient = if k0 < 0 { 1 } else { -1 };
+        let plane = RayPlane::from_coefficients(k0, n[w] * view.sign * view.nn, n[u], n[v], view.lead);
+        Some(Seen { plane, orient })
+    }
+
+    /// The plane of `tri` along `source`'s rays in `dir` at far distance `far`; `None` when the
+    /// triangle stops no ray (as for [`Occluder::new`]).
+    pub fn of<F: FracBits>(tri: &Triangle, source: &Source, dir: Direction, far: FarDistance<F>) -> Option<Seen> {
+        Seen::new(tri, &View::new(source, dir, far)?)
     }
 
     /// The whole occluder: the plane and the three edges.
-    fn occluder(&self, tri: &Triangle) -> Occluder {
-        let (w, u, v) = self.axes;
-        let rel = [0, 1, 2].map(|i| sub(tri.vertex(i), self.o));
+    fn occluder(&self, tri: &Triangle, view: &View) -> Occluder {
+        let (w, u, v) = view.axes;
+        let rel = [0, 1, 2].map(|i| sub(tri.vertex(i), view.o));
         let edges = [(0, 1), (1, 2), (2, 0)].map(|(i, j)| {
             let m = cross(rel[i], rel[j]);
-            let o = 2 * self.orient;
-            RayPlane::from_coefficients(0, o * m[w] * self.sign * self.nn + 1, o * m[u], o * m[v], self.lead)
+            let o = 2 * self.orient as i128;
+            RayPlane::from_coefficients(0, o * m[w] * view.sign * view.nn + 1, o * m[u], o * m[v], view.lead)
         });
         Occluder { plane: self.plane, edges }
     }
+}
+
+/// The planes of a column's triangles, computed once per source by a host that holds every
+/// column ([`ColumnOccluders::seen`]): triangle i of the column is `seen[ids[i]][dir]`. The
+/// visit reads the same [`Seen`] it would compute, so the verdicts are the same.
+#[derive(Clone, Copy, Debug)]
+pub struct SeenTable<'a> {
+    /// Per triangle of the column, its row in `seen`.
+    pub ids: &'a [u32],
+    /// Per distinct triangle, its plane for each direction ([`Direction::index`] order) under
+    /// the current source and far distance.
+    pub seen: &'a [[Option<Seen>; 6]],
 }
 
 /// Bits of [`Occluder::tests`] that must all hold (the three edges).
@@ -258,7 +290,8 @@ impl Occluder {
     /// triangle stops no ray (zero area, or seen edge-on from the origin) or the origin lies
     /// outside [`COORD_LIMIT`].
     pub fn new<F: FracBits>(tri: &Triangle, source: &Source, dir: Direction, far: FarDistance<F>) -> Option<Occluder> {
-        Seen::new(tri, source, dir, far).map(|seen| seen.occluder(tri))
+        let view = View::new(source, dir, far)?;
+        Seen::new(tri, &view).map(|seen| seen.occluder(tri, &view))
     }
 
     /// The five tests at layer k, in the order [`Occluder::stops`] reads their bits: the three
@@ -335,6 +368,11 @@ pub trait ColumnOccluders: core::fmt::Debug + Sync {
     fn triangles(&self, x: crate::units::Coord, y: crate::units::Coord) -> &[Triangle];
     /// Column (x, y)'s target ray for the current source (`None`: no ray lights its pixel).
     fn target(&self, x: crate::units::Coord, y: crate::units::Coord) -> Option<&crate::receiver::Target>;
+    /// The planes of column (x, y)'s triangles under the current source, if precomputed
+    /// (`None`: the visit computes each where it needs it, as a cell does).
+    fn seen(&self, _x: crate::units::Coord, _y: crate::units::Coord) -> Option<SeenTable<'_>> {
+        None
+    }
 }
 
 /// Most triangles one [`ExactVisit`] reads tests for (those it cannot decide on the whole
@@ -390,6 +428,8 @@ pub struct ExactVisit<'a, 't, F: FracBits> {
     /// Too many undecided triangles: each ray is judged on its own.
     per_ray: bool,
     triangles: &'a [Triangle],
+    /// The triangles' planes, when the host precomputed them.
+    seen: Option<SeenTable<'a>>,
     source: &'a Source,
     dir: Direction,
     far: FarDistance<F>,
@@ -421,12 +461,14 @@ fn code_out(c: u64) -> crate::lit::Out {
 impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
     /// The visit at layer `k` of a beam with lattice rectangle `a × b` (inclusive), terminal or
     /// not, with the notch start `notch` (for a ±z beam that stayed in its column), in a column
-    /// keeping `triangles`; its tests go to `tests` (whatever it held is dropped).
+    /// keeping `triangles` (with their planes `seen`, if precomputed); its tests go to `tests`
+    /// (whatever it held is dropped).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub fn new(
         tests: &'t mut ExactTests,
         triangles: &'a [Triangle],
+        seen: Option<SeenTable<'a>>,
         source: &'a Source,
         dir: Direction,
         far: FarDistance<F>,
@@ -445,6 +487,7 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
             notch,
             per_ray: false,
             triangles,
+            seen,
             source,
             dir,
             far,
@@ -476,10 +519,11 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
         let constant = |c: [bool; 4]| c.iter().all(|&x| x == c[0]).then_some(c[0]);
         let fixed_on = |t: &Test| constant(corners.map(|(a, b)| t.holds(a, b)));
         let t1 = notch.unwrap_or(k - 1);
-        for tri in v.triangles {
+        let Some(view) = View::new(source, dir, far) else { return };
+        for (i, tri) in v.triangles.iter().enumerate() {
             // The plane first: most triangles are crossed by no ray near this layer, and their
             // edges are never built.
-            let Some(seen) = Seen::new(tri, source, dir, far) else { continue };
+            let Some(seen) = v.seen_of(i, tri, &view) else { continue };
             // No ray crosses the plane between t₁ and k + 1: σ is monotone along each ray, so
             // its sign at the earliest and the latest of those layers, at the rectangle's
             // corners, decides it.
@@ -490,7 +534,7 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
                 continue;
             }
             let sigma = [k - 1, k, k + 1, t1].map(|t| constant(sigma_at(t)));
-            let tests = seen.occluder(tri).exact_tests(k, t1);
+            let tests = seen.occluder(tri, &view).exact_tests(k, t1);
             let mut fixed = [None; PER_TRIANGLE];
             for (i, t) in tests[..3].iter().enumerate() {
                 fixed[i] = fixed_on(t);
@@ -558,11 +602,25 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
         }
     }
 
+    /// Triangle i of the column (`tri`) seen along the rays of `view`: precomputed, or now.
+    #[inline]
+    fn seen_of(&self, i: usize, tri: &Triangle, view: &View) -> Option<Seen> {
+        match self.seen {
+            Some(t) => {
+                let s = t.seen[t.ids[i] as usize][self.dir.index() as usize];
+                debug_assert_eq!(s, Seen::new(tri, view), "a precomputed plane differs from the triangle's");
+                s
+            }
+            None => Seen::new(tri, view),
+        }
+    }
+
     /// Ray (a, b) judged against every triangle of the column.
     fn judge(&self, a: i64, b: i64) -> (bool, bool, bool) {
         let mut acc = (false, false, false);
-        for tri in self.triangles {
-            let Some(occ) = Occluder::new(tri, self.source, self.dir, self.far) else { continue };
+        let Some(view) = View::new(self.source, self.dir, self.far) else { return acc };
+        for (i, tri) in self.triangles.iter().enumerate() {
+            let Some(occ) = self.seen_of(i, tri, &view).map(|s| s.occluder(tri, &view)) else { continue };
             let bits = occ
                 .exact_tests(self.k, self.notch.unwrap_or(self.k - 1))
                 .iter()

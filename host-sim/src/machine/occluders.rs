@@ -1,9 +1,14 @@
 //! Exact occluders on the grid for one source (thesis §5.5.6; `cell_core::occluder`): each
 //! column's triangles ([`crate::machine::triangles`]) and its target ray.
+//!
+//! A host speed-up beside them: each distinct triangle's plane along the source's rays in each
+//! of the six directions (`cell_core::occluder::Seen`), computed once per source instead of by
+//! every beam that visits a column keeping it (a cell computes it per beam; the verdicts are
+//! the same).
 
-use cell_core::beam::{FarDistance, FracBits, Source};
+use cell_core::beam::{Direction, FarDistance, FracBits, Source};
 use cell_core::light::Port;
-use cell_core::occluder::{ColumnOccluders, Triangle};
+use cell_core::occluder::{ColumnOccluders, Seen, SeenTable, Triangle};
 use cell_core::receiver::{crosses_any, target, Target};
 use cell_core::units::Coord;
 use rayon::prelude::*;
@@ -25,6 +30,8 @@ pub struct SourceOccluders<'a> {
     n: u32,
     triangles: &'a ColumnTriangles,
     targets: Vec<Option<Target>>,
+    /// Per distinct triangle, its plane in each direction ([`ColumnTriangles::distinct`]).
+    seen: Vec<[Option<Seen>; 6]>,
 }
 
 impl<'a> SourceOccluders<'a> {
@@ -45,7 +52,8 @@ impl<'a> SourceOccluders<'a> {
                 Some(t.with_neighbour_answers(shadowed))
             })
             .collect();
-        SourceOccluders { n, triangles: tris, targets }
+        let seen = tris.distinct().par_iter().map(|t| Direction::ALL.map(|d| Seen::of(t, source, d, far))).collect();
+        SourceOccluders { n, triangles: tris, targets, seen }
     }
 
     /// Messages of the contact exchange: a query and an answer per link from each cell with a
@@ -64,5 +72,9 @@ impl ColumnOccluders for SourceOccluders<'_> {
 
     fn target(&self, x: Coord, y: Coord) -> Option<&Target> {
         self.targets.get(y as usize * self.n as usize + x as usize)?.as_ref()
+    }
+
+    fn seen(&self, x: Coord, y: Coord) -> Option<SeenTable<'_>> {
+        Some(SeenTable { ids: self.triangles.ids(x as u32, y as u32), seen: &self.seen })
     }
 }

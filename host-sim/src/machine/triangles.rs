@@ -20,6 +20,9 @@ pub struct ColumnTriangles {
     /// Column `i = y·n + x` holds `tris[start[i] .. start[i + 1]]` (empty `start`: none).
     start: Vec<u32>,
     tris: Vec<Triangle>,
+    /// Beside each kept triangle, its index in `distinct` (the scene's triangles, each once).
+    ids: Vec<u32>,
+    distinct: Vec<Triangle>,
     overflows: u64,
 }
 
@@ -47,9 +50,9 @@ impl ColumnTriangles {
             }
         }
         let cols = n as usize * n as usize;
-        let mut per: Vec<Vec<Triangle>> = vec![Vec::new(); cols];
+        let mut per: Vec<Vec<(Triangle, u32)>> = vec![Vec::new(); cols];
         let mut overflows = 0u64;
-        for t in &tris {
+        for (id, t) in tris.iter().enumerate() {
             let range = |c: usize| {
                 let (lo, hi) = t
                     .vertices()
@@ -63,7 +66,7 @@ impl ColumnTriangles {
                     if t.crosses_column(x as i32, y as i32) {
                         let col = &mut per[(y * n as i64 + x) as usize];
                         if col.len() < cap {
-                            col.push(*t);
+                            col.push((*t, id as u32));
                         } else {
                             overflows += 1;
                         }
@@ -72,22 +75,40 @@ impl ColumnTriangles {
             }
         }
         let mut start = Vec::with_capacity(cols + 1);
-        let mut flat = Vec::new();
+        let (mut flat, mut ids) = (Vec::new(), Vec::new());
         start.push(0);
         for col in per {
-            flat.extend(col);
+            for (t, id) in col {
+                flat.push(t);
+                ids.push(id);
+            }
             start.push(flat.len() as u32);
         }
-        Ok(ColumnTriangles { n, start, tris: flat, overflows })
+        Ok(ColumnTriangles { n, start, tris: flat, ids, distinct: tris, overflows })
+    }
+
+    /// The range of column (x, y) in the flat arrays (empty outside the grid or unloaded).
+    fn range(&self, x: u32, y: u32) -> std::ops::Range<usize> {
+        if self.start.is_empty() || x >= self.n || y >= self.n {
+            return 0..0;
+        }
+        let i = (y * self.n + x) as usize;
+        self.start[i] as usize..self.start[i + 1] as usize
+    }
+
+    /// Beside each of column (x, y)'s triangles, its index in [`ColumnTriangles::distinct`].
+    pub fn ids(&self, x: u32, y: u32) -> &[u32] {
+        &self.ids[self.range(x, y)]
+    }
+
+    /// The scene's triangles, each once (what the columns' triangles are copies of).
+    pub fn distinct(&self) -> &[Triangle] {
+        &self.distinct
     }
 
     /// The triangles column (x, y) keeps.
     pub fn column(&self, x: u32, y: u32) -> &[Triangle] {
-        if self.start.is_empty() || x >= self.n || y >= self.n {
-            return &[];
-        }
-        let i = (y * self.n + x) as usize;
-        &self.tris[self.start[i] as usize..self.start[i + 1] as usize]
+        &self.tris[self.range(x, y)]
     }
 
     /// Whether the stores were loaded (a grid loaded without them has none).
