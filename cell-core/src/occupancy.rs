@@ -394,7 +394,10 @@ impl<const B: usize, R: BlockRow> OccupancySummary<B, R> {
         if k0 == 0 && ws != source.voxel()[w] as i64 {
             return false;
         }
-        let reach = |k: i64| source.reach(dir, Layer(k as u32));
+        // `Source::reach` with the lead read once (layers here are 0 ..= D).
+        let lead = source.lead(dir);
+        let reach = |k: i64| (16 * k - lead).max(0);
+        debug_assert_eq!(reach(k0 as i64), source.reach(dir, Layer(k0)));
         let ew = self.extent[w] as i64;
         let plus = dir.sign() > 0;
         let (k_in, k_out) = if plus { (-ws, ew - 1 - ws) } else { (ws - (ew - 1), ws) };
@@ -551,8 +554,9 @@ impl Side {
             return if self.step_hi <= 0 { Cover::Gone } else { Cover::Miss };
         }
         // Here num_lo < top and 0 ≤ num_hi; num_lo ≤ num_hi's extreme, so lo ≤ hi below.
-        let lo = if num_lo < 0 { 0 } else { num_lo / self.m };
-        let hi = if num_hi >= self.top { self.last } else { num_hi / self.m };
+        // Both quotients are of non-negative numerators by m > 0: unsigned divisions.
+        let lo = if num_lo < 0 { 0 } else { (num_lo as u64 / self.m as u64) as i64 };
+        let hi = if num_hi >= self.top { self.last } else { (num_hi as u64 / self.m as u64) as i64 };
         Cover::Blocks(range_mask(lo as u32, hi as u32))
     }
 }
