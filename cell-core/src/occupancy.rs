@@ -437,9 +437,13 @@ impl<const B: usize, R: BlockRow> OccupancySummary<B, R> {
                 break;
             }
         }
-        // Slabs in increasing layer order: ascending j for σ = +1, descending for σ = −1.
+        // Slabs from the far end back (descending j for σ = +1, ascending for σ = −1): the
+        // answer is whether any slab holds a block the rays meet, whatever the order, and the
+        // frustum is widest far away, where a block is met soonest (Cornell through its camera
+        // at n = 64: a quarter fewer instructions in this test than from the near end). The
+        // walk ends early when the rays are outside the grid in a slab and every nearer one.
         while cand != 0 {
-            let j = if plus { cand.trailing_zeros() } else { 31 - cand.leading_zeros() };
+            let j = if plus { 31 - cand.leading_zeros() } else { cand.trailing_zeros() };
             cand &= !(1u32 << j);
             let j = j as usize;
             // Within the whole frustum's rectangle? (No division.)
@@ -505,7 +509,8 @@ enum Cover {
     Blocks(u32),
     /// Outside the grid in this slab.
     Miss,
-    /// Outside the grid in this slab and in every later one (the bound moves away from it).
+    /// Outside the grid in this slab and in every nearer one (the bound comes no closer to the
+    /// grid toward the source): with the farther slabs already walked, nothing is left.
     Gone,
 }
 
@@ -546,12 +551,13 @@ impl Side {
         let num_lo = self.c0 + self.step_lo * if lo_up { t1 } else { t2 };
         let num_hi = self.c0 + self.step_hi * if hi_up { t2 } else { t1 };
         if num_lo >= self.top {
-            // Every voxel ≥ extent; for good if the low bound never decreases.
-            return if lo_up { Cover::Gone } else { Cover::Miss };
+            // Every voxel ≥ extent; in nearer slabs too if the low bound never increases with
+            // T (nearer slabs have smaller reaches).
+            return if self.step_lo <= 0 { Cover::Gone } else { Cover::Miss };
         }
         if num_hi < 0 {
-            // Every voxel < 0; for good if the high bound never increases.
-            return if self.step_hi <= 0 { Cover::Gone } else { Cover::Miss };
+            // Every voxel < 0; in nearer slabs too if the high bound never decreases with T.
+            return if self.step_hi >= 0 { Cover::Gone } else { Cover::Miss };
         }
         // Here num_lo < top and 0 ≤ num_hi; num_lo ≤ num_hi's extreme, so lo ≤ hi below.
         // Both quotients are of non-negative numerators by m > 0: unsigned divisions.
