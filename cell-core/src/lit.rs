@@ -293,6 +293,56 @@ impl RayPlane {
     pub fn faces_source(&self) -> bool {
         self.k0 > 0
     }
+
+    /// The plane in `i64` for rays with |a|, |b| ≤ `n` and parameters with `T ≤ t_max`, if every
+    /// value it can take there, `|k0| + t_max·(|kw| + (|cb| + |cg|)·n)`, is below 2⁶³: then no
+    /// partial sum of [`Narrow::form`] or [`Narrow::positive_with`] overflows and their signs are
+    /// this plane's (the same tests at a third of the multiplications). `None` otherwise (a
+    /// large grid or far distance): the caller evaluates in `i128`.
+    pub(crate) fn narrow(&self, n: i64, t_max: i64) -> Option<Narrow> {
+        let slope = self.cb.unsigned_abs().checked_add(self.cg.unsigned_abs())?.checked_mul(n.unsigned_abs() as u128)?;
+        let form = self.kw.unsigned_abs().checked_add(slope)?;
+        let total = self.k0.unsigned_abs().checked_add(form.checked_mul(t_max.unsigned_abs() as u128)?)?;
+        (total < 1 << 63).then_some(Narrow {
+            k0: self.k0 as i64,
+            kw: self.kw as i64,
+            cb: self.cb as i64,
+            cg: self.cg as i64,
+            lead: self.lead,
+            n,
+        })
+    }
+}
+
+/// A [`RayPlane`] whose values fit `i64` for rays with |a|, |b| ≤ `n` ([`RayPlane::narrow`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Narrow {
+    k0: i64,
+    kw: i64,
+    cb: i64,
+    cg: i64,
+    lead: i64,
+    n: i64,
+}
+
+impl Narrow {
+    /// Whether ray (a, b) is one this form is exact for (|a|, |b| ≤ n).
+    #[inline]
+    pub(crate) fn covers(&self, a: i64, b: i64) -> bool {
+        a.abs() <= self.n && b.abs() <= self.n
+    }
+
+    /// [`RayPlane::form`] for a ray it [`Narrow::covers`].
+    #[inline]
+    pub(crate) fn form(&self, a: i64, b: i64) -> i64 {
+        self.kw + self.cb * a + self.cg * b
+    }
+
+    /// [`RayPlane::positive_with`] (T within the `t_max` it was narrowed for).
+    #[inline]
+    pub(crate) fn positive_with(&self, form: i64, t: i64) -> bool {
+        self.k0 + (16 * t - self.lead).max(0) * form > 0
+    }
 }
 
 /// One test of the rule: σ_t of a plane ("the ray's point of parameter t is on the outward
@@ -648,6 +698,67 @@ mod tests {
     /// A uniform integer in `-m ..= m`.
     fn rnd(s: &mut u64, m: u64) -> i64 {
         (lcg(s) % (2 * m + 1)) as i64 - m as i64
+    }
+
+    /// The `i64` plane ([`RayPlane::narrow`]) against the `i128` one: wherever it is offered,
+    /// the same sign for every ray of the square and every parameter up to `t_max`, including
+    /// coefficients at the edge of what fits (each term drawn near 2⁶³ / its multiplier) and
+    /// the square's corners; and it is refused when the bound is 2⁶³ or more.
+    #[test]
+    fn narrow_planes_give_the_i128_signs_and_refuse_what_could_overflow() {
+        let mut seed = 7u64;
+        let (mut offered, mut refused) = (0, 0);
+        for case in 0..20_000 {
+            let n = 1 + (lcg(&mut seed) % (1 << 20)) as i64;
+            let t_max = 16 * (1 + (lcg(&mut seed) % 4096) as i64);
+            // Magnitudes from tiny to past the bound: scale each term by a random power of 2.
+            // A term of magnitude up to min(2^bits, room) (random bits), times 1 to 3 for two
+            // cases in three (past the room: refused), with a random sign.
+            let mut term = |room: i128| {
+                let bits = (lcg(&mut seed) % 63) as u32;
+                let m = (1i128 << bits).min(room.max(1));
+                let wide = ((lcg(&mut seed) << 31) | lcg(&mut seed)) as i128;
+                let sign = if lcg(&mut seed) % 2 == 0 { 1 } else { -1 };
+                let times = if case % 3 == 0 { 1 } else { (lcg(&mut seed) % 3) as i128 + 1 };
+                sign * times * (if lcg(&mut seed) % 4 == 0 { m } else { wide % (m + 1) })
+            };
+            let lim = 1i128 << 63;
+            let k0 = term(lim);
+            let kw = term(lim / t_max as i128);
+            let cb = term(lim / (t_max as i128 * n as i128));
+            let cg = term(lim / (t_max as i128 * n as i128));
+            let lead = (lcg(&mut seed) % 16) as i64;
+            let p = RayPlane::from_coefficients(k0, kw, cb, cg, lead);
+            let bound = k0.unsigned_abs()
+                + t_max as u128 * (kw.unsigned_abs() + (cb.unsigned_abs() + cg.unsigned_abs()) * n as u128);
+            let Some(q) = p.narrow(n, t_max) else {
+                assert!(bound >= 1 << 63, "refused a plane whose bound {bound} fits");
+                refused += 1;
+                continue;
+            };
+            assert!(bound < 1 << 63);
+            offered += 1;
+            for _ in 0..8 {
+                let pick = |s: &mut u64| match lcg(s) % 3 {
+                    0 => n,
+                    1 => -n,
+                    _ => rnd(s, n as u64),
+                };
+                let (a, b) = (pick(&mut seed), pick(&mut seed));
+                let t = match lcg(&mut seed) % 3 {
+                    0 => (t_max + lead) / 16,
+                    1 => -1,
+                    _ => (lcg(&mut seed) % (t_max as u64 / 16 + 1)) as i64,
+                };
+                assert!(q.covers(a, b));
+                assert_eq!(
+                    q.positive_with(q.form(a, b), t),
+                    p.positive_with(p.form(a, b), t),
+                    "{p:?} at ({a}, {b}, {t})"
+                );
+            }
+        }
+        assert!(offered > 1000 && refused > 1000, "offered {offered}, refused {refused}");
     }
 
     /// A random dexel plane near voxel (6, 6, 6), seen along `dir`.

@@ -109,7 +109,7 @@
 //! ```
 
 use crate::beam::{Direction, FarDistance, FracBits, Source};
-use crate::lit::{RayPlane, Test};
+use crate::lit::{Narrow, RayPlane, Test};
 use heapless::Vec;
 
 /// Largest |coordinate| (sixteenths of a voxel) of a vertex or a ray origin (module doc's bit
@@ -208,6 +208,8 @@ struct View {
     sign: i128,
     nn: i128,
     lead: i64,
+    /// The largest ray parameter a visit reads, 16·(D + 1) ([`RayPlane::narrow`]).
+    t_max: i64,
 }
 
 impl View {
@@ -220,7 +222,8 @@ impl View {
             return None;
         }
         let (sign, nn) = (dir.sign() as i128, far.scaled() as i128);
-        Some(View { o, axes: (w, u.index(), v.index()), sign, nn, lead })
+        let t_max = 16 * (far.get() as i64 + 1);
+        Some(View { o, axes: (w, u.index(), v.index()), sign, nn, lead, t_max })
     }
 }
 
@@ -232,6 +235,8 @@ impl View {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Seen {
     plane: RayPlane,
+    /// The plane in `i64`, when its values fit for every ray and layer of the far distance.
+    narrow: Option<Narrow>,
     /// The edges' orientation (sgn Δ).
     orient: i8,
 }
@@ -248,7 +253,8 @@ impl Seen {
         }
         let orient = if k0 < 0 { 1 } else { -1 };
         let plane = RayPlane::from_coefficients(k0, n[w] * view.sign * view.nn, n[u], n[v], view.lead);
-        Some(Seen { plane, orient })
+        let narrow = plane.narrow(view.nn as i64, view.t_max);
+        Some(Seen { plane, narrow, orient })
     }
 
     /// The plane of `tri` along `source`'s rays in `dir` at far distance `far`; `None` when the
@@ -514,12 +520,18 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
     fn sort_triangles(&mut self, (a, b): ((i64, i64), (i64, i64))) {
         let (source, dir, far, k, notch) = (self.source, self.dir, self.far, self.k, self.notch);
         let v = self;
+        let Some(view) = View::new(source, dir, far) else { return };
         let corners = [(a.0, b.0), (a.0, b.1), (a.1, b.0), (a.1, b.1)];
         // Some(value) when a test's values at the corners agree: it is constant on the rectangle.
         let constant = |c: [bool; 4]| c.iter().all(|&x| x == c[0]).then_some(c[0]);
-        let fixed_on = |t: &Test| constant(corners.map(|(a, b)| t.holds(a, b)));
+        // Planes whose values fit `i64` for every ray of the far square are read in `i64`
+        // ([`RayPlane::narrow`]: the same signs).
+        let in_square = |n: &Narrow| corners.iter().all(|&(a, b)| n.covers(a, b));
+        let fixed_on = |t: &Test| match t.plane.narrow(view.nn as i64, 16).filter(|n| t.t == 1 && in_square(n)) {
+            Some(n) => constant(corners.map(|(a, b)| n.positive_with(n.form(a, b), t.t))),
+            None => constant(corners.map(|(a, b)| t.holds(a, b))),
+        };
         let t1 = notch.unwrap_or(k - 1);
-        let Some(view) = View::new(source, dir, far) else { return };
         for (i, tri) in v.triangles.iter().enumerate() {
             // The plane first: most triangles are crossed by no ray near this layer, and their
             // edges are never built.
@@ -527,8 +539,15 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
             // No ray crosses the plane between t₁ and k + 1: σ is monotone along each ray, so
             // its sign at the earliest and the latest of those layers, at the rectangle's
             // corners, decides it.
-            let forms = corners.map(|(a, b)| seen.plane.form(a, b));
-            let sigma_at = |t: i64| forms.map(|f| seen.plane.positive_with(f, t));
+            let narrow = seen.narrow.filter(in_square);
+            let (forms, forms64) = match narrow {
+                Some(n) => ([0; 4], corners.map(|(a, b)| n.form(a, b))),
+                None => (corners.map(|(a, b)| seen.plane.form(a, b)), [0; 4]),
+            };
+            let sigma_at = |t: i64| match narrow {
+                Some(n) => forms64.map(|f| n.positive_with(f, t)),
+                None => forms.map(|f| seen.plane.positive_with(f, t)),
+            };
             let (first, last) = (sigma_at(t1.min(k - 1)), sigma_at(t1.max(k + 1)));
             if first == last && constant(first).is_some() {
                 continue;
