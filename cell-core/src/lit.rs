@@ -299,11 +299,17 @@ impl RayPlane {
     /// partial sum of [`Narrow::form`] or [`Narrow::positive_with`] overflows and their signs are
     /// this plane's (the same tests at a third of the multiplications). `None` otherwise (a
     /// large grid or far distance): the caller evaluates in `i128`.
+    ///
+    /// Decided on bit lengths (one test per beam and undecided edge: no 128-bit product): with
+    /// `|kw| < 2^bw`, `max(|cb|, |cg|) < 2^bc`, `t_max < 2^bt` and `n < 2^bn`, the terms
+    /// `t_max·|kw| < 2^(bw+bt)` and `t_max·(|cb| + |cg|)·n < 2^(bc+1+bn+bt)` each at most 2⁶⁰
+    /// and `|k0| < 2⁶¹` keep the sum below 2⁶². A refused plane's bound is at least 2⁵⁷.
     pub(crate) fn narrow(&self, n: i64, t_max: i64) -> Option<Narrow> {
-        let slope = self.cb.unsigned_abs().checked_add(self.cg.unsigned_abs())?.checked_mul(n.unsigned_abs() as u128)?;
-        let form = self.kw.unsigned_abs().checked_add(slope)?;
-        let total = self.k0.unsigned_abs().checked_add(form.checked_mul(t_max.unsigned_abs() as u128)?)?;
-        (total < 1 << 63).then_some(Narrow {
+        let bits = |x: u128| 128 - x.leading_zeros();
+        let bt = bits(t_max.unsigned_abs() as u128);
+        let along = bits(self.kw.unsigned_abs()) + bt;
+        let across = bits(self.cb.unsigned_abs() | self.cg.unsigned_abs()) + 1 + bits(n.unsigned_abs() as u128) + bt;
+        (bits(self.k0.unsigned_abs()) <= 61 && along <= 60 && across <= 60).then_some(Narrow {
             k0: self.k0 as i64,
             kw: self.kw as i64,
             cb: self.cb as i64,
@@ -732,7 +738,7 @@ mod tests {
             let bound = k0.unsigned_abs()
                 + t_max as u128 * (kw.unsigned_abs() + (cb.unsigned_abs() + cg.unsigned_abs()) * n as u128);
             let Some(q) = p.narrow(n, t_max) else {
-                assert!(bound >= 1 << 63, "refused a plane whose bound {bound} fits");
+                assert!(bound >= 1 << 56, "refused a plane whose bound {bound} is far below 2^63");
                 refused += 1;
                 continue;
             };

@@ -535,7 +535,8 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
         for (i, tri) in v.triangles.iter().enumerate() {
             // The plane first: most triangles are crossed by no ray near this layer, and their
             // edges are never built.
-            let Some(seen) = v.seen_of(i, tri, &view) else { continue };
+            let mut slot = None;
+            let Some(seen) = v.seen_of(i, tri, &view, &mut slot) else { continue };
             // No ray crosses the plane between t₁ and k + 1: σ is monotone along each ray, so
             // its sign at the earliest and the latest of those layers, at the rectangle's
             // corners, decides it.
@@ -623,14 +624,22 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
 
     /// Triangle i of the column (`tri`) seen along the rays of `view`: precomputed, or now.
     #[inline]
-    fn seen_of(&self, i: usize, tri: &Triangle, view: &View) -> Option<Seen> {
+    /// Read in place from the table (a `Seen` is ~150 bytes: a copy per triangle per beam was a
+    /// tenth of a bureau's instructions); computed into `slot` without one.
+    fn seen_of<'s>(&self, i: usize, tri: &Triangle, view: &View, slot: &'s mut Option<Seen>) -> Option<&'s Seen>
+    where
+        'a: 's,
+    {
         match self.seen {
             Some(t) => {
-                let s = t.seen[t.ids[i] as usize][self.dir.index() as usize];
-                debug_assert_eq!(s, Seen::new(tri, view), "a precomputed plane differs from the triangle's");
+                let s = t.seen[t.ids[i] as usize][self.dir.index() as usize].as_ref();
+                debug_assert_eq!(s, Seen::new(tri, view).as_ref(), "a precomputed plane differs from the triangle's");
                 s
             }
-            None => Seen::new(tri, view),
+            None => {
+                *slot = Seen::new(tri, view);
+                slot.as_ref()
+            }
         }
     }
 
@@ -639,7 +648,8 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
         let mut acc = (false, false, false);
         let Some(view) = View::new(self.source, self.dir, self.far) else { return acc };
         for (i, tri) in self.triangles.iter().enumerate() {
-            let Some(occ) = self.seen_of(i, tri, &view).map(|s| s.occluder(tri, &view)) else { continue };
+            let mut slot = None;
+            let Some(occ) = self.seen_of(i, tri, &view, &mut slot).map(|s| s.occluder(tri, &view)) else { continue };
             let bits = occ
                 .exact_tests(self.k, self.notch.unwrap_or(self.k - 1))
                 .iter()
