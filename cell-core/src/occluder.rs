@@ -266,11 +266,15 @@ impl Seen {
     /// The whole occluder: the plane and the three edges.
     fn occluder(&self, tri: &Triangle, view: &View) -> Occluder {
         let (w, u, v) = view.axes;
-        let rel = [0, 1, 2].map(|i| sub(tri.vertex(i), view.o));
+        // Differences ≤ 2²⁴ and their cross products ≤ 2⁴⁹ (the module doc's bit budget), times
+        // 2·sgn Δ·s ≤ 2⁵¹: `i64`; only the product with N needs `i128`, one widening multiply.
+        let rel = [0, 1, 2].map(|i| [0, 1, 2].map(|c| tri.v[i][c] as i64 - view.o[c]));
+        let o = 2 * self.orient as i64;
         let edges = [(0, 1), (1, 2), (2, 0)].map(|(i, j)| {
-            let m = cross(rel[i], rel[j]);
-            let o = 2 * self.orient as i128;
-            RayPlane::from_coefficients(0, o * m[w] * view.sign * view.nn + 1, o * m[u], o * m[v], view.lead)
+            let (p, q) = (rel[i], rel[j]);
+            let m = [p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]];
+            let kw = (o * m[w] * view.sign as i64) as i128 * view.nn + 1;
+            RayPlane::from_coefficients(0, kw, (o * m[u]) as i128, (o * m[v]) as i128, view.lead)
         });
         Occluder { plane: self.plane, edges }
     }
