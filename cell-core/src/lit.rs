@@ -332,6 +332,17 @@ pub(crate) struct Narrow {
 }
 
 impl Narrow {
+    /// Its coefficients `[k0, kw, cb, cg]`.
+    pub(crate) const fn coefficients(&self) -> [i64; 4] {
+        [self.k0, self.kw, self.cb, self.cg]
+    }
+
+    /// The plane `narrow(n, ·)` gave these coefficients for (lead `lead`), and the form itself.
+    pub(crate) const fn rebuild(k: [i64; 4], lead: i64, n: i64) -> (RayPlane, Narrow) {
+        let plane = RayPlane::from_coefficients(k[0] as i128, k[1] as i128, k[2] as i128, k[3] as i128, lead);
+        (plane, Narrow { k0: k[0], kw: k[1], cb: k[2], cg: k[3], lead, n })
+    }
+
     /// Whether ray (a, b) is one this form is exact for (|a|, |b| ≤ n).
     #[inline]
     pub(crate) fn covers(&self, a: i64, b: i64) -> bool {

@@ -230,8 +230,8 @@ impl View {
 /// A triangle's plane seen along the rays of one source and direction, before its edges: what
 /// [`ExactVisit`] reads first, since most triangles of a column are decided by the plane alone
 /// (no ray crosses it near the beam) and need no edge. It depends on the triangle, the source
-/// and the direction only, so a host may compute it once per source ([`SeenTable`]) instead of
-/// once per beam; a cell computes it where it needs it.
+/// and the direction only, so a host may compute it once per source ([`SeenTable`],
+/// [`SeenEntry`]) instead of once per beam; a cell computes it where it needs it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Seen {
     plane: RayPlane,
@@ -257,12 +257,6 @@ impl Seen {
         Some(Seen { plane, narrow, orient })
     }
 
-    /// The plane of `tri` along `source`'s rays in `dir` at far distance `far`; `None` when the
-    /// triangle stops no ray (as for [`Occluder::new`]).
-    pub fn of<F: FracBits>(tri: &Triangle, source: &Source, dir: Direction, far: FarDistance<F>) -> Option<Seen> {
-        Seen::new(tri, &View::new(source, dir, far)?)
-    }
-
     /// The whole occluder: the plane and the three edges.
     fn occluder(&self, tri: &Triangle, view: &View) -> Occluder {
         let (w, u, v) = view.axes;
@@ -280,6 +274,47 @@ impl Seen {
     }
 }
 
+/// A triangle's [`Seen`] as a host's table keeps it (40 bytes, a quarter of one): the plane's
+/// coefficients when they fit `i64` under the far distance ([`RayPlane::narrow`], then the
+/// visit rebuilds the same `Seen` from them), else a mark that the visit computes it, or that
+/// the triangle stops no ray.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SeenEntry {
+    /// `[k0, kw, cb, cg]` (narrow entries).
+    k: [i64; 4],
+    /// ±1: a narrow entry, the edges' orientation; 0: stops no ray; 2: computed by the visit.
+    orient: i8,
+}
+
+impl SeenEntry {
+    const NONE: SeenEntry = SeenEntry { k: [0; 4], orient: 0 };
+    const WIDE: SeenEntry = SeenEntry { k: [0; 4], orient: 2 };
+
+    /// The entry of `tri` along `source`'s rays in `dir` at far distance `far`.
+    pub fn of<F: FracBits>(tri: &Triangle, source: &Source, dir: Direction, far: FarDistance<F>) -> SeenEntry {
+        let Some(seen) = View::new(source, dir, far).and_then(|view| Seen::new(tri, &view)) else {
+            return SeenEntry::NONE;
+        };
+        match seen.narrow {
+            Some(n) => SeenEntry { k: n.coefficients(), orient: seen.orient },
+            None => SeenEntry::WIDE,
+        }
+    }
+
+    /// The `Seen` of `tri` along the rays of `view` (the entry's triangle, source and direction).
+    #[inline]
+    fn seen(&self, tri: &Triangle, view: &View) -> Option<Seen> {
+        match self.orient {
+            0 => None,
+            2 => Seen::new(tri, view),
+            orient => {
+                let (plane, narrow) = Narrow::rebuild(self.k, view.lead, view.nn as i64);
+                Some(Seen { plane, narrow: Some(narrow), orient })
+            }
+        }
+    }
+}
+
 /// The planes of a column's triangles, computed once per source by a host that holds every
 /// column ([`ColumnOccluders::seen`]): triangle i of the column is `seen[ids[i]][dir]`. The
 /// visit reads the same [`Seen`] it would compute, so the verdicts are the same.
@@ -289,7 +324,7 @@ pub struct SeenTable<'a> {
     pub ids: &'a [u32],
     /// Per distinct triangle, its plane for each direction ([`Direction::index`] order) under
     /// the current source and far distance.
-    pub seen: &'a [[Option<Seen>; 6]],
+    pub seen: &'a [[SeenEntry; 6]],
 }
 
 /// Bits of [`Occluder::tests`] that must all hold (the three edges).
@@ -626,25 +661,19 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
         }
     }
 
-    /// Triangle i of the column (`tri`) seen along the rays of `view`: precomputed, or now.
+    /// Triangle i of the column (`tri`) seen along the rays of `view`: rebuilt from the host's
+    /// table entry, or computed, into `slot`.
     #[inline]
-    /// Read in place from the table (a `Seen` is ~150 bytes: a copy per triangle per beam was a
-    /// tenth of a bureau's instructions); computed into `slot` without one.
-    fn seen_of<'s>(&self, i: usize, tri: &Triangle, view: &View, slot: &'s mut Option<Seen>) -> Option<&'s Seen>
-    where
-        'a: 's,
-    {
-        match self.seen {
+    fn seen_of<'s>(&self, i: usize, tri: &Triangle, view: &View, slot: &'s mut Option<Seen>) -> Option<&'s Seen> {
+        *slot = match self.seen {
             Some(t) => {
-                let s = t.seen[t.ids[i] as usize][self.dir.index() as usize].as_ref();
-                debug_assert_eq!(s, Seen::new(tri, view).as_ref(), "a precomputed plane differs from the triangle's");
+                let s = t.seen[t.ids[i] as usize][self.dir.index() as usize].seen(tri, view);
+                debug_assert_eq!(s, Seen::new(tri, view), "a precomputed plane differs from the triangle's");
                 s
             }
-            None => {
-                *slot = Seen::new(tri, view);
-                slot.as_ref()
-            }
-        }
+            None => Seen::new(tri, view),
+        };
+        slot.as_ref()
     }
 
     /// Ray (a, b) judged against every triangle of the column.

@@ -2,13 +2,13 @@
 //! column's triangles ([`crate::machine::triangles`]) and its target ray.
 //!
 //! A host speed-up beside them: each distinct triangle's plane along the source's rays in each
-//! of the six directions (`cell_core::occluder::Seen`), computed once per source instead of by
+//! of the six directions (`cell_core::occluder::SeenEntry`), computed once per source instead of by
 //! every beam that visits a column keeping it (a cell computes it per beam; the verdicts are
 //! the same).
 
 use cell_core::beam::{Direction, FarDistance, FracBits, Source};
 use cell_core::light::Port;
-use cell_core::occluder::{ColumnOccluders, Seen, SeenTable, Triangle};
+use cell_core::occluder::{ColumnOccluders, SeenEntry, SeenTable, Triangle};
 use cell_core::receiver::{crosses_any, target, Target};
 use cell_core::units::Coord;
 use rayon::prelude::*;
@@ -31,7 +31,7 @@ pub struct SourceOccluders<'a> {
     triangles: &'a ColumnTriangles,
     targets: Vec<Option<Target>>,
     /// Per distinct triangle, its plane in each direction ([`ColumnTriangles::distinct`]).
-    seen: Vec<[Option<Seen>; 6]>,
+    seen: Vec<[SeenEntry; 6]>,
 }
 
 impl<'a> SourceOccluders<'a> {
@@ -52,7 +52,8 @@ impl<'a> SourceOccluders<'a> {
                 Some(t.with_neighbour_answers(shadowed))
             })
             .collect();
-        let seen = tris.distinct().par_iter().map(|t| Direction::ALL.map(|d| Seen::of(t, source, d, far))).collect();
+        let seen =
+            tris.distinct().par_iter().map(|t| Direction::ALL.map(|d| SeenEntry::of(t, source, d, far))).collect();
         SourceOccluders { n, triangles: tris, targets, seen }
     }
 
