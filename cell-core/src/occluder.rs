@@ -739,7 +739,7 @@ impl<F: FracBits> crate::lit::Rule for ExactVisit<'_, '_, F> {
         out: &mut crate::lit::Segments<C>,
     ) {
         if !self.per_ray {
-            return crate::lit::segments(&self.tests, along, fixed, lo, hi, out);
+            return crate::lit::segments(self.tests, along, fixed, lo, hi, out);
         }
         out.clear();
         for x in lo..=hi {
@@ -760,7 +760,7 @@ impl<F: FracBits> crate::lit::Rule for ExactVisit<'_, '_, F> {
         if self.per_ray {
             return start; // one line at a time
         }
-        crate::lit::run_end(&self.tests, along, start, end, lo, hi)
+        crate::lit::run_end(self.tests, along, start, end, lo, hi)
     }
 }
 
