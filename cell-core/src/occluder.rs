@@ -133,6 +133,13 @@ pub(crate) fn cross(p: [i128; 3], q: [i128; 3]) -> [i128; 3] {
     [p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]]
 }
 
+/// [`cross`] of vectors whose components are at most 2²⁴ in magnitude (differences of
+/// coordinates within [`COORD_LIMIT`]): each product is below 2⁴⁸, each component below 2⁴⁹,
+/// exact in `i64`.
+fn cross64(p: [i64; 3], q: [i64; 3]) -> [i64; 3] {
+    [p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]]
+}
+
 pub(crate) fn dot(p: [i128; 3], q: [i128; 3]) -> i128 {
     p[0] * q[0] + p[1] * q[1] + p[2] * q[2]
 }
@@ -156,8 +163,7 @@ impl Triangle {
     /// each component below 2⁴⁹, in `i64` (the module doc's bit budget).
     pub fn normal(&self) -> [i128; 3] {
         let d = |i: usize| [0, 1, 2].map(|c| self.v[i][c] as i64 - self.v[0][c] as i64);
-        let (p, q) = (d(1), d(2));
-        [p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]].map(i128::from)
+        cross64(d(1), d(2)).map(i128::from)
     }
 
     /// Whether the triangle's projection on z meets the closed square of column (x, y)
@@ -265,8 +271,7 @@ impl Seen {
         let rel = [0, 1, 2].map(|i| [0, 1, 2].map(|c| tri.v[i][c] as i64 - view.o[c]));
         let o = 2 * self.orient as i64;
         let edges = [(0, 1), (1, 2), (2, 0)].map(|(i, j)| {
-            let (p, q) = (rel[i], rel[j]);
-            let m = [p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]];
+            let m = cross64(rel[i], rel[j]);
             let kw = (o * m[w] * view.sign as i64) as i128 * view.nn + 1;
             RayPlane::from_coefficients(0, kw, (o * m[u]) as i128, (o * m[v]) as i128, view.lead)
         });
@@ -566,6 +571,7 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
         // Planes whose values fit `i64` for every ray of the far square are read in `i64`
         // ([`RayPlane::narrow`]: the same signs).
         let in_square = |n: &Narrow| corners.iter().all(|&(a, b)| n.covers(a, b));
+        // Edges are read at t = 1 (`Occluder::tests`), where T = max(16 − lead, 0) ≤ 16.
         let fixed_on = |t: &Test| match t.plane.narrow(view.nn as i64, 16).filter(|n| t.t == 1 && in_square(n)) {
             Some(n) => constant(corners.map(|(a, b)| n.positive_with(n.form(a, b), t.t))),
             None => constant(corners.map(|(a, b)| t.holds(a, b))),
