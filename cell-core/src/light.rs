@@ -1087,9 +1087,6 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             LitRule::Plane => self.plane_fate(m, cell, env, f),
             #[cfg(feature = "exact-occluders")]
             LitRule::Exact => self.exact_fate(m, env, f),
-            // Without the feature (a firmware image) no trace can name the rule: the plane's.
-            #[cfg(not(feature = "exact-occluders"))]
-            LitRule::Exact => self.plane_fate(m, cell, env, f),
         }
     }
 
@@ -1895,6 +1892,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             // restricted to the two voxels bracketing the visible surface (and under exact
             // occluders the one in front of them, where the target ray may arrive).
             LitRule::Plane => !env.lit_visible_only || cell.visible.is_some_and(|v| v.brackets(z as i64)),
+            #[cfg(feature = "exact-occluders")]
             LitRule::Exact => !env.lit_visible_only || cell.visible.is_some_and(|v| v.receives(z as i64)),
         };
         if shown && !self.lit.mark(z, env.source_bit) {

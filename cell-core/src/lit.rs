@@ -109,20 +109,35 @@ use crate::beam::{Direction, FarDistance, FracBits, Source};
 use crate::plane::DexelPlane;
 use heapless::Vec;
 
-/// Which lit rule the cells apply.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+/// Which lit rule the cells apply. No default: a host's run names it (rc2's host: its presets).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum LitRule {
     /// §5.5.5: a beam entering an occupied voxel lights it and stops.
     Thesis,
     /// The plane rule (see the module doc): stopped only by a plane crossed there; lights the
     /// column's visible surface from its own plane.
-    #[default]
     Plane,
     /// Exact occluders ([`crate::occluder::ExactVisit`]): a ray is stopped where its segment
     /// meets a triangle kept by the columns of its voxels at the segment's two ends; a column's
-    /// visible surface is lit iff its one target ray ([`crate::receiver`]) reaches it.
+    /// visible surface is lit iff its one target ray ([`crate::receiver`]) reaches it. Only
+    /// with cell-core's `exact-occluders` feature: a cell built without it cannot be asked for
+    /// the rule (a trace naming it is refused), never runs another in its place.
+    #[cfg(feature = "exact-occluders")]
     Exact,
+}
+
+impl LitRule {
+    /// Whether this is the exact-occluder rule (always `false` without the feature).
+    pub const fn is_exact(self) -> bool {
+        #[cfg(feature = "exact-occluders")]
+        return matches!(self, LitRule::Exact);
+        #[cfg(not(feature = "exact-occluders"))]
+        {
+            let _ = self;
+            false
+        }
+    }
 }
 
 /// A visit's tests and the verdict on rays by their bits: what [`crate::light`] cuts and peels

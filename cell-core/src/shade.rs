@@ -622,9 +622,8 @@ pub fn cell_pixel<const D: usize>(
 ) -> Option<Pixel> {
     match rule {
         crate::lit::LitRule::Thesis => pixel(cell.x, cell.y, &cell.store, reached, materials, lights, params),
-        crate::lit::LitRule::Plane | crate::lit::LitRule::Exact => {
-            cell.visible.as_ref().map(|v| surface_pixel(cell.x, cell.y, v, visible_lit, materials, lights, params))
-        }
+        // The plane rule and exact occluders: the visible surface.
+        _ => cell.visible.as_ref().map(|v| surface_pixel(cell.x, cell.y, v, visible_lit, materials, lights, params)),
     }
 }
 

@@ -100,10 +100,9 @@ pub const ANSWER_SURFACE: u8 = 2;
 /// An answer on its way back to the emitter: payload bits [`ANSWER_LIT`], [`ANSWER_SURFACE`].
 pub type ShadowAnswer = Routed<u8>;
 
-/// Whether `rule` runs exact occluders here: [`LitRule::Exact`] with cell-core's
-/// `exact-occluders` feature (without it a cell runs the plane principle for that rule).
+/// Whether `rule` is exact occluders ([`LitRule::is_exact`]).
 fn exact_occluders(rule: LitRule) -> bool {
-    cfg!(feature = "exact-occluders") && rule == LitRule::Exact
+    rule.is_exact()
 }
 
 /// What the cells need to know about the phase for one source.
@@ -235,9 +234,8 @@ impl<const FA: usize> ShadowCell<FA> {
         let first = cell.store.dexels().first().map(|d| (0, d.span.lo));
         self.emitter = match env.rule {
             LitRule::Thesis => Emitter { surface: false, next: first },
-            LitRule::Plane | LitRule::Exact => {
-                Emitter { surface: cell.visible.is_some(), next: first.filter(|_| env.all_voxels) }
-            }
+            // The plane rule and exact occluders.
+            _ => Emitter { surface: cell.visible.is_some(), next: first.filter(|_| env.all_voxels) },
         };
         self.launch(cell, env).map(|_| ())
     }
@@ -306,11 +304,11 @@ impl<const FA: usize> ShadowCell<FA> {
                     .map_err(err(z as i32))?;
                 Ok(Some(if i == 0 && z == d.span.lo { ray.for_surface() } else { ray }))
             }
-            LitRule::Plane | LitRule::Exact if exact_occluders(env.rule) => {
+            _ if exact_occluders(env.rule) => {
                 let p = [cell.x as i64, cell.y as i64, z as i64].map(|v| v * POINT_UNITS);
                 ShadowRay::exact(p, &d.plane, d.span.lo as i32, env.source, d.facet).map_err(err(z as i32))
             }
-            LitRule::Plane | LitRule::Exact => {
+            _ => {
                 let centre = [cell.x as i32, cell.y as i32, z as i32].map(|v| v * Q);
                 ShadowRay::on_plane(centre, &d.plane, d.span.lo as i32, env.source, d.facet).map_err(err(z as i32))
             }

@@ -58,8 +58,13 @@ fn bench_diffuse(c: &mut Criterion) {
         let lights = resolve_lights(&mesh, &loaded, &[]).expect("the Cornell box has its light");
         let sources: Vec<_> = lights.iter().enumerate().map(|(i, p)| source_at(i, *p, n).expect("inside")).collect();
         for (pname, policy) in [("wavefront", Policy::Wavefront), ("thesis", Policy::Thesis)] {
-            let lcfg =
-                LightConfig { fa: 16, policy, merge: policy.by_layer(), record_visits: false, ..Default::default() };
+            let lcfg = LightConfig {
+                fa: 16,
+                policy,
+                merge: policy.by_layer(),
+                record_visits: false,
+                ..host_sim::config::plane_rule()
+            };
             let once = diffuse::<frac::U0, DEFAULT_DEXELS>(&loaded.grid, &sources, &lcfg, |_, _| {}).expect("diffuses");
             let r = &once.reports[0].counts;
             eprintln!(

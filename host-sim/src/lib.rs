@@ -20,6 +20,7 @@
 #![deny(unsafe_code)]
 
 pub mod cli;
+pub mod config;
 pub mod jobs;
 pub mod machine;
 pub mod precompute;

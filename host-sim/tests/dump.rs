@@ -61,8 +61,13 @@ fn dump_matches_the_grid_the_lights_and_the_geometry() {
     let cfg = LoadConfig::watertight(n);
     let loaded = load_scene(&mesh, &cfg).unwrap();
     let lights = resolve_lights(&mesh, &loaded, &[]).unwrap();
-    let lcfg =
-        LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, record_visits: false, ..Default::default() };
+    let lcfg = LightConfig {
+        fa: 16,
+        policy: Policy::Wavefront,
+        merge: true,
+        record_visits: false,
+        ..host_sim::config::plane_rule()
+    };
     let (lighting, stats) = run_diffusion::<U0>(&mesh, &loaded, &lights, &lcfg, |_, _| {}).unwrap();
     let mut buf = Vec::new();
     write_lit_dump(&lit_dump(&mesh, &loaded.grid, &loaded.fit, &lighting, &stats), &mut buf).unwrap();

@@ -7,7 +7,6 @@
 use cell_core::beam::frac::U0;
 use cell_core::radiosity::Received;
 use host_sim::machine::capacity::{CellReceived, DEFAULT_DEXELS};
-use host_sim::machine::diffuse::LightConfig;
 use host_sim::machine::loaded::{load_scene, LoadedScene};
 use host_sim::machine::radiosity::{map_patches, reduce_cost, shoot, solve, PatchMap, RadiosityConfig};
 use host_sim::precompute::LoadConfig;
@@ -52,7 +51,7 @@ fn room(ke: f32) -> Mesh {
 }
 
 fn cfg(shots: usize) -> RadiosityConfig {
-    RadiosityConfig::new(LightConfig::default(), 0.0, shots)
+    RadiosityConfig::new(host_sim::config::plane_rule(), 0.0, shots)
 }
 
 fn loaded(mesh: &Mesh, n: u32) -> LoadedScene {

@@ -30,7 +30,7 @@ fn cornell(n: u32, displays: &[Display]) -> (Mesh, Vec<(Display, Rendered, RefIm
     let load = LoadConfig::watertight(n);
     let loaded = load_scene(&mesh, &load).unwrap();
     let lights = resolve_lights(&mesh, &loaded, &[]).unwrap();
-    let light = LightConfig { lit_visible_only: true, skip_hidden: true, ..Default::default() };
+    let light = LightConfig { lit_visible_only: true, skip_hidden: true, ..host_sim::config::plane_rule() };
     let cfg = RenderConfig::diffusion(light, NormalMode::Facet);
     // Patches of n/4 voxels (about 190), a budget of 200 shots, the same stopping rule for both
     // solvers: residual ≈ 0.07, so the ambient term of §1.3.2 (uniform, what is still unshot)

@@ -74,7 +74,6 @@ use cell_core::receiver::target;
 use cell_core::shade::NormalMode;
 use cell_core::visible::VisibleSurface;
 use host_sim::jobs::render::{reference_image, RenderConfig};
-use host_sim::machine::diffuse::LightConfig;
 use host_sim::machine::loaded::LoadedScene;
 use host_sim::machine::shade::Seen;
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
@@ -1056,9 +1055,13 @@ fn main() {
         eprintln!("{e:#}");
         std::process::exit(2)
     });
-    let reference =
-        reference_image(&mesh, &loaded, &lights, &RenderConfig::diffusion(LightConfig::default(), NormalMode::Facet))
-            .expect("reference");
+    let reference = reference_image(
+        &mesh,
+        &loaded,
+        &lights,
+        &RenderConfig::diffusion(host_sim::config::plane_rule(), NormalMode::Facet),
+    )
+    .expect("reference");
     let (triangles, facets) = host_sim::truth::refrender::mesh_triangles(&mesh).expect("triangles");
     let sampled = sample_mesh(&triangles, loaded.fit.origin, loaded.fit.voxel);
     let exact = Reference::new(triangles, facets).expect("reference mesh");

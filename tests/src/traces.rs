@@ -16,8 +16,13 @@ use host_sim::scene::Mesh;
 pub fn cornell_job_cells(n: u32) -> (Mesh, LoadConfig, LightConfig, Vec<[u32; 2]>) {
     let mesh = host_sim::scene::load("cornell").unwrap();
     let load = LoadConfig::watertight(n);
-    let light =
-        LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, record_visits: false, ..Default::default() };
+    let light = LightConfig {
+        fa: 16,
+        policy: Policy::Wavefront,
+        merge: true,
+        record_visits: false,
+        ..host_sim::config::plane_rule()
+    };
     let scene = host_sim::machine::loaded::load_scene(&mesh, &load).unwrap();
     let lights = host_sim::machine::loaded::resolve_lights(&mesh, &scene, &[]).unwrap();
     let s = source_at(0, lights[0], n).unwrap().voxel();

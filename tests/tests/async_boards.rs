@@ -43,7 +43,8 @@ fn case(n: u32, rays: Origin, rule: LitRule) -> Case {
     let cfg = LoadConfig::watertight(n);
     let loaded = load_scene(&mesh, &cfg).unwrap();
     let lights = resolve_lights(&mesh, &loaded, &[[0.5, 0.8, 0.45], [0.2, 0.4, 0.3]]).unwrap();
-    let light = LightConfig { skip_receding: false, skip_dead_directions: false, rays, rule, ..Default::default() };
+    let light =
+        LightConfig { skip_receding: false, skip_dead_directions: false, rays, rule, ..host_sim::config::plane_rule() };
     let sources = lights.iter().enumerate().map(|(i, p)| light.source(i, *p, n).unwrap()).collect();
     let (l, _) = run_diffusion::<U0>(&mesh, &loaded, &lights, &light, |_, _| {}).unwrap();
     let img = shade_grid(&mesh, &loaded, &point_lights(&lights), &l, NormalMode::Facet);

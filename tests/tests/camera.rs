@@ -7,7 +7,6 @@
 use cell_core::beam::frac::U0;
 use cell_core::shade::NormalMode;
 use host_sim::jobs::render::{render, RenderConfig, RenderInput};
-use host_sim::machine::diffuse::LightConfig;
 use host_sim::machine::loaded::{load_scene, resolve_lights};
 use host_sim::machine::shade::Image;
 use host_sim::precompute::LoadConfig;
@@ -87,7 +86,7 @@ fn render_through(mesh: Mesh, cam: &Camera, n: u32) -> Image {
     let mesh = to_screen(mesh, cam, n).expect("camera");
     let loaded = load_scene(&mesh, &LoadConfig::watertight(n)).unwrap();
     let lights = resolve_lights(&mesh, &loaded, &[]).unwrap();
-    let cfg = RenderConfig::diffusion(LightConfig::default(), NormalMode::Facet);
+    let cfg = RenderConfig::diffusion(host_sim::config::plane_rule(), NormalMode::Facet);
     render::<U0>(&RenderInput::new(&mesh, &loaded, &lights), &cfg, |_, _| {}).unwrap().image
 }
 
@@ -293,7 +292,7 @@ fn a_lamp_in_its_ceiling_shows_where_the_reference_shows_it() {
         let mesh = apply(host_sim::scene::load("cornell").unwrap(), &ViewChoice::Scene, n).unwrap();
         let loaded = load_scene(&mesh, &LoadConfig::watertight(n)).unwrap();
         let lights = resolve_lights(&mesh, &loaded, &[]).unwrap();
-        let cfg = RenderConfig::diffusion(LightConfig::default(), NormalMode::Facet);
+        let cfg = RenderConfig::diffusion(host_sim::config::plane_rule(), NormalMode::Facet);
         let reference = host_sim::jobs::render::reference_image(&mesh, &loaded, &lights, &cfg).unwrap();
         // The machine's facet ids count the pieces of split polygons; materials are the mesh's.
         let emissive = |m: usize| mesh.materials[m].ke.iter().any(|&k| k > 0.0);

@@ -190,7 +190,7 @@ fn config_of(rules: Vec<LitRule>) -> impl Strategy<Value = LightConfig> {
             skip_receding: skip,
             skip_dead_directions: skip,
             rule,
-            ..Default::default()
+            ..host_sim::config::plane_rule()
         })
 }
 
@@ -316,7 +316,14 @@ fn adversarial_sources() {
             for policy in [Policy::Thesis, Policy::Wavefront, Policy::Radial] {
                 for rule in [LitRule::Thesis, LitRule::Plane, LitRule::Exact] {
                     let merge = policy.by_layer();
-                    let cfg = LightConfig { fa: 2, policy, merge, record_visits: false, rule, ..Default::default() };
+                    let cfg = LightConfig {
+                        fa: 2,
+                        policy,
+                        merge,
+                        record_visits: false,
+                        rule,
+                        ..host_sim::config::plane_rule()
+                    };
                     check_against_rays::<cell_core::beam::frac::U2>(&g, &[p], cfg)
                         .unwrap_or_else(|e| panic!("{name} {p:?} {rule:?}: {e}"));
                 }
@@ -343,7 +350,14 @@ fn every_timing_lights_the_oracles_voxels() {
     for timing in all_timings() {
         for policy in [Policy::Thesis, Policy::Wavefront, Policy::Radial] {
             for rule in [LitRule::Thesis, LitRule::Plane, LitRule::Exact] {
-                let cfg = LightConfig { fa: 2, policy, merge: policy.by_layer(), rule, timing, ..Default::default() };
+                let cfg = LightConfig {
+                    fa: 2,
+                    policy,
+                    merge: policy.by_layer(),
+                    rule,
+                    timing,
+                    ..host_sim::config::plane_rule()
+                };
                 check_against_rays::<cell_core::beam::frac::U0>(&g, &src, cfg)
                     .unwrap_or_else(|e| panic!("{timing:?} {policy:?} {rule:?}: {e}"));
                 let peak = light::<cell_core::beam::frac::U0>(&g, &src, cfg).reports[0].counts.peak_fifo;
@@ -366,7 +380,13 @@ fn multi_source_masks_are_unions() {
     ];
     let g = grid_with(n, &tris);
     let srcs = [[16, 170, 16], [160, 150, 100], [90, 40, 90]];
-    let cfg = LightConfig { fa: 8, policy: Policy::Wavefront, merge: true, record_visits: false, ..Default::default() };
+    let cfg = LightConfig {
+        fa: 8,
+        policy: Policy::Wavefront,
+        merge: true,
+        record_visits: false,
+        ..host_sim::config::plane_rule()
+    };
     let all = light::<cell_core::beam::frac::U0>(&g, &srcs, cfg);
     let mut union: BTreeMap<[u32; 3], u32> = BTreeMap::new();
     for (i, s) in srcs.iter().enumerate() {
@@ -397,7 +417,7 @@ fn empty_scene_every_voxel_is_reached() {
                 record_visits: true,
                 skip_receding: false,
                 skip_dead_directions: false,
-                ..Default::default()
+                ..host_sim::config::plane_rule()
             };
             let l = cell_core::with_frac_bits!(f, F => {
                 let l = light::<F>(&g, &[p], cfg);
@@ -423,7 +443,14 @@ fn thesis_shape_and_our_policy() {
             &g,
             &[[c, c, c]],
             // Skips off: the thesis's experiment diffuses through the empty scene.
-            LightConfig { fa, policy, merge, skip_receding: false, skip_dead_directions: false, ..Default::default() },
+            LightConfig {
+                fa,
+                policy,
+                merge,
+                skip_receding: false,
+                skip_dead_directions: false,
+                ..host_sim::config::plane_rule()
+            },
         );
         (l.reports[0].counts.cycles, l.reports[0].counts.lower_bound)
     };
@@ -441,7 +468,7 @@ fn thesis_shape_and_our_policy() {
     let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
     let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
     let lit = |policy, merge| {
-        let lcfg = LightConfig { fa: 4, policy, merge, record_visits: false, ..Default::default() };
+        let lcfg = LightConfig { fa: 4, policy, merge, record_visits: false, ..host_sim::config::plane_rule() };
         let (l, _) = host_sim::machine::lighting::run_diffusion::<cell_core::beam::frac::U2>(
             &mesh,
             &loaded,

@@ -358,7 +358,7 @@ fn record_ray_sets(dir: &Path) -> Vec<(String, CellTrace)> {
     let mut named = Vec::new();
     for (set, scene, classic, reflections, cells) in sets {
         let mesh = host_sim::scene::load(scene).unwrap();
-        let (load, light) = (LoadConfig::watertight(32), LightConfig::default());
+        let (load, light) = (LoadConfig::watertight(32), host_sim::config::plane_rule());
         let job = TraceJob { classic, reflections, ..trace_job(&mesh, load, light, cells) };
         let traces = record::<U0>(&job).unwrap_or_else(|e| panic!("record the {set} traces: {e}"));
         host_sim::jobs::trace::write_traces(&dir.join(set), &traces).unwrap();

@@ -58,7 +58,7 @@ fn scenes() -> Vec<(Mesh, LoadedScene, Vec<[f64; 3]>)> {
 fn all_cells_stepping_and_threads_give_identical_results() {
     for s in scenes() {
         for policy in [Policy::Thesis, Policy::Wavefront, Policy::Radial] {
-            let cfg = LightConfig { fa: 4, policy, merge: policy.by_layer(), ..Default::default() };
+            let cfg = LightConfig { fa: 4, policy, merge: policy.by_layer(), ..host_sim::config::plane_rule() };
             let active = run(&s, cfg, 1);
             assert!(active.reports[0].counts.beams_processed > 1000 && active.lit.len() > 100);
             let all = run(&s, LightConfig { stepping: Stepping::AllCells, ..cfg }, 1);
@@ -89,7 +89,7 @@ fn skips_change_no_lit_voxel_and_no_pixel() {
                 merge: policy.by_layer(),
                 skip_frustum: true,
                 frustum_blocks,
-                ..Default::default()
+                ..host_sim::config::plane_rule()
             };
             let off = LightConfig { skip_receding: false, skip_dead_directions: false, skip_frustum: false, ..on };
             let (a, b) = (run(&s, on, 2), run(&s, off, 2));
@@ -137,7 +137,7 @@ fn skips_change_no_lit_voxel_and_no_pixel() {
 #[test]
 fn frustum_skip_drops_beams_that_light_nothing() {
     let s = setup("teapot-floor", 48);
-    let base = LightConfig { skip_receding: false, skip_dead_directions: false, ..Default::default() };
+    let base = LightConfig { skip_receding: false, skip_dead_directions: false, ..host_sim::config::plane_rule() };
     let (off, on) = (run(&s, base, 2), run(&s, LightConfig { skip_frustum: true, ..base }, 2));
     assert_eq!((&on.lit, &on.png), (&off.lit, &off.png));
     let (a, b) = (&on.reports[0].counts, &off.reports[0].counts);
@@ -175,8 +175,8 @@ fn visible_only_lit_store_gives_the_same_image() {
     for (scene, n) in [("cornell", 64), ("teapot-floor", 24), ("bureau1", 32)] {
         let s = setup(scene, n);
         for rule in [LitRule::Thesis, LitRule::Plane, LitRule::Exact] {
-            let full = run(&s, LightConfig { rule, ..Default::default() }, 2);
-            let vis = run(&s, LightConfig { lit_visible_only: true, rule, ..Default::default() }, 2);
+            let full = run(&s, LightConfig { rule, ..host_sim::config::plane_rule() }, 2);
+            let vis = run(&s, LightConfig { lit_visible_only: true, rule, ..host_sim::config::plane_rule() }, 2);
             assert_eq!(vis.png, full.png, "{scene} {rule:?}: image");
             let cycles = |o: &Outcome| o.reports.iter().map(|r| r.counts.cycles).collect::<Vec<_>>();
             assert_eq!(cycles(&vis), cycles(&full), "{scene} {rule:?}: the machine does the same work");
@@ -217,9 +217,9 @@ fn visible_only_lit_store_gives_the_same_image() {
 fn sibling_wait_is_exact_and_merges() {
     for (scene, n) in [("cornell", 40), ("teapot-floor", 40), ("cow-floor", 32)] {
         let s = setup(scene, n);
-        let off = run(&s, LightConfig::default(), 2);
+        let off = run(&s, host_sim::config::plane_rule(), 2);
         for hold in [2, 3, 8] {
-            let cfg = LightConfig { hold, ..Default::default() };
+            let cfg = LightConfig { hold, ..host_sim::config::plane_rule() };
             let on = run(&s, cfg, 1);
             assert_eq!((&on.lit, &on.png), (&off.lit, &off.png), "{scene}: hold {hold}: lit voxels and image");
             let (a, b) = (&on.reports[0].counts, &off.reports[0].counts);
@@ -250,7 +250,8 @@ fn sibling_wait_is_exact_and_merges() {
 fn hidden_skip_keeps_the_visible_lit_set_and_the_image() {
     for s in scenes() {
         for policy in [Policy::Wavefront, Policy::Radial] {
-            let visible = LightConfig { fa: 4, policy, merge: true, lit_visible_only: true, ..Default::default() };
+            let visible =
+                LightConfig { fa: 4, policy, merge: true, lit_visible_only: true, ..host_sim::config::plane_rule() };
             let a = run(&s, visible, 2);
             assert!(!a.lit.is_empty());
             // Beams processed on the Cornell box per summary resolution.
@@ -283,7 +284,7 @@ fn hidden_skip_keeps_the_visible_lit_set_and_the_image() {
     }
     // Without `lit_visible_only` the skip would lose hidden voxels' light: refused.
     let s = setup("cornell", 16);
-    let cfg = LightConfig { skip_hidden: true, ..Default::default() };
+    let cfg = LightConfig { skip_hidden: true, ..host_sim::config::plane_rule() };
     let Err(err) = run_diffusion::<U0>(&s.0, &s.1, &s.2, &cfg, |_, _| {}) else {
         panic!("the hidden-voxel skip ran without --lit-visible-only");
     };

@@ -83,7 +83,7 @@ fn case() -> Case {
     // beams cross board edges every way, diagonally too.
     let lights = resolve_lights(&mesh, &loaded, &[LIGHT]).unwrap();
     let sources: Vec<Source> = lights.iter().enumerate().map(|(i, p)| source_at(i, *p, N).unwrap()).collect();
-    let light = LightConfig { skip_receding: false, skip_dead_directions: false, ..Default::default() };
+    let light = LightConfig { skip_receding: false, skip_dead_directions: false, ..host_sim::config::plane_rule() };
     let prepared = prepare(&mesh, &cfg).unwrap();
     let packets = &prepared.packets;
     let r = run::<U0>(&prepared, N, &sources, &light, &AsyncConfig { tile: TILE, ..Default::default() }).unwrap();

@@ -33,7 +33,7 @@ fn striped_column_lighting(stripes: u16) -> (u32, u64, Result<(), String>) {
         policy: cell_core::light::Policy::Wavefront,
         merge: true,
         record_visits: false,
-        ..Default::default()
+        ..host_sim::config::plane_rule()
     };
     let lighting = diffuse::<U0, 128>(&grid, &[src], &cfg, |_, _| {}).unwrap();
     let runs = lighting.cells[(y0 * n) as usize].lit.runs().len() as u32;

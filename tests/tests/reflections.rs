@@ -16,7 +16,10 @@ use host_sim::scene::{Mesh, SceneLight};
 use rc2_tests::oracle::lines::{walk18, walk26, walk6};
 
 fn render_cfg() -> RenderConfig {
-    RenderConfig::diffusion(host_sim::machine::diffuse::LightConfig { fa: 16, ..Default::default() }, NormalMode::Facet)
+    RenderConfig::diffusion(
+        host_sim::machine::diffuse::LightConfig { fa: 16, ..host_sim::config::plane_rule() },
+        NormalMode::Facet,
+    )
 }
 
 /// The plain render with the reflection phase `cfg` after it.

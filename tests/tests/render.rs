@@ -27,6 +27,7 @@ use cell_core::beam::FracBits;
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use cell_core::shade::{shade, Material as CellMaterial, NormalMode, PointLight, ShadeParams};
+use host_sim::config::Preset;
 use host_sim::jobs::render::{RenderConfig, RenderInput};
 use host_sim::machine::diffuse::LightConfig;
 use host_sim::machine::loaded::LoadedScene;
@@ -156,24 +157,32 @@ fn check_against_oracle<F: FracBits>(
     assert!(lit > 0 && lit < covered, "{what}: {lit} lit of {covered} covered pixels");
 }
 
-/// The render defaults (standard + conservative surfaces, the plane rule, f = 0, radial +
-/// merge, the visible-only lit store with the hidden-voxel skip), and the other modes the
-/// README documents, against the per-ray oracles.
+/// The `render` preset's machine (standard + conservative surfaces, f = 0, radial + merge, the
+/// visible-only lit store with the hidden-voxel skip) under the plane rule from the source
+/// voxel, and the other modes the README documents, against the per-ray oracles of those
+/// rules. The preset's own rule, exact occluders, is checked ray by ray in
+/// `tests/diffusion.rs` and on bureau1 below.
 #[test]
 fn image_is_the_per_ray_oracles_lit_state_shaded() {
     use cell_core::beam::frac::{U0, U1};
     let tunnel_free = (Thickness::Standard, Contour::Conservative);
     let thesis_surfaces = (Thickness::Naive, Contour::Projected);
-    let render_defaults = LightConfig { lit_visible_only: true, skip_hidden: true, ..Default::default() };
+    let render_defaults =
+        LightConfig { rule: LitRule::Plane, rays: cell_core::beam::Origin::SourceVoxel, ..Preset::Render.light() };
     check_against_oracle::<U0>("cornell", 32, tunnel_free, &[], render_defaults);
     // The full lit store, the wavefront policy, f = 1 (the accuracy knob), two lights.
-    let full = LightConfig { policy: Policy::Wavefront, ..Default::default() };
+    let full = LightConfig { policy: Policy::Wavefront, ..host_sim::config::plane_rule() };
     check_against_oracle::<U1>("cornell", 24, tunnel_free, &[], full);
     let two = [[0.3, 0.9, 0.25], [0.75, 0.7, 0.5]];
     check_against_oracle::<U0>("cow-floor", 32, tunnel_free, &two, render_defaults);
     // The thesis's lit rule on the thesis's surfaces (the first occupied voxel is shown).
-    let thesis =
-        LightConfig { rule: LitRule::Thesis, policy: Policy::Thesis, merge: false, fa: 4, ..Default::default() };
+    let thesis = LightConfig {
+        rule: LitRule::Thesis,
+        policy: Policy::Thesis,
+        merge: false,
+        fa: 4,
+        ..host_sim::config::plane_rule()
+    };
     check_against_oracle::<U0>("cornell", 24, thesis_surfaces, &[], thesis);
     check_against_oracle::<U0>("teapot-floor", 24, thesis_surfaces, &two, thesis);
 }
@@ -182,7 +191,7 @@ fn image_is_the_per_ray_oracles_lit_state_shaded() {
 fn render_is_deterministic() {
     let (mesh, loaded) = load("cornell", 32, Thickness::Standard, Contour::Conservative);
     let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
-    let cfg = LightConfig { lit_visible_only: true, skip_hidden: true, ..Default::default() };
+    let cfg = LightConfig { lit_visible_only: true, skip_hidden: true, ..host_sim::config::plane_rule() };
     let a = render::<cell_core::beam::frac::U0>(&mesh, &loaded, &lights, cfg, None).image;
     let b = render::<cell_core::beam::frac::U0>(&mesh, &loaded, &lights, cfg, None).image;
     assert_eq!(a.rgb, b.rgb, "same input, same pixels");
@@ -233,7 +242,7 @@ fn coverage_differs_from_the_f64_reference_only_at_projected_edges() {
     for (scene, n) in [("cow", 64u32), ("teapot", 48), ("suzanne", 48)] {
         let (mesh, loaded) = load(scene, n, Thickness::Standard, Contour::Conservative);
         let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
-        let cfg = LightConfig { lit_visible_only: true, skip_hidden: true, ..Default::default() };
+        let cfg = LightConfig { lit_visible_only: true, skip_hidden: true, ..host_sim::config::plane_rule() };
         let rcfg = RenderConfig::diffusion(cfg, NormalMode::Facet);
         let reference = host_sim::jobs::render::reference_image(&mesh, &loaded, &lights, &rcfg).unwrap();
         let r = render::<cell_core::beam::frac::U0>(&mesh, &loaded, &lights, cfg, Some(&reference));
@@ -325,7 +334,7 @@ fn a_row_of_pixel_centres_the_rounding_puts_on_an_edge_shows_the_mesh_side() {
         };
         let fit = loaded.fit;
         assert_eq!(fit.to_lattice([0.5, (19.5 + dy) / 32.0, 0.5])[1], 16 * 20 + 8, "dy {dy}: the edge lands on row 20");
-        let rcfg = RenderConfig::diffusion(LightConfig::default(), NormalMode::Facet);
+        let rcfg = RenderConfig::diffusion(host_sim::config::plane_rule(), NormalMode::Facet);
         let reference = host_sim::jobs::render::reference_image(&mesh, &loaded, &lights, &rcfg).unwrap();
         let mut front = 0;
         for x in 10..=22 {
@@ -359,7 +368,7 @@ fn tilted_sheet(front: bool) -> Mesh {
 fn a_tilted_sheet_is_lit_wherever_the_reference_sees_the_light() {
     use cell_core::beam::frac::U0;
     let n = 48;
-    let cfg = LightConfig { lit_visible_only: true, skip_hidden: true, ..Default::default() };
+    let cfg = LightConfig { lit_visible_only: true, skip_hidden: true, ..host_sim::config::plane_rule() };
     let rcfg = RenderConfig::diffusion(cfg, NormalMode::Facet);
     let mut images = Vec::new();
     for front in [false, true] {
@@ -432,7 +441,7 @@ fn segment_distance_by_hand() {
 /// triangle that crossed it (its vertices moved up to 1/32 voxel per axis: √3/32).
 #[test]
 fn the_neighbours_contact_answers_darken_pixels_the_mesh_shadows() {
-    use cell_core::beam::{frac::U0, FarDistance, Origin};
+    use cell_core::beam::{frac::U0, FarDistance};
     use cell_core::light::Port;
     use cell_core::occluder::Triangle;
     use cell_core::receiver::{target, POINT_UNITS};
@@ -440,13 +449,8 @@ fn the_neighbours_contact_answers_darken_pixels_the_mesh_shadows() {
     let n = 128;
     let (mesh, loaded) = load("bureau1", n, Thickness::Standard, Contour::Conservative);
     let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
-    let cfg = LightConfig {
-        rule: LitRule::Exact,
-        rays: Origin::Light,
-        lit_visible_only: true,
-        skip_hidden: true,
-        ..Default::default()
-    };
+    // What a flagless `host-sim render` runs.
+    let cfg = Preset::Render.light();
     let rcfg = RenderConfig::diffusion(cfg, NormalMode::Facet);
     let reference = host_sim::jobs::render::reference_image(&mesh, &loaded, &lights, &rcfg).unwrap();
     let got = render::<U0>(&mesh, &loaded, &lights, cfg, Some(&reference)).image;

@@ -344,7 +344,7 @@ fn refined_shadow_edges_take_the_exact_answer_and_the_rest_keeps_the_diffused_on
         let (want, _) =
             oracle_masks(&loaded.grid, &lattice(&lights), |e, b| rc2_tests::oracle::shadow::lit_exact(e, b, &tris));
         for rule in [LitRule::Plane, LitRule::Exact] {
-            let lcfg = LightConfig { rule, ..LightConfig::default() };
+            let lcfg = LightConfig { rule, ..host_sim::config::plane_rule() };
             let (lighting, _) =
                 host_sim::machine::lighting::run_diffusion::<U0>(&mesh, &loaded, &lights, &lcfg, |_, _| {}).unwrap();
             let diffused: Vec<u32> =

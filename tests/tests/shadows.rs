@@ -144,7 +144,7 @@ fn render<F: FracBits>(
         policy: if setup.rule == LitRule::Thesis { Policy::Wavefront } else { Policy::Radial },
         lit_visible_only: true,
         skip_hidden: true,
-        ..LightConfig::default()
+        ..host_sim::config::plane_rule()
     };
     let mut rcfg = RenderConfig::diffusion(light, cell_core::shade::NormalMode::Facet);
     if setup.classic {

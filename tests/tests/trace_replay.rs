@@ -43,7 +43,11 @@ fn all_cells<F: FracBits>(scene: &str, n: u32, light: LightConfig) -> Vec<CellTr
 }
 
 fn check_all<F: FracBits>(scene: &str, n: u32, policy: Policy, merge: bool, fa: usize) {
-    check_all_with::<F>(scene, n, LightConfig { fa, policy, merge, record_visits: false, ..Default::default() });
+    check_all_with::<F>(
+        scene,
+        n,
+        LightConfig { fa, policy, merge, record_visits: false, ..host_sim::config::plane_rule() },
+    );
 }
 
 fn check_all_with<F: FracBits>(scene: &str, n: u32, light: LightConfig) {
@@ -80,7 +84,12 @@ fn every_cell_replays_to_the_grid_digest() {
 /// the wait and the summary, and every cell replays to the grid's digest.
 #[test]
 fn every_cell_replays_with_the_sibling_wait_and_the_frustum_skip() {
-    let light = LightConfig { hold: 3, skip_frustum: true, frustum_blocks: FrustumBlocks::B8, ..Default::default() };
+    let light = LightConfig {
+        hold: 3,
+        skip_frustum: true,
+        frustum_blocks: FrustumBlocks::B8,
+        ..host_sim::config::plane_rule()
+    };
     check_all_with::<U0>("teapot-floor", 20, light);
     check_all_with::<U2>("cornell", 16, LightConfig { hold: 8, ..light });
 }
@@ -90,7 +99,12 @@ fn every_cell_replays_with_the_sibling_wait_and_the_frustum_skip() {
 /// surfaces: open and closed meshes, two fraction counts).
 #[test]
 fn every_cell_replays_under_exact_occluders_with_rays_from_the_light() {
-    let exact = LightConfig { rule: LitRule::Exact, rays: Origin::Light, record_visits: false, ..Default::default() };
+    let exact = LightConfig {
+        rule: LitRule::Exact,
+        rays: Origin::Light,
+        record_visits: false,
+        ..host_sim::config::plane_rule()
+    };
     for (scene, n) in [("cornell", 16), ("teapot-floor", 16)] {
         let mesh = host_sim::scene::load(scene).unwrap();
         let cells = (0..n).flat_map(|y| (0..n).map(move |x| [x, y])).collect();
@@ -122,7 +136,7 @@ fn busiest_trace() -> CellTrace {
         policy: Policy::Wavefront,
         merge: true,
         record_visits: false,
-        ..Default::default()
+        ..host_sim::config::plane_rule()
     })
 }
 
@@ -174,7 +188,8 @@ fn altered_traces_fail(t: &CellTrace) -> usize {
 fn every_flipped_byte_every_truncation_and_every_dropped_record_fails() {
     assert!(altered_traces_fail(&busiest_trace()) > 10);
     // Under exact occluders too: a dropped triangle record changes what the cell does.
-    let exact = busiest_trace_with(LightConfig { rule: LitRule::Exact, rays: Origin::Light, ..Default::default() });
+    let exact =
+        busiest_trace_with(LightConfig { rule: LitRule::Exact, rays: Origin::Light, ..host_sim::config::plane_rule() });
     assert!(triangle_records(&exact.bytes) > 0, "the busiest cell keeps triangles");
     assert!(altered_traces_fail(&exact) > 10);
 }
@@ -218,7 +233,7 @@ fn check_ray_phase(
     let mesh = host_sim::scene::load(scene).unwrap();
     let load = LoadConfig::thin(n);
     let cells = (0..n).flat_map(|y| (0..n).map(move |x| [x, y])).collect();
-    let light = LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, ..Default::default() };
+    let light = LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, ..host_sim::config::plane_rule() };
     let job = TraceJob { lights, classic, reflections, ..trace_job(&mesh, load, light, cells) };
     let traces = record::<U0>(&job).unwrap();
     let mut total = [0u64; 5];
@@ -305,7 +320,7 @@ fn every_cell_replays_the_reflection_phase() {
 fn altered_ray_phase_traces_fail() {
     let record_one = |scene: &str, cell: [u32; 2], classic, reflections| {
         let mesh = host_sim::scene::load(scene).unwrap();
-        let light = LightConfig::default();
+        let light = host_sim::config::plane_rule();
         let job = TraceJob { classic, reflections, ..trace_job(&mesh, LoadConfig::thin(16), light, vec![cell]) };
         record::<U0>(&job).unwrap().pop().unwrap()
     };
@@ -328,7 +343,7 @@ fn altered_ray_phase_traces_fail() {
 #[test]
 fn peak_link_load_equals_the_busiest_link_in_the_traces() {
     let n = 16;
-    let light = LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, ..Default::default() };
+    let light = LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, ..host_sim::config::plane_rule() };
     let traces = all_cells::<U0>("cornell", n, light);
     let mut best = (0u64, u32::MAX);
     let mesh = host_sim::scene::load("cornell").unwrap();
@@ -351,7 +366,7 @@ fn peak_link_load_equals_the_busiest_link_in_the_traces() {
             }
         }
     }
-    let cfg = LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, ..Default::default() };
+    let cfg = LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, ..host_sim::config::plane_rule() };
     let (_, stats) = host_sim::machine::lighting::run_diffusion::<U0>(&mesh, &scene, &lights, &cfg, |_, _| {}).unwrap();
     let c = &stats.sources[0].counts;
     assert!(best.0 > 0);

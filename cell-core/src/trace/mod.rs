@@ -437,6 +437,7 @@ fn put_light_setup(w: &mut SliceWriter<'_>, s: &LightSetup) -> Result<(), Encode
     let rule = match s.rule {
         LitRule::Thesis => 0,
         LitRule::Plane => 1,
+        #[cfg(feature = "exact-occluders")]
         LitRule::Exact => 2,
     };
     let origin: u8 = match s.source.origin {
@@ -1103,7 +1104,7 @@ impl<
     /// anything else: a trace without them does not replay).
     fn neighbour_contact(&mut self, shadowed: bool) -> Result<(), ReplayError> {
         let bad = DecodeError::BadValue("a neighbour contact answer without a target's contact segment");
-        if !matches!(self.rays, Rays::Idle) || self.setup.ok_or(ReplayError::NoLightSetup)?.rule != LitRule::Exact {
+        if !matches!(self.rays, Rays::Idle) || !self.setup.ok_or(ReplayError::NoLightSetup)?.rule.is_exact() {
             return Err(bad.into());
         }
         #[cfg(feature = "exact-occluders")]
@@ -1127,7 +1128,7 @@ impl<
             rays::Rays::Shadow(_, s) => s.env.rule,
             _ => self.setup.ok_or(ReplayError::NoLightSetup)?.rule,
         };
-        if rule != LitRule::Exact {
+        if !rule.is_exact() {
             return Err(DecodeError::BadValue("a triangle outside exact occluders").into());
         }
         #[cfg(feature = "exact-occluders")]
@@ -1222,7 +1223,7 @@ impl ReplayColumn {
     /// surface under exact occluders.
     fn start<F: FracBits, const D: usize>(&mut self, cell: &Cell<D>, s: &LightSetup) -> Result<(), ReplayError> {
         self.clear();
-        if s.rule == LitRule::Exact {
+        if s.rule.is_exact() {
             let far = FarDistance::new(s.far).ok_or(ReplayError::BadFar)?;
             self.target = cell
                 .visible

@@ -149,6 +149,7 @@ pub(super) fn put_shadow_setup(w: &mut SliceWriter<'_>, s: &ShadowSetup) -> Resu
     w.u8(match e.rule {
         LitRule::Thesis => 0,
         LitRule::Plane => 1,
+        #[cfg(feature = "exact-occluders")]
         LitRule::Exact => 2,
     })?;
     w.u8(connectivity_code(e.connectivity))?;

@@ -187,15 +187,15 @@ pub struct LoadArgs {
     #[arg(long)]
     pub n: Option<u32>,
     /// Plane thickness: naive (σ = ½, stops 6-connected rays), thesis (§3.8's σ), standard
-    /// (|a|+|b|+|c|, provably free of 26-tunnels). Default: standard in every job, the
-    /// tunnel-free surface: no light passes through a closed mesh.
-    #[arg(long, value_enum, default_value_t = ThicknessArg::Standard)]
-    pub sigma: ThicknessArg,
+    /// (|a|+|b|+|c|, provably free of 26-tunnels: no light passes through a closed mesh).
+    /// Default: the preset's (standard; naive with --thesis).
+    #[arg(long, value_enum)]
+    pub sigma: Option<ThicknessArg>,
     /// Facet contour: projected (the thesis's) or conservative (closes gaps between facets and
-    /// holes in thin facets). Default: conservative in every job, the watertight one (the
-    /// pixel still shows the exact facet its centre line meets, not the fatter voxels).
-    #[arg(long, value_enum, default_value_t = ContourArg::Conservative)]
-    pub contour: ContourArg,
+    /// holes in thin facets; the pixel still shows the exact facet its centre line meets, not
+    /// the fatter voxels). Default: the preset's (conservative; projected with --thesis).
+    #[arg(long, value_enum)]
+    pub contour: Option<ContourArg>,
     /// Camera options.
     #[command(flatten)]
     pub camera: CameraArgs,
@@ -264,16 +264,15 @@ impl CameraArgs {
 
 impl LoadArgs {
     /// The loading configuration, with grid side `default_n` unless `--n` is given.
-    pub fn config(&self, default_n: u32) -> LoadConfig {
-        LoadConfig { n: self.n.unwrap_or(default_n), thickness: self.sigma.into(), contour: self.contour.into() }
+    /// The loading of `base` with this command line's changes.
+    pub fn config(&self, base: LoadConfig) -> LoadConfig {
+        LoadConfig {
+            n: self.n.unwrap_or(base.n),
+            thickness: self.sigma.map_or(base.thickness, Into::into),
+            contour: self.contour.map_or(base.contour, Into::into),
+        }
     }
 }
-
-/// Default grid side of every job but `trace`.
-const DEFAULT_N: u32 = 128;
-
-/// Default grid side of `trace`.
-const TRACE_N: u32 = 32;
 
 /// Options of `light`.
 #[derive(Args, Debug)]
@@ -306,19 +305,30 @@ pub struct LightOpts {
     /// replaces the scene's own lights). Sources are diffused one after another.
     #[arg(long = "light", value_parser = parse_triple)]
     pub lights: Vec<[f64; 3]>,
-    /// FIFO size FA of every cell (1 ..= 64).
-    #[arg(long, default_value_t = 16)]
-    pub fa: usize,
+    /// The run to start from, every other option changing it (the presets are written out in
+    /// docs/CONFIGURATION.md): `render` (what `render` runs by default), `light` (what `light`
+    /// runs: render's machine keeping every lit voxel), `trace` (what `trace` records and the
+    /// firmware replays: the plane rule from the source voxel, n = 32), `thesis` (the thesis's
+    /// machine). Default: the job's own.
+    #[arg(long, value_enum, conflicts_with = "thesis")]
+    pub preset: Option<PresetArg>,
+    /// The thesis's machine: the same as --preset thesis (its lit rule, integer rays from the
+    /// source voxel, wavefront policy, free-port timing, naive planes, projected contours, no
+    /// rc2 skips).
+    #[arg(long)]
+    pub thesis: bool,
+    /// FIFO size FA of every cell (1 ..= 64). Default: the preset's (16).
+    #[arg(long)]
+    pub fa: Option<usize>,
     /// Fraction bits f of the far-plane ray offsets (0 = the thesis's integer rays; up to 24,
-    /// bounded by D·2^f < 2^31). More bits: more rays, fewer missed voxels, more beams. Default
-    /// 0; 1 lights faces the light grazes at a degree or two right too (Cornell n = 512: 0.56 →
-    /// 0.09 % of pixels wrong) for 2–4× the cycles.
-    #[arg(long, default_value_t = crate::jobs::light::DEFAULT_FRAC_BITS)]
-    pub frac_bits: u32,
-    /// Which beam a cell processes first. Default: radial (fewest cycles measured on every
-    /// scene; `wavefront` was the default before).
-    #[arg(long, value_enum, default_value_t = PolicyArg::Radial)]
-    pub policy: PolicyArg,
+    /// bounded by D·2^f < 2^31). More bits: more rays, fewer missed voxels at grazing angles,
+    /// more beams and cycles. Default: the preset's (0).
+    #[arg(long)]
+    pub frac_bits: Option<u32>,
+    /// Which beam a cell processes first. Default: the preset's (radial; wavefront with
+    /// --thesis).
+    #[arg(long, value_enum)]
+    pub policy: Option<PolicyArg>,
     /// Merge an arriving beam into a waiting beam of the same voxel when their ray rectangles
     /// share a side (exact; fewer beams to process): on, off, or auto (on for wavefront and
     /// radial, off for the thesis policy).
@@ -326,15 +336,17 @@ pub struct LightOpts {
     pub merge: MergeArg,
     /// Which cells the host visits each cycle: only those holding beams, or every cell (the
     /// reference). Same results, cycles and counters either way.
-    #[arg(long, value_enum, default_value_t = SteppingArg::Active)]
-    pub stepping: SteppingArg,
+    #[arg(long, value_enum)]
+    pub stepping: Option<SteppingArg>,
     /// Drop sub-beams that can meet no occupied voxel any more (outside the occupied bounding
     /// box and moving away from it); their rays are counted as skipped. Exact: same lit voxels.
-    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
-    pub skip_receding: bool,
+    /// Default: the preset's (on; off with --thesis).
+    #[arg(long, action = clap::ArgAction::Set)]
+    pub skip_receding: Option<bool>,
     /// Do not emit a source's initial beams whose direction leads away from the occupied box.
-    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
-    pub skip_dead_directions: bool,
+    /// Default: the preset's (on; off with --thesis).
+    #[arg(long, action = clap::ArgAction::Set)]
+    pub skip_dead_directions: Option<bool>,
     /// Faulty links: every transfer is framed with a CRC-32, corrupted, dropped or delayed at
     /// these rates (e.g. `corrupt=0.01,drop=0.01,delay=0.05,delay-cycles=8,seed=7`; rates
     /// 0 ..= 1 summing to at most 1; a delayed frame is held 1 ..= delay-cycles cycles, default
@@ -344,63 +356,85 @@ pub struct LightOpts {
     pub link_faults: Option<crate::machine::faults::LinkFaults>,
     /// Stop with a stall report (the blocked cells and their queues) after this many cycles in
     /// a row without progress while beams are in flight: a deadlock, or a dead link.
-    #[arg(long, default_value_t = crate::machine::diffuse::DEFAULT_STALL_CYCLES)]
-    pub stall_cycles: u64,
+    /// Default: the preset's (64).
+    #[arg(long)]
+    pub stall_cycles: Option<u64>,
     /// Cells keep lit marks only for the voxels their pixel reads: the same image, a lit set
     /// (`--lit-out`, stats) restricted to those voxels, and no lit-store overflow in columns lit
-    /// in many separate runs (walls seen edge-on, many lights). `render`: on by default (off
-    /// with --reflections, which read hidden voxels); `light`: off by default.
+    /// in many separate runs (walls seen edge-on, many lights). Default: the preset's (on for
+    /// `render`, off with --reflections, which read hidden voxels; off for the others).
     #[arg(long, num_args = 0..=1, default_missing_value = "true", action = clap::ArgAction::Set)]
     pub lit_visible_only: Option<bool>,
     /// Drop a beam when none of its rays can meet an occupied block of the scene's occupancy
     /// summary (--frustum-blocks) at any later layer (their rays are counted as skipped).
-    /// Exact: same lit voxels; each cell holds the summary.
-    #[arg(long, default_value_t = false, action = clap::ArgAction::Set)]
-    pub skip_frustum: bool,
+    /// Exact: same lit voxels; each cell holds the summary. Default: off.
+    #[arg(long, num_args = 0..=1, default_missing_value = "true", action = clap::ArgAction::Set)]
+    pub skip_frustum: Option<bool>,
     /// Drop a beam when none of its rays can reach a block holding a voxel a pixel reads: the
     /// empty-frustum test against a summary of those voxels only. Same image and same visible
-    /// lit set; hidden voxels are not lit. Needs the visible-only lit store; on by default
-    /// wherever that is (`render`).
+    /// lit set; hidden voxels are not lit. Needs the visible-only lit store. Default: the
+    /// preset's (on for `render` with the visible-only store, off for the others).
     #[arg(long, num_args = 0..=1, default_missing_value = "true", action = clap::ArgAction::Set)]
     pub skip_hidden: Option<bool>,
     /// Blocks per axis of the summary --skip-frustum and --skip-hidden test beams against:
     /// finer blocks drop more beams and take more memory per cell (8: 232 B, 16: 1 348 B,
-    /// 32: 9 384 B). Same lit voxels and image with any. Default: 32; 8 for `trace` (a cell
-    /// trace carries the 8 × 8 × 8 summary).
+    /// 32: 9 384 B). Same lit voxels and image with any. Default: the preset's (32; 8 for
+    /// `trace`: a cell trace carries the 8 × 8 × 8 summary).
     #[arg(long, value_enum)]
     pub frustum_blocks: Option<FrustumBlocksArg>,
     /// The sibling wait: a beam that does not yet hold every ray its voxel can receive waits
     /// up to this many cycles (while its FIFO has room) for the pieces from its other parent
     /// voxels to merge into it: fewer beams and messages, same lit voxels. 0: off. Wavefront
-    /// policy only; at most 4096.
-    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u16).range(0..=4096))]
-    pub hold: u16,
-    /// The lit rule. `exact` (the default, except in `trace`): exact occluders — each cell
-    /// keeps the scene's triangles through its column and a ray is stopped where it meets one;
-    /// with diffusion each pixel is lit iff its one target ray (the lattice ray nearest the
-    /// exact ray to its point) arrives: right at grazing angles and at shadow edges (thesis
-    /// §5.5.6; 1.4–3.2× the host's light seconds of `plane`, 0.75–1.3× its cycles,
-    /// BENCHMARKS.md); a classic shadow ray is tested against the triangles of each column it
-    /// enters. `plane` (the default in `trace`): a ray is stopped only where it crosses the
-    /// plane of the facet owning the voxel it is in, and each pixel is lit from its visible
-    /// surface's own plane. `thesis`: a beam entering an occupied voxel lights
-    /// it and stops (§5.5.5), and the pixel shows the first occupied voxel of its column (the
-    /// thesis's figures: add `--sigma naive --contour projected --frac-bits 0 --policy
-    /// wavefront --rays-from voxel`).
+    /// policy only; at most 4096. Default: 0.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(0..=4096))]
+    pub hold: Option<u16>,
+    /// The lit rule. `exact`: exact occluders — each cell keeps the scene's triangles
+    /// through its column and a ray is stopped where it meets one; with diffusion each pixel is
+    /// lit iff its one target ray (the lattice ray nearest the exact ray to its point) arrives
+    /// (thesis §5.5.6); a classic shadow ray is tested against the triangles of each column it
+    /// enters. `plane`: a ray is stopped only where it crosses the plane of the facet owning
+    /// the voxel it is in, and each pixel is lit from its visible surface's own plane (no
+    /// triangle store). `thesis`: a beam entering an occupied voxel lights it and stops
+    /// (§5.5.5), and the pixel shows the first occupied voxel of its column. Default: the
+    /// preset's (exact; plane for `trace`; thesis with --thesis). What each costs and gets
+    /// wrong: BENCHMARKS.md, "Is the light right?".
     #[arg(long, value_enum)]
     pub lit_rule: Option<LitRuleArg>,
-    /// Where each face's rays leave from along its axis: `light` (the default with diffusion,
-    /// except in `trace`), the light itself, so that the rays are true rays from the source
-    /// wherever it sits in its voxel; `voxel` (the default with `--lighting classic` and in
-    /// `trace`), the source voxel's centre plane, so that layer k is k whole voxels from it
-    /// (thesis §4.3; a light on a voxel boundary is half a voxel off along the axis). Same split
-    /// arithmetic; `light` takes 2–41 % more beams (BENCHMARKS.md) and needs `--fa` ≥ 4; not
-    /// for classic lighting.
+    /// Where each face's rays leave from along its axis: `light`, the light itself, so that
+    /// the rays are true rays from the source wherever it sits in its voxel (needs `--fa` ≥ 4;
+    /// not for classic lighting); `voxel`, the source voxel's centre plane, so that layer k is
+    /// k whole voxels from it (thesis §4.3; a light on a voxel boundary is half a voxel off
+    /// along the axis). Same split arithmetic. Default: the preset's (light; voxel for `trace`,
+    /// --thesis and --lighting classic).
     #[arg(long, value_enum)]
     pub rays_from: Option<RaysFromArg>,
     /// Classic shadow rays instead of diffusion.
     #[command(flatten)]
     pub classic: crate::cli::phase_args::ClassicOpts,
+}
+
+/// A named run ([`crate::config::Preset`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum PresetArg {
+    /// What `render` runs.
+    Render,
+    /// What `light` runs.
+    Light,
+    /// What `trace` records and the firmware replays.
+    Trace,
+    /// The thesis's machine.
+    Thesis,
+}
+
+impl From<PresetArg> for crate::config::Preset {
+    fn from(a: PresetArg) -> Self {
+        match a {
+            PresetArg::Render => crate::config::Preset::Render,
+            PresetArg::Light => crate::config::Preset::Light,
+            PresetArg::Trace => crate::config::Preset::Trace,
+            PresetArg::Thesis => crate::config::Preset::Thesis,
+        }
+    }
 }
 
 /// Where rays leave from ([`cell_core::beam::Origin`]).
@@ -432,21 +466,6 @@ pub enum LitRuleArg {
     /// diffusion each pixel is lit iff its one target ray (the lattice ray nearest the ray to
     /// its point) arrives.
     Exact,
-}
-
-impl LightOpts {
-    /// The lit rule and rays' origin asked for, or the defaults: exact occluders (with rays
-    /// from the light for diffusion), and the plane rule from the source voxel when `accurate`
-    /// is false (the `trace` job: what the firmware's default image runs).
-    pub fn rule_and_rays(&self, accurate: bool) -> (cell_core::lit::LitRule, cell_core::beam::Origin) {
-        let classic = self.classic.lighting == crate::cli::phase_args::LightingArg::Classic;
-        let (rule, rays) = match (accurate, classic) {
-            (true, false) => (LitRuleArg::Exact, RaysFromArg::Light),
-            (true, true) => (LitRuleArg::Exact, RaysFromArg::Voxel),
-            (false, _) => (LitRuleArg::Plane, RaysFromArg::Voxel),
-        };
-        (self.lit_rule.unwrap_or(rule).into(), self.rays_from.unwrap_or(rays).into())
-    }
 }
 
 impl From<LitRuleArg> for cell_core::lit::LitRule {
@@ -613,17 +632,12 @@ pub enum MergeArg {
 
 impl MergeArg {
     /// On or off as given; `None` for auto.
-    fn choice(self) -> Option<bool> {
+    pub(crate) fn choice(self) -> Option<bool> {
         match self {
             MergeArg::Auto => None,
             MergeArg::On => Some(true),
             MergeArg::Off => Some(false),
         }
-    }
-
-    /// On or off under policy `p` (auto: on for wavefront and radial, off for the thesis's).
-    fn resolve(self, p: PolicyArg) -> bool {
-        self.choice().unwrap_or(p != PolicyArg::Thesis)
     }
 }
 
@@ -781,22 +795,13 @@ pub fn run(cli: Cli) -> Result<()> {
 fn dispatch(command: Command) -> Result<()> {
     match command {
         Command::Voxelize(a) => jobs::voxelize::run(&(&a).into()),
-        Command::Render(a) => {
-            a.check()?;
-            jobs::render::run(&(&a).into())
-        }
-        Command::Light(a) => {
-            a.light.check()?;
-            jobs::light::run(&(&a).into())
-        }
+        Command::Render(a) => jobs::render::run(&(&a).try_into()?),
+        Command::Light(a) => jobs::light::run(&(&a).try_into()?),
         Command::DiffusionTable(a) => jobs::table::run(&(&a).into()),
         Command::LightAccuracy(a) => jobs::accuracy::run(&(&a).into()),
         Command::Bench(a) => jobs::bench::run(&(&a).into()),
         Command::Audit(a) => jobs::audit::run(&(&a).into()),
-        Command::Trace(a) => {
-            a.light.check()?;
-            jobs::trace::run(&(&a).into())
-        }
+        Command::Trace(a) => jobs::trace::run(&(&a).try_into()?),
         Command::Radiosity(a) => jobs::radiosity::run(&(&a).into()),
         Command::Scenes => {
             jobs::scenes::list();

@@ -1,11 +1,14 @@
 //! The parsed arguments converted into the jobs' plain options: the one place where the
 //! command line's types meet the jobs'. The grid side's default per job is filled in here.
 
+use anyhow::{bail, Result};
+
 use super::phase_args::LightingArg;
 use super::{
-    AccuracyArgs, AuditArgs, BenchArgs, EmissionArg, LightArgs, LightOpts, RadiosityArgs, RenderArgs, SourceAtArg,
-    SubdivideArgs, TableArgs, TimingArg, TraceArgs, VoxelizeArgs, DEFAULT_N, TRACE_N,
+    AccuracyArgs, AuditArgs, BenchArgs, EmissionArg, LightArgs, LightOpts, LoadArgs, RadiosityArgs, RenderArgs,
+    SourceAtArg, SubdivideArgs, TableArgs, TimingArg, TraceArgs, VoxelizeArgs,
 };
+use crate::config::{Needs, Overrides, Preset, RunConfig};
 use crate::jobs::accuracy::AccuracyOptions;
 use crate::jobs::audit::AuditOptions;
 use crate::jobs::bench::BenchOptions;
@@ -17,125 +20,127 @@ use crate::jobs::scenes::SubdivideOptions;
 use crate::jobs::table::{NamedTiming, TableOptions};
 use crate::jobs::trace::TraceOptions;
 use crate::jobs::voxelize::VoxelizeOptions;
-use crate::machine::diffuse::{FrustumBlocks, LightConfig};
 use crate::machine::timing::{Emission, Timing};
 
 impl LightOpts {
-    /// Refuse diffusion-only options with classic shadow rays: they would be ignored.
-    pub fn check(&self) -> anyhow::Result<()> {
-        if self.classic.lighting != LightingArg::Classic {
-            return Ok(());
+    /// The preset asked for (`--preset`, `--thesis`), or the job's own.
+    fn preset(&self, job: Preset) -> Preset {
+        match (self.thesis, self.preset) {
+            (true, _) => Preset::Thesis,
+            (false, p) => p.map_or(job, Into::into),
         }
-        if self.rays_from == Some(crate::cli::RaysFromArg::Light) {
-            anyhow::bail!(
-                "--rays-from light is a diffusion option: classic shadow rays are traced to the light itself"
-            );
-        }
-        Ok(())
     }
 
-    /// The jobs' lighting options; `accurate`: the defaults are exact occluders with rays from
-    /// the light ([`LightOpts::rule_and_rays`]).
-    fn options(&self, accurate: bool) -> LightingOptions {
-        let a = self;
-        let (rule, rays) = a.rule_and_rays(accurate);
-        LightingOptions {
-            lights: a.lights.clone(),
-            frac_bits: a.frac_bits,
-            diffusion: LightConfig {
-                fa: a.fa,
-                policy: a.policy.into(),
-                merge: a.merge.resolve(a.policy),
-                record_visits: false,
-                stepping: a.stepping.into(),
-                skip_receding: a.skip_receding,
-                skip_dead_directions: a.skip_dead_directions,
-                faults: a.link_faults,
-                stall_cycles: a.stall_cycles,
-                lit_visible_only: false,
-                hold: a.hold,
-                skip_frustum: a.skip_frustum,
-                skip_hidden: false,
-                frustum_blocks: FrustumBlocks::default(),
-                rule,
-                rays,
-                timing: Timing::RC2,
-                stop_at: None,
-            },
-            lit_visible_only: a.lit_visible_only,
-            skip_hidden: a.skip_hidden,
-            frustum_blocks: a.frustum_blocks.map(Into::into),
-            classic: (a.classic.lighting == LightingArg::Classic).then(|| a.classic.config(a.fa, rule)),
-            refine: (a.classic.lighting == LightingArg::Refined).then(|| a.classic.config(a.fa, rule)),
+    /// What this command line changes in a preset.
+    fn overrides(&self, load: &LoadArgs) -> Overrides {
+        Overrides {
+            n: load.n,
+            thickness: load.sigma.map(Into::into),
+            contour: load.contour.map(Into::into),
+            frac_bits: self.frac_bits,
+            fa: self.fa,
+            policy: self.policy.map(Into::into),
+            merge: self.merge.choice(),
+            stepping: self.stepping.map(Into::into),
+            skip_receding: self.skip_receding,
+            skip_dead_directions: self.skip_dead_directions,
+            faults: self.link_faults,
+            stall_cycles: self.stall_cycles,
+            lit_visible_only: self.lit_visible_only,
+            skip_frustum: self.skip_frustum,
+            skip_hidden: self.skip_hidden,
+            frustum_blocks: self.frustum_blocks.map(Into::into),
+            hold: self.hold,
+            rule: self.lit_rule.map(Into::into),
+            rays: self.rays_from.map(Into::into),
         }
+    }
+
+    /// The jobs' lighting options: `job`'s preset (or the one asked for) with this command
+    /// line's overrides, resolved and validated for a job that reflects rays or not.
+    fn options(&self, load: &LoadArgs, job: Preset, reflections: bool) -> Result<LightingOptions> {
+        let classic = self.classic.lighting == LightingArg::Classic;
+        let needs = Needs { classic, reflections };
+        let run = RunConfig::resolve(self.preset(job), &self.overrides(load), needs)?;
+        let shadow_rays = self.classic.config(run.light.fa, run.light.rule);
+        Ok(LightingOptions {
+            lights: self.lights.clone(),
+            run,
+            classic: classic.then_some(shadow_rays),
+            refine: (self.classic.lighting == LightingArg::Refined).then_some(shadow_rays),
+        })
     }
 }
 
 impl RenderArgs {
-    /// Refuse diffusion-only options with classic shadow rays, and radiosity options without
-    /// `--radiosity`: they would change nothing.
-    pub fn check(&self) -> anyhow::Result<()> {
-        self.light.check()?;
+    /// Refuse radiosity options without `--radiosity`: they would change nothing.
+    pub fn check(&self) -> Result<()> {
         let stray = self.radiosity_opts.first_given().or(self.radiosity_display.map(|_| "--radiosity-display"));
         match stray {
-            Some(flag) if !self.radiosity => anyhow::bail!("{flag} is a radiosity option: add --radiosity"),
+            Some(flag) if !self.radiosity => bail!("{flag} is a radiosity option: add --radiosity"),
             _ => Ok(()),
         }
     }
 }
 
-impl From<&RenderArgs> for RenderOptions {
-    fn from(a: &RenderArgs) -> Self {
-        let (fa, (rule, _)) = (a.light.fa, a.light.rule_and_rays(true));
-        RenderOptions {
+impl TryFrom<&RenderArgs> for RenderOptions {
+    type Error = anyhow::Error;
+
+    fn try_from(a: &RenderArgs) -> Result<Self> {
+        a.check()?;
+        let reflecting = a.reflect.reflections > 0;
+        let light = a.light.options(&a.load, Preset::Render, reflecting)?;
+        let (fa, rule) = (light.run.light.fa, light.run.light.rule);
+        Ok(RenderOptions {
             radiosity: a.radiosity.then(|| RenderRadiosity {
                 solve: (&a.radiosity_opts).into(),
                 display: a.radiosity_display.map_or(DEFAULT_DISPLAY, Into::into),
             }),
             scene: a.load.scene.clone(),
             view: a.load.camera.choice(),
-            load: a.load.config(DEFAULT_N),
-            light: a.light.options(true),
             normals: a.normals.into(),
-            reflections: (a.reflect.reflections > 0).then(|| a.reflect.config(fa, &a.light.classic.config(fa, rule))),
+            reflections: reflecting.then(|| a.reflect.config(fa, &a.light.classic.config(fa, rule))),
+            light,
             out: a.out.clone(),
             reference: a.reference,
             stats: a.stats.clone(),
             quiet: a.quiet,
-        }
+        })
     }
 }
 
-impl From<&LightArgs> for LightOptions {
-    fn from(a: &LightArgs) -> Self {
-        LightOptions {
+impl TryFrom<&LightArgs> for LightOptions {
+    type Error = anyhow::Error;
+
+    fn try_from(a: &LightArgs) -> Result<Self> {
+        Ok(LightOptions {
             scene: a.load.scene.clone(),
             view: a.load.camera.choice(),
-            load: a.load.config(DEFAULT_N),
-            light: a.light.options(true),
+            light: a.light.options(&a.load, Preset::Light, false)?,
             stats: a.stats.clone(),
             lit_out: a.lit_out.clone(),
             dump_lit: a.dump_lit.clone(),
             quiet: a.quiet,
-        }
+        })
     }
 }
 
-impl From<&TraceArgs> for TraceOptions {
-    fn from(a: &TraceArgs) -> Self {
-        TraceOptions {
+impl TryFrom<&TraceArgs> for TraceOptions {
+    type Error = anyhow::Error;
+
+    fn try_from(a: &TraceArgs) -> Result<Self> {
+        let reflecting = a.reflect.reflections > 0;
+        let light = a.light.options(&a.load, Preset::Trace, reflecting)?;
+        let (fa, rule) = (light.run.light.fa, light.run.light.rule);
+        Ok(TraceOptions {
             scene: a.load.scene.clone(),
             view: a.load.camera.choice(),
-            load: a.load.config(TRACE_N),
-            light: a.light.options(false),
-            reflections: (a.reflect.reflections > 0).then(|| {
-                let (fa, (rule, _)) = (a.light.fa, a.light.rule_and_rays(false));
-                a.reflect.config(fa, &a.light.classic.config(fa, rule))
-            }),
+            reflections: reflecting.then(|| a.reflect.config(fa, &a.light.classic.config(fa, rule))),
+            light,
             cells: a.cells.clone(),
             busiest: a.busiest,
             out: a.out.clone(),
-        }
+        })
     }
 }
 
@@ -144,7 +149,7 @@ impl From<&VoxelizeArgs> for VoxelizeOptions {
         VoxelizeOptions {
             scene: a.load.scene.clone(),
             view: a.load.camera.choice(),
-            load: a.load.config(DEFAULT_N),
+            load: a.load.config(Preset::Render.load()),
             engine: a.engine.into(),
             dexel_capacity: a.dexel_capacity,
             out: a.out.clone(),
@@ -158,7 +163,7 @@ impl From<&RadiosityArgs> for RadiosityOptions {
     fn from(a: &RadiosityArgs) -> Self {
         RadiosityOptions {
             scene: a.load.scene.clone(),
-            load: a.load.config(DEFAULT_N),
+            load: a.load.config(Preset::Render.load()),
             solve: (&a.solve).into(),
             reference: a.reference,
             reference_self_error: a.reference_self_error,
@@ -176,7 +181,7 @@ impl From<&AuditArgs> for AuditOptions {
         AuditOptions {
             scene: a.load.scene.clone(),
             view: a.load.camera.choice(),
-            load: a.load.config(DEFAULT_N),
+            load: a.load.config(Preset::Render.load()),
             fa: a.fa,
             json: a.json.clone(),
             csv: a.csv.clone(),
@@ -269,5 +274,66 @@ impl From<&BenchArgs> for BenchOptions {
 impl From<&SubdivideArgs> for SubdivideOptions {
     fn from(a: &SubdivideArgs) -> Self {
         SubdivideOptions { scene: a.scene.clone(), target: a.target, out: a.out.clone() }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+    use crate::cli::{Cli, Command};
+    use crate::config::Preset;
+
+    fn parse(args: &str) -> Command {
+        Cli::try_parse_from(std::iter::once("host-sim").chain(args.split_whitespace())).unwrap().command
+    }
+
+    fn render(args: &str) -> Result<RenderOptions> {
+        match parse(args) {
+            Command::Render(a) => (&a).try_into(),
+            c => panic!("not render: {c:?}"),
+        }
+    }
+
+    fn light(args: &str) -> Result<LightOptions> {
+        match parse(args) {
+            Command::Light(a) => (&a).try_into(),
+            c => panic!("not light: {c:?}"),
+        }
+    }
+
+    /// A flagless `host-sim render`, `light` and `trace` run their presets, every field.
+    #[test]
+    fn flagless_commands_run_their_presets() {
+        let r = render("render").unwrap();
+        assert_eq!(r.light.run, Preset::Render.config());
+        assert_eq!((r.scene.as_str(), r.view), ("cornell", crate::scene::camera::ViewChoice::Auto));
+        assert!(
+            r.light.classic.is_none() && r.light.refine.is_none() && r.reflections.is_none() && r.radiosity.is_none()
+        );
+        assert_eq!(light("light").unwrap().light.run, Preset::Light.config());
+        let Command::Trace(t) = parse("trace") else { panic!("not trace") };
+        assert_eq!(TraceOptions::try_from(&t).unwrap().light.run, Preset::Trace.config());
+    }
+
+    /// `--preset` and `--thesis` choose the run; other flags change it; contradictions are
+    /// refused before any work.
+    #[test]
+    fn flags_override_the_preset() {
+        assert_eq!(render("render --thesis").unwrap().light.run, Preset::Thesis.config());
+        assert_eq!(light("light --preset thesis").unwrap().light.run, Preset::Thesis.config());
+        let r = render("render --preset light --fa 8 --n 64 --sigma naive").unwrap().light.run;
+        assert_eq!(r.light, crate::machine::diffuse::LightConfig { fa: 8, ..Preset::Light.light() });
+        assert_eq!((r.load.n, r.load.thickness), (64, crate::precompute::Thickness::Naive));
+        let r = render("render --lit-rule plane --rays-from voxel").unwrap().light.run.light;
+        assert_eq!((r.rule, r.rays), (cell_core::lit::LitRule::Plane, cell_core::beam::Origin::SourceVoxel));
+        // Reflections read hidden voxels: the full store unless told, and then refused.
+        let r = render("render --reflections 1").unwrap().light.run.light;
+        assert!(!r.lit_visible_only && !r.skip_hidden);
+        assert!(render("render --reflections 1 --lit-visible-only").is_err());
+        assert!(render("render --lighting classic --rays-from light").is_err());
+        assert!(light("light --skip-hidden").is_err(), "the hidden skip needs the visible-only store");
+        assert!(Cli::try_parse_from(["host-sim", "render", "--thesis", "--preset", "render"]).is_err());
     }
 }

@@ -47,7 +47,7 @@ pub fn run(o: &AccuracyOptions) -> Result<()> {
         policy: o.policy,
         merge: o.policy.by_layer(),
         record_visits: false,
-        ..Default::default()
+        ..crate::config::plane_rule()
     };
     for &n in &o.n {
         let loaded = load_scene(&mesh, &LoadConfig::watertight(n))?;

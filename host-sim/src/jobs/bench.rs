@@ -14,7 +14,6 @@ use anyhow::Result;
 use cell_core::beam::Origin;
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
-use cell_core::occluder::TriangleStore;
 use cell_core::shade::NormalMode;
 
 use crate::jobs::render::{reference_image, render, RenderConfig, RenderInput, RenderLighting, RenderStats};
@@ -273,7 +272,7 @@ fn measure(mesh: &Mesh, n: u32, k: &Knobs, reference: &mut Option<RefImage>) -> 
             record_visits: false,
             rule: k.rule,
             rays: k.rays,
-            ..Default::default()
+            ..crate::config::plane_rule()
         },
         k.normals,
     );
@@ -301,12 +300,8 @@ fn measure(mesh: &Mesh, n: u32, k: &Knobs, reference: &mut Option<RefImage>) -> 
     let light_cycles = st.light.totals.cycles + st.refine.as_ref().map_or(0, |r| r.cycles);
     let cycles = st.light.load_cycles + light_cycles + st.shade_cycles;
     // A cell compiled for this FIFO size (the host compiles FA_CAP, limits at run time), with
-    // its column's triangle store under exact occluders.
-    let store = match k.rule {
-        LitRule::Exact => std::mem::size_of::<TriangleStore<{ crate::machine::capacity::TRIANGLE_CAP }>>(),
-        _ => 0,
-    };
-    let bytes = st.bytes_per_cell - (crate::machine::capacity::FA_CAP - k.fa) * st.light.bytes_beam_message + store;
+    // the stores the run uses (the column's triangle store under exact occluders).
+    let bytes = st.bytes_per_cell - (crate::machine::capacity::FA_CAP - k.fa) * st.light.bytes_beam_message;
     Ok(Measured { stats: st, cmp, light_cycles, cycles, bytes })
 }
 

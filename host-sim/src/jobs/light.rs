@@ -7,8 +7,9 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use cell_core::beam::FracBits;
 
+use crate::config::{RunConfig, RunSummary};
 use crate::machine::classic::{run_classic, ClassicConfig, ClassicLighting};
-use crate::machine::diffuse::{FrustumBlocks, LightConfig, Lighting};
+use crate::machine::diffuse::{LightConfig, Lighting};
 use crate::machine::lighting::{run_diffusion, LightStats};
 use crate::machine::loaded::{load_scene, resolve_lights, LoadedScene};
 use crate::precompute::LoadConfig;
@@ -21,27 +22,14 @@ use crate::scene::{self, Mesh};
 /// accuracy knob for faces lit at extreme grazing angles (BENCHMARKS.md, "Is the light right?").
 pub const DEFAULT_FRAC_BITS: u32 = 0;
 
-/// Lighting options shared by `light`, `render` and `trace`. Three of the diffusion settings
-/// default differently per job; `None` leaves them to the job.
+/// Lighting options shared by `light`, `render` and `trace`: the run (a preset with the
+/// command line's overrides, resolved and validated: [`crate::config`]) and the lighting method.
 #[derive(Clone, Debug)]
 pub struct LightingOptions {
     /// Point lights at grid-normalised positions in 0..1 (empty: the scene's own).
     pub lights: Vec<[f64; 3]>,
-    /// Fraction bits f of the far-plane ray offsets (a compile-time type: see
-    /// [`cell_core::with_frac_bits`]).
-    pub frac_bits: u32,
-    /// Every diffusion setting but `lit_visible_only`, `skip_hidden` and `frustum_blocks`,
-    /// which the three fields below set.
-    pub diffusion: LightConfig,
-    /// Keep lit marks only for the voxels pixels read. Default: on in `render` without
-    /// reflections, off elsewhere.
-    pub lit_visible_only: Option<bool>,
-    /// Drop beams that can reach no voxel a pixel reads. Default: on wherever the visible-only
-    /// lit store is on by default (`render`).
-    pub skip_hidden: Option<bool>,
-    /// Blocks per axis of the occupancy summary the beam skips test against. Default: 32; 8 in
-    /// `trace` (a cell trace carries the 8 × 8 × 8 summary).
-    pub frustum_blocks: Option<FrustumBlocks>,
+    /// What is loaded, f, and the complete diffusion configuration.
+    pub run: RunConfig,
     /// Classic shadow rays instead of diffusion (`render`, `light`, `trace`).
     pub classic: Option<ClassicConfig>,
     /// Shadow-edge refinement after diffusion, with these shadow rays (`render`).
@@ -49,30 +37,25 @@ pub struct LightingOptions {
 }
 
 impl LightingOptions {
-    /// The diffusion configuration with the full lit store unless told otherwise (the `light`
-    /// and `trace` jobs' default).
+    /// The diffusion configuration.
     pub fn config(&self) -> LightConfig {
-        LightConfig {
-            lit_visible_only: self.lit_visible_only.unwrap_or(false),
-            skip_hidden: self.skip_hidden.unwrap_or(false),
-            frustum_blocks: self.frustum_blocks.unwrap_or_default(),
-            ..self.diffusion
-        }
+        self.run.light
     }
 
-    /// The configuration, with the visible-only lit store and the hidden-voxel skip on by
-    /// default when `visible_only` (what `render` needs), unless given.
-    pub fn config_for(&self, visible_only: bool) -> Result<LightConfig> {
-        let lit_visible_only = self.lit_visible_only.unwrap_or(visible_only);
-        let skip_hidden = self.skip_hidden.unwrap_or(lit_visible_only && visible_only);
-        if skip_hidden && !lit_visible_only {
-            bail!(
-                "--skip-hidden drops the light of hidden voxels: it needs the visible-only lit store \
-                 (--lit-visible-only)"
-            );
-        }
-        Ok(LightConfig { lit_visible_only, skip_hidden, ..self.config() })
+    /// Grid side and surfaces.
+    pub fn load(&self) -> &LoadConfig {
+        &self.run.load
     }
+}
+
+/// `light --stats`: what ran, and the lighting run's statistics.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct LightJobStats<'a> {
+    /// The preset and the resolved settings ([`crate::config::RunSummary`]).
+    pub run: RunSummary,
+    /// The run's counters.
+    #[serde(flatten)]
+    pub light: &'a LightStats,
 }
 
 /// What the `light` job runs and writes.
@@ -82,8 +65,6 @@ pub struct LightOptions {
     pub scene: String,
     /// The view: fitted, the scene's camera, or a camera of the user's.
     pub view: crate::scene::camera::ViewChoice,
-    /// Grid side and surfaces.
-    pub load: LoadConfig,
     /// Lights and lighting settings.
     pub light: LightingOptions,
     /// Write the statistics as JSON here.
@@ -103,16 +84,16 @@ pub fn unsupported_frac_bits(f: u32) -> anyhow::Error {
 
 /// Run the `light` job.
 pub fn run(o: &LightOptions) -> Result<()> {
-    let f = o.light.frac_bits;
+    let f = o.light.run.frac_bits;
     cell_core::with_frac_bits!(f, F => run_with::<F>(o)).unwrap_or_else(|| Err(unsupported_frac_bits(f)))
 }
 
 fn run_with<F: FracBits>(o: &LightOptions) -> Result<()> {
-    o.load.validate()?;
-    let mesh = crate::scene::camera::apply(scene::load(&o.scene)?, &o.view, o.load.n)?;
-    let loaded = load_scene(&mesh, &o.load)?;
+    let load = o.light.load();
+    let mesh = crate::scene::camera::apply(scene::load(&o.scene)?, &o.view, load.n)?;
+    let loaded = load_scene(&mesh, load)?;
     let lights = resolve_lights(&mesh, &loaded, &o.light.lights)?;
-    let lcfg = o.light.config_for(false)?;
+    let lcfg = o.light.config();
     if o.light.refine.is_some() {
         bail!("--lighting refined is a render option (it refines the pixels' lit state): use render");
     }
@@ -121,13 +102,13 @@ fn run_with<F: FracBits>(o: &LightOptions) -> Result<()> {
         let (cl, stats) = run_classic::<F>(&mesh, &loaded, &lights, ccfg, progress::light(&pb))?;
         pb.finish_and_clear();
         write_classic_outputs(o, &loaded, &cl, &stats)?;
-        print_classic_summary(&o.load, lights.len(), &cl, &stats);
+        print_classic_summary(&o.light.run, lights.len(), &cl, &stats);
         return Ok(());
     }
     let (lighting, stats) = run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, progress::light(&pb))?;
     pb.finish_and_clear();
     write_outputs(o, &mesh, &loaded, &lighting, &stats)?;
-    print_summary(&o.load, &stats);
+    print_summary(&o.light.run, &stats);
     if stats.lit_overflows > 0 {
         bail!(
             "{} lit marks did not fit a cell's lit store ({} runs per column)",
@@ -156,7 +137,7 @@ fn write_outputs<F: FracBits>(
     stats: &LightStats,
 ) -> Result<()> {
     if let Some(p) = &o.stats {
-        write_json(p, stats)?;
+        write_json(p, &LightJobStats { run: o.light.run.summary(), light: stats })?;
     }
     if let Some(p) = &o.lit_out {
         write_lit_csv(lighting, create(p)?)?;
@@ -166,6 +147,16 @@ fn write_outputs<F: FracBits>(
         crate::jobs::dump::write_lit_dump(&d, create(p)?)?;
     }
     Ok(())
+}
+
+/// The first summary line of a classic-ray run: the preset, the rule and the geometry (the
+/// diffusion settings do not apply).
+pub fn classic_description(run: &RunConfig, fa: usize) -> String {
+    let s = run.summary();
+    format!(
+        "preset {}: classic shadow rays, {} rule, n = {}, {} + {} surfaces, FA = {fa}",
+        s.preset, s.lit_rule, s.n, s.thickness, s.contour
+    )
 }
 
 /// The geometry a summary line names: thickness and contour (`standard + conservative surfaces`).
@@ -191,19 +182,9 @@ pub fn print_link_faults(s: &LightStats) {
     }
 }
 
-fn print_summary(load: &LoadConfig, stats: &LightStats) {
-    eprintln!(
-        "{}: n = {}, {} facets ({}), {} light(s), FA = {}, f = {}, policy {}, merge {}",
-        stats.scene,
-        stats.n,
-        stats.facets,
-        surfaces(load),
-        stats.sources.len(),
-        stats.fa,
-        stats.frac_bits,
-        stats.policy,
-        stats.merge
-    );
+fn print_summary(run: &RunConfig, stats: &LightStats) {
+    eprintln!("{}", run.describe());
+    eprintln!("{}: {} facets, {} light(s)", stats.scene, stats.facets, stats.sources.len());
     print_link_faults(stats);
     for s in &stats.sources {
         eprintln!(
@@ -220,13 +201,10 @@ fn print_summary(load: &LoadConfig, stats: &LightStats) {
             s.counts.peak_link_distance
         );
     }
+    let t = &stats.totals;
     eprintln!(
-        "  lit voxels {}  rays emitted {} = absorbed {} + exited {}  wall {:.3} s",
-        stats.lit_voxels,
-        stats.totals.rays_emitted,
-        stats.totals.rays_absorbed,
-        stats.totals.rays_exited,
-        stats.wall_seconds
+        "  lit voxels {}  rays emitted {} = absorbed {} + exited {} + skipped {}  wall {:.3} s",
+        stats.lit_voxels, t.rays_emitted, t.rays_absorbed, t.rays_exited, t.rays_skipped, stats.wall_seconds
     );
 }
 
@@ -238,7 +216,7 @@ fn write_classic_outputs(
     stats: &LightStats,
 ) -> Result<()> {
     if let Some(p) = &o.stats {
-        write_json(p, stats)?;
+        write_json(p, &LightJobStats { run: o.light.run.summary(), light: stats })?;
     }
     if let Some(p) = &o.lit_out {
         let mut w = create(p)?;
@@ -254,13 +232,12 @@ fn write_classic_outputs(
     Ok(())
 }
 
-fn print_classic_summary(load: &LoadConfig, lights: usize, cl: &ClassicLighting, stats: &LightStats) {
+fn print_classic_summary(run: &RunConfig, lights: usize, cl: &ClassicLighting, stats: &LightStats) {
+    eprintln!("{}", classic_description(run, stats.fa));
     eprintln!(
-        "{}: n = {}, {} facets ({}), {} light(s), FA = {}, {}: T = {} cycles, {} lit visible voxels, wall {:.3} s",
+        "{}: {} facets, {} light(s), FA = {}, {}: T = {} cycles, {} lit visible voxels, wall {:.3} s",
         stats.scene,
-        stats.n,
         stats.facets,
-        surfaces(load),
         lights,
         stats.fa,
         stats.policy,

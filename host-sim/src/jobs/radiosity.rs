@@ -11,7 +11,6 @@ use anyhow::Result;
 use cell_core::beam::frac::U0;
 
 use crate::machine::capacity::{CellPatchRuns, CellReceived, HostLightCell, DEFAULT_DEXELS};
-use crate::machine::diffuse::LightConfig;
 use crate::machine::loaded::{load_scene, LoadedScene};
 use crate::machine::radiosity::{solve, GridSolution, RadiosityConfig, ShotLog};
 use crate::precompute::LoadConfig;
@@ -51,9 +50,10 @@ impl Default for RadiositySettings {
 }
 
 impl RadiositySettings {
-    /// The machine's settings: shots under the default diffusion (made fit for shooting).
+    /// The machine's settings: shots diffused under the plane rule from the source voxel
+    /// ([`crate::config::plane_rule`], made fit for shooting).
     pub fn machine(&self) -> RadiosityConfig {
-        let mut cfg = RadiosityConfig::new(LightConfig::default(), self.residual, self.shots);
+        let mut cfg = RadiosityConfig::new(crate::config::plane_rule(), self.residual, self.shots);
         cfg.offset = self.offset;
         cfg
     }

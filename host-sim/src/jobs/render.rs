@@ -18,7 +18,8 @@ use cell_core::beam::FracBits;
 use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
 
-use crate::jobs::light::{print_link_faults, surfaces, unsupported_frac_bits, LightingOptions};
+use crate::config::RunSummary;
+use crate::jobs::light::{classic_description, print_link_faults, unsupported_frac_bits, LightingOptions};
 use crate::jobs::render_radiosity::{self, DisplayPsnr, RadiosityRenderStats, RenderRadiosity};
 use crate::machine::classic::{refine_edges, run_classic, ClassicConfig, ClassicCounts, RefineCounts};
 use crate::machine::diffuse::LightConfig;
@@ -27,7 +28,6 @@ use crate::machine::lighting::{run_diffusion, LightStats};
 use crate::machine::loaded::{load_scene, resolve_lights, LoadedScene};
 use crate::machine::reflect::{reflect, ReflectConfig, ReflectCounts, ShadeEnv};
 use crate::machine::shade::{point_lights, ref_lights, seen, shade_grid_ambient, Ambient, Image, Seen, AMBIENT};
-use crate::precompute::LoadConfig;
 use crate::report::files::write_json;
 use crate::report::png::write_png;
 use crate::report::progress;
@@ -38,6 +38,8 @@ use crate::truth::refrender::{RefImage, RefReflect};
 /// Everything `render --stats` reports.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct RenderStats {
+    /// What ran: the preset and its resolved settings (set by the `render` job).
+    pub run: Option<RunSummary>,
     /// The view: "fitted" (the scene fitted into the grid, seen along +z) or the camera's.
     pub view: String,
     /// The lighting run (load and light counters, bytes per cell).
@@ -52,7 +54,11 @@ pub struct RenderStats {
     pub lit_pixels: u64,
     /// `size_of` a loading cell (dexel store with its compile-time capacity + inbound packet).
     pub bytes_per_cell_load: usize,
-    /// Loading + lighting state of one cell.
+    /// The stores a cell holds besides those for this run ([`crate::config::extra_cell_bytes`]):
+    /// the column's triangle store under exact occluders, the occupancy summary under the
+    /// frustum and hidden skips.
+    pub bytes_per_cell_stores: usize,
+    /// Loading + lighting state of one cell, with those stores.
     pub bytes_per_cell: usize,
     /// Cell shading against the same formula in f64, same inputs (8-bit levels).
     pub shading_max_err_levels: u8,
@@ -320,7 +326,9 @@ fn shade(
     let cmp = input.reference.map(|r| crate::truth::compare::compare(&image.rgb, &image.covered, &image.lit, r));
     let load_cell = std::mem::size_of::<cell_core::cell::Cell<{ cell_core::cell::DEFAULT_DEXELS }>>()
         + std::mem::size_of::<cell_core::facet::RowPacket>();
+    let stores = crate::config::extra_cell_bytes(&cfg.light);
     let stats = RenderStats {
+        run: None,
         view: input.mesh.screen.as_ref().map_or_else(|| "fitted".into(), |s| s.view.describe()),
         normals: match cfg.normals {
             NormalMode::Facet => "facet".into(),
@@ -330,7 +338,8 @@ fn shade(
         covered_pixels: image.covered.iter().filter(|&&c| c).count() as u64,
         lit_pixels: image.lit.iter().filter(|&&l| l != 0).count() as u64,
         bytes_per_cell_load: load_cell,
-        bytes_per_cell: load_cell + lstats.bytes_light_cell,
+        bytes_per_cell_stores: stores,
+        bytes_per_cell: load_cell + lstats.bytes_light_cell + stores,
         shading_max_err_levels: image.shading_max_err_levels,
         shading_mean_err_levels: image.shading_mean_err_levels,
         reference: cmp,
@@ -363,9 +372,7 @@ pub struct RenderOptions {
     pub scene: String,
     /// The view: fitted, the scene's camera, or a camera of the user's.
     pub view: crate::scene::camera::ViewChoice,
-    /// Grid side and surfaces.
-    pub load: LoadConfig,
-    /// Lights and lighting settings.
+    /// Lights, the run (preset and overrides, resolved) and the lighting method.
     pub light: LightingOptions,
     /// Normal used for shading.
     pub normals: NormalMode,
@@ -387,13 +394,12 @@ pub struct RenderOptions {
 impl RenderOptions {
     /// Check the options before any work and say how to render.
     pub fn config(&self) -> Result<RenderConfig> {
-        self.load.validate()?;
         let lighting = match (&self.reflections, &self.light.classic) {
             (Some(_), Some(_)) => bail!(
                 "--reflections needs --lighting diffusion (the lit state of every voxel, not only the visible ones)"
             ),
             (Some(r), None) => {
-                r.validate(self.load.n)?;
+                r.validate(self.light.load().n)?;
                 RenderLighting::Reflections(*r)
             }
             (None, Some(c)) => RenderLighting::Classic(*c),
@@ -412,21 +418,18 @@ impl RenderOptions {
                  without its indirect light (run one or the other)"
             );
         }
-        if reflecting && self.light.lit_visible_only == Some(true) {
-            bail!(
-                "--reflections reads the lit state of the voxels reflected rays hit, hidden ones included: \
-                 run without --lit-visible-only (and --skip-hidden)"
-            );
+        // The run was resolved for reflections (the full lit store): `crate::config::Needs`.
+        let light = self.light.config();
+        if reflecting && light.lit_visible_only {
+            bail!("--reflections needs the full lit store: resolve the run with `Needs::reflections`");
         }
-        // The image needs only what its pixels read; reflected rays read hidden voxels too.
-        let light = self.light.config_for(!reflecting)?;
         Ok(RenderConfig { light, normals: self.normals, lighting })
     }
 }
 
 /// Run the `render` job.
 pub fn run(o: &RenderOptions) -> Result<()> {
-    let f = o.light.frac_bits;
+    let f = o.light.run.frac_bits;
     cell_core::with_frac_bits!(f, F => run_with::<F>(o)).unwrap_or_else(|| Err(unsupported_frac_bits(f)))
 }
 
@@ -454,8 +457,9 @@ fn run_with<F: FracBits>(o: &RenderOptions) -> Result<()> {
         r.stats.wall_seconds += stats.seconds;
         r.stats.radiosity = Some(stats);
     }
+    r.stats.run = Some(o.light.run.summary());
     let written = write_outputs(o, &r, reference.as_ref())?;
-    print_summary(&o.load, &r, &written);
+    print_summary(o, &r, &written);
     Ok(())
 }
 
@@ -467,14 +471,14 @@ fn load_phase(o: &RenderOptions) -> Result<(Mesh, LoadedScene, f64)> {
         crate::scene::camera::ViewChoice::Auto if o.reflections.is_some() => crate::scene::camera::ViewChoice::Fitted,
         v => v,
     };
-    let mesh = crate::scene::camera::apply(scene::load(&o.scene)?, &view, o.load.n)?;
+    let mesh = crate::scene::camera::apply(scene::load(&o.scene)?, &view, o.light.load().n)?;
     if mesh.screen.is_some() && o.reflections.is_some() {
         bail!("--reflections needs the fitted view: reflected rays are not traced through a camera yet");
     }
     let t0 = Instant::now();
     let pb = progress::bar(o.quiet, "load");
     pb.set_length(1);
-    let loaded = load_scene(&mesh, &o.load)?;
+    let loaded = load_scene(&mesh, o.light.load())?;
     pb.finish_and_clear();
     Ok((mesh, loaded, t0.elapsed().as_secs_f64()))
 }
@@ -500,7 +504,7 @@ fn radiosity_phase(
         return Ok(None);
     };
     let t0 = Instant::now();
-    let solved = render_radiosity::solve(mesh, loaded, &o.load, &r.solve, o.reference, o.quiet)?;
+    let solved = render_radiosity::solve(mesh, loaded, o.light.load(), &r.solve, o.reference, o.quiet)?;
     let shown = solved.show(mesh, loaded, lights, r.display, rule)?;
     Ok(Some(RadiosityPhase { solved, shown, seconds: t0.elapsed().as_secs_f64() }))
 }
@@ -602,20 +606,20 @@ fn write_outputs(o: &RenderOptions, r: &Rendered, reference: Option<&RefImage>) 
     Ok(written)
 }
 
-fn print_summary(load: &LoadConfig, r: &Rendered, written: &[String]) {
+fn print_summary(o: &RenderOptions, r: &Rendered, written: &[String]) {
     let s = &r.stats;
     let t = &s.light.totals;
+    let method = match (&o.light.classic, &o.light.refine) {
+        (Some(c), _) => classic_description(&o.light.run, c.fa),
+        (None, Some(_)) => format!("{}; shadow edges refined by classic rays", o.light.run.describe()),
+        (None, None) => o.light.run.describe(),
+    };
+    eprintln!("{method}");
     eprintln!(
-        "{}: n = {}, {} facets ({}), {} light(s), f = {}, FA = {}, {} policy{}, {} normals",
+        "{}: {} facets, {} light(s), {} normals",
         s.light.scene,
-        s.light.n,
         s.light.facets,
-        surfaces(load),
         s.light.sources.len(),
-        s.light.frac_bits,
-        s.light.fa,
-        s.light.policy,
-        if s.light.merge { " + merge" } else { "" },
         s.normals
     );
     eprintln!("  view: {}", s.view);
@@ -625,8 +629,8 @@ fn print_summary(load: &LoadConfig, r: &Rendered, written: &[String]) {
     );
     print_link_faults(&s.light);
     eprintln!(
-        "  pixels: {} covered, {} lit   bytes/cell {} (dexels {} + light {})   shading vs f64: max {} mean {:.3} levels",
-        s.covered_pixels, s.lit_pixels, s.bytes_per_cell, s.bytes_per_cell_load, s.light.bytes_light_cell,
+        "  pixels: {} covered, {} lit   bytes/cell {} (dexels {} + light {} + triangles and summary {})   shading vs f64: max {} mean {:.3} levels",
+        s.covered_pixels, s.lit_pixels, s.bytes_per_cell, s.bytes_per_cell_load, s.light.bytes_light_cell, s.bytes_per_cell_stores,
         s.shading_max_err_levels, s.shading_mean_err_levels
     );
     if let Some(c) = &r.classic {

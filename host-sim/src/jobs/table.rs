@@ -196,7 +196,7 @@ impl TableOptions {
             // skips would drop entirely.
             skip_receding: false,
             skip_dead_directions: false,
-            ..Default::default()
+            ..crate::config::plane_rule()
         }
     }
 }

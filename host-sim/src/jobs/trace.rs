@@ -18,7 +18,7 @@ use cell_core::shade::{cell_pixel, Eye, NormalMode, ShadeParams};
 use cell_core::trace::{Event, ShadeSetup, MAX_LIGHTS, MAX_MATERIALS};
 
 use crate::jobs::light::{unsupported_frac_bits, LightingOptions};
-use crate::machine::diffuse::{diffuse_tapped, FrustumBlocks, LightConfig, Lighting};
+use crate::machine::diffuse::{diffuse_tapped, LightConfig, Lighting};
 use crate::machine::tap::{CellRecorder, Tap};
 
 use crate::machine::capacity::{HostLightCell, FA_CAP, LIT_CAP, OB_CAP};
@@ -229,8 +229,6 @@ pub struct TraceOptions {
     pub scene: String,
     /// The view: fitted, the scene's camera, or a camera of the user's.
     pub view: crate::scene::camera::ViewChoice,
-    /// Grid side and surfaces (keep n small: a trace must fit the firmware's flash).
-    pub load: LoadConfig,
     /// Lights and lighting settings: beam diffusion, or classic shadow rays.
     pub light: LightingOptions,
     /// The reflection phase after shading (`None`: none).
@@ -246,12 +244,11 @@ pub struct TraceOptions {
 /// Run the `trace` job: record, write, and replay every trace with the host's build of
 /// `cell-core` (the same digest, or the trace is wrong).
 pub fn run(o: &TraceOptions) -> Result<()> {
-    let f = o.light.frac_bits;
+    let f = o.light.run.frac_bits;
     cell_core::with_frac_bits!(f, F => run_with::<F>(o)).unwrap_or_else(|| Err(unsupported_frac_bits(f)))
 }
 
 fn run_with<F: FracBits>(o: &TraceOptions) -> Result<()> {
-    o.load.validate()?;
     // Reflected rays are traced in the grid's own view: with reflections the default view is
     // the fitted one (as `render` has it).
     let view = match o.view {
@@ -261,11 +258,13 @@ fn run_with<F: FracBits>(o: &TraceOptions) -> Result<()> {
     if o.light.refine.is_some() {
         bail!("--lighting refined is not recorded by trace: record --lighting diffusion and --lighting classic");
     }
-    let mesh = crate::scene::camera::apply(crate::scene::load(&o.scene)?, &view, o.load.n)?;
+    let load = *o.light.load();
+    let mesh = crate::scene::camera::apply(crate::scene::load(&o.scene)?, &view, load.n)?;
+    eprintln!("{}", o.light.run.describe());
     let job = TraceJob {
         mesh: &mesh,
-        load: o.load,
-        light: LightConfig { frustum_blocks: o.light.frustum_blocks.unwrap_or(FrustumBlocks::B8), ..o.light.config() },
+        load,
+        light: o.light.config(),
         lights: o.light.lights.clone(),
         cells: o.cells.clone(),
         busiest: o.busiest,

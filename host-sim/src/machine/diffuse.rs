@@ -46,7 +46,8 @@ use crate::machine::timing::Timing;
 /// cycle is deadlocked; under link faults a few cycles of bad luck are normal.
 pub const DEFAULT_STALL_CYCLES: u64 = 64;
 
-/// Lighting-phase settings.
+/// Lighting-phase settings. No default: a run starts from a named preset
+/// ([`crate::config::Preset`]: what each job runs) or says what it tests.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LightConfig {
     /// FIFO limit (1 ..= FA_CAP).
@@ -88,13 +89,13 @@ pub struct LightConfig {
     pub skip_hidden: bool,
     /// Resolution of the summary the empty-frustum and hidden-voxel skips test against.
     pub frustum_blocks: FrustumBlocks,
-    /// The lit rule ([`cell_core::lit`]): the plane rule (default) or the thesis's.
+    /// The lit rule ([`cell_core::lit`]).
     pub rule: LitRule,
     /// Where the sources' rays leave from along each face's axis ([`Origin`]): the source
-    /// voxel's centre plane (the thesis's rays, default) or the light itself. Applied to the
+    /// voxel's centre plane (the thesis's rays) or the light itself. Applied to the
     /// sources the jobs make from light positions ([`LightConfig::source`]).
     pub rays: Origin,
-    /// The timing rules the thesis leaves open ([`Timing`]; default: rc2's). Exact: changes
+    /// The timing rules the thesis leaves open ([`Timing`]). Exact: changes
     /// cycles, messages and FIFO occupancy, never lit voxels.
     pub timing: Timing,
     /// Stop each source's diffusion after this many cycles, beams still in flight (a snapshot
@@ -168,34 +169,6 @@ impl Summary {
         match self {
             Summary::B8(o) => Some(&**o),
             _ => None,
-        }
-    }
-}
-
-impl Default for LightConfig {
-    /// The lighting defaults: the plane rule, FA = 16, radial + merge, active stepping, the
-    /// receding and dead-direction skips on, the full lit store (`render` adds the visible-only
-    /// store and the hidden-voxel skip).
-    fn default() -> Self {
-        LightConfig {
-            fa: 16,
-            policy: Policy::Radial,
-            merge: true,
-            record_visits: false,
-            stepping: Stepping::Active,
-            skip_receding: true,
-            skip_dead_directions: true,
-            faults: None,
-            stall_cycles: DEFAULT_STALL_CYCLES,
-            lit_visible_only: false,
-            hold: 0,
-            skip_frustum: false,
-            skip_hidden: false,
-            frustum_blocks: FrustumBlocks::default(),
-            rule: LitRule::Plane,
-            rays: Origin::SourceVoxel,
-            timing: Timing::RC2,
-            stop_at: None,
         }
     }
 }
@@ -1748,7 +1721,7 @@ mod tests {
     /// for the source cell's first split, are refused before any cell is touched.
     #[test]
     fn light_runs_refuse_bad_sources() {
-        let cfg = LightConfig::default();
+        let cfg = crate::config::plane_rule();
         let at = |p: [f64; 3]| Source::new(SourceId(0), p.map(SourceCoord::from_num));
         assert!(check_light_run::<U0>(8, &[at([7.0, 7.0, 7.0])], &cfg).is_ok());
         for outside in [[7.5, 0.0, 0.0], [0.0, -0.5625, 0.0], [0.0, 0.0, -1.0]] {

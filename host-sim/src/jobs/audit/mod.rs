@@ -394,8 +394,13 @@ pub struct AuditOptions {
 pub fn run(o: &AuditOptions) -> Result<()> {
     o.load.validate()?;
     let mesh = crate::scene::camera::apply(crate::scene::load(&o.scene)?, &o.view, o.load.n)?;
-    let lcfg =
-        LightConfig { fa: o.fa, policy: Policy::Wavefront, merge: true, record_visits: false, ..Default::default() };
+    let lcfg = LightConfig {
+        fa: o.fa,
+        policy: Policy::Wavefront,
+        merge: true,
+        record_visits: false,
+        ..crate::config::plane_rule()
+    };
     let elfs = if o.elfs.is_empty() {
         FIRMWARE_ELFS.iter().map(PathBuf::from).filter(|p| p.exists()).collect()
     } else {

@@ -1,0 +1,457 @@
+//! One home for what a run is: the named presets, the overrides a command line may give, the
+//! one validation, and the description every output carries.
+//!
+//! A run of the lighting jobs is a [`RunConfig`]: the scene's loading ([`LoadConfig`]), the
+//! fraction bits f of the rays, and the complete diffusion configuration ([`LightConfig`]).
+//! Each [`Preset`] is one such configuration, written out field by field in [`Preset::load`]
+//! and [`Preset::light`]; docs/CONFIGURATION.md says what each is for and lists the line each
+//! prints (a test keeps that page in step with this code).
+//!
+//! The command line's options are [`Overrides`] of the preset a job starts from (`--preset`,
+//! `--thesis`); [`RunConfig::resolve`] applies them and validates the result once. Every job
+//! prints [`RunConfig::describe`] as its summary's first line and writes [`RunSummary`] into
+//! its `--stats` JSON, so an output always says what ran.
+
+use anyhow::{bail, Result};
+use cell_core::beam::Origin;
+use cell_core::light::Policy;
+use cell_core::lit::LitRule;
+
+use crate::machine::capacity::TRIANGLE_CAP;
+use crate::machine::diffuse::{FrustumBlocks, LightConfig, Stepping, DEFAULT_STALL_CYCLES};
+use crate::machine::faults::LinkFaults;
+use crate::machine::timing::Timing;
+use crate::precompute::{Contour, LoadConfig, Thickness};
+
+/// A named run configuration ([`Preset::config`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    /// What `host-sim render` runs: exact occluders, rays from the light, the lit marks the
+    /// pixels read only, and the beams that can reach no visible voxel dropped.
+    Render,
+    /// What `host-sim light` runs: `render`'s machine with the full lit store (every lit voxel
+    /// kept), no hidden-voxel skip.
+    Light,
+    /// What `host-sim trace` records and the firmware replays: the plane rule from the source
+    /// voxel (no triangle store), the 8 × 8 × 8 occupancy summary a cell trace carries, n = 32.
+    Trace,
+    /// The thesis's machine: its lit rule (§5.5.5), integer rays from the source voxel (§4.3),
+    /// the wavefront policy, its free-port timing, naive planes and projected contours (§3.8),
+    /// none of rc2's skips.
+    Thesis,
+}
+
+impl Preset {
+    /// Every preset, in the order the table of the module doc lists them.
+    pub const ALL: [Preset; 4] = [Preset::Render, Preset::Light, Preset::Trace, Preset::Thesis];
+
+    /// The name the command line and the outputs use.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Preset::Render => "render",
+            Preset::Light => "light",
+            Preset::Trace => "trace",
+            Preset::Thesis => "thesis",
+        }
+    }
+
+    /// The whole configuration, every field written out.
+    pub const fn config(self) -> RunConfig {
+        RunConfig { preset: self, load: self.load(), frac_bits: 0, light: self.light() }
+    }
+
+    /// How the preset loads a scene.
+    pub const fn load(self) -> LoadConfig {
+        match self {
+            Preset::Render | Preset::Light => LoadConfig::watertight(128),
+            Preset::Trace => LoadConfig::watertight(32),
+            Preset::Thesis => LoadConfig { n: 128, thickness: Thickness::Naive, contour: Contour::Projected },
+        }
+    }
+
+    /// The preset's diffusion configuration.
+    pub const fn light(self) -> LightConfig {
+        let rc2 = LightConfig {
+            fa: 16,
+            policy: Policy::Radial,
+            merge: true,
+            record_visits: false,
+            stepping: Stepping::Active,
+            skip_receding: true,
+            skip_dead_directions: true,
+            faults: None,
+            stall_cycles: DEFAULT_STALL_CYCLES,
+            lit_visible_only: false,
+            hold: 0,
+            skip_frustum: false,
+            skip_hidden: false,
+            frustum_blocks: FrustumBlocks::B32,
+            rule: LitRule::Exact,
+            rays: Origin::Light,
+            timing: Timing::RC2,
+            stop_at: None,
+        };
+        match self {
+            Preset::Render => LightConfig { lit_visible_only: true, skip_hidden: true, ..rc2 },
+            Preset::Light => rc2,
+            Preset::Trace => LightConfig {
+                rule: LitRule::Plane,
+                rays: Origin::SourceVoxel,
+                frustum_blocks: FrustumBlocks::B8,
+                ..rc2
+            },
+            Preset::Thesis => LightConfig {
+                policy: Policy::Wavefront,
+                skip_receding: false,
+                skip_dead_directions: false,
+                rule: LitRule::Thesis,
+                rays: Origin::SourceVoxel,
+                timing: Timing::THESIS,
+                ..rc2
+            },
+        }
+    }
+}
+
+impl std::fmt::Display for Preset {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The plane rule from the source voxel on the `light` preset's machine (full lit store,
+/// 32-block summaries): what the firmware's default image runs, with the lit set every voxel
+/// has. Tests of the diffusion engine itself start from it (fast, and every lit voxel kept).
+pub const fn plane_rule() -> LightConfig {
+    LightConfig { rule: LitRule::Plane, rays: Origin::SourceVoxel, ..Preset::Light.light() }
+}
+
+/// A run: what is loaded, f, and the diffusion.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RunConfig {
+    /// The preset it started from.
+    pub preset: Preset,
+    /// The scene's loading.
+    pub load: LoadConfig,
+    /// Fraction bits f of the far-plane ray offsets.
+    pub frac_bits: u32,
+    /// The diffusion.
+    pub light: LightConfig,
+}
+
+/// What a command line changes in a preset: `None` keeps the preset's value.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Overrides {
+    /// Grid side.
+    pub n: Option<u32>,
+    /// Plane thickness.
+    pub thickness: Option<Thickness>,
+    /// Facet contour.
+    pub contour: Option<Contour>,
+    /// Fraction bits f.
+    pub frac_bits: Option<u32>,
+    /// FIFO size FA.
+    pub fa: Option<usize>,
+    /// Scheduling policy.
+    pub policy: Option<Policy>,
+    /// Merging; `None`: on unless the policy is the thesis's.
+    pub merge: Option<bool>,
+    /// Host stepping.
+    pub stepping: Option<Stepping>,
+    /// The receding-beam skip.
+    pub skip_receding: Option<bool>,
+    /// The dead-direction skip.
+    pub skip_dead_directions: Option<bool>,
+    /// Faulty links.
+    pub faults: Option<LinkFaults>,
+    /// Stall detection.
+    pub stall_cycles: Option<u64>,
+    /// The visible-only lit store.
+    pub lit_visible_only: Option<bool>,
+    /// The empty-frustum skip.
+    pub skip_frustum: Option<bool>,
+    /// The hidden-voxel skip.
+    pub skip_hidden: Option<bool>,
+    /// Summary resolution.
+    pub frustum_blocks: Option<FrustumBlocks>,
+    /// The sibling wait.
+    pub hold: Option<u16>,
+    /// The lit rule.
+    pub rule: Option<LitRule>,
+    /// The rays' origin.
+    pub rays: Option<Origin>,
+}
+
+/// What the job around the diffusion needs of it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Needs {
+    /// Classic shadow rays replace diffusion (their rays leave from the source voxel).
+    pub classic: bool,
+    /// Reflected rays read the lit state of hidden voxels: the full lit store.
+    pub reflections: bool,
+}
+
+impl RunConfig {
+    /// `preset` with `o` applied for a job that `needs` this, validated ([`RunConfig::validate`]).
+    pub fn resolve(preset: Preset, o: &Overrides, needs: Needs) -> Result<RunConfig> {
+        let base = preset.config();
+        let b = &base.light;
+        let policy = o.policy.unwrap_or(b.policy);
+        // A preset's merge is auto: on for the wavefront and radial policies.
+        let merge = o.merge.unwrap_or(policy != Policy::Thesis);
+        // Reflections need the full lit store (and so no hidden-voxel skip) unless told.
+        let lit_visible_only = o.lit_visible_only.unwrap_or(b.lit_visible_only && !needs.reflections);
+        let skip_hidden = o.skip_hidden.unwrap_or(b.skip_hidden && lit_visible_only);
+        let rays = o.rays.unwrap_or(if needs.classic { Origin::SourceVoxel } else { b.rays });
+        let light = LightConfig {
+            fa: o.fa.unwrap_or(b.fa),
+            policy,
+            merge,
+            stepping: o.stepping.unwrap_or(b.stepping),
+            skip_receding: o.skip_receding.unwrap_or(b.skip_receding),
+            skip_dead_directions: o.skip_dead_directions.unwrap_or(b.skip_dead_directions),
+            faults: o.faults.or(b.faults),
+            stall_cycles: o.stall_cycles.unwrap_or(b.stall_cycles),
+            lit_visible_only,
+            skip_frustum: o.skip_frustum.unwrap_or(b.skip_frustum),
+            skip_hidden,
+            frustum_blocks: o.frustum_blocks.unwrap_or(b.frustum_blocks),
+            hold: o.hold.unwrap_or(b.hold),
+            rule: o.rule.unwrap_or(b.rule),
+            rays,
+            ..*b
+        };
+        let load = LoadConfig {
+            n: o.n.unwrap_or(base.load.n),
+            thickness: o.thickness.unwrap_or(base.load.thickness),
+            contour: o.contour.unwrap_or(base.load.contour),
+        };
+        let run = RunConfig { preset, load, frac_bits: o.frac_bits.unwrap_or(base.frac_bits), light };
+        run.validate(needs)?;
+        Ok(run)
+    }
+
+    /// Refuse what cannot run, or would silently run something else than asked.
+    pub fn validate(&self, needs: Needs) -> Result<()> {
+        let l = &self.light;
+        self.load.validate()?;
+        if l.skip_hidden && !l.lit_visible_only {
+            bail!("--skip-hidden drops the beams that reach no visible voxel only: it needs --lit-visible-only");
+        }
+        if needs.reflections && l.lit_visible_only {
+            bail!(
+                "--reflections reads the lit state of the voxels reflected rays hit, hidden ones included: \
+                 run without --lit-visible-only (and --skip-hidden)"
+            );
+        }
+        if needs.classic && l.rays == Origin::Light {
+            bail!("--rays-from light is a diffusion option: classic shadow rays are traced to the light itself");
+        }
+        Ok(())
+    }
+
+    /// The summary's first line: the preset and everything that decides what the machine does.
+    pub fn describe(&self) -> String {
+        self.summary().line()
+    }
+
+    /// What ran, for the outputs.
+    pub fn summary(&self) -> RunSummary {
+        let l = &self.light;
+        let skips = [
+            (l.skip_receding, "receding"),
+            (l.skip_dead_directions, "dead directions"),
+            (l.skip_frustum, "empty frustum"),
+            (l.skip_hidden, "hidden"),
+        ];
+        RunSummary {
+            preset: self.preset,
+            lit_rule: rule_name(l.rule),
+            rays_from: match l.rays {
+                Origin::Light => "light",
+                Origin::SourceVoxel => "voxel",
+            },
+            thickness: format!("{:?}", self.load.thickness).to_lowercase(),
+            contour: format!("{:?}", self.load.contour).to_lowercase(),
+            n: self.load.n,
+            frac_bits: self.frac_bits,
+            fa: l.fa,
+            policy: crate::machine::lighting::policy_name(l.policy),
+            merge: l.merge,
+            timing: if l.timing == Timing::THESIS {
+                "thesis"
+            } else if l.timing == Timing::RC2 {
+                "rc2"
+            } else {
+                "custom"
+            },
+            lit_store: if l.lit_visible_only { "visible" } else { "full" },
+            skips: skips.iter().filter(|s| s.0).map(|s| s.1).collect(),
+            frustum_blocks: match l.frustum_blocks {
+                FrustumBlocks::B8 => 8,
+                FrustumBlocks::B16 => 16,
+                FrustumBlocks::B32 => 32,
+            },
+            hold: l.hold,
+            link_faults: l.faults.is_some(),
+        }
+    }
+}
+
+/// The CLI name of a lit rule.
+pub const fn rule_name(r: LitRule) -> &'static str {
+    match r {
+        LitRule::Thesis => "thesis",
+        LitRule::Plane => "plane",
+        LitRule::Exact => "exact",
+    }
+}
+
+/// Bytes a cell's stores take beyond its dexels and its lighting cell, for rule `r`: the
+/// column's triangle store under exact occluders, the occupancy summary when a skip tests it.
+pub fn extra_cell_bytes(l: &LightConfig) -> usize {
+    let triangles = match l.rule {
+        LitRule::Exact => std::mem::size_of::<cell_core::occluder::TriangleStore<TRIANGLE_CAP>>(),
+        _ => 0,
+    };
+    let summary = if l.skip_frustum || l.skip_hidden { l.frustum_blocks.bytes() } else { 0 };
+    triangles + summary
+}
+
+/// What ran, as the outputs record it (`--stats` JSON `run`; the summary's first line).
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct RunSummary {
+    /// The preset the run started from.
+    pub preset: Preset,
+    /// `exact`, `plane` or `thesis`.
+    pub lit_rule: &'static str,
+    /// `light` or `voxel`.
+    pub rays_from: &'static str,
+    /// Plane thickness.
+    pub thickness: String,
+    /// Facet contour.
+    pub contour: String,
+    /// Grid side.
+    pub n: u32,
+    /// Fraction bits f.
+    pub frac_bits: u32,
+    /// FIFO size FA.
+    pub fa: usize,
+    /// Scheduling policy.
+    pub policy: &'static str,
+    /// Merging on.
+    pub merge: bool,
+    /// `rc2`, `thesis` or `custom` timing rules.
+    pub timing: &'static str,
+    /// `visible` (only the voxels pixels read) or `full`.
+    pub lit_store: &'static str,
+    /// The beam skips on.
+    pub skips: Vec<&'static str>,
+    /// Blocks per axis of the occupancy summary (used by the frustum and hidden skips).
+    pub frustum_blocks: u32,
+    /// The sibling wait in cycles (0: off).
+    pub hold: u16,
+    /// Faulty links.
+    pub link_faults: bool,
+}
+
+impl RunSummary {
+    /// One line: `preset render: exact rule, rays from the light, n = 128, f = 0, FA = 16, …`.
+    pub fn line(&self) -> String {
+        let skips = if self.skips.is_empty() { "none".to_string() } else { self.skips.join(" + ") };
+        let mut s = format!(
+            "preset {}: {} rule, rays from the {}, n = {}, {} + {} surfaces, f = {}, FA = {}, {}{} policy, {} timing, {} lit store, skips {}",
+            self.preset,
+            self.lit_rule,
+            if self.rays_from == "light" { "light" } else { "source voxel" },
+            self.n,
+            self.thickness,
+            self.contour,
+            self.frac_bits,
+            self.fa,
+            self.policy,
+            if self.merge { " + merge" } else { "" },
+            self.timing,
+            self.lit_store,
+            skips,
+        );
+        if self.skips.iter().any(|k| *k == "empty frustum" || *k == "hidden") {
+            s += &format!(" ({}-block summary)", self.frustum_blocks);
+        }
+        if self.hold > 0 {
+            s += &format!(", hold {}", self.hold);
+        }
+        if self.link_faults {
+            s += ", faulty links";
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// No override: the preset itself, and it validates.
+    #[test]
+    fn presets_resolve_to_themselves() {
+        for p in Preset::ALL {
+            let r = RunConfig::resolve(p, &Overrides::default(), Needs::default()).unwrap();
+            assert_eq!(r, p.config(), "{p}");
+        }
+    }
+
+    /// Reflections take the full store from `render` unless the command asks otherwise (then
+    /// it is refused); the hidden skip follows the store; classic rays leave from the voxel.
+    #[test]
+    fn needs_adjust_the_defaults_and_refuse_contradictions() {
+        let refl = Needs { reflections: true, ..Needs::default() };
+        let r = RunConfig::resolve(Preset::Render, &Overrides::default(), refl).unwrap();
+        assert!(!r.light.lit_visible_only && !r.light.skip_hidden);
+        let o = Overrides { lit_visible_only: Some(true), ..Overrides::default() };
+        assert!(RunConfig::resolve(Preset::Render, &o, refl).is_err());
+        let o = Overrides { lit_visible_only: Some(false), ..Overrides::default() };
+        let r = RunConfig::resolve(Preset::Render, &o, Needs::default()).unwrap();
+        assert!(!r.light.skip_hidden, "the hidden skip follows the store");
+        let o = Overrides { lit_visible_only: Some(false), skip_hidden: Some(true), ..Overrides::default() };
+        assert!(RunConfig::resolve(Preset::Render, &o, Needs::default()).is_err());
+        let classic = Needs { classic: true, ..Needs::default() };
+        let r = RunConfig::resolve(Preset::Render, &Overrides::default(), classic).unwrap();
+        assert_eq!(r.light.rays, Origin::SourceVoxel);
+        let o = Overrides { rays: Some(Origin::Light), ..Overrides::default() };
+        assert!(RunConfig::resolve(Preset::Render, &o, classic).is_err());
+    }
+
+    /// Merge is auto: off when the policy is overridden to the thesis's, unless asked.
+    #[test]
+    fn merge_follows_the_policy_unless_given() {
+        let o = Overrides { policy: Some(Policy::Thesis), ..Overrides::default() };
+        assert!(!RunConfig::resolve(Preset::Light, &o, Needs::default()).unwrap().light.merge);
+        let o = Overrides { policy: Some(Policy::Thesis), merge: Some(true), ..Overrides::default() };
+        assert!(RunConfig::resolve(Preset::Light, &o, Needs::default()).unwrap().light.merge);
+    }
+
+    /// docs/CONFIGURATION.md shows the line each preset prints, as printed.
+    #[test]
+    fn the_configuration_page_lists_each_presets_line() {
+        let page = include_str!("../../../docs/CONFIGURATION.md");
+        for p in Preset::ALL {
+            let line = p.config().describe();
+            assert!(page.lines().any(|l| l == line), "docs/CONFIGURATION.md lacks the line\n{line}");
+        }
+    }
+
+    /// The description names the preset and the decisive settings.
+    #[test]
+    fn the_description_says_what_ran() {
+        let d = Preset::Render.config().describe();
+        for part in ["preset render", "exact rule", "rays from the light", "visible lit store", "hidden"] {
+            assert!(d.contains(part), "{d:?} lacks {part:?}");
+        }
+        let d = Preset::Thesis.config().describe();
+        for part in ["preset thesis", "thesis rule", "source voxel", "naive + projected", "skips none"] {
+            assert!(d.contains(part), "{d:?} lacks {part:?}");
+        }
+    }
+}
