@@ -39,6 +39,7 @@
 #![warn(missing_docs)]
 
 pub mod beam;
+pub mod bytes;
 pub mod cell;
 pub mod dexel;
 pub mod facet;
@@ -60,6 +61,7 @@ pub mod shade;
 pub mod shadow;
 pub mod termination;
 pub mod trace;
+pub mod triangle;
 pub mod units;
 pub mod visible;
 pub mod voxelize;

@@ -1086,7 +1086,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             LitRule::Thesis => self.thesis_fate(m, &cell.store, env, f),
             LitRule::Plane => self.plane_fate(m, cell, env, f),
             #[cfg(feature = "exact-occluders")]
-            LitRule::Exact => self.exact_fate(m, env, f),
+            LitRule::Exact => self.exact_fate(m, &cell.store, env, f),
         }
     }
 
@@ -1279,7 +1279,13 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
 
     /// The exact-occluder rule ([`crate::occluder::ExactVisit`]) at this beam's voxel.
     #[cfg(feature = "exact-occluders")]
-    fn exact_fate(&self, m: &BeamMsg<F>, env: &LightEnv<'_, F>, f: &mut Fate<'_, F>) {
+    fn exact_fate<const D: usize>(
+        &self,
+        m: &BeamMsg<F>,
+        store: &DexelStore<D>,
+        env: &LightEnv<'_, F>,
+        f: &mut Fate<'_, F>,
+    ) {
         let b = &m.beam;
         let dir = b.direction();
         let k = b.layer().0 as i64;
@@ -1300,6 +1306,13 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             let lit = visit.verdict(visit.bits(t.a, t.b), false).out.present() && !t.in_contact_shadow(triangles);
             f.visible = lit;
             f.lit = lit;
+        }
+        // The full lit store keeps every occupied voxel whose own ray arrives
+        // ([`crate::receiver::voxel_ray`]); the visible-only store, the pixel's target voxel.
+        if !env.lit_visible_only {
+            f.lit = store.occupied(m.z).is_some()
+                && crate::receiver::voxel_ray(self.x as i32, self.y as i32, m.z as i64, env.source, env.far)
+                    .is_some_and(|t| t.in_beam(b) && visit.verdict(visit.bits(t.a, t.b), false).out.present());
         }
         if visit.is_plain() {
             if m.local == Local::NONE && !f.visible && self.frustum_skips(m, env, f) {

@@ -87,12 +87,12 @@
 //! there. The own plane's `2²⁰·g` at A (|·| ≤ 2⁵³: A lies on the surface within 1/32 voxel)
 //! and its growth to B (|·| < 2⁵⁸) fit `i64`.
 
+use crate::bytes::{ByteSink, DecodeError, EncodeError, PutExt, Reader};
 use crate::dexel::DexelStore;
 use crate::light::Port;
 use crate::occluder::Triangle;
 use crate::plane::{DexelPlane, PlaneId, NORMAL_SCALE};
 use crate::units::FacetId;
-use crate::wire::{ByteSink, DecodeError, EncodeError, PutExt, Reader};
 
 /// Lattice units per voxel (the 1/16 voxel lattice of facets and sources).
 pub const Q: i32 = 16;
@@ -1038,7 +1038,7 @@ mod tests {
     /// Writes `l` and reads it back.
     fn round_trip(l: &Line) -> Result<Line, DecodeError> {
         let mut buf = [0u8; LINE_BYTES];
-        let mut w = crate::wire::SliceWriter::new(&mut buf);
+        let mut w = crate::bytes::SliceWriter::new(&mut buf);
         l.put(&mut w).unwrap();
         let n = w.len();
         let mut r = Reader::new(&buf[..n]);

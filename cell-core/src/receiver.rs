@@ -135,8 +135,8 @@
 
 use crate::beam::{Beam, Direction, FarDistance, FracBits, Source};
 use crate::lit::RayPlane;
-use crate::occluder::{cross, dot, sub, Triangle, COORD_LIMIT};
 use crate::plane::DexelPlane;
+use crate::triangle::{cross, dot, sub, Triangle, COORD_LIMIT};
 use crate::visible::VisibleSurface;
 
 /// Units per voxel of the pixel's point.
@@ -265,6 +265,74 @@ pub(crate) fn contact_point(
     Some([0, 1, 2].map(|i| s[i] + ((2 * num * (p[i] - s[i]) as i128 + den).div_euclid(2 * den)) as i64))
 }
 
+/// The face whose rays reach point `p` (in 1/[`POINT_UNITS`] voxel): its rays' origin and
+/// lead, the exact ray's distance to `p` along the axis (`dist`) and its transverse offsets
+/// scaled by it (a = an/dist, b = bn/dist, in lattice steps of the far square).
+struct Face {
+    dir: Direction,
+    o: [i64; 3],
+    lead: i64,
+    dist: i128,
+    an: i128,
+    bn: i128,
+}
+
+impl Face {
+    /// The first face (in [`Direction::ALL`] order) whose pyramid holds `p`; `None` if none
+    /// does or the rays' origin lies outside [`COORD_LIMIT`].
+    fn towards(p: [i128; 3], source: &Source, nn: i128) -> Option<Face> {
+        let face = Direction::ALL.into_iter().find_map(|dir| {
+            let (o, lead) = (source.ray_origin(dir), source.lead(dir));
+            let (w, (u, v)) = (dir.principal().index(), dir.transverse());
+            let dist = dir.sign() as i128 * (p[w] - 256 * o[w] as i128);
+            let off = |i: usize| (p[i] - 256 * o[i] as i128) * nn;
+            let (an, bn) = (off(u.index()), off(v.index()));
+            (dist > 0 && an.abs() <= nn * dist && bn.abs() <= nn * dist).then_some(Face { dir, o, lead, dist, an, bn })
+        })?;
+        (face.o.iter().all(|c| c.abs() <= COORD_LIMIT)).then_some(face)
+    }
+}
+
+/// The offsets of the rays whose voxel at layer k (reach `tk` = T_k) is `q` along one
+/// transverse axis whose origin coordinate is `o`: N·(16q − 8 − O) ≤ T·t < N·(16q + 8 − O),
+/// cut to ±N.
+fn rays_in_voxel(q: i64, o: i64, nn: i128, tk: i128) -> (i128, i128) {
+    let lo = ceil_div(nn * (16 * q as i128 - 8 - o as i128), tk).max(-nn);
+    let hi = (ceil_div(nn * (16 * q as i128 + 8 - o as i128), tk) - 1).min(nn);
+    (lo, hi)
+}
+
+/// The ray that decides whether occupied voxel (x, y, z) is lit in the full lit store under
+/// exact occluders (what `light` reports and reflected rays read): of the rays whose voxel at
+/// that voxel's layer is (x, y, z), the one nearest the exact ray from the light to its
+/// centre, in the far square's (u, v) metric. The voxel is lit iff that ray arrives there (as
+/// a pixel is lit iff its target ray arrives: module doc). `None` if no face's rays reach the
+/// voxel, or a coordinate lies outside [`COORD_LIMIT`].
+pub fn voxel_ray<F: FracBits>(x: i32, y: i32, z: i64, source: &Source, far: FarDistance<F>) -> Option<Target> {
+    let g = POINT_UNITS as i128;
+    let q = [x as i64, y as i64, z];
+    if q.iter().any(|c| c.abs() > COORD_LIMIT / 16) {
+        return None;
+    }
+    let nn = far.scaled() as i128;
+    let Face { dir, o, lead, dist, an, bn } = Face::towards(q.map(|c| g * c as i128), source, nn)?;
+    let (w, (ua, va)) = (dir.principal().index(), dir.transverse());
+    let k = source.layer_at(dir, q[w]);
+    if k < 1 || k > far.get() as i64 {
+        return None;
+    }
+    let tk = (16 * k - lead) as i128;
+    let ((a0, a1), (b0, b1)) =
+        (rays_in_voxel(q[ua.index()], o[ua.index()], nn, tk), rays_in_voxel(q[va.index()], o[va.index()], nn, tk));
+    if a0 > a1 || b0 > b1 {
+        return None;
+    }
+    let round = |n: i128| (2 * n + dist).div_euclid(2 * dist);
+    // The nearest lattice point of the box to (a, b): each coordinate rounded, then clamped.
+    let (a, b) = (round(an).clamp(a0, a1) as i64, round(bn).clamp(b0, b1) as i64);
+    Some(Target { dir, layer: k as u32, z, a, b, contact: None, neighbour_shadow: false })
+}
+
 /// ⌈n/d⌉ for d > 0.
 fn ceil_div(n: i128, d: i128) -> i128 {
     -(-n).div_euclid(d)
@@ -298,19 +366,7 @@ pub fn target<F: FracBits>(
 ) -> Option<Target> {
     let p = pixel_point(x, y, vis)?.map(i128::from);
     let nn = far.scaled() as i128;
-    // The face: its rays' origin and lead, the exact ray's distance along the axis (`dist`,
-    // in 1/POINT_UNITS voxel) and its offsets scaled by dist (a = an/dist, b = bn/dist).
-    let (dir, o, lead, dist, an, bn) = Direction::ALL.into_iter().find_map(|dir| {
-        let (o, lead) = (source.ray_origin(dir), source.lead(dir));
-        let (w, (u, v)) = (dir.principal().index(), dir.transverse());
-        let dist = dir.sign() as i128 * (p[w] - 256 * o[w] as i128);
-        let off = |i: usize| (p[i] - 256 * o[i] as i128) * nn;
-        let (an, bn) = (off(u.index()), off(v.index()));
-        (dist > 0 && an.abs() <= nn * dist && bn.abs() <= nn * dist).then_some((dir, o, lead, dist, an, bn))
-    })?;
-    if o.iter().any(|c| c.abs() > COORD_LIMIT) {
-        return None;
-    }
+    let Face { dir, o, lead, dist, an, bn } = Face::towards(p, source, nn)?;
     let (w, (ua, va)) = (dir.principal().index(), dir.transverse());
     let (u, v) = (ua.index(), va.index());
     // The visible plane along this face's rays (its reference voxel is the same for every
@@ -335,12 +391,7 @@ pub fn target<F: FracBits>(
             continue;
         }
         let tk = (16 * k - lead) as i128;
-        // Rays whose voxel at layer k is q along axis i: N·(16q − 8 − O) ≤ T·t < N·(16q + 8 − O).
-        let range = |i: usize| {
-            let lo = ceil_div(nn * (16 * q[i] as i128 - 8 - o[i] as i128), tk).max(-nn);
-            let hi = (ceil_div(nn * (16 * q[i] as i128 + 8 - o[i] as i128), tk) - 1).min(nn);
-            (lo, hi)
-        };
+        let range = |i: usize| rays_in_voxel(q[i], o[i], nn, tk);
         let ((a0, a1), (b0, b1)) = (range(u), range(v));
         if a0 > a1 || b0 > b1 {
             continue;
@@ -533,6 +584,77 @@ mod tests {
     fn target_equals_the_brute_force_nearest() {
         like_brute_force::<frac::U0>(1);
         like_brute_force::<frac::U1>(2);
+    }
+
+    /// [`voxel_ray`] against every lattice ray of the face whose pyramid holds the voxel's
+    /// centre: among those whose voxel at the voxel's layer is the voxel (from the definitions,
+    /// as in [`brute_in`]), none is nearer the exact ray to the centre; and a voxel such rays
+    /// reach always has one.
+    #[test]
+    fn voxel_ray_is_the_nearest_ray_through_the_voxel() {
+        fn check<F: FracBits>(seed: u64) {
+            let mut s = seed;
+            let mut found = 0;
+            for _ in 0..300 {
+                let d = r(&mut s, 6, 14);
+                let far = FarDistance::<F>::new(d as u32).unwrap();
+                let src = Source::new(SourceId(0), [0; 3].map(|_| SourceCoord::from_bits(r(&mut s, 0, 16 * d) as i32)));
+                let src = src.with_origin(if lcg(&mut s) % 2 == 0 { Origin::SourceVoxel } else { Origin::Light });
+                let q = [r(&mut s, 0, d), r(&mut s, 0, d), r(&mut s, 0, d)];
+                let g = POINT_UNITS as i128;
+                let p = q.map(|c| g * c as i128);
+                let nn = far.scaled() as i128;
+                let got = voxel_ray(q[0] as i32, q[1] as i32, q[2], &src, far);
+                // The face, as `target`'s module doc defines it (first in `Direction::ALL`).
+                let face = Direction::ALL.into_iter().find(|&dir| {
+                    let o = src.ray_origin(dir);
+                    let (w, (ua, va)) = (dir.principal().index(), dir.transverse());
+                    let dist = dir.sign() as i128 * (p[w] - 256 * o[w] as i128);
+                    let off = |i: usize| (p[i] - 256 * o[i] as i128) * nn;
+                    dist > 0 && off(ua.index()).abs() <= nn * dist && off(va.index()).abs() <= nn * dist
+                });
+                let Some(dir) = face else {
+                    assert_eq!(got, None, "{q:?} {src:?}: no face");
+                    continue;
+                };
+                let o = src.ray_origin(dir);
+                let (w, (ua, va)) = (dir.principal().index(), dir.transverse());
+                let (u, v) = (ua.index(), va.index());
+                let sg = dir.sign() as i128;
+                let dist = sg * (p[w] - 256 * o[w] as i128);
+                let (an, bn) = ((p[u] - 256 * o[u] as i128) * nn, (p[v] - 256 * o[v] as i128) * nn);
+                let tq = sg as i64 * (16 * q[w] - o[w]);
+                let k = (tq + (-tq).rem_euclid(16)) / 16;
+                let mut best: Option<i128> = None;
+                if tq > 0 && k <= far.get() as i64 {
+                    for a in -nn..=nn {
+                        for b in -nn..=nn {
+                            let mut m = o.map(|c| nn * c as i128);
+                            m[w] += tq as i128 * sg * nn;
+                            m[u] += tq as i128 * a;
+                            m[v] += tq as i128 * b;
+                            if m.map(|c| (c + 8 * nn).div_euclid(16 * nn)) == q.map(i128::from) {
+                                let d2 = (a * dist - an).pow(2) + (b * dist - bn).pow(2);
+                                best = Some(best.map_or(d2, |x: i128| x.min(d2)));
+                            }
+                        }
+                    }
+                }
+                match (got, best) {
+                    (Some(t), Some(d2)) => {
+                        assert_eq!((t.dir, t.layer as i64, t.z), (dir, k, q[2]), "{q:?} {src:?}");
+                        let (a, b) = (t.a as i128, t.b as i128);
+                        assert_eq!((a * dist - an).pow(2) + (b * dist - bn).pow(2), d2, "{q:?} {src:?}: nearest");
+                        found += 1;
+                    }
+                    (None, None) => {}
+                    (g, b) => panic!("{q:?} {src:?} D = {d}: got {g:?}, the nearest at {b:?}"),
+                }
+            }
+            assert!(found > 150, "voxels with a ray: {found}");
+        }
+        check::<frac::U0>(3);
+        check::<frac::U1>(4);
     }
 
     /// A face the light grazes: the plane cuts the bracketing voxels so that every ray through

@@ -671,6 +671,11 @@ pub struct AccuracyArgs {
     /// Scheduling policy.
     #[arg(long, value_enum, default_value_t = PolicyArg::Wavefront)]
     pub policy: PolicyArg,
+    /// The lit rule measured: `exact` (what `light` runs: rays from the light, each occupied
+    /// voxel lit iff the lattice ray nearest the exact ray to its centre arrives), `plane` or
+    /// `thesis` (rays from the source voxel).
+    #[arg(long, value_enum, default_value_t = LitRuleArg::Exact)]
+    pub lit_rule: LitRuleArg,
     /// A light at grid-normalised X,Y,Z (repeatable; default: the scene's own).
     #[arg(long = "light", value_parser = parse_triple)]
     pub lights: Vec<[f64; 3]>,

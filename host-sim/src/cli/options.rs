@@ -251,6 +251,7 @@ impl From<&AccuracyArgs> for AccuracyOptions {
             frac_bits: a.frac_bits.clone(),
             fa: a.fa,
             policy: a.policy.into(),
+            rule: a.lit_rule.into(),
             lights: a.lights.clone(),
             out: a.out.clone(),
         }

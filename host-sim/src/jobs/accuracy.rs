@@ -29,6 +29,9 @@ pub struct AccuracyOptions {
     pub fa: usize,
     /// Scheduling policy (merging on for the policies that pick by layer).
     pub policy: Policy,
+    /// The lit rule (exact occluders with rays from the light, the others from the source
+    /// voxel: as the presets pair them).
+    pub rule: cell_core::lit::LitRule,
     /// Lights at grid-normalised positions (empty: the scene's own).
     pub lights: Vec<[f64; 3]>,
     /// Output CSV.
@@ -42,12 +45,14 @@ pub fn run(o: &AccuracyOptions) -> Result<()> {
     writeln!(csv, "scene,n,frac_bits,surface_voxels,lit_discrete,lit_continuous,false_lit,false_dark,disagreement_pct,cycles,lower_bound,beams_processed,wall_seconds")?;
     eprintln!("| n | f | surface voxels | false lit | false dark | disagreement % | cycles | beams | wall s |");
     eprintln!("|---|---|---|---|---|---|---|---|---|");
+    let rays = if o.rule.is_exact() { cell_core::beam::Origin::Light } else { cell_core::beam::Origin::SourceVoxel };
     let lcfg = LightConfig {
         fa: o.fa,
         policy: o.policy,
         merge: o.policy.by_layer(),
-        record_visits: false,
-        ..crate::config::plane_rule()
+        rule: o.rule,
+        rays,
+        ..crate::config::Preset::Light.light()
     };
     for &n in &o.n {
         let loaded = load_scene(&mesh, &LoadConfig::watertight(n))?;
