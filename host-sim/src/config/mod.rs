@@ -237,7 +237,10 @@ impl RunConfig {
         let l = &self.light;
         self.load.validate()?;
         if l.skip_hidden && !l.lit_visible_only {
-            bail!("--skip-hidden drops the beams that reach no visible voxel only: it needs --lit-visible-only");
+            bail!(
+                "--skip-hidden drops the light of hidden voxels: it needs the visible-only lit store \
+                 (--lit-visible-only)"
+            );
         }
         if needs.reflections && l.lit_visible_only {
             bail!(
