@@ -11,6 +11,7 @@
 #   RULES   default: "exact plane" (exact: what `light` runs; plane: --lit-rule plane, rays from
 #           the source voxel)
 #   BIN     default: target/release/host-sim (built if absent)
+#   TABLE_ONLY=1 rewrites bench-out/lit_set.md from the CSV without running (same variables)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MESHES=${MESHES:-"suzanne fandisk cow teapot"}
@@ -18,9 +19,10 @@ LIGHTS=${LIGHTS:-"0.2,0.9,0.1 0.9,0.5,0.2 0.5,0.05,0.5 0.1,0.2,0.9"}
 NS=${NS:-"64 128 256"}
 RULES=${RULES:-"exact plane"}
 BIN=${BIN:-target/release/host-sim}
-[[ -x $BIN ]] || cargo build --release -q -p host-sim
+[[ -x $BIN || ${TABLE_ONLY:-0} == 1 ]] || cargo build --release -q -p host-sim
 mkdir -p bench-out/lit_set
 CSV=bench-out/lit_set.csv
+if [[ ${TABLE_ONLY:-0} != 1 ]]; then
 echo "mesh,light,n,rule,surface_voxels,false_lit,false_dark,disagreement_pct,cycles" > "$CSV"
 for m in $MESHES; do
   obj=$m; [[ -f $obj ]] || obj=../shared/scenes/$m.obj
@@ -36,16 +38,18 @@ for m in $MESHES; do
     done
   done
 done
-python3 - "$CSV" "$BIN" "$0" <<'PY' > bench-out/lit_set.md
-import csv, subprocess, sys, platform, datetime, collections
+fi
+MESHES=$MESHES LIGHTS=$LIGHTS NS=$NS python3 - "$CSV" <<'PY' > bench-out/lit_set.md
+import csv, subprocess, sys, platform, datetime, collections, os
 rows = list(csv.DictReader(open(sys.argv[1])))
 by = collections.defaultdict(list)
 for r in rows:
     by[(r["rule"], int(r["n"]))].append(r)
 rev = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
 cpu = next((l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name")), platform.machine())
-print(f"`bash bench/lit_set.sh` (MESHES, LIGHTS as its header; f = 0), commit {rev}, {cpu}, "
-      f"{datetime.date.today()}: surface voxels whose lit state differs from f64 visibility of their centre.\n")
+env = " ".join(f'{k}="{os.environ[k]}"' for k in ("MESHES", "LIGHTS", "NS"))
+print(f"`{env} bash bench/lit_set.sh` (f = 0), commit {rev}, {cpu}, {datetime.date.today()}: "
+      "surface voxels whose lit state differs from f64 visibility of their centre (`light-accuracy`).\n")
 print("| lit rule | n | runs | surface voxels (mean) | disagreement % mean | worst (mesh, light) |")
 print("|---|---|---|---|---|---|")
 for (rule, n) in sorted(by, key=lambda k: (k[0] != "exact", k[0], k[1])):

@@ -9,7 +9,7 @@ use cell_core::beam::{Direction, FarDistance, FracBits, Origin, Source, SourceCo
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use cell_core::occluder::Triangle;
-use cell_core::receiver::{crosses_any, target, POINT_UNITS};
+use cell_core::receiver::{crosses_any, target, voxel_ray, POINT_UNITS};
 use host_sim::machine::diffuse::{diffuse, LightConfig, Lighting};
 use host_sim::machine::grid::Grid;
 use host_sim::machine::timing::{Emission, Timing};
@@ -80,7 +80,19 @@ fn exact_oracle<F: FracBits>(g: &G, src16: &[[i64; 3]], origin: Origin) -> (RayO
             });
             if exact::reaches(fate, t.layer as i64) && !contact {
                 *visible.entry([c.x as i64, c.y as i64]).or_insert(0) |= 1u64 << si;
-                *out.lit.entry([c.x as i64, c.y as i64, t.z]).or_insert(0) |= 1u64 << si;
+            }
+        }
+        // The full lit store: each occupied voxel whose own ray (`receiver::voxel_ray`, itself
+        // checked against every ray of the face in cell-core) reaches it, traced exactly.
+        for c in &g.cells {
+            for d in c.store.dexels() {
+                for z in d.span.lo..=d.span.hi {
+                    let Some(t) = voxel_ray(c.x as i32, c.y as i32, z as i64, &source, far) else { continue };
+                    let dir = (0..6).find(|&d| oracle_direction(d) == t.dir).expect("six directions");
+                    if exact::reaches(exact::trace_ray_exact(&scene, s, from, F::U32, dir, t.a, t.b), t.layer as i64) {
+                        *out.lit.entry([c.x as i64, c.y as i64, z as i64]).or_insert(0) |= 1u64 << si;
+                    }
+                }
             }
         }
     }
