@@ -311,7 +311,7 @@ pub const fn rule_name(r: LitRule) -> &'static str {
     }
 }
 
-/// Bytes a cell's stores take beyond its dexels and its lighting cell, for rule `r`: the
+/// Bytes a cell's stores take beyond its dexels and its lighting cell under run `l`: the
 /// column's triangle store under exact occluders, the occupancy summary when a skip tests it.
 pub fn extra_cell_bytes(l: &LightConfig) -> usize {
     let triangles = match l.rule {
