@@ -100,11 +100,6 @@ pub const ANSWER_SURFACE: u8 = 2;
 /// An answer on its way back to the emitter: payload bits [`ANSWER_LIT`], [`ANSWER_SURFACE`].
 pub type ShadowAnswer = Routed<u8>;
 
-/// Whether `rule` is exact occluders ([`LitRule::is_exact`]).
-fn exact_occluders(rule: LitRule) -> bool {
-    rule.is_exact()
-}
-
 /// What the cells need to know about the phase for one source.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ShadowEnv {
@@ -279,7 +274,7 @@ impl<const FA: usize> ShadowCell<FA> {
         let err = |z: i32| move |error| EmitError { z, error };
         if core::mem::take(&mut self.emitter.surface) {
             let v = cell.visible.as_ref().expect("the plane rule emits from a visible surface");
-            let ray = if exact_occluders(env.rule) {
+            let ray = if env.rule.is_exact() {
                 // The pixel's point, as the receiver takes it.
                 let p = crate::receiver::pixel_point(cell.x as i32, cell.y as i32, v)
                     .ok_or(err(v.z_v)(LineError::CoordinateTooLarge))?;
@@ -304,7 +299,7 @@ impl<const FA: usize> ShadowCell<FA> {
                     .map_err(err(z as i32))?;
                 Ok(Some(if i == 0 && z == d.span.lo { ray.for_surface() } else { ray }))
             }
-            _ if exact_occluders(env.rule) => {
+            _ if env.rule.is_exact() => {
                 let p = [cell.x as i64, cell.y as i64, z as i64].map(|v| v * POINT_UNITS);
                 ShadowRay::exact(p, &d.plane, d.span.lo as i32, env.source, d.facet).map_err(err(z as i32))
             }

@@ -23,6 +23,10 @@ use crate::machine::faults::LinkFaults;
 use crate::machine::timing::Timing;
 use crate::precompute::{Contour, LoadConfig, Thickness};
 
+/// Fraction bits f every preset runs: f = 1 is the accuracy knob for faces lit at extreme
+/// grazing angles, at several times the cycles (BENCHMARKS.md, "Is the light right?").
+pub const DEFAULT_FRAC_BITS: u32 = 0;
+
 /// A named run configuration ([`Preset::config`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -58,7 +62,7 @@ impl Preset {
 
     /// The whole configuration, every field written out.
     pub const fn config(self) -> RunConfig {
-        RunConfig { preset: self, load: self.load(), frac_bits: 0, light: self.light() }
+        RunConfig { preset: self, load: self.load(), frac_bits: DEFAULT_FRAC_BITS, light: self.light() }
     }
 
     /// How the preset loads a scene.

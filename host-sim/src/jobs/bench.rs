@@ -53,7 +53,7 @@ pub struct Knobs {
 impl Knobs {
     /// The configuration `render` runs with no options.
     pub const DEFAULT: Knobs = Knobs {
-        f: crate::jobs::light::DEFAULT_FRAC_BITS,
+        f: crate::config::DEFAULT_FRAC_BITS,
         thickness: Thickness::Standard,
         contour: Contour::Conservative,
         normals: NormalMode::Facet,

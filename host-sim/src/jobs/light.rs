@@ -17,11 +17,6 @@ use crate::report::files::{create, write_json};
 use crate::report::progress;
 use crate::scene::{self, Mesh};
 
-/// Fraction bits the lighting jobs use unless told otherwise: under the plane rule f = 0 meets
-/// the accuracy goals at a quarter to four fifths of the former default's cycles; f = 1 is the
-/// accuracy knob for faces lit at extreme grazing angles (BENCHMARKS.md, "Is the light right?").
-pub const DEFAULT_FRAC_BITS: u32 = 0;
-
 /// Lighting options shared by `light`, `render` and `trace`: the run (a preset with the
 /// command line's overrides, resolved and validated: [`crate::config`]) and the lighting method.
 #[derive(Clone, Debug)]
@@ -157,11 +152,6 @@ pub fn classic_description(run: &RunConfig, fa: usize) -> String {
         "preset {}: classic shadow rays, {} rule, n = {}, {} + {} surfaces, FA = {fa}",
         s.preset, s.lit_rule, s.n, s.thickness, s.contour
     )
-}
-
-/// The geometry a summary line names: thickness and contour (`standard + conservative surfaces`).
-pub fn surfaces(cfg: &LoadConfig) -> String {
-    format!("{:?} + {:?} surfaces", cfg.thickness, cfg.contour).to_lowercase()
 }
 
 /// The link counters of a run over faulty links (nothing without link faults).

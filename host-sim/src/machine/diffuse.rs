@@ -108,14 +108,13 @@ pub struct LightConfig {
 /// Blocks per axis of the summary the empty-frustum and hidden-voxel skips test beams against
 /// ([`cell_core::occupancy`]): finer blocks drop more beams (the test is exact only with
 /// one-voxel blocks) for more memory per cell. Same lit voxels and image whichever is chosen.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum FrustumBlocks {
     /// 8 × 8 × 8 blocks, `u8` rows: 232 bytes per cell (what a cell trace carries).
     B8,
     /// 16 × 16 × 16 blocks, `u16` rows: 1 348 bytes per cell.
     B16,
     /// 32 × 32 × 32 blocks, `u32` rows: 9 384 bytes per cell.
-    #[default]
     B32,
 }
 
