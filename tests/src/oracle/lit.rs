@@ -161,6 +161,56 @@ pub fn plane_value_on(
     (s.nx as i128 * lp[0] + s.ny as i128 * lp[1]) * 65536 + s.nz as i128 * lp[2] + 65536 * l * s.e as i128
 }
 
+/// [`plane_value_on`] along one ray, as a line in the ray's distance T: `base + T·slope` (the
+/// same integer, regrouped: every term of `plane_value_on` is constant or linear in T).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct PlaneLine {
+    base: i128,
+    slope: i128,
+}
+
+impl PlaneLine {
+    /// The value at distance T (sixteenths along the axis, [`Ray::distance`]).
+    fn at(&self, tt: i128) -> i128 {
+        self.base + tt * self.slope
+    }
+}
+
+/// What [`PlaneLine`] takes from plane `s` (column (x, y)), the source and the direction, the
+/// same for every ray: the walk computes it once per voxel of a class of rays, not per ray.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct PlaneBase {
+    base: i128,
+    /// The plane's coefficients on the ray's two transverse offsets, and the slope's part along
+    /// the axis.
+    ca: i128,
+    cb: i128,
+    axial: i128,
+}
+
+impl PlaneBase {
+    /// Plane `s` of column (x, y) along the rays of `src` in direction `dir` leaving from `from`.
+    #[allow(clippy::too_many_arguments)] // the rays' coordinates, as in `plane_value_on`
+    fn new(s: &Surface, x: i64, y: i64, from: RaysFrom, src: [i64; 3], dir: usize, d: i64, f: u32) -> Self {
+        let (w, sign, ua, va) = dir_axes(dir);
+        let l = 16 * ((d as i128) << f);
+        let df = (d as i128) << f;
+        let reference = [x as i128, y as i128, s.lo as i128];
+        let mut o = src.map(|c| c as i128);
+        if from == RaysFrom::Voxel {
+            o[w] = 16 * source_voxel(src)[w] as i128;
+        }
+        let c = [65536 * s.nx as i128, 65536 * s.ny as i128, s.nz as i128];
+        let base = (0..3).map(|i| c[i] * (df * o[i] - l * reference[i])).sum::<i128>() + 65536 * l * s.e as i128;
+        PlaneBase { base, ca: c[ua], cb: c[va], axial: c[w] * sign as i128 * df }
+    }
+
+    /// The line along ray (a, b).
+    fn along(&self, a: i64, b: i64) -> PlaneLine {
+        PlaneLine { base: self.base, slope: self.axial + self.ca * a as i128 + self.cb * b as i128 }
+    }
+}
+
 /// One ray: its parameters and walk state.
 struct Ray {
     from: RaysFrom,
@@ -177,14 +227,40 @@ struct Ray {
     outside: bool,
 }
 
+/// A plane's sides along a ray around layer k ([`Ray::sigmas`]).
+#[derive(Clone, Copy, Debug)]
+struct Sigmas {
+    s0: bool,
+    prev: bool,
+    now: bool,
+    next: bool,
+}
+
 impl Ray {
     fn new(from: RaysFrom, src: [i64; 3], dir: usize, a: i64, b: i64, d: i64, f: u32) -> Self {
         Ray { from, src, dir, a, b, d, f, terminal: false, column: None, outside: false }
     }
 
-    /// σ_t of plane `s` in column (x, y).
-    fn sigma(&self, s: &Surface, x: i64, y: i64, t: i64) -> bool {
-        plane_value_on(s, x, y, self.from, self.src, self.dir, self.a, self.b, self.d, self.f, t) > 0
+    /// The ray's distance T at layer t, in sixteenths along its axis ([`plane_value_on`]'s).
+    fn distance(&self, t: i64) -> i128 {
+        match self.from {
+            RaysFrom::Voxel => 16 * t as i128,
+            RaysFrom::Light if t == 0 => 0,
+            RaysFrom::Light => light_layer(self.src, self.dir, t).1 as i128,
+        }
+    }
+
+    /// Plane `s` of column (x, y) along this ray's source and direction.
+    fn base(&self, s: &Surface, x: i64, y: i64) -> PlaneBase {
+        PlaneBase::new(s, x, y, self.from, self.src, self.dir, self.d, self.f)
+    }
+
+    /// σ_t of a plane (`plane`: [`Ray::base`]) at layers 0, k − 1 (0 at k = 0), k and k + 1, from
+    /// the plane's line along the ray ([`PlaneLine`]: [`plane_value_on`] regrouped).
+    fn sigmas(&self, plane: &PlaneBase, k: i64) -> Sigmas {
+        let line = plane.along(self.a, self.b);
+        let sigma = |t: i64| line.at(self.distance(t)) > 0;
+        Sigmas { s0: sigma(0), prev: sigma((k - 1).max(0)), now: sigma(k), next: sigma(k + 1) }
     }
 
     /// The ray's voxel at layer k.
@@ -204,51 +280,45 @@ impl Ray {
         &mut self,
         p: [i64; 3],
         k: i64,
-        own: Option<Surface>,
-        vis: Option<Visible>,
+        own: Option<(Surface, PlaneBase)>,
+        vis: Option<(Visible, PlaneBase)>,
         stays: bool,
         from_empty: bool,
         from_outside: bool,
         lit: &mut bool,
         lit_visible: &mut bool,
     ) -> bool {
-        let (x, y) = (p[0], p[1]);
-        let prev = (k - 1).max(0);
-        if let Some(v) = vis {
-            if (p[2] == v.z_v || p[2] == v.z_v + 1)
-                && self.sigma(&v.plane, x, y, 0)
-                && (self.sigma(&v.plane, x, y, k) || self.sigma(&v.plane, x, y, prev))
-            {
+        if let Some((v, plane)) = vis {
+            let sv = self.sigmas(&plane, k);
+            if (p[2] == v.z_v || p[2] == v.z_v + 1) && sv.s0 && (sv.now || sv.prev) {
                 *lit_visible = true;
             }
         }
         // On the source's side (σ_t = σ₀) at layer k or k − 1, of a plane facing the source or
         // of a two-sided one.
-        let lights = |r: &Ray, s: &Surface| {
-            let s0 = r.sigma(s, x, y, 0);
-            (s0 || s.two_sided) && (r.sigma(s, x, y, k) == s0 || r.sigma(s, x, y, prev) == s0)
-        };
+        let lights = |g: &Sigmas, s: &Surface| (g.s0 || s.two_sided) && (g.now == g.s0 || g.prev == g.s0);
         if self.terminal {
-            if let Some(s) = own {
-                *lit = lights(self, &s);
+            if let Some((s, plane)) = own {
+                *lit = lights(&self.sigmas(&plane, k), &s);
             }
             return false;
         }
         let z_ray = self.dir >= 4;
         self.outside = false;
-        let Some(s) = own else {
+        let Some((s, plane)) = own else {
             if z_ray && !stays {
                 self.column = None;
             }
             return true;
         };
-        *lit = lights(self, &s);
-        let (was, now, next) = (self.sigma(&s, x, y, prev), self.sigma(&s, x, y, k), self.sigma(&s, x, y, k + 1));
+        let g = self.sigmas(&plane, k);
+        *lit = lights(&g, &s);
+        let (was, now, next) = (g.prev, g.now, g.next);
         // Behind the plane at both layers, having come from empty space, or from the outside
         // of another column's plane into one facing the source: it crossed a surface unseen.
         // (Behind a two-sided plane facing away is the source's side: the ray has not reached the
         // plane yet.)
-        let faces = self.sigma(&s, x, y, 0);
+        let faces = g.s0;
         if was != now || (((from_empty && (faces || !s.two_sided)) || (from_outside && faces)) && !was && !now) {
             return false;
         }
@@ -315,11 +385,12 @@ fn walk_ray(
         let (mut l, mut lv) = (false, false);
         let own = surfaces(p[0], p[1], p[2]);
         let from_outside = ray.outside;
+        let vis = columns(p[0], p[1]);
         let goes = ray.step(
             p,
             k,
-            own,
-            columns(p[0], p[1]),
+            own.map(|s| (s, ray.base(&s, p[0], p[1]))),
+            vis.map(|v| (v, ray.base(&v.plane, p[0], p[1]))),
             stays_in_column(dir, k, d, p, next),
             from_empty,
             from_outside,
@@ -459,11 +530,16 @@ pub fn trace_all_plane(
                         last += 1;
                     }
                     let len = (last + 1) as usize;
-                    let own: Vec<Option<Surface>> = (0..len).map(&voxel).map(|p| surfaces(p[0], p[1], p[2])).collect();
-                    let vis: Vec<Option<Visible>> = (0..len)
+                    // Each plane met with its part of the line that is the same for every ray.
+                    let based =
+                        |s: Surface, p: [i64; 3]| (s, PlaneBase::new(&s, p[0], p[1], RaysFrom::Voxel, src, dir, d, f));
+                    let own: Vec<Option<(Surface, PlaneBase)>> =
+                        (0..len).map(&voxel).map(|p| surfaces(p[0], p[1], p[2]).map(|s| based(s, p))).collect();
+                    let vis: Vec<Option<(Visible, PlaneBase)>> = (0..len)
                         .map(|k| {
                             let p = voxel(k);
-                            columns(p[0], p[1]).filter(|v| p[2] == v.z_v || p[2] == v.z_v + 1)
+                            let v = columns(p[0], p[1]).filter(|v| p[2] == v.z_v || p[2] == v.z_v + 1)?;
+                            Some((v, based(v.plane, p).1))
                         })
                         .collect();
                     let stays: Vec<bool> =
@@ -477,8 +553,23 @@ pub fn trace_all_plane(
                             continue;
                         }
                     }
-                    for a in *alo..=*ahi {
-                        for b in *blo..=*bhi {
+                    // The planes the rays read, with the layers (t₀ = 0, k − 1, k, k + 1) at which
+                    // a step at visit k reads them: every σ the walk can evaluate.
+                    let reads: Vec<(PlaneBase, i64)> = visits
+                        .iter()
+                        .flat_map(|&k| {
+                            let planes = [own[k].map(|o| o.1), vis[k].map(|v| v.1)].into_iter().flatten();
+                            let k = k as i64;
+                            planes.flat_map(move |p| [0, (k - 1).max(0), k, k + 1].map(|t| (p, t)))
+                        })
+                        .collect();
+                    let mut cuts = Vec::new();
+                    for b in *blo..=*bhi {
+                        // Rays of this row between two cuts read every σ alike, so they take the
+                        // same steps: one walks for all of them.
+                        row_cuts(&reads, *alo, *ahi, b, &mut cuts);
+                        for (i, &a) in cuts.iter().enumerate() {
+                            let rays = (cuts.get(i + 1).map_or(*ahi + 1, |&c| c) - a) as u128;
                             let mut ray = Ray::new(RaysFrom::Voxel, src, dir, a, b, d, f);
                             let mut absorbed = false;
                             let mut at = 0usize; // next index into `visits`
@@ -535,9 +626,9 @@ pub fn trace_all_plane(
                             }
                             if visits.iter().any(|&v| own[v].is_some()) {
                                 if absorbed {
-                                    out.rays.rays_absorbed += 1;
+                                    out.rays.rays_absorbed += rays;
                                 } else {
-                                    out.rays.rays_exited += 1;
+                                    out.rays.rays_exited += rays;
                                 }
                             }
                         }
@@ -547,6 +638,32 @@ pub fn trace_all_plane(
         }
     }
     out
+}
+
+/// Where σ changes along row b of a class (rays a ∈ `alo ..= ahi` from the source voxel): the
+/// sorted first offsets of the runs of a on which every `(plane, t)` of `reads` keeps its sign,
+/// into `cuts` (`alo` first). σ is affine in a at fixed b and t ([`PlaneBase::along`]), so each
+/// read changes sign at most once on the row.
+fn row_cuts(reads: &[(PlaneBase, i64)], alo: i64, ahi: i64, b: i64, cuts: &mut Vec<i64>) {
+    cuts.clear();
+    cuts.push(alo);
+    for (plane, t) in reads {
+        let tt = 16 * *t as i128; // the distance T of rays from the source voxel
+                                  // value(a) = c0 + c1·a.
+        let c0 = plane.base + tt * (plane.axial + plane.cb * b as i128);
+        let c1 = tt * plane.ca;
+        // The first a on the other side: value > 0 ⇔ a > −c0/c1 (c1 > 0) or a < c0/(−c1) (c1 < 0).
+        let start = match c1.signum() {
+            1 => (-c0).div_euclid(c1) + 1,
+            -1 => -(-c0).div_euclid(-c1),
+            _ => continue,
+        };
+        if start > alo as i128 && start <= ahi as i128 {
+            cuts.push(start as i64);
+        }
+    }
+    cuts.sort_unstable();
+    cuts.dedup();
 }
 
 #[cfg(test)]
@@ -574,6 +691,33 @@ mod tests {
 
     fn none_visible(_: i64, _: i64) -> Option<Visible> {
         None
+    }
+
+    /// The walk's regrouped form is the definition's integer, for both ray origins, at random
+    /// planes, rays and layers (normals and offsets at the stores' full widths).
+    #[test]
+    fn plane_line_is_the_plane_value() {
+        let mut seed = 7u64;
+        let mut r = |lo: i64, hi: i64| lo + (lcg(&mut seed) as i64).rem_euclid(hi - lo + 1);
+        for _ in 0..20_000 {
+            let (d, f) = (r(1, 300), r(0, 8) as u32);
+            let m = d << f;
+            let s = Surface {
+                lo: r(0, 300),
+                nx: r(-(1 << 15), 1 << 15),
+                ny: r(-(1 << 15), 1 << 15),
+                nz: r(-(1 << 31), 1 << 31),
+                e: r(-(1 << 31), 1 << 31),
+                two_sided: false,
+            };
+            let src = [r(0, 16 * 300), r(0, 16 * 300), r(0, 16 * 300)];
+            let (x, y, dir, a, b, t) = (r(0, 300), r(0, 300), r(0, 5) as usize, r(-m, m), r(-m, m), r(0, d + 1));
+            for from in [RaysFrom::Voxel, RaysFrom::Light] {
+                let ray = Ray::new(from, src, dir, a, b, d, f);
+                let line = PlaneBase::new(&s, x, y, from, src, dir, d, f).along(a, b);
+                assert_eq!(line.at(ray.distance(t)), plane_value_on(&s, x, y, from, src, dir, a, b, d, f, t));
+            }
+        }
     }
 
     #[test]
@@ -689,7 +833,7 @@ mod tests {
         for case in 0..60 {
             let n = 3 + (lcg(&mut seed) % 6) as i64;
             let d = (n - 1).max(1);
-            let f = (lcg(&mut seed) % 3) as u32;
+            let f = (lcg(&mut seed) % 4) as u32;
             let r = |seed: &mut u64, m: u64| (lcg(seed) % (2 * m + 1)) as i64 - m as i64;
             // Random dexels of random planes in random columns, and random visible surfaces.
             let mut cols: Vec<Vec<(i64, i64, Surface)>> = vec![Vec::new(); (n * n) as usize];
