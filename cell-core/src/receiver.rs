@@ -86,7 +86,7 @@
 //! segment is exact and ends [`CONTACT_GAP`] in front of the surface), so a neighbour darkens
 //! pixels the mesh shadows: on bureau1 at n = 128 the f64 reference lights one of the 503
 //! pixels only a neighbour's triangle shadows, its segment within rounding of that triangle's
-//! edge (`tests/tests/render.rs`). The exchange costs one query and one answer per link and
+//! edge (`tests/tests/integration/render.rs`). The exchange costs one query and one answer per link and
 //! a test of 8 queries per cell; beams do not change. Measured (`bench/lit_rules.sh`,
 //! docs/LIGHTING.md): bureau1 0.76 → 0.42 % at n = 128 (29.3 → 31.9 dB); testing two rings
 //! of neighbours instead of one gains 0.15 dB more there.

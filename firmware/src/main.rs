@@ -3,7 +3,7 @@
 //! outputs and final state over semihosting, then exits with semihosting's exit code. Every
 //! phase a trace holds is replayed: loading, beam diffusion or the classic shadow rays,
 //! shading, and the reflection phase (`cell_core::trace::rays`).
-//! `tests/tests/firmware_qemu.rs` records the traces from a host-sim run, builds this, runs it
+//! `tests/tests/integration/firmware_qemu.rs` records the traces from a host-sim run, builds this, runs it
 //! under QEMU (`-machine mps2-an386`) and compares the digests with the host's.
 //!
 //! The code path is the one a real cell would run, with the trace standing in for the wires:

@@ -1,5 +1,5 @@
 //! The bodies of the fuzz targets, shared with the regression replay
-//! (`tests/tests/fuzz_regressions.rs` includes this file).
+//! (`tests/tests/integration/fuzz_regressions.rs` includes this file).
 
 use cell_core::beam::{frac::U0, frac::U8, FarDistance, FracBits};
 use cell_core::cell::Cell;

@@ -83,7 +83,7 @@ use rc2_tests::oracle::lit::{plane_value, Surface, Visible};
 use rc2_tests::oracle::rays::{dir_axes, ray_voxel, source_voxel};
 use std::collections::BTreeMap;
 
-#[path = "../tests/common/mod.rs"]
+#[path = "../tests/integration/common/mod.rs"]
 mod common;
 
 /// How a pixel's visible surface is tested.

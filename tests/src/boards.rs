@@ -31,7 +31,7 @@ pub const LINK_BUF: usize = 320;
 pub const NONE: u8 = 0xFF;
 pub use cell_core::wire::board::{KIND_DONE, KIND_QUERY, KIND_START};
 
-/// The board image, built once per test binary under `tmp` (the test's
+/// The board image, built once per test run under `tmp` (the test's
 /// `env!("CARGO_TARGET_TMPDIR")`, which only integration tests see).
 pub fn board_elf(tmp: &Path) -> &'static Path {
     static ELF: OnceLock<PathBuf> = OnceLock::new();

@@ -43,7 +43,7 @@
 //! that need a reduction over the whole grid after loading (the receding-beam and
 //! dead-direction skips, the frustum summaries): [`run`] refuses a configuration with them, or
 //! with link faults, a sibling wait or a snapshot. Lit voxels and pixels do not depend on them
-//! (`tests/tests/async_boards.rs` compares with the synchronous grid).
+//! (`tests/tests/integration/async_boards.rs` compares with the synchronous grid).
 
 use std::collections::VecDeque;
 use std::convert::Infallible;

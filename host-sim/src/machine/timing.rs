@@ -7,7 +7,7 @@
 //! The thesis states its algorithm (§4.4.1) and its no-loss rule (§4.4.2) but not these rules;
 //! [`Timing::THESIS`] is the reading of its text and tables that docs/DIFFUSION-TIMING.md
 //! argues for, rule by rule. No knob changes which rays a beam carries or where they stop: the
-//! lit set is the same under every timing (tests/tests/diffusion.rs checks it against the
+//! lit set is the same under every timing (tests/tests/integration/diffusion.rs checks it against the
 //! per-ray oracle), only cycles, messages and FIFO occupancy change.
 
 use anyhow::{bail, Result};

@@ -5,10 +5,10 @@
 //! retransmission, resynchronisation after corrupted or dropped bytes).
 //!
 //! A board runs one of three exercises, chosen by the host's configuration frame. The **tile
-//! exercise** ([`tiles`], tests/tests/mcu_tiles.rs) holds a tile of cells that loads and lights
+//! exercise** ([`tiles`], tests/tests/integration/mcu_tiles.rs) holds a tile of cells that loads and lights
 //! a scene with the other boards; the **termination exercise** ([`safra`],
-//! tests/tests/mcu_grid.rs) detects the end of a synthetic computation; the **link exercise**
-//! (tests/tests/mcu_grid.rs) proves the links:
+//! tests/tests/integration/mcu_grid.rs) detects the end of a synthetic computation; the **link exercise**
+//! (tests/tests/integration/mcu_grid.rs) proves the links:
 //!
 //! 1. The host sends a configuration on UART 0 ([`KIND_CONFIG`]: this board's id, its
 //!    neighbours' ids on links E, N, W, S — UARTs 1 … 4, `0xFF` where there is none — and how

@@ -24,7 +24,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 type G = Grid<64>;
 
-mod common;
+use crate::common;
 
 fn grid_with(n: u32, tris: &[[[i64; 3]; 3]]) -> G {
     let cfg = LoadConfig::watertight(n);

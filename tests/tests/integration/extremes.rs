@@ -19,7 +19,7 @@
 //!   beams of sources on the border, in corners and at fractional positions split into
 //!   sub-beams that hold each sampled ray exactly where the i128 per-ray oracle puts it.
 
-mod common;
+use crate::common;
 
 use cell_core::beam::{
     trace_ray_voxel, Beam, Direction, FarDistance, FarOffset, FracBits, Layer, Source, SourceCoord, SourceId,

@@ -3,7 +3,7 @@
 //! grid by an independent i128 oracle (`rc2_tests::oracle::brute`) that shares no code with the
 //! product. This also checks the facet's column box (no voxel is ever cut off by it).
 
-mod common;
+use crate::common;
 
 use host_sim::precompute::{planar_pieces, Contour, Thickness, Q};
 use proptest::prelude::*;

@@ -3,7 +3,7 @@
 //! `fuzz/src/lib.rs`: each must now run to completion without a panic.
 
 #[allow(dead_code)]
-#[path = "../../fuzz/src/lib.rs"]
+#[path = "../../../fuzz/src/lib.rs"]
 mod fuzz_bodies;
 
 fn replay(target: &str, body: fn(&[u8])) -> usize {

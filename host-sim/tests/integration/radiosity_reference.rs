@@ -4,8 +4,8 @@
 //! progressive solver's stopping rule (§1.3.2). Every tolerance is derived from the sampling
 //! (a bound, or standard errors over independent seeds), not read off an output.
 //!
-//! The Cornell measurement (`cornell_measurements`, ignored) prints the figures of the report:
-//! `cargo test --release -p host-sim --test radiosity_reference cornell -- --ignored --nocapture`.
+//! The reference's own error on the Cornell box is measured by `host-sim radiosity --reference
+//! --reference-self-error`, not here.
 
 use std::f64::consts::PI;
 

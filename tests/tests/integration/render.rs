@@ -39,7 +39,7 @@ use proptest::prelude::*;
 use rc2_tests::oracle::lit::trace_all_plane;
 use rc2_tests::oracle::rays::trace_all;
 
-mod common;
+use crate::common;
 
 /// Tolerance of the cell's shading against f64 on the same inputs: one 8-bit level (the cell's
 /// math is exact up to f32 rounding, which can move a value across a rounding boundary).

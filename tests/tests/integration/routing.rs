@@ -6,7 +6,7 @@
 use cell_core::route::{RoutePolicy, Routed};
 use host_sim::machine::network::Network;
 
-mod common;
+use crate::common;
 
 /// Run `traffic[cell]` (destinations, in injection order; each cell's compute unit injects at
 /// most one message per cycle) to completion. Returns the cycles, or an error on a stall.

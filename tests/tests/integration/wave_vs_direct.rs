@@ -1,7 +1,7 @@
 //! The cycle-stepped RC² wave produces exactly the dexels of the direct host evaluation of the
 //! same integer formulas, cell by cell, on every shipped mesh at n = 64 and 128 (SPEC §2 oracle).
 
-mod common;
+use crate::common;
 
 use host_sim::machine::grid::Grid;
 use host_sim::precompute::{prepare, LoadConfig};
