@@ -1,4 +1,4 @@
-//! Brute-force facet voxelization oracle (SPEC §2, thesis §3.5–§3.7).
+//! Brute-force facet voxelization oracle (thesis ch. 3, §3.5–§3.7).
 //!
 //! A voxel belongs to a facet iff its **centre** satisfies the plane's thickness band AND every
 //! contour inequality. Nothing here is incremental or clever: every voxel of a box is tested
@@ -42,7 +42,7 @@
 //! Exact for lattice coordinates (vertices and voxel centres) of magnitude up to 2^20
 //! (e.g. n = 65 536 at q = 16); beyond that an `i128` product may overflow (the test profile
 //! keeps overflow checks on, so it would panic rather than lie). The polygon is assumed planar
-//! and convex (SPEC §2); for a non-planar polygon the plane through `P0` with the chosen normal
+//! and convex (thesis ch. 3); for a non-planar polygon the plane through `P0` with the chosen normal
 //! is used as is.
 
 /// Plane thickness rule (see the module docs for the exact inequalities).

@@ -2,7 +2,7 @@
 //! walked on its own, stopped by the first triangle of the scene that it crosses, among the
 //! triangles kept by the columns it passes through.
 //!
-//! Rays, layers, sources and directions are those of [`super::rays`] (SPEC §3). This module adds
+//! Rays, layers, sources and directions are those of [`super::rays`] (thesis §4.1.4, §4.3). This module adds
 //! the triangles, the columns that keep them and the segment in which a ray crosses one, restated
 //! from their definitions with its own `i128` arithmetic; it never calls `cell-core` (whose
 //! `occluder` module is the code under test).

@@ -1,4 +1,4 @@
-//! Outside flood fill and leak detection (SPEC §2 "a closed mesh must voxelize without
+//! Outside flood fill and leak detection (thesis §3.8: "a closed mesh must voxelize without
 //! tunnels", §7 hole and tunnel counts).
 //!
 //! The grid is `n × n × n` voxels, index `x + n·(y + n·z)`. Imagine the grid surrounded by a

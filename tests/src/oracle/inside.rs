@@ -1,4 +1,4 @@
-//! Inside/outside oracle for a closed triangle mesh, by z-column parity (SPEC §2, §7 leaks).
+//! Inside/outside oracle for a closed triangle mesh, by z-column parity (thesis §3.8: leaks).
 //!
 //! For every column `(x, y)` of an `n × n` grid the oracle collects the exact heights at which
 //! the vertical line through the column centre `(q·x + q/2, q·y + q/2)` (lattice units) crosses

@@ -1,7 +1,7 @@
 //! Per-ray oracle of the plane rule (thesis §5.5.6): every ray of the lattice traced on its
 //! own against the planes the surface voxels store.
 //!
-//! Rays, layers, sources and directions are those of [`super::rays`] (SPEC §3): ray
+//! Rays, layers, sources and directions are those of [`super::rays`] (thesis §4.1.4, §4.3): ray
 //! `(dir, a, b)` of a source given in sixteenths is at layer `k` in the voxel
 //! [`super::rays::ray_voxel`] gives. This module adds what a surface voxel and a column store, and
 //! the rule that uses them. It restates both from their definitions with its own `i128`

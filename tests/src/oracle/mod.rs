@@ -1,4 +1,4 @@
-//! Independent test oracles for the voxelizer (SPEC §2, §7).
+//! Independent test oracles for the voxelizer (thesis ch. 3) and the lighting (ch. 4–5).
 //!
 //! Pure `std`, exact `i128` integer arithmetic, no dependency on `cell-core` or `host-sim`:
 //! these modules restate the project's definitions directly so that the cell wave and the host

@@ -1,4 +1,4 @@
-//! Per-ray lighting oracle (SPEC §3 "Rays, beams and the split"; thesis §4.1.4, §4.1.5, §4.3).
+//! Per-ray lighting oracle (rays, beams and the split: thesis §4.1.4, §4.1.5, §4.3).
 //!
 //! Beam diffusion must light exactly the voxels that tracing every ray of the lattice one by one
 //! lights. This module traces those rays one by one (or, equivalently, one class of identical
@@ -419,8 +419,8 @@ pub fn ray_voxel_from_light(src: [i64; 3], dir: usize, a: i64, b: i64, d: i64, f
     out
 }
 
-/// Voxels of an empty `n³` grid that no ray of `src` occupies at any layer (coverage oracle,
-/// SPEC §3 oracle (2)); sorted.
+/// Voxels of an empty `n³` grid that no ray of `src` occupies at any layer (the coverage oracle:
+/// diffusion must reach every voxel of an empty scene); sorted.
 pub fn unreached(n: i64, src: [i64; 3], d: i64, f: u32) -> Vec<[i64; 3]> {
     check_params(d, f);
     if n <= 0 {

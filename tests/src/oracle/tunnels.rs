@@ -1,4 +1,4 @@
-//! Tunnel counting oracle (SPEC §2, "armoured" surfaces, thesis §3.8).
+//! Tunnel counting oracle ("armoured" surfaces, thesis §3.8).
 //!
 //! A **k-tunnel** (k ∈ {6, 18, 26}) through a voxelized surface is an unordered pair of
 //! k-adjacent voxels `{p, p + δ}` such that

@@ -1,4 +1,4 @@
-//! Bit budget (SPEC §2): the loading arithmetic is `i64` and overflow-free up to
+//! Bit budget (thesis §3.5–§3.7, the incremental arithmetic): the loading arithmetic is `i64` and overflow-free up to
 //! `MAX_N = 65 536` cells per side with a 1/16-voxel lattice. This test runs the real pipeline
 //! and row cells of cell-core at that size — the whole pipeline, then whole rows at the top,
 //! middle and bottom — on extreme facets (vertices on the lattice's corners and faces), with

@@ -1,6 +1,6 @@
 //! Closed meshes (cow, fandisk) voxelized in `standard` + `conservative` mode are watertight for
 //! 26-connected paths: a 26-connected flood fill from outside the grid through empty voxels
-//! reaches no voxel whose centre is inside the mesh, at n = 64, 128, 256 (SPEC §2). The same
+//! reaches no voxel whose centre is inside the mesh, at n = 64, 128, 256 (thesis §3.8). The same
 //! measure for the thesis's own modes is printed (run with `--nocapture`).
 
 use host_sim::machine::grid::Grid;

@@ -1,4 +1,4 @@
-//! Light diffusion by beam subdivision (thesis ch. 4, SPEC §3), against the independent
+//! Light diffusion by beam subdivision (thesis ch. 4), against the independent
 //! per-ray oracle `rc2_tests::oracle::rays` (every ray of the lattice traced on its own):
 //! the lit voxels, their source masks and the ray counts must be identical, for any scene,
 //! sources, fraction bits f, FIFO size FA, policy, merging and timing rules (`Timing`: the

@@ -1,4 +1,4 @@
-//! Topology, measured (SPEC §2, thesis §3.8): how many discrete lines of each connectivity cross
+//! Topology, measured (thesis §3.8): how many discrete lines of each connectivity cross
 //! a voxelized plane without meeting a voxel ("passe-muraille"), for each thickness mode.
 //!
 //! Planes come from large random triangles whose interior covers a 16³ measuring box, voxelized

@@ -1,5 +1,5 @@
 //! The cycle-stepped RC² wave produces exactly the dexels of the direct host evaluation of the
-//! same integer formulas, cell by cell, on every shipped mesh at n = 64 and 128 (SPEC §2 oracle).
+//! same integer formulas, cell by cell, on every shipped mesh at n = 64 and 128 (thesis ch. 3).
 
 use crate::common;
 
