@@ -197,7 +197,7 @@ impl Seen {
 }
 
 /// A triangle's [`Seen`] as a host's table keeps it (40 bytes, a quarter of one): the plane's
-/// coefficients when they fit `i64` under the far distance ([`RayPlane::narrow`], then the
+/// coefficients when they fit `i64` under the far distance (`RayPlane::narrow`, then the
 /// visit rebuilds the same `Seen` from them), else a mark that the visit computes it, or that
 /// the triangle stops no ray.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

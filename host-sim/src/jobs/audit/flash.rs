@@ -102,9 +102,16 @@ impl FlashTable {
     }
 }
 
-/// The concern of a module.
+/// The concern of a module: the one listing it, or the module it is part of
+/// (`cell_core::light::fate` belongs where `cell_core::light` does).
 pub fn concern_of(module: &str) -> &'static str {
-    CONCERNS.iter().find(|(_, ms)| ms.contains(&module)).map_or("other", |(c, _)| c)
+    concern_index(module).map_or("other", |i| CONCERNS[i].0)
+}
+
+/// The index in [`CONCERNS`] of a module's concern ([`concern_of`]).
+fn concern_index(module: &str) -> Option<usize> {
+    let within = |m: &str| module == m || module.strip_prefix(m).is_some_and(|rest| rest.starts_with("::"));
+    CONCERNS.iter().position(|(_, ms)| ms.iter().any(|m| within(m)))
 }
 
 /// Tables whose bytes are known, searched in anonymous read-only data: (module, bytes).
@@ -236,7 +243,7 @@ pub fn flash_table(path: &Path) -> Result<FlashTable> {
 
 /// Rows in [`CONCERNS`] order, then the rest by size.
 fn ordered(rows: BTreeMap<String, (u64, u64)>) -> Vec<ModuleSize> {
-    let rank = |m: &str| CONCERNS.iter().position(|(_, ms)| ms.contains(&m)).unwrap_or(CONCERNS.len());
+    let rank = |m: &str| concern_index(m).unwrap_or(CONCERNS.len());
     let mut v: Vec<ModuleSize> = rows
         .into_iter()
         .filter(|(_, (c, d))| c + d > 0)
@@ -252,6 +259,16 @@ mod tests {
 
     /// The known tables are the standard CRCs' (checked against a bitwise CRC of "123456789")
     /// and the gamma thresholds; a section holding them at odd places is split around them.
+    /// A module folder's files count for the module's concern; a name that only starts alike
+    /// does not.
+    #[test]
+    fn submodules_count_for_their_modules_concern() {
+        assert_eq!(concern_of("cell_core::light"), concern_of("cell_core::light::fate"));
+        assert_eq!(concern_of("cell_core::light::out"), "lighting cell: FIFO, ports, lit store (§4.4, §5.5)");
+        assert_eq!(concern_of("cell_core::lighting"), "other");
+        assert_eq!(concern_of("heapless"), "other");
+    }
+
     #[test]
     fn known_tables_are_found_in_anonymous_data() {
         let tables = known_tables();

@@ -1,0 +1,598 @@
+//! The lighting phase on the whole grid (thesis ch. 4): sources diffused one after another by
+//! beam subdivision, cycle by cycle.
+//!
+//! Cycle model (docs/ARCHITECTURE.md; thesis §4.4): in each cycle
+//! 1. the source emitter hands the next of the source's six initial beams (x and y first, then
+//!    z, §4.4.3) to the source cell if its FIFO has room;
+//! 2. **compute**: every cell with a beam runs [`LightCell::step`] — at most one beam each;
+//! 3. **links**: every non-empty output buffer moves its front message to the neighbour's FIFO
+//!    if that FIFO has room (credit-based flow control; one message per link and direction per
+//!    cycle). Senders are served in row-major order, so a FIFO that several neighbours feed in
+//!    the same cycle fills deterministically.
+//!
+//! A message produced in cycle t is processed in cycle t + 1 at the earliest: one hop per cycle.
+//! These are rc2's timing rules; [`LightConfig::timing`] ([`Timing`]) changes the open ones
+//! (messages per link and cycle, an input register beside the FIFO, free output ports, the
+//! emission order and rate) without changing any lit voxel.
+//! `T` (cycles) counts cycles until the last beam is consumed, which the global activity
+//! counter ([`cell_core::light::Activity`]) detects exactly. Only cells holding beams are visited. A cycle in
+//! which beams exist but nothing moves is a deadlock: reported as an error, never a hang.
+//!
+//! Here: a run's settings ([`LightConfig`]), its results ([`Lighting`], [`SourceReport`]) and
+//! the entry points; `cycle` runs one source's cycles, `summary` builds what the skips test
+//! beams against.
+
+use anyhow::{bail, Result};
+use cell_core::beam::{Beam, FarDistance, FracBits, Origin, Source, SourceId, SplitOrder};
+use cell_core::light::RaySink;
+use cell_core::light::{LightCell, LightCounters, LightEnv, OccupiedBox, Policy, SourceMask, SubBeamBounds};
+use cell_core::lit::LitRule;
+use cell_core::occluder::ColumnOccluders;
+
+use cell_core::link::PerfectLink;
+
+use crate::machine::capacity::{HostLightCell, FA_CAP};
+use crate::machine::faults::{fault_counts, FaultCounts, FaultInjector, FaultTally, LinkFaults, Wire};
+use crate::machine::grid::Grid;
+use crate::machine::links::{GridLinks, HostLink};
+use crate::machine::occluders::{SourceOccluders, CONTACT_EXCHANGE_CYCLES};
+use crate::machine::tap::{Tap, Tracer};
+use crate::machine::timing::Timing;
+
+mod cycle;
+mod summary;
+
+use cycle::diffuse_one;
+pub(crate) use cycle::initial_beams;
+pub use summary::{occupancy_summary, occupied_box, FrustumBlocks, Summary};
+
+/// Default of [`LightConfig::stall_cycles`]: a fault-free machine that cannot move for one
+/// cycle is deadlocked; under link faults a few cycles of bad luck are normal.
+pub const DEFAULT_STALL_CYCLES: u64 = 64;
+
+/// Lighting-phase settings. No default: a run starts from a named preset
+/// ([`crate::config::Preset`]: what each job runs) or says what it tests.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LightConfig {
+    /// FIFO limit (1 ..= FA_CAP).
+    pub fa: usize,
+    /// Scheduling policy.
+    pub policy: Policy,
+    /// Merge arriving beams into waiting beams of the same voxel (exact).
+    pub merge: bool,
+    /// Record every voxel where a beam was processed (coverage checks; n³ bits).
+    pub record_visits: bool,
+    /// Which cells the host visits each cycle (same results either way).
+    pub stepping: Stepping,
+    /// The receding-beam skip ([`OccupiedBox::receding`]): exact, changes cycles and messages,
+    /// never lit voxels.
+    pub skip_receding: bool,
+    /// The dead-direction skip: the source emits no initial beam whose direction leads away
+    /// from the occupied box (its rays are counted as skipped).
+    pub skip_dead_directions: bool,
+    /// Send every link transfer through the codec and a fault injector, with acknowledgement
+    /// and retransmission ([`crate::machine::faults`]); `None`: perfect links.
+    pub faults: Option<LinkFaults>,
+    /// Cycles in a row without progress (no beam processed, delivered or acknowledged) while
+    /// beams are in flight before the run stops with a stall report (deadlock, dead link).
+    pub stall_cycles: u64,
+    /// Store lit marks only for each column's visible voxel (`LightEnv::lit_visible_only`):
+    /// same image, a lit set restricted to what the image shows, no lit-store overflow.
+    pub lit_visible_only: bool,
+    /// The sibling wait in cycles ([`LightEnv::hold`]; 0: off). Exact: changes cycles and
+    /// beam counts, never lit voxels.
+    pub hold: u16,
+    /// The empty-frustum skip ([`LightEnv::frustum`]): exact, changes cycles and messages,
+    /// never lit voxels.
+    pub skip_frustum: bool,
+    /// The hidden-voxel skip (needs `lit_visible_only`): the frustum summary holds only the
+    /// visible voxels (each column's first occupied voxel, the one its cell shades), so a beam
+    /// none of whose rays can reach a visible voxel's block is dropped, its rays counted as
+    /// skipped. Exact for what `lit_visible_only` keeps: same visible lit set, same image.
+    /// Hidden voxels are not lit (rays they would absorb may be counted as skipped).
+    pub skip_hidden: bool,
+    /// Resolution of the summary the empty-frustum and hidden-voxel skips test against.
+    pub frustum_blocks: FrustumBlocks,
+    /// The lit rule ([`cell_core::lit`]).
+    pub rule: LitRule,
+    /// Where the sources' rays leave from along each face's axis ([`Origin`]): the source
+    /// voxel's centre plane (the thesis's rays) or the light itself. Applied to the
+    /// sources the jobs make from light positions ([`LightConfig::source`]).
+    pub rays: Origin,
+    /// The timing rules the thesis leaves open ([`Timing`]). Exact: changes
+    /// cycles, messages and FIFO occupancy, never lit voxels.
+    pub timing: Timing,
+    /// Stop each source's diffusion after this many cycles, beams still in flight (a snapshot
+    /// of the grid: which cells hold beams, which voxels were visited; the thesis's time-lapse,
+    /// §4.4.3). A source that ran until then is not checked for conservation. `None`: run
+    /// to quiescence.
+    pub stop_at: Option<u64>,
+}
+
+impl LightConfig {
+    /// Light `id` at `pos` (voxel units) on an `n` grid ([`source_at`]), its rays leaving from
+    /// [`LightConfig::rays`].
+    pub fn source(&self, id: usize, pos: [f64; 3], n: u32) -> Result<Source> {
+        Ok(source_at(id, pos, n)?.with_origin(self.rays))
+    }
+}
+
+/// How the host steps the grid. Both simulate every cycle of every cell: a cell without a beam
+/// does nothing in a cycle, so visiting it or not changes no state.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Stepping {
+    /// Visit only the cells holding beams (event-driven; the default).
+    #[default]
+    Active,
+    /// Visit every cell in every cycle (the straightforward reference).
+    AllCells,
+}
+
+/// Counters of a diffusion run (docs/LIGHTING.md, "light-accuracy"): one source's, or the sum over sources.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct DiffusionCounts {
+    /// Cycles until the last beam was consumed (the thesis's T).
+    pub cycles: u64,
+    /// max(`lb_distance`, `lb_cell_load`).
+    pub lower_bound: u64,
+    /// Largest layer reached + 1: a beam at layer k was processed k + 1 times in sequence.
+    pub lb_distance: u64,
+    /// Largest number of beams one cell had to process (one per cycle).
+    pub lb_cell_load: u64,
+    /// Beams processed in the whole grid.
+    pub beams_processed: u64,
+    /// Beams merged into a waiting beam on arrival.
+    pub beams_merged: u64,
+    /// Messages that crossed a link.
+    pub messages: u64,
+    /// Rays of the six initial beams.
+    pub rays_emitted: u128,
+    /// Rays that stopped in an occupied voxel.
+    pub rays_absorbed: u128,
+    /// Rays that left the grid.
+    pub rays_exited: u128,
+    /// Rays dropped by the skips (they would have left the grid without meeting a voxel).
+    pub rays_skipped: u128,
+    /// Largest FIFO occupancy of any cell.
+    pub peak_fifo: u16,
+    /// Sum over cells of cycles with beams waiting and none processable.
+    pub blocked_cell_cycles: u64,
+    /// Sum over cells of cycles in which every beam that could go waited for its siblings
+    /// (`--hold`).
+    pub held_cell_cycles: u64,
+    /// Most cells active in one cycle.
+    pub peak_active_cells: u64,
+    /// Most messages one link carried in one direction (the thesis expects the links near the
+    /// source to be the busiest, §4.1.3).
+    pub peak_link_load: u64,
+    /// Chebyshev distance (cells) from that link's sending cell to the source's column.
+    pub peak_link_distance: u32,
+    /// Beam steps judged ray by ray under exact occluders (more undecided triangles than
+    /// `cell_core::occluder::MAX_EXACT_TRIANGLES`): same verdicts, more arithmetic.
+    pub per_ray_visits: u64,
+}
+
+impl DiffusionCounts {
+    /// Accumulate another run: sums for totals, maxima for peaks (sources run one after
+    /// another, so cycles and lower bounds add up).
+    pub fn add(&mut self, o: &DiffusionCounts) {
+        self.cycles += o.cycles;
+        self.lower_bound += o.lower_bound;
+        self.lb_distance = self.lb_distance.max(o.lb_distance);
+        self.lb_cell_load = self.lb_cell_load.max(o.lb_cell_load);
+        self.beams_processed += o.beams_processed;
+        self.beams_merged += o.beams_merged;
+        self.messages += o.messages;
+        self.rays_emitted += o.rays_emitted;
+        self.rays_absorbed += o.rays_absorbed;
+        self.rays_exited += o.rays_exited;
+        self.rays_skipped += o.rays_skipped;
+        self.peak_fifo = self.peak_fifo.max(o.peak_fifo);
+        self.blocked_cell_cycles += o.blocked_cell_cycles;
+        self.held_cell_cycles += o.held_cell_cycles;
+        self.per_ray_visits += o.per_ray_visits;
+        self.peak_active_cells = self.peak_active_cells.max(o.peak_active_cells);
+        if o.peak_link_load > self.peak_link_load {
+            self.peak_link_load = o.peak_link_load;
+            self.peak_link_distance = o.peak_link_distance;
+        }
+    }
+
+    /// cycles / lower_bound.
+    pub fn t_over_lb(&self) -> f64 {
+        self.cycles as f64 / self.lower_bound.max(1) as f64
+    }
+}
+
+/// One source's diffusion.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct SourceReport {
+    /// Source index (bit in the mask).
+    pub source: usize,
+    /// Its position in voxel units.
+    pub position: [f64; 3],
+    /// The cell that processed the most beams (`lb_cell_load` of them).
+    pub busiest_cell: [u32; 2],
+    /// Its counters.
+    #[serde(flatten)]
+    pub counts: DiffusionCounts,
+}
+
+/// The lighting state of the whole grid after diffusion.
+pub struct Lighting<F: FracBits> {
+    /// Grid side.
+    pub n: u32,
+    /// Cells, row-major.
+    pub cells: Vec<HostLightCell<F>>,
+    /// One report per source, in diffusion order.
+    pub reports: Vec<SourceReport>,
+    /// Voxels where a beam was processed, index `(y·n + x)·depth + z` (with `record_visits`).
+    pub visited: Option<Vec<bool>>,
+    /// What the faulty links did (with `faults`).
+    pub link_faults: Option<FaultCounts>,
+    /// The lit rule the cells applied.
+    pub rule: LitRule,
+}
+
+impl<F: FracBits> Lighting<F> {
+    /// Sources that lit voxel (x, y, z).
+    pub fn mask(&self, x: u32, y: u32, z: u16) -> SourceMask {
+        self.cells[(y * self.n + x) as usize].lit.mask_at(z)
+    }
+
+    /// Sources that lit the visible surface of column (x, y) (the plane rule).
+    pub fn visible_mask(&self, x: u32, y: u32) -> SourceMask {
+        self.cells[(y * self.n + x) as usize].visible_lit
+    }
+
+    /// Every lit voxel with its mask, in (y, x, z) order.
+    pub fn lit_voxels(&self) -> impl Iterator<Item = ([u32; 3], SourceMask)> + '_ {
+        self.cells.iter().flat_map(|c| {
+            c.lit
+                .runs()
+                .iter()
+                .flat_map(move |r| (r.lo..=r.hi).map(move |z| ([c.x as u32, c.y as u32, z as u32], r.mask)))
+        })
+    }
+
+    /// Lit marks lost to full lit stores.
+    pub fn lit_overflows(&self) -> u64 {
+        self.cells.iter().map(|c| c.counters.lit_overflows as u64).sum()
+    }
+}
+
+/// What a run records besides its results: visited voxels, cell traces.
+struct Recording<'a> {
+    visited: Option<&'a mut [bool]>,
+    tap: Option<&'a mut Tap>,
+}
+
+/// Diffuse every source over the loaded grid. Source positions are in voxel units (already
+/// validated to lie inside the grid). `progress(source, cycle)` is called now and then.
+pub fn diffuse<F: FracBits, const D: usize>(
+    grid: &Grid<D>,
+    sources: &[Source],
+    cfg: &LightConfig,
+    progress: impl FnMut(usize, u64),
+) -> Result<Lighting<F>> {
+    diffuse_tapped(grid, sources, cfg, None, progress)
+}
+
+/// [`diffuse`], recording what the cells watched by `tap` receive and send.
+///
+/// The links are chosen here, once per run: perfect links, or each behind a fault injector
+/// (`cfg.faults`), each traced when `tap` records. Every source then runs the same scheduler,
+/// generic over the links ([`crate::machine::links`]).
+pub fn diffuse_tapped<F: FracBits, const D: usize>(
+    grid: &Grid<D>,
+    sources: &[Source],
+    cfg: &LightConfig,
+    tap: Option<&mut Tap>,
+    progress: impl FnMut(usize, u64),
+) -> Result<Lighting<F>> {
+    let far = check_light_run::<F>(grid.n, sources, cfg)?;
+    let n = grid.n;
+    let cells = idle_cells(n);
+    let occupied = occupied_box(grid, cfg.rule);
+    let frustum = frustum_summary(grid, cfg, tap.is_some())?;
+    check_recording(cfg, tap.is_some())?;
+    cfg.timing.check(cfg.fa, cfg.faults.is_none() && tap.is_none())?;
+    let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref(), shot: None };
+    let wire = cfg.faults.map(|faults| Wire { faults, far: far.get() });
+    match (&wire, tap) {
+        (None, None) => run.diffuse(cells, GridLinks::new(n, |_| PerfectLink), None, progress),
+        (Some(w), None) => {
+            run.diffuse(cells, GridLinks::new(n, |id| FaultInjector::new(PerfectLink, w, id)), None, progress)
+        }
+        (None, Some(t)) => run.diffuse(cells, GridLinks::new(n, |id| Tracer::new(PerfectLink, id)), Some(t), progress),
+        (Some(w), Some(t)) => {
+            let links = GridLinks::new(n, |id| Tracer::new(FaultInjector::new(PerfectLink, w, id), id));
+            run.diffuse(cells, links, Some(t), progress)
+        }
+    }
+}
+
+/// n × n idle lighting cells, row-major.
+fn idle_cells<F: FracBits>(n: u32) -> Vec<HostLightCell<F>> {
+    let mut cells: Vec<HostLightCell<F>> = Vec::with_capacity((n * n) as usize);
+    for y in 0..n {
+        for x in 0..n {
+            cells.push(LightCell::new(x as u16, y as u16));
+        }
+    }
+    cells
+}
+
+/// One radiosity shot (radiosity thesis §3.4; `machine::radiosity` drives it): the diffusion of
+/// one source whose initial beams are `initial` (the shooting patch's front hemisphere) instead
+/// of the six full faces, every processed beam's absorbed and departed rays reported to `rays`.
+/// The thesis's lit rule only (its absorbed ray sets are whole beams), perfect links.
+pub fn diffuse_shot<F: FracBits, const D: usize>(
+    grid: &Grid<D>,
+    source: &Source,
+    initial: &[Beam<F>],
+    cfg: &LightConfig,
+    rays: &dyn RaySink<F>,
+    progress: impl FnMut(usize, u64),
+) -> Result<Lighting<F>> {
+    if cfg.rule != LitRule::Thesis
+        || cfg.rays != Origin::SourceVoxel
+        || cfg.faults.is_some()
+        || cfg.skip_dead_directions
+    {
+        bail!(
+            "a radiosity shot runs under the thesis's lit rule and rays, on perfect links, without the dead-direction skip"
+        );
+    }
+    let sources = std::slice::from_ref(source);
+    let far = check_light_run::<F>(grid.n, sources, cfg)?;
+    let occupied = occupied_box(grid, cfg.rule);
+    let frustum = frustum_summary(grid, cfg, false)?;
+    let shot = Some(Shot { initial, rays });
+    let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref(), shot };
+    run.diffuse(idle_cells(grid.n), GridLinks::new(grid.n, |_| PerfectLink), None, progress)
+}
+
+/// What a radiosity shot changes in a diffusion ([`diffuse_shot`]).
+#[derive(Clone, Copy)]
+struct Shot<'a, F: FracBits> {
+    initial: &'a [Beam<F>],
+    rays: &'a dyn RaySink<F>,
+}
+
+/// The far distance of an n × n grid, once the run's sources, FIFO limit and memory are
+/// checked.
+pub(crate) fn check_light_run<F: FracBits>(n: u32, sources: &[Source], cfg: &LightConfig) -> Result<FarDistance<F>> {
+    if sources.len() > cell_core::light::MAX_SOURCES {
+        bail!("{} light sources: at most {} are supported", sources.len(), cell_core::light::MAX_SOURCES);
+    }
+    if cfg.fa == 0 || cfg.fa > FA_CAP {
+        bail!("--fa {} is out of range: 1 ..= {FA_CAP} (the FIFO capacity compiled into a cell)", cfg.fa);
+    }
+    if let Some((i, s)) = sources.iter().enumerate().find(|(_, s)| {
+        let v = s.voxel();
+        v[0] < 0 || v[1] < 0 || v[0] >= n as i32 || v[1] >= n as i32 || !(0..=u16::MAX as i32).contains(&v[2])
+    }) {
+        bail!("light {} is in voxel {:?}, outside the {n} × {n} grid of cells", i + 1, s.voxel());
+    }
+    let min_fa = cell_core::light::MIN_FA_FROM_LIGHT;
+    if cfg.fa < min_fa && sources.iter().any(|s| s.origin == cell_core::beam::Origin::Light) {
+        bail!(
+            "--fa {} is too small for rays from the light (the default): the source cell's first split may keep four FIFO slots (at least {min_fa}); for a smaller FIFO, --rays-from voxel",
+            cfg.fa
+        );
+    }
+    let far = FarDistance::<F>::new(n - 1).ok_or_else(|| {
+        anyhow::anyhow!(
+            "far distance D = {} exceeds the beam bit budget for {} fraction bits (max D = {})",
+            n - 1,
+            F::U32,
+            FarDistance::<F>::MAX
+        )
+    })?;
+    crate::machine::limits::check_grid_memory("grid of lighting cells", n, std::mem::size_of::<HostLightCell<F>>())?;
+    Ok(far)
+}
+
+/// The summary the empty-frustum and hidden-voxel skips test against, if either is on.
+fn frustum_summary<const D: usize>(grid: &Grid<D>, cfg: &LightConfig, tapped: bool) -> Result<Option<Summary>> {
+    if cfg.skip_hidden && !cfg.lit_visible_only {
+        bail!("the hidden-voxel skip drops the light of hidden voxels: use it with --lit-visible-only");
+    }
+    let frustum =
+        (cfg.skip_hidden || cfg.skip_frustum).then(|| Summary::of(grid, cfg.frustum_blocks, cfg.skip_hidden, cfg.rule));
+    if tapped && frustum.as_ref().is_some_and(|s| s.traceable().is_none()) {
+        bail!("a cell trace carries the 8 × 8 × 8 frustum summary: record with --frustum-blocks 8");
+    }
+    Ok(frustum)
+}
+
+/// Refuse link delays the stall detector would take for stalls, and traces of a partial lit
+/// store.
+fn check_recording(cfg: &LightConfig, tapped: bool) -> Result<()> {
+    if let Some(f) = cfg.faults.filter(|f| f.delay_ppm > 0 && f.delay_cycles as u64 >= cfg.stall_cycles.max(1)) {
+        bail!(
+            "--link-faults delay-cycles={} must be below --stall-cycles {}: a frame held on the wire is not progress",
+            f.delay_cycles,
+            cfg.stall_cycles
+        );
+    }
+    if cfg.lit_visible_only && tapped {
+        bail!("a cell trace records the whole lit store: record without --lit-visible-only");
+    }
+    Ok(())
+}
+
+/// What every source's diffusion of a run shares.
+pub(crate) struct AllSources<'a, F: FracBits, const D: usize> {
+    grid: &'a Grid<D>,
+    sources: &'a [Source],
+    cfg: &'a LightConfig,
+    far: FarDistance<F>,
+    occupied: OccupiedBox,
+    frustum: Option<&'a Summary>,
+    shot: Option<Shot<'a, F>>,
+}
+
+impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
+    /// The sources of a run on `grid` whose cells are told no frustum summary (the
+    /// asynchronous boards, [`crate::machine::async_tiles`]: every cell's environment comes
+    /// from [`AllSources::env`] as here).
+    pub(crate) fn plain(grid: &'a Grid<D>, sources: &'a [Source], cfg: &'a LightConfig, far: FarDistance<F>) -> Self {
+        let occupied = occupied_box(grid, cfg.rule);
+        AllSources { grid, sources, cfg, far, occupied, frustum: None, shot: None }
+    }
+
+    /// Diffuse the sources one after another over `cells`, through `links`.
+    fn diffuse<L: HostLink<F> + FaultTally>(
+        &self,
+        mut cells: Vec<HostLightCell<F>>,
+        mut links: GridLinks<L>,
+        mut tap: Option<&mut Tap>,
+        mut progress: impl FnMut(usize, u64),
+    ) -> Result<Lighting<F>> {
+        let (grid, cfg) = (self.grid, self.cfg);
+        let order = SplitOrder::default();
+        let traced = self.frustum.and_then(Summary::traceable);
+        let mut reports = Vec::new();
+        let mut visited = cfg.record_visits.then(|| vec![false; (grid.n * grid.n * grid.depth) as usize]);
+        for (si, src) in self.sources.iter().enumerate() {
+            let occluders = (cfg.rule == LitRule::Exact).then(|| SourceOccluders::new(self.grid, src, self.far));
+            let env = self.env(src, si, &order, occluders.as_ref().map(|o| o as &dyn ColumnOccluders));
+            let before: Vec<LightCounters> = cells.iter().map(|c| c.counters).collect();
+            for c in cells.iter_mut() {
+                c.counters.max_layer = 0;
+                c.counters.peak_fifo = 0;
+            }
+            if let Some(t) = tap.as_deref_mut() {
+                t.light(&env, traced);
+            }
+            let dead = cfg.skip_dead_directions.then_some(self.occupied);
+            let rec = Recording { visited: visited.as_deref_mut(), tap: tap.as_deref_mut() };
+            let (links, cells) = (links.slots(), &mut cells[..]);
+            let initial = self.shot.map(|s| s.initial);
+            let mut rep =
+                diffuse_one(grid, cells, links, (src, initial), si, &env, cfg, dead, rec, |c| progress(si, c))?;
+            rep.position = src.pos.map(|p| p.to_num::<f64>());
+            add_cell_counts(&mut rep, cells, &before);
+            if let Some(o) = &occluders {
+                // The contact exchange ran before the beams left.
+                rep.counts.cycles += CONTACT_EXCHANGE_CYCLES;
+                rep.counts.messages += o.exchange_messages();
+            }
+            if cfg.stop_at.is_none_or(|t| rep.counts.cycles < t) {
+                check_conservation(si, &rep.counts)?;
+            }
+            reports.push(rep);
+        }
+        let link_faults = fault_counts(links.all());
+        Ok(Lighting { n: grid.n, cells, reports, visited, link_faults, rule: cfg.rule })
+    }
+
+    /// The lighting environment of source `si`.
+    pub(crate) fn env<'e>(
+        &'e self,
+        src: &'e Source,
+        si: usize,
+        order: &'e SplitOrder,
+        occluders: Option<&'e dyn ColumnOccluders>,
+    ) -> LightEnv<'e, F> {
+        let (cfg, grid, occupied) = (self.cfg, self.grid, self.occupied);
+        LightEnv {
+            source: src,
+            far: self.far,
+            n: grid.n,
+            depth: grid.depth,
+            policy: cfg.policy,
+            rule: cfg.rule,
+            order,
+            fa: cfg.timing.fifo_limit(cfg.fa),
+            free_ports: cfg.timing.free_ports,
+            source_bit: 1 << si,
+            merge: cfg.merge,
+            skip: cfg.skip_receding.then_some(occupied),
+            bounds: SubBeamBounds::new(grid.n, grid.depth, cfg.skip_receding.then_some(occupied), src),
+            lit_visible_only: cfg.lit_visible_only,
+            hold: cfg.hold,
+            frustum: self.frustum.map(Summary::test),
+            rays: self.shot.map(|s| s.rays),
+            occluders,
+        }
+    }
+}
+
+/// Add what the cells counted during one source's diffusion (since `before`) to its report.
+fn add_cell_counts<F: FracBits>(rep: &mut SourceReport, cells: &[HostLightCell<F>], before: &[LightCounters]) {
+    for (c, b) in cells.iter().zip(before) {
+        let k = &c.counters;
+        let processed = k.processed - b.processed;
+        rep.counts.beams_processed += processed;
+        rep.counts.beams_merged += k.merged - b.merged;
+        if processed > rep.counts.lb_cell_load {
+            rep.counts.lb_cell_load = processed;
+            rep.busiest_cell = [c.x as u32, c.y as u32];
+        }
+        rep.counts.rays_absorbed += (k.rays_absorbed - b.rays_absorbed) as u128;
+        rep.counts.rays_exited += (k.rays_exited - b.rays_exited) as u128;
+        rep.counts.rays_skipped += (k.rays_skipped - b.rays_skipped) as u128;
+        rep.counts.blocked_cell_cycles += k.blocked_cycles - b.blocked_cycles;
+        rep.counts.held_cell_cycles += k.held_cycles - b.held_cycles;
+        rep.counts.per_ray_visits += (k.per_ray_visits - b.per_ray_visits) as u64;
+        rep.counts.peak_fifo = rep.counts.peak_fifo.max(k.peak_fifo);
+        if processed > 0 {
+            rep.counts.lb_distance = rep.counts.lb_distance.max(k.max_layer as u64 + 1);
+        }
+    }
+    rep.counts.lower_bound = rep.counts.lb_distance.max(rep.counts.lb_cell_load);
+}
+
+/// Every ray emitted was absorbed, left the grid or was skipped.
+fn check_conservation(si: usize, c: &DiffusionCounts) -> Result<()> {
+    if c.rays_emitted != c.rays_absorbed + c.rays_exited + c.rays_skipped {
+        bail!(
+            "ray conservation violated for source {si}: emitted {} ≠ absorbed {} + exited {} + skipped {} \
+             ({} steps judged ray by ray)",
+            c.rays_emitted,
+            c.rays_absorbed,
+            c.rays_exited,
+            c.rays_skipped,
+            c.per_ray_visits
+        );
+    }
+    Ok(())
+}
+
+/// A source at a position in voxel units (1/16-voxel lattice), checked to lie in the grid.
+pub fn source_at(id: usize, pos: [f64; 3], n: u32) -> Result<Source> {
+    let lim = n as f64 - 1.0;
+    if pos.iter().any(|p| !p.is_finite() || *p < 0.0 || *p > lim) {
+        bail!("light {} at voxel position {:?} is outside the grid (0 ..= {lim} on each axis)", id + 1, pos);
+    }
+    let q = pos.map(|p| cell_core::beam::SourceCoord::from_num((p * 16.0).round() / 16.0));
+    Ok(Source::new(SourceId(id as u16), q))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cell_core::beam::frac::U0;
+    use cell_core::beam::SourceCoord;
+
+    /// A source whose voxel lies outside the grid, or rays from the light with a FIFO too small
+    /// for the source cell's first split, are refused before any cell is touched.
+    #[test]
+    fn light_runs_refuse_bad_sources() {
+        let cfg = crate::config::plane_rule();
+        let at = |p: [f64; 3]| Source::new(SourceId(0), p.map(SourceCoord::from_num));
+        assert!(check_light_run::<U0>(8, &[at([7.0, 7.0, 7.0])], &cfg).is_ok());
+        for outside in [[7.5, 0.0, 0.0], [0.0, -0.5625, 0.0], [0.0, 0.0, -1.0]] {
+            let err = check_light_run::<U0>(8, &[at(outside)], &cfg).unwrap_err().to_string();
+            assert!(err.contains("outside the 8 × 8 grid"), "{outside:?}: {err}");
+        }
+        let light = at([3.5, 3.0, 3.0]).with_origin(cell_core::beam::Origin::Light);
+        let small = LightConfig { fa: cell_core::light::MIN_FA_FROM_LIGHT - 1, ..cfg };
+        assert!(check_light_run::<U0>(8, &[light], &small).unwrap_err().to_string().contains("too small"));
+        let enough = LightConfig { fa: cell_core::light::MIN_FA_FROM_LIGHT, ..cfg };
+        assert!(check_light_run::<U0>(8, &[light], &enough).is_ok());
+    }
+}
