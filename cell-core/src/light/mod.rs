@@ -38,6 +38,12 @@
 //! not yet emitted by a source); it is shared state, guarded by `critical-section` (on an MCU
 //! the FIFO producer side runs in a link interrupt). It is exact: it is incremented before a
 //! beam becomes visible and decremented when one is consumed, so it reads 0 iff no beam exists.
+//!
+//! Here: the cell ([`LightCell`]), its step (choose a beam, check that everything fits, commit)
+//! and its environment ([`LightEnv`]); `fate` decides what one beam does at its voxel under each
+//! lit rule and routes its sub-beams; `msg` holds the messages and ports, `out` the output
+//! buffers, `activity` the quiescence counter, `lit_runs` the lit store, `bounds` what the skips
+//! know of the scene.
 
 use core::cell::Cell as CoreCell;
 
