@@ -133,8 +133,8 @@ pub enum PolicyArg {
     /// path) first; no head-of-line blocking.
     Wavefront,
     /// The wavefront's rule with ties at one layer broken by distance to the source's axis,
-    /// nearest first: far fewer cycles on large grids (Cornell n = 512: −56 %), a few % more
-    /// beams.
+    /// nearest first: a cell's layer is taken in the order its rays spread, so the pipelines
+    /// of a face drain together (fewer cycles, a few more beams: BENCHMARKS.md).
     Radial,
 }
 

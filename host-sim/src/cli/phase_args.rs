@@ -36,8 +36,8 @@ pub enum RouteArg {
 #[derive(clap::Args, Debug, Clone)]
 pub struct ClassicOpts {
     /// Lighting method: diffusion (beams), classic (shadow rays, answers routed back), or
-    /// refined (diffusion, then classic shadow rays from the pixels on shadow edges only:
-    /// bureau1 n = 128 31.9 → 33.7 dB, BENCHMARKS.md).
+    /// refined (diffusion, then classic shadow rays from the pixels on shadow edges only, whose
+    /// answers replace the diffused ones; its cost and gain: BENCHMARKS.md).
     #[arg(long, value_enum, default_value_t = LightingArg::Diffusion)]
     pub lighting: LightingArg,
     /// Connectivity of classic shadow rays: 6 (Amanatides–Woo; no surface thickness lets it
