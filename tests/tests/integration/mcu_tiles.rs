@@ -413,7 +413,7 @@ fn report(c: &Case, r: &TileRun, what: &str) {
     );
 }
 
-/// The case, computed once per test binary.
+/// The case, computed once per test run.
 fn the_case() -> &'static Case {
     static CASE: std::sync::OnceLock<Case> = std::sync::OnceLock::new();
     CASE.get_or_init(|| {
