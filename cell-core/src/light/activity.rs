@@ -5,7 +5,7 @@ use super::*;
 
 /// Beams in flight in the whole machine: the global activity detector (§4.4.4).
 pub struct Activity {
-    pub(super) count: Mutex<CoreCell<u64>>,
+    count: Mutex<CoreCell<u64>>,
 }
 
 impl Default for Activity {

@@ -59,10 +59,10 @@ impl OccupiedBox {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SubBeamBounds {
     /// Largest x, y, z of the grid (the smallest are 0).
-    pub(super) grid_hi: [i32; 3],
+    grid_hi: [i32; 3],
     /// Per direction (index: [`Direction`] as `usize`): smallest and largest x, y, z kept
     /// (empty: some lo > hi). Within the grid, so they fit `i32`.
-    pub(super) keep: [([i32; 3], [i32; 3]); 6],
+    keep: [([i32; 3], [i32; 3]); 6],
 }
 
 impl SubBeamBounds {

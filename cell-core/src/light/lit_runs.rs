@@ -9,8 +9,8 @@ use super::*;
 /// have equal masks (they would be merged). Capacity `L`; a mark that does not fit is counted.
 #[derive(Clone, Debug, Default)]
 pub struct LitRuns<const L: usize> {
-    pub(super) runs: Vec<LitRun, L>,
-    pub(super) overflows: u32,
+    runs: Vec<LitRun, L>,
+    overflows: u32,
 }
 
 /// A run of lit voxels `lo ..= hi`, lit by the sources in `mask`.

@@ -50,9 +50,9 @@ pub struct Local {
     pub(super) piece: u8,
 }
 
-pub(super) const HAS_NOTCH: u8 = 1;
-pub(super) const FRESH: u8 = 2;
-pub(super) const FRONT: u8 = 4;
+const HAS_NOTCH: u8 = 1;
+const FRESH: u8 = 2;
+const FRONT: u8 = 4;
 
 impl Local {
     /// No state: a plain beam.

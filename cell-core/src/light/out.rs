@@ -11,7 +11,7 @@ use super::*;
 #[repr(C)]
 pub struct OutBuffers<F: FracBits, const OB: usize> {
     pub(super) len: [u8; 8],
-    pub(super) msgs: [[BeamMsg<F>; OB]; 8],
+    msgs: [[BeamMsg<F>; OB]; 8],
 }
 
 impl<F: FracBits, const OB: usize> Default for OutBuffers<F, OB> {

@@ -257,8 +257,6 @@ fn ordered(rows: BTreeMap<String, (u64, u64)>) -> Vec<ModuleSize> {
 mod tests {
     use super::*;
 
-    /// The known tables are the standard CRCs' (checked against a bitwise CRC of "123456789")
-    /// and the gamma thresholds; a section holding them at odd places is split around them.
     /// A module folder's files count for the module's concern; a name that only starts alike
     /// does not.
     #[test]
@@ -269,6 +267,8 @@ mod tests {
         assert_eq!(concern_of("heapless"), "other");
     }
 
+    /// The known tables are the standard CRCs' (checked against a bitwise CRC of "123456789")
+    /// and the gamma thresholds; a section holding them at odd places is split around them.
     #[test]
     fn known_tables_are_found_in_anonymous_data() {
         let tables = known_tables();
