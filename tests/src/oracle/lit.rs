@@ -144,21 +144,35 @@ pub fn plane_value_on(
     let l = 16 * ((d as i128) << f);
     let df = (d as i128) << f;
     let reference = [x as i128, y as i128, s.lo as i128];
-    let (mut o, tt) = (src.map(|c| c as i128), 16 * t as i128);
-    let tt = match from {
-        RaysFrom::Voxel => {
-            o[w] = 16 * source_voxel(src)[w] as i128;
-            tt
-        }
-        RaysFrom::Light if t == 0 => 0,
-        RaysFrom::Light => light_layer(src, dir, t).1 as i128,
-    };
+    let o = ray_origin(from, src, w);
+    let tt = ray_distance(from, src, dir, t);
     // L·(p_i(t) − reference_i), exactly: N·O_i + T·(s·N, a, b)_i − L·reference_i.
     let mut lp = [0i128; 3];
     lp[w] = df * o[w] + sign as i128 * df * tt - l * reference[w];
     lp[ua] = df * o[ua] + a as i128 * tt - l * reference[ua];
     lp[va] = df * o[va] + b as i128 * tt - l * reference[va];
     (s.nx as i128 * lp[0] + s.ny as i128 * lp[1]) * 65536 + s.nz as i128 * lp[2] + 65536 * l * s.e as i128
+}
+
+/// The rays' origin O in sixteenths for principal axis `w`: the light `src`, moved along `w` to
+/// its voxel's centre plane for rays from the source voxel.
+fn ray_origin(from: RaysFrom, src: [i64; 3], w: usize) -> [i128; 3] {
+    let mut o = src.map(|c| c as i128);
+    if from == RaysFrom::Voxel {
+        o[w] = 16 * source_voxel(src)[w] as i128;
+    }
+    o
+}
+
+/// The distance T, in sixteenths along the axis, of the point at layer t of the rays of `src`
+/// in direction `dir` leaving from `from`: `16·t` from the source voxel's centre plane; from the
+/// light, 0 at layer 0 and its k-th centre plane's distance after ([`light_layer`]).
+fn ray_distance(from: RaysFrom, src: [i64; 3], dir: usize, t: i64) -> i128 {
+    match from {
+        RaysFrom::Voxel => 16 * t as i128,
+        RaysFrom::Light if t == 0 => 0,
+        RaysFrom::Light => light_layer(src, dir, t).1 as i128,
+    }
 }
 
 /// [`plane_value_on`] along one ray, as a line in the ray's distance T: `base + T·slope` (the
@@ -196,10 +210,7 @@ impl PlaneBase {
         let l = 16 * ((d as i128) << f);
         let df = (d as i128) << f;
         let reference = [x as i128, y as i128, s.lo as i128];
-        let mut o = src.map(|c| c as i128);
-        if from == RaysFrom::Voxel {
-            o[w] = 16 * source_voxel(src)[w] as i128;
-        }
+        let o = ray_origin(from, src, w);
         let c = [65536 * s.nx as i128, 65536 * s.ny as i128, s.nz as i128];
         let base = (0..3).map(|i| c[i] * (df * o[i] - l * reference[i])).sum::<i128>() + 65536 * l * s.e as i128;
         PlaneBase { base, ca: c[ua], cb: c[va], axial: c[w] * sign as i128 * df }
@@ -241,13 +252,9 @@ impl Ray {
         Ray { from, src, dir, a, b, d, f, terminal: false, column: None, outside: false }
     }
 
-    /// The ray's distance T at layer t, in sixteenths along its axis ([`plane_value_on`]'s).
+    /// The ray's distance T at layer t ([`ray_distance`]).
     fn distance(&self, t: i64) -> i128 {
-        match self.from {
-            RaysFrom::Voxel => 16 * t as i128,
-            RaysFrom::Light if t == 0 => 0,
-            RaysFrom::Light => light_layer(self.src, self.dir, t).1 as i128,
-        }
+        ray_distance(self.from, self.src, self.dir, t)
     }
 
     /// Plane `s` of column (x, y) along this ray's source and direction.
