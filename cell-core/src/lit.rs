@@ -355,7 +355,13 @@ impl Narrow {
     /// The plane `narrow(n, ·)` gave these coefficients for (lead `lead`), and the form itself.
     pub(crate) const fn rebuild(k: [i64; 4], lead: i64, n: i64) -> (RayPlane, Narrow) {
         let plane = RayPlane::from_coefficients(k[0] as i128, k[1] as i128, k[2] as i128, k[3] as i128, lead);
-        (plane, Narrow { k0: k[0], kw: k[1], cb: k[2], cg: k[3], lead, n })
+        (plane, Self::of(k, lead, n))
+    }
+
+    /// The form alone of [`Narrow::rebuild`] (no `i128` plane: for a reader that may need
+    /// only its signs).
+    pub(crate) const fn of(k: [i64; 4], lead: i64, n: i64) -> Narrow {
+        Narrow { k0: k[0], kw: k[1], cb: k[2], cg: k[3], lead, n }
     }
 
     /// Whether ray (a, b) is one this form is exact for (|a|, |b| ≤ n).

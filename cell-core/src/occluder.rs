@@ -223,6 +223,13 @@ impl SeenEntry {
         }
     }
 
+    /// The entry's plane in `i64` along the rays of `view`, without the `Seen` around it: `None`
+    /// unless the entry is narrow.
+    #[inline]
+    fn narrow(&self, view: &View) -> Option<Narrow> {
+        matches!(self.orient, 1 | -1).then(|| Narrow::of(self.k, view.lead, view.nn as i64))
+    }
+
     /// The `Seen` of `tri` along the rays of `view` (the entry's triangle, source and direction).
     #[inline]
     fn seen(&self, tri: &Triangle, view: &View) -> Option<Seen> {
@@ -494,14 +501,34 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
             None => constant(corners.map(|(a, b)| t.holds(a, b))),
         };
         let t1 = notch.unwrap_or(k - 1);
+        // No ray crosses the plane between t₁ and k + 1: σ is monotone along each ray, so its
+        // sign at the earliest and the latest of those layers, at the rectangle's corners,
+        // decides it.
+        let (t_first, t_last) = (t1.min(k - 1), t1.max(k + 1));
+        let uncrossed = |first: [bool; 4], last: [bool; 4]| first == last && constant(first).is_some();
+        // Table entries are narrowed for |a|, |b| ≤ N ([`SeenEntry::narrow`]).
+        let nn = view.nn as i64;
+        let narrow_square = corners.iter().all(|&(a, b)| a.abs() <= nn && b.abs() <= nn);
         for (i, tri) in v.triangles.iter().enumerate() {
             // The plane first: most triangles are crossed by no ray near this layer, and their
-            // edges are never built.
+            // edges are never built. A table's narrow plane is read from its coefficients
+            // (the same `i64` form and signs as below), before any `Seen` is built.
+            if let Some(t) = v.seen.filter(|_| narrow_square) {
+                let entry = &t.seen[t.ids[i] as usize][v.dir.index() as usize];
+                match entry.narrow(&view) {
+                    Some(n) => {
+                        let forms = corners.map(|(a, b)| n.form(a, b));
+                        let sigma_at = |t: i64| forms.map(|f| n.positive_with(f, t));
+                        if uncrossed(sigma_at(t_first), sigma_at(t_last)) {
+                            continue;
+                        }
+                    }
+                    None if entry.orient == 0 => continue,
+                    None => {}
+                }
+            }
             let mut slot = None;
             let Some(seen) = v.seen_of(i, tri, &view, &mut slot) else { continue };
-            // No ray crosses the plane between t₁ and k + 1: σ is monotone along each ray, so
-            // its sign at the earliest and the latest of those layers, at the rectangle's
-            // corners, decides it.
             let narrow = seen.narrow.filter(in_square);
             let (forms, forms64) = match narrow {
                 Some(n) => ([0; 4], corners.map(|(a, b)| n.form(a, b))),
@@ -511,8 +538,7 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
                 Some(n) => forms64.map(|f| n.positive_with(f, t)),
                 None => forms.map(|f| seen.plane.positive_with(f, t)),
             };
-            let (first, last) = (sigma_at(t1.min(k - 1)), sigma_at(t1.max(k + 1)));
-            if first == last && constant(first).is_some() {
+            if uncrossed(sigma_at(t_first), sigma_at(t_last)) {
                 continue;
             }
             let sigma = [k - 1, k, k + 1, t1].map(|t| constant(sigma_at(t)));
@@ -808,6 +834,64 @@ mod tests {
         meets_like_the_oracle::<frac::U0>(1);
         meets_like_the_oracle::<frac::U1>(2);
         meets_like_the_oracle::<frac::U2>(3);
+    }
+
+    /// A visit reading a host's table of planes ([`SeenTable`]) is the visit computing them:
+    /// the same tests, flags, per-ray bits and verdicts (the table's narrow planes are read
+    /// before any `Seen` is built, `sort_triangles`).
+    fn table_is_transparent<F: FracBits>(seed: u64) {
+        use crate::lit::Rule;
+        let mut s = seed;
+        let (mut decided, mut undecided) = (0, 0);
+        for _ in 0..400 {
+            let (first, src, dir, far, _) = random_config::<F>(&mut s);
+            let mut tris = std::vec![first];
+            for _ in 0..lcg(&mut s) % 5 {
+                tris.push(random_config::<F>(&mut s).0);
+            }
+            let table: StdVec<[SeenEntry; 6]> =
+                tris.iter().map(|t| Direction::ALL.map(|d| SeenEntry::of(t, &src, d, far))).collect();
+            let ids: StdVec<u32> = (0..tris.len() as u32).collect();
+            let nn = far.scaled();
+            let k = 1 + (lcg(&mut s) % far.get() as u64) as i64;
+            let notch = (lcg(&mut s) % 3 == 0).then(|| (lcg(&mut s) % k as u64) as i64);
+            let end = |s: &mut u64| r(s, nn);
+            let (a0, a1, b0, b1) = (end(&mut s), end(&mut s), end(&mut s), end(&mut s));
+            let rect = ((a0.min(a1), a0.max(a1)), (b0.min(b1), b0.max(b1)));
+            let terminal = lcg(&mut s) % 4 == 0;
+            let (mut t1, mut t2) = (ExactTests::new(), ExactTests::new());
+            let seen = Some(SeenTable { ids: &ids, seen: &table });
+            let with = ExactVisit::new(&mut t1, &tris, seen, &src, dir, far, k, rect, terminal, notch);
+            let without = ExactVisit::new(&mut t2, &tris, None, &src, dir, far, k, rect, terminal, notch);
+            let case = std::format!("{tris:?} {src:?} {dir:?} k {k} notch {notch:?} rect {rect:?}");
+            assert_eq!(with.tests(), without.tests(), "{case}");
+            assert_eq!(
+                (with.is_plain(), with.is_uniform(), with.per_ray()),
+                (without.is_plain(), without.is_uniform(), without.per_ray()),
+                "{case}"
+            );
+            for a in rect.0 .0..=rect.0 .1 {
+                for b in rect.1 .0..=rect.1 .1 {
+                    let (x, y) = (with.bits(a, b), without.bits(a, b));
+                    assert_eq!(x, y, "{case} ray ({a}, {b})");
+                    assert_eq!(with.verdict(x, false), without.verdict(y, false), "{case} ray ({a}, {b})");
+                    assert_eq!(with.verdict(x, true), without.verdict(y, true), "{case} ray ({a}, {b})");
+                }
+            }
+            if with.tests().is_empty() {
+                decided += 1
+            } else {
+                undecided += 1
+            }
+        }
+        assert!(decided > 40 && undecided > 40, "both kinds of visit met ({decided} decided, {undecided} not)");
+    }
+
+    #[test]
+    fn a_table_of_planes_changes_no_visit() {
+        table_is_transparent::<frac::U0>(11);
+        table_is_transparent::<frac::U1>(12);
+        table_is_transparent::<frac::U2>(13);
     }
 
     /// Cut every column of a beam's rectangle into segments of equal test bits: the verdict of
