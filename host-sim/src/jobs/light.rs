@@ -94,7 +94,7 @@ fn run_with<F: FracBits>(o: &LightOptions) -> Result<()> {
     }
     let pb = progress::bar(o.quiet, "light");
     if let Some(ccfg) = &o.light.classic {
-        let (cl, stats) = run_classic::<F>(&mesh, &loaded, &lights, ccfg, progress::light(&pb))?;
+        let (cl, stats) = run_classic(&mesh, &loaded, &lights, ccfg, progress::light(&pb))?;
         pb.finish_and_clear();
         write_classic_outputs(o, &loaded, &cl, &stats)?;
         print_classic_summary(&o.light.run, lights.len(), &cl, &stats);

@@ -193,7 +193,7 @@ pub fn render<F: FracBits>(
 ) -> Result<Rendered> {
     match &cfg.lighting {
         RenderLighting::Diffusion => render_diffusion::<F>(input, cfg, progress),
-        RenderLighting::Classic(c) => render_classic::<F>(input, cfg, c, progress),
+        RenderLighting::Classic(c) => render_classic(input, cfg, c, progress),
         RenderLighting::Refined(c) => render_refined::<F>(input, cfg, c, progress),
         RenderLighting::Reflections(r) => render_reflect::<F>(input, cfg, r, progress),
     }
@@ -233,14 +233,14 @@ fn render_refined<F: FracBits>(
 }
 
 /// Classic shadow rays, then the same shading and report as diffusion.
-fn render_classic<F: FracBits>(
+fn render_classic(
     input: &RenderInput<'_>,
     cfg: &RenderConfig,
     classic_cfg: &ClassicConfig,
     progress: impl FnMut(usize, u64),
 ) -> Result<Rendered> {
     let t0 = Instant::now();
-    let (cl, stats) = run_classic::<F>(input.mesh, input.scene, input.lights, classic_cfg, progress)?;
+    let (cl, stats) = run_classic(input.mesh, input.scene, input.lights, classic_cfg, progress)?;
     let light_seconds = t0.elapsed().as_secs_f64();
     let r = {
         let seen = match classic_cfg.rule {

@@ -94,9 +94,9 @@ pub fn record<F: FracBits>(job: &TraceJob<'_>) -> Result<Vec<CellTrace>> {
             &sources,
             &job.light,
             Some(&mut tap),
-            |_, _| {},
+            &mut |_, _| {},
         )?),
-        Some(c) => Lit::Rays(classic_tapped(&scene, &lights, c, Some(&mut tap), |_, _| {})?, c.rule),
+        Some(c) => Lit::Rays(classic_tapped(&scene, &lights, c, Some(&mut tap), &mut |_, _| {})?, c.rule),
     };
     let shade = ShadeSetup {
         params: ShadeParams { ambient: [AMBIENT; 3], normal_mode: NormalMode::Facet, eye: scene.eye },

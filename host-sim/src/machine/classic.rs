@@ -46,7 +46,6 @@ use std::mem::size_of;
 use std::time::Instant;
 
 use anyhow::{bail, Result};
-use cell_core::beam::FracBits;
 use cell_core::light::{Port, SourceMask};
 use cell_core::lit::LitRule;
 use cell_core::ray::{Connectivity, ShadowRay};
@@ -182,9 +181,9 @@ pub fn classic(
     scene: &LoadedScene,
     lights: &[[f64; 3]],
     cfg: &ClassicConfig,
-    progress: impl FnMut(usize, u64),
+    mut progress: impl FnMut(usize, u64),
 ) -> Result<ClassicLighting> {
-    classic_tapped(scene, lights, cfg, None, progress)
+    classic_tapped(scene, lights, cfg, None, &mut progress)
 }
 
 /// [`classic`], recording what the cells watched by `tap` receive and send (each source's
@@ -194,7 +193,7 @@ pub fn classic_tapped(
     lights: &[[f64; 3]],
     cfg: &ClassicConfig,
     mut tap: Option<&mut Tap>,
-    mut progress: impl FnMut(usize, u64),
+    progress: &mut dyn FnMut(usize, u64),
 ) -> Result<ClassicLighting> {
     let n = scene.grid.n;
     check_run(n, lights, cfg)?;
@@ -202,7 +201,7 @@ pub fn classic_tapped(
     let mut per_source = Vec::new();
     let mut totals = ClassicCounts::default();
     for (si, &l) in lights.iter().enumerate() {
-        let c = classic_one(scene, l, si, cfg, None, &mut masks, tap.as_deref_mut(), |c| progress(si, c))?;
+        let c = classic_one(scene, l, si, cfg, None, &mut masks, tap.as_deref_mut(), &mut |c| progress(si, c))?;
         totals.add(&c);
         per_source.push(c);
     }
@@ -243,7 +242,7 @@ fn classic_one(
     emit: Option<&[bool]>,
     masks: &mut [SourceMask],
     tap: Option<&mut Tap>,
-    mut progress: impl FnMut(u64),
+    progress: &mut dyn FnMut(u64),
 ) -> Result<ClassicCounts> {
     let mut run = ClassicRun::new(scene, light, si, cfg, emit, tap)?;
     while run.rays_in_flight > 0 || run.net.in_flight > 0 || run.emitters > 0 {
@@ -580,6 +579,17 @@ pub fn refine_edges(
     cfg: &ClassicConfig,
     mut progress: impl FnMut(usize, u64),
 ) -> Result<RefineCounts> {
+    refine_edges_with(scene, lights, masks, cfg, &mut progress)
+}
+
+/// [`refine_edges`] compiled once, whatever the caller's progress closure.
+fn refine_edges_with(
+    scene: &LoadedScene,
+    lights: &[[f64; 3]],
+    masks: &mut [SourceMask],
+    cfg: &ClassicConfig,
+    progress: &mut dyn FnMut(usize, u64),
+) -> Result<RefineCounts> {
     let n = scene.grid.n as usize;
     if cfg.rule == LitRule::Thesis {
         bail!("shadow-edge refinement needs visible surfaces: use --lit-rule exact or plane");
@@ -599,7 +609,7 @@ pub fn refine_edges(
         k.exchange_messages += (0..n * n).filter(|&i| shows(i)).count() as u64 * 8;
         k.edge_pixels += edge.iter().filter(|&&e| e).count() as u64;
         let mut answers = vec![0; n * n];
-        let c = classic_one(scene, l, si, cfg, Some(&edge), &mut answers, None, |c| progress(si, c))?;
+        let c = classic_one(scene, l, si, cfg, Some(&edge), &mut answers, None, &mut |c| progress(si, c))?;
         for i in (0..n * n).filter(|&i| edge[i]) {
             k.changed += ((masks[i] ^ answers[i]) & bit != 0) as u64;
             masks[i] = (masks[i] & !bit) | (answers[i] & bit);
@@ -613,15 +623,26 @@ pub fn refine_edges(
 /// The classic phase as the `light`/`render` jobs report it: the lit state and a [`LightStats`]
 /// whose diffusion counters hold the classic equivalents (cycles; `beams_processed` = voxel
 /// steps; `messages` = ray + answer link messages; `lb_cell_load` = busiest cell's steps).
-pub fn run_classic<F: FracBits>(
+pub fn run_classic(
     mesh: &Mesh,
     scene: &LoadedScene,
     lights: &[[f64; 3]],
     cfg: &ClassicConfig,
-    progress: impl FnMut(usize, u64),
+    mut progress: impl FnMut(usize, u64),
+) -> Result<(ClassicLighting, LightStats)> {
+    run_classic_with(mesh, scene, lights, cfg, &mut progress)
+}
+
+/// [`run_classic`] compiled once, whatever the caller's progress closure.
+fn run_classic_with(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    lights: &[[f64; 3]],
+    cfg: &ClassicConfig,
+    progress: &mut dyn FnMut(usize, u64),
 ) -> Result<(ClassicLighting, LightStats)> {
     let t0 = Instant::now();
-    let cl = classic(scene, lights, cfg, progress)?;
+    let cl = classic_tapped(scene, lights, cfg, None, progress)?;
     let exact = cfg.rule == LitRule::Exact;
     if exact {
         crate::machine::lighting::check_triangle_overflow(&scene.grid);

@@ -98,7 +98,18 @@ pub fn run_diffusion<F: FracBits>(
     scene: &LoadedScene,
     lights: &[[f64; 3]],
     cfg: &LightConfig,
-    progress: impl FnMut(usize, u64),
+    mut progress: impl FnMut(usize, u64),
+) -> Result<(Lighting<F>, LightStats)> {
+    run_diffusion_with::<F>(mesh, scene, lights, cfg, &mut progress)
+}
+
+/// [`run_diffusion`] compiled once per f, whatever the caller's progress closure.
+fn run_diffusion_with<F: FracBits>(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    lights: &[[f64; 3]],
+    cfg: &LightConfig,
+    progress: &mut dyn FnMut(usize, u64),
 ) -> Result<(Lighting<F>, LightStats)> {
     let n = scene.grid.n;
     let sources = lights.iter().enumerate().map(|(i, p)| cfg.source(i, *p, n)).collect::<Result<Vec<_>>>()?;

@@ -272,7 +272,7 @@ pub(super) fn diffuse_one<F: FracBits, const D: usize, L: HostLink<F>>(
     cfg: &LightConfig,
     dead: Option<OccupiedBox>,
     rec: Recording<'_>,
-    mut progress: impl FnMut(u64),
+    progress: &mut dyn FnMut(u64),
 ) -> Result<SourceReport> {
     let mut run = Run::new(grid, cells, links, src, si, env, cfg, dead, rec);
     while run.running() && cfg.stop_at.is_none_or(|t| run.cycle < t) {

@@ -273,22 +273,23 @@ pub fn diffuse<F: FracBits, const D: usize>(
     grid: &Grid<D>,
     sources: &[Source],
     cfg: &LightConfig,
-    progress: impl FnMut(usize, u64),
+    mut progress: impl FnMut(usize, u64),
 ) -> Result<Lighting<F>> {
-    diffuse_tapped(grid, sources, cfg, None, progress)
+    diffuse_tapped(grid, sources, cfg, None, &mut progress)
 }
 
 /// [`diffuse`], recording what the cells watched by `tap` receive and send.
 ///
 /// The links are chosen here, once per run: perfect links, or each behind a fault injector
 /// (`cfg.faults`), each traced when `tap` records. Every source then runs the same scheduler,
-/// generic over the links ([`crate::machine::links`]).
+/// generic over the links ([`crate::machine::links`]). `progress` is behind `dyn`: the
+/// scheduler is compiled once per f and link stack, not once more per caller's closure.
 pub fn diffuse_tapped<F: FracBits, const D: usize>(
     grid: &Grid<D>,
     sources: &[Source],
     cfg: &LightConfig,
     tap: Option<&mut Tap>,
-    progress: impl FnMut(usize, u64),
+    progress: &mut dyn FnMut(usize, u64),
 ) -> Result<Lighting<F>> {
     let far = check_light_run::<F>(grid.n, sources, cfg)?;
     let n = grid.n;
@@ -333,7 +334,7 @@ pub fn diffuse_shot<F: FracBits, const D: usize>(
     initial: &[Beam<F>],
     cfg: &LightConfig,
     rays: &dyn RaySink<F>,
-    progress: impl FnMut(usize, u64),
+    mut progress: impl FnMut(usize, u64),
 ) -> Result<Lighting<F>> {
     if cfg.rule != LitRule::Thesis
         || cfg.rays != Origin::SourceVoxel
@@ -350,7 +351,7 @@ pub fn diffuse_shot<F: FracBits, const D: usize>(
     let frustum = frustum_summary(grid, cfg, false)?;
     let shot = Some(Shot { initial, rays });
     let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref(), shot };
-    run.diffuse(idle_cells(grid.n), GridLinks::new(grid.n, |_| PerfectLink), None, progress)
+    run.diffuse(idle_cells(grid.n), GridLinks::new(grid.n, |_| PerfectLink), None, &mut progress)
 }
 
 /// What a radiosity shot changes in a diffusion ([`diffuse_shot`]).
@@ -449,7 +450,7 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
         mut cells: Vec<HostLightCell<F>>,
         mut links: GridLinks<L>,
         mut tap: Option<&mut Tap>,
-        mut progress: impl FnMut(usize, u64),
+        progress: &mut dyn FnMut(usize, u64),
     ) -> Result<Lighting<F>> {
         let (grid, cfg) = (self.grid, self.cfg);
         let order = SplitOrder::default();
@@ -472,7 +473,7 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
             let (links, cells) = (links.slots(), &mut cells[..]);
             let initial = self.shot.map(|s| s.initial);
             let mut rep =
-                diffuse_one(grid, cells, links, (src, initial), si, &env, cfg, dead, rec, |c| progress(si, c))?;
+                diffuse_one(grid, cells, links, (src, initial), si, &env, cfg, dead, rec, &mut |c| progress(si, c))?;
             rep.position = src.pos.map(|p| p.to_num::<f64>());
             add_cell_counts(&mut rep, cells, &before);
             if let Some(o) = &occluders {
