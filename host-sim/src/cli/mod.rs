@@ -46,7 +46,8 @@ pub enum Command {
     /// run time against error of the lighting phase (CSV).
     LightAccuracy(AccuracyArgs),
     /// Run time against error: render a scene under a sweep of speed/accuracy knobs, compare each
-    /// with the f64 reference, write a CSV and a Pareto plot (error against machine cycles).
+    /// with the f64 reference, write a CSV and a Pareto plot (error against machine cycles and
+    /// against host seconds).
     Bench(BenchArgs),
     /// RAM of one cell for a scene: static sizes by part, what the scene uses (peak dexels,
     /// FIFO, lit runs, with the cell that needs most), and whether it fits `memory.x`.

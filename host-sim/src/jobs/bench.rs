@@ -22,7 +22,7 @@ use crate::machine::diffuse::LightConfig;
 use crate::machine::lighting::policy_name;
 use crate::machine::loaded::{load_scene, resolve_lights};
 use crate::precompute::{Contour, LoadConfig, Thickness};
-use crate::report::plot::{pareto_front, plot_pareto, ParetoPoint};
+use crate::report::pareto::{pareto_front, plot_pareto, ParetoPoint};
 use crate::scene::Mesh;
 use crate::truth::compare::Comparison;
 use crate::truth::refrender::RefImage;
@@ -234,7 +234,10 @@ pub fn run_bench(
         let front = pareto_front(&points);
         write_mean_rows(&mut csv, n, &knobs, &sums, m, &front)?;
         let path = plot_path_for(plot_path, ns.len(), n);
-        let title = format!("{}, n = {n}: shadow error against machine cycles (mean over scenes)", names.join(" + "));
+        let title = format!(
+            "{}, n = {n}: shadow error against machine cycles and host seconds (means over the scenes)",
+            names.join(" + ")
+        );
         plot_pareto(&points, &title, &path)?;
         if !quiet {
             print_front(n, &points, &sums, m, &front, &path);
@@ -355,6 +358,7 @@ impl Sums {
             cycles: self.cycles / m,
             error: self.error / m,
             bytes: self.bytes as f64,
+            seconds: self.wall / m,
             is_default: *k == Knobs::DEFAULT,
         }
     }

@@ -572,7 +572,7 @@ enum Panel<DB: DrawingBackend> {
 
 /// A log axis range around `[min, max]` (both > 0): `[min / pad, max · pad]`, widened
 /// about its centre to span at least a factor 3 (so a 1–2–5 tick always falls inside).
-fn log_range(min: f64, max: f64, pad: f64) -> std::ops::Range<f64> {
+pub(crate) fn log_range(min: f64, max: f64, pad: f64) -> std::ops::Range<f64> {
     let (lo, hi) = (min / pad, max * pad);
     let ratio = hi / lo;
     if ratio >= 3.0 {
@@ -584,7 +584,7 @@ fn log_range(min: f64, max: f64, pad: f64) -> std::ops::Range<f64> {
 }
 
 /// Ticks of a base-10 log axis over `r`: (labelled 1–2–5 × 10^k, light k × 10^j others).
-fn decade_ticks(r: &std::ops::Range<f64>) -> (Vec<f64>, Vec<f64>) {
+pub(crate) fn decade_ticks(r: &std::ops::Range<f64>) -> (Vec<f64>, Vec<f64>) {
     let (mut bold, mut light) = (Vec::new(), Vec::new());
     let mut e = r.start.log10().floor() as i32;
     while 10f64.powi(e) <= r.end {
@@ -639,7 +639,7 @@ where
     mesh.draw().map_err(plot_err)
 }
 
-fn label_int(v: &f64) -> String {
+pub(crate) fn label_int(v: &f64) -> String {
     if (v - v.round()).abs() < 1e-6 {
         format!("{}", v.round() as i64)
     } else {
@@ -977,109 +977,4 @@ mod tests {
             assert!(!n_ticks(&r, &ns).is_empty(), "{lo}..{hi} → {r:?}");
         }
     }
-}
-
-/// One configuration of a speed/accuracy sweep.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct ParetoPoint {
-    /// Short label (the knobs that differ from the default).
-    pub label: String,
-    /// Machine cycles (load + light + shade).
-    pub cycles: f64,
-    /// Error (shadow disagreement, %).
-    pub error: f64,
-    /// Memory of a cell built for this configuration (bytes).
-    pub bytes: f64,
-    /// Whether this is the default configuration.
-    pub is_default: bool,
-}
-
-/// Indices of the points on the Pareto front over (cycles, error, bytes per cell): no other point
-/// is at least as good in all three and strictly better in one (FIFO size trades memory for
-/// speed, so memory is an objective too). Sorted by cycles.
-pub fn pareto_front(points: &[ParetoPoint]) -> Vec<usize> {
-    let mut front: Vec<usize> = (0..points.len())
-        .filter(|&i| {
-            let p = &points[i];
-            !points.iter().any(|q| {
-                q.cycles <= p.cycles
-                    && q.error <= p.error
-                    && q.bytes <= p.bytes
-                    && (q.cycles < p.cycles || q.error < p.error || q.bytes < p.bytes)
-            })
-        })
-        .collect();
-    front.sort_by(|&a, &b| points[a].cycles.total_cmp(&points[b].cycles));
-    front
-}
-
-/// Error against machine time for a sweep; points on the Pareto front (over cycles, error and
-/// bytes per cell) in blue joined by a line and labelled with their knobs and bytes per cell,
-/// the default configuration as a large red mark, dominated points as grey dots.
-pub fn plot_pareto(points: &[ParetoPoint], title: &str, path: &Path) -> Result<()> {
-    ensure_font()?;
-    if points.is_empty() || points.iter().any(|p| p.cycles.is_nan() || p.cycles <= 0.0 || !p.error.is_finite()) {
-        return Err(anyhow!("nothing to plot (or a point with no cycles / a non-finite error)"));
-    }
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)?;
-    }
-    let root = BitMapBackend::new(path, (1200, 800)).into_drawing_area();
-    root.fill(&WHITE).map_err(plot_err)?;
-    let (cmin, cmax) = points.iter().fold((f64::MAX, 0f64), |(a, b), p| (a.min(p.cycles), b.max(p.cycles)));
-    let emax = points.iter().fold(0f64, |a, p| a.max(p.error));
-    let pad = (cmax - cmin).max(cmax * 0.05) * 0.08;
-    let xr = (cmin - pad).max(0.0)..cmax + 3.0 * pad;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, (FONT, 24))
-        .margin(20)
-        .x_label_area_size(50)
-        .y_label_area_size(Y_LABEL_AREA)
-        .build_cartesian_2d(xr, 0f64..(emax * 1.15).max(1.0))
-        .map_err(plot_err)?;
-    chart
-        .configure_mesh()
-        .x_desc("machine cycles (load + light + shade)")
-        .y_desc("shadow disagreement vs f64 reference (%)")
-        .x_label_formatter(&|v| label_int(v))
-        .x_labels(10)
-        .label_style((FONT, 14))
-        .axis_desc_style((FONT, 16))
-        .draw()
-        .map_err(plot_err)?;
-    let front = pareto_front(points);
-    chart
-        .draw_series(LineSeries::new(front.iter().map(|&i| (points[i].cycles, points[i].error)), BLUE.stroke_width(2)))
-        .map_err(plot_err)?;
-    for (i, p) in points.iter().enumerate() {
-        let on_front = front.contains(&i);
-        let colour = if p.is_default {
-            RED
-        } else if on_front {
-            BLUE
-        } else {
-            RGBColor(120, 120, 120)
-        };
-        let size = if p.is_default { 9 } else { 5 };
-        chart
-            .draw_series(std::iter::once(Circle::new((p.cycles, p.error), size, colour.filled())))
-            .map_err(plot_err)?;
-        if !on_front && !p.is_default {
-            continue; // dominated points: a grey dot, the CSV has their knobs
-        }
-        let label = if p.is_default {
-            format!("default: {} ({} B/cell)", p.label, p.bytes)
-        } else {
-            format!("{} ({} B/cell)", p.label, p.bytes)
-        };
-        chart
-            .draw_series(std::iter::once(Text::new(
-                label,
-                (p.cycles * 1.03, p.error),
-                (FONT, 12).into_font().color(&colour),
-            )))
-            .map_err(plot_err)?;
-    }
-    root.present().map_err(plot_err)?;
-    Ok(())
 }
