@@ -55,8 +55,11 @@ pub fn pareto_front(points: &[ParetoPoint]) -> Vec<usize> {
     front
 }
 
-/// The picture's size (two panels over a key).
-pub const PARETO_SIZE: (u32, u32) = (1600, 1000);
+/// The picture's width; its height is the title's, the panels' and the key's
+/// ([`pareto_size`]).
+const WIDTH: u32 = 1600;
+const TITLE_HEIGHT: u32 = 40;
+const PANELS_HEIGHT: u32 = 760;
 const KEY_FONT: u32 = 13;
 const KEY_ROW: i32 = KEY_FONT as i32 + 5;
 const NUMBER_FONT: u32 = 13;
@@ -73,7 +76,14 @@ fn colour(p: &ParetoPoint, on_front: bool) -> RGBColor {
     }
 }
 
-/// Which points are numbered (the front and the default, by cycles), and the key's lines.
+/// The picture's size for `numbered` points in the key (two columns of lines, then a note): the
+/// panels keep their height however long the front is.
+pub fn pareto_size(numbered: usize) -> (u32, u32) {
+    let key_rows = numbered.div_ceil(2) as u32 + 2;
+    (WIDTH, TITLE_HEIGHT + PANELS_HEIGHT + key_rows * KEY_ROW as u32 + 20)
+}
+
+/// Which points are numbered: the front and the default, by cycles (then error).
 fn numbered(points: &[ParetoPoint], front: &[usize]) -> Vec<usize> {
     let mut shown: Vec<usize> = front.to_vec();
     if let Some(d) = points.iter().position(|p| p.is_default).filter(|d| !front.contains(d)) {
@@ -97,12 +107,18 @@ pub fn plot_pareto(points: &[ParetoPoint], title: &str, path: &Path) -> Result<(
     }
     let front = pareto_front(points);
     let shown = numbered(points, &front);
-    let root = BitMapBackend::new(path, PARETO_SIZE).into_drawing_area();
+    let root = BitMapBackend::new(path, pareto_size(shown.len())).into_drawing_area();
     root.fill(&WHITE).map_err(plot_err)?;
-    let root = root.titled(title, (FONT, 24)).map_err(plot_err)?;
-    let key_rows = shown.len().div_ceil(2) as u32 + 2;
-    let (panels, key) = root.split_vertically(PARETO_SIZE.1 - 40 - key_rows * KEY_ROW as u32 - 20);
-    let (left, right) = panels.split_horizontally(PARETO_SIZE.0 / 2);
+    let (title_area, rest) = root.split_vertically(TITLE_HEIGHT);
+    title_area
+        .draw_text(
+            title,
+            &TextStyle::from((FONT, 24).into_font()).pos(Pos::new(HPos::Center, VPos::Center)),
+            (WIDTH as i32 / 2, TITLE_HEIGHT as i32 / 2),
+        )
+        .map_err(plot_err)?;
+    let (panels, key) = rest.split_vertically(PANELS_HEIGHT);
+    let (left, right) = panels.split_horizontally(WIDTH / 2);
     let floor = error_floor(points);
     let errors = log_range(
         points.iter().map(|p| p.error.max(floor)).fold(f64::MAX, f64::min),
@@ -120,7 +136,7 @@ pub fn plot_pareto(points: &[ParetoPoint], title: &str, path: &Path) -> Result<(
     Ok(())
 }
 
-/// Where a 0 % error is drawn: a third of the smallest positive error (0.01 % if none).
+/// Where a 0 % error is drawn: a third of the smallest positive error, at most 0.01 %.
 fn error_floor(points: &[ParetoPoint]) -> f64 {
     points.iter().map(|p| p.error).filter(|&e| e > 0.0).fold(f64::MAX, f64::min).min(0.03) / 3.0
 }
@@ -228,7 +244,7 @@ fn draw_key<DB: DrawingBackend>(
     floor: f64,
 ) -> Result<()> {
     let rows = shown.len().div_ceil(2);
-    let col_w = PARETO_SIZE.0 as i32 / 2;
+    let col_w = WIDTH as i32 / 2;
     for (k, &i) in shown.iter().enumerate() {
         let p = &points[i];
         let (col, row) = ((k / rows.max(1)) as i32, (k % rows.max(1)) as i32);
@@ -307,9 +323,24 @@ mod tests {
             u32::from_be_bytes(bytes[16..20].try_into().unwrap()),
             u32::from_be_bytes(bytes[20..24].try_into().unwrap()),
         );
-        assert_eq!((w, h), PARETO_SIZE);
+        assert_eq!((w, h), pareto_size(numbered(&pts, &pareto_front(&pts)).len()));
         assert!(bytes.len() > 20_000, "a nearly empty picture: {} bytes", bytes.len());
         std::fs::remove_dir_all(dir).ok();
+    }
+
+    /// A sweep whose every point is on the front: the key grows, the panels keep their room.
+    #[test]
+    fn a_long_front_gets_a_taller_picture() {
+        let pts: Vec<ParetoPoint> =
+            (1..=200).map(|i| point(&format!("k{i}"), 1000.0 * f64::from(i), 10.0 / f64::from(i), 100.0)).collect();
+        assert_eq!(pareto_front(&pts).len(), 200);
+        let path = std::env::temp_dir().join(format!("rc2-pareto-long-{}.png", std::process::id()));
+        plot_pareto(&pts, "every point on the front", &path).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let h = u32::from_be_bytes(bytes[20..24].try_into().unwrap());
+        assert_eq!(h, pareto_size(200).1);
+        assert!(h > TITLE_HEIGHT + PANELS_HEIGHT + 100 * KEY_ROW as u32);
+        std::fs::remove_file(path).ok();
     }
 
     #[test]
