@@ -319,7 +319,15 @@ pub fn run<F: FracBits>(
         .enumerate()
         .map(|(i, s)| SourceReport { source: i, position: s.pos.map(|p| p.to_num::<f64>()), ..Default::default() })
         .collect();
-    let lighting = Lighting { n, cells: ex.cells, reports, visited: None, link_faults: None, rule: light.rule };
+    let lighting = Lighting {
+        n,
+        cells: ex.cells,
+        reports,
+        visited: None,
+        link_faults: None,
+        rule: light.rule,
+        phases: Default::default(),
+    };
     Ok(AsyncRun { grid, lighting, stats: ex.stats, early: ex.early })
 }
 

@@ -690,6 +690,7 @@ fn run_classic_with(
         bytes_light_cell: size_of::<HostShadowCell>() + size_of::<crate::machine::network::HostRouter<u8>>(),
         sources,
         wall_seconds: wall,
+        phase_seconds: None,
         peak_rss_mib: crate::machine::load::peak_rss_mib(),
         link_faults: None,
     };

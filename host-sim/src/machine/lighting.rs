@@ -7,7 +7,7 @@ use cell_core::beam::FracBits;
 use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::light::{BeamMsg, Policy};
 
-use crate::machine::diffuse::{diffuse, DiffusionCounts, LightConfig, Lighting, SourceReport};
+use crate::machine::diffuse::{diffuse, DiffusionCounts, LightConfig, Lighting, PhaseSeconds, SourceReport};
 use crate::machine::loaded::LoadedScene;
 
 use crate::machine::capacity::HostLightCell;
@@ -53,6 +53,9 @@ pub struct LightStats {
     pub sources: Vec<SourceReport>,
     /// Wall time of the diffusion.
     pub wall_seconds: f64,
+    /// Where the diffusion's wall time went, by phase of the cycle loop (host time; none for
+    /// classic ray casting, which has no such loop).
+    pub phase_seconds: Option<PhaseSeconds>,
     /// Peak resident memory (MiB).
     pub peak_rss_mib: Option<f64>,
     /// What the faulty links did (`--link-faults`).
@@ -147,6 +150,7 @@ fn run_diffusion_with<F: FracBits>(
         bytes_light_cell: std::mem::size_of::<HostLightCell<F>>(),
         sources: r.clone(),
         wall_seconds: wall,
+        phase_seconds: Some(lighting.phases),
         peak_rss_mib: crate::machine::load::peak_rss_mib(),
         link_faults: lighting.link_faults,
     };

@@ -570,3 +570,28 @@ fn contact_test_matches_the_rational_crossing() {
     }
     assert!(crossed.iter().chain(&missed).all(|&c| c > 100), "every kind both ways: {crossed:?} / {missed:?}");
 }
+
+/// The host's time by phase of the cycle loop (`--stats` light.phase_seconds) is laps of one
+/// clock inside the diffusion's own wall interval: each phase non-negative, the steps (where
+/// every beam is processed) some of it, and all of them together no more than the wall time.
+#[test]
+fn phase_seconds_are_laps_inside_the_light_wall() {
+    let mesh = host_sim::scene::load("cornell").unwrap();
+    let loaded = host_sim::machine::loaded::load_scene(&mesh, &LoadConfig::watertight(24)).unwrap();
+    let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
+    let cfg = host_sim::config::Preset::Light.light();
+    let (_, stats) = host_sim::machine::lighting::run_diffusion::<cell_core::beam::frac::U0>(
+        &mesh,
+        &loaded,
+        &lights,
+        &cfg,
+        |_, _| {},
+    )
+    .unwrap();
+    let phases = stats.phase_seconds.expect("a beam diffusion reports its phases");
+    for (name, s) in phases.named() {
+        assert!(s >= 0.0, "{name}: {s}");
+    }
+    assert!(phases.step > 0.0 && stats.totals.beams_processed > 0);
+    assert!(phases.total() <= stats.wall_seconds, "{} s of phases in {} s", phases.total(), stats.wall_seconds);
+}

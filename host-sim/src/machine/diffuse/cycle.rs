@@ -272,17 +272,26 @@ pub(super) fn diffuse_one<F: FracBits, const D: usize, L: HostLink<F>>(
     cfg: &LightConfig,
     dead: Option<OccupiedBox>,
     rec: Recording<'_>,
+    phases: &mut PhaseSeconds,
     progress: &mut dyn FnMut(u64),
 ) -> Result<SourceReport> {
     let mut run = Run::new(grid, cells, links, src, si, env, cfg, dead, rec);
+    let mut lap = Lap::start();
     while run.running() && cfg.stop_at.is_none_or(|t| run.cycle < t) {
         let mut moved = run.emit();
-        moved |= run.compute();
+        lap.lap(&mut phases.emit);
+        let pieces = run.step();
+        lap.lap(&mut phases.step);
+        moved |= run.gather_steps(pieces);
+        lap.lap(&mut phases.gather);
         moved |= run.links();
+        lap.lap(&mut phases.links);
         run.pop();
+        lap.lap(&mut phases.pop);
         run.cycle += 1;
         let busy_now = run.next_active();
         run.settle(busy_now, moved)?;
+        lap.lap(&mut phases.next);
         if run.cycle % 256 == 0 {
             progress(run.cycle);
         }
@@ -529,8 +538,8 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
     ///    A cell's output buffers change only in its own step, so the piece also gathers its
     ///    cells' link offers (the message at the front of each busy output buffer) while the
     ///    cell is in cache: the same offers, in the same order, as a pass after all steps.
-    ///    Whether a beam was processed (or held).
-    fn compute(&mut self) -> bool {
+    ///    The number of pieces, whose results [`Run::gather_steps`] takes next.
+    fn step(&mut self) -> usize {
         let k = StepCtx {
             grid: self.grid,
             env: self.env,
@@ -554,7 +563,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         pieces.into_par_iter().zip(done.par_iter_mut()).for_each(|((tile, base, idx), r)| {
             k.step_piece(tile, base, idx, r);
         });
-        self.gather_steps(count)
+        count
     }
 
     /// The compute pieces' results, in piece order: offers, idle and sleeping cells, beam

@@ -218,6 +218,68 @@ pub struct SourceReport {
     pub counts: DiffusionCounts,
 }
 
+/// Host wall time of each phase of the diffusion loop (seconds, summed over sources): where the
+/// simulator's time goes. Not simulated — it differs from run to run and with the threads, so
+/// it is kept out of [`SourceReport`] and compared by no test. `step` and `pull` run in
+/// parallel over the grid's pieces; the others are serial (one thread works, the rest wait).
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct PhaseSeconds {
+    /// Per source, before its first cycle: occluder tables, environment, counter snapshot.
+    pub setup: f64,
+    /// Initial beams handed to the source cell.
+    pub emit: f64,
+    /// Every active cell's step (parallel).
+    pub step: f64,
+    /// The steps' results gathered in order: offers, idle cells, beam counts (serial).
+    pub gather: f64,
+    /// Offers cut by receiver (serial) and pulled through the links (parallel), tallied.
+    pub links: f64,
+    /// Senders drop what was taken.
+    pub pop: f64,
+    /// The next cycle's active list, sleepers, the stall check (serial).
+    pub next: f64,
+    /// Per source, after its last cycle: per-cell counters summed, conservation checked.
+    pub tally: f64,
+}
+
+impl PhaseSeconds {
+    /// Every phase's seconds, with its name, in loop order.
+    pub fn named(&self) -> [(&'static str, f64); 8] {
+        let p = self;
+        [
+            ("setup", p.setup),
+            ("emit", p.emit),
+            ("step", p.step),
+            ("gather", p.gather),
+            ("links", p.links),
+            ("pop", p.pop),
+            ("next", p.next),
+            ("tally", p.tally),
+        ]
+    }
+
+    /// The sum over phases.
+    pub fn total(&self) -> f64 {
+        self.named().iter().map(|(_, s)| s).sum()
+    }
+}
+
+/// A stopwatch that adds the time since its last lap to a phase.
+struct Lap(std::time::Instant);
+
+impl Lap {
+    fn start() -> Self {
+        Lap(std::time::Instant::now())
+    }
+
+    /// Add the time since the last lap to `phase`; start the next lap.
+    fn lap(&mut self, phase: &mut f64) {
+        let now = std::time::Instant::now();
+        *phase += (now - self.0).as_secs_f64();
+        self.0 = now;
+    }
+}
+
 /// The lighting state of the whole grid after diffusion.
 pub struct Lighting<F: FracBits> {
     /// Grid side.
@@ -232,6 +294,8 @@ pub struct Lighting<F: FracBits> {
     pub link_faults: Option<FaultCounts>,
     /// The lit rule the cells applied.
     pub rule: LitRule,
+    /// Host time per phase of the loop (not simulated).
+    pub phases: PhaseSeconds,
 }
 
 impl<F: FracBits> Lighting<F> {
@@ -457,7 +521,9 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
         let traced = self.frustum.and_then(Summary::traceable);
         let mut reports = Vec::new();
         let mut visited = cfg.record_visits.then(|| vec![false; (grid.n * grid.n * grid.depth) as usize]);
+        let mut phases = PhaseSeconds::default();
         for (si, src) in self.sources.iter().enumerate() {
+            let mut lap = Lap::start();
             let occluders = (cfg.rule == LitRule::Exact).then(|| SourceOccluders::new(self.grid, src, self.far));
             let env = self.env(src, si, &order, occluders.as_ref().map(|o| o as &dyn ColumnOccluders));
             let before: Vec<LightCounters> = cells.iter().map(|c| c.counters).collect();
@@ -472,8 +538,12 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
             let rec = Recording { visited: visited.as_deref_mut(), tap: tap.as_deref_mut() };
             let (links, cells) = (links.slots(), &mut cells[..]);
             let initial = self.shot.map(|s| s.initial);
+            lap.lap(&mut phases.setup);
             let mut rep =
-                diffuse_one(grid, cells, links, (src, initial), si, &env, cfg, dead, rec, &mut |c| progress(si, c))?;
+                diffuse_one(grid, cells, links, (src, initial), si, &env, cfg, dead, rec, &mut phases, &mut |c| {
+                    progress(si, c)
+                })?;
+            lap = Lap::start();
             rep.position = src.pos.map(|p| p.to_num::<f64>());
             add_cell_counts(&mut rep, cells, &before);
             if let Some(o) = &occluders {
@@ -485,9 +555,10 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
                 check_conservation(si, &rep.counts)?;
             }
             reports.push(rep);
+            lap.lap(&mut phases.tally);
         }
         let link_faults = fault_counts(links.all());
-        Ok(Lighting { n: grid.n, cells, reports, visited, link_faults, rule: cfg.rule })
+        Ok(Lighting { n: grid.n, cells, reports, visited, link_faults, rule: cfg.rule, phases })
     }
 
     /// The lighting environment of source `si`.
