@@ -74,12 +74,17 @@ def concern_table(cg_txt, stats):
         cats[cat] = cats.get(cat, 0) + n
     beams = json.load(open(stats))["light"]["beams_processed"]
     out = [f"`render --n 128 --threads 1` (Cornell through its camera), {tot / 1e9:.2f} G instructions, "
-           f"{beams:,} processed beams, {tot / beams:,.0f} per beam:".replace(",", " "),
+           f"{grouped(beams)} processed beams, {grouped(tot / beams)} per beam:",
            "", "| concern | instructions | share | per beam |", "|---|---|---|---|"]
     for c in [c for c, _ in CONCERNS] + [OTHER]:
         v = cats.get(c, 0)
-        out.append(f"| {c} | {v / 1e6:,.0f} M | {100 * v / tot:.1f} % | {v / beams:,.0f} |".replace(",", " "))
+        out.append(f"| {c} | {grouped(v / 1e6)} M | {100 * v / tot:.1f} % | {grouped(v / beams)} |")
     return out
+
+
+def grouped(x):
+    """`x` rounded, thousands separated by spaces (as BENCHMARKS writes numbers)."""
+    return f"{round(x):,}".replace(",", " ")
 
 
 def main():
