@@ -42,9 +42,6 @@ pub fn board_elf(tmp: &Path) -> &'static Path {
     })
 }
 
-/// The QEMU runs share two cores with everything else: one grid at a time.
-pub static ONE_GRID: Mutex<()> = Mutex::new(());
-
 /// Faults injected on every inter-board byte stream, per 10 000 bytes.
 #[derive(Clone, Copy, Debug)]
 pub struct Faults {

@@ -10,6 +10,7 @@ mod common;
 
 mod async_boards;
 mod bit_budget;
+mod board_grids;
 mod brute_force;
 mod camera;
 mod closed_meshes;

@@ -30,7 +30,7 @@ use std::time::{Duration, Instant};
 
 use cell_core::wire::board::{KIND_CONFIG, KIND_REPORT, KIND_STATE, KIND_TERM_CONFIG, KIND_WORK};
 use rc2_tests::boards::{
-    board_config, board_elf, boot, neighbour, ring_config, Booted, Faults, Slow, CLEAN, KIND_QUERY, ONE_GRID, SIDE,
+    board_config, board_elf, boot, neighbour, ring_config, Booted, Faults, Slow, CLEAN, KIND_QUERY, SIDE,
 };
 use rc2_tests::qemu;
 
@@ -135,12 +135,10 @@ fn check_exactly_once(run: &Run) -> (u32, u32) {
     (retransmitted, skipped)
 }
 
-#[test]
-fn a_2x2_grid_of_boards_exchanges_every_frame_exactly_once() {
+pub(crate) fn a_2x2_grid_of_boards_exchanges_every_frame_exactly_once() {
     if !qemu::tools_present("a_2x2_grid_of_boards_exchanges_every_frame_exactly_once") {
         return;
     }
-    let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
     let run = run_grid(CLEAN);
     let (retransmitted, skipped) = check_exactly_once(&run);
     eprintln!(
@@ -150,12 +148,10 @@ fn a_2x2_grid_of_boards_exchanges_every_frame_exactly_once() {
     assert_eq!(run.injected, 0, "a clean wire corrupts nothing");
 }
 
-#[test]
-fn corrupted_and_dropped_bytes_between_boards_are_recovered_by_the_link() {
+pub(crate) fn corrupted_and_dropped_bytes_between_boards_are_recovered_by_the_link() {
     if !qemu::tools_present("corrupted_and_dropped_bytes_between_boards_are_recovered_by_the_link") {
         return;
     }
-    let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
     // About one byte in 250 corrupted and one in 250 dropped: some 10 % of the data frames.
     let run = run_grid(Faults { corrupt: 40, drop: 40, seed: 0x5AFE_2025 });
     let (retransmitted, skipped) = check_exactly_once(&run);
@@ -308,12 +304,10 @@ fn check_terminated(work: Work, states: &[Vec<BoardState>; 2]) {
     assert_eq!(processed(first), processed(second), "work after the declaration");
 }
 
-#[test]
-fn the_boards_detect_termination_never_early_with_a_slow_board() {
+pub(crate) fn the_boards_detect_termination_never_early_with_a_slow_board() {
     if !qemu::tools_present("the_boards_detect_termination_never_early_with_a_slow_board") {
         return;
     }
-    let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
     // Board 3's links deliver every byte 300 ms late, both ways (a token round over the
     // other links takes less).
     let (states, declared, _) = run_termination(CHAIN, CLEAN, Some(Slow::Board(3, Duration::from_millis(300))));
@@ -321,12 +315,10 @@ fn the_boards_detect_termination_never_early_with_a_slow_board() {
     check_terminated(CHAIN, &states);
 }
 
-#[test]
-fn the_boards_detect_termination_over_faulty_links() {
+pub(crate) fn the_boards_detect_termination_over_faulty_links() {
     if !qemu::tools_present("the_boards_detect_termination_over_faulty_links") {
         return;
     }
-    let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
     let (states, declared, injected) = run_termination(TREES, Faults { corrupt: 40, drop: 40, seed: 0x7E2A }, None);
     eprintln!("faulty links: {injected} faults, declared {declared:?} after the start; states {states:?}");
     check_terminated(TREES, &states);

@@ -42,7 +42,7 @@ use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
 use host_sim::machine::shade::{cell_material, eye_lights, point_lights, shade_grid, AMBIENT};
 use host_sim::precompute::{prepare, LoadConfig};
 use host_sim::scene::Mesh;
-use rc2_tests::boards::{board_elf, boot, ring_config, Booted, Faults, Slow, CLEAN, KIND_QUERY, ONE_GRID, RING, SIDE};
+use rc2_tests::boards::{board_elf, boot, ring_config, Booted, Faults, Slow, CLEAN, KIND_QUERY, RING, SIDE};
 use rc2_tests::qemu;
 
 /// Grid side in cells.
@@ -423,26 +423,22 @@ fn the_case() -> &'static Case {
     })
 }
 
-#[test]
-fn boards_load_and_light_their_tiles_as_host_sim_does() {
+pub(crate) fn boards_load_and_light_their_tiles_as_host_sim_does() {
     if !qemu::tools_present("boards_load_and_light_their_tiles_as_host_sim_does") {
         return;
     }
     let c = the_case();
-    let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
     let r = run_tiles(c, CLEAN, None);
     report(c, &r, "clean links");
     check(c, &r, "clean links");
     assert_eq!(r.injected, 0);
 }
 
-#[test]
-fn boards_light_the_same_voxels_over_faulty_links() {
+pub(crate) fn boards_light_the_same_voxels_over_faulty_links() {
     if !qemu::tools_present("boards_light_the_same_voxels_over_faulty_links") {
         return;
     }
     let c = the_case();
-    let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
     // About one byte in 250 corrupted and one in 250 dropped, as the link exercise's fault run.
     let r = run_tiles(c, Faults { corrupt: 40, drop: 40, seed: 0x711E_5EED }, None);
     report(c, &r, "faulty links");
@@ -452,13 +448,11 @@ fn boards_light_the_same_voxels_over_faulty_links() {
     assert!(sum(|s| s.retransmitted) > 0 && sum(|s| s.skipped) > 0, "faults were injected: some repaired");
 }
 
-#[test]
-fn a_slow_board_never_makes_the_ring_declare_early() {
+pub(crate) fn a_slow_board_never_makes_the_ring_declare_early() {
     if !qemu::tools_present("a_slow_board_never_makes_the_ring_declare_early") {
         return;
     }
     let c = the_case();
-    let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
     // The source's board gets every byte on its links 100 ms late, both ways (a delay line):
     // a token round over the other links takes less, and its beams are still on their way
     // while the others are passive.
@@ -469,13 +463,11 @@ fn a_slow_board_never_makes_the_ring_declare_early() {
     check(c, &r, &what);
 }
 
-#[test]
-fn a_late_wire_against_the_ring_never_makes_it_declare_early() {
+pub(crate) fn a_late_wire_against_the_ring_never_makes_it_declare_early() {
     if !qemu::tools_present("a_late_wire_against_the_ring_never_makes_it_declare_early") {
         return;
     }
     let c = the_case();
-    let _one = ONE_GRID.lock().unwrap_or_else(|e| e.into_inner());
     // The ring goes 0 → 1 → 3 → 2 → 0 over every link of the 2 × 2 boards, so a board's slow
     // links slow its token too. Here only the bytes the source's board (2) sends board 3 are
     // 300 ms late: that wire goes against the ring, and the light flows along it (east, away
