@@ -220,7 +220,7 @@ pub struct SourceReport {
 
 /// Host wall time of each phase of the diffusion loop (seconds, summed over sources): where the
 /// simulator's time goes. Not simulated — it differs from run to run and with the threads, so
-/// it is kept out of [`SourceReport`] and compared by no test. `step` and `pull` run in
+/// it is kept out of [`SourceReport`] and compared by no test. `step` and `links` run in
 /// parallel over the grid's pieces; the others are serial (one thread works, the rest wait).
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct PhaseSeconds {
