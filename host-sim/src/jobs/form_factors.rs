@@ -24,6 +24,8 @@ pub fn run(o: &FormFactorsOptions) -> Result<()> {
     if !o.tables {
         bail!("form-factors: nothing to do (pass --tables)");
     }
+    // The file first, so that a path that cannot be written fails before any work.
+    let mut file = o.csv.as_ref().map(|p| create(p)).transpose()?;
     let cells = tables::compute()?;
     print!("{}", tables::render(&cells));
     let off: Vec<String> =
@@ -34,8 +36,7 @@ pub fn run(o: &FormFactorsOptions) -> Result<()> {
         cells.len(),
         if off.is_empty() { "none".into() } else { off.join(", ") }
     );
-    if let Some(path) = &o.csv {
-        let mut f = create(path)?;
+    if let (Some(f), Some(path)) = (file.as_mut(), &o.csv) {
         f.write_all(tables::csv(&cells).as_bytes())?;
         f.flush()?;
         eprintln!("written to {}", path.display());

@@ -286,18 +286,23 @@ pub fn render(cells: &[Cell]) -> String {
     ];
     for (t, title) in titles {
         let _ = writeln!(out, "Table {t}: {title}; computed (published), * = disagrees");
-        let _ = writeln!(out, "{:>9} {}", "reference", METHODS.map(|m| format!("{m:>20}")).join(""));
+        let _ = writeln!(out, "{:>17} {}", "reference", METHODS.map(|m| format!("{m:>20}")).join(""));
         for &r in &ROWS {
             let row: Vec<&Cell> =
                 cells.iter().filter(|c| c.table == t && c.row == r && c.method != "reference").collect();
             let key = row.first().map_or(String::new(), |c| c.reference.clone());
+            // Table 2.1's key is the published reference; the computed one beside it.
+            let key = match cells.iter().find(|c| c.table == t && c.row == r && c.method == "reference") {
+                Some(c) => format!("{}{} ({key})", if c.agrees { "" } else { "*" }, c.computed),
+                None => key,
+            };
             let body: String = row
                 .iter()
                 .map(|c| {
                     format!("{:>20}", format!("{}{} ({})", if c.agrees { "" } else { "*" }, c.computed, c.published))
                 })
                 .collect();
-            let _ = writeln!(out, "{key:>9} {body}");
+            let _ = writeln!(out, "{key:>17} {body}");
         }
         out.push('\n');
     }
