@@ -250,3 +250,52 @@ pub fn parse_surface(spec: &str) -> Result<Box<dyn ProjectionSurface>> {
 
 #[cfg(test)]
 pub(crate) mod testkit;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn surfaces_parse_from_their_names() {
+        for (spec, name, res) in [
+            ("hemicube:64", "hemicube", "64"),
+            ("sillion:31", "sillion", "31"),
+            ("recker:36/13", "recker", "36/13"),
+            ("hemisphere-uniform:20", "hemisphere-uniform", "20"),
+            ("hemisphere:20", "hemisphere", "20"),
+            ("disk:50", "disk", "50"),
+        ] {
+            let s = parse_surface(spec).unwrap();
+            assert_eq!((s.name(), s.resolution().to_string()), (name, res.to_string()));
+        }
+        for bad in [
+            "hemicube",
+            "hemicube:0",
+            "hemicube:7",
+            "disk:-3",
+            "disk:1e9",
+            "recker:40",
+            "recker:10/x",
+            "cube:8",
+            "disk:99999",
+        ] {
+            let e = parse_surface(bad).err().unwrap_or_else(|| panic!("{bad} accepted"));
+            assert!(e.to_string().contains(bad.split(':').next().unwrap()), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn octant_folding_covers_the_grid() {
+        for r in [1, 2, 7, 8] {
+            let mut seen = vec![false; octant_len(r)];
+            for j in 0..r {
+                for i in 0..r {
+                    assert_eq!(octant_index(r, i, j), octant_index(r, j, i));
+                    assert_eq!(octant_index(r, i, j), octant_index(r, r - 1 - i, j));
+                    seen[octant_index(r, i, j)] = true;
+                }
+            }
+            assert!(seen.iter().all(|&s| s), "r = {r}");
+        }
+    }
+}
