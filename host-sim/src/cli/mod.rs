@@ -87,6 +87,13 @@ pub struct RadiosityArgs {
     /// how far its own solution moves (its self-error, to set beside the machine's error).
     #[arg(long, requires = "reference")]
     pub reference_self_error: bool,
+    /// With --reference: how the f64 reference estimates its form factors. `beams` (default):
+    /// today's, the exact contour integral times a ray-cast visible fraction; or a projective
+    /// surface of the radiosity thesis, ch. 2, applied at each sample point of a patch:
+    /// `hemicube:R` (R even), `sillion:R`, `recker:R1/R2`, `hemisphere-uniform:R`,
+    /// `hemisphere:R`, `disk:R` (docs/FORM-FACTORS.md; R up to 4000).
+    #[arg(long, value_name = "METHOD", default_value = "beams", value_parser = parse_form_factors)]
+    pub form_factors: crate::truth::formfactor::Estimator,
     /// Per-patch CSV (default SCENE_patches.csv).
     #[arg(long)]
     pub patches_csv: Option<PathBuf>,
@@ -834,6 +841,14 @@ fn dispatch(command: Command) -> Result<()> {
         Command::Subdivide(a) => jobs::scenes::subdivide(&(&a).into()),
         Command::FormFactors(a) => jobs::form_factors::run(&(&a).into()),
     }
+}
+
+fn parse_form_factors(s: &str) -> std::result::Result<crate::truth::formfactor::Estimator, String> {
+    use crate::truth::formfactor::Estimator;
+    if s == "beams" {
+        return Ok(Estimator::Contour);
+    }
+    crate::truth::projective::SurfaceSpec::parse(s).map(Estimator::Projective).map_err(|e| format!("{e:#}; or beams"))
 }
 
 fn parse_capacity(s: &str) -> std::result::Result<usize, String> {

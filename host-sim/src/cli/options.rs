@@ -14,7 +14,7 @@ use crate::jobs::audit::AuditOptions;
 use crate::jobs::bench::BenchOptions;
 use crate::jobs::form_factors::FormFactorsOptions;
 use crate::jobs::light::{LightOptions, LightingOptions};
-use crate::jobs::radiosity::RadiosityOptions;
+use crate::jobs::radiosity::{RadiosityOptions, RadiositySettings};
 use crate::jobs::render::RenderOptions;
 use crate::jobs::render_radiosity::{RenderRadiosity, DEFAULT_DISPLAY};
 use crate::jobs::scenes::SubdivideOptions;
@@ -165,7 +165,7 @@ impl From<&RadiosityArgs> for RadiosityOptions {
         RadiosityOptions {
             scene: a.load.scene.clone(),
             load: a.load.config(Preset::Render.load()),
-            solve: (&a.solve).into(),
+            solve: RadiositySettings { estimator: a.form_factors, ..(&a.solve).into() },
             reference: a.reference,
             reference_self_error: a.reference_self_error,
             patches_csv: a.patches_csv.clone(),
