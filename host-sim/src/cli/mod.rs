@@ -61,6 +61,10 @@ pub enum Command {
     /// diffusion from the patch with the most unshot power; per-patch and per-shot CSV;
     /// `--reference` compares with the f64 solver (ray-cast form factors) on the same patches.
     Radiosity(RadiosityArgs),
+    /// The projective form-factor methods of the radiosity thesis (ch. 2: hemicube, Sillion's and
+    /// Recker's planes, hemispheres, projection disk): `--tables` computes §2.5's Tables 2.1–2.3
+    /// from each method's own surface and prints them beside the published values.
+    FormFactors(FormFactorsArgs),
     /// List the built-in scenes.
     Scenes,
     /// Subdivide a mesh (1 → 4 midpoint splits) to about TARGET triangles and write an OBJ.
@@ -83,6 +87,13 @@ pub struct RadiosityArgs {
     /// how far its own solution moves (its self-error, to set beside the machine's error).
     #[arg(long, requires = "reference")]
     pub reference_self_error: bool,
+    /// With --reference: how the f64 reference estimates its form factors. `beams` (default):
+    /// today's, the exact contour integral times a ray-cast visible fraction; or a projective
+    /// surface of the radiosity thesis, ch. 2, applied at each sample point of a patch:
+    /// `hemicube:R` (R even), `sillion:R`, `recker:R1/R2`, `hemisphere-uniform:R`,
+    /// `hemisphere:R`, `disk:R` (docs/FORM-FACTORS.md; R up to 4000).
+    #[arg(long, value_name = "METHOD", default_value = "beams", value_parser = parse_form_factors)]
+    pub form_factors: crate::truth::formfactor::Estimator,
     /// Per-patch CSV (default SCENE_patches.csv).
     #[arg(long)]
     pub patches_csv: Option<PathBuf>,
@@ -784,6 +795,20 @@ pub struct SubdivideArgs {
     #[arg(long)]
     pub out: PathBuf,
 }
+/// Options of `form-factors`.
+#[derive(Args, Debug)]
+pub struct FormFactorsArgs {
+    /// Compute §2.5's Tables 2.1 (equivalent resolutions), 2.2 (proxels used) and 2.3 (memory,
+    /// Mo) from each method's surface and print them, `computed (published)`, `*` where a cell
+    /// is more than one unit of its last digit away (docs/FORM-FACTORS.md says why).
+    #[arg(long)]
+    pub tables: bool,
+    /// Also write the tables as CSV: columns table (2.1|2.2|2.3), reference (the row's reference
+    /// form factor, or hemicube resolution), method, computed, published.
+    #[arg(long, value_name = "F.csv")]
+    pub csv: Option<PathBuf>,
+}
+
 /// Run a parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
     // The command runs on a thread of the pool, so that the lighting loop's parallel passes
@@ -814,7 +839,16 @@ fn dispatch(command: Command) -> Result<()> {
             Ok(())
         }
         Command::Subdivide(a) => jobs::scenes::subdivide(&(&a).into()),
+        Command::FormFactors(a) => jobs::form_factors::run(&(&a).into()),
     }
+}
+
+fn parse_form_factors(s: &str) -> std::result::Result<crate::truth::formfactor::Estimator, String> {
+    use crate::truth::formfactor::Estimator;
+    if s == "beams" {
+        return Ok(Estimator::Contour);
+    }
+    crate::truth::projective::SurfaceSpec::parse(s).map(Estimator::Projective).map_err(|e| format!("{e:#}; or beams"))
 }
 
 fn parse_capacity(s: &str) -> std::result::Result<usize, String> {

@@ -5,15 +5,16 @@ use anyhow::{bail, Result};
 
 use super::phase_args::LightingArg;
 use super::{
-    AccuracyArgs, AuditArgs, BenchArgs, EmissionArg, LightArgs, LightOpts, LoadArgs, RadiosityArgs, RenderArgs,
-    SourceAtArg, SubdivideArgs, TableArgs, TimingArg, TraceArgs, VoxelizeArgs,
+    AccuracyArgs, AuditArgs, BenchArgs, EmissionArg, FormFactorsArgs, LightArgs, LightOpts, LoadArgs, RadiosityArgs,
+    RenderArgs, SourceAtArg, SubdivideArgs, TableArgs, TimingArg, TraceArgs, VoxelizeArgs,
 };
 use crate::config::{Needs, Overrides, Preset, RunConfig};
 use crate::jobs::accuracy::AccuracyOptions;
 use crate::jobs::audit::AuditOptions;
 use crate::jobs::bench::BenchOptions;
+use crate::jobs::form_factors::FormFactorsOptions;
 use crate::jobs::light::{LightOptions, LightingOptions};
-use crate::jobs::radiosity::RadiosityOptions;
+use crate::jobs::radiosity::{RadiosityOptions, RadiositySettings};
 use crate::jobs::render::RenderOptions;
 use crate::jobs::render_radiosity::{RenderRadiosity, DEFAULT_DISPLAY};
 use crate::jobs::scenes::SubdivideOptions;
@@ -164,7 +165,7 @@ impl From<&RadiosityArgs> for RadiosityOptions {
         RadiosityOptions {
             scene: a.load.scene.clone(),
             load: a.load.config(Preset::Render.load()),
-            solve: (&a.solve).into(),
+            solve: RadiositySettings { estimator: a.form_factors, ..(&a.solve).into() },
             reference: a.reference,
             reference_self_error: a.reference_self_error,
             patches_csv: a.patches_csv.clone(),
@@ -275,6 +276,12 @@ impl From<&BenchArgs> for BenchOptions {
 impl From<&SubdivideArgs> for SubdivideOptions {
     fn from(a: &SubdivideArgs) -> Self {
         SubdivideOptions { scene: a.scene.clone(), target: a.target, out: a.out.clone() }
+    }
+}
+
+impl From<&FormFactorsArgs> for FormFactorsOptions {
+    fn from(a: &FormFactorsArgs) -> Self {
+        FormFactorsOptions { tables: a.tables, csv: a.csv.clone() }
     }
 }
 

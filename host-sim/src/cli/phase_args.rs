@@ -185,6 +185,7 @@ impl From<&RadiosityOpts> for RadiositySettings {
             shots: a.shots.unwrap_or(d.shots),
             residual: a.residual.unwrap_or(d.residual),
             offset: a.offset.unwrap_or(d.offset),
+            estimator: d.estimator,
         }
     }
 }

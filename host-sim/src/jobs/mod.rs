@@ -12,11 +12,13 @@
 //! * [`radiosity`] — progressive radiosity on the grid, per-patch and per-shot CSV, the f64
 //!   reference's comparison.
 //! * [`mod@bench`] — the speed/accuracy sweep and its Pareto front; [`dump`] — lit-voxel dumps.
+//! * [`form_factors`] — the radiosity thesis's projective form factors and its Tables 2.1–2.3.
 
 pub mod accuracy;
 pub mod audit;
 pub mod bench;
 pub mod dump;
+pub mod form_factors;
 pub mod light;
 pub mod radiosity;
 pub mod render;

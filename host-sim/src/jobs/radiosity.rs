@@ -36,6 +36,9 @@ pub struct RadiositySettings {
     pub residual: f64,
     /// Push of each shot's source off its patch, voxels.
     pub offset: f64,
+    /// How the f64 reference estimates its form factors (`--form-factors`; default: the
+    /// ray-cast contour estimator).
+    pub estimator: Estimator,
 }
 
 impl Default for RadiositySettings {
@@ -45,6 +48,7 @@ impl Default for RadiositySettings {
             shots: 100_000,
             residual: 0.01,
             offset: crate::machine::radiosity::DEFAULT_OFFSET,
+            estimator: Estimator::Contour,
         }
     }
 }
@@ -146,6 +150,8 @@ pub struct ReferenceStats {
     pub self_error: Option<f64>,
     /// Wall time of the reference, seconds.
     pub wall_seconds: f64,
+    /// How its form factors were estimated (`--form-factors`).
+    pub estimator: Estimator,
 }
 
 /// Run the `radiosity` job.
@@ -213,16 +219,16 @@ pub fn solve_with_bar(scene: &LoadedScene, p: &Patches, cfg: &RadiosityConfig, q
     s
 }
 
-/// Form factors of the f64 reference with `strata` × `strata` samples per patch pair.
-fn form_factors(p: &Patches, strata: usize) -> Result<FormFactors> {
-    FormFactors::new(p, Sampling { strata, seed: 1, estimator: Estimator::Contour })
+/// Form factors of the f64 reference with `strata` × `strata` samples per patch triangle.
+fn form_factors(p: &Patches, strata: usize, estimator: Estimator) -> Result<FormFactors> {
+    FormFactors::new(p, Sampling { strata, seed: 1, estimator })
 }
 
 /// The f64 reference's solution on the same patches with the same stopping rule (3 × 3 strata),
 /// its form factors, and its wall time in seconds.
 pub fn reference_solve(p: &Patches, s: &RadiositySettings) -> Result<(FormFactors, Solution, f64)> {
     let t0 = Instant::now();
-    let ff = form_factors(p, 3)?;
+    let ff = form_factors(p, 3, s.estimator)?;
     let r = shoot(p, &ff, s)?;
     Ok((ff, r, t0.elapsed().as_secs_f64()))
 }
@@ -248,7 +254,7 @@ pub fn compare(
     let areas: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
     let self_error = self_error
         .then(|| -> Result<f64> {
-            let fine = shoot(p, &form_factors(p, 6)?, settings)?;
+            let fine = shoot(p, &form_factors(p, 6, settings.estimator)?, settings)?;
             let reflected = |b: &[[f64; 3]]| crate::truth::radiosity::reflected(&p.patches, b);
             rms_relative_error(&reflected(&fine.radiosity), &reflected(&r.radiosity), &areas)
         })
@@ -258,6 +264,7 @@ pub fn compare(
         direct_only_rms_relative_error: rms_relative_error(&r.radiosity, &direct.radiosity, &areas)?,
         shots: r.shots.len(),
         wall_seconds,
+        estimator: settings.estimator,
         self_error,
     };
     Ok((stats, ff, r))
@@ -370,8 +377,8 @@ pub fn print_summary(s: &RadiosityStats) {
     );
     if let Some(r) = &s.reference {
         eprintln!(
-            "  reference ({} shots, {:.1} s): per-patch RMS relative error {:.4} (direct light only {:.4})",
-            r.shots, r.wall_seconds, r.rms_relative_error, r.direct_only_rms_relative_error
+            "  reference ({} shots, {:.1} s, form factors {:?}): per-patch RMS relative error {:.4} (direct light only {:.4})",
+            r.shots, r.wall_seconds, r.estimator, r.rms_relative_error, r.direct_only_rms_relative_error
         );
         if let Some(e) = r.self_error {
             eprintln!("  reference self-error (3×3 against 6×6 strata, reflected B − E): RMS relative {e:.4}");

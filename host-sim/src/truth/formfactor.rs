@@ -29,6 +29,12 @@
 //!   bias is known: along a right-angle edge of length L it removes `4 ρ₀ L / (9 π A_i)` from
 //!   `F_ij` (ρ₀ = √(ε/π), ε = a_k + a_l), the tests check it. Reciprocity is exact by construction.
 //!
+//! * [`Estimator::Projective`]: a projective surface of ch. 2 ([`crate::truth::projective`]) at
+//!   each shooter point, applied on its normal, depth-buffering every patch's triangles (a
+//!   triangle seen from behind occludes but receives nothing): one projection gives the whole row, `F_ij = Σ_x a_x F_proj(x → j) / A_i`. Its errors are the
+//!   surface's aliasing (docs/FORM-FACTORS.md) and, for the single planes, the grazing
+//!   directions they miss.
+//!
 //! Closed forms for the tests: two directly opposed parallel rectangles, two perpendicular
 //! rectangles sharing an edge, a differential area facing a parallel rectangle.
 
@@ -38,6 +44,7 @@ use anyhow::{bail, Result};
 use parry3d_f64::math::Vector;
 use rayon::prelude::*;
 
+use super::projective::{ProjectionSurface, SurfaceSpec};
 use super::visibility::Reference;
 use crate::rng::Rng;
 use crate::scene::patches::{area_vector, split_triangle, Patch, Patches};
@@ -98,6 +105,17 @@ pub fn point_to_polygon(x: Vector, n: Vector, polygon: &[Vector], pn: Vector) ->
     contour(x, n, &clipped)
 }
 
+/// Every patch's triangles and the patch each belongs to, with the surface of `spec`.
+fn projective(patches: &Patches, spec: SurfaceSpec) -> Result<Projective> {
+    let mut triangles = Vec::new();
+    let mut owner = Vec::new();
+    for (k, p) in patches.patches.iter().enumerate() {
+        triangles.extend(p.triangles.iter().copied());
+        owner.extend(std::iter::repeat_n(k, p.triangles.len()));
+    }
+    Ok(Projective { surface: spec.build()?, triangles, owner })
+}
+
 /// The part of `poly` with `(p − x) · n > tol` (Sutherland–Hodgman against one plane).
 fn clip_front(poly: &[Vector], x: Vector, n: Vector, tol: f64) -> Vec<Vector> {
     let h: Vec<f64> = poly.iter().map(|p| (*p - x).dot(n) - tol).collect();
@@ -145,6 +163,8 @@ pub enum Estimator {
     Contour,
     /// Point-to-point kernel over all pairs of sample points, capped in the near field.
     PointToPoint,
+    /// A projective surface of the thesis's ch. 2 at every shooter point.
+    Projective(SurfaceSpec),
 }
 
 /// Sampling of the form factors.
@@ -191,6 +211,16 @@ pub struct FormFactors {
     reference: Reference,
     sampling: Sampling,
     rays: AtomicU64,
+    /// With [`Estimator::Projective`]: the surface, every patch's triangles and their patch.
+    projective: Option<Projective>,
+}
+
+/// What [`Estimator::Projective`] projects.
+#[derive(Debug)]
+struct Projective {
+    surface: Box<dyn ProjectionSurface>,
+    triangles: Vec<[Vector; 3]>,
+    owner: Vec<usize>,
 }
 
 impl FormFactors {
@@ -216,7 +246,11 @@ impl FormFactors {
             ids.extend(std::iter::repeat_n(k as u32, piece.triangles.len()));
         }
         let reference = Reference::new(tris, ids)?;
-        Ok(FormFactors { geoms, samples, reference, sampling, rays: AtomicU64::new(0) })
+        let projective = match sampling.estimator {
+            Estimator::Projective(spec) => Some(projective(patches, spec)?),
+            _ => None,
+        };
+        Ok(FormFactors { geoms, samples, reference, sampling, rays: AtomicU64::new(0), projective })
     }
 
     /// Number of patches.
@@ -249,12 +283,45 @@ impl FormFactors {
         if i >= self.len() {
             bail!("form factors: patch {i} out of range ({} patches)", self.len());
         }
+        if let Some(p) = &self.projective {
+            return Ok(self.projective_row(p, i));
+        }
         Ok((0..self.len()).into_par_iter().map(|j| self.pair(i, j)).collect())
     }
 
     /// The whole matrix, row by row (rows in parallel).
     pub fn matrix(&self) -> Vec<Vec<f64>> {
+        if let Some(p) = &self.projective {
+            return (0..self.len()).into_par_iter().map(|i| self.projective_row(p, i)).collect();
+        }
         (0..self.len()).into_par_iter().map(|i| (0..self.len()).map(|j| self.pair(i, j)).collect()).collect()
+    }
+
+    /// Row i by [`Estimator::Projective`]: one projection per shooter point (in parallel),
+    /// each triangle's form factor credited to its patch, weighted by the point's stratum.
+    fn projective_row(&self, p: &Projective, i: usize) -> Vec<f64> {
+        let g = &self.geoms[i];
+        let per_point = |x: &Sample| {
+            let ff = p.surface.form_factors(x.point, g.normal, &p.triangles);
+            let mut row = vec![0.0; self.len()];
+            for (t, f) in ff.iter().enumerate() {
+                // A triangle seen from behind hides what is beyond it but receives nothing
+                // (as the other estimators' `faces_toward`): a point inside a closed block.
+                let j = p.owner[t];
+                if (x.point - p.triangles[t][0]).dot(self.geoms[j].normal) > 0.0 {
+                    row[j] += x.weight * f / g.area;
+                }
+            }
+            row
+        };
+        // Points in parallel, summed in their order: the same row whatever the threads.
+        let rows: Vec<Vec<f64>> = self.samples[i].par_iter().map(per_point).collect();
+        let mut row = vec![0.0; self.len()];
+        for r in &rows {
+            row.iter_mut().zip(r).for_each(|(a, b)| *a += b);
+        }
+        row[i] = 0.0;
+        row
     }
 
     /// `F_ij` by the chosen estimator.
@@ -266,6 +333,8 @@ impl FormFactors {
         let sum: f64 = match self.sampling.estimator {
             Estimator::Contour => self.samples[i].iter().map(|x| x.weight * self.contour_term(i, x, j)).sum(),
             Estimator::PointToPoint => self.samples[i].iter().map(|x| x.weight * self.kernel_sum(i, x, j)).sum(),
+            // `row` and `matrix` project whole rows; a single pair is the same row's entry.
+            Estimator::Projective(_) => return self.projective.as_ref().map_or(0.0, |p| self.projective_row(p, i)[j]),
         };
         sum / gi.area
     }

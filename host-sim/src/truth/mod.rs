@@ -4,6 +4,8 @@
 //! * [`visibility`] — exact ray–triangle visibility over a BVH.
 //! * [`formfactor`] — form factors between radiosity patches, sampled with exact visibility,
 //!   and closed forms (Renaud 1993, ch. 2 and §3.1).
+//! * [`projective`] — the projective form-factor methods of Renaud 1993 ch. 2 (hemicube,
+//!   single planes, hemispheres, disk) and §2.5's tables.
 //! * [`radiosity`] — progressive-refinement radiosity, the reference solution, and a direct
 //!   solve of the same system (Renaud 1993, §1.3).
 //! * [`refrender`] — the f64 reference image (same camera, lights and shading formula).
@@ -12,6 +14,7 @@
 
 pub mod compare;
 pub mod formfactor;
+pub mod projective;
 pub mod radiosity;
 pub mod refrender;
 pub mod visibility;

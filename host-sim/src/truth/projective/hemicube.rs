@@ -1,0 +1,179 @@
+//! Cohen's hemicube (radiosity thesis §2.3.1, Fig. 2.4): five faces of the half cube of
+//! half-side 1 above the differential area: the top face z = 1 cut into R × R square proxels,
+//! the four side faces into R × R/2 (R even).
+//!
+//! Delta form factors (§2.3.1): `ΔS / (π (x² + y² + 1)²)` on the top face and
+//! `z ΔS / (π (y² + z² + 1)²)` on the side faces at the proxel's centre; here each proxel's
+//! exact form factor (the closed form of a small rectangle, [`point_to_parallel_rectangle`],
+//! and the contour integral, [`point_to_polygon`]), so that they sum to 1 up to rounding.
+//! Stored by symmetry: 1/8 of the top face ([`octant_index`]) and, for the sides, the half of
+//! one side face that the symmetry in y leaves (R²/4 values; the thesis counts 1/4 of a side
+//! face, R²/8, which a face symmetric only in y does not allow — its byte model is kept in
+//! [`ProjectionSurface::memory_bytes`], see docs/FORM-FACTORS.md).
+//!
+//! Samples: the R² top proxels row by row, then the four side faces (+x, −x, +y, −y), each
+//! R × R/2 with the height index fastest.
+
+use std::f64::consts::PI;
+use std::sync::OnceLock;
+
+use anyhow::Result;
+use parry3d_f64::math::Vector;
+
+use super::{check_resolution, octant_index, octant_len, ProjectionSurface, Resolution};
+use crate::truth::formfactor::{point_to_parallel_rectangle, point_to_polygon};
+
+/// A hemicube at resolution R (even).
+#[derive(Debug)]
+pub struct Hemicube {
+    r: u32,
+    /// The stored FFEs, computed on first use.
+    tables: OnceLock<Tables>,
+}
+
+/// The stored FFEs.
+#[derive(Debug)]
+struct Tables {
+    /// Top-face FFEs on one octant.
+    top: Vec<f64>,
+    /// Side-face FFEs on the half y ≥ 0 of the +x face: index `j * (R/2) + k` (j from the
+    /// middle outwards, k the height).
+    side: Vec<f64>,
+}
+
+impl Hemicube {
+    /// A hemicube at resolution `r` (even, 2..=[`super::MAX_RESOLUTION`]).
+    pub fn new(r: u32) -> Result<Hemicube> {
+        check_resolution("hemicube", r, true)?;
+        Ok(Hemicube { r, tables: OnceLock::new() })
+    }
+
+    fn tables(&self) -> &Tables {
+        self.tables.get_or_init(|| {
+            let (r, w) = (self.r, 2.0 / self.r as f64);
+            let mut top = vec![0.0; octant_len(r)];
+            for j in 0..r.div_ceil(2) {
+                for i in 0..=j {
+                    top[octant_index(r, i, j)] = top_cell(w, i, j);
+                }
+            }
+            let h = r / 2;
+            let mut side = vec![0.0; (h * h) as usize];
+            for j in 0..h {
+                for k in 0..h {
+                    side[(j * h + k) as usize] = side_cell(w, h + j, k);
+                }
+            }
+            Tables { top, side }
+        })
+    }
+
+    fn side_delta(&self, j: u32, k: u32) -> f64 {
+        let h = self.r / 2;
+        let jf = if j >= h { j - h } else { h - 1 - j };
+        self.tables().side[(jf * h + k) as usize]
+    }
+}
+
+/// Exact FFE of top cell (i, j): the rectangle `[−1 + iw, −1 + (i+1)w] × …` at height 1.
+fn top_cell(w: f64, i: u32, j: u32) -> f64 {
+    let (x0, y0) = (-1.0 + i as f64 * w, -1.0 + j as f64 * w);
+    point_to_parallel_rectangle(x0, x0 + w, y0, y0 + w, 1.0)
+}
+
+/// Exact FFE of the +x face's cell (j along y, k along z).
+fn side_cell(w: f64, j: u32, k: u32) -> f64 {
+    let (y0, z0) = (-1.0 + j as f64 * w, k as f64 * w);
+    let p = |y: f64, z: f64| Vector::new(1.0, y, z);
+    let poly = [p(y0, z0), p(y0 + w, z0), p(y0 + w, z0 + w), p(y0, z0 + w)];
+    point_to_polygon(Vector::ZERO, Vector::Z, &poly, -Vector::X)
+}
+
+impl ProjectionSurface for Hemicube {
+    fn name(&self) -> &'static str {
+        "hemicube"
+    }
+    fn resolution(&self) -> Resolution {
+        Resolution::Single(self.r)
+    }
+    /// R² on top and 4 × R × R/2 on the sides: 3R² (Table 2.2).
+    fn proxels(&self) -> u64 {
+        3 * (self.r as u64).pow(2)
+    }
+    /// The proxels at the centre of the top face (§2.5.2).
+    fn largest_delta_ff(&self) -> f64 {
+        let c = self.r / 2;
+        top_cell(2.0 / self.r as f64, c, c)
+    }
+    /// §2.5.3: 8 bytes (facet id, distance) per proxel, 4 per stored FFE on 1/8 of the top and
+    /// 1/4 of a side face as the thesis counts: `Q_hc = 25 R²`.
+    fn memory_bytes(&self) -> u64 {
+        let r2 = (self.r as u64).pow(2);
+        8 * 3 * r2 + 4 * (r2 / 8 + r2 / 8)
+    }
+    fn samples(&self) -> usize {
+        3 * (self.r as usize).pow(2)
+    }
+    fn direction(&self, k: usize) -> [f64; 3] {
+        let (r, w) = (self.r as usize, 2.0 / self.r as f64);
+        let c = |i: usize| -1.0 + (i as f64 + 0.5) * w;
+        if k < r * r {
+            return [c(k % r), c(k / r), 1.0];
+        }
+        let k = k - r * r;
+        let (face, rest) = (k / (r * r / 2), k % (r * r / 2));
+        let (j, z) = (c(rest / (r / 2)), (rest % (r / 2)) as f64 * w + 0.5 * w);
+        match face {
+            0 => [1.0, j, z],
+            1 => [-1.0, j, z],
+            2 => [j, 1.0, z],
+            _ => [j, -1.0, z],
+        }
+    }
+    fn delta(&self, k: usize) -> f64 {
+        let r = self.r as usize;
+        if k < r * r {
+            return self.tables().top[octant_index(self.r, (k % r) as u32, (k / r) as u32)];
+        }
+        let rest = (k - r * r) % (r * r / 2);
+        self.side_delta((rest / (r / 2)) as u32, (rest % (r / 2)) as u32)
+    }
+}
+
+/// The thesis's top-face FFE formula at a proxel centre (§2.3.1), for the tests.
+pub fn thesis_top_delta(x: f64, y: f64, area: f64) -> f64 {
+    area / (PI * (x * x + y * y + 1.0).powi(2))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::truth::projective::testkit;
+
+    #[test]
+    fn deltas_sum_to_one_and_match_the_thesis_formula() {
+        let h = Hemicube::new(40).unwrap();
+        testkit::deltas_sum_to(&h, 1.0);
+        // Centre proxel against §2.3.1's formula at its centre: O(w²) apart.
+        let w = 0.05;
+        let f = thesis_top_delta(w / 2.0, w / 2.0, w * w);
+        assert!((h.largest_delta_ff() - f).abs() < f * w * w, "{} {f}", h.largest_delta_ff());
+    }
+
+    #[test]
+    fn enclosure_parallel_perpendicular_occlusion() {
+        testkit::all_checks(
+            |r| (Box::new(Hemicube::new(r).unwrap()), std::f64::consts::SQRT_2 / r as f64),
+            24,
+            96,
+            1.0,
+        );
+    }
+
+    #[test]
+    fn odd_or_zero_resolution_is_refused() {
+        assert!(Hemicube::new(0).is_err());
+        assert!(Hemicube::new(7).is_err());
+        assert!(Hemicube::new(1_000_000).is_err());
+    }
+}
