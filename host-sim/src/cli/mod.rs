@@ -87,9 +87,11 @@ pub struct RadiosityArgs {
     /// how far its own solution moves (its self-error, to set beside the machine's error).
     #[arg(long, requires = "reference")]
     pub reference_self_error: bool,
-    /// With --reference: how the f64 reference estimates its form factors. `beams` (default):
-    /// today's, the exact contour integral times a ray-cast visible fraction; or a projective
-    /// surface of the radiosity thesis, ch. 2, applied at each sample point of a patch:
+    /// How form factors are sampled. `beams` (default): the machine shoots by beam diffusion
+    /// and the f64 reference (--reference) takes the exact contour integral times a ray-cast
+    /// visible fraction. A projective surface of the radiosity thesis, ch. 2, replaces the
+    /// reference's estimator, applied at each sample point of a patch (the machine still
+    /// shoots by beams):
     /// `hemicube:R` (R even), `sillion:R`, `recker:R1/R2`, `hemisphere-uniform:R`,
     /// `hemisphere:R`, `disk:R` (docs/FORM-FACTORS.md; R up to 4000).
     #[arg(long, value_name = "METHOD", default_value = "beams", value_parser = parse_form_factors)]

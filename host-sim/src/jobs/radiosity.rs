@@ -377,7 +377,7 @@ pub fn print_summary(s: &RadiosityStats) {
     );
     if let Some(r) = &s.reference {
         eprintln!(
-            "  reference ({} shots, {:.1} s, form factors {:?}): per-patch RMS relative error {:.4} (direct light only {:.4})",
+            "  reference ({} shots, {:.1} s, form factors {}): per-patch RMS relative error {:.4} (direct light only {:.4})",
             r.shots, r.wall_seconds, r.estimator, r.rms_relative_error, r.direct_only_rms_relative_error
         );
         if let Some(e) = r.self_error {

@@ -156,7 +156,7 @@ fn contour(x: Vector, n: Vector, poly: &[Vector]) -> f64 {
 }
 
 /// How [`FormFactors`] estimates `F_ij` (see the module documentation).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Estimator {
     /// Exact unoccluded point-to-polygon factor × sampled visible fraction.
     #[default]
@@ -165,6 +165,24 @@ pub enum Estimator {
     PointToPoint,
     /// A projective surface of the thesis's ch. 2 at every shooter point.
     Projective(SurfaceSpec),
+}
+
+impl std::fmt::Display for Estimator {
+    /// What a run's summary calls it: `contour`, `point-to-point`, or the surface's `METHOD:R`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Estimator::Contour => f.write_str("contour"),
+            Estimator::PointToPoint => f.write_str("point-to-point"),
+            Estimator::Projective(s) => write!(f, "{s}"),
+        }
+    }
+}
+
+impl serde::Serialize for Estimator {
+    /// As its name ([`Estimator`]'s `Display`): `"contour"`, `"hemicube:16"` …
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
 }
 
 /// Sampling of the form factors.
