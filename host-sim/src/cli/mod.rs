@@ -809,6 +809,15 @@ pub struct FormFactorsArgs {
     /// form factor, or hemicube resolution), method, computed, published.
     #[arg(long, value_name = "F.csv")]
     pub csv: Option<PathBuf>,
+    /// Draw §2.5.4's comparison (the thesis's Fig. 2.18): the form factor of two of four equal
+    /// squares off the axis, at two distances, by every method at the resolution equivalent to
+    /// a hemicube of every even R from 16 to 96, as its relative error to the exact value (PNG).
+    #[arg(long, value_name = "F.png")]
+    pub figure: Option<PathBuf>,
+    /// Also write the figure's points as CSV: columns distance, facet, method, hemicube_r,
+    /// resolution, computed, exact, relative_error.
+    #[arg(long, value_name = "F.csv", requires = "figure")]
+    pub figure_csv: Option<PathBuf>,
 }
 
 /// Run a parsed command line.

@@ -281,7 +281,12 @@ impl From<&SubdivideArgs> for SubdivideOptions {
 
 impl From<&FormFactorsArgs> for FormFactorsOptions {
     fn from(a: &FormFactorsArgs) -> Self {
-        FormFactorsOptions { tables: a.tables, csv: a.csv.clone() }
+        FormFactorsOptions {
+            tables: a.tables,
+            csv: a.csv.clone(),
+            figure: a.figure.clone(),
+            figure_csv: a.figure_csv.clone(),
+        }
     }
 }
 

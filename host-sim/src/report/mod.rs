@@ -3,6 +3,7 @@
 //! ([`progress`]) and the output files' plumbing ([`files`]).
 
 pub mod convergence;
+pub mod ff_figure;
 pub mod files;
 pub mod pareto;
 pub mod plot;

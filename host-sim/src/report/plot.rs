@@ -194,7 +194,7 @@ pub(crate) const FONT: &str = "sans-serif";
 
 /// Colours of our series (matplotlib's "tab10", its grey swapped for navy: greys and black
 /// are the thesis's).
-const PALETTE: [RGBColor; 10] = [
+pub(crate) const PALETTE: [RGBColor; 10] = [
     RGBColor(31, 119, 180),
     RGBColor(255, 127, 14),
     RGBColor(44, 160, 44),

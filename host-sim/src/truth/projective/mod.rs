@@ -31,6 +31,7 @@
 //! plane. Facets are the slice's triangles; a facet's id is its index in the slice.
 
 pub mod disk;
+pub mod figure;
 pub mod hemicube;
 pub mod hemisphere;
 pub mod hemisphere_uniform;
