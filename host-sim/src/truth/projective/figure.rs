@@ -16,8 +16,8 @@ use crate::truth::formfactor::point_to_polygon;
 /// The methods, in Table 2.1's column order (the names of [`SurfaceSpec::parse`]).
 pub const METHODS: [&str; 6] = ["hemicube", "sillion", "recker", "hemisphere-uniform", "hemisphere", "disk"];
 
-/// The distances of the squares' plane from the point (near: each square ~12 % of the view's
-/// form factor; far: ~1 %).
+/// The distances of the squares' plane from the point (near: each square ≈ 6 % of the view's
+/// form factor; far: ≈ 0.5 %).
 pub const DISTANCES: [f64; 2] = [1.0, 4.0];
 
 /// The facets plotted (1-based, row-major in the block: 1 and 4 are the diagonal pair).
