@@ -61,17 +61,8 @@ BIN[base]=$(realpath -e "$1") || die "no such file: $1"
 BIN[new]=$(realpath -e "$2") || die "no such file: $2"
 for b in base new; do [ -x "${BIN[$b]}" ] || die "$b binary ${BIN[$b]} is not executable"; done
 
-ALL_ROWS="cornell-128 cornell-128-t1 cornell-256 cornell-512 teapot-256 bureau1-256 bureau2-256 radiosity-64"
-declare -A ARGS=(
-  [cornell-128]="render --n 128"
-  [cornell-128-t1]="render --n 128 --threads 1"
-  [cornell-256]="render --n 256"
-  [cornell-512]="render --n 512"
-  [teapot-256]="render teapot-floor --n 256"
-  [bureau1-256]="render bureau1 --n 256"
-  [bureau2-256]="render bureau2 --n 256"
-  [radiosity-64]="radiosity cornell --n 64 --residual 0.01"
-)
+# shellcheck source=bench/host_suite.sh
+source "$HERE/host_suite.sh"
 # The cachegrind command of a row: its own with --threads 1, unless given here.
 declare -A CG_ARGS=(
   [radiosity-64]="radiosity cornell --n 32 --residual 0.01 --threads 1"

@@ -8,8 +8,8 @@
 #   e.g. REPS=3 bench/host_phases.sh target/release/host-sim
 #
 # Rows: the Cornell box through its camera at n = 128 and 256, teapot-floor and bureau1 at 256
-# (ROWS picks among cornell-128 cornell-256 teapot-256 bureau1-256). Every run is
-# `host-sim render SCENE --n N --threads T --quiet --out … --stats …`; the table gives medians
+# (ROWS picks among the render rows of bench/host_suite.sh without --threads). Every run is
+# the row's command with `--threads T --quiet --out … --stats …`; the table gives medians
 # over REPS runs per (row, threads), threads 1 and 2 interleaved, and the 2-thread speed-up of
 # each phase (ratio of medians).
 #
@@ -38,23 +38,20 @@ mkdir -p "$(dirname "$OUT")"
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
 
-args_of() {
-  case "$1" in
-    cornell-128) echo "cornell --n 128" ;;
-    cornell-256) echo "cornell --n 256" ;;
-    teapot-256) echo "teapot-floor --n 256" ;;
-    bureau1-256) echo "bureau1 --n 256" ;;
-    *) die "unknown row $1" ;;
-  esac
-}
+# shellcheck source=bench/host_suite.sh
+source "$HERE/host_suite.sh"
+for row in $ROWS; do
+  [ -n "${ARGS[$row]:-}" ] && [[ ${ARGS[$row]} == render* ]] && [[ ${ARGS[$row]} != *--threads* ]] \
+    || die "row '$row' is not a render row without --threads (rows: $ALL_ROWS)"
+done
 
 PHASES="setup emit step gather links pop next tally"
 echo "row,threads,rep,light_s,beams,${PHASES// /,}" > "$OUT"
 for row in $ROWS; do
   for rep in $(seq 1 "$REPS"); do
     for t in 1 2; do
-      # shellcheck disable=SC2046
-      "$BIN" render $(args_of "$row") --threads "$t" --quiet --out "$TMP/out.png" --stats "$TMP/s.json" 2>"$TMP/err" \
+      # shellcheck disable=SC2086
+      "$BIN" ${ARGS[$row]} --threads "$t" --quiet --out "$TMP/out.png" --stats "$TMP/s.json" 2>"$TMP/err" \
         || { cat "$TMP/err" >&2; die "$row --threads $t failed"; }
       python3 - "$TMP/s.json" "$row" "$t" "$rep" "$PHASES" >> "$OUT" <<'PY'
 import json, sys

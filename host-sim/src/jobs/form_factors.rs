@@ -24,15 +24,9 @@ pub struct FormFactorsOptions {
 }
 
 /// The hemicube resolutions of the figure's x axis: every even R from 16 to 96.
-const FIGURE_RESOLUTIONS: [u32; 41] = {
-    let mut r = [0; 41];
-    let mut i = 0;
-    while i < 41 {
-        r[i] = 16 + 2 * i as u32;
-        i += 1;
-    }
-    r
-};
+fn figure_resolutions() -> Vec<u32> {
+    (16..=96).step_by(2).collect()
+}
 
 /// Run the job: the tables, printed, and the CSV if asked; the figure if asked.
 pub fn run(o: &FormFactorsOptions) -> Result<()> {
@@ -53,7 +47,7 @@ fn run_figure(png: &std::path::Path, csv: Option<&std::path::Path>) -> Result<()
     let mut file = csv.map(create).transpose()?;
     // The picture's file too, before any work: a path that cannot be written fails first.
     drop(create(png)?);
-    let points = figure::compute(&FIGURE_RESOLUTIONS)?;
+    let points = figure::compute(&figure_resolutions())?;
     crate::report::ff_figure::plot_figure(&points, png)?;
     eprintln!("figure written to {}", png.display());
     if let (Some(f), Some(path)) = (file.as_mut(), csv) {

@@ -15,40 +15,23 @@ use std::time::Instant;
 
 use super::{mcu_grid, mcu_tiles};
 
+/// A case: its path, as the name it is reported and filtered by, and the function.
+macro_rules! case {
+    ($module:ident :: $name:ident) => {
+        (concat!(stringify!($module), "::", stringify!($name)), $module::$name as fn())
+    };
+}
+
 /// Every grid case, by name, in the order they run.
 const CASES: [(&str, fn()); 8] = [
-    (
-        "mcu_grid::a_2x2_grid_of_boards_exchanges_every_frame_exactly_once",
-        mcu_grid::a_2x2_grid_of_boards_exchanges_every_frame_exactly_once,
-    ),
-    (
-        "mcu_grid::corrupted_and_dropped_bytes_between_boards_are_recovered_by_the_link",
-        mcu_grid::corrupted_and_dropped_bytes_between_boards_are_recovered_by_the_link,
-    ),
-    (
-        "mcu_grid::the_boards_detect_termination_never_early_with_a_slow_board",
-        mcu_grid::the_boards_detect_termination_never_early_with_a_slow_board,
-    ),
-    (
-        "mcu_grid::the_boards_detect_termination_over_faulty_links",
-        mcu_grid::the_boards_detect_termination_over_faulty_links,
-    ),
-    (
-        "mcu_tiles::boards_load_and_light_their_tiles_as_host_sim_does",
-        mcu_tiles::boards_load_and_light_their_tiles_as_host_sim_does,
-    ),
-    (
-        "mcu_tiles::boards_light_the_same_voxels_over_faulty_links",
-        mcu_tiles::boards_light_the_same_voxels_over_faulty_links,
-    ),
-    (
-        "mcu_tiles::a_slow_board_never_makes_the_ring_declare_early",
-        mcu_tiles::a_slow_board_never_makes_the_ring_declare_early,
-    ),
-    (
-        "mcu_tiles::a_late_wire_against_the_ring_never_makes_it_declare_early",
-        mcu_tiles::a_late_wire_against_the_ring_never_makes_it_declare_early,
-    ),
+    case!(mcu_grid::a_2x2_grid_of_boards_exchanges_every_frame_exactly_once),
+    case!(mcu_grid::corrupted_and_dropped_bytes_between_boards_are_recovered_by_the_link),
+    case!(mcu_grid::the_boards_detect_termination_never_early_with_a_slow_board),
+    case!(mcu_grid::the_boards_detect_termination_over_faulty_links),
+    case!(mcu_tiles::boards_load_and_light_their_tiles_as_host_sim_does),
+    case!(mcu_tiles::boards_light_the_same_voxels_over_faulty_links),
+    case!(mcu_tiles::a_slow_board_never_makes_the_ring_declare_early),
+    case!(mcu_tiles::a_late_wire_against_the_ring_never_makes_it_declare_early),
 ];
 
 /// Run the cases whose names contain `only` (all with `None`), each to its end; the names of

@@ -42,6 +42,10 @@ pub struct FigurePoint {
     pub exact: f64,
 }
 
+/// The point the form factors are taken from, its normal, and the normal the squares face it
+/// with.
+const FROM: (Vector, Vector, Vector) = (Vector::ZERO, Vector::Z, Vector::NEG_Z);
+
 /// The four squares at `distance`, facet k (0-based) as its corners.
 pub fn squares(distance: f64) -> [[Vector; 4]; 4] {
     let (x0, y0, s) = (-0.43, -0.46, 0.5);
@@ -58,7 +62,7 @@ pub fn squares(distance: f64) -> [[Vector; 4]; 4] {
 
 /// Every point of the figure for the hemicube resolutions `rs` (even, ≥ 2).
 pub fn compute(rs: &[u32]) -> Result<Vec<FigurePoint>> {
-    let (x, n, facing) = (Vector::ZERO, Vector::new(0.0, 0.0, 1.0), Vector::new(0.0, 0.0, -1.0));
+    let (x, n, facing) = FROM;
     let mut out = Vec::new();
     for &r in rs {
         let (_, resolutions) = tables::equivalent_resolutions(r)?;
@@ -118,7 +122,7 @@ mod tests {
     fn the_squares_tile_the_block_and_the_methods_converge() {
         for d in DISTANCES {
             let sq = squares(d);
-            let (x, n, facing) = (Vector::ZERO, Vector::new(0.0, 0.0, 1.0), Vector::new(0.0, 0.0, -1.0));
+            let (x, n, facing) = FROM;
             let sum: f64 = sq.iter().map(|c| point_to_polygon(x, n, c, facing)).sum();
             let block = crate::truth::formfactor::point_to_parallel_rectangle(-0.43, 0.57, -0.46, 0.54, d);
             assert!((sum - block).abs() < 1e-12, "d = {d}: {sum} against {block}");
