@@ -10,10 +10,12 @@
 //! Estimation ([`FormFactors`]): each patch carries fixed sample points, one per stratum (each of
 //! its triangles cut into k² equal triangles by [`split_triangle`], one uniform point in each,
 //! from a seeded [`Rng`]), each standing for its stratum's area. Visibility between a shooter
-//! point and a receiver point is one exact ray cast ([`Reference::visible`]) against the
+//! point and a receiver point is one exact ray cast ([`Reference::surfaces_see`]) against the
 //! triangles of the scene's planar pieces, always from the lower-numbered patch's point to the
 //! higher one's (so the answer is the same for `F_ij` and `F_ji`), ignoring the two pieces the
-//! segment starts and ends on. Two estimators ([`Estimator`]):
+//! segment starts and ends on; a point under an overlapping coplanar piece that wins it (the
+//! Cornell light in its ceiling) sees nothing, as the reference renderer never sees it. Two
+//! estimators ([`Estimator`]):
 //! * [`Estimator::Contour`] (the default): for each shooter point `x`, the *unoccluded* point-to-
 //!   polygon form factor of the receiver clipped to `x`'s hemisphere, exactly, by the contour
 //!   integral (thesis Eq. 2.2, [`point_to_polygon`]), times the kernel-weighted fraction of the
@@ -403,12 +405,13 @@ impl FormFactors {
     }
 
     /// Exact visibility between a point of patch i and a point of patch j, cast from the
-    /// lower-numbered patch, ignoring both patches' pieces.
+    /// lower-numbered patch: nothing but their own pieces between them, and neither point under
+    /// a coplanar piece that wins it ([`Reference::surfaces_see`]).
     fn visible(&self, i: usize, x: Vector, j: usize, y: Vector) -> bool {
         self.rays.fetch_add(1, Ordering::Relaxed);
-        let ignore = [self.geoms[i].piece, self.geoms[j].piece];
-        let (from, to) = if i < j { (x, y) } else { (y, x) };
-        self.reference.visible(from.into(), to.into(), &ignore)
+        let (pi, pj) = (self.geoms[i].piece, self.geoms[j].piece);
+        let ((from, fp), (to, tp)) = if i < j { ((x, pi), (y, pj)) } else { ((y, pj), (x, pi)) };
+        self.reference.surfaces_see(from.into(), fp, to.into(), tp)
     }
 }
 

@@ -456,3 +456,42 @@ fn bad_input_is_a_clear_error() {
     let q = subdivide(&m, 0.5, 100).unwrap();
     assert_eq!((q.summary.degenerate_faces, q.patches.len()), (1, 24));
 }
+
+/// A lamp in its ceiling (the Cornell box's light): a square coplanar with the closed room's
+/// ceiling, overlapping it, cut on the same 0.25 grid. The facet listed first wins the overlap
+/// (as in the reference renderer): the ceiling patches under the lamp — or, listed the other
+/// way, the lamp's patches — exchange nothing (their rows and columns are exactly 0), and every
+/// other patch still sees a closed room once: Σ_j F_ij = 1 (the contour estimator is exact when
+/// each receiver is wholly seen or wholly hidden, as here). Counting both the lamp and the
+/// ceiling behind it would give 1 + F(lamp) for the floor's patches.
+#[test]
+fn a_lamp_in_its_ceiling_hides_the_ceiling_behind_it() {
+    let lamp = box_side([0.25, 0.25, 0.0], [0.75, 0.75, 1.0], 2, 1, true);
+    let room_quads = || (0..3).flat_map(|axis| (0..2).map(move |side| box_side([0.0; 3], [1.0; 3], axis, side, true)));
+    for lamp_first in [true, false] {
+        let quads: Vec<Vec<V3>> = if lamp_first {
+            std::iter::once(lamp.clone()).chain(room_quads()).collect()
+        } else {
+            room_quads().chain([lamp.clone()]).collect()
+        };
+        let lamp_face = if lamp_first { 0 } else { 6 };
+        let mesh = quads_mesh(quads, vec![1; 7], vec![Material::default(), grey(0.5)]);
+        let p = subdivide(&mesh, 0.25, 200).unwrap();
+        assert_eq!(p.patches.len(), 6 * 16 + 4);
+        let inside = |q: &Patch| (0..2).all(|k| q.centroid[k] > 0.25 && q.centroid[k] < 0.75);
+        let on_ceiling = |q: &Patch| q.centroid.z > 1.0 - 1e-12;
+        // The patches that lose the overlap: the ceiling's under the lamp, or the lamp's.
+        let hidden = |q: &Patch| on_ceiling(q) && inside(q) && ((q.face == lamp_face) != lamp_first);
+        assert_eq!(p.patches.iter().filter(|q| hidden(q)).count(), 4);
+        let f = ff(&p, 3, 5, Estimator::Contour).matrix();
+        for (i, qi) in p.patches.iter().enumerate() {
+            let sum: f64 = f[i].iter().sum();
+            if hidden(qi) {
+                assert!(f[i].iter().all(|&x| x == 0.0), "lamp first {lamp_first}: hidden patch {i} sees {sum}");
+                assert!(f.iter().all(|r| r[i] == 0.0), "lamp first {lamp_first}: hidden patch {i} is seen");
+            } else {
+                assert!((sum - 1.0).abs() < 1e-9, "lamp first {lamp_first}: patch {i}: Σ F = {sum}");
+            }
+        }
+    }
+}

@@ -349,10 +349,8 @@ mod tests {
     /// `(2 δ L + 3 π δ²) / π` with δ = √2 / R (see `testkit`) and L the angles the rectangle's
     /// four edges subtend at the point. Every row is non-negative and sums to at most 1.
     ///
-    /// (The contour estimator, `Estimator::Contour`, is not the oracle here: it counts the
-    /// ceiling behind the light twice — the light quad is coplanar with the ceiling, so a
-    /// segment to the ceiling there is not blocked by it — and its top-patch rows sum to
-    /// ≈ 0.997 where the opening leaves ≈ 0.949: more than this bound at R = 128.)
+    /// (This test found the contour estimator counting the ceiling behind the coplanar light as
+    /// well as the light — top-patch rows of 0.997 — fixed by `Reference::surfaces_see`.)
     #[test]
     fn projective_rows_of_the_block_top_match_the_opening() {
         use crate::truth::formfactor::{point_to_polygon, Estimator, FormFactors, Sampling};
