@@ -8,7 +8,6 @@
 use std::hint::black_box;
 use std::time::Duration;
 
-use cell_core::beam::frac;
 use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::light::Policy;
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
@@ -65,7 +64,7 @@ fn bench_diffuse(c: &mut Criterion) {
                 record_visits: false,
                 ..host_sim::config::plane_rule()
             };
-            let once = diffuse::<frac::U0, DEFAULT_DEXELS>(&loaded.grid, &sources, &lcfg, |_, _| {}).expect("diffuses");
+            let once = diffuse::<DEFAULT_DEXELS>(&loaded.grid, &sources, &lcfg, |_, _| {}).expect("diffuses");
             let r = &once.reports[0].counts;
             eprintln!(
                 "diffuse cornell n = {n} {pname}: {} cycles, {} beams processed, {} messages, peak {} active cells",
@@ -74,7 +73,7 @@ fn bench_diffuse(c: &mut Criterion) {
             g.throughput(Throughput::Elements(r.cycles));
             let id = format!("cornell_n{n}_{}cycles_{}beams", r.cycles, r.beams_processed);
             g.bench_function(BenchmarkId::new(pname, id), |b| {
-                b.iter(|| diffuse::<frac::U0, DEFAULT_DEXELS>(black_box(&loaded.grid), &sources, &lcfg, |_, _| {}))
+                b.iter(|| diffuse::<DEFAULT_DEXELS>(black_box(&loaded.grid), &sources, &lcfg, |_, _| {}))
             });
         }
     }

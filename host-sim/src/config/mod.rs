@@ -1,8 +1,8 @@
 //! One home for what a run is: the named presets, the overrides a command line may give, the
 //! one validation, and the description every output carries.
 //!
-//! A run of the lighting jobs is a [`RunConfig`]: the scene's loading ([`LoadConfig`]), the
-//! fraction bits f of the rays, and the complete diffusion configuration ([`LightConfig`]).
+//! A run of the lighting jobs is a [`RunConfig`]: the scene's loading ([`LoadConfig`]) and the
+//! complete diffusion configuration ([`LightConfig`], the fraction bits f of the rays included).
 //! Each [`Preset`] is one such configuration, written out field by field in [`Preset::load`]
 //! and [`Preset::light`]; docs/CONFIGURATION.md says what each is for and lists the line each
 //! prints (a test keeps that page in step with this code).
@@ -62,7 +62,7 @@ impl Preset {
 
     /// The whole configuration, every field written out.
     pub const fn config(self) -> RunConfig {
-        RunConfig { preset: self, load: self.load(), frac_bits: DEFAULT_FRAC_BITS, light: self.light() }
+        RunConfig { preset: self, load: self.load(), light: self.light() }
     }
 
     /// How the preset loads a scene.
@@ -77,6 +77,7 @@ impl Preset {
     /// The preset's diffusion configuration.
     pub const fn light(self) -> LightConfig {
         let rc2 = LightConfig {
+            frac_bits: DEFAULT_FRAC_BITS,
             fa: 16,
             policy: Policy::Radial,
             merge: true,
@@ -131,16 +132,14 @@ pub const fn plane_rule() -> LightConfig {
     LightConfig { rule: LitRule::Plane, rays: Origin::SourceVoxel, ..Preset::Light.light() }
 }
 
-/// A run: what is loaded, f, and the diffusion.
+/// A run: what is loaded and the diffusion.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RunConfig {
     /// The preset it started from.
     pub preset: Preset,
     /// The scene's loading.
     pub load: LoadConfig,
-    /// Fraction bits f of the far-plane ray offsets.
-    pub frac_bits: u32,
-    /// The diffusion.
+    /// The diffusion (f included).
     pub light: LightConfig,
 }
 
@@ -209,6 +208,7 @@ impl RunConfig {
         let skip_hidden = o.skip_hidden.unwrap_or(b.skip_hidden && lit_visible_only);
         let rays = o.rays.unwrap_or(if needs.classic { Origin::SourceVoxel } else { b.rays });
         let light = LightConfig {
+            frac_bits: o.frac_bits.unwrap_or(b.frac_bits),
             fa: o.fa.unwrap_or(b.fa),
             policy,
             merge,
@@ -231,7 +231,7 @@ impl RunConfig {
             thickness: o.thickness.unwrap_or(base.load.thickness),
             contour: o.contour.unwrap_or(base.load.contour),
         };
-        let run = RunConfig { preset, load, frac_bits: o.frac_bits.unwrap_or(base.frac_bits), light };
+        let run = RunConfig { preset, load, light };
         run.validate(needs)?;
         Ok(run)
     }
@@ -240,6 +240,9 @@ impl RunConfig {
     pub fn validate(&self, needs: Needs) -> Result<()> {
         let l = &self.light;
         self.load.validate()?;
+        if crate::machine::diffuse::light_cell_bytes(l.frac_bits).is_none() {
+            return Err(crate::machine::diffuse::unsupported_frac_bits(l.frac_bits));
+        }
         if l.skip_hidden && !l.lit_visible_only {
             bail!(
                 "--skip-hidden drops the light of hidden voxels: it needs the visible-only lit store \
@@ -282,7 +285,7 @@ impl RunConfig {
             thickness: format!("{:?}", self.load.thickness).to_lowercase(),
             contour: format!("{:?}", self.load.contour).to_lowercase(),
             n: self.load.n,
-            frac_bits: self.frac_bits,
+            frac_bits: l.frac_bits,
             fa: l.fa,
             policy: crate::machine::lighting::policy_name(l.policy),
             merge: l.merge,
@@ -428,6 +431,21 @@ mod tests {
         assert_eq!(r.light.rays, Origin::SourceVoxel);
         let o = Overrides { rays: Some(Origin::Light), ..Overrides::default() };
         assert!(RunConfig::resolve(Preset::Render, &o, classic).is_err());
+    }
+
+    /// f is part of the diffusion's configuration, and only the values a build of the cells
+    /// exists for validate (the cell_core list: 0..=8, 10, 12, 16, 20, 24).
+    #[test]
+    fn frac_bits_resolve_into_the_light_and_unbuilt_ones_are_refused() {
+        for f in (0..=8).chain([10, 12, 16, 20, 24]) {
+            let o = Overrides { frac_bits: Some(f), ..Overrides::default() };
+            assert_eq!(RunConfig::resolve(Preset::Light, &o, Needs::default()).unwrap().light.frac_bits, f);
+        }
+        for f in [9, 11, 13, 17, 25, 32, u32::MAX] {
+            let o = Overrides { frac_bits: Some(f), ..Overrides::default() };
+            let e = RunConfig::resolve(Preset::Render, &o, Needs::default()).unwrap_err().to_string();
+            assert!(e.contains(&format!("--frac-bits {f} is not supported")), "{e}");
+        }
     }
 
     /// Merge is auto: off when the policy is overridden to the thesis's, unless asked.

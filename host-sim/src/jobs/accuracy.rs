@@ -5,7 +5,6 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Result;
-use cell_core::beam::FracBits;
 use cell_core::light::Policy;
 use parry3d_f64::math::Vector;
 
@@ -58,11 +57,8 @@ pub fn run(o: &AccuracyOptions) -> Result<()> {
         let loaded = load_scene(&mesh, &LoadConfig::watertight(n))?;
         let lights = resolve_lights(&mesh, &loaded, &o.lights)?;
         for &f in &o.frac_bits {
-            let (acc, s) = cell_core::with_frac_bits!(f, F => {
-                run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, |_, _| {})
-                    .and_then(|(l, s)| Ok((accuracy(&mesh, &loaded, &lights, &l)?, s)))
-            })
-            .unwrap_or_else(|| Err(anyhow::anyhow!("--frac-bits {f} is not supported")))?;
+            let (l, s) = run_diffusion(&mesh, &loaded, &lights, &LightConfig { frac_bits: f, ..lcfg }, |_, _| {})?;
+            let acc = accuracy(&mesh, &loaded, &lights, &l)?;
             write_row(&mut csv, &mesh.name, n, f, &acc, &s)?;
         }
     }
@@ -126,12 +122,7 @@ pub struct Accuracy {
 
 /// Compare the discrete lit state of every surface voxel with f64 visibility of its centre
 /// from each light, ignoring the voxel's own face (docs/LIGHTING.md, "light-accuracy").
-pub fn accuracy<F: FracBits>(
-    mesh: &Mesh,
-    scene: &LoadedScene,
-    lights: &[[f64; 3]],
-    lighting: &Lighting<F>,
-) -> Result<Accuracy> {
+pub fn accuracy(mesh: &Mesh, scene: &LoadedScene, lights: &[[f64; 3]], lighting: &Lighting) -> Result<Accuracy> {
     let (tris, ids) = crate::truth::refrender::mesh_triangles(mesh)?;
     let planes = face_planes(mesh);
     let reference = crate::truth::visibility::Reference::new(tris, ids)?;

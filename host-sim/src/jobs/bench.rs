@@ -275,6 +275,7 @@ fn measure(mesh: &Mesh, n: u32, k: &Knobs, reference: &mut Option<RefImage>) -> 
             record_visits: false,
             rule: k.rule,
             rays: k.rays,
+            frac_bits: k.f,
             ..crate::config::plane_rule()
         },
         k.normals,
@@ -296,8 +297,7 @@ fn measure(mesh: &Mesh, n: u32, k: &Knobs, reference: &mut Option<RefImage>) -> 
         *reference = Some(reference_image(mesh, &loaded, &lights, &rcfg)?);
     }
     let input = RenderInput { reference: reference.as_ref(), load_seconds, ..RenderInput::new(mesh, &loaded, &lights) };
-    let r = cell_core::with_frac_bits!(k.f, F => render::<F>(&input, &rcfg, |_, _| {}))
-        .unwrap_or_else(|| Err(anyhow::anyhow!("--frac-bits {} is not supported", k.f)))?;
+    let r = render(&input, &rcfg, |_, _| {})?;
     let st = r.stats;
     let cmp = st.reference.expect("compared with the reference");
     let light_cycles = st.light.totals.cycles + st.refine.as_ref().map_or(0, |r| r.cycles);

@@ -11,7 +11,6 @@
 use std::io::Write;
 
 use anyhow::Result;
-use cell_core::beam::FracBits;
 
 use crate::machine::diffuse::Lighting;
 use crate::machine::grid::LightGrid;
@@ -50,11 +49,11 @@ pub struct LitDump<'a> {
 }
 
 /// Build the dump of a finished diffusion.
-pub fn lit_dump<'a, F: FracBits>(
+pub fn lit_dump<'a>(
     mesh: &'a Mesh,
     grid: &LightGrid,
     fit: &Fit,
-    lighting: &Lighting<F>,
+    lighting: &Lighting,
     stats: &LightStats,
 ) -> LitDump<'a> {
     let lights_voxel: Vec<[f64; 3]> = lighting.reports.iter().map(|r| r.position).collect();

@@ -5,7 +5,6 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{bail, Result};
-use cell_core::beam::FracBits;
 
 use crate::config::{RunConfig, RunSummary};
 use crate::machine::classic::{run_classic, ClassicConfig, ClassicLighting};
@@ -72,18 +71,8 @@ pub struct LightOptions {
     pub quiet: bool,
 }
 
-/// The error for fraction bits no type was compiled for.
-pub fn unsupported_frac_bits(f: u32) -> anyhow::Error {
-    anyhow::anyhow!("--frac-bits {f} is not supported (0..=8, 10, 12, 16, 20, 24)")
-}
-
 /// Run the `light` job.
 pub fn run(o: &LightOptions) -> Result<()> {
-    let f = o.light.run.frac_bits;
-    cell_core::with_frac_bits!(f, F => run_with::<F>(o)).unwrap_or_else(|| Err(unsupported_frac_bits(f)))
-}
-
-fn run_with<F: FracBits>(o: &LightOptions) -> Result<()> {
     let load = o.light.load();
     let mesh = crate::scene::camera::apply(scene::load(&o.scene)?, &o.view, load.n)?;
     let loaded = load_scene(&mesh, load)?;
@@ -100,7 +89,7 @@ fn run_with<F: FracBits>(o: &LightOptions) -> Result<()> {
         print_classic_summary(&o.light.run, lights.len(), &cl, &stats);
         return Ok(());
     }
-    let (lighting, stats) = run_diffusion::<F>(&mesh, &loaded, &lights, &lcfg, progress::light(&pb))?;
+    let (lighting, stats) = run_diffusion(&mesh, &loaded, &lights, &lcfg, progress::light(&pb))?;
     pb.finish_and_clear();
     write_outputs(o, &mesh, &loaded, &lighting, &stats)?;
     print_summary(&o.light.run, &stats);
@@ -115,7 +104,7 @@ fn run_with<F: FracBits>(o: &LightOptions) -> Result<()> {
 }
 
 /// Write `x,y,z,source_mask` for every lit voxel.
-pub fn write_lit_csv<F: FracBits>(l: &Lighting<F>, mut w: impl Write) -> Result<()> {
+pub fn write_lit_csv(l: &Lighting, mut w: impl Write) -> Result<()> {
     writeln!(w, "x,y,z,source_mask")?;
     for ([x, y, z], m) in l.lit_voxels() {
         writeln!(w, "{x},{y},{z},{m}")?;
@@ -124,11 +113,11 @@ pub fn write_lit_csv<F: FracBits>(l: &Lighting<F>, mut w: impl Write) -> Result<
 }
 
 /// The statistics, the lit voxels and the lit dump, as asked.
-fn write_outputs<F: FracBits>(
+fn write_outputs(
     o: &LightOptions,
     mesh: &Mesh,
     loaded: &LoadedScene,
-    lighting: &Lighting<F>,
+    lighting: &Lighting,
     stats: &LightStats,
 ) -> Result<()> {
     if let Some(p) = &o.stats {

@@ -211,7 +211,7 @@ fn plot_residual(
 pub fn solve_with_bar(scene: &LoadedScene, p: &Patches, cfg: &RadiosityConfig, quiet: bool) -> Result<GridSolution> {
     let pb = progress::bar(quiet, "shots");
     pb.set_length(cfg.max_shots.min(100_000) as u64);
-    let s = solve::<U0, DEFAULT_DEXELS>(&scene.grid, &scene.fit, &scene.source_face, &p.patches, cfg, |k, r| {
+    let s = solve::<DEFAULT_DEXELS>(&scene.grid, &scene.fit, &scene.source_face, &p.patches, cfg, |k, r| {
         pb.set_position(k as u64);
         pb.set_message(format!("residual {r:.4}"));
     });

@@ -14,12 +14,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Result};
-use cell_core::beam::FracBits;
 use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
 
 use crate::config::RunSummary;
-use crate::jobs::light::{classic_description, print_link_faults, unsupported_frac_bits, LightingOptions};
+use crate::jobs::light::{classic_description, print_link_faults, LightingOptions};
 use crate::jobs::render_radiosity::{self, DisplayPsnr, RadiosityRenderStats, RenderRadiosity};
 use crate::machine::classic::{refine_edges, run_classic, ClassicConfig, ClassicCounts, RefineCounts};
 use crate::machine::diffuse::LightConfig;
@@ -186,26 +185,18 @@ pub struct Rendered {
 
 /// Light and shade a loaded scene as `cfg` says; compare with the input's reference when given.
 /// `progress` hears the lighting phase's source and cycle.
-pub fn render<F: FracBits>(
-    input: &RenderInput<'_>,
-    cfg: &RenderConfig,
-    progress: impl FnMut(usize, u64),
-) -> Result<Rendered> {
+pub fn render(input: &RenderInput<'_>, cfg: &RenderConfig, progress: impl FnMut(usize, u64)) -> Result<Rendered> {
     match &cfg.lighting {
-        RenderLighting::Diffusion => render_diffusion::<F>(input, cfg, progress),
+        RenderLighting::Diffusion => render_diffusion(input, cfg, progress),
         RenderLighting::Classic(c) => render_classic(input, cfg, c, progress),
-        RenderLighting::Refined(c) => render_refined::<F>(input, cfg, c, progress),
-        RenderLighting::Reflections(r) => render_reflect::<F>(input, cfg, r, progress),
+        RenderLighting::Refined(c) => render_refined(input, cfg, c, progress),
+        RenderLighting::Reflections(r) => render_reflect(input, cfg, r, progress),
     }
 }
 
-fn render_diffusion<F: FracBits>(
-    input: &RenderInput<'_>,
-    cfg: &RenderConfig,
-    progress: impl FnMut(usize, u64),
-) -> Result<Rendered> {
+fn render_diffusion(input: &RenderInput<'_>, cfg: &RenderConfig, progress: impl FnMut(usize, u64)) -> Result<Rendered> {
     let t0 = Instant::now();
-    let (lighting, lstats) = run_diffusion::<F>(input.mesh, input.scene, input.lights, &cfg.light, progress)?;
+    let (lighting, lstats) = run_diffusion(input.mesh, input.scene, input.lights, &cfg.light, progress)?;
     let light_seconds = t0.elapsed().as_secs_f64();
     let rendered = shade(input, cfg, &seen(&lighting), lstats, light_seconds);
     Ok(rendered)
@@ -213,14 +204,14 @@ fn render_diffusion<F: FracBits>(
 
 /// Diffusion, then shadow-edge refinement of the visible masks, then the same shading; the
 /// refinement's counters go into the statistics (`refine`).
-fn render_refined<F: FracBits>(
+fn render_refined(
     input: &RenderInput<'_>,
     cfg: &RenderConfig,
     classic_cfg: &ClassicConfig,
     mut progress: impl FnMut(usize, u64),
 ) -> Result<Rendered> {
     let t0 = Instant::now();
-    let (lighting, lstats) = run_diffusion::<F>(input.mesh, input.scene, input.lights, &cfg.light, &mut progress)?;
+    let (lighting, lstats) = run_diffusion(input.mesh, input.scene, input.lights, &cfg.light, &mut progress)?;
     let n = input.scene.grid.n;
     let mut masks: Vec<cell_core::light::SourceMask> =
         (0..n * n).map(|i| lighting.visible_mask(i % n, i / n)).collect();
@@ -254,7 +245,7 @@ fn render_classic(
 
 /// Diffusion lighting, shading, then the reflection phase; compared with the input's reference
 /// (make it with the same reflections: [`reference_image`]) after the reflections.
-fn render_reflect<F: FracBits>(
+fn render_reflect(
     input: &RenderInput<'_>,
     cfg: &RenderConfig,
     rcfg: &ReflectConfig,
@@ -262,7 +253,7 @@ fn render_reflect<F: FracBits>(
 ) -> Result<Rendered> {
     let (mesh, light_positions) = (input.mesh, input.lights);
     let t0 = Instant::now();
-    let (lighting, lstats) = run_diffusion::<F>(mesh, input.scene, light_positions, &cfg.light, progress)?;
+    let (lighting, lstats) = run_diffusion(mesh, input.scene, light_positions, &cfg.light, progress)?;
     let mask = |x, y, z| lighting.mask(x, y, z);
     let light_seconds = t0.elapsed().as_secs_f64();
     let unreferenced = RenderInput { reference: None, ..*input };
@@ -429,11 +420,6 @@ impl RenderOptions {
 
 /// Run the `render` job.
 pub fn run(o: &RenderOptions) -> Result<()> {
-    let f = o.light.run.frac_bits;
-    cell_core::with_frac_bits!(f, F => run_with::<F>(o)).unwrap_or_else(|| Err(unsupported_frac_bits(f)))
-}
-
-fn run_with<F: FracBits>(o: &RenderOptions) -> Result<()> {
     let cfg = o.config()?;
     let (mesh, loaded, load_seconds) = load_phase(o)?;
     let lights = resolve_lights(&mesh, &loaded, &o.light.lights)?;
@@ -448,11 +434,11 @@ fn run_with<F: FracBits>(o: &RenderOptions) -> Result<()> {
         ..RenderInput::new(&mesh, &loaded, &lights)
     };
     let pb = progress::bar(o.quiet, "light 1");
-    let mut r = render::<F>(&input, &cfg, progress::light(&pb))?;
+    let mut r = render(&input, &cfg, progress::light(&pb))?;
     pb.finish_and_clear();
     if let Some(rad) = &radiosity {
         let t2 = Instant::now();
-        let mut stats = radiosity_stats::<F>(rad, &r, &input, &cfg)?;
+        let mut stats = radiosity_stats(rad, &r, &input, &cfg)?;
         stats.seconds = rad.seconds + t2.elapsed().as_secs_f64();
         r.stats.wall_seconds += stats.seconds;
         r.stats.radiosity = Some(stats);
@@ -533,7 +519,7 @@ fn reference_phase(
 
 /// The radiosity statistics of a radiosity render `r`: with a reference, the direct-only
 /// image's PSNR against it and the other display's render.
-fn radiosity_stats<F: FracBits>(
+fn radiosity_stats(
     rad: &RadiosityPhase,
     r: &Rendered,
     input: &RenderInput<'_>,
@@ -542,7 +528,7 @@ fn radiosity_stats<F: FracBits>(
     let mut stats = rad.shown.stats.clone();
     stats.direct_only_psnr_db = r.direct_only.as_ref().zip(input.reference).map(|(d, rf)| direct_psnr(d, rf));
     if input.reference.is_some() {
-        stats.other_display = Some(other_display::<F>(&rad.solved, stats.display, input, cfg)?);
+        stats.other_display = Some(other_display(&rad.solved, stats.display, input, cfg)?);
     }
     Ok(stats)
 }
@@ -554,7 +540,7 @@ fn direct_psnr(direct: &Image, reference: &RefImage) -> f64 {
 
 /// The radiosity render of `input`'s scene with the display other than `shown`, against the
 /// reference shown the same way: its PSNR and the direct-only image's.
-fn other_display<F: FracBits>(
+fn other_display(
     solved: &render_radiosity::Solved,
     shown: Display,
     input: &RenderInput<'_>,
@@ -568,7 +554,7 @@ fn other_display<F: FracBits>(
     let other = solved.show(mesh, loaded, lights, display, cfg.light.rule)?;
     let reference = solved.reference_image(&other, mesh, loaded, lights)?.expect("solved with the reference");
     let input = RenderInput { indirect: Some(&other.cells), reference: Some(&reference), ..*input };
-    let r = render::<F>(&input, cfg, |_, _| {})?;
+    let r = render(&input, cfg, |_, _| {})?;
     let direct = r.direct_only.as_ref().expect("a radiosity render");
     let psnr_db = r.stats.reference.map_or(f64::NAN, |c| c.psnr_db);
     Ok(DisplayPsnr { display, psnr_db, direct_only_psnr_db: direct_psnr(direct, &reference) })

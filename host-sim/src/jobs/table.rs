@@ -8,10 +8,8 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Result;
-use cell_core::beam::FracBits;
 use cell_core::light::Policy;
 
-use crate::jobs::light::unsupported_frac_bits;
 use crate::machine::diffuse::LightConfig;
 use crate::machine::lighting::{run_diffusion, LightStats};
 use crate::machine::loaded::{load_scene, resolve_lights, LoadedScene};
@@ -63,18 +61,13 @@ pub struct NamedTiming {
     pub timing: Timing,
 }
 
-/// Run the `diffusion-table` job.
-pub fn run(o: &TableOptions) -> Result<()> {
-    let f = o.frac_bits;
-    cell_core::with_frac_bits!(f, F => run_with::<F>(o)).unwrap_or_else(|| Err(unsupported_frac_bits(f)))
-}
-
 /// The CSV's columns ([`write_row`]).
 const HEADER: &str = "n,fa,policy,timing,frac_bits,cycles,lower_bound,t_over_lb,lb_distance,lb_cell_load,\
 beams_processed,messages,peak_fifo,fifo_limit,blocked_cell_cycles,thesis_t,ratio,thesis_fa_large,thesis_t_large,ratio_large,\
 t_with_detector,ray_by_ray_t,ray_by_ray_messages,wall_seconds";
 
-fn run_with<F: FracBits>(o: &TableOptions) -> Result<()> {
+/// Run the `diffusion-table` job.
+pub fn run(o: &TableOptions) -> Result<()> {
     // Refuse a timing the cells cannot run before writing anything.
     let fas: Vec<usize> = o.points().into_iter().flat_map(|(_, fa)| fa).chain(o.timelapse_fa.iter().copied()).collect();
     for t in &o.timings {
@@ -92,12 +85,11 @@ fn run_with<F: FracBits>(o: &TableOptions) -> Result<()> {
     for (n, fas) in points {
         let loaded = load_scene(&mesh, &LoadConfig::watertight(n))?;
         let lights = source_lights(&mesh, &loaded, n, o.origin)?;
-        let sequential = ray_by_ray::<F>(n, o.origin)?;
+        let sequential = ray_by_ray(n, o.origin, o.frac_bits)?;
         for t in &o.timings {
             for &policy in &o.policies {
                 for &fa in &fas {
-                    let (_, s) =
-                        run_diffusion::<F>(&mesh, &loaded, &lights, &o.config(fa, policy, t.timing), |_, _| {})?;
+                    let (_, s) = run_diffusion(&mesh, &loaded, &lights, &o.config(fa, policy, t.timing), |_, _| {})?;
                     let row = Row { n, fa, timing: t, stats: &s, sequential };
                     write_row(&mut csv, &row)?;
                     rows.push(row.plotted());
@@ -112,7 +104,7 @@ fn run_with<F: FracBits>(o: &TableOptions) -> Result<()> {
     print_table(&rows);
     eprintln!("wrote {} and {}", o.out.display(), o.plot.display());
     if let Some(path) = &o.timelapse {
-        timelapse::<F>(o, path)?;
+        timelapse(o, path)?;
     }
     Ok(())
 }
@@ -136,7 +128,7 @@ fn snapshot_times(fa: usize, t: u64) -> Vec<u64> {
 /// The 16³ time-lapse under the first timing and policy: for each FA, a full run for T, then
 /// one run stopped at each snapshot time (which voxels a beam was processed in, which cells
 /// hold a beam).
-fn timelapse<F: FracBits>(o: &TableOptions, path: &std::path::Path) -> Result<()> {
+fn timelapse(o: &TableOptions, path: &std::path::Path) -> Result<()> {
     const N: u32 = 16;
     let mesh = crate::scene::load("empty")?;
     let loaded = load_scene(&mesh, &LoadConfig::watertight(N))?;
@@ -145,13 +137,12 @@ fn timelapse<F: FracBits>(o: &TableOptions, path: &std::path::Path) -> Result<()
     let policy = o.policies.first().copied().unwrap_or(Policy::Thesis);
     for &fa in &o.timelapse_fa {
         let cfg = LightConfig { record_visits: true, ..o.config(fa, policy, timing) };
-        let (_, s) = run_diffusion::<F>(&mesh, &loaded, &lights, &cfg, |_, _| {})?;
+        let (_, s) = run_diffusion(&mesh, &loaded, &lights, &cfg, |_, _| {})?;
         let mut frames = Vec::new();
         for t in snapshot_times(fa, s.totals.cycles) {
-            let (l, _) =
-                run_diffusion::<F>(&mesh, &loaded, &lights, &LightConfig { stop_at: Some(t), ..cfg }, |_, _| {})?;
+            let (l, _) = run_diffusion(&mesh, &loaded, &lights, &LightConfig { stop_at: Some(t), ..cfg }, |_, _| {})?;
             let reached = l.visited.unwrap_or_default();
-            let active = l.cells.iter().map(|c| !c.fifo.is_empty()).collect();
+            let active = l.cells.iter().map(|c| c.queued > 0).collect();
             frames.push(Snapshot { t, reached, active });
         }
         let out = path.with_extension(format!("fa{fa}.png"));
@@ -196,6 +187,7 @@ impl TableOptions {
             // skips would drop entirely.
             skip_receding: false,
             skip_dead_directions: false,
+            frac_bits: self.frac_bits,
             ..crate::config::plane_rule()
         }
     }

@@ -1,209 +1,13 @@
-//! Recording cell traces from a grid run: for chosen cells, every message they
-//! receive, every compute cycle, every message a neighbour takes from them, in order, as
-//! `cell_core::trace` records; and the digest of what they output and end up holding, computed
-//! from the grid itself. A firmware (or [`cell_core::trace::replay`]) drives a fresh cell
-//! through the records and must reach the same digest.
-//!
-//! The run is the one `render` makes with the same options: loading, then beam diffusion or
-//! (with classic lighting) the classic shadow-ray phase of each source, shading, then (with
-//! reflections) the reflection phase; every phase it runs is in the trace.
+//! The `trace` job: record cell traces of a grid run ([`crate::machine::record`]), write them
+//! with their digests, and replay each with the host's build of `cell-core`.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use cell_core::beam::{FracBits, Source};
-use cell_core::cell::DEFAULT_DEXELS;
-use cell_core::lit::LitRule;
-use cell_core::shade::{cell_pixel, Eye, NormalMode, ShadeParams};
-use cell_core::trace::{Event, ShadeSetup, MAX_LIGHTS, MAX_MATERIALS};
 
-use crate::jobs::light::{unsupported_frac_bits, LightingOptions};
-use crate::machine::diffuse::{diffuse_tapped, LightConfig, Lighting};
-use crate::machine::tap::{CellRecorder, Tap};
-
-use crate::machine::capacity::{HostLightCell, FA_CAP, LIT_CAP, OB_CAP};
-use crate::machine::classic::{classic_tapped, ClassicConfig, ClassicLighting};
-use crate::machine::loaded::LoadedScene;
-use crate::machine::reflect::{reflect_tapped, ReflectConfig, ShadeEnv};
-use crate::machine::shade::{cell_material, eye_lights, point_lights, AMBIENT};
-use crate::precompute::LoadConfig;
-use crate::scene::Mesh;
-
-/// A recorded trace and the digest the grid run gives.
-#[derive(Clone, Debug)]
-pub struct CellTrace {
-    /// Column.
-    pub x: u32,
-    /// Row.
-    pub y: u32,
-    /// The records.
-    pub bytes: Vec<u8>,
-    /// Records written.
-    pub records: u64,
-    /// Digest of the outputs and final state, from the grid.
-    pub digest: u64,
-}
-
-/// What `record` needs to know.
-pub struct TraceJob<'a> {
-    /// Scene.
-    pub mesh: &'a Mesh,
-    /// Loading settings.
-    pub load: LoadConfig,
-    /// Lighting settings.
-    pub light: LightConfig,
-    /// Lights at grid-normalised positions (empty: the scene's own, as `render` does).
-    pub lights: Vec<[f64; 3]>,
-    /// Cells to record; `busiest` adds the cell that processed the most beams.
-    pub cells: Vec<[u32; 2]>,
-    /// Also record the busiest cell (found by a first, untraced run).
-    pub busiest: bool,
-    /// Classic shadow rays instead of beam diffusion (`light` is then unused).
-    pub classic: Option<ClassicConfig>,
-    /// The reflection phase after shading (needs beam diffusion and the grid's own view).
-    pub reflections: Option<ReflectConfig>,
-}
-
-/// The lit state the lighting phase left.
-enum Lit<F: FracBits> {
-    /// Beam diffusion's: every cell's lit store.
-    Beams(Lighting<F>),
-    /// Classic shadow rays': the sources that lit each visible surface.
-    Rays(ClassicLighting, LitRule),
-}
-
-/// Run the phases on the grid (see the module doc), recording the chosen cells.
-pub fn record<F: FracBits>(job: &TraceJob<'_>) -> Result<Vec<CellTrace>> {
-    let n = job.load.n;
-    if job.mesh.materials.len() > MAX_MATERIALS {
-        bail!("{} materials: a trace carries at most {MAX_MATERIALS}", job.mesh.materials.len());
-    }
-    if job.reflections.is_some() && job.classic.is_some() {
-        bail!("--reflections needs --lighting diffusion (the lit state of every voxel, not only the visible ones)");
-    }
-    let cells = cells_to_record::<F>(job)?;
-    let mut tap = Tap::new::<F>(n, n, &cells)?;
-    let scene: LoadedScene = crate::machine::loaded::load_scene_tapped(job.mesh, &job.load, Some(&mut tap))?;
-    let (lights, sources) = lights_of(job, &scene)?;
-    if lights.len() > MAX_LIGHTS {
-        bail!("{} lights: a trace carries at most {MAX_LIGHTS}", lights.len());
-    }
-    let lit = match &job.classic {
-        None => Lit::Beams(diffuse_tapped::<F, DEFAULT_DEXELS>(
-            &scene.grid,
-            &sources,
-            &job.light,
-            Some(&mut tap),
-            &mut |_, _| {},
-        )?),
-        Some(c) => Lit::Rays(classic_tapped(&scene, &lights, c, Some(&mut tap), &mut |_, _| {})?, c.rule),
-    };
-    let shade = ShadeSetup {
-        params: ShadeParams { ambient: [AMBIENT; 3], normal_mode: NormalMode::Facet, eye: scene.eye },
-        lights: eye_lights(&scene.eye, &point_lights(&lights)).into_iter().collect(),
-        materials: job.mesh.materials.iter().map(cell_material).collect(),
-    };
-    tap.shade(&shade);
-    if let (Some(cfg), Lit::Beams(lighting)) = (&job.reflections, &lit) {
-        reflections(job, &scene, lighting, &shade, cfg, &mut tap)?;
-    }
-    Ok(tap.into_recorders().into_iter().map(|r| finish_trace::<F>(r, job, &scene, &lit, &shade)).collect())
-}
-
-/// The reflection phase over the lit grid, shading with the trace's shading inputs (what the
-/// replaying cell shades with).
-fn reflections<F: FracBits>(
-    job: &TraceJob<'_>,
-    scene: &LoadedScene,
-    lighting: &Lighting<F>,
-    shade: &ShadeSetup,
-    cfg: &ReflectConfig,
-    tap: &mut Tap,
-) -> Result<()> {
-    if shade.params.eye != Eye::Grid {
-        bail!("--reflections needs the fitted view: reflected rays are not traced through a camera yet");
-    }
-    cfg.validate(job.load.n)?;
-    let mask = |x, y, z| lighting.mask(x, y, z);
-    let env = ShadeEnv {
-        mats: shade.materials.to_vec(),
-        kr: job.mesh.materials.iter().map(|m| m.kr).collect(),
-        lights: &shade.lights,
-        params: shade.params,
-        mask: &mask,
-    };
-    reflect_tapped(scene, &env, cfg, Some(tap))?;
-    Ok(())
-}
-
-/// The job's lights (grid-normalised positions) and the cell sources at them.
-fn lights_of(job: &TraceJob<'_>, scene: &LoadedScene) -> Result<(Vec<[f64; 3]>, Vec<Source>)> {
-    let lights = crate::machine::loaded::resolve_lights(job.mesh, scene, &job.lights)?;
-    let sources = lights.iter().enumerate().map(|(i, p)| job.light.source(i, *p, job.load.n)).collect::<Result<_>>()?;
-    Ok((lights, sources))
-}
-
-/// The cells asked for, and the busiest one (found by a first, untraced run) if asked.
-fn cells_to_record<F: FracBits>(job: &TraceJob<'_>) -> Result<Vec<[u32; 2]>> {
-    let mut cells = job.cells.clone();
-    if job.busiest {
-        let scene = crate::machine::loaded::load_scene(job.mesh, &job.load)?;
-        let (lights, sources) = lights_of(job, &scene)?;
-        match &job.classic {
-            None => {
-                let l = crate::machine::diffuse::diffuse::<F, DEFAULT_DEXELS>(
-                    &scene.grid,
-                    &sources,
-                    &job.light,
-                    |_, _| {},
-                )?;
-                cells.extend(l.reports.iter().max_by_key(|r| r.counts.lb_cell_load).map(|r| r.busiest_cell));
-            }
-            Some(c) => cells.push(crate::machine::classic::classic(&scene, &lights, c, |_, _| {})?.totals.busiest_cell),
-        }
-    }
-    if cells.is_empty() {
-        bail!("no cell to record: give --cell X,Y or --busiest");
-    }
-    Ok(cells)
-}
-
-/// Close one cell's recording: its end record, and the digest of what the grid left in the
-/// cell (state, lit store, pixel; a classic run leaves the lighting cell as it was built).
-fn finish_trace<F: FracBits>(
-    mut r: CellRecorder,
-    job: &TraceJob<'_>,
-    scene: &LoadedScene,
-    lit: &Lit<F>,
-    shade: &ShadeSetup,
-) -> CellTrace {
-    let idx = (r.y * job.load.n + r.x) as usize;
-    let cell = &scene.grid.cells[idx];
-    let (mats, lights) = (&shade.materials, &shade.lights);
-    let unlit = HostLightCell::<F>::new(cell.x, cell.y);
-    let (light, px) = match lit {
-        Lit::Beams(lighting) => {
-            let light = &lighting.cells[idx];
-            let (lit, visible) = (&light.lit, light.visible_lit);
-            (light, cell_pixel(job.light.rule, cell, |z| lit.mask_at(z), visible, mats, lights, &shade.params))
-        }
-        Lit::Rays(cl, rule) => {
-            let m = cl.mask(r.x, r.y);
-            (&unlit, cell_pixel(*rule, cell, |_| m, m, mats, lights, &shade.params))
-        }
-    };
-    r.push::<F>(&Event::End);
-    let (x, y) = (r.x, r.y);
-    let (bytes, records, mut digest) = r.into_parts();
-    digest.state(cell, light, px);
-    CellTrace { x, y, records, digest: digest.finish(), bytes }
-}
-
-/// Replay a trace with the host's build of `cell_core` (the same code the firmware runs).
-pub fn replay<F: FracBits>(bytes: &[u8]) -> Result<(u64, cell_core::trace::ReplayStats)> {
-    cell_core::trace::replay::<F, DEFAULT_DEXELS, FA_CAP, OB_CAP, LIT_CAP>(bytes)
-        .map_err(|e| anyhow::anyhow!("trace replay failed: {e:?}"))
-}
+use crate::jobs::light::LightingOptions;
+pub use crate::machine::record::{record, replay, CellTrace, TraceJob};
+use crate::machine::reflect::ReflectConfig;
 
 /// Write each trace as `cell_X_Y.rc2t` and a `digests.json` listing them.
 pub fn write_traces(dir: &Path, traces: &[CellTrace]) -> Result<()> {
@@ -244,11 +48,6 @@ pub struct TraceOptions {
 /// Run the `trace` job: record, write, and replay every trace with the host's build of
 /// `cell-core` (the same digest, or the trace is wrong).
 pub fn run(o: &TraceOptions) -> Result<()> {
-    let f = o.light.run.frac_bits;
-    cell_core::with_frac_bits!(f, F => run_with::<F>(o)).unwrap_or_else(|| Err(unsupported_frac_bits(f)))
-}
-
-fn run_with<F: FracBits>(o: &TraceOptions) -> Result<()> {
     // Reflected rays are traced in the grid's own view: with reflections the default view is
     // the fitted one (as `render` has it).
     let view = match o.view {
@@ -271,10 +70,10 @@ fn run_with<F: FracBits>(o: &TraceOptions) -> Result<()> {
         classic: o.light.classic,
         reflections: o.reflections,
     };
-    let traces = record::<F>(&job)?;
+    let traces = record(&job)?;
     write_traces(&o.out, &traces)?;
     for t in &traces {
-        let (d, st) = replay::<F>(&t.bytes)?;
+        let (d, st) = replay(job.light.frac_bits, &t.bytes)?;
         let ok = if d == t.digest { "replay ok" } else { "REPLAY MISMATCH" };
         println!(
             "cell ({:>3}, {:>3}): {:>6} bytes, {:>5} records ({} rows, {} beams/rays in, {} cycles, {} sent, {} answers), \

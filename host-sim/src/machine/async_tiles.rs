@@ -161,11 +161,11 @@ pub struct AsyncStats {
 }
 
 /// The result of [`run`].
-pub struct AsyncRun<F: FracBits> {
+pub struct AsyncRun {
     /// The loaded grid (the boards' dexel stores, row-major).
     pub grid: LightGrid,
     /// The boards' lighting cells, row-major (reports: one per source, position only).
-    pub lighting: Lighting<F>,
+    pub lighting: Lighting,
     /// Termination figures.
     pub stats: AsyncStats,
     /// The first declaration the ground truth refuted (the run stopped there).
@@ -275,13 +275,24 @@ struct Board<F: FracBits> {
 /// Run the loading and lighting phases of a prepared scene's facets and `sources` on
 /// asynchronous boards. Under exact occluders each column keeps its triangles as the
 /// synchronous grid's do (loaded with the facets, [`crate::machine::triangles`]).
-pub fn run<F: FracBits>(
+pub fn run(
     prepared: &Prepared,
     n: u32,
     sources: &[Source],
     light: &LightConfig,
     cfg: &AsyncConfig,
-) -> Result<AsyncRun<F>> {
+) -> Result<AsyncRun> {
+    crate::machine::diffuse::with_f!(light.frac_bits, F => run_f::<F>(prepared, n, sources, light, cfg))
+}
+
+/// [`run`] under f = `F`.
+fn run_f<F: FracBits>(
+    prepared: &Prepared,
+    n: u32,
+    sources: &[Source],
+    light: &LightConfig,
+    cfg: &AsyncConfig,
+) -> Result<AsyncRun> {
     if cfg.tile == 0 || n % cfg.tile != 0 {
         bail!("board side {} must divide the grid side {n}", cfg.tile);
     }
@@ -321,7 +332,7 @@ pub fn run<F: FracBits>(
         .collect();
     let lighting = Lighting {
         n,
-        cells: ex.cells,
+        cells: crate::machine::diffuse::lit_columns(&ex.cells),
         reports,
         visited: None,
         link_faults: None,

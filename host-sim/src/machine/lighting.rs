@@ -3,14 +3,15 @@
 use std::time::Instant;
 
 use anyhow::{bail, Result};
-use cell_core::beam::FracBits;
 use cell_core::cell::DEFAULT_DEXELS;
-use cell_core::light::{BeamMsg, Policy};
+use cell_core::light::Policy;
 
-use crate::machine::diffuse::{diffuse, DiffusionCounts, LightConfig, Lighting, PhaseSeconds, SourceReport};
+use crate::machine::diffuse::{
+    diffuse, light_cell_bytes, unsupported_frac_bits, DiffusionCounts, LightConfig, Lighting, PhaseSeconds,
+    SourceReport,
+};
 use crate::machine::loaded::LoadedScene;
 
-use crate::machine::capacity::HostLightCell;
 use crate::scene::Mesh;
 
 /// Everything `light --stats` reports.
@@ -64,7 +65,7 @@ pub struct LightStats {
 
 /// Fail, naming the first cell and the capacity to raise, when a lit store overflowed (a lit
 /// mark lost is a wrong image, never a silent loss).
-pub fn check_lit_overflow<F: FracBits>(lighting: &Lighting<F>) -> Result<()> {
+pub fn check_lit_overflow(lighting: &Lighting) -> Result<()> {
     let full: Vec<_> = lighting.cells.iter().filter(|c| c.counters.lit_overflows > 0).collect();
     if let Some(c) = full.first() {
         bail!(
@@ -95,29 +96,32 @@ pub fn check_triangle_overflow(grid: &crate::machine::grid::LightGrid) {
     }
 }
 
-/// Diffuse and summarise.
-pub fn run_diffusion<F: FracBits>(
+/// Diffuse and summarise (under `cfg.frac_bits`: the one choice of a build of the cells is made
+/// inside the diffusion).
+pub fn run_diffusion(
     mesh: &Mesh,
     scene: &LoadedScene,
     lights: &[[f64; 3]],
     cfg: &LightConfig,
     mut progress: impl FnMut(usize, u64),
-) -> Result<(Lighting<F>, LightStats)> {
-    run_diffusion_with::<F>(mesh, scene, lights, cfg, &mut progress)
+) -> Result<(Lighting, LightStats)> {
+    run_diffusion_with(mesh, scene, lights, cfg, &mut progress)
 }
 
-/// [`run_diffusion`] compiled once per f, whatever the caller's progress closure.
-fn run_diffusion_with<F: FracBits>(
+/// [`run_diffusion`] compiled once, whatever the caller's progress closure.
+fn run_diffusion_with(
     mesh: &Mesh,
     scene: &LoadedScene,
     lights: &[[f64; 3]],
     cfg: &LightConfig,
     progress: &mut dyn FnMut(usize, u64),
-) -> Result<(Lighting<F>, LightStats)> {
+) -> Result<(Lighting, LightStats)> {
+    let (bytes_beam_message, bytes_light_cell) =
+        light_cell_bytes(cfg.frac_bits).ok_or_else(|| unsupported_frac_bits(cfg.frac_bits))?;
     let n = scene.grid.n;
     let sources = lights.iter().enumerate().map(|(i, p)| cfg.source(i, *p, n)).collect::<Result<Vec<_>>>()?;
     let t0 = Instant::now();
-    let lighting = diffuse::<F, DEFAULT_DEXELS>(&scene.grid, &sources, cfg, progress)?;
+    let lighting = diffuse::<DEFAULT_DEXELS>(&scene.grid, &sources, cfg, progress)?;
     check_lit_overflow(&lighting)?;
     if cfg.rule == cell_core::lit::LitRule::Exact {
         check_triangle_overflow(&scene.grid);
@@ -132,7 +136,7 @@ fn run_diffusion_with<F: FracBits>(
         scene: mesh.name.clone(),
         n,
         fa: cfg.fa,
-        frac_bits: F::U32,
+        frac_bits: cfg.frac_bits,
         policy: policy_name(cfg.policy).into(),
         merge: cfg.merge,
         facets: scene.facets,
@@ -146,8 +150,8 @@ fn run_diffusion_with<F: FracBits>(
         } else {
             0
         },
-        bytes_beam_message: std::mem::size_of::<BeamMsg<F>>(),
-        bytes_light_cell: std::mem::size_of::<HostLightCell<F>>(),
+        bytes_beam_message,
+        bytes_light_cell,
         sources: r.clone(),
         wall_seconds: wall,
         phase_seconds: Some(lighting.phases),

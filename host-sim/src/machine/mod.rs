@@ -15,7 +15,7 @@
 //! * [`shade`] — the cells' shading of their pixels.
 //! * [`links`] — the grid's links behind `cell_core::link::Link` (the link seam); [`faults`] —
 //!   the fault-injecting link wrapper; [`tap`] — recording cell traces (and the tracing link
-//!   wrapper).
+//!   wrapper); [`record`] — a whole traced run, the traces and their digests.
 //! * [`radiosity`] — progressive radiosity on the grid: one beam diffusion per shot carrying
 //!   its rays' energy, per-patch accumulators, the costed reduction and the supervisor;
 //!   [`indirect`] shows its solution: each cell's indirect light, broadcast and costed.
@@ -41,6 +41,7 @@ pub mod loaded;
 pub mod network;
 pub mod occluders;
 pub mod radiosity;
+pub mod record;
 pub mod reflect;
 pub mod sequential;
 pub mod shade;

@@ -236,8 +236,20 @@ fn shot_source(p: &Patch, fit: &Fit, n: u32, offset: f64) -> (Option<Source>, [f
     (inside.then(|| Source::new(SourceId(0), pos.map(SourceCoord::from_num))), normal)
 }
 
-/// Shoot patch `i` on the grid.
-pub fn shoot<F: FracBits, const D: usize>(
+/// Shoot patch `i` on the grid (f: `cfg.light.frac_bits`).
+pub fn shoot<const D: usize>(
+    grid: &Grid<D>,
+    fit: &Fit,
+    map: &PatchMap,
+    patches: &[Patch],
+    i: usize,
+    cfg: &RadiosityConfig,
+) -> Result<Shot> {
+    crate::machine::diffuse::with_f!(cfg.light.frac_bits, F => shoot_f::<F, D>(grid, fit, map, patches, i, cfg))
+}
+
+/// [`shoot`] under f = `F`.
+fn shoot_f<F: FracBits, const D: usize>(
     grid: &Grid<D>,
     fit: &Fit,
     map: &PatchMap,
@@ -443,7 +455,7 @@ fn check_patches(patches: &[Patch]) -> Result<f64> {
 /// Progressive refinement on the grid: shoot the patch with the most unshot power until the
 /// residual is at most `cfg.stop_fraction` or `cfg.max_shots` shots are made.
 /// `progress(shots, residual)` after each shot.
-pub fn solve<F: FracBits, const D: usize>(
+pub fn solve<const D: usize>(
     grid: &Grid<D>,
     fit: &Fit,
     source_face: &[u32],
@@ -484,7 +496,7 @@ pub fn solve<F: FracBits, const D: usize>(
             return Ok(s);
         }
         let i = select(patches, &s.unshot);
-        let shot = shoot::<F, D>(grid, fit, &map, patches, i, cfg)?;
+        let shot = shoot(grid, fit, &map, patches, i, cfg)?;
         apply(patches, &mut s, i, shot);
         progress(s.shots.len(), s.residual);
     }

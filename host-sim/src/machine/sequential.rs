@@ -19,7 +19,12 @@ use crate::machine::timing::Emission;
 
 /// The ray-by-ray mode's (cycles, inter-cell messages) on the empty n³ grid, source at the
 /// centre (or at the origin, `origin`), initial beams in the default emission order.
-pub fn ray_by_ray<F: FracBits>(n: u32, origin: bool) -> Result<(u64, u64)> {
+pub fn ray_by_ray(n: u32, origin: bool, f: u32) -> Result<(u64, u64)> {
+    crate::machine::diffuse::with_f!(f, F => ray_by_ray_f::<F>(n, origin))
+}
+
+/// [`ray_by_ray`] under f = `F`.
+fn ray_by_ray_f<F: FracBits>(n: u32, origin: bool) -> Result<(u64, u64)> {
     let c = SourceCoord::from_num(if origin { 0 } else { n / 2 });
     let src = Source::new(SourceId(0), [c; 3]);
     let far = FarDistance::<F>::new(n.max(2) - 1)
@@ -57,7 +62,6 @@ pub fn ray_by_ray<F: FracBits>(n: u32, origin: bool) -> Result<(u64, u64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use cell_core::beam::frac::U0;
 
     /// The mode traced again in f64, ray by ray (voxel ⌊s + u·k/D + ½⌋ per transverse axis,
     /// exact for these small integers), in the same emission order.
@@ -97,7 +101,7 @@ mod tests {
     fn ray_by_ray_matches_the_f64_oracle() {
         for n in [2u32, 5, 8, 16] {
             for origin in [false, true] {
-                let got = ray_by_ray::<U0>(n, origin).unwrap();
+                let got = ray_by_ray(n, origin, 0).unwrap();
                 assert_eq!(got, oracle(n, origin), "n {n}, origin {origin}");
                 let rays = 6 * (2 * n as u64 - 1).pow(2);
                 assert!(got.0 >= rays && got.0 <= rays + n as u64, "n {n}: T {}, N_T {rays}", got.0);

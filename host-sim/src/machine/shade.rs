@@ -5,7 +5,6 @@
 //! white, each of intensity 1/√(number of lights), ambient 0.2. The image also carries the
 //! cells' shading error against the same formula in f64 with the same inputs.
 
-use cell_core::beam::FracBits;
 use cell_core::light::SourceMask;
 use cell_core::lit::LitRule;
 use cell_core::shade::{
@@ -65,7 +64,7 @@ pub enum Seen<'a> {
 }
 
 /// What the image of a diffusion reads, by its lit rule.
-pub fn seen<F: FracBits>(lighting: &crate::machine::diffuse::Lighting<F>) -> Seen<'_> {
+pub fn seen(lighting: &crate::machine::diffuse::Lighting) -> Seen<'_> {
     match lighting.rule {
         LitRule::Thesis => Seen::FirstVoxel(Box::new(|x, y, z| lighting.mask(x, y, z))),
         LitRule::Plane | LitRule::Exact => Seen::Surface(Box::new(|x, y| lighting.visible_mask(x, y))),
@@ -81,11 +80,11 @@ pub fn ref_lights(lights: &[PointLight]) -> Vec<crate::truth::refrender::RefLigh
 }
 
 /// Shade every cell's visible voxel.
-pub fn shade_grid<F: FracBits>(
+pub fn shade_grid(
     mesh: &Mesh,
     scene: &LoadedScene,
     lights: &[PointLight],
-    lighting: &crate::machine::diffuse::Lighting<F>,
+    lighting: &crate::machine::diffuse::Lighting,
     mode: NormalMode,
 ) -> Image {
     shade_grid_with(mesh, scene, lights, &seen(lighting), mode)

@@ -269,3 +269,22 @@ fn clap_only_in_the_cli() {
         c.code.iter().filter(|(m, code)| m[0] != "cli" && code.contains("clap")).map(|(m, _)| name(m)).collect();
     assert!(bad.is_empty(), "clap outside cli/: {bad:?}");
 }
+
+/// f (the rays' fraction bits) is a type parameter of the cells only: the host picks the cells'
+/// build for a run's f inside the lighting run (`machine::diffuse::with_f`), and nothing above
+/// the machine — jobs, their results, reports, the configuration, the CLI — is generic over it
+/// or expands per f.
+#[test]
+fn f_is_confined_to_the_machine() {
+    let c = read_crate();
+    let bad: Vec<String> = c
+        .code
+        .iter()
+        .filter(|(m, code)| m[0] != "machine" && (code.contains("FracBits") || code.contains("with_frac_bits")))
+        .map(|(m, _)| name(m))
+        .collect();
+    assert!(bad.is_empty(), "generic over f or dispatching on it outside machine/: {bad:?}");
+    let dispatch: Vec<String> =
+        c.code.iter().filter(|(_, code)| code.contains("with_frac_bits!")).map(|(m, _)| name(m)).collect();
+    assert_eq!(dispatch, ["machine::diffuse"], "one place picks the cells' build for an f");
+}

@@ -3,7 +3,6 @@
 //! (exhaustive over all n³ voxels) and against continuous geometry (f64 point–triangle
 //! distances), after a JSON round trip.
 
-use cell_core::beam::frac::U0;
 use cell_core::light::Policy;
 use host_sim::jobs::dump::{lit_dump, write_lit_dump};
 use host_sim::machine::diffuse::LightConfig;
@@ -68,7 +67,7 @@ fn dump_matches_the_grid_the_lights_and_the_geometry() {
         record_visits: false,
         ..host_sim::config::plane_rule()
     };
-    let (lighting, stats) = run_diffusion::<U0>(&mesh, &loaded, &lights, &lcfg, |_, _| {}).unwrap();
+    let (lighting, stats) = run_diffusion(&mesh, &loaded, &lights, &lcfg, |_, _| {}).unwrap();
     let mut buf = Vec::new();
     write_lit_dump(&lit_dump(&mesh, &loaded.grid, &loaded.fit, &lighting, &stats), &mut buf).unwrap();
     let d: Value = serde_json::from_slice(&buf).unwrap();

@@ -6,7 +6,6 @@
 //! (the white ceiling redder on the red wall's side, greener on the green wall's) is in the
 //! machine's image too, while direct light alone has none. Bad input goes through the binary.
 
-use cell_core::beam::frac::U0;
 use cell_core::shade::NormalMode;
 use host_sim::jobs::radiosity::RadiositySettings;
 use host_sim::jobs::render::{render, RenderConfig, RenderInput, Rendered};
@@ -43,7 +42,7 @@ fn cornell(n: u32, displays: &[Display]) -> (Mesh, Vec<(Display, Rendered, RefIm
             let shown = solved.show(&mesh, &loaded, &lights, display, light.rule).unwrap();
             let reference = solved.reference_image(&shown, &mesh, &loaded, &lights).unwrap().expect("asked for it");
             let input = RenderInput { indirect: Some(&shown.cells), ..RenderInput::new(&mesh, &loaded, &lights) };
-            let r = render::<U0>(&input.compared_with(&reference), &cfg, |_, _| {}).unwrap();
+            let r = render(&input.compared_with(&reference), &cfg, |_, _| {}).unwrap();
             (display, r, reference)
         })
         .collect();

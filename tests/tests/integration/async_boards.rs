@@ -10,7 +10,6 @@
 //!   proved in `cell_core::termination`);
 //! * the mutation: the same ring without message counters declares early under that schedule.
 
-use cell_core::beam::frac::U0;
 use cell_core::beam::{Origin, Source};
 use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
@@ -46,7 +45,7 @@ fn case(n: u32, rays: Origin, rule: LitRule) -> Case {
     let light =
         LightConfig { skip_receding: false, skip_dead_directions: false, rays, rule, ..host_sim::config::plane_rule() };
     let sources = lights.iter().enumerate().map(|(i, p)| light.source(i, *p, n).unwrap()).collect();
-    let (l, _) = run_diffusion::<U0>(&mesh, &loaded, &lights, &light, |_, _| {}).unwrap();
+    let (l, _) = run_diffusion(&mesh, &loaded, &lights, &light, |_, _| {}).unwrap();
     let img = shade_grid(&mesh, &loaded, &point_lights(&lights), &l, NormalMode::Facet);
     let visible = (0..n * n).map(|i| l.visible_mask(i % n, i / n)).collect();
     let lit = l.lit_voxels().collect();
@@ -55,8 +54,8 @@ fn case(n: u32, rays: Origin, rule: LitRule) -> Case {
 }
 
 impl Case {
-    fn run(&self, cfg: &AsyncConfig) -> AsyncRun<U0> {
-        run::<U0>(&self.prepared, self.loaded.grid.n, &self.sources, &self.light, cfg).unwrap()
+    fn run(&self, cfg: &AsyncConfig) -> AsyncRun {
+        run(&self.prepared, self.loaded.grid.n, &self.sources, &self.light, cfg).unwrap()
     }
 
     /// For each (board side, seed): every phase declared in time, and the boards' results equal
@@ -71,7 +70,7 @@ impl Case {
     }
 
     /// The boards' dexel stores, lit voxels, visible-surface masks and pixels equal the grid's.
-    fn check_same(&self, r: AsyncRun<U0>, what: &str) {
+    fn check_same(&self, r: AsyncRun, what: &str) {
         let n = self.loaded.grid.n;
         for (a, b) in r.grid.cells.iter().zip(&self.loaded.grid.cells) {
             assert_eq!(a.store.dexels(), b.store.dexels(), "{what}: dexels of ({}, {})", a.x, a.y);
@@ -94,7 +93,7 @@ impl Case {
 }
 
 /// No early declaration, every phase declared, each within 3N token hops of quiescence.
-fn check_termination(r: &AsyncRun<U0>, phases: usize, what: &str) {
+fn check_termination(r: &AsyncRun, phases: usize, what: &str) {
     assert_eq!(r.early, None, "{what}: declared early");
     let s = &r.stats;
     assert_eq!(s.phases.iter().map(|p| p.phase as usize).collect::<Vec<_>>(), (0..phases).collect::<Vec<_>>());

@@ -4,7 +4,6 @@
 //! (look-at basis, x toward the image's left; s = x/(w·z) + ½ in perspective, x/W + ½ in
 //! orthographic), not taken from `host_sim::scene::camera`.
 
-use cell_core::beam::frac::U0;
 use cell_core::shade::NormalMode;
 use host_sim::jobs::render::{render, RenderConfig, RenderInput};
 use host_sim::machine::loaded::{load_scene, resolve_lights};
@@ -87,7 +86,7 @@ fn render_through(mesh: Mesh, cam: &Camera, n: u32) -> Image {
     let loaded = load_scene(&mesh, &LoadConfig::watertight(n)).unwrap();
     let lights = resolve_lights(&mesh, &loaded, &[]).unwrap();
     let cfg = RenderConfig::diffusion(host_sim::config::plane_rule(), NormalMode::Facet);
-    render::<U0>(&RenderInput::new(&mesh, &loaded, &lights), &cfg, |_, _| {}).unwrap().image
+    render(&RenderInput::new(&mesh, &loaded, &lights), &cfg, |_, _| {}).unwrap().image
 }
 
 /// Distance from point p to the boundary of the convex hull `hull` (counter-clockwise), and

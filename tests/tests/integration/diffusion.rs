@@ -113,13 +113,14 @@ fn sources(src16: &[[i64; 3]]) -> Vec<Source> {
         .collect()
 }
 
-fn light<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) -> Lighting<F> {
+fn light<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) -> Lighting {
     let sources: Vec<Source> = sources(src16).into_iter().map(|s| s.with_origin(cfg.rays)).collect();
-    diffuse::<F, 64>(g, &sources, &cfg, |_, _| {}).expect("diffusion terminates without loss")
+    let cfg = LightConfig { frac_bits: F::U32, ..cfg };
+    diffuse::<64>(g, &sources, &cfg, |_, _| {}).expect("diffusion terminates without loss")
 }
 
 /// The columns whose visible surface the diffusion lit, with their source masks.
-fn visible_lit<F: FracBits>(l: &Lighting<F>) -> BTreeMap<[i64; 2], u64> {
+fn visible_lit(l: &Lighting) -> BTreeMap<[i64; 2], u64> {
     l.cells.iter().filter(|c| c.visible_lit != 0).map(|c| ([c.x as i64, c.y as i64], c.visible_lit as u64)).collect()
 }
 
@@ -480,15 +481,9 @@ fn thesis_shape_and_our_policy() {
     let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
     let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
     let lit = |policy, merge| {
-        let lcfg = LightConfig { fa: 4, policy, merge, record_visits: false, ..host_sim::config::plane_rule() };
-        let (l, _) = host_sim::machine::lighting::run_diffusion::<cell_core::beam::frac::U2>(
-            &mesh,
-            &loaded,
-            &lights,
-            &lcfg,
-            |_, _| {},
-        )
-        .unwrap();
+        let lcfg =
+            LightConfig { fa: 4, policy, merge, record_visits: false, frac_bits: 2, ..host_sim::config::plane_rule() };
+        let (l, _) = host_sim::machine::lighting::run_diffusion(&mesh, &loaded, &lights, &lcfg, |_, _| {}).unwrap();
         l.lit_voxels().collect::<Vec<_>>()
     };
     let a = lit(Policy::Thesis, false);
@@ -580,14 +575,7 @@ fn phase_seconds_are_laps_inside_the_light_wall() {
     let loaded = host_sim::machine::loaded::load_scene(&mesh, &LoadConfig::watertight(24)).unwrap();
     let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
     let cfg = host_sim::config::Preset::Light.light();
-    let (_, stats) = host_sim::machine::lighting::run_diffusion::<cell_core::beam::frac::U0>(
-        &mesh,
-        &loaded,
-        &lights,
-        &cfg,
-        |_, _| {},
-    )
-    .unwrap();
+    let (_, stats) = host_sim::machine::lighting::run_diffusion(&mesh, &loaded, &lights, &cfg, |_, _| {}).unwrap();
     let phases = stats.phase_seconds.expect("a beam diffusion reports its phases");
     for (name, s) in phases.named() {
         assert!(s >= 0.0, "{name}: {s}");

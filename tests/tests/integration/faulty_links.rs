@@ -4,7 +4,6 @@
 //! exactly the voxels a clean run lights and give the same image bytes, in more cycles (with
 //! the thesis's rays and with rays from the light).
 
-use cell_core::beam::frac::U0;
 use cell_core::beam::Origin;
 use cell_core::light::Policy;
 use cell_core::shade::NormalMode;
@@ -29,7 +28,7 @@ fn faulty_links_light_exactly_what_clean_links_light() {
         let run = |faults: Option<LinkFaults>| {
             let cfg =
                 LightConfig { fa: 4, policy, merge: policy.by_layer(), faults, rays, ..host_sim::config::plane_rule() };
-            let (l, stats) = run_diffusion::<U0>(&mesh, &loaded, &lights, &cfg, |_, _| {}).unwrap();
+            let (l, stats) = run_diffusion(&mesh, &loaded, &lights, &cfg, |_, _| {}).unwrap();
             let img = shade_grid(&mesh, &loaded, &point_lights(&lights), &l, NormalMode::Facet);
             (l.lit_voxels().collect::<Vec<_>>(), img.rgb, stats)
         };
@@ -74,25 +73,20 @@ fn a_dead_link_is_reported_as_a_stall_and_perfect_links_never_stall() {
     let lights = resolve_lights(&mesh, &loaded, &[]).unwrap();
     let dead = LinkFaults { drop_ppm: 1_000_000, ..LinkFaults::NONE };
     let cfg = LightConfig { fa: 4, faults: Some(dead), stall_cycles: 7, ..host_sim::config::plane_rule() };
-    let err = run_diffusion::<U0>(&mesh, &loaded, &lights, &cfg, |_, _| {}).err().expect("a dead link must stall");
+    let err = run_diffusion(&mesh, &loaded, &lights, &cfg, |_, _| {}).err().expect("a dead link must stall");
     let msg = err.to_string();
     // A delay as long as the stall limit is refused up front, not reported as a stall.
     let slow = LinkFaults { delay_ppm: 1_000_000, delay_cycles: 7, ..LinkFaults::NONE };
     let cfg_slow = LightConfig { fa: 4, faults: Some(slow), stall_cycles: 7, ..host_sim::config::plane_rule() };
-    let e = run_diffusion::<U0>(&mesh, &loaded, &lights, &cfg_slow, |_, _| {}).err().expect("refused");
+    let e = run_diffusion(&mesh, &loaded, &lights, &cfg_slow, |_, _| {}).err().expect("refused");
     assert!(e.to_string().contains("delay-cycles=7 must be below --stall-cycles 7"), "{e}");
     // Every frame held up to 6 cycles: slow, but never a stall, and the same lit voxels.
-    let clean = run_diffusion::<U0>(
-        &mesh,
-        &loaded,
-        &lights,
-        &LightConfig { fa: 4, ..host_sim::config::plane_rule() },
-        |_, _| {},
-    );
+    let clean =
+        run_diffusion(&mesh, &loaded, &lights, &LightConfig { fa: 4, ..host_sim::config::plane_rule() }, |_, _| {});
     let (clean, cs) = clean.unwrap();
     let all_slow = LinkFaults { delay_ppm: 1_000_000, delay_cycles: 6, ..LinkFaults::NONE };
     let cfg_all = LightConfig { fa: 4, faults: Some(all_slow), stall_cycles: 7, ..host_sim::config::plane_rule() };
-    let (l, st) = run_diffusion::<U0>(&mesh, &loaded, &lights, &cfg_all, |_, _| {}).expect("delays are not stalls");
+    let (l, st) = run_diffusion(&mesh, &loaded, &lights, &cfg_all, |_, _| {}).expect("delays are not stalls");
     assert!(l.lit_voxels().eq(clean.lit_voxels()));
     let c = st.link_faults.unwrap();
     assert_eq!(c.data_delayed, c.data_frames, "every frame was delayed: {c:?}");
@@ -101,6 +95,6 @@ fn a_dead_link_is_reported_as_a_stall_and_perfect_links_never_stall() {
     assert!(msg.contains("fifo") && msg.contains("out ["), "the report shows the queues: {msg}");
     for policy in [Policy::Wavefront, Policy::Thesis, Policy::Radial] {
         let cfg = LightConfig { fa: 1, policy, merge: false, stall_cycles: 1, ..host_sim::config::plane_rule() };
-        run_diffusion::<U0>(&mesh, &loaded, &lights, &cfg, |_, _| {}).expect("perfect links never stall");
+        run_diffusion(&mesh, &loaded, &lights, &cfg, |_, _| {}).expect("perfect links never stall");
     }
 }

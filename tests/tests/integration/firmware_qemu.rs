@@ -258,7 +258,7 @@ fn parse_output(out: &str) -> HashMap<String, Result<u64, String>> {
 fn light_traces(dir: &Path) -> (Vec<(String, CellTrace)>, u64) {
     let (mesh, load, light, cells) = cornell_job_cells(64);
     let job = TraceJob { busiest: true, ..trace_job(&mesh, load, light, cells) };
-    let traces = record::<U0>(&job).expect("record traces");
+    let traces = record(&job).expect("record traces");
     assert!(traces.len() >= 4, "corner, centre, source and busiest cells");
     host_sim::jobs::trace::write_traces(dir, &traces).unwrap();
     // Two altered copies of the corner cell's trace (the first one recorded; small, so that the
@@ -277,7 +277,7 @@ fn light_traces(dir: &Path) -> (Vec<(String, CellTrace)>, u64) {
     let teapot = host_sim::scene::load("teapot-floor").unwrap();
     let tlight = LightConfig { hold: 4, skip_frustum: true, frustum_blocks: FrustumBlocks::B8, ..light };
     let tjob = TraceJob { busiest: true, ..trace_job(&teapot, LoadConfig::thin(32), tlight, vec![[16, 16]]) };
-    let waits = record::<U0>(&tjob).expect("record traces with the wait and the frustum skip");
+    let waits = record(&tjob).expect("record traces with the wait and the frustum skip");
     for t in &waits {
         std::fs::write(dir.join(format!("w_cell_{}_{}.rc2t", t.x, t.y)), &t.bytes).unwrap();
     }
@@ -296,7 +296,7 @@ fn exact_traces(dir: &Path) -> (Vec<(String, CellTrace)>, u64) {
     let (mesh, load, light, cells) = cornell_job_cells(32);
     let light = LightConfig { rule: LitRule::Exact, rays: Origin::Light, ..light };
     let job = TraceJob { busiest: true, ..trace_job(&mesh, load, light, cells) };
-    let traces = record::<U0>(&job).expect("record traces under exact occluders");
+    let traces = record(&job).expect("record traces under exact occluders");
     let busiest = traces.last().expect("the busiest cell");
     let without = drop_triangles::<U0>(&busiest.bytes).expect("the busiest cell keeps triangles");
     std::fs::write(dir.join("z_no_triangles.rc2t"), without).unwrap();
@@ -360,7 +360,7 @@ fn record_ray_sets(dir: &Path) -> Vec<(String, CellTrace)> {
         let mesh = host_sim::scene::load(scene).unwrap();
         let (load, light) = (LoadConfig::watertight(32), host_sim::config::plane_rule());
         let job = TraceJob { classic, reflections, ..trace_job(&mesh, load, light, cells) };
-        let traces = record::<U0>(&job).unwrap_or_else(|e| panic!("record the {set} traces: {e}"));
+        let traces = record(&job).unwrap_or_else(|e| panic!("record the {set} traces: {e}"));
         host_sim::jobs::trace::write_traces(&dir.join(set), &traces).unwrap();
         named.extend(traces.into_iter().map(|t| (format!("{set}/cell_{}_{}.rc2t", t.x, t.y), t)));
     }

@@ -4,7 +4,6 @@
 //! (receding beams, dead directions) leave lit voxels and images unchanged while their dropped
 //! rays are exactly rays that would have left the grid.
 
-use cell_core::beam::frac::U0;
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
@@ -37,7 +36,7 @@ fn setup(scene: &str, n: u32) -> (Mesh, LoadedScene, Vec<[f64; 3]>) {
 fn run(s: &(Mesh, LoadedScene, Vec<[f64; 3]>), cfg: LightConfig, threads: usize) -> Outcome {
     let (mesh, loaded, lights) = s;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-    let (l, _) = pool.install(|| run_diffusion::<U0>(mesh, loaded, lights, &cfg, |_, _| {}).unwrap());
+    let (l, _) = pool.install(|| run_diffusion(mesh, loaded, lights, &cfg, |_, _| {}).unwrap());
     let img = shade_grid(mesh, loaded, &point_lights(lights), &l, NormalMode::Facet);
     let path = std::env::temp_dir().join(format!(
         "rc2-host-modes-{}-{:?}.png",
@@ -302,7 +301,7 @@ fn hidden_skip_keeps_the_visible_lit_set_and_the_image() {
     // Without `lit_visible_only` the skip would lose hidden voxels' light: refused.
     let s = setup("cornell", 16);
     let cfg = LightConfig { skip_hidden: true, ..host_sim::config::plane_rule() };
-    let Err(err) = run_diffusion::<U0>(&s.0, &s.1, &s.2, &cfg, |_, _| {}) else {
+    let Err(err) = run_diffusion(&s.0, &s.1, &s.2, &cfg, |_, _| {}) else {
         panic!("the hidden-voxel skip ran without --lit-visible-only");
     };
     let err = err.to_string();

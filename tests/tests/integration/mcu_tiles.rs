@@ -86,7 +86,7 @@ fn case() -> Case {
     let light = LightConfig { skip_receding: false, skip_dead_directions: false, ..host_sim::config::plane_rule() };
     let prepared = prepare(&mesh, &cfg).unwrap();
     let packets = &prepared.packets;
-    let r = run::<U0>(&prepared, N, &sources, &light, &AsyncConfig { tile: TILE, ..Default::default() }).unwrap();
+    let r = run(&prepared, N, &sources, &light, &AsyncConfig { tile: TILE, ..Default::default() }).unwrap();
     assert_eq!(r.early, None);
     // The same box without its blocks (the last ten faces; the first six, the box and its
     // lamp, fit the grid the same way and come first, so they keep their facet ids).
@@ -95,7 +95,7 @@ fn case() -> Case {
     let empty_prepared = prepare(&empty, &cfg).unwrap();
     let empty_packets = &empty_prepared.packets;
     assert_eq!(empty_packets[..], packets[..empty_packets.len()], "the box's packets are the same without the blocks");
-    let e = run::<U0>(&empty_prepared, N, &sources, &light, &AsyncConfig { tile: TILE, ..Default::default() }).unwrap();
+    let e = run(&empty_prepared, N, &sources, &light, &AsyncConfig { tile: TILE, ..Default::default() }).unwrap();
     let with_blocks: std::collections::BTreeSet<[u32; 3]> = r.lighting.lit_voxels().map(|(v, _)| v).collect();
     let wall_voxel = |[x, y, z]: [u32; 3]| {
         let c = r.grid.cell(x, y);

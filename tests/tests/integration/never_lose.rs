@@ -5,7 +5,6 @@
 //! each lit voxel is its own run, and a source far across the grid lights most of them from
 //! the side — more runs than the column's `LIT_CAP`.
 
-use cell_core::beam::frac::U0;
 use cell_core::dexel::FacetTag;
 use cell_core::units::Span;
 use host_sim::machine::capacity::LIT_CAP;
@@ -35,7 +34,7 @@ fn striped_column_lighting(stripes: u16) -> (u32, u64, Result<(), String>) {
         record_visits: false,
         ..host_sim::config::plane_rule()
     };
-    let lighting = diffuse::<U0, 128>(&grid, &[src], &cfg, |_, _| {}).unwrap();
+    let lighting = diffuse::<128>(&grid, &[src], &cfg, |_, _| {}).unwrap();
     let runs = lighting.cells[(y0 * n) as usize].lit.runs().len() as u32;
     (runs, lighting.lit_overflows(), check_lit_overflow(&lighting).map_err(|e| e.to_string()))
 }

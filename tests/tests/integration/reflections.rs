@@ -2,7 +2,6 @@
 //! tree against a sequential per-ray oracle, a flat mirror against continuous geometry, and
 //! depth 0 against the plain render.
 
-use cell_core::beam::frac::U0;
 use cell_core::dexel::Dexel;
 use cell_core::ray::{Connectivity, Q};
 use cell_core::reflect::{combine, hit_normal, reflected_dir, to_answer, toward_origin, Answer, ReflectNormal};
@@ -32,7 +31,7 @@ fn render_reflect(
     input: &RenderInput<'_>,
     cfg: ReflectConfig,
 ) -> (Rendered, host_sim::machine::reflect::ReflectCounts) {
-    let mut r = render::<U0>(input, &with_reflections(cfg), |_, _| {}).unwrap();
+    let mut r = render(input, &with_reflections(cfg), |_, _| {}).unwrap();
     let counts = r.reflections.take().expect("a render with reflections counts them");
     (r, counts)
 }
@@ -145,8 +144,7 @@ fn grid_trees_match_a_per_ray_oracle() {
     for (mesh, n, depth) in [(host_sim::scene::load("cornell-mirror").unwrap(), 32, 3), (hall_of_mirrors(), 20, 4)] {
         let (s, lights) = load(&mesh, n);
         let (lighting, _) =
-            host_sim::machine::lighting::run_diffusion::<U0>(&mesh, &s, &lights, &render_cfg().light, |_, _| {})
-                .unwrap();
+            host_sim::machine::lighting::run_diffusion(&mesh, &s, &lights, &render_cfg().light, |_, _| {}).unwrap();
         let mask = |x, y, z| lighting.mask(x, y, z);
         let pl = host_sim::machine::shade::point_lights(&lights);
         let env = ShadeEnv::new(&mesh, &pl, NormalMode::Facet, &mask);
@@ -197,7 +195,7 @@ fn depth_zero_is_the_plain_render_and_reflections_only_touch_mirrors() {
     let mesh = host_sim::scene::load("cornell-mirror").unwrap();
     let (s, lights) = load(&mesh, 64);
     let input = RenderInput::new(&mesh, &s, &lights);
-    let plain = render::<U0>(&input, &render_cfg(), |_, _| {}).unwrap();
+    let plain = render(&input, &render_cfg(), |_, _| {}).unwrap();
     let (r0, k0) = render_reflect(&input, config(0, Connectivity::Six, 4, RoutePolicy::Adaptive));
     assert_eq!(r0.image.rgb, plain.image.rgb);
     assert_eq!(k0.rays, 0);

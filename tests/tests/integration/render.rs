@@ -86,7 +86,7 @@ fn load(scene: &str, n: u32, thickness: Thickness, contour: Contour) -> (Mesh, L
     (mesh, loaded)
 }
 
-fn render<F: FracBits>(
+fn render(
     mesh: &Mesh,
     loaded: &LoadedScene,
     lights: &[[f64; 3]],
@@ -95,7 +95,7 @@ fn render<F: FracBits>(
 ) -> host_sim::jobs::render::Rendered {
     let rcfg = RenderConfig::diffusion(light, NormalMode::Facet);
     let input = RenderInput { reference, ..RenderInput::new(mesh, loaded, lights) };
-    host_sim::jobs::render::render::<F>(&input, &rcfg, |_, _| {}).unwrap()
+    host_sim::jobs::render::render(&input, &rcfg, |_, _| {}).unwrap()
 }
 
 /// Sources in sixteenths of a voxel, as the oracles take them: the lattice positions the
@@ -142,7 +142,7 @@ fn check_against_oracle<F: FracBits>(
 ) {
     let (mesh, loaded) = load(scene, n, surfaces.0, surfaces.1);
     let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, lights).unwrap();
-    let got = render::<F>(&mesh, &loaded, &lights, light, None).image;
+    let got = render(&mesh, &loaded, &lights, LightConfig { frac_bits: F::U32, ..light }, None).image;
     let want = oracle_image(&mesh, &loaded, &lights, light.rule, F::U32);
     let what = format!("{scene} n = {n} f = {} {light:?}", F::U32);
     assert_eq!(got.covered, want.covered, "{what}: covered pixels");
@@ -192,8 +192,8 @@ fn render_is_deterministic() {
     let (mesh, loaded) = load("cornell", 32, Thickness::Standard, Contour::Conservative);
     let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
     let cfg = LightConfig { lit_visible_only: true, skip_hidden: true, ..host_sim::config::plane_rule() };
-    let a = render::<cell_core::beam::frac::U0>(&mesh, &loaded, &lights, cfg, None).image;
-    let b = render::<cell_core::beam::frac::U0>(&mesh, &loaded, &lights, cfg, None).image;
+    let a = render(&mesh, &loaded, &lights, cfg, None).image;
+    let b = render(&mesh, &loaded, &lights, cfg, None).image;
     assert_eq!(a.rgb, b.rgb, "same input, same pixels");
     let dir = std::env::temp_dir().join(format!("rc2-render-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -245,7 +245,7 @@ fn coverage_differs_from_the_f64_reference_only_at_projected_edges() {
         let cfg = LightConfig { lit_visible_only: true, skip_hidden: true, ..host_sim::config::plane_rule() };
         let rcfg = RenderConfig::diffusion(cfg, NormalMode::Facet);
         let reference = host_sim::jobs::render::reference_image(&mesh, &loaded, &lights, &rcfg).unwrap();
-        let r = render::<cell_core::beam::frac::U0>(&mesh, &loaded, &lights, cfg, Some(&reference));
+        let r = render(&mesh, &loaded, &lights, cfg, Some(&reference));
         // Triangles projected on the image plane, in voxel units from the grid's low corner
         // (pixel (x, y) has its centre at (x + ½, y + ½)).
         let (tris, _) = host_sim::truth::refrender::mesh_triangles(&mesh).unwrap();
@@ -366,7 +366,6 @@ fn tilted_sheet(front: bool) -> Mesh {
 /// principal planes, and the beam diffusion equals the per-ray oracle here.
 #[test]
 fn a_tilted_sheet_is_lit_wherever_the_reference_sees_the_light() {
-    use cell_core::beam::frac::U0;
     let n = 48;
     let cfg = LightConfig { lit_visible_only: true, skip_hidden: true, ..host_sim::config::plane_rule() };
     let rcfg = RenderConfig::diffusion(cfg, NormalMode::Facet);
@@ -381,7 +380,7 @@ fn a_tilted_sheet_is_lit_wherever_the_reference_sees_the_light() {
         for light in [[0.5, 0.5, 0.2], [0.5, 0.7, 0.2], [0.3, 0.35, 0.05]] {
             let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[light]).unwrap();
             let reference = host_sim::jobs::render::reference_image(&mesh, &loaded, &lights, &rcfg).unwrap();
-            let got = render::<U0>(&mesh, &loaded, &lights, cfg, Some(&reference)).image;
+            let got = render(&mesh, &loaded, &lights, cfg, Some(&reference)).image;
             let want = oracle_image(&mesh, &loaded, &lights, LitRule::Plane, 0);
             assert_eq!(got.lit, want.lit, "front {front}, light {light:?}: the machine equals the per-ray oracle");
             let both: Vec<usize> = (0..got.covered.len()).filter(|&i| got.covered[i] && reference.covered[i]).collect();
@@ -453,7 +452,7 @@ fn the_neighbours_contact_answers_darken_pixels_the_mesh_shadows() {
     let cfg = Preset::Render.light();
     let rcfg = RenderConfig::diffusion(cfg, NormalMode::Facet);
     let reference = host_sim::jobs::render::reference_image(&mesh, &loaded, &lights, &rcfg).unwrap();
-    let got = render::<U0>(&mesh, &loaded, &lights, cfg, Some(&reference)).image;
+    let got = render(&mesh, &loaded, &lights, cfg, Some(&reference)).image;
     let source = cfg.source(0, lights[0], n).unwrap();
     let far = FarDistance::<U0>::new(n - 1).unwrap();
     // The triangles of column (x, y) the segment crosses.

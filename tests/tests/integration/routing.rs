@@ -329,7 +329,6 @@ fn classic_exact_answers_match_every_triangle() {
 /// count the edges and the bits changed, and some bits do change.
 #[test]
 fn refined_shadow_edges_take_the_exact_answer_and_the_rest_keeps_the_diffused_one() {
-    use cell_core::beam::frac::U0;
     use cell_core::lit::LitRule;
     use host_sim::machine::classic::{refine_edges, ClassicConfig};
     use host_sim::machine::diffuse::LightConfig;
@@ -346,7 +345,7 @@ fn refined_shadow_edges_take_the_exact_answer_and_the_rest_keeps_the_diffused_on
         for rule in [LitRule::Plane, LitRule::Exact] {
             let lcfg = LightConfig { rule, ..host_sim::config::plane_rule() };
             let (lighting, _) =
-                host_sim::machine::lighting::run_diffusion::<U0>(&mesh, &loaded, &lights, &lcfg, |_, _| {}).unwrap();
+                host_sim::machine::lighting::run_diffusion(&mesh, &loaded, &lights, &lcfg, |_, _| {}).unwrap();
             let diffused: Vec<u32> =
                 (0..n * n).map(|i| lighting.visible_mask((i % n) as u32, (i / n) as u32)).collect();
             let shows = |i: usize| loaded.grid.cells[i].visible.is_some();

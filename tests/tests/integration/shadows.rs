@@ -10,8 +10,7 @@
 //! an occluder's edge is within a voxel of some path and a voxel grid can only be right to a
 //! voxel, are the shadow disagreement's business, not this test's.
 
-use cell_core::beam::frac::U0;
-use cell_core::beam::{FracBits, Origin};
+use cell_core::beam::Origin;
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use host_sim::jobs::render::{RenderConfig, RenderInput, RenderLighting};
@@ -126,10 +125,16 @@ const CLASSIC: Setup = Setup { classic: true, rays: Origin::SourceVoxel, ..UNBOU
 /// `render` with the job's defaults for `setup` (visible-only lit store, hidden-voxel skip),
 /// the reference image and which pixels face which source.
 /// Also returns how many triangles full columns left out.
-fn render<F: FracBits>(
+fn render(mesh: &Mesh, n: u32, setup: &Setup) -> (Image, host_sim::truth::refrender::RefImage, Vec<u32>, u64) {
+    render_f(mesh, n, setup, 0)
+}
+
+/// [`render`] with `f` fraction bits.
+fn render_f(
     mesh: &Mesh,
     n: u32,
     setup: &Setup,
+    f: u32,
 ) -> (Image, host_sim::truth::refrender::RefImage, Vec<u32>, u64) {
     let cfg = LoadConfig { n, thickness: setup.thickness, contour: setup.contour };
     let mut loaded = host_sim::machine::loaded::load_scene(mesh, &cfg).unwrap();
@@ -144,6 +149,7 @@ fn render<F: FracBits>(
         policy: if setup.rule == LitRule::Thesis { Policy::Wavefront } else { Policy::Radial },
         lit_visible_only: true,
         skip_hidden: true,
+        frac_bits: f,
         ..host_sim::config::plane_rule()
     };
     let mut rcfg = RenderConfig::diffusion(light, cell_core::shade::NormalMode::Facet);
@@ -160,7 +166,7 @@ fn render<F: FracBits>(
     }
     let reference = host_sim::jobs::render::reference_image(mesh, &loaded, &lights, &rcfg).unwrap();
     let input = RenderInput::new(mesh, &loaded, &lights).compared_with(&reference);
-    let r = host_sim::jobs::render::render::<F>(&input, &rcfg, |_, _| {}).unwrap();
+    let r = host_sim::jobs::render::render(&input, &rcfg, |_, _| {}).unwrap();
     let mut behind = behind_solids(mesh, &loaded.fit, n, &lights);
     // A silhouette pixel the reference sees the floor through but the machine shades the
     // mesh at (its contour is conservative; the thesis's rule shows the first voxel) shows
@@ -216,8 +222,7 @@ fn no_light_through_closed_meshes() {
         // The default lattice (f = 0) and the finer one the accuracy knob gives (f = 1).
         let fs: &[u32] = if setup.classic { &[0] } else { &[0, 1] };
         for (n, f) in sizes().into_iter().flat_map(|n| fs.iter().map(move |&f| (n, f))) {
-            let (image, _, behind, left_out) =
-                cell_core::with_frac_bits!(f, F => render::<F>(&mesh, n, setup)).unwrap();
+            let (image, _, behind, left_out) = render_f(&mesh, n, setup, f);
             let (lit, total) = leaks(&image, &behind);
             println!(
                 "{scene} on a floor, {name}, n = {n}, f = {f}: {lit} lit of {total} pixels behind a solid \
@@ -251,7 +256,7 @@ fn leaky_modes_do_leak() {
         triangle_cap: None,
         classic: false,
     };
-    let (image, _, behind, _) = render::<U0>(&mesh, 128, &thin);
+    let (image, _, behind, _) = render(&mesh, 128, &thin);
     let (lit, total) = leaks(&image, &behind);
     println!("teapot-floor n = 128, thesis rule on naive surfaces: {lit} lit of {total} pixels behind a solid");
     assert!(lit > 0);
@@ -264,7 +269,7 @@ fn stray_or_inverted_windings_do_not_change_the_light() {
     // written inside out, or with one face in three reversed, and loaded from the file renders
     // exactly as the built-in cow.
     let cow = host_sim::scene::load("cow").unwrap();
-    let (want, _, _, _) = render::<U0>(&cow, 64, &DEFAULT);
+    let (want, _, _, _) = render(&cow, 64, &DEFAULT);
     let dir = std::env::temp_dir().join(format!("rc2-winding-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     for every in [1, 3] {
@@ -277,7 +282,7 @@ fn stray_or_inverted_windings_do_not_change_the_light() {
         let mut loaded = host_sim::scene::load(path.to_str().unwrap()).unwrap();
         assert_eq!(loaded.rewound, cow.faces.len().div_ceil(every), "every {every}");
         loaded.lights = cow.lights.clone();
-        let (got, _, _, _) = render::<U0>(&loaded, 64, &DEFAULT);
+        let (got, _, _, _) = render(&loaded, 64, &DEFAULT);
         assert!(got.lit == want.lit && got.rgb == want.rgb, "every {every}: same light, same image");
     }
 }

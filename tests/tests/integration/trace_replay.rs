@@ -39,7 +39,7 @@ fn all_cells<F: FracBits>(scene: &str, n: u32, light: LightConfig) -> Vec<CellTr
     let mesh = host_sim::scene::load(scene).unwrap();
     let load = LoadConfig::thin(n);
     let cells = (0..n).flat_map(|y| (0..n).map(move |x| [x, y])).collect();
-    record::<F>(&trace_job(&mesh, load, light, cells)).unwrap()
+    record(&trace_job(&mesh, load, LightConfig { frac_bits: F::U32, ..light }, cells)).unwrap()
 }
 
 fn check_all<F: FracBits>(scene: &str, n: u32, policy: Policy, merge: bool, fa: usize) {
@@ -108,14 +108,15 @@ fn every_cell_replays_under_exact_occluders_with_rays_from_the_light() {
     for (scene, n) in [("cornell", 16), ("teapot-floor", 16)] {
         let mesh = host_sim::scene::load(scene).unwrap();
         let cells = (0..n).flat_map(|y| (0..n).map(move |x| [x, y])).collect();
-        let traces = record::<U0>(&trace_job(&mesh, LoadConfig::watertight(n), exact, cells)).unwrap();
+        let traces = record(&trace_job(&mesh, LoadConfig::watertight(n), exact, cells)).unwrap();
         let triangles: usize = traces.iter().map(|t| triangle_records(&t.bytes)).sum();
         assert!(triangles > 0, "{scene}: the cells keep triangles");
         check_traces::<U0>(&traces, &format!("{scene} n={n} exact"));
     }
     let cornell = host_sim::scene::load("cornell").unwrap();
     let cells = (0..16).flat_map(|y| (0..16).map(move |x| [x, y])).collect();
-    let traces = record::<U2>(&trace_job(&cornell, LoadConfig::watertight(16), exact, cells)).unwrap();
+    let traces =
+        record(&trace_job(&cornell, LoadConfig::watertight(16), LightConfig { frac_bits: 2, ..exact }, cells)).unwrap();
     check_traces::<U2>(&traces, "cornell n=16 exact f=2");
 }
 
@@ -127,7 +128,7 @@ fn busiest_trace_with(light: LightConfig) -> CellTrace {
     let mesh = host_sim::scene::load("cornell").unwrap();
     let load = LoadConfig::thin(24);
     let job = TraceJob { busiest: true, ..trace_job(&mesh, load, light, Vec::new()) };
-    record::<U0>(&job).unwrap().pop().unwrap()
+    record(&job).unwrap().pop().unwrap()
 }
 
 fn busiest_trace() -> CellTrace {
@@ -235,7 +236,7 @@ fn check_ray_phase(
     let cells = (0..n).flat_map(|y| (0..n).map(move |x| [x, y])).collect();
     let light = LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, ..host_sim::config::plane_rule() };
     let job = TraceJob { lights, classic, reflections, ..trace_job(&mesh, load, light, cells) };
-    let traces = record::<U0>(&job).unwrap();
+    let traces = record(&job).unwrap();
     let mut total = [0u64; 5];
     for t in &traces {
         let (d, _) = replay_fn::<U0>()(&t.bytes).unwrap_or_else(|e| panic!("{scene} cell ({}, {}): {e:?}", t.x, t.y));
@@ -322,7 +323,7 @@ fn altered_ray_phase_traces_fail() {
         let mesh = host_sim::scene::load(scene).unwrap();
         let light = host_sim::config::plane_rule();
         let job = TraceJob { classic, reflections, ..trace_job(&mesh, LoadConfig::thin(16), light, vec![cell]) };
-        record::<U0>(&job).unwrap().pop().unwrap()
+        record(&job).unwrap().pop().unwrap()
     };
     let shadow = record_one("cornell", [8, 8], Some(classic(LitRule::Plane, Connectivity::Six, false, 16)), None);
     let mirror = record_one("cornell-mirror", [10, 7], None, Some(reflections(4, ReflectNormal::Facet)));
@@ -367,7 +368,7 @@ fn peak_link_load_equals_the_busiest_link_in_the_traces() {
         }
     }
     let cfg = LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, ..host_sim::config::plane_rule() };
-    let (_, stats) = host_sim::machine::lighting::run_diffusion::<U0>(&mesh, &scene, &lights, &cfg, |_, _| {}).unwrap();
+    let (_, stats) = host_sim::machine::lighting::run_diffusion(&mesh, &scene, &lights, &cfg, |_, _| {}).unwrap();
     let c = &stats.sources[0].counts;
     assert!(best.0 > 0);
     assert_eq!(c.peak_link_load, best.0, "peak link load");

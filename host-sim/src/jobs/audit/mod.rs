@@ -183,7 +183,7 @@ struct Peaks {
 fn peaks(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig) -> Result<Peaks> {
     let loaded = load_scene(mesh, cfg)?;
     let lights = resolve_lights(mesh, &loaded, &[])?;
-    let (lighting, _) = run_diffusion::<U0>(mesh, &loaded, &lights, light, |_, _| {})?;
+    let (lighting, _) = run_diffusion(mesh, &loaded, &lights, light, |_, _| {})?;
     let mut p = Peaks::default();
     let raise = |slot: &mut (usize, [u32; 2]), v: usize, x: u16, y: u16| {
         if v > slot.0 {

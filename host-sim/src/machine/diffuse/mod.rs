@@ -25,13 +25,16 @@
 use anyhow::{bail, Result};
 use cell_core::beam::{Beam, FarDistance, FracBits, Origin, Source, SourceId, SplitOrder};
 use cell_core::light::RaySink;
-use cell_core::light::{LightCell, LightCounters, LightEnv, OccupiedBox, Policy, SourceMask, SubBeamBounds};
+use cell_core::light::{
+    BeamMsg, LightCell, LightCounters, LightEnv, LitRuns, OccupiedBox, Policy, SourceMask, SubBeamBounds,
+};
 use cell_core::lit::LitRule;
 use cell_core::occluder::ColumnOccluders;
+use cell_core::units::Coord;
 
 use cell_core::link::PerfectLink;
 
-use crate::machine::capacity::{HostLightCell, FA_CAP};
+use crate::machine::capacity::{HostLightCell, FA_CAP, LIT_CAP};
 use crate::machine::faults::{fault_counts, FaultCounts, FaultInjector, FaultTally, LinkFaults, Wire};
 use crate::machine::grid::Grid;
 use crate::machine::links::{GridLinks, HostLink};
@@ -54,6 +57,11 @@ pub const DEFAULT_STALL_CYCLES: u64 = 64;
 /// ([`crate::config::Preset`]: what each job runs) or says what it tests.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LightConfig {
+    /// Fraction bits f of the far-plane ray offsets (§4.3.4: rays on a lattice 2^−f of a
+    /// voxel at the far plane). The cells are compiled once per supported f
+    /// ([`cell_core::with_frac_bits`]); the run picks that build here, and nothing outside the
+    /// lighting run is generic over it.
+    pub frac_bits: u32,
     /// FIFO limit (1 ..= FA_CAP).
     pub fa: usize,
     /// Scheduling policy.
@@ -280,12 +288,71 @@ impl Lap {
     }
 }
 
+/// The error for an f no cell build exists for.
+pub fn unsupported_frac_bits(f: u32) -> anyhow::Error {
+    anyhow::anyhow!("--frac-bits {f} is not supported (0..=8, 10, 12, 16, 20, 24)")
+}
+
+/// `$body` with `$F` the fraction-bit type of `f`, or the error naming the supported values
+/// (the one place the host picks a build of the cells for a run-time f).
+macro_rules! with_f {
+    ($f:expr, $F:ident => $body:expr) => {{
+        let f: u32 = $f;
+        cell_core::with_frac_bits!(f, $F => $body)
+            .unwrap_or_else(|| Err($crate::machine::diffuse::unsupported_frac_bits(f)))
+    }};
+}
+pub(crate) use with_f;
+
+/// Bytes of a beam message and of a host lighting cell under f (`None`: unsupported f).
+pub fn light_cell_bytes(f: u32) -> Option<(usize, usize)> {
+    cell_core::with_frac_bits!(f, F => (std::mem::size_of::<BeamMsg<F>>(), std::mem::size_of::<HostLightCell<F>>()))
+}
+
+/// What one cell's lighting left once the run ended: its lit store, the sources lighting its
+/// visible surface, its counters (the FIFOs and output buffers of the run are gone; only how
+/// many beams its FIFO still held is kept, for snapshots taken with `stop_at`).
+#[derive(Clone, Debug)]
+pub struct LitColumn {
+    /// Column index.
+    pub x: Coord,
+    /// Row index.
+    pub y: Coord,
+    /// Lit voxels of the column.
+    pub lit: LitRuns<LIT_CAP>,
+    /// The sources that light the column's visible surface (the plane and exact rules' image).
+    pub visible_lit: SourceMask,
+    /// The cell's counters.
+    pub counters: LightCounters,
+    /// Beams waiting in the FIFO when the run stopped (0 after a run to quiescence).
+    pub queued: usize,
+}
+
+impl LitColumn {
+    /// What `c` leaves.
+    pub(crate) fn of<F: FracBits>(c: &HostLightCell<F>) -> Self {
+        LitColumn {
+            x: c.x,
+            y: c.y,
+            lit: c.lit.clone(),
+            visible_lit: c.visible_lit,
+            counters: c.counters,
+            queued: c.fifo.len(),
+        }
+    }
+}
+
+/// The lit columns `cells` leave.
+pub(crate) fn lit_columns<F: FracBits>(cells: &[HostLightCell<F>]) -> Vec<LitColumn> {
+    cells.iter().map(LitColumn::of).collect()
+}
+
 /// The lighting state of the whole grid after diffusion.
-pub struct Lighting<F: FracBits> {
+pub struct Lighting {
     /// Grid side.
     pub n: u32,
-    /// Cells, row-major.
-    pub cells: Vec<HostLightCell<F>>,
+    /// What each cell's lighting left, row-major.
+    pub cells: Vec<LitColumn>,
     /// One report per source, in diffusion order.
     pub reports: Vec<SourceReport>,
     /// Voxels where a beam was processed, index `(y·n + x)·depth + z` (with `record_visits`).
@@ -298,7 +365,7 @@ pub struct Lighting<F: FracBits> {
     pub phases: PhaseSeconds,
 }
 
-impl<F: FracBits> Lighting<F> {
+impl Lighting {
     /// Sources that lit voxel (x, y, z).
     pub fn mask(&self, x: u32, y: u32, z: u16) -> SourceMask {
         self.cells[(y * self.n + x) as usize].lit.mask_at(z)
@@ -333,28 +400,43 @@ struct Recording<'a> {
 
 /// Diffuse every source over the loaded grid. Source positions are in voxel units (already
 /// validated to lie inside the grid). `progress(source, cycle)` is called now and then.
-pub fn diffuse<F: FracBits, const D: usize>(
+pub fn diffuse<const D: usize>(
     grid: &Grid<D>,
     sources: &[Source],
     cfg: &LightConfig,
     mut progress: impl FnMut(usize, u64),
-) -> Result<Lighting<F>> {
+) -> Result<Lighting> {
     diffuse_tapped(grid, sources, cfg, None, &mut progress)
 }
 
 /// [`diffuse`], recording what the cells watched by `tap` receive and send.
-///
-/// The links are chosen here, once per run: perfect links, or each behind a fault injector
-/// (`cfg.faults`), each traced when `tap` records. Every source then runs the same scheduler,
-/// generic over the links ([`crate::machine::links`]). `progress` is behind `dyn`: the
-/// scheduler is compiled once per f and link stack, not once more per caller's closure.
-pub fn diffuse_tapped<F: FracBits, const D: usize>(
+pub fn diffuse_tapped<const D: usize>(
     grid: &Grid<D>,
     sources: &[Source],
     cfg: &LightConfig,
     tap: Option<&mut Tap>,
     progress: &mut dyn FnMut(usize, u64),
-) -> Result<Lighting<F>> {
+) -> Result<Lighting> {
+    with_f!(cfg.frac_bits, F => diffuse_cells::<F, D>(grid, sources, cfg, tap, progress).map(|(l, _)| l))
+}
+
+/// [`diffuse_tapped`] under f = `F`, also returning the cells themselves (what a cell trace's
+/// digest reads).
+///
+/// The links are chosen here, once per run: perfect links, or each behind a fault injector
+/// (`cfg.faults`), each traced when `tap` records. Every source then runs the same scheduler,
+/// generic over the links ([`crate::machine::links`]). `progress` is behind `dyn`: the
+/// scheduler is compiled once per f and link stack, not once more per caller's closure.
+pub(crate) fn diffuse_cells<F: FracBits, const D: usize>(
+    grid: &Grid<D>,
+    sources: &[Source],
+    cfg: &LightConfig,
+    tap: Option<&mut Tap>,
+    progress: &mut dyn FnMut(usize, u64),
+) -> Result<(Lighting, Vec<HostLightCell<F>>)> {
+    if cfg.frac_bits != F::U32 {
+        bail!("a run configured for f = {} was started with the cells of f = {}", cfg.frac_bits, F::U32);
+    }
     let far = check_light_run::<F>(grid.n, sources, cfg)?;
     let n = grid.n;
     let cells = idle_cells(n);
@@ -392,14 +474,14 @@ fn idle_cells<F: FracBits>(n: u32) -> Vec<HostLightCell<F>> {
 /// one source whose initial beams are `initial` (the shooting patch's front hemisphere) instead
 /// of the six full faces, every processed beam's absorbed and departed rays reported to `rays`.
 /// The thesis's lit rule only (its absorbed ray sets are whole beams), perfect links.
-pub fn diffuse_shot<F: FracBits, const D: usize>(
+pub(crate) fn diffuse_shot<F: FracBits, const D: usize>(
     grid: &Grid<D>,
     source: &Source,
     initial: &[Beam<F>],
     cfg: &LightConfig,
     rays: &dyn RaySink<F>,
     mut progress: impl FnMut(usize, u64),
-) -> Result<Lighting<F>> {
+) -> Result<Lighting> {
     if cfg.rule != LitRule::Thesis
         || cfg.rays != Origin::SourceVoxel
         || cfg.faults.is_some()
@@ -415,7 +497,7 @@ pub fn diffuse_shot<F: FracBits, const D: usize>(
     let frustum = frustum_summary(grid, cfg, false)?;
     let shot = Some(Shot { initial, rays });
     let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref(), shot };
-    run.diffuse(idle_cells(grid.n), GridLinks::new(grid.n, |_| PerfectLink), None, &mut progress)
+    run.diffuse(idle_cells(grid.n), GridLinks::new(grid.n, |_| PerfectLink), None, &mut progress).map(|(l, _)| l)
 }
 
 /// What a radiosity shot changes in a diffusion ([`diffuse_shot`]).
@@ -515,7 +597,7 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
         mut links: GridLinks<L>,
         mut tap: Option<&mut Tap>,
         progress: &mut dyn FnMut(usize, u64),
-    ) -> Result<Lighting<F>> {
+    ) -> Result<(Lighting, Vec<HostLightCell<F>>)> {
         let (grid, cfg) = (self.grid, self.cfg);
         let order = SplitOrder::default();
         let traced = self.frustum.and_then(Summary::traceable);
@@ -558,7 +640,8 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
             lap.lap(&mut phases.tally);
         }
         let link_faults = fault_counts(links.all());
-        Ok(Lighting { n: grid.n, cells, reports, visited, link_faults, rule: cfg.rule, phases })
+        let lit = lit_columns(&cells);
+        Ok((Lighting { n: grid.n, cells: lit, reports, visited, link_faults, rule: cfg.rule, phases }, cells))
     }
 
     /// The lighting environment of source `si`.
