@@ -3,7 +3,8 @@
 # computed by `host-sim form-factors --tables` from each projective method's own surface, beside
 # the published values. Writes bench-out/form_factor_tables.csv and prints the markdown tables of
 # docs/FORM-FACTORS.md and BENCHMARKS.md: a cell is `computed` where it equals the published value,
-# else `computed (published)`, in bold where it is more than one unit of the last digit away.
+# else `computed (published)`, in bold where it is more than one unit of the last digit away; the
+# last column, beams, is the grid's shot (nothing published).
 # Closed forms only: seconds in any profile (PROFILE=dev to skip the release build).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -18,7 +19,7 @@ echo "commit $(git rev-parse --short HEAD), $(date -u +%F), $(nproc) cores: host
 python3 - "$CSV" <<'PY'
 import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
-methods = ["hemicube", "sillion", "recker", "hemisphere-uniform", "hemisphere", "disk"]
+methods = list(dict.fromkeys(r["method"] for r in rows))  # the thesis's six, then the grid's shot (beams)
 titles = {"2.1": "Table 2.1: equivalent resolutions", "2.2": "Table 2.2: proxels used", "2.3": "Table 2.3: memory (Mo = 10^6 bytes)"}
 def far(c, p):
     a, b = c.split("/"), p.split("/")
@@ -34,6 +35,9 @@ for t, title in titles.items():
         out = []
         for m in methods:
             c, p = cells[m]["computed"], cells[m]["published"]
+            if not p:  # nothing published (the grid's shot)
+                out.append(c)
+                continue
             s = c if c == p else f"{c} ({p})"
             out.append(f"**{s}**" if far(c, p) else s)
         print(f"| {k} | " + " | ".join(out) + " |")

@@ -10,7 +10,7 @@ use std::time::Instant;
 use anyhow::Result;
 use cell_core::beam::frac::U0;
 
-use crate::machine::capacity::{CellPatchRuns, CellReceived, HostLightCell, DEFAULT_DEXELS};
+use crate::machine::capacity::{HostLightCell, DEFAULT_DEXELS};
 use crate::machine::loaded::{load_scene, LoadedScene};
 use crate::machine::radiosity::{solve, GridSolution, RadiosityConfig, ShotLog};
 use crate::precompute::LoadConfig;
@@ -293,9 +293,7 @@ pub fn summarise(
         diffusion_cycles_per_shot: sum(&|x| x.cost.diffusion.cycles) as f64 / k,
         reduce_cycles_per_shot: sum(&|x| x.cost.reduce_cycles) as f64 / k,
         messages_per_shot: sum(&|x| x.cost.messages()) as f64 / k,
-        bytes_per_cell_added: std::mem::size_of::<CellPatchRuns>()
-            + std::mem::size_of::<CellReceived>()
-            + std::mem::size_of::<[f32; 3]>(),
+        bytes_per_cell_added: crate::machine::radiosity::bytes_per_cell_added(),
         bytes_per_light_cell: std::mem::size_of::<HostLightCell<U0>>(),
         zero_area_faces: p.summary.degenerate_faces,
         unmapped_voxels: s.unmapped_voxels,

@@ -452,6 +452,37 @@ fn check_patches(patches: &[Patch]) -> Result<f64> {
     Ok(emitted)
 }
 
+/// One shot read as form factors (the grid's `F_ij`, radiosity thesis §1.3.2): the quanta each
+/// patch received from patch `i`'s shot over the quanta it emitted (its own and negative
+/// entries as 0), and the shot's source (voxel units: its rays leave from the source voxel's
+/// centre plane along each face's axis, from its position across). Fails when the source lies
+/// outside the grid.
+pub fn shot_form_factors<const D: usize>(
+    grid: &Grid<D>,
+    fit: &Fit,
+    source_face: &[u32],
+    patches: &[Patch],
+    i: usize,
+    cfg: &RadiosityConfig,
+) -> Result<(Vec<f64>, Source)> {
+    let map = map_patches(grid, fit, source_face, patches)?;
+    let shot = shoot(grid, fit, &map, patches, i, cfg)?;
+    let (Some(source), _) = shot_source(&patches[i], fit, grid.n, cfg.offset) else {
+        bail!("radiosity: the shot of patch {i} starts outside the grid");
+    };
+    let emitted = shot.log.emitted.max(1) as f64;
+    let mut ff = vec![0.0; patches.len()];
+    for &(j, q) in shot.totals.iter().filter(|&&(j, q)| j as usize != i && q > 0) {
+        ff[j as usize] += q as f64 / emitted;
+    }
+    Ok((ff, source))
+}
+
+/// Bytes a cell adds for radiosity: its patch runs, its accumulator and its patch's radiosity.
+pub const fn bytes_per_cell_added() -> usize {
+    std::mem::size_of::<CellPatchRuns>() + std::mem::size_of::<CellReceived>() + std::mem::size_of::<[f32; 3]>()
+}
+
 /// Progressive refinement on the grid: shoot the patch with the most unshot power until the
 /// residual is at most `cfg.stop_fraction` or `cfg.max_shots` shots are made.
 /// `progress(shots, residual)` after each shot.

@@ -1,7 +1,8 @@
 //! The plot of §2.5.4's comparison (radiosity thesis Fig. 2.18): each projective method's form
 //! factor to facets 1 and 4 against the hemicube resolution its own is equivalent to, as the
 //! relative error to the exact value (0 % is exact), one panel per facet and distance
-//! ([`crate::truth::projective::figure`]).
+//! ([`crate::truth::projective::figure`]), and any other method's points given (the grid's beam
+//! shot) as one more line.
 
 use std::path::Path;
 
@@ -33,13 +34,22 @@ pub fn plot_figure(points: &[FigurePoint], path: &Path) -> Result<()> {
         )
         .map_err(plot_err)?;
     let (panels, key) = rest.split_vertically(820);
+    // The projective methods, then any other line present (the grid's beam shot).
+    let mut methods: Vec<&str> = METHODS.to_vec();
+    for p in points {
+        if !methods.contains(&p.method) {
+            methods.push(p.method);
+        }
+    }
     let x_max = points.iter().map(|p| p.hemicube_r).max().unwrap_or(1) as f64;
     let x_min = points.iter().map(|p| p.hemicube_r).min().unwrap_or(0) as f64;
     for (area, (facet, distance)) in
         panels.split_evenly((2, 2)).iter().zip(FACETS.iter().flat_map(|&f| DISTANCES.iter().map(move |&d| (f, d))))
     {
         let mine: Vec<&FigurePoint> = points.iter().filter(|p| p.facet == facet && p.distance == distance).collect();
-        let span = mine.iter().map(|p| rel(p).abs()).fold(0.5, f64::max) * 1.1;
+        // The scale of the thesis's six methods; another line (the grid's shot, far coarser at
+        // small n) is drawn clamped to it (its values are in the CSV).
+        let span = mine.iter().filter(|p| METHODS.contains(&p.method)).map(|p| rel(p).abs()).fold(0.5, f64::max) * 1.1;
         let mut chart = ChartBuilder::on(area)
             .caption(format!("facet {facet}, distance {distance}"), (FONT, 18))
             .margin(10)
@@ -61,14 +71,17 @@ pub fn plot_figure(points: &[FigurePoint], path: &Path) -> Result<()> {
         chart
             .draw_series(std::iter::once(PathElement::new(vec![(x_min, 0.0), (x_max, 0.0)], BLACK)))
             .map_err(plot_err)?;
-        for (method, colour) in METHODS.iter().zip(PALETTE) {
-            let line: Vec<(f64, f64)> =
-                mine.iter().filter(|p| p.method == *method).map(|p| (p.hemicube_r as f64, rel(p))).collect();
+        for (method, colour) in methods.iter().zip(PALETTE) {
+            let line: Vec<(f64, f64)> = mine
+                .iter()
+                .filter(|p| p.method == *method)
+                .map(|p| (p.hemicube_r as f64, rel(p).clamp(-span, span)))
+                .collect();
             chart.draw_series(LineSeries::new(line, colour.stroke_width(2))).map_err(plot_err)?;
         }
     }
-    for (i, (method, colour)) in METHODS.iter().zip(PALETTE).enumerate() {
-        let x = 20 + 190 * i as i32;
+    for (i, (method, colour)) in methods.iter().zip(PALETTE).enumerate() {
+        let x = 20 + 165 * i as i32;
         key.draw(&PathElement::new(vec![(x, 20), (x + 30, 20)], colour.stroke_width(3))).map_err(plot_err)?;
         key.draw_text(method, &(FONT, 15).into_text_style(&key), (x + 36, 12)).map_err(plot_err)?;
     }

@@ -275,8 +275,8 @@ pub fn csv(cells: &[Cell]) -> String {
     out
 }
 
-/// The tables for a terminal: per table, one line per row, `computed (published)` per method,
-/// `*` on a cell that disagrees.
+/// The tables for a terminal: per table, one line per row, `computed (published)` per method
+/// (`computed` alone where nothing is published), `*` on a cell that disagrees.
 pub fn render(cells: &[Cell]) -> String {
     let mut out = String::new();
     let titles = [
@@ -284,9 +284,16 @@ pub fn render(cells: &[Cell]) -> String {
         ("2.2", "proxels used"),
         ("2.3", "memory (Mo = 10^6 bytes)"),
     ];
+    // The methods in column order, then any other method the cells carry (the grid's shot).
+    let mut methods: Vec<&str> = METHODS.to_vec();
+    for c in cells.iter().filter(|c| c.method != "reference") {
+        if !methods.contains(&c.method) {
+            methods.push(c.method);
+        }
+    }
     for (t, title) in titles {
         let _ = writeln!(out, "Table {t}: {title}; computed (published), * = disagrees");
-        let _ = writeln!(out, "{:>17} {}", "reference", METHODS.map(|m| format!("{m:>20}")).join(""));
+        let _ = writeln!(out, "{:>17} {}", "reference", methods.iter().map(|m| format!("{m:>20}")).collect::<String>());
         for &r in &ROWS {
             let row: Vec<&Cell> =
                 cells.iter().filter(|c| c.table == t && c.row == r && c.method != "reference").collect();
@@ -298,8 +305,9 @@ pub fn render(cells: &[Cell]) -> String {
             };
             let body: String = row
                 .iter()
-                .map(|c| {
-                    format!("{:>20}", format!("{}{} ({})", if c.agrees { "" } else { "*" }, c.computed, c.published))
+                .map(|c| match c.published.as_str() {
+                    "" => format!("{:>20}", c.computed),
+                    p => format!("{:>20}", format!("{}{} ({p})", if c.agrees { "" } else { "*" }, c.computed)),
                 })
                 .collect();
             let _ = writeln!(out, "{key:>17} {body}");
