@@ -64,7 +64,7 @@ fn bench_diffuse(c: &mut Criterion) {
                 record_visits: false,
                 ..host_sim::config::plane_rule()
             };
-            let once = diffuse::<DEFAULT_DEXELS>(&loaded.grid, &sources, &lcfg, |_, _| {}).expect("diffuses");
+            let once = diffuse(&loaded.grid, &sources, &lcfg, |_, _| {}).expect("diffuses");
             let r = &once.reports[0].counts;
             eprintln!(
                 "diffuse cornell n = {n} {pname}: {} cycles, {} beams processed, {} messages, peak {} active cells",
@@ -73,7 +73,7 @@ fn bench_diffuse(c: &mut Criterion) {
             g.throughput(Throughput::Elements(r.cycles));
             let id = format!("cornell_n{n}_{}cycles_{}beams", r.cycles, r.beams_processed);
             g.bench_function(BenchmarkId::new(pname, id), |b| {
-                b.iter(|| diffuse::<DEFAULT_DEXELS>(black_box(&loaded.grid), &sources, &lcfg, |_, _| {}))
+                b.iter(|| diffuse(black_box(&loaded.grid), &sources, &lcfg, |_, _| {}))
             });
         }
     }

@@ -154,14 +154,8 @@ pub fn beam_shot(distance: f64, n: u32) -> Result<BeamShot> {
     let patches = crate::scene::patches::subdivide(&mesh, 1e9, 16)?;
     let cfg = RadiosityConfig::new(crate::config::Preset::Light.light(), 0.0, 1);
     let patch_of = |face: usize| patches.patches.iter().position(|p| p.face == face).expect("one patch per face");
-    let (ff, source) = shot_form_factors::<{ cell_core::cell::DEFAULT_DEXELS }>(
-        &scene.grid,
-        &scene.fit,
-        &scene.source_face,
-        &patches.patches,
-        patch_of(0),
-        &cfg,
-    )?;
+    let (ff, source) =
+        shot_form_factors(&scene.grid, &scene.fit, &scene.source_face, &patches.patches, patch_of(0), &cfg)?;
     // Every ray reaching the squares is one of the +z face's: they leave from the source voxel's
     // centre plane in z, from the source's position in x and y.
     let pos = source.pos.map(|c| c.to_num::<f64>());

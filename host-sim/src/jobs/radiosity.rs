@@ -10,7 +10,7 @@ use std::time::Instant;
 use anyhow::Result;
 use cell_core::beam::frac::U0;
 
-use crate::machine::capacity::{HostLightCell, DEFAULT_DEXELS};
+use crate::machine::capacity::HostLightCell;
 use crate::machine::loaded::{load_scene, LoadedScene};
 use crate::machine::radiosity::{solve, GridSolution, RadiosityConfig, ShotLog};
 use crate::precompute::LoadConfig;
@@ -211,7 +211,7 @@ fn plot_residual(
 pub fn solve_with_bar(scene: &LoadedScene, p: &Patches, cfg: &RadiosityConfig, quiet: bool) -> Result<GridSolution> {
     let pb = progress::bar(quiet, "shots");
     pb.set_length(cfg.max_shots.min(100_000) as u64);
-    let s = solve::<DEFAULT_DEXELS>(&scene.grid, &scene.fit, &scene.source_face, &p.patches, cfg, |k, r| {
+    let s = solve(&scene.grid, &scene.fit, &scene.source_face, &p.patches, cfg, |k, r| {
         pb.set_position(k as u64);
         pb.set_message(format!("residual {r:.4}"));
     });

@@ -3,7 +3,6 @@
 use std::time::Instant;
 
 use anyhow::{bail, Result};
-use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::light::Policy;
 
 use crate::machine::diffuse::{
@@ -121,7 +120,7 @@ fn run_diffusion_with(
     let n = scene.grid.n;
     let sources = lights.iter().enumerate().map(|(i, p)| cfg.source(i, *p, n)).collect::<Result<Vec<_>>>()?;
     let t0 = Instant::now();
-    let lighting = diffuse::<DEFAULT_DEXELS>(&scene.grid, &sources, cfg, progress)?;
+    let lighting = diffuse(&scene.grid, &sources, cfg, progress)?;
     check_lit_overflow(&lighting)?;
     if cfg.rule == cell_core::lit::LitRule::Exact {
         check_triangle_overflow(&scene.grid);

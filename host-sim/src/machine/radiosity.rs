@@ -30,9 +30,9 @@ use cell_core::lit::LitRule;
 use cell_core::radiosity::{beam_quanta, corner_exact, front_rays, PatchId};
 use cell_core::units::{Coord, Depth};
 
-use crate::machine::capacity::{CellPatchRuns, CellReceived};
+use crate::machine::capacity::{CellPatchRuns, CellReceived, DEFAULT_DEXELS};
 use crate::machine::diffuse::{diffuse_shot, DiffusionCounts, LightConfig};
-use crate::machine::grid::Grid;
+use crate::machine::grid::{Grid, LightGrid};
 use crate::machine::loaded::world_to_voxel;
 use crate::precompute::Fit;
 use crate::scene::patch_display::{by_face, locate};
@@ -237,20 +237,20 @@ fn shot_source(p: &Patch, fit: &Fit, n: u32, offset: f64) -> (Option<Source>, [f
 }
 
 /// Shoot patch `i` on the grid (f: `cfg.light.frac_bits`).
-pub fn shoot<const D: usize>(
-    grid: &Grid<D>,
+pub fn shoot(
+    grid: &LightGrid,
     fit: &Fit,
     map: &PatchMap,
     patches: &[Patch],
     i: usize,
     cfg: &RadiosityConfig,
 ) -> Result<Shot> {
-    crate::machine::diffuse::with_f!(cfg.light.frac_bits, F => shoot_f::<F, D>(grid, fit, map, patches, i, cfg))
+    crate::machine::diffuse::with_f!(cfg.light.frac_bits, F => shoot_f::<F>(grid, fit, map, patches, i, cfg))
 }
 
 /// [`shoot`] under f = `F`.
-fn shoot_f<F: FracBits, const D: usize>(
-    grid: &Grid<D>,
+fn shoot_f<F: FracBits>(
+    grid: &LightGrid,
     fit: &Fit,
     map: &PatchMap,
     patches: &[Patch],
@@ -291,7 +291,7 @@ fn shoot_f<F: FracBits, const D: usize>(
         received: (0..grid.cells.len()).map(|_| Mutex::new(CellReceived::new())).collect(),
         left: AtomicI64::new(0),
     };
-    let lighting = diffuse_shot::<F, D>(grid, &source, &initial, &cfg.light, &sink, |_, _| {})?;
+    let lighting = diffuse_shot::<F, DEFAULT_DEXELS>(grid, &source, &initial, &cfg.light, &sink, |_, _| {})?;
     log.cost.diffusion = lighting.reports[0].counts.clone();
     log.left = sink.left.load(Relaxed);
     let received: Vec<CellReceived> =
@@ -457,8 +457,8 @@ fn check_patches(patches: &[Patch]) -> Result<f64> {
 /// entries as 0), and the shot's source (voxel units: its rays leave from the source voxel's
 /// centre plane along each face's axis, from its position across). Fails when the source lies
 /// outside the grid.
-pub fn shot_form_factors<const D: usize>(
-    grid: &Grid<D>,
+pub fn shot_form_factors(
+    grid: &LightGrid,
     fit: &Fit,
     source_face: &[u32],
     patches: &[Patch],
@@ -486,13 +486,25 @@ pub const fn bytes_per_cell_added() -> usize {
 /// Progressive refinement on the grid: shoot the patch with the most unshot power until the
 /// residual is at most `cfg.stop_fraction` or `cfg.max_shots` shots are made.
 /// `progress(shots, residual)` after each shot.
-pub fn solve<const D: usize>(
-    grid: &Grid<D>,
+pub fn solve(
+    grid: &LightGrid,
     fit: &Fit,
     source_face: &[u32],
     patches: &[Patch],
     cfg: &RadiosityConfig,
     mut progress: impl FnMut(usize, f64),
+) -> Result<GridSolution> {
+    solve_dyn(grid, fit, source_face, patches, cfg, &mut progress)
+}
+
+/// [`solve`] compiled once, whatever the caller's progress closure.
+fn solve_dyn(
+    grid: &LightGrid,
+    fit: &Fit,
+    source_face: &[u32],
+    patches: &[Patch],
+    cfg: &RadiosityConfig,
+    progress: &mut dyn FnMut(usize, f64),
 ) -> Result<GridSolution> {
     let emitted_power = check_patches(patches)?;
     if !(cfg.stop_fraction >= 0.0 && cfg.stop_fraction < 1.0) {

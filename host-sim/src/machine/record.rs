@@ -151,8 +151,7 @@ fn cells_to_record(job: &TraceJob<'_>) -> Result<Vec<[u32; 2]>> {
         let (lights, sources) = lights_of(job, &scene)?;
         match &job.classic {
             None => {
-                let l =
-                    crate::machine::diffuse::diffuse::<DEFAULT_DEXELS>(&scene.grid, &sources, &job.light, |_, _| {})?;
+                let l = crate::machine::diffuse::diffuse(&scene.grid, &sources, &job.light, |_, _| {})?;
                 cells.extend(l.reports.iter().max_by_key(|r| r.counts.lb_cell_load).map(|r| r.busiest_cell));
             }
             Some(c) => cells.push(crate::machine::classic::classic(&scene, &lights, c, |_, _| {})?.totals.busiest_cell),

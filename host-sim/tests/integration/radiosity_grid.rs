@@ -5,7 +5,7 @@
 //! and bad input.
 
 use cell_core::radiosity::Received;
-use host_sim::machine::capacity::{CellReceived, DEFAULT_DEXELS};
+use host_sim::machine::capacity::CellReceived;
 use host_sim::machine::loaded::{load_scene, LoadedScene};
 use host_sim::machine::radiosity::{map_patches, reduce_cost, shoot, solve, PatchMap, RadiosityConfig};
 use host_sim::precompute::LoadConfig;
@@ -66,8 +66,7 @@ fn a_closed_box_receives_every_quantum_of_every_shot() {
     let mesh = room(1.0);
     let scene = loaded(&mesh, 20);
     let p = patches_of(&mesh, &scene, 6.0);
-    let s =
-        solve::<DEFAULT_DEXELS>(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &cfg(6), |_, _| {}).unwrap();
+    let s = solve(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &cfg(6), |_, _| {}).unwrap();
     assert_eq!(s.shots.len(), 6);
     for shot in &s.shots {
         assert!(shot.balanced(), "{shot:?}");
@@ -116,28 +115,25 @@ fn bad_input_is_a_clear_error() {
     let mesh = room(0.0);
     let scene = loaded(&mesh, 16);
     let p = patches_of(&mesh, &scene, 6.0);
-    let e = solve::<DEFAULT_DEXELS>(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &cfg(3), |_, _| {})
-        .unwrap_err();
+    let e = solve(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &cfg(3), |_, _| {}).unwrap_err();
     assert!(e.to_string().contains("nothing emits"), "{e}");
     // Zero-area patch.
     let mesh = room(1.0);
     let mut p = patches_of(&mesh, &scene, 6.0);
     p.patches[2].area = 0.0;
-    let e = solve::<DEFAULT_DEXELS>(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &cfg(3), |_, _| {})
-        .unwrap_err();
+    let e = solve(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &cfg(3), |_, _| {}).unwrap_err();
     assert!(e.to_string().contains("zero or invalid area"), "{e}");
     // Patches too small for the cells' patch maps (a column crosses more than 32 patches).
     let scene = loaded(&mesh, 48);
     let p = patches_of(&mesh, &scene, 1.5);
-    let e = solve::<DEFAULT_DEXELS>(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &cfg(3), |_, _| {})
-        .unwrap_err();
+    let e = solve(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &cfg(3), |_, _| {}).unwrap_err();
     assert!(e.to_string().contains("raise --patch-size"), "{e}");
 }
 
 /// The machine's form factor row of shooter `i`: its quanta over the quanta emitted, its own
 /// entry and negative (rounding) entries dropped, as the supervisor takes them.
 fn machine_row(scene: &LoadedScene, map: &PatchMap, p: &Patches, i: usize, c: &RadiosityConfig) -> Vec<f64> {
-    let shot = shoot::<DEFAULT_DEXELS>(&scene.grid, &scene.fit, map, &p.patches, i, c).unwrap();
+    let shot = shoot(&scene.grid, &scene.fit, map, &p.patches, i, c).unwrap();
     let mut row = vec![0.0; p.patches.len()];
     for (j, q) in shot.totals {
         if j as usize != i && q > 0 {
@@ -153,7 +149,7 @@ fn the_supervisor_shoots_like_the_reference_solver_given_the_same_form_factors()
     let scene = loaded(&mesh, 16);
     let p = patches_of(&mesh, &scene, 8.0);
     let c = cfg(5);
-    let s = solve::<DEFAULT_DEXELS>(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &c, |_, _| {}).unwrap();
+    let s = solve(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &c, |_, _| {}).unwrap();
     let map = map_patches(&scene.grid, &scene.fit, &scene.source_face, &p.patches).unwrap();
     let shoot_cfg = ShootConfig { stop_fraction: 0.0, max_shots: 5 };
     let r = progressive(&p.patches, &shoot_cfg, |i| Ok(machine_row(&scene, &map, &p, i, &c))).unwrap();

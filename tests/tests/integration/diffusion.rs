@@ -116,7 +116,7 @@ fn sources(src16: &[[i64; 3]]) -> Vec<Source> {
 fn light<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) -> Lighting {
     let sources: Vec<Source> = sources(src16).into_iter().map(|s| s.with_origin(cfg.rays)).collect();
     let cfg = LightConfig { frac_bits: F::U32, ..cfg };
-    diffuse::<64>(g, &sources, &cfg, |_, _| {}).expect("diffusion terminates without loss")
+    diffuse(g, &sources, &cfg, |_, _| {}).expect("diffusion terminates without loss")
 }
 
 /// The columns whose visible surface the diffusion lit, with their source masks.

@@ -8,7 +8,7 @@
 use cell_core::dexel::FacetTag;
 use cell_core::units::Span;
 use host_sim::machine::capacity::LIT_CAP;
-use host_sim::machine::diffuse::{diffuse, source_at, LightConfig};
+use host_sim::machine::diffuse::{diffuse_in, source_at, LightConfig};
 use host_sim::machine::grid::Grid;
 use host_sim::machine::lighting::check_lit_overflow;
 
@@ -34,7 +34,7 @@ fn striped_column_lighting(stripes: u16) -> (u32, u64, Result<(), String>) {
         record_visits: false,
         ..host_sim::config::plane_rule()
     };
-    let lighting = diffuse::<128>(&grid, &[src], &cfg, |_, _| {}).unwrap();
+    let lighting = diffuse_in::<128>(&grid, &[src], &cfg, |_, _| {}).unwrap();
     let runs = lighting.cells[(y0 * n) as usize].lit.runs().len() as u32;
     (runs, lighting.lit_overflows(), check_lit_overflow(&lighting).map_err(|e| e.to_string()))
 }

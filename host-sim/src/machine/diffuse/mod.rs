@@ -34,9 +34,9 @@ use cell_core::units::Coord;
 
 use cell_core::link::PerfectLink;
 
-use crate::machine::capacity::{HostLightCell, FA_CAP, LIT_CAP};
+use crate::machine::capacity::{HostLightCell, DEFAULT_DEXELS, FA_CAP, LIT_CAP};
 use crate::machine::faults::{fault_counts, FaultCounts, FaultInjector, FaultTally, LinkFaults, Wire};
-use crate::machine::grid::Grid;
+use crate::machine::grid::{Grid, LightGrid};
 use crate::machine::links::{GridLinks, HostLink};
 use crate::machine::occluders::{SourceOccluders, CONTACT_EXCHANGE_CYCLES};
 use crate::machine::tap::{Tap, Tracer};
@@ -400,8 +400,11 @@ struct Recording<'a> {
 
 /// Diffuse every source over the loaded grid. Source positions are in voxel units (already
 /// validated to lie inside the grid). `progress(source, cycle)` is called now and then.
-pub fn diffuse<const D: usize>(
-    grid: &Grid<D>,
+///
+/// Not generic: the scheduler is built once per f and link stack here, in this crate, and a
+/// caller (a test crate, a bench) compiles none of it again.
+pub fn diffuse(
+    grid: &LightGrid,
     sources: &[Source],
     cfg: &LightConfig,
     mut progress: impl FnMut(usize, u64),
@@ -409,15 +412,26 @@ pub fn diffuse<const D: usize>(
     diffuse_tapped(grid, sources, cfg, None, &mut progress)
 }
 
-/// [`diffuse`], recording what the cells watched by `tap` receive and send.
-pub fn diffuse_tapped<const D: usize>(
+/// [`diffuse`] on a grid of another dexel capacity `D` (each capacity compiles the scheduler
+/// once more, in the caller's crate).
+pub fn diffuse_in<const D: usize>(
     grid: &Grid<D>,
+    sources: &[Source],
+    cfg: &LightConfig,
+    mut progress: impl FnMut(usize, u64),
+) -> Result<Lighting> {
+    with_f!(cfg.frac_bits, F => diffuse_cells::<F, D>(grid, sources, cfg, None, &mut progress).map(|(l, _)| l))
+}
+
+/// [`diffuse`], recording what the cells watched by `tap` receive and send.
+pub fn diffuse_tapped(
+    grid: &LightGrid,
     sources: &[Source],
     cfg: &LightConfig,
     tap: Option<&mut Tap>,
     progress: &mut dyn FnMut(usize, u64),
 ) -> Result<Lighting> {
-    with_f!(cfg.frac_bits, F => diffuse_cells::<F, D>(grid, sources, cfg, tap, progress).map(|(l, _)| l))
+    with_f!(cfg.frac_bits, F => diffuse_cells::<F, DEFAULT_DEXELS>(grid, sources, cfg, tap, progress).map(|(l, _)| l))
 }
 
 /// [`diffuse_tapped`] under f = `F`, also returning the cells themselves (what a cell trace's
