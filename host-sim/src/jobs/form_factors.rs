@@ -144,7 +144,7 @@ pub struct BeamShot {
     pub apex: [f64; 3],
 }
 
-/// The small square at the origin ([`figure_mesh`]) shoots once, `radiosity`'s machine shot
+/// The small square at the origin (`figure_mesh`) shoots once, `radiosity`'s machine shot
 /// (the thesis's lit rule, its source pushed off the patch), on the figure's scene loaded at
 /// grid side `n`.
 pub fn beam_shot(distance: f64, n: u32) -> Result<BeamShot> {
@@ -179,15 +179,7 @@ pub fn beam_shot(distance: f64, n: u32) -> Result<BeamShot> {
 pub fn beam_far_equivalent(r: u32) -> Result<u32> {
     use crate::truth::projective::{hemicube::Hemicube, ProjectionSurface};
     let reference = Hemicube::new(r)?.largest_delta_ff();
-    let ok = |d: u32| central_ray_ff(d) <= reference * (1.0 + 1e-12);
-    let mut d = (1.0 / (std::f64::consts::PI * reference)).sqrt().floor().max(1.0) as u32;
-    while !ok(d) {
-        d += 1;
-    }
-    while d > 1 && ok(d - 1) {
-        d -= 1;
-    }
-    Ok(d)
+    tables::smallest(reference, (r / 2).max(1), 1, |d| Ok(central_ray_ff(d)))
 }
 
 /// The delta form factor of a shot's central lattice ray at far distance `d`: the exact form

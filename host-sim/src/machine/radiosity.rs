@@ -5,7 +5,7 @@
 //! One shot, in machine phases (docs/RADIOSITY.md):
 //! 1. **broadcast** — the supervisor hands the shot (source position, patch normal) to cell
 //!    (0, 0), which floods it over the grid: n − 1 cycles (Chebyshev distance), n² − 1 messages;
-//! 2. **diffusion** — [`diffuse_shot`] from the patch's centre pushed `offset` voxels along its
+//! 2. **diffusion** — one diffusion from the patch's centre pushed `offset` voxels along its
 //!    normal, initial beams restricted to the front hemisphere ([`front_rays`]), the thesis's
 //!    lit rule; every absorbed beam adds its quanta ([`beam_quanta`]) to the [`cell_core::radiosity::Received`] slot of
 //!    its voxel's patch ([`cell_core::radiosity::PatchRuns`], loaded once with the patches), every departed beam its
@@ -223,6 +223,8 @@ pub struct Shot {
     pub totals: Vec<(PatchId, i64)>,
     /// Its log.
     pub log: ShotLog,
+    /// Its source (voxel units); `None` when the pushed centre was outside the grid.
+    pub source: Option<Source>,
 }
 
 /// The source of patch `p`'s shot, in voxel units on the 1/16 lattice, and its unit normal;
@@ -281,7 +283,7 @@ fn shoot_f<F: FracBits>(
     let Some(source) = source else {
         log.outside = true;
         log.left = emitted;
-        return Ok(Shot { totals: Vec::new(), log });
+        return Ok(Shot { totals: Vec::new(), log, source: None });
     };
     let sink = ShotSink {
         normal,
@@ -311,7 +313,7 @@ fn shoot_f<F: FracBits>(
             log.emitted
         );
     }
-    Ok(Shot { totals, log })
+    Ok(Shot { totals, log, source: Some(source) })
 }
 
 /// A stream on a link: (patch, arrival cycle) by increasing patch, closed by an end marker
@@ -467,7 +469,7 @@ pub fn shot_form_factors(
 ) -> Result<(Vec<f64>, Source)> {
     let map = map_patches(grid, fit, source_face, patches)?;
     let shot = shoot(grid, fit, &map, patches, i, cfg)?;
-    let (Some(source), _) = shot_source(&patches[i], fit, grid.n, cfg.offset) else {
+    let Some(source) = shot.source else {
         bail!("radiosity: the shot of patch {i} starts outside the grid");
     };
     let emitted = shot.log.emitted.max(1) as f64;
@@ -553,7 +555,7 @@ fn solve_dyn(
 /// emission `E_i` (it only grows from `E_i`); what `U_i − E_i` brings j on that shot, and all
 /// of `U_i` on later ones, is indirect irradiance.
 fn apply(patches: &[Patch], s: &mut GridSolution, i: usize, shot: Shot) {
-    let Shot { totals, mut log } = shot;
+    let Shot { totals, mut log, .. } = shot;
     let u = s.unshot[i];
     let first = s.shots.iter().all(|x| x.patch != i);
     let reflected: [f64; 3] =

@@ -11,6 +11,7 @@ use plotters::prelude::*;
 
 use crate::report::plot::{ensure_font, plot_err, FONT, PALETTE};
 use crate::truth::projective::figure::{FigurePoint, DISTANCES, FACETS, METHODS};
+use crate::truth::projective::tables::methods_with;
 
 /// Draw `points` into the PNG at `path`. No points, or a point without a finite relative error,
 /// is an error.
@@ -34,13 +35,7 @@ pub fn plot_figure(points: &[FigurePoint], path: &Path) -> Result<()> {
         )
         .map_err(plot_err)?;
     let (panels, key) = rest.split_vertically(820);
-    // The projective methods, then any other line present (the grid's beam shot).
-    let mut methods: Vec<&str> = METHODS.to_vec();
-    for p in points {
-        if !methods.contains(&p.method) {
-            methods.push(p.method);
-        }
-    }
+    let methods = methods_with(points.iter().map(|p| p.method));
     let x_max = points.iter().map(|p| p.hemicube_r).max().unwrap_or(1) as f64;
     let x_min = points.iter().map(|p| p.hemicube_r).min().unwrap_or(0) as f64;
     for (area, (facet, distance)) in

@@ -34,7 +34,7 @@ use cell_core::units::Coord;
 
 use cell_core::link::PerfectLink;
 
-use crate::machine::capacity::{HostLightCell, DEFAULT_DEXELS, FA_CAP, LIT_CAP};
+use crate::machine::capacity::{HostLightCell, FA_CAP, LIT_CAP};
 use crate::machine::faults::{fault_counts, FaultCounts, FaultInjector, FaultTally, LinkFaults, Wire};
 use crate::machine::grid::{Grid, LightGrid};
 use crate::machine::links::{GridLinks, HostLink};
@@ -420,7 +420,7 @@ pub fn diffuse_in<const D: usize>(
     cfg: &LightConfig,
     mut progress: impl FnMut(usize, u64),
 ) -> Result<Lighting> {
-    with_f!(cfg.frac_bits, F => diffuse_cells::<F, D>(grid, sources, cfg, None, &mut progress).map(|(l, _)| l))
+    diffuse_at(grid, sources, cfg, None, &mut progress)
 }
 
 /// [`diffuse`], recording what the cells watched by `tap` receive and send.
@@ -431,7 +431,18 @@ pub fn diffuse_tapped(
     tap: Option<&mut Tap>,
     progress: &mut dyn FnMut(usize, u64),
 ) -> Result<Lighting> {
-    with_f!(cfg.frac_bits, F => diffuse_cells::<F, DEFAULT_DEXELS>(grid, sources, cfg, tap, progress).map(|(l, _)| l))
+    diffuse_at(grid, sources, cfg, tap, progress)
+}
+
+/// The cells' build for `cfg.frac_bits`, picked once for a grid of capacity `D`.
+fn diffuse_at<const D: usize>(
+    grid: &Grid<D>,
+    sources: &[Source],
+    cfg: &LightConfig,
+    tap: Option<&mut Tap>,
+    progress: &mut dyn FnMut(usize, u64),
+) -> Result<Lighting> {
+    with_f!(cfg.frac_bits, F => diffuse_cells::<F, D>(grid, sources, cfg, tap, progress).map(|(l, _)| l))
 }
 
 /// [`diffuse_tapped`] under f = `F`, also returning the cells themselves (what a cell trace's

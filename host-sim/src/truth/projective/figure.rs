@@ -14,7 +14,7 @@ use super::{tables, SurfaceSpec};
 use crate::truth::formfactor::point_to_polygon;
 
 /// The methods, in Table 2.1's column order (the names of [`SurfaceSpec::parse`]).
-pub const METHODS: [&str; 6] = ["hemicube", "sillion", "recker", "hemisphere-uniform", "hemisphere", "disk"];
+pub use super::tables::METHODS;
 
 /// The distances of the squares' plane from the point (near: each square ≈ 6 % of the view's
 /// form factor; far: ≈ 0.5 %).

@@ -27,8 +27,21 @@ use super::recker::ReckerPlane;
 use super::sillion::SillionPlane;
 use super::{ProjectionSurface, MAX_RESOLUTION};
 
-/// The methods, in the tables' column order (CSV names).
+/// The methods, in the tables' column order (CSV names, and the names of
+/// [`super::SurfaceSpec::parse`]).
 pub const METHODS: [&str; 6] = ["hemicube", "sillion", "recker", "hemisphere-uniform", "hemisphere", "disk"];
+
+/// [`METHODS`], then every other method in `present` (the grid's shot), in order of appearance:
+/// the columns of a table, the lines of a figure.
+pub fn methods_with<'a>(present: impl IntoIterator<Item = &'a str>) -> Vec<&'a str> {
+    let mut methods: Vec<&str> = METHODS.to_vec();
+    for m in present {
+        if !methods.contains(&m) {
+            methods.push(m);
+        }
+    }
+    methods
+}
 
 /// The hemicube resolutions of the rows.
 pub const ROWS: [u32; 6] = [100, 200, 400, 600, 800, 1000];
@@ -121,8 +134,8 @@ pub struct Cell {
 }
 
 /// The smallest resolution (a multiple of `step`) whose FFE `f(r)` is at most `reference`,
-/// searched from the guess `g` by `f`'s 1/R² law, then step by step.
-fn smallest(reference: f64, g: u32, step: u32, f: impl Fn(u32) -> Result<f64>) -> Result<u32> {
+/// searched from the guess `g` by `f`'s 1/R² law, then step by step (Table 2.1's criterion).
+pub fn smallest(reference: f64, g: u32, step: u32, f: impl Fn(u32) -> Result<f64>) -> Result<u32> {
     let ok = |r: u32| -> Result<bool> { Ok(f(r)? <= reference * (1.0 + 1e-12)) };
     let est = (g as f64 * (f(g)? / reference).sqrt()).ceil().max(1.0) as u32;
     let mut r = est.div_ceil(step).max(1) * step;
@@ -284,13 +297,7 @@ pub fn render(cells: &[Cell]) -> String {
         ("2.2", "proxels used"),
         ("2.3", "memory (Mo = 10^6 bytes)"),
     ];
-    // The methods in column order, then any other method the cells carry (the grid's shot).
-    let mut methods: Vec<&str> = METHODS.to_vec();
-    for c in cells.iter().filter(|c| c.method != "reference") {
-        if !methods.contains(&c.method) {
-            methods.push(c.method);
-        }
-    }
+    let methods = methods_with(cells.iter().map(|c| c.method).filter(|&m| m != "reference"));
     for (t, title) in titles {
         let _ = writeln!(out, "Table {t}: {title}; computed (published), * = disagrees");
         let _ = writeln!(out, "{:>17} {}", "reference", methods.iter().map(|m| format!("{m:>20}")).collect::<String>());
