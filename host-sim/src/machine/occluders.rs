@@ -11,9 +11,9 @@ use cell_core::light::Port;
 use cell_core::occluder::{ColumnOccluders, SeenEntry, SeenTable, Triangle};
 use cell_core::receiver::{crosses_any, target, Target};
 use cell_core::units::Coord;
-use rayon::prelude::*;
 
 use crate::machine::grid::{neighbour, Grid};
+use crate::machine::tiles::par_map;
 use crate::machine::triangles::ColumnTriangles;
 
 /// Cycles of the contact exchange ([`cell_core::receiver`], "The neighbours' triangles"), once
@@ -39,21 +39,17 @@ impl<'a> SourceOccluders<'a> {
     pub fn new<F: FracBits, const D: usize>(grid: &'a Grid<D>, source: &Source, far: FarDistance<F>) -> Self {
         let (n, tris) = (grid.n, &grid.triangles);
         let column = |j: usize| tris.column(j as u32 % n, j as u32 / n);
-        let targets = grid
-            .cells
-            .par_iter()
-            .enumerate()
-            .map(|(i, c)| {
-                let t = c.visible.as_ref().and_then(|v| target(c.x as i32, c.y as i32, v, source, far))?;
-                // The contact exchange: each neighbour inside the grid answers the query.
-                let Some(contact) = t.contact else { return Some(t) };
-                let shadowed =
-                    Port::ALL.iter().filter_map(|&p| neighbour(n, i, p)).any(|j| crosses_any(column(j), contact));
-                Some(t.with_neighbour_answers(shadowed))
-            })
-            .collect();
-        let seen =
-            tris.distinct().par_iter().map(|t| Direction::ALL.map(|d| SeenEntry::of(t, source, d, far))).collect();
+        let targets = par_map(grid.cells.len(), &|i| {
+            let c = &grid.cells[i];
+            let t = c.visible.as_ref().and_then(|v| target(c.x as i32, c.y as i32, v, source, far))?;
+            // The contact exchange: each neighbour inside the grid answers the query.
+            let Some(contact) = t.contact else { return Some(t) };
+            let shadowed =
+                Port::ALL.iter().filter_map(|&p| neighbour(n, i, p)).any(|j| crosses_any(column(j), contact));
+            Some(t.with_neighbour_answers(shadowed))
+        });
+        let distinct = tris.distinct();
+        let seen = par_map(distinct.len(), &|k| Direction::ALL.map(|d| SeenEntry::of(&distinct[k], source, d, far)));
         SourceOccluders { n, triangles: tris, targets, seen }
     }
 

@@ -6,7 +6,6 @@
 use anyhow::{bail, Result};
 use cell_core::beam::{Beam, Direction, FarDistance, FracBits, Source};
 use cell_core::light::{Activity, ActivityDelta, BeamMsg, LightEnv, OccupiedBox, Port, Step};
-use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Relaxed};
 
 use super::*;
@@ -14,7 +13,7 @@ use crate::machine::capacity::HostLightCell;
 use crate::machine::grid::Grid;
 use crate::machine::links::{self, lossless, sure, CellInbox, HostLink, Took, BACK};
 use crate::machine::tap::Tap;
-use crate::machine::tiles::{merge_sorted, prefetch, prefetch_ends, tiles};
+use crate::machine::tiles::{merge_sorted, par_each, prefetch, prefetch_ends, tiles};
 
 /// Active cells per piece of work handed to a thread (below it, splitting costs more than it
 /// saves).
@@ -560,7 +559,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         self.cuts.extend(pieces.iter().skip(1).map(|&(_, base, _)| base as u32));
         let count = pieces.len();
         let done = scratch_for(&mut self.scratch, count);
-        pieces.into_par_iter().zip(done.par_iter_mut()).for_each(|((tile, base, idx), r)| {
+        par_each(pieces.into_iter().zip(done.iter_mut()).collect(), |((tile, base, idx), r)| {
             k.step_piece(tile, base, idx, r);
         });
         count
@@ -636,7 +635,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         let groups = by_receiver(self.cells, self.links, &mut self.offers, &self.cuts);
         let count = groups.len();
         let pulled = scratch_for(&mut self.scratch, count);
-        groups.into_par_iter().zip(pulled.par_iter_mut()).for_each(|(piece, r)| k.pull_piece(piece, r));
+        par_each(groups.into_iter().zip(pulled.iter_mut()).collect(), |(piece, r)| k.pull_piece(piece, r));
         let mut moved = false;
         for r in &self.scratch[..count] {
             self.sleepers.count -= r.roused;
@@ -667,7 +666,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         }
         let (lossless, stepping) = (self.lossless, self.stepping);
         let visit = if stepping == Stepping::AllCells { &self.all } else { &self.active };
-        tiles(self.cells, visit, PIECE).into_par_iter().for_each(|(tile, base, idx)| {
+        par_each(tiles(self.cells, visit, PIECE), |(tile, base, idx)| {
             for (k, &i) in idx.iter().enumerate() {
                 if let Some(&j) = idx.get(k + AHEAD) {
                     prefetch_cell(&tile[j as usize - base], 0);
@@ -690,7 +689,11 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         match self.stepping {
             Stepping::Active => self.next_active_list(),
             Stepping::AllCells => {
-                let busy = self.cells.par_iter().filter(|c| c.busy()).count() as u64;
+                let busy = AtomicU64::new(0);
+                par_each(self.cells.chunks(64 * PIECE).collect(), |piece| {
+                    busy.fetch_add(piece.iter().filter(|c| c.busy()).count() as u64, Relaxed);
+                });
+                let busy = busy.into_inner();
                 busy + u64::from(self.next_initial.is_some() && !self.cells[self.s_idx].busy())
             }
         }
