@@ -17,6 +17,8 @@ OUT=${OUT:-bench-out/build_time.csv}
 mkdir -p "$(dirname "$OUT")"
 OUT=$(realpath "$OUT")
 WORK=$(mktemp -d)
+# shellcheck source=bench/commits.sh
+. "$REPO/bench/commits.sh"
 trap 'for w in "$WORK"/wt-*; do git -C "$REPO" worktree remove --force "$w" 2>/dev/null || true; done; rm -rf "$WORK"' EXIT
 REVS=()
 for r in "$@"; do
@@ -25,12 +27,8 @@ for r in "$@"; do
   REVS+=("$short")
 done
 echo "commit,rep,release_build_s,text_bytes,binary_bytes,test_build_s" > "$OUT"
-seconds() { local s; s=$(date +%s.%N); "$@" > "$WORK/log" 2>&1 || { tail -20 "$WORK/log" >&2; exit 1; }; echo "$(date +%s.%N) - $s" | bc; }
 for rep in $(seq 1 "$REPS"); do
-  order=("${REVS[@]}")
-  if [ $((rep % 2)) -eq 0 ]; then
-    order=(); for ((i = ${#REVS[@]} - 1; i >= 0; i--)); do order+=("${REVS[$i]}"); done
-  fi
+  mapfile -t order < <(rep_order "$rep" "${REVS[@]}")
   for c in "${order[@]}"; do
     cd "$WORK/wt-$c"
     rm -rf "$WORK/target-rel" "$WORK/target-test"

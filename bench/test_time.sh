@@ -15,16 +15,14 @@ OUT=${OUT:-bench-out/test_time.csv}
 mkdir -p "$(dirname "$OUT")"
 OUT=$(realpath "$OUT")
 WORK=$(mktemp -d)
+# shellcheck source=bench/commits.sh
+. "$REPO/bench/commits.sh"
 trap 'rm -rf "$WORK"' EXIT
 REVS=()
 for r in "$@"; do REVS+=("$(git -C "$REPO" rev-parse --short "$r")"); done
 echo "commit,rep,build_s,run_s,total_s,tests_passed" > "$OUT"
-seconds() { local s; s=$(date +%s.%N); "$@" > "$WORK/log" 2>&1 || { tail -30 "$WORK/log" >&2; exit 1; }; echo "$(date +%s.%N) - $s" | bc; }
 for rep in $(seq 1 "$REPS"); do
-  order=("${REVS[@]}")
-  if [ $((rep % 2)) -eq 0 ]; then
-    order=(); for ((i = ${#REVS[@]} - 1; i >= 0; i--)); do order+=("${REVS[$i]}"); done
-  fi
+  mapfile -t order < <(rep_order "$rep" "${REVS[@]}")
   for c in "${order[@]}"; do
     rm -rf "$WORK/clone"
     git clone -q "$REPO" "$WORK/clone"

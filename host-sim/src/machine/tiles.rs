@@ -38,8 +38,10 @@ pub fn tiles<'a, T>(mut cells: &'a mut [T], idx: &'a [u32], min: usize) -> Vec<(
 pub fn par_each<T: Send>(items: Vec<T>, work: impl Fn(T) + Sync) {
     let slots: Vec<Mutex<Option<T>>> = items.into_iter().map(|t| Mutex::new(Some(t))).collect();
     par_indices(slots.len(), &|i| {
-        // Each index is visited once, so each slot is taken once.
-        if let Some(t) = slots[i].lock().unwrap_or_else(PoisonError::into_inner).take() {
+        // Each index is visited once, so each slot is taken once (the lock is released before
+        // the work runs).
+        let item = slots[i].lock().unwrap_or_else(PoisonError::into_inner).take();
+        if let Some(t) = item {
             work(t);
         }
     });

@@ -13,7 +13,7 @@ use crate::machine::capacity::HostLightCell;
 use crate::machine::grid::Grid;
 use crate::machine::links::{self, lossless, sure, CellInbox, HostLink, Took, BACK};
 use crate::machine::tap::Tap;
-use crate::machine::tiles::{merge_sorted, par_each, prefetch, prefetch_ends, tiles};
+use crate::machine::tiles::{merge_sorted, par_each, par_map, prefetch, prefetch_ends, tiles};
 
 /// Active cells per piece of work handed to a thread (below it, splitting costs more than it
 /// saves).
@@ -689,11 +689,9 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         match self.stepping {
             Stepping::Active => self.next_active_list(),
             Stepping::AllCells => {
-                let busy = AtomicU64::new(0);
-                par_each(self.cells.chunks(64 * PIECE).collect(), |piece| {
-                    busy.fetch_add(piece.iter().filter(|c| c.busy()).count() as u64, Relaxed);
-                });
-                let busy = busy.into_inner();
+                let chunks: Vec<&[HostLightCell<F>]> = self.cells.chunks(64 * PIECE).collect();
+                let per_chunk = par_map(chunks.len(), &|k| chunks[k].iter().filter(|c| c.busy()).count() as u64);
+                let busy: u64 = per_chunk.iter().sum();
                 busy + u64::from(self.next_initial.is_some() && !self.cells[self.s_idx].busy())
             }
         }
