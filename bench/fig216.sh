@@ -5,21 +5,23 @@
 #
 # Equivalent resolutions are Table 2.1's criterion, as `host-sim form-factors` finds them: for
 # each hemicube resolution R the disk's resolution is read from the figure CSV (`--figure-csv`,
-# column `resolution` of the disk's rows at `hemicube_r` = R). Each run is `host-sim radiosity
+# column `resolution` of the disk's rows at `hemicube_r` = R), or for Table 2.1's rows (100,
+# 200, 400, 600, 800, 1000) from the tables CSV (`--tables --csv`). Each run is `host-sim radiosity
 # SCENE --reference --form-factors METHOD:RES --shots SHOTS`: the f64 reference's progressive
 # solution computes each shot's row of form factors with that surface (3 × 3 sample points of
 # the shooting patch, one projection of the whole scene each); its wall time over its shots is
 # the time per shot. The grid's own solution (n = N, small) runs too and is not timed here.
-# Hemicube and disk runs alternate, REPS times each.
+# Hemicube and disk runs alternate, REPS times each. classe is left out by default: its 38 603
+# patches make each run's grid solution take about 11 minutes on a 2-core machine.
 #
-# Usage: bench/fig216.sh BIN   (env SCENES="bureau1 bureau2 classe", RS="16 32 64 96",
+# Usage: bench/fig216.sh BIN   (env SCENES="bureau1 bureau2", RS="16 64 100 200 400",
 #                               SHOTS=12, N=32, REPS=1, OUT=bench-out/fig216.csv; the table
 #                               goes to ${OUT%.csv}.md)
 set -euo pipefail
 [ $# -eq 1 ] || { echo "usage: bench/fig216.sh BIN" >&2; exit 2; }
 BIN=$(realpath "$1")
-SCENES=${SCENES:-bureau1 bureau2 classe}
-RS=${RS:-16 32 64 96}
+SCENES=${SCENES:-bureau1 bureau2}
+RS=${RS:-16 64 100 200 400}
 SHOTS=${SHOTS:-12}
 N=${N:-32}
 REPS=${REPS:-1}
@@ -32,14 +34,20 @@ trap 'rm -rf "$WORK"' EXIT
 cd "$WORK"
 
 "$BIN" form-factors --figure "$WORK/fig.png" --figure-csv "$WORK/eq.csv" > /dev/null
-# The disk's resolution equivalent to hemicube R (one value per R in the figure CSV).
-disk_res() { awk -F, -v r="$1" 'NR > 1 && $3 == "disk" && $4 == r { print $5; exit }' "$WORK/eq.csv"; }
+"$BIN" form-factors --tables --csv "$WORK/tables.csv" > /dev/null
+# The disk's resolution equivalent to hemicube R: from the figure CSV (every even R in 16..=96),
+# else from Table 2.1 (R = 100, 200, 400, 600, 800, 1000: the disk's cell in the hemicube's row).
+disk_res() {
+  awk -F, -v r="$1" 'NR > 1 && $3 == "disk" && $4 == r { print $5; exit }' "$WORK/eq.csv" | grep . ||
+    awk -F, -v r="$1" '$1 == "2.1" && $3 == "hemicube" && $4 == r { ref = $2 }
+                       $1 == "2.1" && $3 == "disk" && $2 == ref && ref != "" { print $4; exit }' "$WORK/tables.csv"
+}
 
 echo "scene,hemicube_r,method,resolution,rep,shots,reference_seconds,seconds_per_shot" > "$OUT"
 for scene in $SCENES; do
   for r in $RS; do
     d=$(disk_res "$r")
-    [ -n "$d" ] || { echo "no disk resolution for hemicube R = $r in the figure CSV (even R in 16..=96)" >&2; exit 1; }
+    [ -n "$d" ] || { echo "no disk resolution equivalent to hemicube R = $r (even R in 16..=96, or a Table 2.1 row)" >&2; exit 1; }
     for rep in $(seq 1 "$REPS"); do
       for spec in "hemicube:$r" "disk:$d"; do
         "$BIN" radiosity "$scene" --n "$N" --shots "$SHOTS" --reference --form-factors "$spec" \
@@ -57,7 +65,7 @@ PY
   done
 done
 
-python3 - "$OUT" "$(git -C "$REPO" rev-parse --short HEAD)" "$("$BIN" --version)" "$(nproc)" \
+python3 - "$OUT" "$(git -C "$REPO" rev-parse --short HEAD)$(git -C "$REPO" diff --quiet HEAD || echo " + uncommitted changes")" "$("$BIN" --version)" "$(nproc)" \
   "$SCENES" "$RS" "$SHOTS" "$N" "$REPS" > "${OUT%.csv}.md" <<'PY'
 import csv, datetime, statistics, sys
 rows = list(csv.DictReader(open(sys.argv[1])))

@@ -818,6 +818,27 @@ pub struct FormFactorsArgs {
     /// resolution, computed, exact, relative_error.
     #[arg(long, value_name = "F.csv", requires = "figure")]
     pub figure_csv: Option<PathBuf>,
+    /// Compare ch. 3's form factors toward a source on these scenes (comma-separated names or
+    /// .obj files; Tables 3.2 and 3.3): from every vertex of the scene (its patches' corners)
+    /// to the patch emitting the most power, by Wallace's rays (1, 4 × 4 and 5 × 5 per vertex,
+    /// §3.1) and by the subdivided beam (§3.4), each timed on one thread over every triangle
+    /// (no acceleration structure, as the thesis timed them), the beam's time split into its
+    /// phases, each estimate's error measured against 32 × 32 jittered rays per vertex.
+    #[arg(long, value_name = "SCENE", value_delimiter = ',')]
+    pub ray_traced: Vec<String>,
+    /// With --ray-traced: the largest patch edge, as a fraction of the scene's largest extent.
+    #[arg(long, value_name = "FRACTION", default_value_t = 0.0625, requires = "ray_traced")]
+    pub ray_traced_patch: f64,
+    /// With --ray-traced: how many times a beam may be cut in four (the thesis's 4: up to 256
+    /// sub-beams from a quadrilateral source); at most 8.
+    #[arg(long, value_name = "L", default_value_t = 4, requires = "ray_traced")]
+    pub ray_traced_level: u32,
+    /// With --ray-traced: write one line per scene and method as CSV: columns scene,
+    /// receivers, occluders, source_area, source_vertices, method, seconds, ratio_to_ray1,
+    /// work_per_receiver (rays, or beam cuts), candidates_per_receiver, candidates_share,
+    /// recursion_share, form_factor_share, relative_error.
+    #[arg(long, value_name = "F.csv", requires = "ray_traced")]
+    pub ray_traced_csv: Option<PathBuf>,
 }
 
 /// Run a parsed command line.

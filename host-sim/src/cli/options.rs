@@ -286,6 +286,12 @@ impl From<&FormFactorsArgs> for FormFactorsOptions {
             csv: a.csv.clone(),
             figure: a.figure.clone(),
             figure_csv: a.figure_csv.clone(),
+            ray_traced: (!a.ray_traced.is_empty()).then(|| crate::jobs::ray_traced::RayTracedOptions {
+                scenes: a.ray_traced.clone(),
+                patch: a.ray_traced_patch,
+                max_level: a.ray_traced_level,
+                csv: a.ray_traced_csv.clone(),
+            }),
         }
     }
 }

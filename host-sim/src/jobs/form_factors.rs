@@ -1,6 +1,7 @@
 //! `host-sim form-factors`: the projective form-factor methods of the radiosity thesis
 //! (ch. 2, [`crate::truth::projective`]); `--tables` computes §2.5's Tables 2.1–2.3 from each
-//! method's own surface, prints them beside the published values and writes them as CSV.
+//! method's own surface, prints them beside the published values and writes them as CSV;
+//! `--ray-traced` compares ch. 3's rays and beam toward the source ([`super::ray_traced`]).
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -26,6 +27,8 @@ pub struct FormFactorsOptions {
     pub figure: Option<PathBuf>,
     /// Write the figure's points as CSV here.
     pub figure_csv: Option<PathBuf>,
+    /// Compare the ray-traced form factors (ch. 3, Tables 3.2–3.3) on these scenes.
+    pub ray_traced: Option<super::ray_traced::RayTracedOptions>,
 }
 
 /// The hemicube resolutions of the figure's x axis: every even R from 16 to 96.
@@ -35,14 +38,17 @@ fn figure_resolutions() -> Vec<u32> {
 
 /// Run the job: the tables, printed, and the CSV if asked; the figure if asked.
 pub fn run(o: &FormFactorsOptions) -> Result<()> {
-    if !o.tables && o.figure.is_none() {
-        bail!("form-factors: nothing to do (pass --tables or --figure F.png)");
+    if !o.tables && o.figure.is_none() && o.ray_traced.is_none() {
+        bail!("form-factors: nothing to do (pass --tables, --figure F.png or --ray-traced SCENE)");
     }
     if o.tables {
         run_tables(o)?;
     }
     if let Some(png) = &o.figure {
         run_figure(png, o.figure_csv.as_deref())?;
+    }
+    if let Some(r) = &o.ray_traced {
+        super::ray_traced::run(r)?;
     }
     Ok(())
 }

@@ -12,7 +12,8 @@
 //! * [`radiosity`] — progressive radiosity on the grid, per-patch and per-shot CSV, the f64
 //!   reference's comparison.
 //! * [`mod@bench`] — the speed/accuracy sweep and its Pareto front; [`dump`] — lit-voxel dumps.
-//! * [`form_factors`] — the radiosity thesis's projective form factors and its Tables 2.1–2.3.
+//! * [`form_factors`] — the radiosity thesis's projective form factors and its Tables 2.1–2.3;
+//!   [`ray_traced`] — its ray-traced form factors toward a source, Tables 3.2–3.3.
 
 pub mod accuracy;
 pub mod audit;
@@ -21,6 +22,7 @@ pub mod dump;
 pub mod form_factors;
 pub mod light;
 pub mod radiosity;
+pub mod ray_traced;
 pub mod render;
 pub mod render_radiosity;
 pub mod scenes;

@@ -118,9 +118,14 @@ fn projective(patches: &Patches, spec: SurfaceSpec) -> Result<Projective> {
     Ok(Projective { surface: spec.build()?, triangles, owner })
 }
 
-/// The part of `poly` with `(p − x) · n > tol` (Sutherland–Hodgman against one plane).
+/// The part of `poly` with `(p − x) · n > tol`.
 fn clip_front(poly: &[Vector], x: Vector, n: Vector, tol: f64) -> Vec<Vector> {
-    let h: Vec<f64> = poly.iter().map(|p| (*p - x).dot(n) - tol).collect();
+    clip(poly, |p| (p - x).dot(n) - tol)
+}
+
+/// The part of convex `poly` where `side(p) > 0` (Sutherland–Hodgman against one plane).
+pub fn clip(poly: &[Vector], side: impl Fn(Vector) -> f64) -> Vec<Vector> {
+    let h: Vec<f64> = poly.iter().map(|&p| side(p)).collect();
     if h.iter().all(|&d| d > 0.0) {
         return poly.to_vec();
     }

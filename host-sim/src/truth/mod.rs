@@ -6,6 +6,8 @@
 //!   and closed forms (Renaud 1993, ch. 2 and §3.1).
 //! * [`projective`] — the projective form-factor methods of Renaud 1993 ch. 2 (hemicube,
 //!   single planes, hemispheres, disk) and §2.5's tables.
+//! * [`raytraced`] — form factors from a point toward a source by rays (Wallace) and by the
+//!   thesis's subdivided beam (Renaud 1993, ch. 3).
 //! * [`radiosity`] — progressive-refinement radiosity, the reference solution, and a direct
 //!   solve of the same system (Renaud 1993, §1.3).
 //! * [`refrender`] — the f64 reference image (same camera, lights and shading formula).
@@ -16,5 +18,6 @@ pub mod compare;
 pub mod formfactor;
 pub mod projective;
 pub mod radiosity;
+pub mod raytraced;
 pub mod refrender;
 pub mod visibility;

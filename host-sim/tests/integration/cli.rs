@@ -353,3 +353,42 @@ fn diffusion_table_compares_timings_with_the_thesis() {
     assert!(err.contains("FIFO slots"), "{err}");
     assert!(!bad.exists(), "nothing written on a refused timing");
 }
+
+#[test]
+fn form_factors_toward_the_source_by_rays_and_beams() {
+    let csv = tmp("ray_traced.csv", b"");
+    let (code, err) = host_sim(&[
+        "form-factors",
+        "--ray-traced",
+        "cornell",
+        "--ray-traced-patch",
+        "0.25",
+        "--ray-traced-csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    let methods: Vec<&str> = rows.iter().map(|r| r[5]).collect();
+    assert_eq!(methods, ["ray:1x1", "ray:4x4", "ray:5x5", "beam:4"], "{text}");
+    let error = |m: usize| rows[m][13].parse::<f64>().unwrap();
+    // Against 32 × 32 jittered rays per vertex: one ray per vertex is far off (a binary answer
+    // per vertex), 25 closer, the beam closest (exact but for its last-level sub-beams).
+    assert!(error(3) < error(2) && error(2) < error(0), "{text}");
+    let work = |m: usize| rows[m][8].parse::<f64>().unwrap();
+    assert!(work(0) <= 1.0 && work(1) > 8.0 * work(0), "rays per vertex: {text}");
+
+    let flat = tmp("dark.obj", b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n");
+    for (args, says) in [
+        (vec!["--ray-traced", "no-such-scene"], "no-such-scene"),
+        (vec!["--ray-traced", "cornell", "--ray-traced-level", "9"], "at most 8"),
+        (vec!["--ray-traced", "cornell", "--ray-traced-patch", "0"], "(0, 1]"),
+        (vec!["--ray-traced", flat.to_str().unwrap()], "no patch emits light"),
+    ] {
+        let mut a = vec!["form-factors"];
+        a.extend(args);
+        let (code, err) = host_sim(&a);
+        assert_ne!(code, 0, "{a:?}");
+        assert!(err.contains(says), "{a:?}: {err}");
+    }
+}

@@ -16,7 +16,7 @@
 use anyhow::Result;
 use parry3d_f64::math::Vector;
 
-use super::{check_resolution, local_cones, octant_index, octant_len, Cone, ProjectionSurface, Resolution, NONE};
+use super::{check_resolution, octant_index, octant_len, Cone, ProjectionSurface, Resolution};
 
 /// The projection disk at resolution R (of its bounding square).
 #[derive(Clone, Debug)]
@@ -194,30 +194,18 @@ impl ProjectionSurface for Disk {
     /// §2.4.2's algorithm: per facet, its MPEs and bounding rectangle, then the proxels of the
     /// rectangle through the depth buffer.
     fn form_factors(&self, x: Vector, n: Vector, facets: &[[Vector; 3]]) -> Vec<f64> {
-        let cones = local_cones(x, n, facets);
-        let (t, b, n) = super::frame(n);
-        let mut zbuf = vec![(f64::INFINITY, NONE); self.samples()];
-        for (f, (cone, tri)) in cones.iter().zip(facets).enumerate() {
-            let Some(cone) = cone else { continue };
-            let local = tri.map(|p| {
-                let d = p - x;
-                [d.dot(t), d.dot(b), d.dot(n)]
-            });
-            if let Some(rect) = bounding_rect(&local) {
-                self.project(f, cone, rect, &mut zbuf);
+        super::by_facet(self, x, n, facets, |f, cone, local, zbuf| {
+            if let Some(rect) = bounding_rect(local) {
+                self.project(f as usize, cone, rect, zbuf);
             }
-        }
-        let ids: Vec<u32> = zbuf.iter().map(|z| z.1).collect();
-        let mut out = vec![0.0; facets.len()];
-        self.gather(&ids, &mut out);
-        out
+        })
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::truth::projective::{depth_buffer, testkit};
+    use crate::truth::projective::{depth_buffer, local_cones, testkit};
 
     #[test]
     fn deltas_sum_to_one_and_a_fifth_is_unused() {

@@ -13,6 +13,12 @@
 //!
 //! Samples: the R² top proxels row by row, then the four side faces (+x, −x, +y, −y), each
 //! R × R/2 with the height index fastest.
+//!
+//! The depth buffer projects each facet on each face and tests only the proxels of its
+//! projection's bounding rectangle there (the thesis's hemicube follows the projected contour,
+//! the disk scans bounding rectangles, §2.5.3; a rectangle here keeps the two comparable in
+//! Fig. 2.16's time): a facet is clipped to the face's side of the plane through the centre
+//! parallel to it, and its vertices projected; the proxels kept are the full scan's.
 
 use std::f64::consts::PI;
 use std::sync::OnceLock;
@@ -20,7 +26,7 @@ use std::sync::OnceLock;
 use anyhow::Result;
 use parry3d_f64::math::Vector;
 
-use super::{check_resolution, octant_index, octant_len, ProjectionSurface, Resolution};
+use super::{check_resolution, octant_index, octant_len, Cone, ProjectionSurface, Resolution};
 use crate::truth::formfactor::{point_to_parallel_rectangle, point_to_polygon};
 
 /// A hemicube at resolution R (even).
@@ -66,6 +72,59 @@ impl Hemicube {
             }
             Tables { top, side }
         })
+    }
+
+    /// Proxel indices `[lo, hi]` along an axis of `[lo_edge, lo_edge + cells · w]` cut in
+    /// `cells` that the interval `[a, b]` touches, or `None` if it misses the axis.
+    fn span(a: f64, b: f64, lo_edge: f64, cells: u32, w: f64) -> Option<(u32, u32)> {
+        let hi_edge = lo_edge + cells as f64 * w;
+        if b < lo_edge || a > hi_edge || a.is_nan() || b.is_nan() {
+            return None;
+        }
+        let idx = |x: f64| ((x - lo_edge) / w).floor().clamp(0.0, cells as f64 - 1.0) as u32;
+        Some((idx(a), idx(b)))
+    }
+
+    /// One facet's depth-buffer pass on the five faces, over its projection's bounding
+    /// rectangle on each.
+    fn project(&self, f: u32, cone: &Cone, local: &[[f64; 3]; 3], zbuf: &mut [(f64, u32)]) {
+        let (r, w) = (self.r, 2.0 / self.r as f64);
+        let h = r / 2;
+        // Each face: the axis it faces (index, sign), its two in-face axes, its first sample.
+        let faces: [(usize, f64, usize, usize, usize); 5] = [
+            (2, 1.0, 0, 1, 0),
+            (0, 1.0, 1, 2, (r * r) as usize),
+            (0, -1.0, 1, 2, (r * r + r * h) as usize),
+            (1, 1.0, 0, 2, (r * r + 2 * r * h) as usize),
+            (1, -1.0, 0, 2, (r * r + 3 * r * h) as usize),
+        ];
+        for (face, &(axis, sign, ua, va, first)) in faces.iter().enumerate() {
+            let depth = |p: &[f64; 3]| sign * p[axis];
+            let poly = clip_in_front(local, axis, sign);
+            if poly.len() < 3 {
+                continue;
+            }
+            let mut rect = [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY];
+            for p in &poly {
+                let (u, v) = (p[ua] / depth(p), p[va] / depth(p));
+                rect = [rect[0].min(u), rect[1].max(u), rect[2].min(v), rect[3].max(v)];
+            }
+            let top = face == 0;
+            let Some((i0, i1)) = Self::span(rect[0], rect[1], -1.0, r, w) else { continue };
+            let (v_lo, v_cells) = if top { (-1.0, r) } else { (0.0, h) };
+            let Some((j0, j1)) = Self::span(rect[2], rect[3], v_lo, v_cells, w) else { continue };
+            for i in i0..=i1 {
+                for j in j0..=j1 {
+                    let k = if top { first + (j * r + i) as usize } else { first + (i * h + j) as usize };
+                    if let Some(t) = cone.hit(self.direction(k)) {
+                        let slot = &mut zbuf[k];
+                        if t < slot.0 {
+                            *slot = (t, f);
+                        }
+                    }
+                }
+            }
+        }
     }
 
     fn side_delta(&self, j: u32, k: u32) -> f64 {
@@ -130,6 +189,11 @@ impl ProjectionSurface for Hemicube {
             _ => [j, -1.0, z],
         }
     }
+    /// The depth buffer over each facet's bounding rectangle on each face (module
+    /// documentation); the same proxels as the full scan.
+    fn form_factors(&self, x: Vector, n: Vector, facets: &[[Vector; 3]]) -> Vec<f64> {
+        super::by_facet(self, x, n, facets, |f, cone, local, zbuf| self.project(f, cone, local, zbuf))
+    }
     fn delta(&self, k: usize) -> f64 {
         let r = self.r as usize;
         if k < r * r {
@@ -140,6 +204,30 @@ impl ProjectionSurface for Hemicube {
     }
 }
 
+/// The part of triangle `v` in front of a face: where `sign · v[axis] > 0` (one
+/// Sutherland–Hodgman pass). A crossing point lies on the plane, where projecting divides by
+/// zero: it is moved `1e-12` of the triangle's size in front, so that its projection is far out
+/// in the direction the edge's projection runs to (or, when it projects to 0, where the rest of
+/// the edge's projection already is).
+fn clip_in_front(v: &[[f64; 3]; 3], axis: usize, sign: f64) -> Vec<[f64; 3]> {
+    let scale = v.iter().flatten().fold(0.0f64, |m, c| m.max(c.abs())).max(f64::MIN_POSITIVE);
+    let mut out = Vec::with_capacity(4);
+    for k in 0..3 {
+        let (p, q) = (v[k], v[(k + 1) % 3]);
+        let (dp, dq) = (sign * p[axis], sign * q[axis]);
+        if dp > 0.0 {
+            out.push(p);
+        }
+        if (dp > 0.0) != (dq > 0.0) {
+            let t = dp / (dp - dq);
+            let mut x: [f64; 3] = std::array::from_fn(|i| p[i] + t * (q[i] - p[i]));
+            x[axis] = sign * 1e-12 * scale;
+            out.push(x);
+        }
+    }
+    out
+}
+
 /// The thesis's top-face FFE formula at a proxel centre (§2.3.1), for the tests.
 pub fn thesis_top_delta(x: f64, y: f64, area: f64) -> f64 {
     area / (PI * (x * x + y * y + 1.0).powi(2))
@@ -148,7 +236,7 @@ pub fn thesis_top_delta(x: f64, y: f64, area: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::truth::projective::testkit;
+    use crate::truth::projective::{local_cones, testkit};
 
     #[test]
     fn deltas_sum_to_one_and_match_the_thesis_formula() {
@@ -168,6 +256,30 @@ mod tests {
             96,
             1.0,
         );
+    }
+
+    #[test]
+    fn bounding_rectangles_agree_with_the_full_scan() {
+        use crate::truth::projective::depth_buffer;
+        let h = Hemicube::new(32).unwrap();
+        let v = Vector::new;
+        let mut rng = crate::rng::Rng(11);
+        let mut facets = vec![
+            [v(-0.5, 0.2, 0.3), v(0.8, -0.3, 0.2), v(0.1, 0.9, 0.05)],
+            [v(2.0, 0.0, -0.5), v(0.0, 2.0, 1.0), v(-2.0, -1.0, 0.4)],
+            [v(-3.0, -3.0, 0.0), v(3.0, -3.0, 0.0), v(0.0, 3.0, 2.0)],
+        ];
+        for _ in 0..60 {
+            let p = |rng: &mut crate::rng::Rng| v(rng.range(-2.0, 2.0), rng.range(-2.0, 2.0), rng.range(-0.5, 2.0));
+            facets.push([p(&mut rng), p(&mut rng), p(&mut rng)]);
+        }
+        for normal in [Vector::Z, v(0.3, -0.2, 1.0).normalize()] {
+            let fast = h.form_factors(Vector::ZERO, normal, &facets);
+            let ids = depth_buffer(&h, &local_cones(Vector::ZERO, normal, &facets));
+            let mut slow = vec![0.0; facets.len()];
+            h.gather(&ids, &mut slow);
+            assert_eq!(fast, slow);
+        }
     }
 
     #[test]

@@ -207,6 +207,34 @@ pub fn depth_buffer<S: ProjectionSurface + ?Sized>(s: &S, cones: &[Option<Cone>]
         .collect()
 }
 
+/// The depth buffer facet by facet, for surfaces that scan only the proxels a facet may cover:
+/// `project(facet, cone, local_vertices, zbuf)` fills the (depth, facet) slots of the samples
+/// it covers (vertices in the frame of `n` about `x`, [`frame`]); then the kept proxels' delta
+/// form factors are summed per facet ([`ProjectionSurface::gather`]).
+pub fn by_facet<S: ProjectionSurface + ?Sized>(
+    s: &S,
+    x: Vector,
+    n: Vector,
+    facets: &[[Vector; 3]],
+    mut project: impl FnMut(u32, &Cone, &[[f64; 3]; 3], &mut [(f64, u32)]),
+) -> Vec<f64> {
+    let cones = local_cones(x, n, facets);
+    let (t, b, nn) = frame(n);
+    let mut zbuf = vec![(f64::INFINITY, NONE); s.samples()];
+    for (f, (cone, tri)) in cones.iter().zip(facets).enumerate() {
+        let Some(cone) = cone else { continue };
+        let local = tri.map(|p| {
+            let d = p - x;
+            [d.dot(t), d.dot(b), d.dot(nn)]
+        });
+        project(f as u32, cone, &local, &mut zbuf);
+    }
+    let ids: Vec<u32> = zbuf.iter().map(|z| z.1).collect();
+    let mut out = vec![0.0; facets.len()];
+    s.gather(&ids, &mut out);
+    out
+}
+
 /// Index of an octant-folded cell of an `r × r` grid symmetric in x, y and the diagonal
 /// (§2.3.1: 1/8 of the FFEs are stored): `(i, j)` → index into the stored triangle.
 pub fn octant_index(r: u32, i: u32, j: u32) -> usize {
