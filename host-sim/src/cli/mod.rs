@@ -87,6 +87,12 @@ pub struct RadiosityArgs {
     /// how far its own solution moves (its self-error, to set beside the machine's error).
     #[arg(long, requires = "reference")]
     pub reference_self_error: bool,
+    /// With --reference: also solve a converged truth (the contour estimator with 6 × 6 sample
+    /// points per patch triangle, to a tenth of --residual) and report the reference's (with
+    /// its --form-factors) and the machine's per-patch errors against it, on the reflected
+    /// radiosity.
+    #[arg(long, requires = "reference")]
+    pub truth_error: bool,
     /// How form factors are sampled. `beams` (default): the machine shoots by beam diffusion
     /// and the f64 reference (--reference) takes the exact contour integral times a ray-cast
     /// visible fraction. A projective surface of the radiosity thesis, ch. 2, replaces the

@@ -168,6 +168,7 @@ impl From<&RadiosityArgs> for RadiosityOptions {
             solve: RadiositySettings { estimator: a.form_factors, ..(&a.solve).into() },
             reference: a.reference,
             reference_self_error: a.reference_self_error,
+            truth_error: a.truth_error,
             patches_csv: a.patches_csv.clone(),
             shots_csv: a.shots_csv.clone(),
             residual_plot: a.residual_plot.clone(),

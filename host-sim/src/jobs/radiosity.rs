@@ -81,6 +81,9 @@ pub struct RadiosityOptions {
     pub reference: bool,
     /// With `reference`: also solve it with 4× the samples and report its self-error.
     pub reference_self_error: bool,
+    /// With `reference`: also solve a converged truth ([`TRUTH_STRATA`], a tenth of the
+    /// residual) and report the reference's and the machine's errors against it.
+    pub truth_error: bool,
     /// Per-patch CSV (default `<scene>_patches.csv`).
     pub patches_csv: Option<PathBuf>,
     /// Per-shot CSV (default `<scene>_shots.csv`).
@@ -152,6 +155,33 @@ pub struct ReferenceStats {
     pub wall_seconds: f64,
     /// How its form factors were estimated (`--form-factors`).
     pub estimator: Estimator,
+    /// With `--truth-error`: the reference's and the machine's errors against a converged
+    /// truth.
+    pub truth: Option<TruthError>,
+}
+
+/// Strata per triangle side of the converged truth (`--truth-error`): 6 × 6 sample points per
+/// triangle of each patch, four times the reference's.
+pub const TRUTH_STRATA: usize = 6;
+
+/// Errors against a converged truth: the contour estimator ([`Estimator::Contour`]) with
+/// [`TRUTH_STRATA`] strata, solved to a tenth of the run's residual. Errors are area-weighted RMS
+/// relative differences on the reflected radiosity B − E (the emitted part is exact in every
+/// solution).
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct TruthError {
+    /// Strata of the truth's sample points per triangle side.
+    pub strata: usize,
+    /// The truth's stopping residual.
+    pub residual: f64,
+    /// Shots the truth made.
+    pub shots: usize,
+    /// The reference (with its `--form-factors`) against the truth.
+    pub reference_rms_relative_error: f64,
+    /// The machine against the truth.
+    pub machine_rms_relative_error: f64,
+    /// Wall time of the truth, seconds.
+    pub wall_seconds: f64,
 }
 
 /// Run the `radiosity` job.
@@ -163,7 +193,7 @@ pub fn run(o: &RadiosityOptions) -> Result<()> {
     let t0 = Instant::now();
     let s = solve_with_bar(&scene, &p, &o.solve.machine(), o.quiet)?;
     let wall = t0.elapsed().as_secs_f64();
-    let compared = o.reference.then(|| compare(&p, &s, &o.solve, o.reference_self_error)).transpose()?;
+    let compared = o.reference.then(|| compare(&p, &s, &o.solve, o.reference_self_error, o.truth_error)).transpose()?;
     let plot = o.residual_plot.clone().unwrap_or_else(|| format!("{}_residual.png", mesh.name).into());
     plot_residual(&plot, &mesh.name, scene.grid.n, &s, compared.as_ref().map(|c| &c.2), o.solve.residual)?;
     let stats = summarise(&mesh.name, &scene, &p, &s, wall, compared.map(|c| c.0));
@@ -240,12 +270,14 @@ fn shoot(p: &Patches, ff: &FormFactors, s: &RadiositySettings) -> Result<Solutio
 
 /// The f64 reference on the same patches with the same stopping rule, and direct light only:
 /// the comparison, the reference's form factors and its solution. `self_error`: also solve it
-/// with 6 × 6 strata ([`ReferenceStats::self_error`]).
+/// with 6 × 6 strata ([`ReferenceStats::self_error`]); `truth`: also against a converged truth
+/// ([`TruthError`]).
 pub fn compare(
     p: &Patches,
     s: &GridSolution,
     settings: &RadiositySettings,
     self_error: bool,
+    truth: bool,
 ) -> Result<(ReferenceStats, FormFactors, Solution)> {
     let (ff, r, wall_seconds) = reference_solve(p, settings)?;
     let emitters = p.patches.iter().filter(|q| q.emission.iter().any(|&e| e > 0.0)).count();
@@ -259,6 +291,7 @@ pub fn compare(
             rms_relative_error(&reflected(&fine.radiosity), &reflected(&r.radiosity), &areas)
         })
         .transpose()?;
+    let truth = truth.then(|| truth_error(p, s, settings, &r)).transpose()?;
     let stats = ReferenceStats {
         rms_relative_error: rms_relative_error(&r.radiosity, &s.radiosity, &areas)?,
         direct_only_rms_relative_error: rms_relative_error(&r.radiosity, &direct.radiosity, &areas)?,
@@ -266,8 +299,30 @@ pub fn compare(
         wall_seconds,
         estimator: settings.estimator,
         self_error,
+        truth,
     };
     Ok((stats, ff, r))
+}
+
+/// The converged truth ([`TruthError`]) and the errors of the reference `r` and the machine
+/// `s` against it.
+fn truth_error(p: &Patches, s: &GridSolution, settings: &RadiositySettings, r: &Solution) -> Result<TruthError> {
+    let t0 = Instant::now();
+    let converged =
+        RadiositySettings { residual: settings.residual / 10.0, estimator: Estimator::Contour, ..*settings };
+    let truth = shoot(p, &form_factors(p, TRUTH_STRATA, Estimator::Contour)?, &converged)?;
+    let wall_seconds = t0.elapsed().as_secs_f64();
+    let areas: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
+    let reflected = |b: &[[f64; 3]]| crate::truth::radiosity::reflected(&p.patches, b);
+    let t = reflected(&truth.radiosity);
+    Ok(TruthError {
+        strata: TRUTH_STRATA,
+        residual: converged.residual,
+        shots: truth.shots.len(),
+        reference_rms_relative_error: rms_relative_error(&t, &reflected(&r.radiosity), &areas)?,
+        machine_rms_relative_error: rms_relative_error(&t, &reflected(&s.radiosity), &areas)?,
+        wall_seconds,
+    })
 }
 
 /// The summary of a machine solution.
@@ -380,6 +435,12 @@ pub fn print_summary(s: &RadiosityStats) {
         );
         if let Some(e) = r.self_error {
             eprintln!("  reference self-error (3×3 against 6×6 strata, reflected B − E): RMS relative {e:.4}");
+        }
+        if let Some(t) = &r.truth {
+            eprintln!(
+                "  against the converged truth (contour, {0}×{0} strata, residual {1}, {2} shots, {3:.1} s; reflected B − E): reference {4:.4}, machine {5:.4}",
+                t.strata, t.residual, t.shots, t.wall_seconds, t.reference_rms_relative_error, t.machine_rms_relative_error
+            );
         }
     }
 }

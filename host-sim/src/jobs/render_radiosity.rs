@@ -136,7 +136,7 @@ pub fn solve(
     let s = solve_with_bar(shot_grid, &p, &settings.machine(), quiet)?;
     let wall = t0.elapsed().as_secs_f64();
     let (compared, reference) = if reference {
-        let (stats, ff, sol) = compare(&p, &s, settings, false)?;
+        let (stats, ff, sol) = compare(&p, &s, settings, false, false)?;
         let h = indirect_irradiance(&p.patches, &sol, |i| ff.row(i))?;
         (Some(stats), Some((h, sol.unshot)))
     } else {

@@ -392,3 +392,48 @@ fn form_factors_toward_the_source_by_rays_and_beams() {
         assert!(err.contains(says), "{a:?}: {err}");
     }
 }
+
+#[test]
+fn radiosity_against_a_converged_truth_converges_with_the_hemicube() {
+    let error = |spec: &str| {
+        let stats = tmp(&format!("truth-{}.json", spec.replace(':', "-")), b"");
+        let plot = stats.with_extension("png");
+        let (patches, shots) = (stats.with_extension("patches.csv"), stats.with_extension("shots.csv"));
+        let (code, err) = host_sim(&[
+            "radiosity",
+            "cornell",
+            "--n",
+            "32",
+            "--residual",
+            "0.05",
+            "--reference",
+            "--truth-error",
+            "--form-factors",
+            spec,
+            "--quiet",
+            "--stats",
+            stats.to_str().unwrap(),
+            "--residual-plot",
+            plot.to_str().unwrap(),
+            "--patches-csv",
+            patches.to_str().unwrap(),
+            "--shots-csv",
+            shots.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 0, "{err}");
+        assert!(err.contains("against the converged truth"), "{err}");
+        let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        let t = &json["reference"]["truth"];
+        assert_eq!(t["strata"], 6, "{json}");
+        assert!((t["residual"].as_f64().unwrap() - 0.005).abs() < 1e-12, "{json}");
+        let machine = t["machine_rms_relative_error"].as_f64().unwrap();
+        assert!(machine.is_finite() && machine > 0.0, "{json}");
+        t["reference_rms_relative_error"].as_f64().unwrap()
+    };
+    // A hemicube of 4 × 4 proxels on top aliases badly; at 64 the reference comes close to the
+    // truth (which samples the same patches with another, finer estimator).
+    let (coarse, fine) = (error("hemicube:4"), error("hemicube:64"));
+    assert!(fine < coarse / 2.0, "hemicube:64 {fine}, hemicube:4 {coarse}");
+    let (code, err) = host_sim(&["radiosity", "cornell", "--n", "16", "--truth-error"]);
+    assert_ne!(code, 0, "--truth-error needs --reference: {err}");
+}
