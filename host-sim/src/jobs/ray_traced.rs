@@ -166,6 +166,9 @@ fn compare(scene: &str, o: &RayTracedOptions) -> Result<SceneRows> {
         })
         .collect();
     let reference_sum: f64 = reference.iter().sum();
+    if !(reference_sum.is_finite() && reference_sum > 0.0) {
+        bail!("{scene}: no vertex receives light from the source (the reference's form factors sum to {reference_sum}): nothing to compare");
+    }
     let error = |f: &[f64]| f.iter().zip(&reference).map(|(a, b)| (a - b).abs()).sum::<f64>() / reference_sum;
     let n = receivers.len() as f64;
     let mut methods = Vec::new();
