@@ -20,6 +20,7 @@ use anyhow::{bail, Context, Result};
 use parry3d_f64::math::Vector;
 use rayon::prelude::*;
 
+use crate::report::files::create;
 use crate::scene::patches::{subdivide, Patches};
 use crate::truth::raytraced::beam::{self, BeamStats};
 use crate::truth::raytraced::wallace::{self, Sampling};
@@ -76,8 +77,6 @@ pub struct SceneRows {
     pub occluders: usize,
     /// The source's area and vertex count.
     pub source: (f64, usize),
-    /// Σ F_ref over the receivers.
-    pub reference_sum: f64,
     /// Every method, the rays first.
     pub methods: Vec<MethodRow>,
 }
@@ -90,8 +89,7 @@ pub fn run(o: &RayTracedOptions) -> Result<()> {
     if o.max_level > 8 {
         bail!("--ray-traced-level must be at most 8 (4^8 sub-beams a receiver), got {}", o.max_level);
     }
-    let mut file =
-        o.csv.as_ref().map(|p| std::fs::File::create(p).with_context(|| format!("{}", p.display()))).transpose()?;
+    let mut file = o.csv.as_deref().map(create).transpose()?;
     let mut rows = Vec::new();
     for scene in &o.scenes {
         let r = compare(scene, o)?;
@@ -208,7 +206,6 @@ fn compare(scene: &str, o: &RayTracedOptions) -> Result<SceneRows> {
         receivers: receivers.len(),
         occluders: occ.triangles().len(),
         source: (source.area, source.polygon.len()),
-        reference_sum,
         methods,
     })
 }

@@ -28,15 +28,13 @@ use std::time::{Duration, Instant};
 
 use parry3d_f64::math::Vector;
 
-use super::wallace::split4;
+use super::wallace::{centre, split4};
 use super::{clip, segment_hits, Occluders, Receiver, Source};
 use crate::truth::formfactor::point_to_polygon;
 
 /// What a beam computation did, summed over receivers.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct BeamStats {
-    /// Receivers (calls).
-    pub receivers: u64,
     /// Candidates kept by the first phase.
     pub candidates: u64,
     /// Times a beam was cut in four.
@@ -75,7 +73,7 @@ struct Beam<'a> {
 
 impl<'a> Beam<'a> {
     fn new(apex: Vector, base: Vec<Vector>, source: &'a Source, tol: f64) -> Beam<'a> {
-        let c = base.iter().fold(Vector::ZERO, |s, &p| s + p) / base.len() as f64;
+        let c = centre(&base);
         let m = base.len();
         let sides = (0..m)
             .filter_map(|i| {
@@ -140,7 +138,6 @@ impl<'a> Beam<'a> {
 /// The form factor from `r` to `s` occluded by `occ`, by a beam cut at most `max_level` times;
 /// `stats` gathers the counts and phase times.
 pub fn form_factor(r: &Receiver, s: &Source, occ: &Occluders, max_level: u32, stats: &mut BeamStats) -> f64 {
-    stats.receivers += 1;
     let t0 = Instant::now();
     let Some(front) = s.front(r) else {
         stats.candidates_time += t0.elapsed();
@@ -156,7 +153,7 @@ pub fn form_factor(r: &Receiver, s: &Source, occ: &Occluders, max_level: u32, st
     let mut ff_time = Duration::ZERO;
     let base = beam.base.clone();
     let f = if base.len() > 4 {
-        let c = base.iter().fold(Vector::ZERO, |s, &p| s + p) / base.len() as f64;
+        let c = centre(&base);
         stats.subdivisions += 1;
         (0..base.len())
             .map(|i| {
@@ -224,7 +221,7 @@ fn visit(
                     .sum();
             }
             Position::Partial => {
-                let c = beam.base.iter().fold(Vector::ZERO, |s, &p| s + p) / beam.base.len() as f64;
+                let c = centre(&beam.base);
                 if candidates[i..].iter().any(|t| segment_hits(t, beam.apex, c)) {
                     return 0.0;
                 }

@@ -137,7 +137,7 @@ pub(crate) fn split4(e: &[Vector]) -> Vec<Element> {
 }
 
 /// An element's centre: its vertices' mean (the centroid of a triangle or a parallelogram).
-fn centre(e: &[Vector]) -> Vector {
+pub(crate) fn centre(e: &[Vector]) -> Vector {
     e.iter().fold(Vector::ZERO, |s, &p| s + p) / e.len() as f64
 }
 
