@@ -5,7 +5,11 @@
 # visibility, 3 × 3 points per patch triangle) and the grid's own beam shots, all on the same
 # patches, each compared per patch with a converged truth (`radiosity --truth-error`: the
 # contour estimator at 6 × 6 points per triangle, a tenth of the residual), on the reflected
-# radiosity. Cost: the f64 reference's wall seconds (the grid's: its simulation's).
+# radiosity, and the image each solution renders (`render --radiosity --truth-error`: the same
+# shots, display, exposure and direct light; PSNR against the truth's image). Cost: the f64
+# reference's samples (the contour estimator's visibility rays, a projective surface's proxels
+# at every shooter point; the grid's: the beams its shots processed) and wall seconds (the
+# grid's: its simulation's).
 #
 # Usage: bench/ff_accuracy.sh BIN   (env SCENE=cornell, N=64, RS="16 32 64", RESIDUAL=0.01,
 #                                    OUT=bench-out/ff_accuracy.csv; the table goes to
@@ -29,21 +33,22 @@ trap 'rm -rf "$WORK"' EXIT
 res() { awk -F, -v m="$1" -v r="$2" 'NR > 1 && $3 == m && $4 == r { print $5; exit }' "$WORK/eq.csv"; }
 
 run() { # method, hemicube R (or -), form-factors spec
-  "$BIN" radiosity "$SCENE" --n "$N" --residual "$RESIDUAL" --reference --truth-error --form-factors "$3" \
-    --stats "$WORK/s.json" --patches-csv "$WORK/p.csv" --shots-csv "$WORK/sh.csv" \
-    --residual-plot "$WORK/r.png" --quiet > "$WORK/log" 2>&1 || { tail -20 "$WORK/log" >&2; exit 1; }
+  "$BIN" render "$SCENE" --n "$N" --radiosity --residual "$RESIDUAL" --reference --truth-error --form-factors "$3" \
+    --out "$WORK/img.png" --stats "$WORK/s.json" --quiet > "$WORK/log" 2>&1 || { tail -20 "$WORK/log" >&2; exit 1; }
   python3 - "$WORK/s.json" "$SCENE" "$N" "$1" "$2" "$3" >> "$OUT" <<'PY'
 import json, sys
-s = json.load(open(sys.argv[1]))
+rad = json.load(open(sys.argv[1]))["radiosity"]
+s, img = rad["solution"], rad["truth_image"]
 r, t = s["reference"], s["reference"]["truth"]
 scene, n, method, hr, spec = sys.argv[2:]
 print(f"{scene},{n},{s['patches']},{method},{hr},{spec},{r['wall_seconds']:.4f},{t['reference_rms_relative_error']:.6f},"
-      f"{s['wall_seconds']:.4f},{t['machine_rms_relative_error']:.6f},{t['shots']},{t['wall_seconds']:.3f}")
+      f"{s['wall_seconds']:.4f},{t['machine_rms_relative_error']:.6f},{t['shots']},{t['wall_seconds']:.3f},"
+      f"{r['rays_cast']},{r['proxels']},{s['beams_processed']},{img['reference_psnr_db']:.3f},{img['machine_psnr_db']:.3f}")
 PY
   tail -1 "$OUT" >&2
 }
 
-echo "scene,n,patches,method,hemicube_r,form_factors,reference_seconds,reference_error,machine_seconds,machine_error,truth_shots,truth_seconds" > "$OUT"
+echo "scene,n,patches,method,hemicube_r,form_factors,reference_seconds,reference_error,machine_seconds,machine_error,truth_shots,truth_seconds,reference_rays,reference_proxels,machine_beams,reference_psnr_db,machine_psnr_db" > "$OUT"
 run beams - beams
 for r in $RS; do
   for m in hemicube sillion recker hemisphere-uniform hemisphere disk; do
@@ -68,28 +73,35 @@ png, commit, version, cores, scene, n, rs, residual = sys.argv[2:]
 now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
 print(f'`SCENE={scene} N={n} RS="{rs}" RESIDUAL={residual} bash bench/ff_accuracy.sh BIN` ({version}, commit {commit}), '
       f"{now}, {cores} cores; {rows[0]['patches']} patches; errors: area-weighted RMS relative difference of the "
-      f"reflected radiosity from the truth (contour estimator, 6 × 6 points per triangle, {rows[0]['truth_shots']} shots):")
+      f"reflected radiosity from the truth (contour estimator, 6 × 6 points per triangle, {rows[0]['truth_shots']} shots); "
+      f"samples: visibility rays (beams), proxels (projective surfaces), beams processed (the grid); PSNR: the "
+      f"rendered image ({n} × {n}, same shots, display and direct light) against the truth's:")
 print()
-print("| method | hemicube R | form factors | reference s | error vs truth |")
-print("|---|---|---|---|---|")
+samples = lambda r: int(r["reference_rays"]) + int(r["reference_proxels"])
+print("| method | hemicube R | form factors | samples | reference s | error vs truth | image PSNR dB |")
+print("|---|---|---|---|---|---|---|")
 for r in rows:
-    print(f"| {r['method']} | {r['hemicube_r']} | `{r['form_factors']}` | {float(r['reference_seconds']):.2f} | "
-          f"{100 * float(r['reference_error']):.2f} % |")
+    print(f"| {r['method']} | {r['hemicube_r']} | `{r['form_factors']}` | {samples(r):.3g} | "
+          f"{float(r['reference_seconds']):.2f} | {100 * float(r['reference_error']):.2f} % | {float(r['reference_psnr_db']):.1f} |")
 g = rows[0]
-print(f"| the grid's beam shots (n = {n}) | – | – | {float(g['machine_seconds']):.2f} (simulation) | "
-      f"{100 * float(g['machine_error']):.2f} % |")
-fig, ax = plt.subplots(figsize=(7.5, 5))
-for m in dict.fromkeys(r["method"] for r in rows[1:]):
-    pts = sorted((float(r["reference_seconds"]), float(r["reference_error"]), r["hemicube_r"]) for r in rows if r["method"] == m)
-    ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=m)
-ax.plot([float(g["reference_seconds"])], [float(g["reference_error"])], "ks", label="beams (contour × visibility, 3 × 3)")
-ax.plot([float(g["machine_seconds"])], [float(g["machine_error"])], "r*", ms=12, label=f"the grid (n = {n}, simulated)")
-ax.set_xscale("log"); ax.set_yscale("log")
-ax.set_xlabel(f"host seconds (the grid: its simulation); points at hemicube R = {rs} equivalents")
-ax.set_ylabel("per-patch RMS relative error vs the converged truth")
-ax.set_title(f"{scene}, {g['patches']} patches: error against cost")
-ax.grid(True, which="both", alpha=0.3)
-ax.legend(fontsize=8)
+print(f"| the grid's beam shots (n = {n}) | – | – | {int(g['machine_beams']):.3g} beams | {float(g['machine_seconds']):.2f} "
+      f"(simulation) | {100 * float(g['machine_error']):.2f} % | {float(g['machine_psnr_db']):.1f} |")
+fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharey=True)
+for ax, cost, grid_cost, label in (
+    (axes[0], samples, lambda r: int(r["machine_beams"]), "samples: rays (beams), proxels (surfaces), beams (the grid)"),
+    (axes[1], lambda r: float(r["reference_seconds"]), lambda r: float(r["machine_seconds"]), "host seconds (the grid: its simulation)"),
+):
+    for m in dict.fromkeys(r["method"] for r in rows[1:]):
+        pts = sorted((cost(r), float(r["reference_error"])) for r in rows if r["method"] == m)
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=m)
+    ax.plot([cost(g)], [float(g["reference_error"])], "ks", label="beams (contour × visibility, 3 × 3)")
+    ax.plot([grid_cost(g)], [float(g["machine_error"])], "r*", ms=12, label=f"the grid (n = {n}, simulated)")
+    ax.set_xscale("log"); ax.set_yscale("log")
+    ax.set_xlabel(label)
+    ax.grid(True, which="both", alpha=0.3)
+axes[0].set_ylabel("per-patch RMS relative error vs the converged truth")
+axes[1].legend(fontsize=8)
+fig.suptitle(f"{scene}, {g['patches']} patches: error against cost (points at hemicube R = {rs} equivalents)")
 fig.tight_layout()
 fig.savefig(png, dpi=110)
 PY

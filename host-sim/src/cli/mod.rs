@@ -87,21 +87,6 @@ pub struct RadiosityArgs {
     /// how far its own solution moves (its self-error, to set beside the machine's error).
     #[arg(long, requires = "reference")]
     pub reference_self_error: bool,
-    /// With --reference: also solve a converged truth (the contour estimator with 6 × 6 sample
-    /// points per patch triangle, to a tenth of --residual) and report the reference's (with
-    /// its --form-factors) and the machine's per-patch errors against it, on the reflected
-    /// radiosity.
-    #[arg(long, requires = "reference")]
-    pub truth_error: bool,
-    /// How form factors are sampled. `beams` (default): the machine shoots by beam diffusion
-    /// and the f64 reference (--reference) takes the exact contour integral times a ray-cast
-    /// visible fraction. A projective surface of the radiosity thesis, ch. 2, replaces the
-    /// reference's estimator, applied at each sample point of a patch (the machine still
-    /// shoots by beams):
-    /// `hemicube:R` (R even), `sillion:R`, `recker:R1/R2`, `hemisphere-uniform:R`,
-    /// `hemisphere:R`, `disk:R` (docs/FORM-FACTORS.md; R up to 4000).
-    #[arg(long, value_name = "METHOD", default_value = "beams", value_parser = parse_form_factors)]
-    pub form_factors: crate::truth::formfactor::Estimator,
     /// Per-patch CSV (default SCENE_patches.csv).
     #[arg(long)]
     pub patches_csv: Option<PathBuf>,
@@ -881,7 +866,7 @@ fn dispatch(command: Command) -> Result<()> {
     }
 }
 
-fn parse_form_factors(s: &str) -> std::result::Result<crate::truth::formfactor::Estimator, String> {
+pub(crate) fn parse_form_factors(s: &str) -> std::result::Result<crate::truth::formfactor::Estimator, String> {
     use crate::truth::formfactor::Estimator;
     if s == "beams" {
         return Ok(Estimator::Contour);

@@ -14,7 +14,7 @@ use crate::jobs::audit::AuditOptions;
 use crate::jobs::bench::BenchOptions;
 use crate::jobs::form_factors::FormFactorsOptions;
 use crate::jobs::light::{LightOptions, LightingOptions};
-use crate::jobs::radiosity::{RadiosityOptions, RadiositySettings};
+use crate::jobs::radiosity::RadiosityOptions;
 use crate::jobs::render::RenderOptions;
 use crate::jobs::render_radiosity::{RenderRadiosity, DEFAULT_DISPLAY};
 use crate::jobs::scenes::SubdivideOptions;
@@ -96,6 +96,7 @@ impl TryFrom<&RenderArgs> for RenderOptions {
             radiosity: a.radiosity.then(|| RenderRadiosity {
                 solve: (&a.radiosity_opts).into(),
                 display: a.radiosity_display.map_or(DEFAULT_DISPLAY, Into::into),
+                truth: a.radiosity_opts.truth_error,
             }),
             scene: a.load.scene.clone(),
             view: a.load.camera.choice(),
@@ -165,10 +166,10 @@ impl From<&RadiosityArgs> for RadiosityOptions {
         RadiosityOptions {
             scene: a.load.scene.clone(),
             load: a.load.config(Preset::Render.load()),
-            solve: RadiositySettings { estimator: a.form_factors, ..(&a.solve).into() },
+            solve: (&a.solve).into(),
             reference: a.reference,
             reference_self_error: a.reference_self_error,
-            truth_error: a.truth_error,
+            truth_error: a.solve.truth_error,
             patches_csv: a.patches_csv.clone(),
             shots_csv: a.shots_csv.clone(),
             residual_plot: a.residual_plot.clone(),

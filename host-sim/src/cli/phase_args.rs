@@ -161,6 +161,21 @@ pub struct RadiosityOpts {
     /// Push of each shot's source off its patch's centre, voxels along the normal [default: 2].
     #[arg(long)]
     pub offset: Option<f64>,
+    /// How the f64 reference (--reference) samples its form factors [default: beams]. `beams`:
+    /// the exact contour integral times a ray-cast visible fraction. A projective surface of
+    /// the radiosity thesis, ch. 2, applied at each sample point of a patch: `hemicube:R`
+    /// (R even), `sillion:R`, `recker:R1/R2`, `hemisphere-uniform:R`, `hemisphere:R`, `disk:R`
+    /// (docs/FORM-FACTORS.md; R up to 4000). The machine shoots by beam diffusion whatever
+    /// this says.
+    #[arg(long, value_name = "METHOD", value_parser = crate::cli::parse_form_factors)]
+    pub form_factors: Option<crate::truth::formfactor::Estimator>,
+    /// With --reference: also solve a converged truth (the contour estimator with 6 × 6 sample
+    /// points per patch triangle, to a tenth of --residual) and report the reference's (with
+    /// its --form-factors) and the machine's per-patch errors against it, on the reflected
+    /// radiosity; `render` also renders the truth's image and gives the PSNR of the
+    /// reference's and the machine's images against it.
+    #[arg(long, requires = "reference")]
+    pub truth_error: bool,
 }
 
 impl RadiosityOpts {
@@ -171,6 +186,8 @@ impl RadiosityOpts {
             (self.shots.is_some(), "--shots"),
             (self.residual.is_some(), "--residual"),
             (self.offset.is_some(), "--offset"),
+            (self.form_factors.is_some(), "--form-factors"),
+            (self.truth_error, "--truth-error"),
         ]
         .into_iter()
         .find_map(|(given, flag)| given.then_some(flag))
@@ -185,7 +202,7 @@ impl From<&RadiosityOpts> for RadiositySettings {
             shots: a.shots.unwrap_or(d.shots),
             residual: a.residual.unwrap_or(d.residual),
             offset: a.offset.unwrap_or(d.offset),
-            estimator: d.estimator,
+            estimator: a.form_factors.unwrap_or(d.estimator),
         }
     }
 }

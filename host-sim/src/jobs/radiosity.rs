@@ -115,6 +115,9 @@ pub struct RadiosityStats {
     pub cycles: u64,
     /// Messages in all.
     pub messages: u64,
+    /// Beams the grid processed in all its shots' diffusions (its samples, beside the
+    /// reference's rays or proxels).
+    pub beams_processed: u64,
     /// Mean per shot: diffusion cycles, reduction cycles, messages.
     pub diffusion_cycles_per_shot: f64,
     /// Mean reduction cycles per shot.
@@ -155,6 +158,11 @@ pub struct ReferenceStats {
     pub wall_seconds: f64,
     /// How its form factors were estimated (`--form-factors`).
     pub estimator: Estimator,
+    /// Visibility rays its form factors cast (the ray-cast estimators).
+    pub rays_cast: u64,
+    /// Proxels its form factors projected (a projective `--form-factors`: the surface's
+    /// proxels at every shooter point of every row computed).
+    pub proxels: u64,
     /// With `--truth-error`: the reference's and the machine's errors against a converged
     /// truth.
     pub truth: Option<TruthError>,
@@ -195,8 +203,8 @@ pub fn run(o: &RadiosityOptions) -> Result<()> {
     let wall = t0.elapsed().as_secs_f64();
     let compared = o.reference.then(|| compare(&p, &s, &o.solve, o.reference_self_error, o.truth_error)).transpose()?;
     let plot = o.residual_plot.clone().unwrap_or_else(|| format!("{}_residual.png", mesh.name).into());
-    plot_residual(&plot, &mesh.name, scene.grid.n, &s, compared.as_ref().map(|c| &c.2), o.solve.residual)?;
-    let stats = summarise(&mesh.name, &scene, &p, &s, wall, compared.map(|c| c.0));
+    plot_residual(&plot, &mesh.name, scene.grid.n, &s, compared.as_ref().map(|c| &c.solution), o.solve.residual)?;
+    let stats = summarise(&mesh.name, &scene, &p, &s, wall, compared.map(|c| c.stats));
     write_patches(&o.patches_csv.clone().unwrap_or_else(|| format!("{}_patches.csv", mesh.name).into()), &p, &s)?;
     write_shots(&o.shots_csv.clone().unwrap_or_else(|| format!("{}_shots.csv", mesh.name).into()), &s.shots)?;
     if let Some(path) = &o.stats {
@@ -268,18 +276,31 @@ fn shoot(p: &Patches, ff: &FormFactors, s: &RadiositySettings) -> Result<Solutio
     crate::truth::radiosity::solve(&p.patches, ff, &ShootConfig { stop_fraction: s.residual, max_shots: s.shots })
 }
 
-/// The f64 reference on the same patches with the same stopping rule, and direct light only:
-/// the comparison, the reference's form factors and its solution. `self_error`: also solve it
-/// with 6 × 6 strata ([`ReferenceStats::self_error`]); `truth`: also against a converged truth
-/// ([`TruthError`]).
+/// What [`compare`] makes: the statistics, the reference's form factors and solution, and with
+/// a truth its form factors and solution.
+pub struct Compared {
+    /// The comparison.
+    pub stats: ReferenceStats,
+    /// The reference's form factors.
+    pub ff: FormFactors,
+    /// The reference's solution.
+    pub solution: Solution,
+    /// The converged truth's form factors and solution (with `truth`).
+    pub truth: Option<(FormFactors, Solution)>,
+}
+
+/// The f64 reference on the same patches with the same stopping rule, and direct light only.
+/// `self_error`: also solve it with 6 × 6 strata ([`ReferenceStats::self_error`]); `truth`:
+/// also against a converged truth ([`TruthError`]).
 pub fn compare(
     p: &Patches,
     s: &GridSolution,
     settings: &RadiositySettings,
     self_error: bool,
     truth: bool,
-) -> Result<(ReferenceStats, FormFactors, Solution)> {
+) -> Result<Compared> {
     let (ff, r, wall_seconds) = reference_solve(p, settings)?;
+    let (rays_cast, proxels) = (ff.rays_cast(), ff.proxels_sampled());
     let emitters = p.patches.iter().filter(|q| q.emission.iter().any(|&e| e > 0.0)).count();
     let direct =
         crate::truth::radiosity::solve(&p.patches, &ff, &ShootConfig { stop_fraction: 0.0, max_shots: emitters })?;
@@ -292,37 +313,47 @@ pub fn compare(
         })
         .transpose()?;
     let truth = truth.then(|| truth_error(p, s, settings, &r)).transpose()?;
+    let (truth, truth_solution) = truth.map_or((None, None), |(e, ff, t)| (Some(e), Some((ff, t))));
     let stats = ReferenceStats {
         rms_relative_error: rms_relative_error(&r.radiosity, &s.radiosity, &areas)?,
         direct_only_rms_relative_error: rms_relative_error(&r.radiosity, &direct.radiosity, &areas)?,
         shots: r.shots.len(),
         wall_seconds,
         estimator: settings.estimator,
+        rays_cast,
+        proxels,
         self_error,
         truth,
     };
-    Ok((stats, ff, r))
+    Ok(Compared { stats, ff, solution: r, truth: truth_solution })
 }
 
-/// The converged truth ([`TruthError`]) and the errors of the reference `r` and the machine
-/// `s` against it.
-fn truth_error(p: &Patches, s: &GridSolution, settings: &RadiositySettings, r: &Solution) -> Result<TruthError> {
+/// The converged truth ([`TruthError`]), its form factors and solution, and the errors of the
+/// reference `r` and the machine `s` against it.
+fn truth_error(
+    p: &Patches,
+    s: &GridSolution,
+    settings: &RadiositySettings,
+    r: &Solution,
+) -> Result<(TruthError, FormFactors, Solution)> {
     let t0 = Instant::now();
     let converged =
         RadiositySettings { residual: settings.residual / 10.0, estimator: Estimator::Contour, ..*settings };
-    let truth = shoot(p, &form_factors(p, TRUTH_STRATA, Estimator::Contour)?, &converged)?;
+    let ff = form_factors(p, TRUTH_STRATA, Estimator::Contour)?;
+    let truth = shoot(p, &ff, &converged)?;
     let wall_seconds = t0.elapsed().as_secs_f64();
     let areas: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
     let reflected = |b: &[[f64; 3]]| crate::truth::radiosity::reflected(&p.patches, b);
     let t = reflected(&truth.radiosity);
-    Ok(TruthError {
+    let e = TruthError {
         strata: TRUTH_STRATA,
         residual: converged.residual,
         shots: truth.shots.len(),
         reference_rms_relative_error: rms_relative_error(&t, &reflected(&r.radiosity), &areas)?,
         machine_rms_relative_error: rms_relative_error(&t, &reflected(&s.radiosity), &areas)?,
         wall_seconds,
-    })
+    };
+    Ok((e, ff, truth))
 }
 
 /// The summary of a machine solution.
@@ -345,6 +376,7 @@ pub fn summarise(
         residual: s.residual,
         cycles: sum(&|x| x.cost.cycles()),
         messages: sum(&|x| x.cost.messages()),
+        beams_processed: sum(&|x| x.cost.diffusion.beams_processed),
         diffusion_cycles_per_shot: sum(&|x| x.cost.diffusion.cycles) as f64 / k,
         reduce_cycles_per_shot: sum(&|x| x.cost.reduce_cycles) as f64 / k,
         messages_per_shot: sum(&|x| x.cost.messages()) as f64 / k,

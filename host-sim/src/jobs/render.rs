@@ -19,7 +19,7 @@ use cell_core::shade::NormalMode;
 
 use crate::config::RunSummary;
 use crate::jobs::light::{classic_description, print_link_faults, LightingOptions};
-use crate::jobs::render_radiosity::{self, DisplayPsnr, RadiosityRenderStats, RenderRadiosity};
+use crate::jobs::render_radiosity::{self, DisplayPsnr, F64Solution, RadiosityRenderStats, RenderRadiosity, TruthPsnr};
 use crate::machine::classic::{refine_edges, run_classic, ClassicConfig, ClassicCounts, RefineCounts};
 use crate::machine::diffuse::LightConfig;
 use crate::machine::indirect::Display;
@@ -490,7 +490,7 @@ fn radiosity_phase(
         return Ok(None);
     };
     let t0 = Instant::now();
-    let solved = render_radiosity::solve(mesh, loaded, o.light.load(), &r.solve, o.reference, o.quiet)?;
+    let solved = render_radiosity::solve(mesh, loaded, o.light.load(), &r.solve, o.reference, r.truth, o.quiet)?;
     let shown = solved.show(mesh, loaded, lights, r.display, rule)?;
     Ok(Some(RadiosityPhase { solved, shown, seconds: t0.elapsed().as_secs_f64() }))
 }
@@ -512,7 +512,7 @@ fn reference_phase(
         bail!("--reference needs a scene with geometry ('{}' has none)", mesh.name);
     }
     match radiosity {
-        Some(rad) => rad.solved.reference_image(&rad.shown, mesh, loaded, lights),
+        Some(rad) => rad.solved.f64_image(F64Solution::Reference, &rad.shown, mesh, loaded, lights),
         None => reference_image(mesh, loaded, lights, cfg).map(Some),
     }
 }
@@ -527,8 +527,13 @@ fn radiosity_stats(
 ) -> Result<RadiosityRenderStats> {
     let mut stats = rad.shown.stats.clone();
     stats.direct_only_psnr_db = r.direct_only.as_ref().zip(input.reference).map(|(d, rf)| direct_psnr(d, rf));
-    if input.reference.is_some() {
+    if let Some(reference) = input.reference {
         stats.other_display = Some(other_display(&rad.solved, stats.display, input, cfg)?);
+        let truth = rad.solved.f64_image(F64Solution::Truth, &rad.shown, input.mesh, input.scene, input.lights)?;
+        stats.truth_image = truth.map(|t| TruthPsnr {
+            reference_psnr_db: crate::truth::compare::psnr(&reference.rgb, &t.rgb, &t.covered),
+            machine_psnr_db: crate::truth::compare::compare(&r.image.rgb, &r.image.covered, &r.image.lit, &t).psnr_db,
+        });
     }
     Ok(stats)
 }
@@ -552,7 +557,8 @@ fn other_display(
     };
     let (mesh, loaded, lights) = (input.mesh, input.scene, input.lights);
     let other = solved.show(mesh, loaded, lights, display, cfg.light.rule)?;
-    let reference = solved.reference_image(&other, mesh, loaded, lights)?.expect("solved with the reference");
+    let reference =
+        solved.f64_image(F64Solution::Reference, &other, mesh, loaded, lights)?.expect("solved with the reference");
     let input = RenderInput { indirect: Some(&other.cells), reference: Some(&reference), ..*input };
     let r = render(&input, cfg, |_, _| {})?;
     let direct = r.direct_only.as_ref().expect("a radiosity render");

@@ -32,7 +32,8 @@ use crate::precompute::LoadConfig;
 use crate::scene::patch_display::exposure;
 use crate::scene::patches::Patches;
 use crate::scene::Mesh;
-use crate::truth::radiosity::indirect_irradiance;
+use crate::truth::formfactor::FormFactors;
+use crate::truth::radiosity::{indirect_irradiance, Solution};
 use crate::truth::refrender::{render_reference_ambient, RefAmbient, RefImage, RefReflect};
 
 /// The display `render --radiosity` uses unless told (docs/RADIOSITY.md: smooth is closer to
@@ -46,6 +47,9 @@ pub struct RenderRadiosity {
     pub solve: RadiositySettings,
     /// How a cell shows its patch's radiosity.
     pub display: Display,
+    /// With `--reference`: also a converged truth (`--truth-error`), its image, and the PSNR of
+    /// the reference's and the machine's images against it.
+    pub truth: bool,
 }
 
 /// The radiosity part of `render --stats` (key `radiosity`).
@@ -72,9 +76,22 @@ pub struct RadiosityRenderStats {
     /// With `--reference`: the same solution shown by the other display, against the reference
     /// shown by it (one more lighting and shading of the grid).
     pub other_display: Option<DisplayPsnr>,
+    /// With `--truth-error`: the images against the converged truth's, shown the same way.
+    pub truth_image: Option<TruthPsnr>,
     /// Wall time of the radiosity phase: shots, reference solver, display (and the other
     /// display's render), seconds.
     pub seconds: f64,
+}
+
+/// The rendered images against the image of the converged truth ([`crate::jobs::radiosity::
+/// TruthError`]'s solution, shown by the same display with the same exposure and direct light):
+/// what a method's form-factor error leaves in the picture.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct TruthPsnr {
+    /// PSNR of the f64 reference's image (its `--form-factors`) against the truth's, dB.
+    pub reference_psnr_db: f64,
+    /// PSNR of the machine's image against the truth's, dB.
+    pub machine_psnr_db: f64,
 }
 
 /// A display's image against the reference shown the same way.
@@ -96,6 +113,17 @@ pub struct Prepared {
     pub stats: RadiosityRenderStats,
     /// The reference's broadcast records (its display values), with `--reference`.
     reference_records: Option<Vec<[f64; 3]>>,
+    /// The converged truth's records, with `--truth-error`.
+    truth_records: Option<Vec<[f64; 3]>>,
+}
+
+/// Which f64 solution an image shows ([`Solved::f64_image`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum F64Solution {
+    /// The reference (`--reference`, with its `--form-factors`).
+    Reference,
+    /// The converged truth (`--truth-error`).
+    Truth,
 }
 
 /// An RGB value per patch.
@@ -109,6 +137,8 @@ pub struct Solved {
     machine: crate::machine::radiosity::GridSolution,
     /// The f64 solver's indirect irradiance and unshot radiosity per patch.
     reference: Option<(PerPatch, PerPatch)>,
+    /// The converged truth's, the same way.
+    truth: Option<(PerPatch, PerPatch)>,
     stats: RadiosityStats,
     shot_grid_load_cycles: Option<u64>,
 }
@@ -119,13 +149,15 @@ fn world_mesh(mesh: &Mesh) -> Option<Mesh> {
 }
 
 /// Phases 1 and 3: the patches of the world scene, shot on the fitted grid (`loaded` when it
-/// has no camera), and with `reference` the f64 solver's solution on the same patches.
+/// has no camera), and with `reference` the f64 solver's solution on the same patches (with
+/// `truth`, a converged truth's too).
 pub fn solve(
     mesh: &Mesh,
     loaded: &LoadedScene,
     load: &LoadConfig,
     settings: &RadiositySettings,
     reference: bool,
+    truth: bool,
     quiet: bool,
 ) -> Result<Solved> {
     let world = world_mesh(mesh);
@@ -135,12 +167,15 @@ pub fn solve(
     let t0 = Instant::now();
     let s = solve_with_bar(shot_grid, &p, &settings.machine(), quiet)?;
     let wall = t0.elapsed().as_secs_f64();
-    let (compared, reference) = if reference {
-        let (stats, ff, sol) = compare(&p, &s, settings, false, false)?;
-        let h = indirect_irradiance(&p.patches, &sol, |i| ff.row(i))?;
-        (Some(stats), Some((h, sol.unshot)))
+    let irradiance = |ff: &FormFactors, sol: Solution| -> Result<(PerPatch, PerPatch)> {
+        Ok((indirect_irradiance(&p.patches, &sol, |i| ff.row(i))?, sol.unshot))
+    };
+    let (compared, reference, truth) = if reference {
+        let c = compare(&p, &s, settings, false, truth)?;
+        let t = c.truth.map(|(ff, sol)| irradiance(&ff, sol)).transpose()?;
+        (Some(c.stats), Some(irradiance(&c.ff, c.solution)?), t)
     } else {
-        (None, None)
+        (None, None, None)
     };
     Ok(Solved {
         stats: summarise(&mesh.name, shot_grid, &p, &s, wall, compared),
@@ -148,6 +183,7 @@ pub fn solve(
         patches: p,
         machine: s,
         reference,
+        truth,
         shot_grid_load_cycles: own.as_ref().map(|g| g.load_cycles),
     })
 }
@@ -181,29 +217,46 @@ impl Solved {
             pixels_without_patch: shown.missing,
             direct_only_psnr_db: None,
             other_display: None,
+            truth_image: None,
             seconds: 0.0,
         };
         let reference_records = self.reference.as_ref().map(|(h, u)| records(h, u));
-        Ok(Prepared { cells: shown.cells, stats, reference_records })
+        let truth_records = self.truth.as_ref().map(|(h, u)| records(h, u));
+        Ok(Prepared { cells: shown.cells, stats, reference_records, truth_records })
     }
 
-    /// The reference image of a radiosity render shown by `p` (the f64 solution at each exact
-    /// hit point); `None` without `--reference`.
-    pub fn reference_image(
+    /// The f64 image of a radiosity render shown by `p` (the f64 solution `of` at each exact
+    /// hit point); `None` when that solution was not asked for (`--reference`,
+    /// `--truth-error`).
+    pub fn f64_image(
         &self,
+        of: F64Solution,
         p: &Prepared,
         mesh: &Mesh,
         loaded: &LoadedScene,
         lights: &[[f64; 3]],
     ) -> Result<Option<RefImage>> {
-        let Some(records) = &p.reference_records else {
-            return Ok(None);
+        let records = match of {
+            F64Solution::Reference => &p.reference_records,
+            F64Solution::Truth => &p.truth_records,
         };
+        records.as_ref().map(|r| self.image(r, p, mesh, loaded, lights)).transpose()
+    }
+
+    /// The f64 image of per-record display values `records` shown by `p`'s display.
+    fn image(
+        &self,
+        records: &[[f64; 3]],
+        p: &Prepared,
+        mesh: &Mesh,
+        loaded: &LoadedScene,
+        lights: &[[f64; 3]],
+    ) -> Result<RefImage> {
         let surfaces = Surfaces::new(&self.patches, self.faces, p.stats.display)?;
         let at = |face: u32, x: [f64; 3]| surfaces.value_at(records, face as usize, Vector::from(x));
         let rl = ref_lights(&point_lights(lights));
         let refl = RefReflect { depth: 0, threshold: 0.0 };
-        render_reference_ambient(mesh, &loaded.fit, loaded.grid.n, &rl, RefAmbient::Indirect(&at), &refl).map(Some)
+        render_reference_ambient(mesh, &loaded.fit, loaded.grid.n, &rl, RefAmbient::Indirect(&at), &refl)
     }
 }
 
@@ -227,6 +280,12 @@ pub fn print_summary(r: &RadiosityRenderStats) {
         r.exposure[2],
         r.pixels_without_patch
     );
+    if let Some(t) = &r.truth_image {
+        eprintln!(
+            "  against the converged truth's image: reference PSNR {:.2} dB, machine {:.2} dB",
+            t.reference_psnr_db, t.machine_psnr_db
+        );
+    }
     if let Some(o) = &r.other_display {
         eprintln!(
             "  {:?} display against its reference: PSNR {:.2} dB (direct light only {:.2} dB)",

@@ -236,6 +236,8 @@ pub struct FormFactors {
     reference: Reference,
     sampling: Sampling,
     rays: AtomicU64,
+    /// Proxels projected so far (all rows; [`Estimator::Projective`] only).
+    proxels: AtomicU64,
     /// With [`Estimator::Projective`]: the surface, every patch's triangles and their patch.
     projective: Option<Projective>,
 }
@@ -275,7 +277,15 @@ impl FormFactors {
             Estimator::Projective(spec) => Some(projective(patches, spec)?),
             _ => None,
         };
-        Ok(FormFactors { geoms, samples, reference, sampling, rays: AtomicU64::new(0), projective })
+        Ok(FormFactors {
+            geoms,
+            samples,
+            reference,
+            sampling,
+            rays: AtomicU64::new(0),
+            proxels: AtomicU64::new(0),
+            projective,
+        })
     }
 
     /// Number of patches.
@@ -301,6 +311,12 @@ impl FormFactors {
     /// Rays cast so far (all rows).
     pub fn rays_cast(&self) -> u64 {
         self.rays.load(Ordering::Relaxed)
+    }
+
+    /// Proxels sampled so far (all rows): the surface's proxels for every shooter point a
+    /// projective row projected from; 0 for the ray-cast estimators.
+    pub fn proxels_sampled(&self) -> u64 {
+        self.proxels.load(Ordering::Relaxed)
     }
 
     /// Row i: `F_ij` for every patch j (receivers in parallel). Error if `i` is out of range.
@@ -341,6 +357,7 @@ impl FormFactors {
         };
         // Points in parallel, summed in their order: the same row whatever the threads.
         let rows: Vec<Vec<f64>> = self.samples[i].par_iter().map(per_point).collect();
+        self.proxels.fetch_add(p.surface.proxels() * rows.len() as u64, Ordering::Relaxed);
         let mut row = vec![0.0; self.len()];
         for r in &rows {
             row.iter_mut().zip(r).for_each(|(a, b)| *a += b);

@@ -428,6 +428,13 @@ fn radiosity_against_a_converged_truth_converges_with_the_hemicube() {
         assert!((t["residual"].as_f64().unwrap() - 0.005).abs() < 1e-12, "{json}");
         let machine = t["machine_rms_relative_error"].as_f64().unwrap();
         assert!(machine.is_finite() && machine > 0.0, "{json}");
+        // The cost in samples: a hemicube of R has R² + 4 · R²/2 proxels (§2.2), every
+        // projection counts them all, and it casts no ray.
+        let r: u64 = spec.trim_start_matches("hemicube:").parse().unwrap();
+        let proxels = json["reference"]["proxels"].as_u64().unwrap();
+        assert!(proxels > 0 && proxels % (3 * r * r) == 0, "{proxels} proxels for R = {r}");
+        assert_eq!(json["reference"]["rays_cast"], 0, "{json}");
+        assert!(json["beams_processed"].as_u64().unwrap() > 0, "{json}");
         t["reference_rms_relative_error"].as_f64().unwrap()
     };
     // A hemicube of 4 × 4 proxels on top aliases badly; at 64 the reference comes close to the
@@ -436,4 +443,44 @@ fn radiosity_against_a_converged_truth_converges_with_the_hemicube() {
     assert!(fine < coarse / 2.0, "hemicube:64 {fine}, hemicube:4 {coarse}");
     let (code, err) = host_sim(&["radiosity", "cornell", "--n", "16", "--truth-error"]);
     assert_ne!(code, 0, "--truth-error needs --reference: {err}");
+}
+
+#[test]
+fn a_radiosity_render_against_the_truths_image() {
+    let psnr = |spec: &str| {
+        let out = tmp(&format!("truth-render-{}.png", spec.replace(':', "-")), b"");
+        let stats = out.with_extension("json");
+        let (code, err) = host_sim(&[
+            "render",
+            "cornell",
+            "--n",
+            "32",
+            "--radiosity",
+            "--residual",
+            "0.01",
+            "--reference",
+            "--truth-error",
+            "--form-factors",
+            spec,
+            "--quiet",
+            "--out",
+            out.to_str().unwrap(),
+            "--stats",
+            stats.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 0, "{err}");
+        assert!(err.contains("against the converged truth's image"), "{err}");
+        let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        let t = &json["radiosity"]["truth_image"];
+        let machine = t["machine_psnr_db"].as_f64().unwrap();
+        assert!(machine.is_finite() && machine > 10.0, "{json}");
+        t["reference_psnr_db"].as_f64().unwrap()
+    };
+    // The same shots and display with finer form factors: a picture closer to the truth's (at
+    // a 1 % residual, where what is left unshot no longer dominates the difference).
+    let (coarse, fine) = (psnr("hemicube:4"), psnr("hemicube:64"));
+    assert!(fine > coarse + 3.0, "hemicube:64 {fine} dB, hemicube:4 {coarse} dB");
+    let (code, err) = host_sim(&["render", "cornell", "--n", "16", "--reference", "--truth-error"]);
+    assert_ne!(code, 0, "--truth-error is a radiosity option: {err}");
+    assert!(err.contains("add --radiosity"), "{err}");
 }

@@ -9,7 +9,7 @@
 use cell_core::shade::NormalMode;
 use host_sim::jobs::radiosity::RadiositySettings;
 use host_sim::jobs::render::{render, RenderConfig, RenderInput, Rendered};
-use host_sim::jobs::render_radiosity::solve;
+use host_sim::jobs::render_radiosity::{solve, F64Solution};
 use host_sim::machine::diffuse::LightConfig;
 use host_sim::machine::indirect::Display;
 use host_sim::machine::loaded::{load_scene, resolve_lights};
@@ -35,12 +35,15 @@ fn cornell(n: u32, displays: &[Display]) -> (Mesh, Vec<(Display, Rendered, RefIm
     // solvers: residual ≈ 0.07, so the ambient term of §1.3.2 (uniform, what is still unshot)
     // no longer hides the bleeding.
     let settings = RadiositySettings { patch_size: n as f64 / 4.0, shots: 200, ..Default::default() };
-    let solved = solve(&mesh, &loaded, &load, &settings, true, true).unwrap();
+    let solved = solve(&mesh, &loaded, &load, &settings, true, false, true).unwrap();
     let renders = displays
         .iter()
         .map(|&display| {
             let shown = solved.show(&mesh, &loaded, &lights, display, light.rule).unwrap();
-            let reference = solved.reference_image(&shown, &mesh, &loaded, &lights).unwrap().expect("asked for it");
+            let reference = solved
+                .f64_image(F64Solution::Reference, &shown, &mesh, &loaded, &lights)
+                .unwrap()
+                .expect("asked for it");
             let input = RenderInput { indirect: Some(&shown.cells), ..RenderInput::new(&mesh, &loaded, &lights) };
             let r = render(&input.compared_with(&reference), &cfg, |_, _| {}).unwrap();
             (display, r, reference)

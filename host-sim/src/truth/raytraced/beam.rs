@@ -17,9 +17,10 @@
 //!    the contour integral (Eq. 2.2, [`point_to_polygon`]).
 //!
 //! A beam is cut in four like Wallace's elements ([`super::wallace`]): a quadrilateral into
-//! its 2 × 2 bilinear cells, a triangle into its four midpoint triangles; a source of five or
-//! more vertices (a quadrilateral clipped by the receiver's plane) is first cut into the
-//! triangles from its centroid to each edge. Without a partial candidate the result is exact;
+//! its 2 × 2 bilinear cells, a triangle into its four midpoint triangles (`wallace::split`);
+//! a source of five or more vertices (a quadrilateral clipped by the receiver's plane), only
+//! when it must be cut, into the triangles from its centre to each edge. Without a partial
+//! candidate the result is exact (one contour integral over the whole clipped source);
 //! the error is confined to the level-`max_level` sub-beams that a shadow's edge crosses.
 //!
 //! The phases are timed separately ([`BeamStats`]), as Table 3.3 reports them.
@@ -28,7 +29,7 @@ use std::time::{Duration, Instant};
 
 use parry3d_f64::math::Vector;
 
-use super::wallace::{centre, split4};
+use super::wallace::{centre, split};
 use super::{clip, segment_hits, Occluders, Receiver, Source};
 use crate::truth::formfactor::point_to_polygon;
 
@@ -151,19 +152,7 @@ pub fn form_factor(r: &Receiver, s: &Source, occ: &Occluders, max_level: u32, st
     let t1 = Instant::now();
     stats.candidates_time += t1 - t0;
     let mut ff_time = Duration::ZERO;
-    let base = beam.base.clone();
-    let f = if base.len() > 4 {
-        let c = centre(&base);
-        stats.subdivisions += 1;
-        (0..base.len())
-            .map(|i| {
-                let part = vec![c, base[i], base[(i + 1) % base.len()]];
-                visit(Beam::new(r.point, part, s, tol), r, &candidates, 1, max_level, stats, &mut ff_time)
-            })
-            .sum()
-    } else {
-        visit(beam, r, &candidates, 0, max_level, stats, &mut ff_time)
-    };
+    let f = visit(beam, r, &candidates, 0, max_level, stats, &mut ff_time);
     stats.form_factor_time += ff_time;
     stats.recursion_time += t1.elapsed().saturating_sub(ff_time);
     f
@@ -205,7 +194,7 @@ fn visit(
             Position::Partial if level < max_level => {
                 stats.subdivisions += 1;
                 let rest = &candidates[i..];
-                return split4(&beam.base)
+                return split(&beam.base)
                     .into_iter()
                     .map(|part| {
                         visit(
@@ -358,5 +347,32 @@ mod tests {
             .sum::<f64>()
             / seeds as f64;
         assert!((f - rays).abs() < 0.01 * rays, "beam {f}, rays {rays}");
+    }
+
+    #[test]
+    fn a_source_clipped_to_a_pentagon_is_one_beam_until_something_covers_part_of_it() {
+        // The receiver's plane cuts the (−0.5, −0.5) corner off the unit source: a pentagon.
+        let r = Receiver { point: Vector::ZERO, normal: Vector::new(1.5, 1.5, 1.0).normalize() };
+        let s = unit_source();
+        assert_eq!(s.front(&r).unwrap().len(), 5);
+        let rays = |occ: &Occluders| {
+            let seeds = 8;
+            (0..seeds)
+                .map(|seed| {
+                    wallace::form_factor(&r, &s, occ, &Sampling::Uniform { k: 64, jitter: Some(seed) }).form_factor
+                })
+                .sum::<f64>()
+                / seeds as f64
+        };
+        let (f, st) = beam(&r, &s, &Occluders::default(), 4);
+        assert_eq!((st.subdivisions, st.visible_beams), (0, 1));
+        let free = rays(&Occluders::default());
+        assert!((f - free).abs() < 1e-3 * free, "beam {f}, rays {free}");
+        // A plate over part of it: the pentagon is cut into its fan of five, then as any beam.
+        let occ = Occluders::new(plate(0.0, 2.0, -2.0, 0.1, 0.5));
+        let (g, st) = beam(&r, &s, &occ, 6);
+        assert!(st.subdivisions > 0 && g < f);
+        let shadowed = rays(&occ);
+        assert!((g - shadowed).abs() < 0.01 * shadowed, "beam {g}, rays {shadowed}");
     }
 }

@@ -79,7 +79,7 @@ pub fn form_factor(r: &Receiver, s: &Source, occ: &impl Blocker, sampling: &Samp
 fn adaptive(est: &mut Estimate, r: &Receiver, s: &Source, occ: &impl Blocker, e: Element, threshold: f64, depth: u32) {
     let (q, a) = (centre(&e), area_vector(&e).length());
     if depth > 0 && kernel(r, s, q, a) > threshold {
-        for child in split4(&e) {
+        for child in split(&e) {
             adaptive(est, r, s, occ, child, threshold, depth - 1);
         }
     } else {
@@ -127,13 +127,18 @@ fn bilinear(q: &[Vector], u: f64, v: f64) -> Vector {
     a + (b - a) * v
 }
 
-/// An element cut in four: a quadrilateral's 2 × 2 bilinear cells, a triangle's four
-/// midpoint triangles.
-pub(crate) fn split4(e: &[Vector]) -> Vec<Element> {
-    if e.len() == 4 {
-        return elements(e, 2);
+/// A convex element cut once: a quadrilateral into its 2 × 2 bilinear cells, a triangle into
+/// its four midpoint triangles, a polygon of more sides (a source clipped by the receiver's
+/// plane) into the fan of triangles around its centre.
+pub(crate) fn split(e: &[Vector]) -> Vec<Element> {
+    match e.len() {
+        3 => split_triangle([e[0], e[1], e[2]], 2).into_iter().map(|t| t.to_vec()).collect(),
+        4 => elements(e, 2),
+        m => {
+            let c = centre(e);
+            (0..m).map(|i| vec![c, e[i], e[(i + 1) % m]]).collect()
+        }
     }
-    split_triangle([e[0], e[1], e[2]], 2).into_iter().map(|t| t.to_vec()).collect()
 }
 
 /// An element's centre: its vertices' mean (the centroid of a triangle or a parallelogram).
