@@ -92,9 +92,6 @@ for (scene, n), m in by.items():
     print(f"| {scene} | {n} | {float(a['occupancy_pct']):.2f} | {per:.1f} | {d['messages']} | {cross:.2f} | {300 / n:.2f} |")
 PY
 # The plot (matplotlib in a venv under bench-out/, not a dependency of the product).
-VENV=bench-out/venv
-if [ ! -x "$VENV/bin/python" ]; then
-  python3 -m venv "$VENV"
-fi
-"$VENV/bin/pip" install -q matplotlib
-"$VENV/bin/python" bench/classic_plot.py "$CSV" "${PLOT:-docs/classic-vs-diffusion.png}"
+# shellcheck source=bench/venv.sh
+. "$(dirname "$0")/venv.sh"
+"$(bench_python matplotlib)" bench/classic_plot.py "$CSV" "${PLOT:-docs/classic-vs-diffusion.png}"

@@ -59,10 +59,9 @@ for r in $RS; do
 done
 
 # Table and plot (matplotlib in a venv under bench-out/, not a dependency of the product).
-VENV=$REPO/bench-out/venv
-[ -x "$VENV/bin/python" ] || python3 -m venv "$VENV"
-"$VENV/bin/python" -c "import matplotlib" 2> /dev/null || "$VENV/bin/pip" install -q matplotlib
-"$VENV/bin/python" - "$OUT" "${OUT%.csv}.png" "$(git -C "$REPO" rev-parse --short HEAD)$(git -C "$REPO" diff --quiet HEAD || echo " + uncommitted changes")" \
+# shellcheck source=bench/venv.sh
+. "$REPO/bench/venv.sh"
+"$(bench_python matplotlib)" - "$OUT" "${OUT%.csv}.png" "$(git -C "$REPO" rev-parse --short HEAD)$(git -C "$REPO" diff --quiet HEAD || echo " + uncommitted changes")" \
   "$("$BIN" --version)" "$(nproc)" "$SCENE" "$N" "$RS" "$RESIDUAL" > "${OUT%.csv}.md" <<'PY'
 import csv, datetime, sys
 import matplotlib

@@ -402,7 +402,7 @@ pub struct LightOpts {
     /// triangle store). `thesis`: a beam entering an occupied voxel lights it and stops
     /// (§5.5.5), and the pixel shows the first occupied voxel of its column. Default: the
     /// preset's (exact; plane for `trace`; thesis with --thesis). What each costs and gets
-    /// wrong: BENCHMARKS.md, "Is the light right?".
+    /// wrong: BENCHMARKS.md, "How accurate is the image?".
     #[arg(long, value_enum)]
     pub lit_rule: Option<LitRuleArg>,
     /// Where each face's rays leave from along its axis: `light`, the light itself, so that

@@ -24,7 +24,7 @@ use crate::machine::timing::Timing;
 use crate::precompute::{Contour, LoadConfig, Thickness};
 
 /// Fraction bits f every preset runs: f = 1 is the accuracy knob for faces lit at extreme
-/// grazing angles, at several times the cycles (BENCHMARKS.md, "Is the light right?").
+/// grazing angles, at several times the cycles (BENCHMARKS.md, "How accurate is the image?").
 pub const DEFAULT_FRAC_BITS: u32 = 0;
 
 /// A named run configuration ([`Preset::config`]).
