@@ -6,7 +6,8 @@
 # REPS times, alternating the order (A B, B A, ...). Run it on a quiet machine.
 #
 # Usage: bench/test_time.sh REV [REV ...]    (env REPS=1, OUT=bench-out/test_time.csv;
-#                                              the markdown table goes to ${OUT%.csv}.md)
+#                                              the markdown table goes to ${OUT%.csv}.md;
+#                                              TABLE_ONLY=1: only rewrite the table from OUT)
 set -euo pipefail
 [ $# -ge 1 ] || { echo "usage: bench/test_time.sh REV [REV ...]" >&2; exit 2; }
 REPO=$(git -C "$(dirname "$0")" rev-parse --show-toplevel)
@@ -20,6 +21,7 @@ WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
 REVS=()
 for r in "$@"; do REVS+=("$(git -C "$REPO" rev-parse --short "$r")"); done
+if [ -z "${TABLE_ONLY:-}" ]; then
 echo "commit,rep,build_s,run_s,total_s,tests_passed" > "$OUT"
 for rep in $(seq 1 "$REPS"); do
   mapfile -t order < <(rep_order "$rep" "${REVS[@]}")
@@ -38,14 +40,16 @@ for rep in $(seq 1 "$REPS"); do
   done
 done
 rm -rf "$WORK/clone"
-python3 - "$OUT" "$(nproc)" "$(git -C "$REPO" rev-parse --short HEAD)" > "${OUT%.csv}.md" <<'PY'
+fi
+python3 - "$OUT" "$(nproc)" "$(git -C "$REPO" rev-parse --short HEAD)" \
+  "$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')" > "${OUT%.csv}.md" <<'PY'
 import csv, datetime, statistics, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
 commits = list(dict.fromkeys(r["commit"] for r in rows))
 reps = max(int(r["rep"]) for r in rows)
 now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
 print(f"`REPS={reps} bash bench/test_time.sh {' '.join(commits)}` (script at {sys.argv[3]}), {now}, "
-      f"{sys.argv[2]} cores, medians of {reps} fresh clone(s) per commit, alternating:")
+      f"{sys.argv[2]} cores, {sys.argv[4]}, medians of {reps} fresh clone(s) per commit, alternating:")
 print()
 print("| commit | compile (`cargo test --workspace --no-run`), s | run (`CI=1 cargo test --workspace`), s | total, min | tests passed |")
 print("|---|---|---|---|---|")
