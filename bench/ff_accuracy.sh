@@ -12,8 +12,11 @@
 # grid's: its simulation's).
 #
 # Usage: bench/ff_accuracy.sh BIN   (env SCENE=cornell, N=64, RS="16 32 64", RESIDUAL=0.01,
-#                                    OUT=bench-out/ff_accuracy.csv; the table goes to
-#                                    ${OUT%.csv}.md, the plot to ${OUT%.csv}.png)
+#                                    SHOTS= (a shot budget, e.g. 30 for bureau1's 8 038
+#                                    patches), IMAGE=1 (0: per-patch errors only, through the
+#                                    `radiosity` job, the truth solved once and read back from
+#                                    --truth-cache), OUT=bench-out/ff_accuracy.csv; the table
+#                                    goes to ${OUT%.csv}.md, the plot to ${OUT%.csv}.png)
 set -euo pipefail
 [ $# -eq 1 ] || { echo "usage: bench/ff_accuracy.sh BIN" >&2; exit 2; }
 BIN=$(realpath "$1")
@@ -21,6 +24,8 @@ SCENE=${SCENE:-cornell}
 N=${N:-64}
 RS=${RS:-16 32 64}
 RESIDUAL=${RESIDUAL:-0.01}
+SHOTS=${SHOTS:-}
+IMAGE=${IMAGE:-1}
 OUT=${OUT:-bench-out/ff_accuracy.csv}
 mkdir -p "$(dirname "$OUT")"
 OUT=$(realpath "$OUT")
@@ -33,12 +38,19 @@ trap 'rm -rf "$WORK"' EXIT
 res() { awk -F, -v m="$1" -v r="$2" 'NR > 1 && $3 == m && $4 == r { print $5; exit }' "$WORK/eq.csv"; }
 
 run() { # method, hemicube R (or -), form-factors spec
-  "$BIN" render "$SCENE" --n "$N" --radiosity --residual "$RESIDUAL" --reference --truth-error --form-factors "$3" \
-    --out "$WORK/img.png" --stats "$WORK/s.json" --quiet > "$WORK/log" 2>&1 || { tail -20 "$WORK/log" >&2; exit 1; }
+  local solve=(--n "$N" --residual "$RESIDUAL" ${SHOTS:+--shots "$SHOTS"} --reference --truth-error --form-factors "$3")
+  if [ "$IMAGE" = 1 ]; then
+    "$BIN" render "$SCENE" --radiosity "${solve[@]}" --out "$WORK/img.png" --stats "$WORK/s.json" --quiet
+  else
+    "$BIN" radiosity "$SCENE" "${solve[@]}" --truth-cache "$WORK/truth.json" --stats "$WORK/s.json" \
+      --patches-csv "$WORK/p.csv" --shots-csv "$WORK/sh.csv" --residual-plot "$WORK/r.png" --quiet
+  fi > "$WORK/log" 2>&1 || { tail -20 "$WORK/log" >&2; exit 1; }
   python3 - "$WORK/s.json" "$SCENE" "$N" "$1" "$2" "$3" >> "$OUT" <<'PY'
 import json, sys
-rad = json.load(open(sys.argv[1]))["radiosity"]
-s, img = rad["solution"], rad["truth_image"]
+stats = json.load(open(sys.argv[1]))
+rad = stats.get("radiosity")
+s = rad["solution"] if rad else stats
+img = rad["truth_image"] if rad else {"reference_psnr_db": float("nan"), "machine_psnr_db": float("nan")}
 r, t = s["reference"], s["reference"]["truth"]
 scene, n, method, hr, spec = sys.argv[2:]
 print(f"{scene},{n},{s['patches']},{method},{hr},{spec},{r['wall_seconds']:.4f},{t['reference_rms_relative_error']:.6f},"
@@ -62,29 +74,31 @@ done
 # shellcheck source=bench/venv.sh
 . "$REPO/bench/venv.sh"
 "$(bench_python matplotlib)" - "$OUT" "${OUT%.csv}.png" "$(git -C "$REPO" rev-parse --short HEAD)$(git -C "$REPO" diff --quiet HEAD || echo " + uncommitted changes")" \
-  "$("$BIN" --version)" "$(nproc)" "$SCENE" "$N" "$RS" "$RESIDUAL" > "${OUT%.csv}.md" <<'PY'
+  "$("$BIN" --version)" "$(nproc)" "$SCENE" "$N" "$RS" "$RESIDUAL" "$SHOTS" "$IMAGE" > "${OUT%.csv}.md" <<'PY'
 import csv, datetime, sys
 import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 rows = list(csv.DictReader(open(sys.argv[1])))
-png, commit, version, cores, scene, n, rs, residual = sys.argv[2:]
+png, commit, version, cores, scene, n, rs, residual, shots, image = sys.argv[2:]
 now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-print(f'`SCENE={scene} N={n} RS="{rs}" RESIDUAL={residual} bash bench/ff_accuracy.sh BIN` ({version}, commit {commit}), '
+budget = f" SHOTS={shots}" if shots else ""
+print(f'`SCENE={scene} N={n} RS="{rs}" RESIDUAL={residual}{budget} IMAGE={image} bash bench/ff_accuracy.sh BIN` ({version}, commit {commit}), '
       f"{now}, {cores} cores; {rows[0]['patches']} patches; errors: area-weighted RMS relative difference of the "
       f"reflected radiosity from the truth (contour estimator, 6 × 6 points per triangle, {rows[0]['truth_shots']} shots); "
-      f"samples: visibility rays (beams), proxels (projective surfaces), beams processed (the grid); PSNR: the "
-      f"rendered image ({n} × {n}, same shots, display and direct light) against the truth's:")
+      f"samples: visibility rays (beams), proxels (projective surfaces), beams processed (the grid)"
+      + (f"; PSNR: the rendered image ({n} × {n}, same shots, display and direct light) against the truth's:" if image == "1" else ":"))
 print()
 samples = lambda r: int(r["reference_rays"]) + int(r["reference_proxels"])
+psnr = lambda v: "–" if v == "nan" else f"{float(v):.1f}"
 print("| method | hemicube R | form factors | samples | reference s | error vs truth | image PSNR dB |")
 print("|---|---|---|---|---|---|---|")
 for r in rows:
     print(f"| {r['method']} | {r['hemicube_r']} | `{r['form_factors']}` | {samples(r):.3g} | "
-          f"{float(r['reference_seconds']):.2f} | {100 * float(r['reference_error']):.2f} % | {float(r['reference_psnr_db']):.1f} |")
+          f"{float(r['reference_seconds']):.2f} | {100 * float(r['reference_error']):.2f} % | {psnr(r['reference_psnr_db'])} |")
 g = rows[0]
 print(f"| the grid's beam shots (n = {n}) | – | – | {int(g['machine_beams']):.3g} beams | {float(g['machine_seconds']):.2f} "
-      f"(simulation) | {100 * float(g['machine_error']):.2f} % | {float(g['machine_psnr_db']):.1f} |")
+      f"(simulation) | {100 * float(g['machine_error']):.2f} % | {psnr(g['machine_psnr_db'])} |")
 fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharey=True)
 for ax, cost, grid_cost, label in (
     (axes[0], samples, lambda r: int(r["machine_beams"]), "samples: rays (beams), proxels (surfaces), beams (the grid)"),
@@ -100,7 +114,8 @@ for ax, cost, grid_cost, label in (
     ax.grid(True, which="both", alpha=0.3)
 axes[0].set_ylabel("per-patch RMS relative error vs the converged truth")
 axes[1].legend(fontsize=8)
-fig.suptitle(f"{scene}, {g['patches']} patches: error against cost (points at hemicube R = {rs} equivalents)")
+fig.suptitle(f"{scene}, {g['patches']} patches{', ' + shots + ' shots' if shots else ''}: error against cost "
+             f"(points at hemicube R = {rs} equivalents)")
 fig.tight_layout()
 fig.savefig(png, dpi=110)
 PY

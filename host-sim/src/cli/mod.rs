@@ -87,6 +87,11 @@ pub struct RadiosityArgs {
     /// how far its own solution moves (its self-error, to set beside the machine's error).
     #[arg(long, requires = "reference")]
     pub reference_self_error: bool,
+    /// With --truth-error: keep the converged truth in this JSON file. If the file holds the
+    /// truth of the same patches and stopping rule, it is read instead of solved (a sweep over
+    /// --form-factors solves it once); otherwise it is solved and the file (re)written.
+    #[arg(long, value_name = "FILE", requires = "truth_error")]
+    pub truth_cache: Option<PathBuf>,
     /// Per-patch CSV (default SCENE_patches.csv).
     #[arg(long)]
     pub patches_csv: Option<PathBuf>,

@@ -170,6 +170,7 @@ impl From<&RadiosityArgs> for RadiosityOptions {
             reference: a.reference,
             reference_self_error: a.reference_self_error,
             truth_error: a.solve.truth_error,
+            truth_cache: a.truth_cache.clone(),
             patches_csv: a.patches_csv.clone(),
             shots_csv: a.shots_csv.clone(),
             residual_plot: a.residual_plot.clone(),

@@ -4,10 +4,10 @@
 //! per-patch RMS error — the machine's and direct light's (the emitters' shots only).
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::Result;
+use anyhow::{anyhow, bail, Result};
 use cell_core::beam::frac::U0;
 
 use crate::machine::capacity::HostLightCell;
@@ -84,6 +84,9 @@ pub struct RadiosityOptions {
     /// With `reference`: also solve a converged truth ([`TRUTH_STRATA`], a tenth of the
     /// residual) and report the reference's and the machine's errors against it.
     pub truth_error: bool,
+    /// With `truth_error`: read the truth from this file when it was solved for the same
+    /// patches and stopping rule, else solve it and write it there ([`truth_key`]).
+    pub truth_cache: Option<PathBuf>,
     /// Per-patch CSV (default `<scene>_patches.csv`).
     pub patches_csv: Option<PathBuf>,
     /// Per-shot CSV (default `<scene>_shots.csv`).
@@ -188,8 +191,10 @@ pub struct TruthError {
     pub reference_rms_relative_error: f64,
     /// The machine against the truth.
     pub machine_rms_relative_error: f64,
-    /// Wall time of the truth, seconds.
+    /// Wall time of the truth, seconds (of reading it, when `cached`).
     pub wall_seconds: f64,
+    /// Whether it was read from `--truth-cache` rather than solved.
+    pub cached: bool,
 }
 
 /// Run the `radiosity` job.
@@ -201,7 +206,8 @@ pub fn run(o: &RadiosityOptions) -> Result<()> {
     let t0 = Instant::now();
     let s = solve_with_bar(&scene, &p, &o.solve.machine(), o.quiet)?;
     let wall = t0.elapsed().as_secs_f64();
-    let compared = o.reference.then(|| compare(&p, &s, &o.solve, o.reference_self_error, o.truth_error)).transpose()?;
+    let truth = o.truth_error.then_some(o.truth_cache.as_deref());
+    let compared = o.reference.then(|| compare(&p, &s, &o.solve, o.reference_self_error, truth)).transpose()?;
     let plot = o.residual_plot.clone().unwrap_or_else(|| format!("{}_residual.png", mesh.name).into());
     plot_residual(&plot, &mesh.name, scene.grid.n, &s, compared.as_ref().map(|c| &c.solution), o.solve.residual)?;
     let stats = summarise(&mesh.name, &scene, &p, &s, wall, compared.map(|c| c.stats));
@@ -291,13 +297,13 @@ pub struct Compared {
 
 /// The f64 reference on the same patches with the same stopping rule, and direct light only.
 /// `self_error`: also solve it with 6 × 6 strata ([`ReferenceStats::self_error`]); `truth`:
-/// also against a converged truth ([`TruthError`]).
+/// also against a converged truth ([`TruthError`]), kept in the file it names if any.
 pub fn compare(
     p: &Patches,
     s: &GridSolution,
     settings: &RadiositySettings,
     self_error: bool,
-    truth: bool,
+    truth: Option<Option<&Path>>,
 ) -> Result<Compared> {
     let (ff, r, wall_seconds) = reference_solve(p, settings)?;
     let (rays_cast, proxels) = (ff.rays_cast(), ff.proxels_sampled());
@@ -312,7 +318,7 @@ pub fn compare(
             rms_relative_error(&reflected(&fine.radiosity), &reflected(&r.radiosity), &areas)
         })
         .transpose()?;
-    let truth = truth.then(|| truth_error(p, s, settings, &r)).transpose()?;
+    let truth = truth.map(|cache| truth_error(p, s, settings, &r, cache)).transpose()?;
     let (truth, truth_solution) = truth.map_or((None, None), |(e, ff, t)| (Some(e), Some((ff, t))));
     let stats = ReferenceStats {
         rms_relative_error: rms_relative_error(&r.radiosity, &s.radiosity, &areas)?,
@@ -329,18 +335,31 @@ pub fn compare(
 }
 
 /// The converged truth ([`TruthError`]), its form factors and solution, and the errors of the
-/// reference `r` and the machine `s` against it.
+/// reference `r` and the machine `s` against it; read from `cache` if it holds this truth,
+/// else solved (and written there).
 fn truth_error(
     p: &Patches,
     s: &GridSolution,
     settings: &RadiositySettings,
     r: &Solution,
+    cache: Option<&Path>,
 ) -> Result<(TruthError, FormFactors, Solution)> {
     let t0 = Instant::now();
     let converged =
         RadiositySettings { residual: settings.residual / 10.0, estimator: Estimator::Contour, ..*settings };
     let ff = form_factors(p, TRUTH_STRATA, Estimator::Contour)?;
-    let truth = shoot(p, &ff, &converged)?;
+    let key = truth_key(p, &converged);
+    let cached = cache.map(|c| read_truth(c, &key)).transpose()?.flatten();
+    let (truth, cached) = match cached {
+        Some(t) => (t, true),
+        None => {
+            let t = shoot(p, &ff, &converged)?;
+            if let Some(c) = cache {
+                write_json(c, &CachedTruth { key, solution: t.clone() })?;
+            }
+            (t, false)
+        }
+    };
     let wall_seconds = t0.elapsed().as_secs_f64();
     let areas: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
     let reflected = |b: &[[f64; 3]]| crate::truth::radiosity::reflected(&p.patches, b);
@@ -352,8 +371,62 @@ fn truth_error(
         reference_rms_relative_error: rms_relative_error(&t, &reflected(&r.radiosity), &areas)?,
         machine_rms_relative_error: rms_relative_error(&t, &reflected(&s.radiosity), &areas)?,
         wall_seconds,
+        cached,
     };
     Ok((e, ff, truth))
+}
+
+/// A truth kept on disk (`--truth-cache`): what it was solved for, and the solution.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct CachedTruth {
+    key: String,
+    solution: Solution,
+}
+
+/// What a truth depends on, hashed (FNV-1a over the bits): every patch's polygon, area,
+/// centroid, normal, reflectance and emission, the stopping rule, the strata and the estimator.
+pub fn truth_key(p: &Patches, converged: &RadiositySettings) -> String {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    let mut eat = |x: f64| {
+        for b in x.to_bits().to_le_bytes() {
+            h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+        }
+    };
+    for x in [p.patches.len() as f64, converged.residual, converged.shots as f64, TRUTH_STRATA as f64] {
+        eat(x);
+    }
+    for q in &p.patches {
+        for v in q.polygon.iter().chain([&q.centroid, &q.normal]) {
+            [v.x, v.y, v.z].into_iter().for_each(&mut eat);
+        }
+        eat(q.area);
+        q.reflectance.iter().chain(&q.emission).for_each(|&c| eat(c));
+    }
+    format!("contour-{TRUTH_STRATA}x{TRUTH_STRATA}-{h:016x}")
+}
+
+/// The truth in `path` if it holds one for `key`; `None` if there is no such file or it was
+/// solved for something else (it is then solved again and overwritten).
+fn read_truth(path: &Path, key: &str) -> Result<Option<Solution>> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => bail!("--truth-cache {}: {e}", path.display()),
+    };
+    let c: CachedTruth = serde_json::from_str(&text).map_err(|e| {
+        anyhow!(
+            "--truth-cache {}: not a truth written by host-sim ({e}); remove it or name another file",
+            path.display()
+        )
+    })?;
+    if c.key != key {
+        eprintln!(
+            "  --truth-cache {}: solved for other patches or another stopping rule; solving again",
+            path.display()
+        );
+        return Ok(None);
+    }
+    Ok(Some(c.solution))
 }
 
 /// The summary of a machine solution.
@@ -470,8 +543,14 @@ pub fn print_summary(s: &RadiosityStats) {
         }
         if let Some(t) = &r.truth {
             eprintln!(
-                "  against the converged truth (contour, {0}×{0} strata, residual {1}, {2} shots, {3:.1} s; reflected B − E): reference {4:.4}, machine {5:.4}",
-                t.strata, t.residual, t.shots, t.wall_seconds, t.reference_rms_relative_error, t.machine_rms_relative_error
+                "  against the converged truth (contour, {0}×{0} strata, residual {1}, {2} shots, {3:.1} s{6}; reflected B − E): reference {4:.4}, machine {5:.4}",
+                t.strata,
+                t.residual,
+                t.shots,
+                t.wall_seconds,
+                t.reference_rms_relative_error,
+                t.machine_rms_relative_error,
+                if t.cached { ", read from --truth-cache" } else { "" }
             );
         }
     }

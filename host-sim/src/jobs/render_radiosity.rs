@@ -171,7 +171,7 @@ pub fn solve(
         Ok((indirect_irradiance(&p.patches, &sol, |i| ff.row(i))?, sol.unshot))
     };
     let (compared, reference, truth) = if reference {
-        let c = compare(&p, &s, settings, false, truth)?;
+        let c = compare(&p, &s, settings, false, truth.then_some(None))?;
         let t = c.truth.map(|(ff, sol)| irradiance(&ff, sol)).transpose()?;
         (Some(c.stats), Some(irradiance(&c.ff, c.solution)?), t)
     } else {

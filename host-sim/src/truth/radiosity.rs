@@ -46,7 +46,7 @@ impl Default for ShootConfig {
 }
 
 /// One shot.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ShotRecord {
     /// The patch that shot.
     pub patch: usize,
@@ -57,7 +57,7 @@ pub struct ShotRecord {
 }
 
 /// Why shooting stopped.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Stop {
     /// The residual fraction reached [`ShootConfig::stop_fraction`].
     Converged,
@@ -66,7 +66,7 @@ pub enum Stop {
 }
 
 /// A progressive solution.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Solution {
     /// Radiosity `B` per patch (RGB).
     pub radiosity: Vec<[f64; 3]>,

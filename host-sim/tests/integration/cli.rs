@@ -393,36 +393,34 @@ fn form_factors_toward_the_source_by_rays_and_beams() {
     }
 }
 
+/// `host-sim radiosity ARGS --quiet` with its outputs in files named after `name`: the exit
+/// code, stderr and the `--stats` JSON (`null` when the run wrote none).
+fn radiosity_run(name: &str, args: &[&str]) -> (i32, String, serde_json::Value) {
+    let stats = tmp(&format!("{name}.json"), b"");
+    std::fs::remove_file(&stats).unwrap();
+    let files = [("--residual-plot", "png"), ("--patches-csv", "patches.csv"), ("--shots-csv", "shots.csv")]
+        .map(|(flag, ext)| (flag, stats.with_extension(ext).to_str().unwrap().to_string()));
+    let mut all: Vec<&str> = vec!["radiosity"];
+    all.extend(args);
+    all.extend(["--quiet", "--stats", stats.to_str().unwrap()]);
+    for (flag, path) in &files {
+        all.extend([*flag, path.as_str()]);
+    }
+    let (code, err) = host_sim(&all);
+    let json = std::fs::read_to_string(&stats).map_or(serde_json::Value::Null, |t| serde_json::from_str(&t).unwrap());
+    (code, err, json)
+}
+
 #[test]
 fn radiosity_against_a_converged_truth_converges_with_the_hemicube() {
     let error = |spec: &str| {
-        let stats = tmp(&format!("truth-{}.json", spec.replace(':', "-")), b"");
-        let plot = stats.with_extension("png");
-        let (patches, shots) = (stats.with_extension("patches.csv"), stats.with_extension("shots.csv"));
-        let (code, err) = host_sim(&[
-            "radiosity",
-            "cornell",
-            "--n",
-            "32",
-            "--residual",
-            "0.05",
-            "--reference",
-            "--truth-error",
-            "--form-factors",
-            spec,
-            "--quiet",
-            "--stats",
-            stats.to_str().unwrap(),
-            "--residual-plot",
-            plot.to_str().unwrap(),
-            "--patches-csv",
-            patches.to_str().unwrap(),
-            "--shots-csv",
-            shots.to_str().unwrap(),
-        ]);
+        let name = format!("truth-{}", spec.replace(':', "-"));
+        let (code, err, json) = radiosity_run(
+            &name,
+            &["cornell", "--n", "32", "--residual", "0.05", "--reference", "--truth-error", "--form-factors", spec],
+        );
         assert_eq!(code, 0, "{err}");
         assert!(err.contains("against the converged truth"), "{err}");
-        let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
         let t = &json["reference"]["truth"];
         assert_eq!(t["strata"], 6, "{json}");
         assert!((t["residual"].as_f64().unwrap() - 0.005).abs() < 1e-12, "{json}");
@@ -443,6 +441,43 @@ fn radiosity_against_a_converged_truth_converges_with_the_hemicube() {
     assert!(fine < coarse / 2.0, "hemicube:64 {fine}, hemicube:4 {coarse}");
     let (code, err) = host_sim(&["radiosity", "cornell", "--n", "16", "--truth-error"]);
     assert_ne!(code, 0, "--truth-error needs --reference: {err}");
+}
+
+#[test]
+fn a_truth_cache_is_read_for_the_same_patches_and_solved_again_for_others() {
+    let cache = tmp("truth-cache.json", b"");
+    std::fs::remove_file(&cache).unwrap();
+    let run = |residual: &str, spec: &str| {
+        let name = format!("truth-cache-{residual}-{}", spec.replace(':', "-"));
+        let c = cache.to_str().unwrap();
+        let (code, err, json) = radiosity_run(
+            &name,
+            &["cornell", "--n", "16", "--residual", residual, "--reference", "--truth-error"]
+                .into_iter()
+                .chain(["--truth-cache", c, "--form-factors", spec])
+                .collect::<Vec<_>>(),
+        );
+        assert_eq!(code, 0, "{err}");
+        json["reference"]["truth"].clone()
+    };
+    let solved = run("0.05", "beams");
+    assert_eq!(solved["cached"], false, "{solved}");
+    assert!(cache.exists());
+    // The same truth read back: the same errors to the last bit, for any reference.
+    let read = run("0.05", "beams");
+    assert_eq!(read["cached"], true, "{read}");
+    for k in ["shots", "reference_rms_relative_error", "machine_rms_relative_error"] {
+        assert_eq!(read[k], solved[k], "{k}: {read} / {solved}");
+    }
+    assert_eq!(run("0.05", "hemicube:16")["cached"], true);
+    // Another stopping rule is another truth.
+    assert_eq!(run("0.1", "beams")["cached"], false);
+    std::fs::write(&cache, b"{ not json").unwrap();
+    let bad = ["cornell", "--n", "16", "--reference", "--truth-error", "--truth-cache", cache.to_str().unwrap()];
+    let (code, err, json) = radiosity_run("truth-cache-bad", &bad);
+    assert_ne!(code, 0);
+    assert!(err.contains("not a truth written by host-sim"), "{err}");
+    assert!(json.is_null(), "no summary from a refused run: {json}");
 }
 
 #[test]
