@@ -11,8 +11,9 @@
 # solution computes each shot's row of form factors with that surface (3 × 3 sample points of
 # the shooting patch, one projection of the whole scene each); its wall time over its shots is
 # the time per shot. The grid's own solution (n = N, small) runs too and is not timed here.
-# Hemicube and disk runs alternate, REPS times each. classe is left out by default: its 38 603
-# patches make each run's grid solution take about 11 minutes on a 2-core machine.
+# Hemicube and disk runs alternate, REPS times each. classe is left out by default: each run
+# also solves the reference's direct light alone (one row per emitting patch, 260 in classe),
+# minutes per run from R = 400 on a 2-core machine (`SCENES=classe RS="16 100 200 400"`).
 #
 # Usage: bench/fig216.sh BIN   (env SCENES="bureau1 bureau2", RS="16 64 100 200 400",
 #                               SHOTS=12, N=32, REPS=1, OUT=bench-out/fig216.csv; the table
