@@ -40,7 +40,9 @@
 //! Closed forms for the tests: two directly opposed parallel rectangles, two perpendicular
 //! rectangles sharing an edge, a differential area facing a parallel rectangle.
 
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, PoisonError};
 
 use anyhow::{bail, Result};
 use parry3d_f64::math::Vector;
@@ -192,6 +194,9 @@ impl serde::Serialize for Estimator {
     }
 }
 
+/// Most form factors [`FormFactors::row`] keeps (2²⁴ numbers, 128 MiB).
+pub const ROW_CACHE: usize = 1 << 24;
+
 /// Sampling of the form factors.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Sampling {
@@ -238,6 +243,10 @@ pub struct FormFactors {
     rays: AtomicU64,
     /// Proxels projected so far (all rows; [`Estimator::Projective`] only).
     proxels: AtomicU64,
+    /// Rows computed so far, kept while they hold under [`ROW_CACHE`] numbers: a solver that
+    /// shoots a patch again, the direct-light solve and the indirect irradiance after it ask for
+    /// the same rows.
+    rows: Mutex<HashMap<usize, Vec<f64>>>,
     /// With [`Estimator::Projective`]: the surface, every patch's triangles and their patch.
     projective: Option<Projective>,
 }
@@ -284,6 +293,7 @@ impl FormFactors {
             sampling,
             rays: AtomicU64::new(0),
             proxels: AtomicU64::new(0),
+            rows: Mutex::default(),
             projective,
         })
     }
@@ -319,15 +329,26 @@ impl FormFactors {
         self.proxels.load(Ordering::Relaxed)
     }
 
-    /// Row i: `F_ij` for every patch j (receivers in parallel). Error if `i` is out of range.
+    /// Row i: `F_ij` for every patch j (receivers in parallel), computed once while the kept
+    /// rows hold under [`ROW_CACHE`] numbers (the rows are deterministic: the same numbers
+    /// either way; a row read back casts no ray). Error if `i` is out of range.
     pub fn row(&self, i: usize) -> Result<Vec<f64>> {
         if i >= self.len() {
             bail!("form factors: patch {i} out of range ({} patches)", self.len());
         }
-        if let Some(p) = &self.projective {
-            return Ok(self.projective_row(p, i));
+        let kept = || self.rows.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(r) = kept().get(&i) {
+            return Ok(r.clone());
         }
-        Ok((0..self.len()).into_par_iter().map(|j| self.pair(i, j)).collect())
+        let r = match &self.projective {
+            Some(p) => self.projective_row(p, i),
+            None => (0..self.len()).into_par_iter().map(|j| self.pair(i, j)).collect(),
+        };
+        let mut rows = kept();
+        if rows.len() < ROW_CACHE / self.len() {
+            rows.insert(i, r.clone());
+        }
+        Ok(r)
     }
 
     /// The whole matrix, row by row (rows in parallel).

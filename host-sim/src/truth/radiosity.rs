@@ -23,8 +23,6 @@
 //! The ambient term of §1.3.2 ("utilisation d'un terme ambiant") is for display only and never
 //! enters the solution: [`ambient`], [`displayed`].
 
-use std::collections::HashMap;
-
 use anyhow::{bail, Result};
 
 use super::formfactor::FormFactors;
@@ -144,25 +142,13 @@ where
     Ok(s)
 }
 
-/// [`progressive`] with rows from `ff`, each computed once (a shooter shot again reuses its
-/// row) while the cache stays under 2²⁴ numbers; the same numbers either way (the rows are
-/// deterministic).
+/// [`progressive`] with rows from `ff` ([`FormFactors::row`]: a shooter shot again reuses its
+/// row).
 pub fn solve(patches: &[Patch], ff: &FormFactors, cfg: &ShootConfig) -> Result<Solution> {
     if ff.len() != patches.len() {
         bail!("radiosity: {} patches but form factors for {}", patches.len(), ff.len());
     }
-    let mut cache: HashMap<usize, Vec<f64>> = HashMap::new();
-    let budget = (1usize << 24) / patches.len().max(1);
-    progressive(patches, cfg, |i| {
-        if let Some(r) = cache.get(&i) {
-            return Ok(r.clone());
-        }
-        let r = ff.row(i)?;
-        if cache.len() < budget {
-            cache.insert(i, r.clone());
-        }
-        Ok(r)
-    })
+    progressive(patches, cfg, |i| ff.row(i))
 }
 
 /// The initial state: B = U = E, nothing shot.
