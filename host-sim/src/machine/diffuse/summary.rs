@@ -67,12 +67,45 @@ impl Summary {
         }
     }
 
+    /// Its occupied blocks.
+    pub fn occupied_blocks(&self) -> OccupiedBlocks {
+        match self {
+            Summary::B8(o) => OccupiedBlocks::of(&**o),
+            Summary::B16(o) => OccupiedBlocks::of(&**o),
+            Summary::B32(o) => OccupiedBlocks::of(&**o),
+        }
+    }
+
     /// The 8-block summary a cell trace carries (`None` for finer ones).
     pub fn traceable(&self) -> Option<&FrustumSummary> {
         match self {
             Summary::B8(o) => Some(&**o),
             _ => None,
         }
+    }
+}
+
+/// A summary's occupied blocks: block `[bx, by, bz]` holds the voxels `b·side ..
+/// min((b + 1)·side, extent)` on each axis.
+#[derive(Clone, Debug)]
+pub struct OccupiedBlocks {
+    /// Voxels per block side, per axis ([`OccupancySummary::side`]).
+    pub side: [u32; 3],
+    /// The grid's extent (n, n, depth).
+    pub extent: [u32; 3],
+    /// The occupied blocks.
+    pub list: Vec<[usize; 3]>,
+}
+
+impl OccupiedBlocks {
+    /// The occupied blocks of `s`.
+    pub fn of<const B: usize, R: BlockRow>(s: &OccupancySummary<B, R>) -> Self {
+        let [bx, by, bz] = s.blocks();
+        let list = (0..bx)
+            .flat_map(|x| (0..by).flat_map(move |y| (0..bz).map(move |z| [x, y, z])))
+            .filter(|&b| s.occupied_block(b))
+            .collect();
+        OccupiedBlocks { side: s.side(), extent: s.extent(), list }
     }
 }
 
