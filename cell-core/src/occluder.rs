@@ -517,9 +517,17 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
                 let entry = &t.seen[t.ids[i] as usize][v.dir.index() as usize];
                 match entry.narrow(&view) {
                     Some(n) => {
+                        // σ_t = k0 + T_t·form with T_t ≥ 0 is non-decreasing in the form, and the
+                        // form is linear over the rectangle: the corners' signs all agree at both
+                        // layers iff those of the least and the greatest corner form do.
                         let forms = corners.map(|(a, b)| n.form(a, b));
-                        let sigma_at = |t: i64| forms.map(|f| n.positive_with(f, t));
-                        if uncrossed(sigma_at(t_first), sigma_at(t_last)) {
+                        let (lo, hi) = (forms.iter().min(), forms.iter().max());
+                        let (lo, hi) = (lo.copied().unwrap_or(0), hi.copied().unwrap_or(0));
+                        let s = n.positive_with(lo, t_first);
+                        if s == n.positive_with(hi, t_first)
+                            && s == n.positive_with(lo, t_last)
+                            && s == n.positive_with(hi, t_last)
+                        {
                             continue;
                         }
                     }
