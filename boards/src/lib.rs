@@ -133,3 +133,28 @@ pub fn send_token(links: &mut impl Links, l: usize, t: &Token) -> bool {
 fn repairs(links: &impl Links) -> (u32, u32) {
     (1..=LINKS).fold((0, 0), |(r, s), l| (r + links.stats(l).retransmitted, s + links.stats(l).skipped))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_ring_head_is_read_only_when_its_link_and_position_make_sense() {
+        // Board 1 of a 2 × 2 grid: neighbours W (board 0) and N (board 3), ring position 1 of
+        // 4, its next ring position on link N (1).
+        let ok = [1, NONE, 3, 0, NONE, 1, 4, 1];
+        let ring = Ring { id: 1, neighbours: [NONE, 3, 0, NONE], position: 1, next: 1 };
+        assert_eq!(Ring::parse(&ok), Some(ring));
+        assert_eq!(Ring::parse(&[ok.as_slice(), &[9, 9]].concat()), Some(ring), "a longer configuration");
+        assert!(ring.connected(1) && ring.connected(2) && !ring.connected(0) && !ring.connected(3));
+        let with = |i: usize, v: u8| {
+            let mut p = ok;
+            p[i] = v;
+            Ring::parse(&p)
+        };
+        assert_eq!(with(7, 0), None, "the ring link has no neighbour (E)");
+        assert_eq!(with(7, 4), None, "no link 4");
+        assert_eq!(with(6, 1), None, "position 1 in a ring of 1");
+        assert_eq!(Ring::parse(&ok[..7]), None, "too short");
+    }
+}

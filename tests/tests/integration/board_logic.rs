@@ -240,6 +240,33 @@ fn safra_declares_once_every_item_is_processed_and_none_in_flight() {
 }
 
 #[test]
+fn safra_never_declares_early_under_random_wire_delays() {
+    // Every pass, each wire is held or not at random (a seeded xorshift): messages and tokens
+    // overtake each other in every way the links allow; trees of work, 3 time units each.
+    // (Random delays seldom let a whole round pass a message: the counterless mutant passes
+    // this test too, checked by hand; the explicit late-wire schedules below catch it.)
+    let items = [(0, 6, 0), (3, 5, 1), (1, 4, 7)];
+    for seed in 1..=20u64 {
+        let mut x = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+        let r = safra_run(&items, 3, 2, true, 1_000_000, |_, net, _| {
+            for w in net.wires.values_mut() {
+                x ^= x << 13;
+                x ^= x >> 7;
+                x ^= x << 17;
+                w.held = x % 4 != 0;
+            }
+        });
+        let processed: u32 = r.boards.iter().map(|b| b.state().processed).sum();
+        assert_eq!(processed, total(&items, 2), "seed {seed}");
+        assert_eq!(r.declarations.iter().map(|d| d.0).collect::<Vec<_>>(), [0, 1], "seed {seed}");
+        for &(p, in_flight, active) in &r.declarations {
+            assert_eq!((in_flight, active), (0, 0), "seed {seed}: phase {p} declared with work left");
+        }
+        assert!(r.boards.iter().all(|b| b.state().late == 0), "seed {seed}: no late work");
+    }
+}
+
+#[test]
 fn an_item_keeps_its_board_active_for_its_work_time() {
     // One board of the ring, alone on its links: an item of ttl 0 injected at time 0 with a
     // work time of 100 is processed by the first poll at or after time 100, not before.
