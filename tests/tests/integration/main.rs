@@ -11,6 +11,7 @@ mod common;
 mod async_boards;
 mod bit_budget;
 mod board_grids;
+mod board_logic;
 mod brute_force;
 mod camera;
 mod closed_meshes;

@@ -46,9 +46,9 @@ use rc2_tests::boards::{board_elf, boot, ring_config, Booted, Faults, Slow, CLEA
 use rc2_tests::qemu;
 
 /// Grid side in cells.
-const N: u32 = 8;
+pub(crate) const N: u32 = 8;
 /// Board side in cells.
-const TILE: u32 = N / SIDE as u32;
+pub(crate) const TILE: u32 = N / SIDE as u32;
 /// A run (boot, loading, lighting, reports) must end within this.
 const TIMEOUT: Duration = Duration::from_secs(90);
 /// The light, in fractions of the scene's box (x, y up, z).
@@ -58,16 +58,16 @@ const REPORTED: usize = 16;
 
 /// One cell as the boards or the oracle see it: dexels (lo, hi, facet), lit voxels (z, mask)
 /// and pixel (its rgb, if the cell shows a surface).
-type CellView = (Vec<(u16, u16, u32)>, Vec<(u32, u32)>, Option<[u8; 3]>);
+pub(crate) type CellView = (Vec<(u16, u16, u32)>, Vec<(u32, u32)>, Option<[u8; 3]>);
 
 /// The scene, the light, and what host-sim's boards make of it.
-struct Case {
-    packets: Vec<PipelinePacket>,
+pub(crate) struct Case {
+    pub(crate) packets: Vec<PipelinePacket>,
     source: Source,
     light: LightConfig,
-    depth: u32,
+    pub(crate) depth: u32,
     shade: ShadeSetup,
-    cells: BTreeMap<(u16, u16), CellView>,
+    pub(crate) cells: BTreeMap<(u16, u16), CellView>,
     /// Voxels of the box's walls, floor and ceiling that the light reaches in the empty box and
     /// not with its blocks: the blocks' shadows.
     shadowed: usize,
@@ -132,7 +132,7 @@ fn case() -> Case {
 
 impl Case {
     /// The light record every board gets.
-    fn light_record(&self) -> Vec<u8> {
+    pub(crate) fn light_record(&self) -> Vec<u8> {
         let l = &self.light;
         let setup = LightSetup {
             source: self.source,
@@ -154,14 +154,14 @@ impl Case {
     }
 
     /// The shading record every board gets.
-    fn shade_record(&self) -> Vec<u8> {
+    pub(crate) fn shade_record(&self) -> Vec<u8> {
         let mut buf = [0u8; 1024];
         let n = write_event::<U0>(&Event::Shade(self.shade.clone()), &mut buf).unwrap();
         buf[..n].to_vec()
     }
 
     /// The board holding the source's cell (which makes its initial beams itself).
-    fn source_board(&self) -> usize {
+    pub(crate) fn source_board(&self) -> usize {
         let sv = self.source.voxel();
         board_of(sv[0] as u32, sv[1] as u32)
     }
@@ -178,31 +178,31 @@ impl Case {
 }
 
 /// The board holding cell (x, y).
-fn board_of(x: u32, y: u32) -> usize {
+pub(crate) fn board_of(x: u32, y: u32) -> usize {
     (y / TILE) as usize * SIDE + (x / TILE) as usize
 }
 
 /// A board's state as it reports it (`KIND_TILE_STATE`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-struct BoardState {
-    sent: u32,
-    received: u32,
-    forwarded: u32,
-    tokens: u32,
-    late: u32,
-    overflows: u32,
-    misrouted: u32,
-    loads: u32,
-    steps: u32,
-    peak_arrived: u32,
-    peak_work: u32,
-    retransmitted: u32,
-    skipped: u32,
-    stack: u32,
-    count: i32,
+pub(crate) struct BoardState {
+    pub(crate) sent: u32,
+    pub(crate) received: u32,
+    pub(crate) forwarded: u32,
+    pub(crate) tokens: u32,
+    pub(crate) late: u32,
+    pub(crate) overflows: u32,
+    pub(crate) misrouted: u32,
+    pub(crate) loads: u32,
+    pub(crate) steps: u32,
+    pub(crate) peak_arrived: u32,
+    pub(crate) peak_work: u32,
+    pub(crate) retransmitted: u32,
+    pub(crate) skipped: u32,
+    pub(crate) stack: u32,
+    pub(crate) count: i32,
 }
 
-fn parse_state(p: &[u8]) -> (u8, BoardState) {
+pub(crate) fn parse_state(p: &[u8]) -> (u8, BoardState) {
     assert_eq!(p.len(), 1 + 14 * 4 + 4, "state length");
     let u = |i: usize| u32::from_le_bytes(p[1 + 4 * i..5 + 4 * i].try_into().unwrap());
     let st = BoardState {
@@ -227,7 +227,7 @@ fn parse_state(p: &[u8]) -> (u8, BoardState) {
 
 /// A cell report: (x, y), its view, and its overflow counters (dexel store, lost voxels, lit
 /// store, still busy).
-fn parse_cell(p: &[u8]) -> ((u16, u16), CellView, [u32; 4]) {
+pub(crate) fn parse_cell(p: &[u8]) -> ((u16, u16), CellView, [u32; 4]) {
     let u16_at = |i: usize| u16::from_le_bytes([p[i], p[i + 1]]);
     let u32_at = |i: usize| u32::from_le_bytes(p[i..i + 4].try_into().unwrap());
     let (x, y, nd, nr) = (u16_at(0), u16_at(2), p[4] as usize, p[5] as usize);
@@ -259,6 +259,19 @@ struct TileRun {
     logs: Vec<Vec<String>>,
 }
 
+/// Board `b`'s [`KIND_TILE_CONFIG`] body: its place in the ring, its tile of the grid, the
+/// grid's side and depth.
+pub(crate) fn tile_config(b: usize, depth: u32) -> Vec<u8> {
+    let mut config = ring_config(b);
+    let (x0, y0) = ((b % SIDE) as u32 * TILE, (b / SIDE) as u32 * TILE);
+    config.extend((x0 as u16).to_le_bytes());
+    config.extend((y0 as u16).to_le_bytes());
+    config.push(TILE as u8);
+    config.extend((N as u16).to_le_bytes());
+    config.extend((depth as u16).to_le_bytes());
+    config
+}
+
 /// Configure the boards (each gets the light setup; the source's board makes its initial
 /// beams from it), hand board 0 the facets, start the ring, wait for the three declarations (loading, lighting, the empty phase that
 /// tells every board of the lighting's), then read every board's report.
@@ -266,14 +279,7 @@ fn run_tiles(c: &Case, faults: Faults, slow: Option<Slow>) -> TileRun {
     let mut g = boot(board_elf(Path::new(env!("CARGO_TARGET_TMPDIR"))), faults, slow, TIMEOUT);
     let (record, shading) = (c.light_record(), c.shade_record());
     for b in 0..SIDE * SIDE {
-        let mut config = ring_config(b);
-        let (x0, y0) = ((b % SIDE) as u32 * TILE, (b / SIDE) as u32 * TILE);
-        config.extend((x0 as u16).to_le_bytes());
-        config.extend((y0 as u16).to_le_bytes());
-        config.push(TILE as u8);
-        config.extend((N as u16).to_le_bytes());
-        config.extend((c.depth as u16).to_le_bytes());
-        g.send(b, KIND_TILE_CONFIG, &config);
+        g.send(b, KIND_TILE_CONFIG, &tile_config(b, c.depth));
         g.send(b, KIND_TILE_LIGHT, &record);
         g.send(b, KIND_TILE_SHADE, &shading);
     }
@@ -414,7 +420,7 @@ fn report(c: &Case, r: &TileRun, what: &str) {
 }
 
 /// The case, computed once per test run.
-fn the_case() -> &'static Case {
+pub(crate) fn the_case() -> &'static Case {
     static CASE: std::sync::OnceLock<Case> = std::sync::OnceLock::new();
     CASE.get_or_init(|| {
         let c = case();

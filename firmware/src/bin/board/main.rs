@@ -64,10 +64,9 @@ mod uart;
 #[path = "../../vectors.rs"]
 mod vectors;
 
+use boards::{LINKS, NONE};
 use cell_core::serial::{SerialLink, SerialStats};
-use cell_core::termination::Token;
 use cell_core::wire::board::{KIND_CONFIG, KIND_DATA, KIND_REPORT};
-use cell_core::wire::{put_token, SliceWriter, KIND_TOKEN};
 use cortex_m_rt::entry;
 use embedded_io::ReadReady;
 use heapless::Vec;
@@ -77,10 +76,8 @@ use defmt_semihosting as _;
 
 use uart::Uart;
 
-/// Bytes per link buffer: the longest frame, a row packet between boards in the tile exercise
-/// (3 + 1 + 4 + 73 + 8 × 20 + 4 = 245 B), or a cell's report (3 + 1 + 22 + 2 × 16 × 8 + 4 =
-/// 286 B).
-pub const LINK_BUF: usize = 320;
+/// Bytes per link buffer: the tile exercise's longest frame (`boards::tiles::LINK_BUF`).
+pub const LINK_BUF: usize = boards::tiles::LINK_BUF;
 
 /// The longest frame of the link and termination exercises on a neighbour link (the report's
 /// 3 + 1 + 1 + 4 × 28 + 4 = 121 B goes to the host).
@@ -123,10 +120,6 @@ impl Clock {
         self.cycles / (CORE_HZ / 1_000_000)
     }
 }
-/// No neighbour on this link.
-const NONE: u8 = 0xFF;
-/// Neighbour links (UARTs 1 … 4).
-const LINKS: usize = 4;
 
 /// The body of data frame `i` from board `from`: `from`, `i` (u16), then 1 … 40 bytes that
 /// depend on both. The host test computes the same.
@@ -173,13 +166,6 @@ impl Board {
     pub fn poll(&mut self, i: usize, now: u64) {
         let _ = self.links[i].poll(now, &mut self.uarts[i]);
     }
-}
-
-/// Hand termination token `t` to `link` (the ring's next position); whether it took it.
-pub fn send_token(link: &mut SerialLink<LINK_BUF>, t: &Token) -> bool {
-    let mut buf = [0u8; 8];
-    let mut w = SliceWriter::new(&mut buf);
-    put_token(&mut w, t).is_ok() && link.send(KIND_TOKEN, w.written()).is_ok()
 }
 
 /// [`Board::wait`] on these UARTs.
