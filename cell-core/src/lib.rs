@@ -32,6 +32,8 @@
 //! * [`reflect_cell`] — the reflection cell: ray FIFOs, wait table, answers (§1.3.2, §5.5.5).
 //! * [`visible`] — the surface the pixel shows: a per-cell depth test of the exact facets during loading.
 //! * [`shade`] — Phong/Blinn shading of the visible voxel with `micromath` (§1.1, §5.2).
+//! * [`smooth`] — smooth shading (feature `smooth-normals`): vertex normals in the packets,
+//!   interpolated at the visible point (Phong) or the colours they shade (Gouraud) (§1.3.2).
 //! * [`termination`] — distributed termination detection: Safra's token ring with message
 //!   counters over the boards' links (§4.4.4 without a central counter).
 #![no_std]
@@ -59,6 +61,8 @@ pub mod route;
 pub mod serial;
 pub mod shade;
 pub mod shadow;
+#[cfg(feature = "smooth-normals")]
+pub mod smooth;
 pub mod termination;
 pub mod trace;
 pub mod triangle;

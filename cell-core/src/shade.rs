@@ -584,6 +584,19 @@ pub fn pixel<const D: usize>(
     Some(Pixel { rgb: shade_linear_toward(p, nrm, v, &m, lights, lit, params).map(encode), lit, z })
 }
 
+/// Where column (x, y) shades its visible surface: the point (x, y, z\*) in the shading space,
+/// the unit direction to the eye there, and the surface's material (default when missing).
+pub fn surface_point(
+    x: crate::units::Coord,
+    y: crate::units::Coord,
+    surface: &crate::visible::VisibleSurface,
+    materials: &[Material],
+    params: &ShadeParams,
+) -> ([f32; 3], [f32; 3], Material) {
+    let (p, v) = params.eye.shading_point([x as f32, y as f32, surface.depth()]);
+    (p, v, materials.get(surface.material as usize).copied().unwrap_or_default())
+}
+
 /// The pixel of column (x, y) under the plane rule: the facet its centre line meets first
 /// ([`crate::visible`]), shaded at that exact point (x, y, z*) with its material under the lights
 /// in `reached` (those that lit the surface, [`crate::lit`]) that it faces.
@@ -596,9 +609,8 @@ pub fn surface_pixel(
     lights: &[PointLight],
     params: &ShadeParams,
 ) -> Pixel {
-    let (p, v) = params.eye.shading_point([x as f32, y as f32, surface.depth()]);
+    let (p, v, m) = surface_point(x, y, surface, materials, params);
     let nrm = shading_normal_toward(surface.normal, params.normal_mode, v);
-    let m = materials.get(surface.material as usize).copied().unwrap_or_default();
     let lit = facing_mask(p, nrm, lights, reached);
     Pixel {
         rgb: shade_linear_toward(p, nrm, v, &m, lights, lit, params).map(encode),

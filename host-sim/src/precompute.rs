@@ -547,14 +547,7 @@ fn shading_normal(mesh: &Mesh, fit: &Fit, piece: &[[i64; 3]], lattice_normal: [i
     };
     let view: Vec<[f64; 3]> = piece.iter().map(|&l| screen.view.screen_to_view(fit.to_world(l))).collect();
     // Newell's normal: exact for a planar polygon, an average for a slightly bent one.
-    let mut nv = [0.0f64; 3];
-    for (i, a) in view.iter().enumerate() {
-        let b = view[(i + 1) % view.len()];
-        nv[0] += (a[1] - b[1]) * (a[2] + b[2]);
-        nv[1] += (a[2] - b[2]) * (a[0] + b[0]);
-        nv[2] += (a[0] - b[0]) * (a[1] + b[1]);
-    }
-    NormalCode::encode(nv.map(|v| v as f32))
+    NormalCode::encode(crate::scene::normals::newell(&view).map(|v| v as f32))
 }
 
 /// Run the precompute for a whole mesh.

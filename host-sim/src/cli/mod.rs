@@ -509,17 +509,36 @@ impl From<SteppingArg> for crate::machine::diffuse::Stepping {
 /// Normal used for shading.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum NormalArg {
-    /// The facet's normal stored with each dexel (16-bit octahedral code, §5.2.1).
+    /// The facet's normal stored with each dexel (16-bit octahedral code, §5.2.1): flat facets.
     Facet,
     /// The voxel face the view ray crossed; no normal stored (§5.2.2).
     Face,
+    /// Smooth: the facet packets carry the vertex normals (the OBJ's `vn`, else averaged over the
+    /// faces around each vertex), each cell shades with each of them at its visible point and
+    /// interpolates the colours (+6 bytes per packet, +12 per cell; needs the plane or exact lit
+    /// rule, no reflections or radiosity).
+    Gouraud,
+    /// Smooth: as gouraud, but the cell interpolates the normal at its visible point and shades
+    /// once with it (docs/LIGHTING.md, "Smooth shading").
+    Phong,
 }
 
 impl From<NormalArg> for cell_core::shade::NormalMode {
     fn from(a: NormalArg) -> Self {
         match a {
-            NormalArg::Facet => cell_core::shade::NormalMode::Facet,
+            NormalArg::Facet | NormalArg::Gouraud | NormalArg::Phong => cell_core::shade::NormalMode::Facet,
             NormalArg::Face => cell_core::shade::NormalMode::Face,
+        }
+    }
+}
+
+impl NormalArg {
+    /// The smooth mode asked for, if any.
+    pub fn smooth(self) -> Option<cell_core::smooth::Smooth> {
+        match self {
+            NormalArg::Facet | NormalArg::Face => None,
+            NormalArg::Gouraud => Some(cell_core::smooth::Smooth::Gouraud),
+            NormalArg::Phong => Some(cell_core::smooth::Smooth::Phong),
         }
     }
 }
@@ -533,7 +552,8 @@ pub struct RenderArgs {
     /// Lighting options.
     #[command(flatten)]
     pub light: LightOpts,
-    /// Normal used for shading.
+    /// Normals the cells shade with: flat facets (the default), voxel faces, or smooth (vertex
+    /// normals interpolated over each triangle: gouraud or phong).
     #[arg(long, value_enum, default_value_t = NormalArg::Facet)]
     pub normals: NormalArg,
     /// Reflection options.

@@ -101,6 +101,7 @@ impl TryFrom<&RenderArgs> for RenderOptions {
             scene: a.load.scene.clone(),
             view: a.load.camera.choice(),
             normals: a.normals.into(),
+            smooth: a.normals.smooth(),
             reflections: reflecting.then(|| a.reflect.config(fa, &a.light.classic.config(fa, rule))),
             light,
             out: a.out.clone(),

@@ -16,6 +16,7 @@ use std::time::Instant;
 use anyhow::{bail, Result};
 use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
+use cell_core::smooth::Smooth;
 
 use crate::config::RunSummary;
 use crate::jobs::light::{classic_description, print_link_faults, LightingOptions};
@@ -27,6 +28,7 @@ use crate::machine::lighting::{run_diffusion, LightStats};
 use crate::machine::loaded::{load_scene, resolve_lights, LoadedScene};
 use crate::machine::reflect::{reflect, ReflectConfig, ReflectCounts, ShadeEnv};
 use crate::machine::shade::{point_lights, ref_lights, seen, shade_grid_ambient, Ambient, Image, Seen, AMBIENT};
+use crate::machine::smooth::{smooth_grid, SmoothGrid, SmoothScene, SmoothStats};
 use crate::report::files::write_json;
 use crate::report::png::write_png;
 use crate::report::progress;
@@ -71,6 +73,10 @@ pub struct RenderStats {
     /// With `--lighting refined`: the shadow-edge refinement's counters (its cycles come after
     /// `light.cycles`).
     pub refine: Option<RefineCounts>,
+    /// With `--normals gouraud|phong`: where the vertex normals came from and what they cost
+    /// (absent otherwise, so that a facet render's statistics are unchanged).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub smooth: Option<SmoothStats>,
     /// Wall time: load, light, shade, reference.
     pub load_seconds: f64,
     /// Lighting wall time.
@@ -107,6 +113,9 @@ pub struct RenderConfig {
     pub light: LightConfig,
     /// Normals.
     pub normals: NormalMode,
+    /// Smooth shading from the vertex normals (the input's [`RenderInput::smooth`] records);
+    /// `None`: `normals` alone.
+    pub smooth: Option<Smooth>,
     /// How the lit state is computed.
     pub lighting: RenderLighting,
 }
@@ -114,7 +123,7 @@ pub struct RenderConfig {
 impl RenderConfig {
     /// Diffusion lighting with `light`, shading with `normals`.
     pub fn diffusion(light: LightConfig, normals: NormalMode) -> RenderConfig {
-        RenderConfig { light, normals, lighting: RenderLighting::Diffusion }
+        RenderConfig { light, normals, smooth: None, lighting: RenderLighting::Diffusion }
     }
 }
 
@@ -137,12 +146,23 @@ pub struct RenderInput<'a> {
     /// Radiosity ([`crate::jobs::render_radiosity`]): per cell the indirect irradiance of its
     /// visible point, which the cells shade with in place of the constant ambient term.
     pub indirect: Option<&'a [[f32; 3]]>,
+    /// Smooth shading: the cells' records ([`crate::machine::smooth`]).
+    pub smooth: Option<&'a SmoothGrid>,
 }
 
 impl<'a> RenderInput<'a> {
     /// The scene and its lights, with no reference and no time spent before.
     pub fn new(mesh: &'a Mesh, scene: &'a LoadedScene, lights: &'a [[f64; 3]]) -> RenderInput<'a> {
-        RenderInput { mesh, scene, lights, reference: None, load_seconds: 0.0, reference_seconds: 0.0, indirect: None }
+        RenderInput {
+            mesh,
+            scene,
+            lights,
+            reference: None,
+            load_seconds: 0.0,
+            reference_seconds: 0.0,
+            indirect: None,
+            smooth: None,
+        }
     }
 
     /// The same, compared with `reference`.
@@ -167,6 +187,19 @@ pub fn reference_image(
         }
     };
     crate::truth::refrender::render_reference_reflect(mesh, &scene.fit, scene.grid.n, &rl, [AMBIENT as f64; 3], &refl)
+}
+
+/// [`reference_image`] shaded smoothly as `smooth` says (the same corner normals and mode as the
+/// cells; the f64 interpolation of [`crate::truth::refrender::RefSmooth`]).
+pub fn smooth_reference_image(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    light_positions: &[[f64; 3]],
+    smooth: &SmoothScene,
+) -> Result<RefImage> {
+    let rl = ref_lights(&point_lights(light_positions));
+    let rs = crate::truth::refrender::RefSmooth { mode: smooth.mode, corners: &smooth.corners };
+    crate::truth::refrender::render_reference_smooth(mesh, &scene.fit, scene.grid.n, &rl, [AMBIENT as f64; 3], &rs)
 }
 
 /// Outputs of a render.
@@ -310,21 +343,28 @@ fn shade(
     let lights = point_lights(input.lights);
     let constant = Ambient::Constant([AMBIENT; 3]);
     let ambient = input.indirect.map_or(constant, Ambient::Indirect);
-    let image = shade_grid_ambient(input.mesh, input.scene, &lights, seen, cfg.normals, &ambient);
-    let direct_only =
-        input.indirect.map(|_| shade_grid_ambient(input.mesh, input.scene, &lights, seen, cfg.normals, &constant));
+    let image = shade_grid_ambient(input.mesh, input.scene, &lights, seen, cfg.normals, &ambient, input.smooth);
+    let direct_only = input
+        .indirect
+        .map(|_| shade_grid_ambient(input.mesh, input.scene, &lights, seen, cfg.normals, &constant, input.smooth));
     let t2 = Instant::now();
     let cmp = input.reference.map(|r| crate::truth::compare::compare(&image.rgb, &image.covered, &image.lit, r));
+    // With smooth shading a loading cell also holds the packet's vertex normals and its record.
+    let smooth_bytes = input.smooth.map_or(0, |g| g.stats.bytes_per_packet + g.stats.bytes_per_cell);
     let load_cell = std::mem::size_of::<cell_core::cell::Cell<{ cell_core::cell::DEFAULT_DEXELS }>>()
-        + std::mem::size_of::<cell_core::facet::RowPacket>();
+        + std::mem::size_of::<cell_core::facet::RowPacket>()
+        + smooth_bytes;
     let stores = crate::config::extra_cell_bytes(&cfg.light);
     let stats = RenderStats {
         run: None,
         view: input.mesh.screen.as_ref().map_or_else(|| "fitted".into(), |s| s.view.describe()),
-        normals: match cfg.normals {
-            NormalMode::Facet => "facet".into(),
-            NormalMode::Face => "face".into(),
+        normals: match (input.smooth.map(|g| g.mode), cfg.normals) {
+            (Some(Smooth::Phong), _) => "phong".into(),
+            (Some(Smooth::Gouraud), _) => "gouraud".into(),
+            (None, NormalMode::Facet) => "facet".into(),
+            (None, NormalMode::Face) => "face".into(),
         },
+        smooth: input.smooth.map(|g| g.stats.clone()),
         shade_cycles: input.lights.len().max(1) as u64,
         covered_pixels: image.covered.iter().filter(|&&c| c).count() as u64,
         lit_pixels: image.lit.iter().filter(|&&l| l != 0).count() as u64,
@@ -367,6 +407,8 @@ pub struct RenderOptions {
     pub light: LightingOptions,
     /// Normal used for shading.
     pub normals: NormalMode,
+    /// Smooth shading from vertex normals (with `normals` = facet).
+    pub smooth: Option<Smooth>,
     /// The reflection phase (needs diffusion lighting); `None`: no reflections.
     pub reflections: Option<ReflectConfig>,
     /// Indirect light by radiosity on the grid; `None`: direct light only.
@@ -414,23 +456,39 @@ impl RenderOptions {
         if reflecting && light.lit_visible_only {
             bail!("--reflections needs the full lit store: resolve the run with `Needs::reflections`");
         }
-        Ok(RenderConfig { light, normals: self.normals, lighting })
+        if self.smooth.is_some() {
+            let rule = self.light.classic.as_ref().map_or(light.rule, |c| c.rule);
+            if rule == LitRule::Thesis {
+                bail!(
+                    "--normals gouraud|phong shade the surface a column's centre line meets: they need \
+                     --lit-rule plane or exact (the thesis's rule shows the first voxel, whose point on its facet is not known)"
+                );
+            }
+            if reflecting || self.radiosity.is_some() {
+                bail!("--normals gouraud|phong: smooth shading is not done with --reflections or --radiosity yet");
+            }
+        }
+        Ok(RenderConfig { light, normals: self.normals, smooth: self.smooth, lighting })
     }
 }
 
 /// Run the `render` job.
 pub fn run(o: &RenderOptions) -> Result<()> {
     let cfg = o.config()?;
-    let (mesh, loaded, load_seconds) = load_phase(o)?;
+    let (mesh, loaded, load_seconds, smooth) = load_phase(o)?;
     let lights = resolve_lights(&mesh, &loaded, &o.light.lights)?;
     let radiosity = radiosity_phase(o, &mesh, &loaded, &lights, cfg.light.rule)?;
     let t1 = Instant::now();
-    let reference = reference_phase(o, &mesh, &loaded, &lights, &cfg, radiosity.as_ref())?;
+    let reference = match &smooth {
+        Some((s, _)) if o.reference => Some(smooth_reference_image(&mesh, &loaded, &lights, s)?),
+        _ => reference_phase(o, &mesh, &loaded, &lights, &cfg, radiosity.as_ref())?,
+    };
     let input = RenderInput {
         reference: reference.as_ref(),
         load_seconds,
         reference_seconds: t1.elapsed().as_secs_f64(),
         indirect: radiosity.as_ref().map(|r| &r.shown.cells[..]),
+        smooth: smooth.as_ref().map(|(_, g)| g),
         ..RenderInput::new(&mesh, &loaded, &lights)
     };
     let pb = progress::bar(o.quiet, "light 1");
@@ -449,8 +507,13 @@ pub fn run(o: &RenderOptions) -> Result<()> {
     Ok(())
 }
 
-/// Load phase: the scene through the chosen view, loaded on the grid; the load's wall time.
-fn load_phase(o: &RenderOptions) -> Result<(Mesh, LoadedScene, f64)> {
+/// What a smooth render loads besides the scene: the corner normals and the cells' records.
+type SmoothPhase = Option<(SmoothScene, SmoothGrid)>;
+
+/// Load phase: the scene through the chosen view (with smooth shading, its polygons of unequal
+/// corner normals cut into triangles), loaded on the grid; the load's wall time; the smooth
+/// records.
+fn load_phase(o: &RenderOptions) -> Result<(Mesh, LoadedScene, f64, SmoothPhase)> {
     // Reflected rays are traced in the grid's own view: with reflections the default view is
     // the fitted one.
     let view = match o.view {
@@ -461,12 +524,26 @@ fn load_phase(o: &RenderOptions) -> Result<(Mesh, LoadedScene, f64)> {
     if mesh.screen.is_some() && o.reflections.is_some() {
         bail!("--reflections needs the fitted view: reflected rays are not traced through a camera yet");
     }
+    let (mesh, smooth) = match o.smooth {
+        Some(mode) => {
+            let (mesh, s) = SmoothScene::new(mesh, mode)?;
+            (mesh, Some(s))
+        }
+        None => (mesh, None),
+    };
     let t0 = Instant::now();
     let pb = progress::bar(o.quiet, "load");
     pb.set_length(1);
     let loaded = load_scene(&mesh, o.light.load())?;
+    let smooth = match smooth {
+        Some(s) => {
+            let g = smooth_grid(&mesh, &s, &loaded, o.light.load())?;
+            Some((s, g))
+        }
+        None => None,
+    };
     pb.finish_and_clear();
-    Ok((mesh, loaded, t0.elapsed().as_secs_f64()))
+    Ok((mesh, loaded, t0.elapsed().as_secs_f64(), smooth))
 }
 
 /// The radiosity phase's results ([`render_radiosity`]): the solutions and what the cells show.
@@ -615,6 +692,12 @@ fn print_summary(o: &RenderOptions, r: &Rendered, written: &[String]) {
         s.normals
     );
     eprintln!("  view: {}", s.view);
+    if let Some(sm) = &s.smooth {
+        eprintln!(
+            "  smooth shading ({}): vertex normals {}, {} polygons cut into triangles, +{} bytes/packet, +{} bytes/cell",
+            sm.mode, sm.normals_from, sm.polygons_cut, sm.bytes_per_packet, sm.bytes_per_cell
+        );
+    }
     eprintln!(
         "  cycles: load {}  light {} (T/LB {:.2}, {} beams)  shade {}",
         s.light.load_cycles, t.cycles, s.light.t_over_lb, t.beams_processed, s.shade_cycles

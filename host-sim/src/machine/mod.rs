@@ -12,7 +12,7 @@
 //! * [`classic`] — classic shadow rays (§4.1.2) on the same cycle model; [`network`] routes
 //!   their answers.
 //! * [`reflect`] — the reflection phase (§5.2).
-//! * [`shade`] — the cells' shading of their pixels.
+//! * [`shade`] — the cells' shading of their pixels; [`smooth`] — their smooth-shading records.
 //! * [`links`] — the grid's links behind `cell_core::link::Link` (the link seam); [`faults`] —
 //!   the fault-injecting link wrapper; [`tap`] — recording cell traces (and the tracing link
 //!   wrapper); [`record`] — a whole traced run, the traces and their digests.
@@ -45,6 +45,7 @@ pub mod record;
 pub mod reflect;
 pub mod sequential;
 pub mod shade;
+pub mod smooth;
 pub mod tap;
 pub mod tiles;
 pub mod timing;

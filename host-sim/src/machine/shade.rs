@@ -11,7 +11,10 @@ use cell_core::shade::{
     pixel, shading_normal_toward, surface_pixel, Eye, Material as CellMaterial, NormalMode, PointLight, ShadeParams,
 };
 
+use cell_core::smooth::{smooth_pixel, Smooth, SmoothSurface};
+
 use crate::machine::loaded::LoadedScene;
+use crate::machine::smooth::SmoothGrid;
 use crate::scene::{Material, Mesh};
 
 /// Ambient intensity Ia.
@@ -119,6 +122,57 @@ impl Ambient<'_> {
     }
 }
 
+/// The normal(s) a pixel was shaded with.
+enum Normals<'a> {
+    /// One unit normal facing the eye.
+    One([f32; 3]),
+    /// A smooth record, its mode and the facet's normal code.
+    Smooth(Smooth, &'a SmoothSurface, cell_core::normal::NormalCode),
+}
+
+/// The colour of [`cell_core::smooth::smooth_pixel`] in f64 from the same record: its weights
+/// and decoded vertex normals, the Phong normal or the Gouraud sum, `shade(n)` the formula at
+/// the pixel's point.
+pub fn smooth_f64(
+    mode: Smooth,
+    r: &SmoothSurface,
+    facet: cell_core::normal::NormalCode,
+    v: [f32; 3],
+    shade: impl Fn([f64; 3]) -> [f64; 3],
+) -> [f64; 3] {
+    let unit = |a: [f32; 3]| crate::scene::normals::unit(a.map(f64::from));
+    let (fc, v) = (facet.decode().map(f64::from), v.map(f64::from));
+    let s = if fc[0] * v[0] + fc[1] * v[1] + fc[2] * v[2] < 0.0 { -1.0 } else { 1.0 };
+    let n: Vec<[f64; 3]> = r.normals.iter().map(|c| unit(c.decode()).unwrap_or([0.0; 3]).map(|x| s * x)).collect();
+    let sum: f64 = r.weights.iter().map(|&w| w as f64).sum::<f64>().max(1.0);
+    let l: Vec<f64> = r.weights.iter().map(|&w| w as f64 / sum).collect();
+    match mode {
+        Smooth::Phong => {
+            let mix: [f64; 3] = std::array::from_fn(|i| (0..3).map(|k| l[k] * n[k][i]).sum());
+            let fallback = || {
+                let f = unit(facet.decode()).unwrap_or([0.0, 0.0, 1.0]);
+                let d = f[0] * v[0] + f[1] * v[1] + f[2] * v[2];
+                if d < 0.0 {
+                    f.map(|x| -x)
+                } else {
+                    f
+                }
+            };
+            shade(crate::scene::normals::unit(mix).unwrap_or_else(fallback))
+        }
+        Smooth::Gouraud => {
+            let mut c = [0.0; 3];
+            for k in 0..3 {
+                let ck = shade(n[k]);
+                for i in 0..3 {
+                    c[i] += l[k] * ck[i];
+                }
+            }
+            c
+        }
+    }
+}
+
 /// Shade every cell's visible voxel or surface (see [`Seen`]) with the constant ambient
 /// [`AMBIENT`].
 pub fn shade_grid_with(
@@ -128,10 +182,11 @@ pub fn shade_grid_with(
     seen: &Seen<'_>,
     mode: NormalMode,
 ) -> Image {
-    shade_grid_ambient(mesh, scene, lights, seen, mode, &Ambient::Constant([AMBIENT; 3]))
+    shade_grid_ambient(mesh, scene, lights, seen, mode, &Ambient::Constant([AMBIENT; 3]), None)
 }
 
-/// [`shade_grid_with`] under the given ambient term.
+/// [`shade_grid_with`] under the given ambient term; with `smooth`, the visible surfaces
+/// ([`Seen::Surface`]) are shaded from the cells' smooth records ([`cell_core::smooth`]).
 pub fn shade_grid_ambient(
     mesh: &Mesh,
     scene: &LoadedScene,
@@ -139,6 +194,7 @@ pub fn shade_grid_ambient(
     seen: &Seen<'_>,
     mode: NormalMode,
     ambient: &Ambient<'_>,
+    smooth: Option<&SmoothGrid>,
 ) -> Image {
     let n = scene.grid.n;
     let mut params = ShadeParams { ambient: [AMBIENT; 3], normal_mode: mode, eye: scene.eye };
@@ -163,12 +219,20 @@ pub fn shade_grid_ambient(
             Seen::FirstVoxel(mask) => pixel(c.x, c.y, &c.store, |z| mask(x, y, z), &mats, lights, &params).map(|px| {
                 let d = c.store.dexels()[0];
                 let (p, v) = scene.eye.shading_point([c.x as f32, c.y as f32, px.z as f32]);
-                (px, p, v, shading_normal_toward(d.normal, mode, v), d.material)
+                (px, p, v, Normals::One(shading_normal_toward(d.normal, mode, v)), d.material)
             }),
             Seen::Surface(mask) => c.visible.as_ref().map(|s| {
-                let px = surface_pixel(c.x, c.y, s, mask(x, y), &mats, lights, &params);
                 let (p, v) = scene.eye.shading_point([c.x as f32, c.y as f32, s.depth()]);
-                (px, p, v, shading_normal_toward(s.normal, mode, v), s.material)
+                match smooth.and_then(|g| Some((g.mode, g.records[i].as_ref()?))) {
+                    Some((m, r)) => {
+                        let px = smooth_pixel(c.x, c.y, s, r, m, mask(x, y), &mats, lights, &params);
+                        (px, p, v, Normals::Smooth(m, r, s.normal), s.material)
+                    }
+                    None => {
+                        let px = surface_pixel(c.x, c.y, s, mask(x, y), &mats, lights, &params);
+                        (px, p, v, Normals::One(shading_normal_toward(s.normal, mode, v)), s.material)
+                    }
+                }
             }),
         };
         let Some((px, p, v, nrm, material)) = shaded else {
@@ -176,15 +240,22 @@ pub fn shade_grid_ambient(
         };
         let (rgb, lit) = (px.rgb, px.lit);
         // The same inputs through the f64 formula: the error of the cell's arithmetic alone.
-        let exact = crate::truth::refrender::shade_linear_view_f64(
-            p.map(f64::from),
-            nrm.map(f64::from),
-            v.map(f64::from),
-            &materials[(material as usize).min(materials.len() - 1)],
-            &ref_lights,
-            lit,
-            params.ambient.map(f64::from),
-        )
+        let m = &materials[(material as usize).min(materials.len() - 1)];
+        let f64_shade = |n: [f64; 3]| {
+            crate::truth::refrender::shade_linear_view_f64(
+                p.map(f64::from),
+                n,
+                v.map(f64::from),
+                m,
+                &ref_lights,
+                lit,
+                params.ambient.map(f64::from),
+            )
+        };
+        let exact = match nrm {
+            Normals::One(n) => f64_shade(n.map(f64::from)),
+            Normals::Smooth(m, r, facet) => smooth_f64(m, r, facet, v, f64_shade),
+        }
         .map(crate::truth::refrender::encode_gamma);
         for k in 0..3 {
             let e = rgb[k].abs_diff(exact[k]);

@@ -73,6 +73,12 @@ pub struct Mesh {
     /// Set when the positions are in screen space ([`crate::scene::camera::to_screen`]): the
     /// camera, and the world positions they came from. `None`: world space, fitted into the grid.
     pub screen: Option<std::sync::Arc<super::view::Screen>>,
+    /// The file's vertex normals (`vn`, world units, as written: checked where smooth shading
+    /// uses them, [`crate::scene::normals`]).
+    pub normals: Vec<[f64; 3]>,
+    /// Per face, the index into [`Mesh::normals`] of each corner's normal (`f v//vn`), in the
+    /// face's vertex order; empty (or missing: faces added after loading) for a face without.
+    pub face_normals: Vec<Vec<u32>>,
 }
 
 fn convert_material(m: &tobj::Material) -> Material {
@@ -214,22 +220,28 @@ where
             bail!("{name}: too many vertices");
         }
         mesh.positions.extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+        let nbase = mesh.normals.len() as u32;
+        mesh.normals.extend(m.normals.chunks_exact(3).map(|n| [n[0], n[1], n[2]]));
+        // tobj gives a normal index per corner (parallel to the vertex indices) or none.
+        let has_normals = m.normal_indices.len() == m.indices.len();
         let material = m.material_id.map(|i| i + 1).unwrap_or(0);
         let material = if material < mesh.materials.len() { material as u16 } else { 0 };
         let nverts = m.positions.len() / 3;
-        let mut push = |idx: &[u32]| -> Result<()> {
+        let mut push = |at: usize, idx: &[u32]| -> Result<()> {
             if let Some(&bad) = idx.iter().find(|&&i| i as usize >= nverts) {
                 bail!("{name}: face refers to vertex {} but object '{}' has {} vertices", bad + 1, model.name, nverts);
             }
             mesh.faces.push(Face { verts: idx.iter().map(|&i| (i as usize + base) as u32).collect(), material });
+            let corners = if has_normals { &m.normal_indices[at..at + idx.len()] } else { &[] };
+            mesh.face_normals.push(corners.iter().map(|&i| nbase.saturating_add(i)).collect());
             Ok(())
         };
         if m.face_arities.is_empty() {
             if m.indices.len() % 3 != 0 {
                 bail!("{name}: malformed face data in object '{}'", model.name);
             }
-            for tri in m.indices.chunks_exact(3) {
-                push(tri)?;
+            for (t, tri) in m.indices.chunks_exact(3).enumerate() {
+                push(3 * t, tri)?;
             }
         } else {
             let mut at = 0usize;
@@ -238,7 +250,7 @@ where
                 let Some(idx) = m.indices.get(at..at + k) else {
                     bail!("{name}: malformed face data in object '{}'", model.name);
                 };
-                push(idx)?;
+                push(at, idx)?;
                 at += k;
             }
         }

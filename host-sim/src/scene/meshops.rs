@@ -11,7 +11,8 @@ use crate::scene::{Face, Mesh};
 
 /// Triangulate polygons as fans (for meshes that are then subdivided).
 pub fn triangulated(mesh: &Mesh) -> Mesh {
-    let mut out = Mesh { faces: Vec::new(), ..mesh.clone() };
+    // The corners' file normals do not follow the cut: the fans are averaged (scene::normals).
+    let mut out = Mesh { faces: Vec::new(), face_normals: Vec::new(), ..mesh.clone() };
     for f in &mesh.faces {
         for k in 1..f.verts.len().saturating_sub(1) {
             out.faces.push(Face { verts: vec![f.verts[0], f.verts[k], f.verts[k + 1]], material: f.material });
@@ -118,9 +119,13 @@ pub fn orient(mesh: &mut Mesh) -> Orientation {
             flip[f] = flip[f].map(|x| x ^ reverse);
         }
     }
-    for (f, fl) in mesh.faces.iter_mut().zip(&flip) {
+    for (i, (f, fl)) in mesh.faces.iter_mut().zip(&flip).enumerate() {
         if *fl == Some(true) {
             f.verts.reverse();
+            // The corners' normals (`f v//vn`) follow their vertices.
+            if let Some(c) = mesh.face_normals.get_mut(i) {
+                c.reverse();
+            }
             out.rewound += 1;
         }
     }

@@ -6,6 +6,7 @@
 //! * [`view`] — a camera's view transform (look-at basis, screen maps, depth range).
 //! * [`office`] — the procedural offices of the radiosity thesis (bureau1, bureau2, classe).
 //! * [`meshops`] — winding orientation, subdivision.
+//! * [`normals`] — vertex normals for smooth shading: the file's `vn` or area-averaged.
 //! * [`binvox`] — the `.binvox` voxel file format.
 //! * [`patches`] — radiosity patches: a mesh cut into small planar convex polygons
 //!   (Renaud 1993, §1.3.3).
@@ -20,6 +21,7 @@ pub mod builtin;
 pub mod camera;
 pub mod mesh;
 pub mod meshops;
+pub mod normals;
 pub mod office;
 pub mod patch_display;
 pub mod patches;

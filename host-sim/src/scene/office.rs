@@ -1238,6 +1238,8 @@ pub fn build(kind: Kind) -> Office {
         // Built wound as `orient` says: closed solids outward, the open room inward.
         rewound: 0,
         screen: None,
+        normals: Vec::new(),
+        face_normals: Vec::new(),
     };
     Office {
         mesh,

@@ -245,8 +245,36 @@ pub enum RefAmbient<'a> {
     Indirect(&'a dyn Fn(u32, [f64; 3]) -> [f64; 3]),
 }
 
+/// Smooth shading in the reference (the cells': `cell_core::smooth`): at the hit point, the
+/// barycentric coordinates of the pixel's centre in the projection along the view (z) of the
+/// face's triangle that holds it (the face fanned from its first vertex; its positions as the
+/// grid has them: world, or screen under a camera, where the view is along z too), the corner
+/// normals (world) turned to the side of the face the eye sees, then Phong (the interpolated
+/// normal, normalised) or Gouraud (the colours of each corner normal, interpolated). The lights
+/// counted as lighting the point are those that light it ([`render_reference`]) and that the
+/// interpolated normal faces.
+#[derive(Clone, Copy)]
+pub struct RefSmooth<'a> {
+    /// Phong or Gouraud.
+    pub mode: cell_core::smooth::Smooth,
+    /// Per face, per corner: unit world normals ([`crate::scene::normals::corner_normals`]).
+    pub corners: &'a [Vec<[f64; 3]>],
+}
+
+/// The barycentric coordinates of `q` in the xy projection of the triangle `t`, `None` when the
+/// projection is degenerate.
+pub fn barycentric_xy(q: [f64; 2], t: [[f64; 3]; 3]) -> Option<[f64; 3]> {
+    let area = |a: [f64; 3], b: [f64; 3], c: [f64; 2]| (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+    let total = area(t[0], t[1], [t[2][0], t[2][1]]);
+    if total == 0.0 || !total.is_finite() {
+        return None;
+    }
+    Some([area(t[1], t[2], q) / total, area(t[2], t[0], q) / total, area(t[0], t[1], q) / total])
+}
+
 struct RefScene<'a> {
     mesh: &'a Mesh,
+    smooth: Option<RefSmooth<'a>>,
     reference: Reference,
     /// The lights in the space the formula is evaluated in: voxel units, or world units under
     /// a camera.
@@ -324,6 +352,30 @@ pub fn render_reference_reflect(
     render_reference_ambient(mesh, fit, n, lights, RefAmbient::Constant(ambient), reflect)
 }
 
+/// [`render_reference`] shaded smoothly ([`RefSmooth`]).
+pub fn render_reference_smooth(
+    mesh: &Mesh,
+    fit: &Fit,
+    n: u32,
+    lights: &[RefLight],
+    ambient: [f64; 3],
+    smooth: &RefSmooth<'_>,
+) -> Result<RefImage> {
+    if smooth.corners.len() != mesh.faces.len() {
+        bail!("refrender: {} faces but corner normals for {}", mesh.faces.len(), smooth.corners.len());
+    }
+    let mut scene =
+        RefScene::new(mesh, fit, n, lights, RefAmbient::Constant(ambient), &RefReflect { depth: 0, threshold: 0.0 })?;
+    scene.smooth = Some(*smooth);
+    let mut img = RefImage::empty(n, lights.len() as u32);
+    for y in 0..n {
+        for x in 0..n {
+            scene.pixel(x, y, &mut img);
+        }
+    }
+    Ok(img)
+}
+
 /// [`render_reference_reflect`] with any ambient term ([`RefAmbient`]).
 pub fn render_reference_ambient(
     mesh: &Mesh,
@@ -390,6 +442,7 @@ impl<'a> RefScene<'a> {
         let primary_t = if view.is_some() { f64::MAX / 4.0 } else { (n as f64 + 2.0) * vx };
         Ok(RefScene {
             mesh,
+            smooth: None,
             reference,
             lights,
             lights_world,
@@ -402,6 +455,74 @@ impl<'a> RefScene<'a> {
             max_t: 2.0 * primary_t,
             reflect: *reflect,
         })
+    }
+
+    /// The corner normals of `face` turned to the side `v` sees, and the barycentric coordinates
+    /// of `q` in its triangle that holds it (the largest smallest coordinate: [`RefSmooth`]).
+    fn interpolate(&self, s: &RefSmooth<'_>, face: u32, q: [f64; 2], v: Vector) -> Option<([Vector; 3], [f64; 3])> {
+        let f = self.mesh.faces.get(face as usize)?;
+        let pos = |k: usize| self.mesh.positions[f.verts[k] as usize];
+        let corners = s.corners.get(face as usize)?;
+        let world = crate::scene::normals::world_positions(self.mesh);
+        let fnrm = Vector::from(crate::scene::normals::newell(
+            &f.verts.iter().map(|&i| world[i as usize]).collect::<Vec<_>>(),
+        ));
+        let side = if fnrm.dot(v) < 0.0 { -1.0 } else { 1.0 };
+        let mut best: Option<([Vector; 3], [f64; 3])> = None;
+        for k in 1..f.verts.len().saturating_sub(1) {
+            let Some(l) = barycentric_xy(q, [pos(0), pos(k), pos(k + 1)]) else { continue };
+            let min = |l: &[f64; 3]| l[0].min(l[1]).min(l[2]);
+            if best.as_ref().is_none_or(|b| min(&l) > min(&b.1)) {
+                let n = [0, k, k + 1].map(|c| Vector::from(corners[c]) * side);
+                best = Some((n, l));
+            }
+        }
+        best
+    }
+
+    /// The linear colour and lit mask of point `p` of `facet` (geometric unit normal `normal`,
+    /// `v` toward the eye) shaded smoothly from its corner normals `n` and weights `l`.
+    #[allow(clippy::too_many_arguments)]
+    fn smooth_colour(
+        &self,
+        p: Vector,
+        normal: Vector,
+        facet: u32,
+        v: Vector,
+        mode: cell_core::smooth::Smooth,
+        n: &[Vector; 3],
+        l: &[f64; 3],
+    ) -> ([f64; 3], u32) {
+        let mix = n[0] * l[0] + n[1] * l[1] + n[2] * l[2];
+        let phong = normalize(mix).unwrap_or(if normal.dot(v) < 0.0 { -normal } else { normal });
+        let mut mask = self.lit_mask(p, normal, facet);
+        for (s, lw) in self.lights_world.iter().enumerate() {
+            if phong.dot(*lw - p) <= 0.0 {
+                mask &= !(1 << s);
+            }
+        }
+        let p_vox = if self.view.is_some() { p } else { (p - self.origin) / self.voxel - Vector::splat(0.5) };
+        let m = &self.mesh.materials[self.mesh.faces[facet as usize].material as usize];
+        let a = match self.ambient {
+            RefAmbient::Constant(a) => a,
+            RefAmbient::Indirect(_) => [0.0; 3],
+        };
+        let shade =
+            |n: Vector| shade_linear_view_f64(p_vox.to_array(), n.to_array(), v.to_array(), m, &self.lights, mask, a);
+        let c = match mode {
+            cell_core::smooth::Smooth::Phong => shade(phong),
+            cell_core::smooth::Smooth::Gouraud => {
+                let mut c = [0.0; 3];
+                for k in 0..3 {
+                    let ck = shade(n[k]);
+                    for i in 0..3 {
+                        c[i] += l[k] * ck[i];
+                    }
+                }
+                c
+            }
+        };
+        (c, mask)
     }
 
     /// Pixel (x, y): the primary ray along +z from one voxel in front of the grid, or the
@@ -417,7 +538,15 @@ impl<'a> RefScene<'a> {
             return;
         };
         let p = origin + t * dir;
-        let (c, mask) = self.colour(p, Vector::from(normal), facet, -dir, 1, 1.0);
+        let q = match &self.view {
+            Some(_) => [(x as f64 + 0.5) / img.n as f64, (y as f64 + 0.5) / img.n as f64],
+            None => [origin.x, origin.y],
+        };
+        let smooth = self.smooth.and_then(|s| Some((s, self.interpolate(&s, facet, q, -dir)?)));
+        let (c, mask) = match smooth {
+            Some((s, (n, l))) => self.smooth_colour(p, Vector::from(normal), facet, -dir, s.mode, &n, &l),
+            None => self.colour(p, Vector::from(normal), facet, -dir, 1, 1.0),
+        };
         let i = y as usize * img.n as usize + x as usize;
         img.rgb[i] = c.map(encode_gamma);
         img.covered[i] = true;
@@ -489,6 +618,8 @@ mod tests {
             lights: vec![],
             rewound: 0,
             screen: None,
+            normals: Vec::new(),
+            face_normals: Vec::new(),
         }
     }
 
@@ -675,6 +806,8 @@ mod tests {
             lights: vec![],
             rewound: 0,
             screen: None,
+            normals: Vec::new(),
+            face_normals: Vec::new(),
         }
     }
 

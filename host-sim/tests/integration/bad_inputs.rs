@@ -247,3 +247,27 @@ fn millions_of_duplicate_faces() {
     assert!(b["load_cycles"].as_u64().unwrap() < 1000);
     let _ = std::fs::remove_file(many);
 }
+
+/// Smooth shading reads the file's vertex normals: one that is not a direction (NaN, infinite,
+/// zero length) or an index past the file's `vn` lines is a clear error naming it, and a smooth
+/// mode the run cannot do (the thesis's lit rule) is refused before any work.
+#[test]
+fn bad_vertex_normals_fail_clearly_under_smooth_shading() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/normals");
+    let cases = [
+        ("bad-vn-nan.obj", "normal 2 (vn NaN 0 1) of face 1 is not a direction"),
+        ("bad-vn-inf.obj", "normal 2 (vn inf 0 1) of face 1 is not a direction"),
+        ("bad-vn-zero.obj", "normal 2 (vn 0 0 0) of face 1 is not a direction"),
+        ("bad-vn-index.obj", "face normal index out of bounds"),
+    ];
+    for (file, expect) in cases {
+        let p = dir.join(file);
+        for mode in ["phong", "gouraud"] {
+            let args = ["render", p.to_str().unwrap(), "--n", "16", "--normals", mode, "--quiet", "--out", "/dev/null"];
+            let (code, err) = host_sim(&args, &[]);
+            assert_clear_error(&format!("{file} --normals {mode}"), code, &err, expect);
+        }
+    }
+    let (code, err) = host_sim(&["render", "--n", "16", "--normals", "phong", "--lit-rule", "thesis", "--quiet"], &[]);
+    assert_clear_error("--normals phong --lit-rule thesis", code, &err, "need --lit-rule plane or exact");
+}

@@ -519,3 +519,44 @@ fn a_radiosity_render_against_the_truths_image() {
     assert_ne!(code, 0, "--truth-error is a radiosity option: {err}");
     assert!(err.contains("add --radiosity"), "{err}");
 }
+
+/// `--normals facet` is the default (issue 54: smooth shading adds modes, changes nothing
+/// else): the same PNG bytes and the same statistics, timings and memory aside; a smooth render
+/// reports what its vertex normals cost, a facet render has no such key.
+#[test]
+fn normals_facet_renders_byte_identical_to_the_default() {
+    let dir = std::env::temp_dir().join(format!("rc2-normals-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |label: &str, extra: &[&str]| -> (Vec<u8>, serde_json::Value) {
+        let (png, json) = (dir.join(format!("{label}.png")), dir.join(format!("{label}.json")));
+        let mut args = vec!["render", "teapot-floor", "--n", "32", "--quiet", "--reference"];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["--out", png.to_str().unwrap(), "--stats", json.to_str().unwrap()]);
+        let (code, err) = host_sim(&args);
+        assert_eq!(code, 0, "{args:?}: {err}");
+        let mut v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        fn drop_timings(v: &mut serde_json::Value) {
+            match v {
+                serde_json::Value::Object(m) => {
+                    m.retain(|k, _| !["wall", "seconds", "secs", "rss", "time"].iter().any(|t| k.contains(t)));
+                    m.values_mut().for_each(drop_timings);
+                }
+                serde_json::Value::Array(a) => a.iter_mut().for_each(drop_timings),
+                _ => {}
+            }
+        }
+        drop_timings(&mut v);
+        (std::fs::read(&png).unwrap(), v)
+    };
+    let (default_png, default_stats) = run("default", &[]);
+    let (facet_png, facet_stats) = run("facet", &["--normals", "facet"]);
+    assert!(default_png == facet_png, "--normals facet changed the image");
+    assert_eq!(default_stats, facet_stats);
+    assert!(default_stats.get("smooth").is_none());
+    let (phong_png, phong_stats) = run("phong", &["--normals", "phong"]);
+    assert!(phong_png != default_png, "phong shading looks like flat shading");
+    assert_eq!(phong_stats["normals"], "phong");
+    assert_eq!(phong_stats["smooth"]["bytes_per_packet"], 6);
+    assert_eq!(phong_stats["smooth"]["bytes_per_cell"], 12);
+    assert_eq!(phong_stats["smooth"]["normals_from"], "averaged");
+}

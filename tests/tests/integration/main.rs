@@ -29,6 +29,7 @@ mod reflections;
 mod render;
 mod routing;
 mod shadows;
+mod smooth;
 mod topology;
 mod trace_replay;
 mod wave_vs_direct;
