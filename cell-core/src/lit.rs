@@ -403,8 +403,39 @@ pub enum Along {
 }
 
 /// ⌊n/d⌋ for d > 0.
-fn floor_div(n: i128, d: i128) -> i128 {
-    n.div_euclid(d)
+///
+/// On a 32-bit ARM core (the firmware) through [`floor_div_bitwise`]: LLVM expands an `i128`
+/// division inline there, 1.1 KB of flash; elsewhere `div_euclid`. Both are exact, the same
+/// quotient for every `n` and `d > 0` (the unit test `floor_div_bitwise_is_div_euclid`).
+#[inline]
+pub(crate) fn floor_div(n: i128, d: i128) -> i128 {
+    if cfg!(target_arch = "arm") {
+        floor_div_bitwise(n, d)
+    } else {
+        n.div_euclid(d)
+    }
+}
+
+/// ⌊n/d⌋ for d > 0, one quotient bit per step (restoring division of |n| by d, then the floor
+/// for a negative `n`): small code; speed does not matter (a few per lit test).
+#[inline(never)]
+pub(crate) fn floor_div_bitwise(n: i128, d: i128) -> i128 {
+    debug_assert!(d > 0);
+    let (a, d) = (n.unsigned_abs(), d as u128);
+    let (mut q, mut r) = (0u128, 0u128);
+    for i in (0..128).rev() {
+        r = r << 1 | (a >> i & 1);
+        if r >= d {
+            r -= d;
+            q |= 1 << i;
+        }
+    }
+    // n < 0: n = -(q·d + r), so ⌊n/d⌋ = -q when r = 0, else -q - 1.
+    if n < 0 {
+        -(q as i128) - (r != 0) as i128
+    } else {
+        q as i128
+    }
 }
 
 impl Test {
@@ -726,6 +757,34 @@ impl Visit {
 mod tests {
     extern crate std;
     use super::*;
+
+    /// The firmware's division (`floor_div` on ARM) is `div_euclid`, exactly: at the ends of
+    /// the range and on random values.
+    #[test]
+    fn floor_div_bitwise_is_div_euclid() {
+        let mut x = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        let edges = [0i128, 1, -1, 2, -2, 7, -7, i64::MAX as i128, i64::MIN as i128, i128::MAX, i128::MIN + 1];
+        let mut cases = std::vec::Vec::new();
+        for n in edges {
+            for d in [1i128, 2, 3, 7, 16, i64::MAX as i128, i128::MAX] {
+                cases.push((n, d));
+            }
+        }
+        for _ in 0..20_000 {
+            let n = ((next() as i128) << 64 | next() as i128) >> (next() % 100);
+            let d = (((next() as i128) << 64 | next() as i128) >> (next() % 127 + 1)).abs().max(1);
+            cases.push((n, d));
+        }
+        for (n, d) in cases {
+            assert_eq!(floor_div_bitwise(n, d), n.div_euclid(d), "{n} / {d}");
+        }
+    }
     use crate::beam::{frac, Layer, Origin, SourceCoord, SourceId};
 
     fn lcg(s: &mut u64) -> u64 {

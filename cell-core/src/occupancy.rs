@@ -486,11 +486,21 @@ impl<const B: usize, R: BlockRow> OccupancySummary<B, R> {
 /// object-safe for one fraction type, so that a host can choose the summary's resolution at
 /// run time ([`Occupancy8`], [`Occupancy16`], [`Occupancy32`]: finer blocks drop more beams
 /// and cost more memory per cell) while the cell's code stays one function.
-pub trait FrustumTest<F: FracBits>: Debug + Sync {
+///
+/// Not `Debug` itself: a supertrait would put the summary's `Debug::fmt` in every vtable, and
+/// with it `core::fmt` in a firmware image that never formats (2 KB of flash); `dyn
+/// FrustumTest` has its own short `Debug` (its size), for [`crate::light::LightEnv`]'s.
+pub trait FrustumTest<F: FracBits>: Sync {
     /// [`OccupancySummary::frustum_empty`].
     fn frustum_empty(&self, beam: &Beam<F>, source: &Source, far: FarDistance<F>, k0: u32) -> bool;
     /// The summary's size in bytes (what each cell holds).
     fn bytes(&self) -> usize;
+}
+
+impl<F: FracBits> Debug for dyn FrustumTest<F> + '_ {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("FrustumTest").field("bytes", &self.bytes()).finish()
+    }
 }
 
 impl<const B: usize, R: BlockRow, F: FracBits> FrustumTest<F> for OccupancySummary<B, R> {

@@ -335,7 +335,7 @@ pub fn voxel_ray<F: FracBits>(x: i32, y: i32, z: i64, source: &Source, far: FarD
 
 /// ⌈n/d⌉ for d > 0.
 fn ceil_div(n: i128, d: i128) -> i128 {
-    -(-n).div_euclid(d)
+    -crate::lit::floor_div(-n, d)
 }
 
 /// The pixel's point P = (x, y, z\*) of column (x, y) with visible surface `vis`, in

@@ -60,12 +60,18 @@ pub fn tools_present(test: &str) -> bool {
 /// `args` added, e.g. `--bin board`; `RC2_TRACE_DIR` set to `traces` if given, for the replay
 /// image). Returns the directory of the built images.
 pub fn build_firmware(target_dir: &Path, traces: Option<&Path>, args: &[&str]) -> PathBuf {
+    build_firmware_profile(target_dir, traces, "release", args)
+}
+
+/// [`build_firmware`] with cargo profile `profile` (`release`, or `thesis`: the thesis's cell,
+/// `firmware/Cargo.toml`). Returns the directory of the built images (`TARGET/profile`).
+pub fn build_firmware_profile(target_dir: &Path, traces: Option<&Path>, profile: &str, args: &[&str]) -> PathBuf {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     // Run from firmware/ so that its .cargo/config.toml applies; no RUSTFLAGS from outside
     // (host flags must not reach the thumbv7em build).
     let mut cmd = Command::new(cargo);
     cmd.current_dir(firmware_dir())
-        .args(["build", "--release", "--target", TARGET])
+        .args(["build", "--profile", profile, "--target", TARGET])
         .args(args)
         .env("CARGO_TARGET_DIR", target_dir)
         .env_remove("RUSTFLAGS")
@@ -77,5 +83,5 @@ pub fn build_firmware(target_dir: &Path, traces: Option<&Path>, args: &[&str]) -
     };
     let out = cmd.output().expect("run cargo build for the firmware");
     assert!(out.status.success(), "firmware build failed:\n{}", String::from_utf8_lossy(&out.stderr));
-    target_dir.join(TARGET).join("release")
+    target_dir.join(TARGET).join(profile)
 }

@@ -1,5 +1,5 @@
 //! What this image's cell can do: the lighting options compiled in (cargo features of the
-//! firmware crate, all off by default). A light setup asking for an option that is not compiled
+//! firmware crate: the default ones make `render`'s default cell, none the thesis's). A light setup asking for an option that is not compiled
 //! in is refused (`CapacityMismatch`, counted as a bad frame); the setup the cell keeps has
 //! those options as constants, so the optimiser removes their code from the image.
 

@@ -1,8 +1,11 @@
 //! The production image of one RC² cell: the cell driven by its links only — no trace data,
-//! no replay harness, no formatting, no logging. Built by the crate's plain
-//! `cargo build --release` next to the trace-replaying `rc2-firmware`; `host-sim audit` reads
-//! its ELF and says what each part of the cell costs in flash (docs/FIRMWARE.md, "Flash
-//! budget"), against the 16 KiB a cell of the thesis's machine could afford.
+//! no replay harness, no formatting, no logging. Two images come from this source
+//! (docs/FIRMWARE.md, "Flash budget"): the **default cell**, the crate's plain
+//! `cargo build --release` (its default features: every phase and option `host-sim render`
+//! uses by default; 59 252 B of flash, held to 60 KiB), and the **thesis's cell**,
+//! `cargo build --profile thesis --bin cell --no-default-features` (the thesis's lit rule and
+//! policy, held to the 16 KiB a cell of the thesis's machine could afford). `host-sim audit`
+//! reads their ELFs and says what each part of the cell costs in flash.
 //!
 //! **Links** ([`board`]): one serial link to the host and one per neighbour port, each carrying
 //! `cell_core::link` frames (kind, length, payload, CRC-32); a ready line per port each way.

@@ -157,3 +157,15 @@ extern "C" fn __divmoddi4(a: i64, b: i64, rem: &mut i64) -> i64 {
     *rem = r;
     q
 }
+
+/// `a / b`, and `a % b` into `rem` if given (the C runtime's `__udivmoddi4`, which
+/// `__aeabi_uldivmod` calls): the empty-frustum skip's unsigned 64-bit divisions
+/// (`cell_core::occupancy`), a few per beam it tests. compiler-builtins' own is 864 B more.
+#[no_mangle]
+extern "C" fn __udivmoddi4(a: u64, b: u64, rem: Option<&mut u64>) -> u64 {
+    let (q, r) = udivmod(a, b);
+    if let Some(rem) = rem {
+        *rem = r;
+    }
+    q
+}

@@ -28,7 +28,7 @@ use crate::machine::loaded::{load_scene, resolve_lights};
 use crate::precompute::LoadConfig;
 use crate::scene::Mesh;
 
-pub use flash::{flash_table, FlashTable, FLASH_BUDGET};
+pub use flash::{budget_of, flash_table, FlashTable, DEFAULT_CELL_FLASH_BUDGET, FLASH_BUDGET};
 
 /// The per-cell RAM budget: the RAM `LENGTH` of the top-level `memory.x`.
 pub const MEMORY_X: &str = include_str!("../../../../memory.x");
@@ -164,9 +164,12 @@ pub fn image(path: &Path) -> Result<Image> {
 }
 
 /// Where `cd firmware && cargo build --release` puts the ELFs, relative to the workspace root:
-/// the production image (the cell driven by its links) and the trace-replaying one.
-pub const FIRMWARE_ELFS: [&str; 2] = [
+/// the production image (the default cell, driven by its links) and the trace-replaying one;
+/// and where `cargo build --profile thesis --bin cell --no-default-features` puts the thesis's
+/// cell.
+pub const FIRMWARE_ELFS: [&str; 3] = [
     "firmware/target/thumbv7em-none-eabihf/release/cell",
+    "firmware/target/thumbv7em-none-eabihf/thesis/cell",
     "firmware/target/thumbv7em-none-eabihf/release/rc2-firmware",
 ];
 
