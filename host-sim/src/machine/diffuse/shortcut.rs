@@ -18,8 +18,9 @@
 //! through an occupied block, the rays whose transverse voxels there are in the block form a
 //! rectangle of lattice rays, found by inverting the ray's voxel formula
 //! (`cell_core::beam::trace_ray_voxel`) exactly. Filling costs one write per (ray, layer in an
-//! occupied block); the table `2·(2N + 1)²·6` bytes per source (0.8 MB at n = 128, 12.6 MB at
-//! 512, f = 0). Past [`MAX_TABLE_BYTES`] there is no table and every beam takes the test.
+//! occupied block); the table, one value per 4 × 4 tile of rays (the least of their last layers: a bound for
+//! each), `2·⌈(2N + 1)/4⌉²·6` bytes per source (50 KB at n = 128, 790 KB at 512, f = 0), so that
+//! it stays in cache. Past [`MAX_TABLE_BYTES`] there is no table and every beam takes the test.
 
 #[cfg(test)]
 use cell_core::beam::{trace_ray_voxel, FarOffset};
@@ -40,13 +41,19 @@ pub struct Shortcut<'a, F: FracBits> {
     inner: &'a dyn FrustumTest<F>,
     source: Source,
     far: u32,
-    /// N = D·2^f, and the side of a direction's table (2N + 1).
+    /// N = D·2^f, and the tiles per axis of a direction's table (⌈(2N + 1) / TILE⌉).
     big_n: i64,
     side: usize,
-    /// Per direction ([`Direction::index`]), row-major over (a + N, b + N): the last layer
-    /// ≥ 1 at which ray (a, b) meets a marked voxel, 0 if none.
+    /// Per direction ([`Direction::index`]), row-major over tiles of TILE × TILE lattice rays
+    /// (tile ⌊(a + N) / TILE⌋, ⌊(b + N) / TILE⌋): the least over the tile's rays of the last
+    /// layer ≥ 1 at which the ray lies in an occupied block (0: none).
     last: Vec<Vec<u16>>,
 }
+
+/// Lattice rays per tile side: the table keeps one value per TILE × TILE rays (the least of
+/// their last layers, a bound for each of them), TILE² times smaller than one per ray, so
+/// that it stays in cache (Cornell n = 128: 50 KB for the six directions; n = 512: 790 KB).
+const TILE: usize = 4;
 
 impl<F: FracBits> std::fmt::Debug for Shortcut<'_, F> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -69,18 +76,20 @@ impl<'a, F: FracBits> Shortcut<'a, F> {
         if far.get() > u16::MAX as u32 || side.checked_mul(side)?.checked_mul(12)? > MAX_TABLE_BYTES {
             return None;
         }
-        let last = par_map(6, &|d| fill(Direction::ALL[d], source, far, big_n, side, blocks));
-        Some(Shortcut { inner, source: *source, far: far.get(), big_n, side, last })
+        let last = par_map(6, &|d| tiled(&fill(Direction::ALL[d], source, far, big_n, side, blocks), side));
+        Some(Shortcut { inner, source: *source, far: far.get(), big_n, side: side.div_ceil(TILE), last })
     }
 
-    /// The last layer (≥ 1) at which lattice ray `(a, b)` of direction `dir` meets a marked
-    /// voxel, 0 if none or if the ray is not on the table.
+    /// A layer at or before the last one (≥ 1) at which lattice ray `(a, b)` of direction
+    /// `dir` lies in an occupied block: the least of those of its tile's rays; 0 if none or if
+    /// the ray is not on the table.
     pub fn last_layer(&self, dir: Direction, a: i64, b: i64) -> u16 {
         let n = self.big_n;
         if a.abs() > n || b.abs() > n {
             return 0;
         }
-        self.last[dir.index() as usize][(a + n) as usize * self.side + (b + n) as usize]
+        let (ta, tb) = ((a + n) as usize / TILE, (b + n) as usize / TILE);
+        self.last[dir.index() as usize][ta * self.side + tb]
     }
 }
 
@@ -147,6 +156,21 @@ fn fill<F: FracBits>(
         }
     }
     last
+}
+
+/// The per-ray table `last` (`side` × `side`) reduced to TILE × TILE tiles, each the least of
+/// its rays' values (a partial tile at the edge: of the rays it has).
+fn tiled(last: &[u16], side: usize) -> Vec<u16> {
+    let tiles = side.div_ceil(TILE);
+    let mut out = vec![u16::MAX; tiles * tiles];
+    for (a, row) in last.chunks_exact(side).enumerate() {
+        let t_row = &mut out[a / TILE * tiles..][..tiles];
+        for (b, &k) in row.iter().enumerate() {
+            let t = &mut t_row[b / TILE];
+            *t = (*t).min(k);
+        }
+    }
+    out
 }
 
 /// The lattice rays `a` ∈ [−N, N] (2^−f units) whose transverse voxel at reach `t` is in
@@ -226,8 +250,9 @@ mod tests {
         }
     }
 
-    /// Against the per-ray oracle: the tabled layer of every lattice ray is the last layer ≥ 1
-    /// (with a nonzero reach) at which its voxel lies in an occupied block; and over rectangles
+    /// Against the per-ray oracle: the filled layer of every lattice ray is the last layer ≥ 1
+    /// (with a nonzero reach) at which its voxel lies in an occupied block, a tile keeps the
+    /// least of its rays'; and over rectangles
     /// of rays from every layer, the shortcut answers exactly as the summary's test.
     #[test]
     fn the_table_is_each_rays_last_occupied_block_and_answers_as_the_test() {
@@ -258,7 +283,9 @@ mod tests {
         for src in [source([5.0, 6.0, 4.0], false), source([3.4375, 8.25, 6.5], true)] {
             let far = FarDistance::<U0>::new(n - 1).unwrap();
             let table = Shortcut::new(&summary as &dyn FrustumTest<U0>, &src, far, &blocks).unwrap();
+            let side = (2 * big_n + 1) as usize;
             for dir in Direction::ALL {
+                let full = fill(dir, &src, far, big_n, side, &blocks);
                 for a in -big_n..=big_n {
                     for b in -big_n..=big_n {
                         let want = (1..n)
@@ -273,7 +300,20 @@ mod tests {
                             })
                             .max()
                             .unwrap_or(0);
-                        assert_eq!(table.last_layer(dir, a, b) as u32, want, "{dir:?} ray ({a}, {b})");
+                        assert_eq!(
+                            full[(a + big_n) as usize * side + (b + big_n) as usize] as u32,
+                            want,
+                            "{dir:?} ({a}, {b})"
+                        );
+                        // The tile's value: the least of its rays'.
+                        let (ta, tb) = ((a + big_n) / TILE as i64, (b + big_n) / TILE as i64);
+                        let tile = |x: i64, t: i64| (x + big_n) / TILE as i64 == t;
+                        let least = (-big_n..=big_n)
+                            .filter(|&x| tile(x, ta))
+                            .flat_map(|x| (-big_n..=big_n).filter(move |&y| tile(y, tb)).map(move |y| (x, y)))
+                            .map(|(x, y)| full[(x + big_n) as usize * side + (y + big_n) as usize])
+                            .min();
+                        assert_eq!(Some(table.last_layer(dir, a, b)), least, "{dir:?} tile of ({a}, {b})");
                     }
                 }
                 for _ in 0..300 {
