@@ -347,9 +347,6 @@ pub trait ColumnOccluders: core::fmt::Debug + Sync {
     fn seen(&self, _x: crate::units::Coord, _y: crate::units::Coord) -> Option<SeenTable<'_>> {
         None
     }
-    /// A hint that column (x, y) is visited soon: a host may start fetching what a visit reads
-    /// first (its target, where its triangles start). Reads and changes nothing a cell sees.
-    fn hint(&self, _x: crate::units::Coord, _y: crate::units::Coord) {}
 }
 
 /// Most triangles one [`ExactVisit`] reads tests for (those it cannot decide on the whole

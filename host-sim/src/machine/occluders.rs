@@ -13,7 +13,7 @@ use cell_core::receiver::{crosses_any, target, Target};
 use cell_core::units::Coord;
 
 use crate::machine::grid::{neighbour, Grid};
-use crate::machine::tiles::{par_map, prefetch};
+use crate::machine::tiles::par_map;
 use crate::machine::triangles::ColumnTriangles;
 
 /// Cycles of the contact exchange ([`cell_core::receiver`], "The neighbours' triangles"), once
@@ -73,11 +73,5 @@ impl ColumnOccluders for SourceOccluders<'_> {
 
     fn seen(&self, x: Coord, y: Coord) -> Option<SeenTable<'_>> {
         Some(SeenTable { ids: self.triangles.ids(x as u32, y as u32), seen: &self.seen })
-    }
-
-    fn hint(&self, x: Coord, y: Coord) {
-        let i = y as usize * self.n as usize + x as usize;
-        prefetch(self.targets.as_ptr().wrapping_add(i));
-        prefetch(self.triangles.index_slot(x as u32, y as u32));
     }
 }

@@ -96,11 +96,6 @@ impl ColumnTriangles {
         self.start[i] as usize..self.start[i + 1] as usize
     }
 
-    /// Where column (x, y)'s entry in the column index lies (reads nothing: for a prefetch).
-    pub fn index_slot(&self, x: u32, y: u32) -> *const u32 {
-        self.start.as_ptr().wrapping_add((y * self.n + x) as usize)
-    }
-
     /// Beside each of column (x, y)'s triangles, its index in [`ColumnTriangles::distinct`].
     pub fn ids(&self, x: u32, y: u32) -> &[u32] {
         &self.ids[self.range(x, y)]

@@ -859,9 +859,6 @@ impl<F: FracBits, const D: usize> StepCtx<'_, '_, F, D> {
     fn prefetch(&self, cj: &HostLightCell<F>, j: usize) {
         prefetch_cell(cj, 4);
         prefetch_ends(&self.grid.cells[j].store);
-        if let Some(o) = self.env.occluders {
-            o.hint(cj.x, cj.y);
-        }
         if self.defer_pops {
             // The buffers its pending pops will shift.
             let t = taken_mask(self.taken_ports[j].load(Relaxed));
