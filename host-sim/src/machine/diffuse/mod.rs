@@ -631,16 +631,15 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
         let mut reports = Vec::new();
         let mut visited = cfg.record_visits.then(|| vec![false; (grid.n * grid.n * grid.depth) as usize]);
         let mut phases = PhaseSeconds::default();
+        // The summary's occupied blocks, the same for every source: what each source's
+        // frustum shortcut is filled from (not for a radiosity shot's few rays).
+        let blocks = self.frustum.filter(|_| self.shot.is_none()).map(|s| (s, s.occupied_blocks()));
         for (si, src) in self.sources.iter().enumerate() {
             let mut lap = Lap::start();
             let occluders = (cfg.rule == LitRule::Exact).then(|| SourceOccluders::new(self.grid, src, self.far));
             let mut env = self.env(src, si, &order, occluders.as_ref().map(|o| o as &dyn ColumnOccluders));
-            // The host's table of the frustum test's commonest answer (same answers, faster;
-            // not for a radiosity shot's few rays).
-            let shortcut = self
-                .frustum
-                .filter(|_| self.shot.is_none())
-                .and_then(|s| Shortcut::new(s.test(), src, self.far, &s.occupied_blocks()));
+            // The host's table of the frustum test's commonest answer (same answers, faster).
+            let shortcut = blocks.as_ref().and_then(|(s, b)| Shortcut::new(s.test(), src, self.far, b));
             if let Some(s) = &shortcut {
                 env.frustum = Some(s);
             }
