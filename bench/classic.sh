@@ -2,7 +2,9 @@
 # Classic shadow rays against beam diffusion (thesis §4.1.6–4.1.7): for each scene and
 # n, render with both methods against the f64 reference, and run the classic phase once more
 # with every occupied voxel emitting (the thesis's ray count ΣS_i) to estimate the occupancy at
-# which diffusion starts to win on messages. Writes bench-out/classic.csv and prints a table.
+# which diffusion starts to win on messages. Each scene in its default view, both methods as
+# `render` ships them (exact occluders). Writes bench-out/classic.csv and bench-out/classic.md
+# (BENCHMARKS.md's two tables, with command, commit, machine and date).
 # NS (default "64 128") and SCENES choose the runs; n = 256 takes minutes per scene, 512 ~10 min;
 # the every-voxel classic run is skipped above ALL_MAX_N (default 128). APPEND=1 adds rows to an
 # existing CSV (the table and plot then cover every row). EXTRA adds options to both renders
@@ -24,14 +26,14 @@ CSV=bench-out/classic.csv
 for n in $NS; do
   for scene in $SCENES; do
     o=bench-out/classic-$scene-$n
-    $B render "$scene" --n "$n" --view fitted --reference --quiet ${EXTRA:-} --out "$o-diffusion.png" --stats "$o-diffusion.json" 2> "$o-diffusion.log"
-    $B render "$scene" --n "$n" --view fitted --reference --quiet ${EXTRA:-} --lighting classic --out "$o-classic.png" --stats "$o-classic.json" 2> "$o-classic.log"
+    $B render "$scene" --n "$n" --reference --quiet ${EXTRA:-} --out "$o-diffusion.png" --stats "$o-diffusion.json" 2> "$o-diffusion.log"
+    $B render "$scene" --n "$n" --reference --quiet ${EXTRA:-} --lighting classic --out "$o-classic.png" --stats "$o-classic.json" 2> "$o-classic.log"
     rm -f "$o-all.json" "$o-all.log"
     if (( n <= ALL_MAX_N )); then
-      $B light "$scene" --n "$n" --view fitted --sigma naive --contour projected --quiet --lighting classic --emitters all \
+      $B light "$scene" --n "$n" --sigma naive --contour projected --quiet --lighting classic --emitters all \
         --stats "$o-all.json" 2> "$o-all.log"
     fi
-    $B voxelize "$scene" --n "$n" --view fitted --sigma naive --contour projected --quiet --stats "$o-vox.json" 2> /dev/null
+    $B voxelize "$scene" --n "$n" --sigma naive --contour projected --quiet --stats "$o-vox.json" 2> /dev/null
     python3 - "$o" "$scene" "$n" >> "$CSV" <<'PY'
 import json, os, re, sys
 o, scene, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
@@ -61,6 +63,10 @@ for method in ("diffusion", "classic", "all"):
 PY
   done
 done
+. bench/lib.sh
+{
+bench_header "NS=\"$NS\" SCENES=\"$SCENES\" ALL_MAX_N=$ALL_MAX_N${EXTRA:+ EXTRA=\"$EXTRA\"}${APPEND:+ APPEND=$APPEND} bash bench/classic.sh"
+echo
 python3 - "$CSV" <<'PY'
 import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
@@ -91,6 +97,7 @@ for (scene, n), m in by.items():
     cross = 100.0 * int(d["messages"]) / (per * n**3 * sources)
     print(f"| {scene} | {n} | {float(a['occupancy_pct']):.2f} | {per:.1f} | {d['messages']} | {cross:.2f} | {300 / n:.2f} |")
 PY
+} | tee bench-out/classic.md
 # The plot (matplotlib in a venv under bench-out/, not a dependency of the product).
 # shellcheck source=bench/venv.sh
 . "$(dirname "$0")/venv.sh"

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# The simulator at scale. Renders each scene at each n (default configuration: f = 0,
-# FA = 16, wavefront + merge, skips on, no f64 reference) and records wall time per phase,
-# simulated cycles per phase, peak RSS; then fits the growth exponent of wall time in n.
-# Writes bench-out/scale.csv and prints one markdown table per scene.
+# The simulator at scale. Renders each scene at each n as `host-sim render` ships (each scene in
+# its default view, no f64 reference) and records wall time per phase, simulated cycles per
+# phase, peak RSS; then fits the growth exponent of wall time in n. Writes bench-out/scale.csv
+# and bench-out/scale.md (one markdown table per scene, with command, commit, machine, date).
 #
 #   SCENES="cornell bureau1" NS="128 256" THREADS="1 2" bash bench/scale.sh
 #
@@ -28,16 +28,15 @@ for scene in $SCENES; do
   extra=()
   if [[ $scene == cow70k-floor ]]; then
     src=bench-out/cow70k-floor.obj
-    # In front of the cow, like cow-floor's own light; the open scene runs with the empty-frustum
-    # skip (same image; session 5's table is without it: SKIP_FRUSTUM=false).
-    extra=(--light 0.5,0.5,0.02 --skip-frustum "${SKIP_FRUSTUM:-true}")
+    # In front of the cow, like cow-floor's own light.
+    extra=(--light 0.5,0.5,0.02)
   fi
   for n in $NS; do
     for t in $THREADS; do
       js=bench-out/scale-$scene-$n-t$t.json
       rm -f "$js"
       status=ok
-      timeout "$LIMIT" $B render "$src" --n "$n" --view fitted --threads "$t" --quiet "${extra[@]}" ${EXTRA:-} \
+      timeout "$LIMIT" $B render "$src" --n "$n" --threads "$t" --quiet "${extra[@]}" ${EXTRA:-} \
         --out "bench-out/scale-$scene-$n.png" --stats "$js" >/dev/null 2>bench-out/scale-err.txt || status=fail
       if [[ $status == fail ]]; then
         echo "$scene,$n,$t,,timeout_or_error,,,,,,,,,,," >> "$CSV"
@@ -56,6 +55,9 @@ PY
     done
   done
 done
+. bench/lib.sh
+{
+bench_header "SCENES=\"$SCENES\" NS=\"$NS\" THREADS=\"$THREADS\"${EXTRA:+ EXTRA=\"$EXTRA\"} bash bench/scale.sh"
 python3 - "$CSV" <<'PY'
 import csv, math, sys
 rows = [r for r in csv.DictReader(open(sys.argv[1]))]
@@ -79,3 +81,4 @@ for scene in dict.fromkeys(r["scene"] for r in rows):
         print(f"\nwall-time exponent in n ({t} threads, n = {', '.join(r['n'] for r in ok)}): "
               f"{fit([(int(r['n']), float(r['wall_s'])) for r in ok]):.2f}")
 PY
+} | tee "${CSV%.csv}.md"

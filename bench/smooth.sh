@@ -32,11 +32,8 @@ PY
     done
   done
 done
-dirty=$(git diff --quiet HEAD -- . 2> /dev/null || echo " (uncommitted changes)")
-echo "* command: \`bench/smooth.sh\` (NS=\"$NS\" SCENES=\"$SCENES\")"
-echo "* commit: $(git rev-parse --short HEAD)$dirty"
-echo "* machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'), $(awk '/MemTotal/ {printf "%.1f GiB", $2 / 1048576}' /proc/meminfo); $(uname -r)"
-echo "* date: $(date -u '+%F %H:%M UTC')"
+. bench/lib.sh
+bench_header "NS=\"$NS\" SCENES=\"$SCENES\" bash bench/smooth.sh"
 echo
 python3 - "$CSV" <<'PY'
 import csv, sys

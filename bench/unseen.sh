@@ -17,6 +17,9 @@
 #           bench-out/unseen/MESH-ROTATION.obj (vertices only: normals and texture coordinates
 #           dropped).
 #   APPEND=1 adds to the CSV instead of starting it anew.
+# Also writes bench-out/unseen.md: BENCHMARKS.md's table (per n and method: each mesh's mean /
+# worst shadow disagreement over its lights and rotations, all runs' mean / worst, the worst
+# PSNR, the mean light cycles), methods in METHODS order, with command, commit, machine, date.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MESHES=${MESHES:-"suzanne fandisk cow teapot"}
@@ -84,15 +87,33 @@ PY
    done
   done
 done
-python3 - "$CSV" <<'PY'
+. bench/lib.sh
+{
+  bench_header "NS=\"$NS\" METHODS=\"$METHODS\" ROTATE=\"$ROTATE\"${APPEND:+ APPEND=$APPEND} bash bench/unseen.sh"
+  echo
+  python3 - "$CSV" "$METHODS" <<'PY'
 import csv, sys, collections
 rows = list(csv.DictReader(open(sys.argv[1])))
+order = sys.argv[2].split()
+label = {"exact": "diffusion, exact occluders (the default)", "plane": "diffusion, plane rule",
+         "classic": "classic shadow rays, exact", "classic-plane": "classic shadow rays, plane rule",
+         "refined": "refined edges"}
+meshes = list(dict.fromkeys(r["mesh"].split("-")[0] for r in rows))
 by = collections.defaultdict(list)
 for r in rows:
-    by[(r['method'], r['n'])].append(r)
-print(f"{'method':8} {'n':>5} {'runs':>4} {'mean %':>7} {'worst %':>8}  worst run")
-for (m, n), rs in sorted(by.items()):
-    d = [float(r['shadow_disagreement_pct']) for r in rs]
-    w = max(rs, key=lambda r: float(r['shadow_disagreement_pct']))
-    print(f"{m:8} {n:>5} {len(rs):>4} {sum(d)/len(d):7.2f} {max(d):8.2f}  {w['mesh']} light {w['light']}")
+    by[(int(r["n"]), r["method"])].append(r)
+print("| n | method | " + " | ".join(meshes) + f" | all {max(len(v) for v in by.values())}: mean / worst | worst PSNR | mean cycles |")
+print("|---|---|" + "---|" * (len(meshes) + 3))
+pct = lambda rs: [float(r["shadow_disagreement_pct"]) for r in rs]
+for (n, m) in sorted(by, key=lambda k: (k[0], order.index(k[1]) if k[1] in order else 99)):
+    rs = by[(n, m)]
+    cells = []
+    for mesh in meshes:
+        d = pct([r for r in rs if r["mesh"].split("-")[0] == mesh])
+        cells.append(f"{sum(d) / len(d):.2f} / {max(d):.2f} %" if d else "–")
+    d = pct(rs)
+    cyc = sum(int(r["cycles"]) for r in rs) / len(rs)
+    print(f"| {n} | {label.get(m, m)} | " + " | ".join(cells) +
+          f" | {sum(d) / len(d):.2f} / {max(d):.2f} % | {min(float(r['psnr_db']) for r in rs):.1f} dB | {cyc:,.0f} |".replace(",", " "))
 PY
+} | tee bench-out/unseen.md

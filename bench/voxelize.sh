@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Benchmark `host-sim voxelize`: wave vs direct engine, fandisk and a ~70k-triangle mesh,
 # n = 256 and 512. Each configuration runs REPS times; the CSV keeps every run, the summary
-# prints medians. Usage: bash bench/voxelize.sh [OUT.csv]   (default bench-out/voxelize.csv)
+# prints medians (BENCHMARKS.md's table, with command, commit, machine and date; also written to
+# OUT with .md for .csv). Usage: bash bench/voxelize.sh [OUT.csv]   (default bench-out/voxelize.csv)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${1:-bench-out/voxelize.csv}
@@ -29,6 +30,10 @@ PY
     done
   done
 done
+. bench/lib.sh
+{
+bench_header "REPS=$REPS bash bench/voxelize.sh"
+echo
 python3 - "$OUT" <<'PY'
 import csv, sys, statistics as st
 rows = list(csv.DictReader(open(sys.argv[1])))
@@ -42,3 +47,4 @@ for k in sorted({key(r) for r in rows}):
     r0 = g["wave"][0]
     print(f"| {k[0]} | {k[1]} | {r0['facets']} | {r0['voxels']} | {r0['load_cycles']} | {w:.3f} | {d:.3f} | {w/d:.2f} | {rw:.0f} / {rd:.0f} |")
 PY
+} | tee "${OUT%.csv}.md"
