@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Which policy, sibling wait and skips (thesis §4.4.1; the skips are rc2's): `render SCENE --n N`
+# Which policy, sibling wait, skips and FIFO size (thesis §4.4.1; the skips are rc2's): `render SCENE --n N`
 # as shipped (the first row of each scene and n), then one option changed at a time. Policies,
 # the wait and the skips change which beams are processed when, never which voxels are lit, so
 # the table compares cycles, the lower bound LB, beams and messages (exact counts) and the lit
@@ -24,7 +24,9 @@ VARIANTS=("the default (radial + merge, no wait, every skip, 32 blocks)|"
   "sibling wait 4|--hold 4"
   "no hidden-voxel skip|--skip-hidden false"
   "8-block summary|--frustum-blocks 8"
-  "no receding / dead-direction skip|--skip-receding false --skip-dead-directions false")
+  "no receding / dead-direction skip|--skip-receding false --skip-dead-directions false"
+  "FIFO of 8 (FA = 8)|--fa 8"
+  "FIFO of 32 (FA = 32)|--fa 32")
 for n in $NS; do
   for scene in $SCENES; do
     for v in "${VARIANTS[@]}"; do
