@@ -1,5 +1,6 @@
-//! The grid every phase stands on (thesis §1.3, §3.4): n × n cells, cell (x, y) owning the
-//! voxel column {(x, y, z)} and talking only to its 8 neighbours ([`neighbour`]).
+//! The grid every phase stands on (thesis §1.3, the machine; §3.4, a column as dexels): n × n
+//! cells, cell (x, y) owning the voxel column {(x, y, z)} and talking only to its 8 neighbours
+//! ([`neighbour`]).
 //!
 //! * [`Grid`] — the cells (their dexels and lit state) and, for exact occluders, the triangles
 //!   each column keeps ([`triangles`], thesis §5.5.6); [`LightGrid`] the grid the lighting jobs

@@ -14,8 +14,9 @@
 //!
 //! Invariant: no beam is ever lost (the no-loss rule, §4.4.2) and no timing rule, link stack or
 //! schedule changes which rays a beam carries or where they stop — only cycles, messages and
-//! FIFO occupancy. Lighting stands on the grid, the links and the loaded scene; it knows
-//! nothing of shading, rays or radiosity.
+//! FIFO occupancy. Lighting stands on the grid, the links and the loaded scene; it imports
+//! nothing of shading, rays or radiosity (a radiosity shot is a diffusion it runs for them,
+//! `diffuse::diffuse_shot`).
 
 pub mod boards;
 pub mod diffuse;

@@ -11,7 +11,8 @@
 //!   lights are.
 //!
 //! Invariant: the wave is systolic — every cell has one upstream neighbour, a packet makes one
-//! hop per cycle, nothing contends — and every engine leaves the same dexels in every cell.
+//! hop per cycle, nothing contends — and every engine leaves the same dexels in every cell
+//! (`tests/tests/integration/wave_vs_direct.rs`, and [`wave_ref`] for the wave's counts).
 //! Loading stands on the grid and the links' trace tap only; it knows nothing of light.
 
 pub mod engines;

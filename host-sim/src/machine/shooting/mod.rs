@@ -7,8 +7,9 @@
 //! * [`indirect`] — showing the solution (radiosity thesis §1.3.1): each cell's indirect light
 //!   of its visible point, broadcast and costed, handed to shading as its ambient term.
 //!
-//! Invariant: energy is conserved by every shot — each ray's quanta are either absorbed by a
-//! patch or counted as leaving — and a shot's diffusion is the lighting phase's own, not a copy.
+//! Invariant (tested): per shot, quanta received (lost ones included) + quanta that left the grid
+//! = quanta emitted, exactly ([`shots::ShotLog::balanced`]); a shot's diffusion is the lighting
+//! phase's own, not a copy.
 //! Radiosity stands on the grid, the loaded scene and the lighting phase.
 
 pub mod indirect;
