@@ -22,7 +22,7 @@
 #
 # CSV columns: row, threads, rep, light_s (stats light.wall_seconds), beams, then one column per
 # phase in seconds: setup, emit, step, gather, links, pop, next, tally (see PhaseSeconds in
-# host-sim/src/machine/diffuse/mod.rs: step and links run in parallel, the others serially).
+# host-sim/src/machine/lighting/diffuse/mod.rs: step and links run in parallel, the others serially).
 set -euo pipefail
 
 die() { echo "host_phases: $*" >&2; exit 1; }

@@ -1,7 +1,7 @@
 //! What one board of a grid of boards does (the firmware's `board` image,
 //! `firmware/src/bin/board`), as sans-IO state machines the host can test: the **tile
 //! exercise** ([`tiles::TileBoard`]: a tile of cells that loads and lights a scene with the
-//! other boards, the real counterpart of host-sim's `machine::async_tiles`) and the
+//! other boards, the real counterpart of host-sim's `machine::lighting::boards`) and the
 //! **termination exercise** ([`safra::SafraBoard`]: a synthetic diffusing computation whose end
 //! the boards detect with Safra's token ring, `cell_core::termination`).
 //!

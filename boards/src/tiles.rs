@@ -1,7 +1,7 @@
 //! The tile exercise (tests/tests/integration/mcu_tiles.rs on QEMU boards): each board holds
 //! a tile of cells of an n × n grid and runs the loading wave and one source's lighting on it,
 //! asynchronously (no global cycle), with cell-core's own cells — the real counterpart of
-//! host-sim's `machine::async_tiles`, and the firmware's side of §4.4.4 (boards that detect a
+//! host-sim's `machine::lighting::boards`, and the firmware's side of §4.4.4 (boards that detect a
 //! phase's end themselves). [`TileBoard`] is one board, driven by [`TileBoard::poll`] with its
 //! links; the exercise has no notion of time (only the links' retransmissions have, below it).
 //!

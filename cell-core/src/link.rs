@@ -11,9 +11,9 @@
 //! * [`PerfectLink`] delivers into an [`Inbox`] at once: the host grid's default;
 //! * [`HalLink`] runs over `embedded-hal` (the neighbour's ready line an [`InputPin`], the frame
 //!   on an [`SpiDevice`]): the firmware;
-//! * host-sim's `FaultInjector<L>` (`machine/faults.rs`) wraps any link with a seeded lossy wire
+//! * host-sim's `FaultInjector<L>` (`machine/links/faults.rs`) wraps any link with a seeded lossy wire
 //!   (corrupt, drop, delay) and stop-and-wait acknowledgement, and host-sim's `Tracer<L>`
-//!   (`machine/tap.rs`) wraps any link and records every beam the far end took; they compose
+//!   (`machine/links/tap.rs`) wraps any link and records every beam the far end took; they compose
 //!   (a traced faulty link is a `Tracer<FaultInjector<PerfectLink>>`);
 //! * the trace replay's grant link ([`crate::trace`]) is ready on the granted port only.
 //!

@@ -72,7 +72,7 @@
 //! `Σ cᵢ = 0` and whitens every node; no message is received after T, so at the start of
 //! round r + 2 every node is white, and round r + 2 is white with sum 0: node 0 declares at its
 //! end. Termination is declared **within two whole rounds after the round in progress at
-//! quiescence**: at most 3N token hops after T (host-sim's `machine::async_tiles` checks this
+//! quiescence**: at most 3N token hops after T (host-sim's `machine::lighting::boards` checks this
 //! bound on every declaration).
 //!
 //! # Counter widths

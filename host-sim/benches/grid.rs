@@ -11,9 +11,9 @@ use std::time::Duration;
 use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::light::Policy;
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
-use host_sim::machine::diffuse::{diffuse, source_at, LightConfig};
 use host_sim::machine::grid::Grid;
-use host_sim::machine::loaded::{load_scene, resolve_lights};
+use host_sim::machine::lighting::diffuse::{diffuse, source_at, LightConfig};
+use host_sim::machine::loading::loaded_scene::{load_scene, resolve_lights};
 use host_sim::precompute::{prepare, LoadConfig};
 use host_sim::scene;
 

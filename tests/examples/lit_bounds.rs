@@ -74,8 +74,8 @@ use cell_core::receiver::target;
 use cell_core::shade::NormalMode;
 use cell_core::visible::VisibleSurface;
 use host_sim::jobs::render::{reference_image, RenderConfig};
-use host_sim::machine::loaded::LoadedScene;
-use host_sim::machine::shade::Seen;
+use host_sim::machine::loading::loaded_scene::LoadedScene;
+use host_sim::machine::shading::pixels::Seen;
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
 use host_sim::truth::visibility::Reference;
 use rayon::prelude::*;
@@ -1050,11 +1050,12 @@ fn main() {
         std::process::exit(1)
     });
     let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
-    let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).expect("load");
-    let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &cli_lights).unwrap_or_else(|e| {
-        eprintln!("{e:#}");
-        std::process::exit(2)
-    });
+    let loaded = host_sim::machine::loading::loaded_scene::load_scene(&mesh, &cfg).expect("load");
+    let lights =
+        host_sim::machine::loading::loaded_scene::resolve_lights(&mesh, &loaded, &cli_lights).unwrap_or_else(|e| {
+            eprintln!("{e:#}");
+            std::process::exit(2)
+        });
     let reference = reference_image(
         &mesh,
         &loaded,
@@ -1074,12 +1075,15 @@ fn main() {
     let (surfaces, columns) = (common::surfaces_of(&loaded.grid), common::columns_of(&loaded.grid));
     let visible_of = |x: i64, y: i64| loaded.grid.cell(x as u32, y as u32).visible;
     println!("{} voxels with two planes or more, {} with a triangle", sampled.creases.len(), sampled.touched.len());
-    let cell_lights = host_sim::machine::shade::point_lights(&lights);
+    let cell_lights = host_sim::machine::shading::pixels::point_lights(&lights);
     println!(
         "{scene} n = {n}: variant, shadow disagreement, PSNR, pixels darker / brighter than the reference (light 1)"
     );
     for (i, light) in lights.iter().enumerate() {
-        let src = host_sim::machine::diffuse::source_at(i, *light, n).expect("source").pos.map(|c| c.to_bits() as i64);
+        let src = host_sim::machine::lighting::diffuse::source_at(i, *light, n)
+            .expect("source")
+            .pos
+            .map(|c| c.to_bits() as i64);
         let lead = [0, 1, 2].map(|w| (src[w] - 16 * source_voxel(src)[w]) as f64 / 16.0);
         println!("light {}: voxel {:?}, the light {lead:+?} voxel from its centre", i + 1, source_voxel(src));
     }
@@ -1091,8 +1095,10 @@ fn main() {
             }
         }
         for (i, light) in lights.iter().enumerate().filter(|_| var.receiver != Receiver::Reference) {
-            let src =
-                host_sim::machine::diffuse::source_at(i, *light, n).expect("source").pos.map(|c| c.to_bits() as i64);
+            let src = host_sim::machine::lighting::diffuse::source_at(i, *light, n)
+                .expect("source")
+                .pos
+                .map(|c| c.to_bits() as i64);
             let f = match var.receiver {
                 Receiver::Window | Receiver::Truth | Receiver::Reference => 0,
                 Receiver::Point => POINT_F,
@@ -1150,7 +1156,8 @@ fn main() {
             }
         }
         let seen = Seen::Surface(Box::new(move |x, y| lit.get(&[x as i64, y as i64]).copied().unwrap_or(0)));
-        let img = host_sim::machine::shade::shade_grid_with(&mesh, &loaded, &cell_lights, &seen, NormalMode::Facet);
+        let img =
+            host_sim::machine::shading::pixels::shade_grid_with(&mesh, &loaded, &cell_lights, &seen, NormalMode::Facet);
         let c = host_sim::truth::compare::compare(&img.rgb, &img.covered, &img.lit, &reference);
         let (mut darker, mut brighter) = (0, 0);
         for i in (0..img.lit.len()).filter(|&i| img.covered[i] && reference.covered[i]) {

@@ -7,7 +7,7 @@ use cell_core::light::Policy;
 use cell_core::trace::{write_event, Event, Parser};
 use cell_core::wire::{KIND_REFLECT_RAY, KIND_SHADOW_RAY};
 use host_sim::jobs::trace::TraceJob;
-use host_sim::machine::diffuse::{source_at, LightConfig};
+use host_sim::machine::lighting::diffuse::{source_at, LightConfig};
 use host_sim::precompute::LoadConfig;
 use host_sim::scene::Mesh;
 
@@ -23,8 +23,8 @@ pub fn cornell_job_cells(n: u32) -> (Mesh, LoadConfig, LightConfig, Vec<[u32; 2]
         record_visits: false,
         ..host_sim::config::plane_rule()
     };
-    let scene = host_sim::machine::loaded::load_scene(&mesh, &load).unwrap();
-    let lights = host_sim::machine::loaded::resolve_lights(&mesh, &scene, &[]).unwrap();
+    let scene = host_sim::machine::loading::loaded_scene::load_scene(&mesh, &load).unwrap();
+    let lights = host_sim::machine::loading::loaded_scene::resolve_lights(&mesh, &scene, &[]).unwrap();
     let s = source_at(0, lights[0], n).unwrap().voxel();
     (mesh, load, light, vec![[3, 3], [n / 2, n / 2], [s[0] as u32, s[1] as u32]])
 }

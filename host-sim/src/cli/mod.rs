@@ -158,7 +158,7 @@ impl From<PolicyArg> for cell_core::light::Policy {
     }
 }
 
-/// Timing rules of the diffusion cycle model (`machine::timing`).
+/// Timing rules of the diffusion cycle model (`machine::lighting::timing`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum TimingArg {
     /// rc2's: one message per link and cycle, FA counts the beam in process, one initial
@@ -362,8 +362,8 @@ pub struct LightOpts {
     /// 0 ..= 1 summing to at most 1; a delayed frame is held 1 ..= delay-cycles cycles, default
     /// 8), and delivered by acknowledgement and retransmission. Same lit voxels and image, more
     /// cycles.
-    #[arg(long, value_parser = clap::value_parser!(crate::machine::faults::LinkFaults))]
-    pub link_faults: Option<crate::machine::faults::LinkFaults>,
+    #[arg(long, value_parser = clap::value_parser!(crate::machine::links::faults::LinkFaults))]
+    pub link_faults: Option<crate::machine::links::faults::LinkFaults>,
     /// Stop with a stall report (the blocked cells and their queues) after this many cycles in
     /// a row without progress while beams are in flight: a deadlock, or a dead link.
     /// Default: the preset's (64).
@@ -497,11 +497,11 @@ pub enum SteppingArg {
     AllCells,
 }
 
-impl From<SteppingArg> for crate::machine::diffuse::Stepping {
+impl From<SteppingArg> for crate::machine::lighting::diffuse::Stepping {
     fn from(a: SteppingArg) -> Self {
         match a {
-            SteppingArg::Active => crate::machine::diffuse::Stepping::Active,
-            SteppingArg::AllCells => crate::machine::diffuse::Stepping::AllCells,
+            SteppingArg::Active => crate::machine::lighting::diffuse::Stepping::Active,
+            SteppingArg::AllCells => crate::machine::lighting::diffuse::Stepping::AllCells,
         }
     }
 }

@@ -21,7 +21,7 @@ use crate::jobs::scenes::SubdivideOptions;
 use crate::jobs::table::{NamedTiming, TableOptions};
 use crate::jobs::trace::TraceOptions;
 use crate::jobs::voxelize::VoxelizeOptions;
-use crate::machine::timing::{Emission, Timing};
+use crate::machine::lighting::timing::{Emission, Timing};
 
 impl LightOpts {
     /// The preset asked for (`--preset`, `--thesis`), or the job's own.
@@ -347,7 +347,7 @@ mod tests {
         assert_eq!(render("render --thesis").unwrap().light.run, Preset::Thesis.config());
         assert_eq!(light("light --preset thesis").unwrap().light.run, Preset::Thesis.config());
         let r = render("render --preset light --fa 8 --n 64 --sigma naive").unwrap().light.run;
-        assert_eq!(r.light, crate::machine::diffuse::LightConfig { fa: 8, ..Preset::Light.light() });
+        assert_eq!(r.light, crate::machine::lighting::diffuse::LightConfig { fa: 8, ..Preset::Light.light() });
         assert_eq!((r.load.n, r.load.thickness), (64, crate::precompute::Thickness::Naive));
         let r = render("render --lit-rule plane --rays-from voxel").unwrap().light.run.light;
         assert_eq!((r.rule, r.rays), (cell_core::lit::LitRule::Plane, cell_core::beam::Origin::SourceVoxel));

@@ -7,9 +7,9 @@ use cell_core::reflect::ReflectNormal;
 use cell_core::route::RoutePolicy;
 
 use crate::jobs::radiosity::RadiositySettings;
-use crate::machine::classic::ClassicConfig;
-use crate::machine::indirect::Display;
-use crate::machine::reflect::ReflectConfig;
+use crate::machine::rays::classic::ClassicConfig;
+use crate::machine::rays::mirror::ReflectConfig;
+use crate::machine::shooting::indirect::Display;
 
 /// How the lighting jobs compute the lit state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -129,7 +129,7 @@ pub struct ReflectOpts {
 
 impl ReflectOpts {
     /// The configuration (rays use the classic options' connectivity and routing).
-    pub fn config(&self, fa: usize, classic: &crate::machine::classic::ClassicConfig) -> ReflectConfig {
+    pub fn config(&self, fa: usize, classic: &crate::machine::rays::classic::ClassicConfig) -> ReflectConfig {
         ReflectConfig {
             depth: self.reflections,
             threshold: self.reflect_threshold,

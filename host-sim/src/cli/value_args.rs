@@ -1,8 +1,8 @@
 //! Command-line mirrors of the domain's option enums: the domain types stay free of clap; each
 //! mirror carries the `--help` text of its values and converts into the domain type.
 
-use crate::machine::diffuse::FrustumBlocks;
-use crate::machine::load::Engine;
+use crate::machine::lighting::diffuse::FrustumBlocks;
+use crate::machine::loading::engines::Engine;
 use crate::precompute::{Contour, Thickness};
 
 /// Plane thickness (§3.5, §3.8).

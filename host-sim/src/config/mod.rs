@@ -17,10 +17,10 @@ use cell_core::beam::Origin;
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 
-use crate::machine::capacity::TRIANGLE_CAP;
-use crate::machine::diffuse::{FrustumBlocks, LightConfig, Stepping, DEFAULT_STALL_CYCLES};
-use crate::machine::faults::LinkFaults;
-use crate::machine::timing::Timing;
+use crate::machine::grid::capacity::TRIANGLE_CAP;
+use crate::machine::lighting::diffuse::{FrustumBlocks, LightConfig, Stepping, DEFAULT_STALL_CYCLES};
+use crate::machine::lighting::timing::Timing;
+use crate::machine::links::faults::LinkFaults;
 use crate::precompute::{Contour, LoadConfig, Thickness};
 
 /// Fraction bits f every preset runs: f = 1 is the accuracy knob for faces lit at extreme
@@ -240,8 +240,8 @@ impl RunConfig {
     pub fn validate(&self, needs: Needs) -> Result<()> {
         let l = &self.light;
         self.load.validate()?;
-        if crate::machine::diffuse::light_cell_bytes(l.frac_bits).is_none() {
-            return Err(crate::machine::diffuse::unsupported_frac_bits(l.frac_bits));
+        if crate::machine::lighting::diffuse::light_cell_bytes(l.frac_bits).is_none() {
+            return Err(crate::machine::lighting::diffuse::unsupported_frac_bits(l.frac_bits));
         }
         if l.skip_hidden && !l.lit_visible_only {
             bail!(
@@ -287,7 +287,7 @@ impl RunConfig {
             n: self.load.n,
             frac_bits: l.frac_bits,
             fa: l.fa,
-            policy: crate::machine::lighting::policy_name(l.policy),
+            policy: crate::machine::lighting::run::policy_name(l.policy),
             merge: l.merge,
             timing: if l.timing == Timing::THESIS {
                 "thesis"

@@ -8,9 +8,9 @@ use anyhow::Result;
 use cell_core::light::Policy;
 use parry3d_f64::math::Vector;
 
-use crate::machine::diffuse::{LightConfig, Lighting};
-use crate::machine::lighting::{run_diffusion, LightStats};
-use crate::machine::loaded::{load_scene, resolve_lights, voxel_to_world, LoadedScene};
+use crate::machine::lighting::diffuse::{LightConfig, Lighting};
+use crate::machine::lighting::run::{run_diffusion, LightStats};
+use crate::machine::loading::loaded_scene::{load_scene, resolve_lights, voxel_to_world, LoadedScene};
 use crate::precompute::LoadConfig;
 use crate::report::files::create;
 use crate::scene::Mesh;

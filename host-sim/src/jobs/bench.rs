@@ -17,10 +17,10 @@ use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
 
 use crate::jobs::render::{reference_image, render, RenderConfig, RenderInput, RenderLighting, RenderStats};
-use crate::machine::classic::ClassicConfig;
-use crate::machine::diffuse::LightConfig;
-use crate::machine::lighting::policy_name;
-use crate::machine::loaded::{load_scene, resolve_lights};
+use crate::machine::lighting::diffuse::LightConfig;
+use crate::machine::lighting::run::policy_name;
+use crate::machine::loading::loaded_scene::{load_scene, resolve_lights};
+use crate::machine::rays::classic::ClassicConfig;
 use crate::precompute::{Contour, LoadConfig, Thickness};
 use crate::report::pareto::{pareto_front, plot_pareto, ParetoPoint};
 use crate::scene::Mesh;
@@ -282,7 +282,7 @@ fn measure(mesh: &Mesh, n: u32, k: &Knobs, reference: &mut Option<RefImage>) -> 
     );
     let rcfg = if k.refine {
         let rays = ClassicConfig {
-            fa: k.fa.min(crate::machine::capacity::SHADOW_FA_CAP),
+            fa: k.fa.min(crate::machine::grid::capacity::SHADOW_FA_CAP),
             connectivity: cell_core::ray::Connectivity::Six,
             route: cell_core::route::RoutePolicy::Adaptive,
             all_voxels: false,
@@ -304,7 +304,7 @@ fn measure(mesh: &Mesh, n: u32, k: &Knobs, reference: &mut Option<RefImage>) -> 
     let cycles = st.light.load_cycles + light_cycles + st.shade_cycles;
     // A cell compiled for this FIFO size (the host compiles FA_CAP, limits at run time), with
     // the stores the run uses (the column's triangle store under exact occluders).
-    let bytes = st.bytes_per_cell - (crate::machine::capacity::FA_CAP - k.fa) * st.light.bytes_beam_message;
+    let bytes = st.bytes_per_cell - (crate::machine::grid::capacity::FA_CAP - k.fa) * st.light.bytes_beam_message;
     Ok(Measured { stats: st, cmp, light_cycles, cycles, bytes })
 }
 

@@ -5,17 +5,17 @@
 //! Used by `bench/compare.py` to cast exact shadow rays with Embree from the same voxels toward
 //! the same lights. Voxel (x, y, z) (binvox indexing) has its centre at world
 //! `origin + (v + ½)·voxel` on each axis, and a light at voxel-unit position p is at world
-//! `origin + (p + ½)·voxel` ([`crate::machine::loaded::voxel_to_world`]). Polygons are written as
+//! `origin + (p + ½)·voxel` ([`crate::machine::loading::loaded_scene::voxel_to_world`]). Polygons are written as
 //! triangle fans over their original vertices.
 
 use std::io::Write;
 
 use anyhow::Result;
 
-use crate::machine::diffuse::Lighting;
 use crate::machine::grid::LightGrid;
-use crate::machine::lighting::LightStats;
-use crate::machine::loaded::voxel_to_world;
+use crate::machine::lighting::diffuse::Lighting;
+use crate::machine::lighting::run::LightStats;
+use crate::machine::loading::loaded_scene::voxel_to_world;
 use crate::precompute::Fit;
 use crate::scene::Mesh;
 

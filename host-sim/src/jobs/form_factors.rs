@@ -154,9 +154,10 @@ pub struct BeamShot {
 /// (the thesis's lit rule, its source pushed off the patch), on the figure's scene loaded at
 /// grid side `n`.
 pub fn beam_shot(distance: f64, n: u32) -> Result<BeamShot> {
-    use crate::machine::radiosity::{shot_form_factors, RadiosityConfig};
+    use crate::machine::shooting::shots::{shot_form_factors, RadiosityConfig};
     let mesh = figure_mesh(distance);
-    let scene = crate::machine::loaded::load_scene(&mesh, &crate::precompute::LoadConfig::watertight(n))?;
+    let scene =
+        crate::machine::loading::loaded_scene::load_scene(&mesh, &crate::precompute::LoadConfig::watertight(n))?;
     let patches = crate::scene::patches::subdivide(&mesh, 1e9, 16)?;
     let cfg = RadiosityConfig::new(crate::config::Preset::Light.light(), 0.0, 1);
     let patch_of = |face: usize| patches.patches.iter().position(|p| p.face == face).expect("one patch per face");
@@ -166,7 +167,7 @@ pub fn beam_shot(distance: f64, n: u32) -> Result<BeamShot> {
     // centre plane in z, from the source's position in x and y.
     let pos = source.pos.map(|c| c.to_num::<f64>());
     let v = [pos[0], pos[1], f64::from(source.voxel()[2])];
-    let apex = Vector::from(crate::machine::loaded::voxel_to_world(&scene.fit, v));
+    let apex = Vector::from(crate::machine::loading::loaded_scene::voxel_to_world(&scene.fit, v));
     let sq = figure::squares(distance);
     Ok(BeamShot {
         computed: std::array::from_fn(|k| ff[patch_of(k + 1)]),
@@ -211,9 +212,9 @@ pub fn beam_rays(d: u64) -> u64 {
 /// * 2.3: the memory the cells add for radiosity ([`bytes_per_cell_added`] per cell, over the
 ///   n² cells), against one projection surface's.
 ///
-/// [`bytes_per_cell_added`]: crate::machine::radiosity::bytes_per_cell_added
+/// [`bytes_per_cell_added`]: crate::machine::shooting::shots::bytes_per_cell_added
 pub fn beam_cells() -> Result<Vec<tables::Cell>> {
-    let bytes = crate::machine::radiosity::bytes_per_cell_added() as f64;
+    let bytes = crate::machine::shooting::shots::bytes_per_cell_added() as f64;
     let mut out = Vec::new();
     for (i, &r) in tables::ROWS.iter().enumerate() {
         let d = u64::from(beam_far_equivalent(r)?);

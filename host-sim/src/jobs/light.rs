@@ -7,10 +7,10 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 
 use crate::config::{RunConfig, RunSummary};
-use crate::machine::classic::{run_classic, ClassicConfig, ClassicLighting};
-use crate::machine::diffuse::{LightConfig, Lighting};
-use crate::machine::lighting::{run_diffusion, LightStats};
-use crate::machine::loaded::{load_scene, resolve_lights, LoadedScene};
+use crate::machine::lighting::diffuse::{LightConfig, Lighting};
+use crate::machine::lighting::run::{run_diffusion, LightStats};
+use crate::machine::loading::loaded_scene::{load_scene, resolve_lights, LoadedScene};
+use crate::machine::rays::classic::{run_classic, ClassicConfig, ClassicLighting};
 use crate::precompute::LoadConfig;
 use crate::report::files::{create, write_json};
 use crate::report::progress;
@@ -97,7 +97,7 @@ pub fn run(o: &LightOptions) -> Result<()> {
         bail!(
             "{} lit marks did not fit a cell's lit store ({} runs per column)",
             stats.lit_overflows,
-            crate::machine::capacity::LIT_CAP
+            crate::machine::grid::capacity::LIT_CAP
         );
     }
     Ok(())
@@ -224,5 +224,5 @@ fn print_classic_summary(run: &RunConfig, lights: usize, cl: &ClassicLighting, s
         stats.lit_voxels,
         stats.wall_seconds
     );
-    eprintln!("  {}", crate::machine::classic::summary(&cl.totals));
+    eprintln!("  {}", crate::machine::rays::classic::summary(&cl.totals));
 }

@@ -1,5 +1,5 @@
 //! The `radiosity` job: progressive radiosity on the grid (radiosity thesis §1.3.2, §3.4;
-//! [`crate::machine::radiosity`]), per-patch results and per-shot costs as CSV, and with
+//! [`crate::machine::shooting::shots`]), per-patch results and per-shot costs as CSV, and with
 //! `--reference` the f64 solver on the same patches ([`crate::truth::radiosity`]) for the
 //! per-patch RMS error — the machine's and direct light's (the emitters' shots only).
 
@@ -10,9 +10,9 @@ use std::time::Instant;
 use anyhow::{anyhow, bail, Result};
 use cell_core::beam::frac::U0;
 
-use crate::machine::capacity::HostLightCell;
-use crate::machine::loaded::{load_scene, LoadedScene};
-use crate::machine::radiosity::{solve, GridSolution, RadiosityConfig, ShotLog};
+use crate::machine::grid::capacity::HostLightCell;
+use crate::machine::loading::loaded_scene::{load_scene, LoadedScene};
+use crate::machine::shooting::shots::{solve, GridSolution, RadiosityConfig, ShotLog};
 use crate::precompute::LoadConfig;
 use crate::report::convergence::{plot_residuals, Series};
 use crate::report::files::{create, write_json};
@@ -47,7 +47,7 @@ impl Default for RadiositySettings {
             patch_size: 24.0,
             shots: 100_000,
             residual: 0.01,
-            offset: crate::machine::radiosity::DEFAULT_OFFSET,
+            offset: crate::machine::shooting::shots::DEFAULT_OFFSET,
             estimator: Estimator::Contour,
         }
     }
@@ -111,7 +111,7 @@ pub struct RadiosityStats {
     /// Shots made.
     pub shots: usize,
     /// Why it stopped.
-    pub stop: crate::machine::radiosity::GridStop,
+    pub stop: crate::machine::shooting::shots::GridStop,
     /// Unshot over emitted power at the end.
     pub residual: f64,
     /// Grid cycles in all (broadcasts, diffusions, reductions).
@@ -453,7 +453,7 @@ pub fn summarise(
         diffusion_cycles_per_shot: sum(&|x| x.cost.diffusion.cycles) as f64 / k,
         reduce_cycles_per_shot: sum(&|x| x.cost.reduce_cycles) as f64 / k,
         messages_per_shot: sum(&|x| x.cost.messages()) as f64 / k,
-        bytes_per_cell_added: crate::machine::radiosity::bytes_per_cell_added(),
+        bytes_per_cell_added: crate::machine::shooting::shots::bytes_per_cell_added(),
         bytes_per_light_cell: std::mem::size_of::<HostLightCell<U0>>(),
         zero_area_faces: p.summary.degenerate_faces,
         unmapped_voxels: s.unmapped_voxels,

@@ -1,7 +1,7 @@
 //! The main job: load, light (beam diffusion or classic shadow rays), shade, reflect — the whole
 //! RC² pipeline — and compare with the f64 reference.
 //!
-//! Every cell shades its pixel ([`crate::machine::shade`]): orthographic view along +z, image y
+//! Every cell shades its pixel ([`crate::machine::shading::pixels`]): orthographic view along +z, image y
 //! up, +x to the left as a camera looking along +z sees it. Lights are white, each of intensity
 //! 1/√(number of lights), ambient 0.2. With a reference the same scene is ray-cast in f64
 //! ([`crate::truth::refrender`]) with the same camera, resolution and shading formula, and
@@ -21,14 +21,16 @@ use cell_core::smooth::Smooth;
 use crate::config::RunSummary;
 use crate::jobs::light::{classic_description, print_link_faults, LightingOptions};
 use crate::jobs::render_radiosity::{self, DisplayPsnr, F64Solution, RadiosityRenderStats, RenderRadiosity, TruthPsnr};
-use crate::machine::classic::{refine_edges, run_classic, ClassicConfig, ClassicCounts, RefineCounts};
-use crate::machine::diffuse::LightConfig;
-use crate::machine::indirect::Display;
-use crate::machine::lighting::{run_diffusion, LightStats};
-use crate::machine::loaded::{load_scene, resolve_lights, LoadedScene};
-use crate::machine::reflect::{reflect, ReflectConfig, ReflectCounts, ShadeEnv};
-use crate::machine::shade::{point_lights, ref_lights, seen, shade_grid_ambient, Ambient, Image, Seen, AMBIENT};
-use crate::machine::smooth::{smooth_grid, SmoothGrid, SmoothScene, SmoothStats};
+use crate::machine::lighting::diffuse::LightConfig;
+use crate::machine::lighting::run::{run_diffusion, LightStats};
+use crate::machine::loading::loaded_scene::{load_scene, resolve_lights, LoadedScene};
+use crate::machine::rays::classic::{refine_edges, run_classic, ClassicConfig, ClassicCounts, RefineCounts};
+use crate::machine::rays::mirror::{reflect, ReflectConfig, ReflectCounts, ShadeEnv};
+use crate::machine::shading::pixels::{
+    point_lights, ref_lights, seen, shade_grid_ambient, Ambient, Image, Seen, AMBIENT,
+};
+use crate::machine::shading::smooth_surface::{smooth_grid, SmoothGrid, SmoothScene, SmoothStats};
+use crate::machine::shooting::indirect::Display;
 use crate::report::files::write_json;
 use crate::report::png::write_png;
 use crate::report::progress;
@@ -99,7 +101,7 @@ pub enum RenderLighting {
     /// One classic shadow ray per visible voxel and source, answers routed back (§4.1.2).
     Classic(ClassicConfig),
     /// Beam diffusion, then shadow-edge refinement with these shadow rays
-    /// ([`crate::machine::classic::refine_edges`]).
+    /// ([`crate::machine::rays::classic::refine_edges`]).
     Refined(ClassicConfig),
     /// Beam diffusion, then the reflection phase (§5.2): reflective visible voxels get
     /// `local + Kr · answer`, every other pixel is the plain render's.
@@ -146,7 +148,7 @@ pub struct RenderInput<'a> {
     /// Radiosity ([`crate::jobs::render_radiosity`]): per cell the indirect irradiance of its
     /// visible point, which the cells shade with in place of the constant ambient term.
     pub indirect: Option<&'a [[f32; 3]]>,
-    /// Smooth shading: the cells' records ([`crate::machine::smooth`]).
+    /// Smooth shading: the cells' records ([`crate::machine::shading::smooth_surface`]).
     pub smooth: Option<&'a SmoothGrid>,
 }
 
@@ -379,7 +381,7 @@ fn shade(
         shade_seconds: (t2 - t1).as_secs_f64(),
         reference_seconds,
         wall_seconds: load_seconds + light_seconds + (t2 - t1).as_secs_f64() + reference_seconds,
-        peak_rss_mib: crate::machine::load::peak_rss_mib(),
+        peak_rss_mib: crate::machine::grid::limits::peak_rss_mib(),
         light: lstats,
         radiosity: None,
         refine: None,
@@ -709,7 +711,7 @@ fn print_summary(o: &RenderOptions, r: &Rendered, written: &[String]) {
         s.shading_max_err_levels, s.shading_mean_err_levels
     );
     if let Some(c) = &r.classic {
-        eprintln!("  {}", crate::machine::classic::summary(c));
+        eprintln!("  {}", crate::machine::rays::classic::summary(c));
     }
     if let Some(k) = &s.refine {
         eprintln!(
@@ -718,7 +720,7 @@ fn print_summary(o: &RenderOptions, r: &Rendered, written: &[String]) {
         );
     }
     if let Some(c) = &r.reflections {
-        eprintln!("  {}", crate::machine::reflect::summary(c));
+        eprintln!("  {}", crate::machine::rays::mirror::summary(c));
     }
     if let Some(rad) = &s.radiosity {
         render_radiosity::print_summary(rad);

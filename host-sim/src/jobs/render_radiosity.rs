@@ -1,7 +1,7 @@
 //! `render --radiosity`: the radiosity phase of a render (radiosity thesis §1.3.1–1.3.2;
 //! docs/RADIOSITY.md, "Rendering"). The cells shade their direct light as every render does, plus
 //! the indirect light of their visible point in place of the empirical ambient term
-//! ([`crate::machine::indirect`]).
+//! ([`crate::machine::shooting::indirect`]).
 //!
 //! Phases, after the render's loading:
 //! 1. **patches and shots** — the world scene's patches and the machine's progressive solution,
@@ -25,9 +25,9 @@ use cell_core::lit::LitRule;
 use parry3d_f64::math::Vector;
 
 use crate::jobs::radiosity::{compare, solve_with_bar, summarise, RadiositySettings, RadiosityStats};
-use crate::machine::indirect::{patch_values, show, visible_points, Display, DisplayCost, Surfaces};
-use crate::machine::loaded::{grid_to_world, load_scene, LoadedScene};
-use crate::machine::shade::{point_lights, ref_lights};
+use crate::machine::loading::loaded_scene::{grid_to_world, load_scene, LoadedScene};
+use crate::machine::shading::pixels::{point_lights, ref_lights};
+use crate::machine::shooting::indirect::{patch_values, show, visible_points, Display, DisplayCost, Surfaces};
 use crate::precompute::LoadConfig;
 use crate::scene::patch_display::exposure;
 use crate::scene::patches::Patches;
@@ -134,7 +134,7 @@ type PerPatch = Vec<[f64; 3]>;
 pub struct Solved {
     patches: Patches,
     faces: usize,
-    machine: crate::machine::radiosity::GridSolution,
+    machine: crate::machine::shooting::shots::GridSolution,
     /// The f64 solver's indirect irradiance and unshot radiosity per patch.
     reference: Option<(PerPatch, PerPatch)>,
     /// The converged truth's, the same way.

@@ -10,11 +10,11 @@ use std::path::PathBuf;
 use anyhow::Result;
 use cell_core::light::Policy;
 
-use crate::machine::diffuse::LightConfig;
-use crate::machine::lighting::{run_diffusion, LightStats};
-use crate::machine::loaded::{load_scene, resolve_lights, LoadedScene};
-use crate::machine::sequential::ray_by_ray;
-use crate::machine::timing::Timing;
+use crate::machine::lighting::diffuse::LightConfig;
+use crate::machine::lighting::run::{run_diffusion, LightStats};
+use crate::machine::lighting::sequential::ray_by_ray;
+use crate::machine::lighting::timing::Timing;
+use crate::machine::loading::loaded_scene::{load_scene, resolve_lights, LoadedScene};
 use crate::precompute::LoadConfig;
 use crate::report::files::create;
 use crate::report::plot::{plot_diffusion, plot_timelapse, DiffusionRow, Snapshot, THESIS_T, THESIS_T_UNBOUNDED};

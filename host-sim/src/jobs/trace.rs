@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 
 use crate::jobs::light::LightingOptions;
+use crate::machine::rays::mirror::ReflectConfig;
 pub use crate::machine::record::{record, replay, CellTrace, TraceJob};
-use crate::machine::reflect::ReflectConfig;
 
 /// Write each trace as `cell_X_Y.rc2t` and a `digests.json` listing them.
 pub fn write_traces(dir: &Path, traces: &[CellTrace]) -> Result<()> {

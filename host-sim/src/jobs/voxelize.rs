@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Result};
 
-use crate::machine::load::{voxelize, Engine, VoxelizeStats};
+use crate::machine::loading::engines::{voxelize, Engine, VoxelizeStats};
 use crate::precompute::LoadConfig;
 use crate::report::files::{create, write_json};
 use crate::report::progress;

@@ -1,53 +1,27 @@
 //! The machine: an n × n grid of `cell_core` cells and the host code that steps them, cycle by
 //! cycle, through every phase. Nothing here knows about jobs, reports or the command line.
 //!
-//! * [`capacity`] — the cell capacities (from `cell_core::cell`, shared with the firmware) and
-//!   the cell and grid types built from them.
-//! * [`grid`], [`load`], [`wave_ref`] — the loading wave (§3.9), its engines and its check.
-//! * [`loaded`] — a scene loaded into the grid, the world ↔ grid mapping, light placement.
-//! * [`diffuse`] — the beam-diffusion scheduler (§4.3–4.4), [`tiles`] its memory layout,
-//!   [`timing`] the timing rules the thesis leaves open, [`sequential`] the ray-by-ray
-//!   emission mode it weighs against beams (§4.2.4).
-//! * [`lighting`] — a whole lighting run and its statistics.
-//! * [`classic`] — classic shadow rays (§4.1.2) on the same cycle model; [`network`] routes
-//!   their answers.
-//! * [`reflect`] — the reflection phase (§5.2).
-//! * [`shade`] — the cells' shading of their pixels; [`smooth`] — their smooth-shading records.
-//! * [`links`] — the grid's links behind `cell_core::link::Link` (the link seam); [`faults`] —
-//!   the fault-injecting link wrapper; [`tap`] — recording cell traces (and the tracing link
-//!   wrapper); [`record`] — a whole traced run, the traces and their digests.
-//! * [`radiosity`] — progressive radiosity on the grid: one beam diffusion per shot carrying
-//!   its rays' energy, per-patch accumulators, the costed reduction and the supervisor;
-//!   [`indirect`] shows its solution: each cell's indirect light, broadcast and costed.
-//! * [`triangles`] — the triangles each column keeps for exact occluders; [`occluders`] — those
-//!   triangles and each column's target ray for one source.
-//! * [`limits`] — host memory checks before allocating a grid.
-//! * [`async_tiles`] — the grid as asynchronous boards (tiles of cells, random link delays, no
-//!   global cycle) whose phases end by distributed termination detection
-//!   (`cell_core::termination`), checked against the host's ground truth.
+//! One folder per phase, each standing only on the ones listed before it (no import circle
+//! between them: `host-sim/tests/integration/architecture.rs` checks it):
+//!
+//! * [`grid`] — what every phase stands on: the grid of cells, their capacities, each column's
+//!   triangles, the host's memory limits, the pieces of the cell array.
+//! * [`links`] — the links between cells behind `cell_core::link::Link`, the fault-injecting
+//!   wrapper and the trace tap.
+//! * [`loading`] — the loading wave (§3.9), its engines and its check; the loaded scene.
+//! * [`lighting`] — beam diffusion (ch. 4), a whole lighting run, exact occluders, the timing
+//!   rules, the ray-by-ray mode, the asynchronous boards.
+//! * [`shading`] — the cells' shading of their pixels (§1.1, §5.2), smooth shading's records.
+//! * [`rays`] — classic shadow rays (§4.1.2) and mirror reflections (§1.3.2, ch. 5), and the
+//!   router network that carries their answers.
+//! * [`shooting`] — progressive radiosity's shots and the indirect light they show.
+//! * [`record`] — a whole traced run through every phase (the `trace` job's machine).
 
-pub mod async_tiles;
-pub mod capacity;
-pub mod classic;
-pub mod diffuse;
-pub mod faults;
 pub mod grid;
-pub mod indirect;
 pub mod lighting;
-pub mod limits;
 pub mod links;
-pub mod load;
-pub mod loaded;
-pub mod network;
-pub mod occluders;
-pub mod radiosity;
+pub mod loading;
+pub mod rays;
 pub mod record;
-pub mod reflect;
-pub mod sequential;
-pub mod shade;
-pub mod smooth;
-pub mod tap;
-pub mod tiles;
-pub mod timing;
-pub mod triangles;
-pub mod wave_ref;
+pub mod shading;
+pub mod shooting;

@@ -16,13 +16,13 @@ use cell_core::lit::LitRule;
 use cell_core::shade::{cell_pixel, Eye, NormalMode, ShadeParams};
 use cell_core::trace::{Event, ShadeSetup, MAX_LIGHTS, MAX_MATERIALS};
 
-use crate::machine::capacity::{HostLightCell, FA_CAP, LIT_CAP, OB_CAP};
-use crate::machine::classic::{classic_tapped, ClassicConfig, ClassicLighting};
-use crate::machine::diffuse::{diffuse_cells, with_f, LightConfig, Lighting};
-use crate::machine::loaded::LoadedScene;
-use crate::machine::reflect::{reflect_tapped, ReflectConfig, ShadeEnv};
-use crate::machine::shade::{cell_material, eye_lights, point_lights, AMBIENT};
-use crate::machine::tap::{CellRecorder, Tap};
+use crate::machine::grid::capacity::{HostLightCell, FA_CAP, LIT_CAP, OB_CAP};
+use crate::machine::lighting::diffuse::{diffuse_cells, with_f, LightConfig, Lighting};
+use crate::machine::links::tap::{CellRecorder, Tap};
+use crate::machine::loading::loaded_scene::LoadedScene;
+use crate::machine::rays::classic::{classic_tapped, ClassicConfig, ClassicLighting};
+use crate::machine::rays::mirror::{reflect_tapped, ReflectConfig, ShadeEnv};
+use crate::machine::shading::pixels::{cell_material, eye_lights, point_lights, AMBIENT};
 use crate::precompute::LoadConfig;
 use crate::scene::Mesh;
 
@@ -85,7 +85,8 @@ fn record_f<F: FracBits>(job: &TraceJob<'_>) -> Result<Vec<CellTrace>> {
     }
     let cells = cells_to_record(job)?;
     let mut tap = Tap::new::<F>(n, n, &cells)?;
-    let scene: LoadedScene = crate::machine::loaded::load_scene_tapped(job.mesh, &job.load, Some(&mut tap))?;
+    let scene: LoadedScene =
+        crate::machine::loading::loaded_scene::load_scene_tapped(job.mesh, &job.load, Some(&mut tap))?;
     let (lights, sources) = lights_of(job, &scene)?;
     if lights.len() > MAX_LIGHTS {
         bail!("{} lights: a trace carries at most {MAX_LIGHTS}", lights.len());
@@ -138,7 +139,7 @@ fn reflections(
 
 /// The job's lights (grid-normalised positions) and the cell sources at them.
 fn lights_of(job: &TraceJob<'_>, scene: &LoadedScene) -> Result<(Vec<[f64; 3]>, Vec<Source>)> {
-    let lights = crate::machine::loaded::resolve_lights(job.mesh, scene, &job.lights)?;
+    let lights = crate::machine::loading::loaded_scene::resolve_lights(job.mesh, scene, &job.lights)?;
     let sources = lights.iter().enumerate().map(|(i, p)| job.light.source(i, *p, job.load.n)).collect::<Result<_>>()?;
     Ok((lights, sources))
 }
@@ -147,14 +148,16 @@ fn lights_of(job: &TraceJob<'_>, scene: &LoadedScene) -> Result<(Vec<[f64; 3]>, 
 fn cells_to_record(job: &TraceJob<'_>) -> Result<Vec<[u32; 2]>> {
     let mut cells = job.cells.clone();
     if job.busiest {
-        let scene = crate::machine::loaded::load_scene(job.mesh, &job.load)?;
+        let scene = crate::machine::loading::loaded_scene::load_scene(job.mesh, &job.load)?;
         let (lights, sources) = lights_of(job, &scene)?;
         match &job.classic {
             None => {
-                let l = crate::machine::diffuse::diffuse(&scene.grid, &sources, &job.light, |_, _| {})?;
+                let l = crate::machine::lighting::diffuse::diffuse(&scene.grid, &sources, &job.light, |_, _| {})?;
                 cells.extend(l.reports.iter().max_by_key(|r| r.counts.lb_cell_load).map(|r| r.busiest_cell));
             }
-            Some(c) => cells.push(crate::machine::classic::classic(&scene, &lights, c, |_, _| {})?.totals.busiest_cell),
+            Some(c) => {
+                cells.push(crate::machine::rays::classic::classic(&scene, &lights, c, |_, _| {})?.totals.busiest_cell)
+            }
         }
     }
     if cells.is_empty() {

@@ -7,7 +7,7 @@
 //! image, s_z ∈ 0 ..= 1 from the near plane to the far plane; the grid's voxel (x, y, z) covers
 //! s ∈ [v/n, (v + 1)/n). View space has the eye at the origin, z along the view direction, y up
 //! and x toward the image's *left* (up × forward): with the image writer's mirrored x
-//! ([`crate::machine::shade`]) a right-handed camera shows what it sees, and the map from world
+//! ([`crate::machine::shading::pixels`]) a right-handed camera shows what it sees, and the map from world
 //! to view space is a rotation (no winding flips).
 //!
 //! * **Orthographic**: `s_x = x/W + ½`, `s_y = y/W + ½`, `s_z = (z − near)/(far − near)`.

@@ -14,7 +14,7 @@
 //! face with normals for some corners only, a `vn` that is not a direction (NaN, infinite, zero).
 //!
 //! The cells interpolate over triangles only ([`cell_core::smooth`]):
-//! `machine::smooth::split_for_smooth` cuts the polygons whose corner normals differ into
+//! `machine::shading::smooth_surface::split_for_smooth` cuts the polygons whose corner normals differ into
 //! triangles (the machine and the reference then load the same triangles).
 
 use anyhow::{bail, Result};

@@ -1254,7 +1254,7 @@ pub fn build(kind: Kind) -> Office {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::machine::load::{voxelize, Engine};
+    use crate::machine::loading::engines::{voxelize, Engine};
     use crate::precompute::LoadConfig;
 
     #[test]

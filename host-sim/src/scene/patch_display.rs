@@ -1,7 +1,7 @@
 //! Showing a radiosity solution: where a surface point lies on its patch, the vertices the
 //! patches of a planar piece share, and the exposure that puts indirect light in the units of
 //! the point lights' direct light. Pure geometry on [`Patch`]es, shared by the machine's display
-//! (`crate::machine::indirect`) and the f64 reference image, so both show a solution the same way.
+//! (`crate::machine::shooting::indirect`) and the f64 reference image, so both show a solution the same way.
 //!
 //! Radiosity thesis §1.3.1 ("Visualisation de la scène"): the solution is a value per patch
 //! (its centre); for a continuous picture the value at each patch vertex is the mean of the

@@ -223,7 +223,7 @@ pub fn render_reference(mesh: &Mesh, fit: &Fit, n: u32, lights: &[RefLight], amb
     render_reference_reflect(mesh, fit, n, lights, ambient, &RefReflect { depth: 0, threshold: 0.0 })
 }
 
-/// Mirror reflections of the reference (the grid's rule, `crate::machine::reflect`): a surface with
+/// Mirror reflections of the reference (the grid's rule, `crate::machine::rays::mirror`): a surface with
 /// `Kr > 0` adds `Kr` × the colour its exactly reflected ray brings back (§5.5.5); the tree
 /// stops at `depth` reflections or when the product of the Kr along the path falls below
 /// `threshold` (Hall, §1.2.5.1); a ray that hits nothing brings back black.

@@ -5,9 +5,9 @@
 
 use cell_core::light::Policy;
 use host_sim::jobs::dump::{lit_dump, write_lit_dump};
-use host_sim::machine::diffuse::LightConfig;
-use host_sim::machine::lighting::run_diffusion;
-use host_sim::machine::loaded::{load_scene, resolve_lights};
+use host_sim::machine::lighting::diffuse::LightConfig;
+use host_sim::machine::lighting::run::run_diffusion;
+use host_sim::machine::loading::loaded_scene::{load_scene, resolve_lights};
 use host_sim::precompute::LoadConfig;
 use serde_json::Value;
 

@@ -1,13 +1,13 @@
-//! Progressive radiosity on the grid (`machine::radiosity`) against independent truths: exact
+//! Progressive radiosity on the grid (`machine::shooting::shots`) against independent truths: exact
 //! energy balance per shot (integers), a closed box that loses nothing, the reduction's cost
 //! against a hand count, the supervisor's loop against the f64 reference solver fed the
 //! machine's own form factors, the machine's form factors against the f64 ray-cast reference,
 //! and bad input.
 
 use cell_core::radiosity::Received;
-use host_sim::machine::capacity::CellReceived;
-use host_sim::machine::loaded::{load_scene, LoadedScene};
-use host_sim::machine::radiosity::{map_patches, reduce_cost, shoot, solve, PatchMap, RadiosityConfig};
+use host_sim::machine::grid::capacity::CellReceived;
+use host_sim::machine::loading::loaded_scene::{load_scene, LoadedScene};
+use host_sim::machine::shooting::shots::{map_patches, reduce_cost, shoot, solve, PatchMap, RadiosityConfig};
 use host_sim::precompute::LoadConfig;
 use host_sim::scene::patches::{subdivide, subdivide_voxels, Patches};
 use host_sim::scene::{Face, Material, Mesh};

@@ -1,4 +1,4 @@
-//! The grid as asynchronous boards (`host_sim::machine::async_tiles`): B × B tiles of cells on
+//! The grid as asynchronous boards (`host_sim::machine::lighting::boards`): B × B tiles of cells on
 //! their own schedules, inter-board messages after random delays, and every phase's end
 //! detected by the boards' token ring (`cell_core::termination`, Safra), not by the host.
 //!
@@ -13,11 +13,11 @@
 use cell_core::beam::{Origin, Source};
 use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
-use host_sim::machine::async_tiles::{run, AsyncConfig, AsyncRun, SlowBoard};
-use host_sim::machine::diffuse::LightConfig;
-use host_sim::machine::lighting::run_diffusion;
-use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
-use host_sim::machine::shade::{point_lights, shade_grid};
+use host_sim::machine::lighting::boards::{run, AsyncConfig, AsyncRun, SlowBoard};
+use host_sim::machine::lighting::diffuse::LightConfig;
+use host_sim::machine::lighting::run::run_diffusion;
+use host_sim::machine::loading::loaded_scene::{load_scene, resolve_lights, LoadedScene};
+use host_sim::machine::shading::pixels::{point_lights, shade_grid};
 use host_sim::precompute::{prepare, LoadConfig, Prepared};
 use host_sim::scene::Mesh;
 

@@ -4,7 +4,7 @@
 //! per direction of each wire, a wire held back as long as a test likes), or, for the bytes
 //! below the frames, on `cell_core::serial::SerialLink`s over in-memory byte pipes.
 //!
-//! Oracles, never the boards' own figures: host-sim's `machine::async_tiles` for the cells'
+//! Oracles, never the boards' own figures: host-sim's `machine::lighting::boards` for the cells'
 //! dexels, lit voxels and pixels (the same case as the QEMU test, [`super::mcu_tiles`]); the
 //! grid's coordinates for where a beam must go; the item counts of a workload from its shape
 //! (t + 1 items for a chain of ttl t); and, for termination, the net's ground truth — at every

@@ -6,8 +6,8 @@
 
 use cell_core::shade::NormalMode;
 use host_sim::jobs::render::{render, RenderConfig, RenderInput};
-use host_sim::machine::loaded::{load_scene, resolve_lights};
-use host_sim::machine::shade::Image;
+use host_sim::machine::loading::loaded_scene::{load_scene, resolve_lights};
+use host_sim::machine::shading::pixels::Image;
 use host_sim::precompute::LoadConfig;
 use host_sim::scene::camera::{to_screen, Camera, Projection};
 use host_sim::scene::{Face, Material, Mesh, SceneLight};

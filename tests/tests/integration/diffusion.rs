@@ -10,10 +10,10 @@ use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use cell_core::occluder::Triangle;
 use cell_core::receiver::{crosses_any, target, voxel_ray, POINT_UNITS};
-use host_sim::machine::diffuse::{diffuse, LightConfig, Lighting};
+use host_sim::machine::grid::triangles::ColumnTriangles;
 use host_sim::machine::grid::Grid;
-use host_sim::machine::timing::{Emission, Timing};
-use host_sim::machine::triangles::ColumnTriangles;
+use host_sim::machine::lighting::diffuse::{diffuse, LightConfig, Lighting};
+use host_sim::machine::lighting::timing::{Emission, Timing};
 use host_sim::precompute::{LoadConfig, Q};
 use proptest::prelude::*;
 use rc2_tests::oracle::exact;
@@ -478,12 +478,13 @@ fn thesis_shape_and_our_policy() {
 
     let mesh = host_sim::scene::load("cornell").unwrap();
     let cfg = LoadConfig::watertight(32);
-    let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
-    let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
+    let loaded = host_sim::machine::loading::loaded_scene::load_scene(&mesh, &cfg).unwrap();
+    let lights = host_sim::machine::loading::loaded_scene::resolve_lights(&mesh, &loaded, &[]).unwrap();
     let lit = |policy, merge| {
         let lcfg =
             LightConfig { fa: 4, policy, merge, record_visits: false, frac_bits: 2, ..host_sim::config::plane_rule() };
-        let (l, _) = host_sim::machine::lighting::run_diffusion(&mesh, &loaded, &lights, &lcfg, |_, _| {}).unwrap();
+        let (l, _) =
+            host_sim::machine::lighting::run::run_diffusion(&mesh, &loaded, &lights, &lcfg, |_, _| {}).unwrap();
         l.lit_voxels().collect::<Vec<_>>()
     };
     let a = lit(Policy::Thesis, false);
@@ -497,7 +498,7 @@ fn thesis_shape_and_our_policy() {
 /// of 80 over one column, more than it keeps.
 #[test]
 fn column_stores_keep_what_the_oracle_says() {
-    use host_sim::machine::capacity::TRIANGLE_CAP;
+    use host_sim::machine::grid::capacity::TRIANGLE_CAP;
     let n = 12u32;
     let mut s = 0x5eed_u64;
     let mut next = |m: i64| {
@@ -572,10 +573,10 @@ fn contact_test_matches_the_rational_crossing() {
 #[test]
 fn phase_seconds_are_laps_inside_the_light_wall() {
     let mesh = host_sim::scene::load("cornell").unwrap();
-    let loaded = host_sim::machine::loaded::load_scene(&mesh, &LoadConfig::watertight(24)).unwrap();
-    let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
+    let loaded = host_sim::machine::loading::loaded_scene::load_scene(&mesh, &LoadConfig::watertight(24)).unwrap();
+    let lights = host_sim::machine::loading::loaded_scene::resolve_lights(&mesh, &loaded, &[]).unwrap();
     let cfg = host_sim::config::Preset::Light.light();
-    let (_, stats) = host_sim::machine::lighting::run_diffusion(&mesh, &loaded, &lights, &cfg, |_, _| {}).unwrap();
+    let (_, stats) = host_sim::machine::lighting::run::run_diffusion(&mesh, &loaded, &lights, &cfg, |_, _| {}).unwrap();
     let phases = stats.phase_seconds.expect("a beam diffusion reports its phases");
     for (name, s) in phases.named() {
         assert!(s >= 0.0, "{name}: {s}");

@@ -7,11 +7,11 @@
 use cell_core::beam::Origin;
 use cell_core::light::Policy;
 use cell_core::shade::NormalMode;
-use host_sim::machine::diffuse::LightConfig;
-use host_sim::machine::faults::LinkFaults;
-use host_sim::machine::lighting::run_diffusion;
-use host_sim::machine::loaded::{load_scene, resolve_lights};
-use host_sim::machine::shade::{point_lights, shade_grid};
+use host_sim::machine::lighting::diffuse::LightConfig;
+use host_sim::machine::lighting::run::run_diffusion;
+use host_sim::machine::links::faults::LinkFaults;
+use host_sim::machine::loading::loaded_scene::{load_scene, resolve_lights};
+use host_sim::machine::shading::pixels::{point_lights, shade_grid};
 use host_sim::precompute::LoadConfig;
 
 #[test]

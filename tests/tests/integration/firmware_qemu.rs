@@ -32,9 +32,9 @@ use cell_core::ray::Connectivity;
 use cell_core::reflect::ReflectNormal;
 use cell_core::route::RoutePolicy;
 use host_sim::jobs::trace::{record, CellTrace, TraceJob};
-use host_sim::machine::classic::ClassicConfig;
-use host_sim::machine::diffuse::{FrustumBlocks, LightConfig};
-use host_sim::machine::reflect::ReflectConfig;
+use host_sim::machine::lighting::diffuse::{FrustumBlocks, LightConfig};
+use host_sim::machine::rays::classic::ClassicConfig;
+use host_sim::machine::rays::mirror::ReflectConfig;
 use host_sim::precompute::LoadConfig;
 use rc2_tests::qemu::{self, QEMU};
 use rc2_tests::traces::{

@@ -7,10 +7,10 @@
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use cell_core::shade::NormalMode;
-use host_sim::machine::diffuse::{FrustumBlocks, LightConfig, SourceReport, Stepping};
-use host_sim::machine::lighting::run_diffusion;
-use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
-use host_sim::machine::shade::{point_lights, shade_grid};
+use host_sim::machine::lighting::diffuse::{FrustumBlocks, LightConfig, SourceReport, Stepping};
+use host_sim::machine::lighting::run::run_diffusion;
+use host_sim::machine::loading::loaded_scene::{load_scene, resolve_lights, LoadedScene};
+use host_sim::machine::shading::pixels::{point_lights, shade_grid};
 use host_sim::precompute::LoadConfig;
 use host_sim::report::png::write_png;
 use host_sim::scene::Mesh;

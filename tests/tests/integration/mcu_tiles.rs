@@ -6,8 +6,8 @@
 //! packets and beams cross board edges as frames, a beam to a diagonal neighbour is forwarded
 //! by a side neighbour, and the boards detect the end of each phase themselves (Safra's ring).
 //!
-//! The oracle is host-sim's simulation of the same machine (`machine::async_tiles`, B = 4):
-//! every cell's dexels (span and facet), lit voxels and pixel (`machine::shade::shade_grid` of
+//! The oracle is host-sim's simulation of the same machine (`machine::lighting::boards`, B = 4):
+//! every cell's dexels (span and facet), lit voxels and pixel (`machine::shading::pixels::shade_grid` of
 //! that run; the boards shade with `cell_core::shade::cell_pixel` and the inputs
 //! `host-sim trace` records) must be the boards'. The lit set does
 //! not depend on timing, so the same holds with corrupted and dropped bytes on the links and
@@ -36,10 +36,10 @@ use cell_core::wire::board::{
     KIND_PIPE, KIND_TILE_CELL, KIND_TILE_CONFIG, KIND_TILE_LIGHT, KIND_TILE_SHADE, KIND_TILE_STATE,
 };
 use cell_core::wire::{put_pipe, PutExt, SliceWriter};
-use host_sim::machine::async_tiles::{run, AsyncConfig};
-use host_sim::machine::diffuse::{source_at, LightConfig};
-use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
-use host_sim::machine::shade::{cell_material, eye_lights, point_lights, shade_grid, AMBIENT};
+use host_sim::machine::lighting::boards::{run, AsyncConfig};
+use host_sim::machine::lighting::diffuse::{source_at, LightConfig};
+use host_sim::machine::loading::loaded_scene::{load_scene, resolve_lights, LoadedScene};
+use host_sim::machine::shading::pixels::{cell_material, eye_lights, point_lights, shade_grid, AMBIENT};
 use host_sim::precompute::{prepare, LoadConfig};
 use host_sim::scene::Mesh;
 use rc2_tests::boards::{board_elf, boot, ring_config, Booted, Faults, Slow, CLEAN, KIND_QUERY, RING, SIDE};

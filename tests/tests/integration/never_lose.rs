@@ -7,10 +7,10 @@
 
 use cell_core::dexel::FacetTag;
 use cell_core::units::Span;
-use host_sim::machine::capacity::LIT_CAP;
-use host_sim::machine::diffuse::{diffuse_in, source_at, LightConfig};
+use host_sim::machine::grid::capacity::LIT_CAP;
 use host_sim::machine::grid::Grid;
-use host_sim::machine::lighting::check_lit_overflow;
+use host_sim::machine::lighting::diffuse::{diffuse_in, source_at, LightConfig};
+use host_sim::machine::lighting::run::check_lit_overflow;
 
 fn striped_column_lighting(stripes: u16) -> (u32, u64, Result<(), String>) {
     let n = 2 * stripes as u32 + 8;

@@ -8,15 +8,15 @@ use cell_core::reflect::{combine, hit_normal, reflected_dir, to_answer, toward_o
 use cell_core::route::RoutePolicy;
 use cell_core::shade::{encode, facing_mask, shade_linear_toward, NormalMode};
 use host_sim::jobs::render::{reference_image, render, RenderConfig, RenderInput, RenderLighting, Rendered};
-use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
-use host_sim::machine::reflect::{ray_span, reflect, ReflectConfig, ShadeEnv};
+use host_sim::machine::loading::loaded_scene::{load_scene, resolve_lights, LoadedScene};
+use host_sim::machine::rays::mirror::{ray_span, reflect, ReflectConfig, ShadeEnv};
 use host_sim::precompute::LoadConfig;
 use host_sim::scene::{Mesh, SceneLight};
 use rc2_tests::oracle::lines::{walk18, walk26, walk6};
 
 fn render_cfg() -> RenderConfig {
     RenderConfig::diffusion(
-        host_sim::machine::diffuse::LightConfig { fa: 16, ..host_sim::config::plane_rule() },
+        host_sim::machine::lighting::diffuse::LightConfig { fa: 16, ..host_sim::config::plane_rule() },
         NormalMode::Facet,
     )
 }
@@ -30,7 +30,7 @@ fn with_reflections(cfg: ReflectConfig) -> RenderConfig {
 fn render_reflect(
     input: &RenderInput<'_>,
     cfg: ReflectConfig,
-) -> (Rendered, host_sim::machine::reflect::ReflectCounts) {
+) -> (Rendered, host_sim::machine::rays::mirror::ReflectCounts) {
     let mut r = render(input, &with_reflections(cfg), |_, _| {}).unwrap();
     let counts = r.reflections.take().expect("a render with reflections counts them");
     (r, counts)
@@ -144,9 +144,10 @@ fn grid_trees_match_a_per_ray_oracle() {
     for (mesh, n, depth) in [(host_sim::scene::load("cornell-mirror").unwrap(), 32, 3), (hall_of_mirrors(), 20, 4)] {
         let (s, lights) = load(&mesh, n);
         let (lighting, _) =
-            host_sim::machine::lighting::run_diffusion(&mesh, &s, &lights, &render_cfg().light, |_, _| {}).unwrap();
+            host_sim::machine::lighting::run::run_diffusion(&mesh, &s, &lights, &render_cfg().light, |_, _| {})
+                .unwrap();
         let mask = |x, y, z| lighting.mask(x, y, z);
-        let pl = host_sim::machine::shade::point_lights(&lights);
+        let pl = host_sim::machine::shading::pixels::point_lights(&lights);
         let env = ShadeEnv::new(&mesh, &pl, NormalMode::Facet, &mask);
         for conn in Connectivity::ALL {
             let cfg0 = config(depth, conn, 1, RoutePolicy::DiagonalFirst);

@@ -29,9 +29,9 @@ use cell_core::lit::LitRule;
 use cell_core::shade::{shade, Material as CellMaterial, NormalMode, PointLight, ShadeParams};
 use host_sim::config::Preset;
 use host_sim::jobs::render::{RenderConfig, RenderInput};
-use host_sim::machine::diffuse::LightConfig;
-use host_sim::machine::loaded::LoadedScene;
-use host_sim::machine::shade::{Image, Seen};
+use host_sim::machine::lighting::diffuse::LightConfig;
+use host_sim::machine::loading::loaded_scene::LoadedScene;
+use host_sim::machine::shading::pixels::{Image, Seen};
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
 use host_sim::scene::{Material, Mesh};
 use host_sim::truth::refrender::{shade_f64, RefLight};
@@ -82,7 +82,8 @@ proptest! {
 
 fn load(scene: &str, n: u32, thickness: Thickness, contour: Contour) -> (Mesh, LoadedScene) {
     let mesh = host_sim::scene::load(scene).unwrap();
-    let loaded = host_sim::machine::loaded::load_scene(&mesh, &LoadConfig { n, thickness, contour }).unwrap();
+    let loaded =
+        host_sim::machine::loading::loaded_scene::load_scene(&mesh, &LoadConfig { n, thickness, contour }).unwrap();
     (mesh, loaded)
 }
 
@@ -104,7 +105,9 @@ fn sources16(lights: &[[f64; 3]], n: u32) -> Vec<[i64; 3]> {
     lights
         .iter()
         .enumerate()
-        .map(|(i, p)| host_sim::machine::diffuse::source_at(i, *p, n).unwrap().pos.map(|c| c.to_bits() as i64))
+        .map(|(i, p)| {
+            host_sim::machine::lighting::diffuse::source_at(i, *p, n).unwrap().pos.map(|c| c.to_bits() as i64)
+        })
         .collect()
 }
 
@@ -114,7 +117,7 @@ fn oracle_image(mesh: &Mesh, loaded: &LoadedScene, lights: &[[f64; 3]], rule: Li
     let g = &loaded.grid;
     let n = g.n as i64;
     let src16 = sources16(lights, g.n);
-    let cell_lights = host_sim::machine::shade::point_lights(lights);
+    let cell_lights = host_sim::machine::shading::pixels::point_lights(lights);
     let seen = match rule {
         LitRule::Plane => {
             let o = trace_all_plane(n, &common::surfaces_of(g), &common::columns_of(g), &src16, n - 1, f);
@@ -128,7 +131,7 @@ fn oracle_image(mesh: &Mesh, loaded: &LoadedScene, lights: &[[f64; 3]], rule: Li
         }
         LitRule::Exact => panic!("exact occluders are checked ray by ray in tests/diffusion.rs, not here"),
     };
-    host_sim::machine::shade::shade_grid_with(mesh, loaded, &cell_lights, &seen, NormalMode::Facet)
+    host_sim::machine::shading::pixels::shade_grid_with(mesh, loaded, &cell_lights, &seen, NormalMode::Facet)
 }
 
 /// The render's image equals the image of the per-ray oracle's lit state, pixel for pixel; the
@@ -141,7 +144,7 @@ fn check_against_oracle<F: FracBits>(
     light: LightConfig,
 ) {
     let (mesh, loaded) = load(scene, n, surfaces.0, surfaces.1);
-    let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, lights).unwrap();
+    let lights = host_sim::machine::loading::loaded_scene::resolve_lights(&mesh, &loaded, lights).unwrap();
     let got = render(&mesh, &loaded, &lights, LightConfig { frac_bits: F::U32, ..light }, None).image;
     let want = oracle_image(&mesh, &loaded, &lights, light.rule, F::U32);
     let what = format!("{scene} n = {n} f = {} {light:?}", F::U32);
@@ -190,7 +193,7 @@ fn image_is_the_per_ray_oracles_lit_state_shaded() {
 #[test]
 fn render_is_deterministic() {
     let (mesh, loaded) = load("cornell", 32, Thickness::Standard, Contour::Conservative);
-    let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
+    let lights = host_sim::machine::loading::loaded_scene::resolve_lights(&mesh, &loaded, &[]).unwrap();
     let cfg = LightConfig { lit_visible_only: true, skip_hidden: true, ..host_sim::config::plane_rule() };
     let a = render(&mesh, &loaded, &lights, cfg, None).image;
     let b = render(&mesh, &loaded, &lights, cfg, None).image;
@@ -241,7 +244,7 @@ fn coverage_differs_from_the_f64_reference_only_at_projected_edges() {
     const MARGIN: f64 = 1.0 / 32.0 + 1e-9;
     for (scene, n) in [("cow", 64u32), ("teapot", 48), ("suzanne", 48)] {
         let (mesh, loaded) = load(scene, n, Thickness::Standard, Contour::Conservative);
-        let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
+        let lights = host_sim::machine::loading::loaded_scene::resolve_lights(&mesh, &loaded, &[]).unwrap();
         let cfg = LightConfig { lit_visible_only: true, skip_hidden: true, ..host_sim::config::plane_rule() };
         let rcfg = RenderConfig::diffusion(cfg, NormalMode::Facet);
         let reference = host_sim::jobs::render::reference_image(&mesh, &loaded, &lights, &rcfg).unwrap();
@@ -328,8 +331,9 @@ fn a_row_of_pixel_centres_the_rounding_puts_on_an_edge_shows_the_mesh_side() {
         let mesh = ledge(dy);
         let (loaded, lights) = {
             let cfg = LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative };
-            let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
-            let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[[0.5, 0.5, 0.0]]).unwrap();
+            let loaded = host_sim::machine::loading::loaded_scene::load_scene(&mesh, &cfg).unwrap();
+            let lights =
+                host_sim::machine::loading::loaded_scene::resolve_lights(&mesh, &loaded, &[[0.5, 0.5, 0.0]]).unwrap();
             (loaded, lights)
         };
         let fit = loaded.fit;
@@ -372,13 +376,13 @@ fn a_tilted_sheet_is_lit_wherever_the_reference_sees_the_light() {
     let mut images = Vec::new();
     for front in [false, true] {
         let mesh = tilted_sheet(front);
-        let loaded = host_sim::machine::loaded::load_scene(
+        let loaded = host_sim::machine::loading::loaded_scene::load_scene(
             &mesh,
             &LoadConfig { n, thickness: Thickness::Standard, contour: Contour::Conservative },
         )
         .unwrap();
         for light in [[0.5, 0.5, 0.2], [0.5, 0.7, 0.2], [0.3, 0.35, 0.05]] {
-            let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[light]).unwrap();
+            let lights = host_sim::machine::loading::loaded_scene::resolve_lights(&mesh, &loaded, &[light]).unwrap();
             let reference = host_sim::jobs::render::reference_image(&mesh, &loaded, &lights, &rcfg).unwrap();
             let got = render(&mesh, &loaded, &lights, cfg, Some(&reference)).image;
             let want = oracle_image(&mesh, &loaded, &lights, LitRule::Plane, 0);
@@ -447,7 +451,7 @@ fn the_neighbours_contact_answers_darken_pixels_the_mesh_shadows() {
     use rc2_tests::oracle::exact::segment_crosses;
     let n = 128;
     let (mesh, loaded) = load("bureau1", n, Thickness::Standard, Contour::Conservative);
-    let lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
+    let lights = host_sim::machine::loading::loaded_scene::resolve_lights(&mesh, &loaded, &[]).unwrap();
     // What a flagless `host-sim render` runs.
     let cfg = Preset::Render.light();
     let rcfg = RenderConfig::diffusion(cfg, NormalMode::Facet);

@@ -1,10 +1,10 @@
-//! Destination-addressed routing (§1.3, §4.1.3; `cell_core::route`, `host_sim::machine::network`):
+//! Destination-addressed routing (§1.3, §4.1.3; `cell_core::route`, `host_sim::machine::rays::network`):
 //! random all-to-all and adversarial traffic on grids with 2-message buffers is delivered
 //! exactly once, to the right cell, in bounded cycles, and the stall detector never fires —
 //! under both routing policies.
 
 use cell_core::route::{RoutePolicy, Routed};
-use host_sim::machine::network::Network;
+use host_sim::machine::rays::network::Network;
 
 use crate::common;
 
@@ -131,15 +131,15 @@ fn hotspot_and_transpose_traffic() {
 fn classic_answers_match_a_per_ray_oracle() {
     use cell_core::lit::LitRule;
     use cell_core::ray::{Connectivity, Q};
-    use host_sim::machine::classic::{classic, ClassicConfig};
+    use host_sim::machine::rays::classic::{classic, ClassicConfig};
     use host_sim::precompute::LoadConfig;
     use rc2_tests::oracle::lines::{walk18, walk26, walk6};
 
     let mesh = host_sim::scene::load("cornell").unwrap();
     let n = 32;
     let cfg = LoadConfig::thin(n);
-    let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
-    let mut lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
+    let loaded = host_sim::machine::loading::loaded_scene::load_scene(&mesh, &cfg).unwrap();
+    let mut lights = host_sim::machine::loading::loaded_scene::resolve_lights(&mesh, &loaded, &[]).unwrap();
     lights.push([3.0, 20.0, 9.5]); // a second source, low and to the side
     let grid = &loaded.grid;
     for (conn, bias) in Connectivity::ALL.into_iter().map(|c| (c, 0u8)).chain([(Connectivity::Six, 2)]) {
@@ -255,15 +255,15 @@ fn oracle_masks(
 #[test]
 fn classic_plane_answers_match_the_segment_oracle() {
     use cell_core::lit::LitRule;
-    use host_sim::machine::classic::classic;
+    use host_sim::machine::rays::classic::classic;
     use host_sim::precompute::LoadConfig;
 
     for (scene, extra) in [("cornell", [3.0, 20.0, 9.5]), ("teapot-floor", [30.0, 2.0, 4.0])] {
         let mesh = host_sim::scene::load(scene).unwrap();
         let n = 32;
         let cfg = LoadConfig::watertight(n);
-        let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
-        let mut lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
+        let loaded = host_sim::machine::loading::loaded_scene::load_scene(&mesh, &cfg).unwrap();
+        let mut lights = host_sim::machine::loading::loaded_scene::resolve_lights(&mesh, &loaded, &[]).unwrap();
         lights.push(extra);
         let occ = common::occupants_of(&loaded.grid);
         let (want, emitters) =
@@ -279,13 +279,13 @@ fn classic_plane_answers_match_the_segment_oracle() {
 /// cells' code, larger stores: a full store lets light through, which the oracle does not
 /// model), and its lattice triangles (sixteenths, voxel centres at multiples of 16): the fan of
 /// each prepared polygon, as the stores cut it.
-fn exact_scene(scene: &str, n: u32) -> (host_sim::machine::loaded::LoadedScene, Vec<[[i64; 3]; 3]>) {
+fn exact_scene(scene: &str, n: u32) -> (host_sim::machine::loading::loaded_scene::LoadedScene, Vec<[[i64; 3]; 3]>) {
     let mesh = host_sim::scene::load(scene).unwrap();
     let cfg = host_sim::precompute::LoadConfig::watertight(n);
-    let mut loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
+    let mut loaded = host_sim::machine::loading::loaded_scene::load_scene(&mesh, &cfg).unwrap();
     let prepared = host_sim::precompute::prepare(&mesh, &cfg).unwrap();
     loaded.grid.triangles =
-        host_sim::machine::triangles::ColumnTriangles::from_polygons_keeping(&prepared.polygons, n, usize::MAX)
+        host_sim::machine::grid::triangles::ColumnTriangles::from_polygons_keeping(&prepared.polygons, n, usize::MAX)
             .unwrap();
     let mut tris = Vec::new();
     for poly in &prepared.polygons {
@@ -309,7 +309,7 @@ fn classic_exact_answers_match_every_triangle() {
         let mesh = host_sim::scene::load(scene).unwrap();
         let n = 32;
         let (loaded, tris) = exact_scene(scene, n);
-        let mut lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
+        let mut lights = host_sim::machine::loading::loaded_scene::resolve_lights(&mesh, &loaded, &[]).unwrap();
         lights.push(extra);
         let (grid, sources) = (&loaded.grid, lattice(&lights));
         let (want, emitters) = oracle_masks(grid, &sources, |e, b| rc2_tests::oracle::shadow::lit_exact(e, b, &tris));
@@ -320,7 +320,7 @@ fn classic_exact_answers_match_every_triangle() {
     }
 }
 
-/// Shadow-edge refinement (`host_sim::machine::classic::refine_edges`, after diffusion): a
+/// Shadow-edge refinement (`host_sim::machine::rays::classic::refine_edges`, after diffusion): a
 /// pixel whose 8-neighbourhood holds a pixel lit otherwise by a source (computed here from
 /// the masks) takes the exact segment's answer for it (`oracle::shadow::lit_exact`, every
 /// triangle of the scene); every other pixel keeps its diffused bit. On the Cornell box and
@@ -330,22 +330,22 @@ fn classic_exact_answers_match_every_triangle() {
 #[test]
 fn refined_shadow_edges_take_the_exact_answer_and_the_rest_keeps_the_diffused_one() {
     use cell_core::lit::LitRule;
-    use host_sim::machine::classic::{refine_edges, ClassicConfig};
-    use host_sim::machine::diffuse::LightConfig;
+    use host_sim::machine::lighting::diffuse::LightConfig;
+    use host_sim::machine::rays::classic::{refine_edges, ClassicConfig};
 
     let mut changed = 0;
     for (scene, extra) in [("cornell", [3.0, 20.0, 9.5]), ("teapot-floor", [30.0, 2.0, 4.0])] {
         let mesh = host_sim::scene::load(scene).unwrap();
         let n = 32usize;
         let (loaded, tris) = exact_scene(scene, n as u32);
-        let mut lights = host_sim::machine::loaded::resolve_lights(&mesh, &loaded, &[]).unwrap();
+        let mut lights = host_sim::machine::loading::loaded_scene::resolve_lights(&mesh, &loaded, &[]).unwrap();
         lights.push(extra);
         let (want, _) =
             oracle_masks(&loaded.grid, &lattice(&lights), |e, b| rc2_tests::oracle::shadow::lit_exact(e, b, &tris));
         for rule in [LitRule::Plane, LitRule::Exact] {
             let lcfg = LightConfig { rule, ..host_sim::config::plane_rule() };
             let (lighting, _) =
-                host_sim::machine::lighting::run_diffusion(&mesh, &loaded, &lights, &lcfg, |_, _| {}).unwrap();
+                host_sim::machine::lighting::run::run_diffusion(&mesh, &loaded, &lights, &lcfg, |_, _| {}).unwrap();
             let diffused: Vec<u32> =
                 (0..n * n).map(|i| lighting.visible_mask((i % n) as u32, (i / n) as u32)).collect();
             let shows = |i: usize| loaded.grid.cells[i].visible.is_some();
@@ -399,14 +399,14 @@ fn refined_shadow_edges_take_the_exact_answer_and_the_rest_keeps_the_diffused_on
 /// every-voxel configuration.
 fn check_classic(
     scene: &str,
-    loaded: &host_sim::machine::loaded::LoadedScene,
+    loaded: &host_sim::machine::loading::loaded_scene::LoadedScene,
     lights: &[[f64; 3]],
     rule: cell_core::lit::LitRule,
     want: &[u32],
     emitters: u64,
-) -> host_sim::machine::classic::ClassicConfig {
+) -> host_sim::machine::rays::classic::ClassicConfig {
     use cell_core::ray::Connectivity;
-    use host_sim::machine::classic::{classic, ClassicConfig};
+    use host_sim::machine::rays::classic::{classic, ClassicConfig};
     let lit: u64 = want.iter().map(|m| m.count_ones() as u64).sum();
     assert!(lit > 0 && lit < emitters * lights.len() as u64, "{scene}: both lit and shadowed surfaces");
     let base = ClassicConfig {
@@ -444,7 +444,7 @@ mod random_sources {
     use cell_core::lit::LitRule;
     use cell_core::ray::{Connectivity, Q};
     use cell_core::route::RoutePolicy;
-    use host_sim::machine::classic::{classic, ClassicConfig};
+    use host_sim::machine::rays::classic::{classic, ClassicConfig};
     use host_sim::precompute::LoadConfig;
     use proptest::prelude::*;
 
@@ -459,7 +459,7 @@ mod random_sources {
             let mesh = host_sim::scene::load(scene).unwrap();
             let n = 16;
             let cfg = LoadConfig::watertight(n);
-            let loaded = host_sim::machine::loaded::load_scene(&mesh, &cfg).unwrap();
+            let loaded = host_sim::machine::loading::loaded_scene::load_scene(&mesh, &cfg).unwrap();
             let lights: Vec<[f64; 3]> = lights16.iter().map(|l| l.map(|c| c as f64 / Q as f64)).collect();
             let occ = common::occupants_of(&loaded.grid);
             let c = ClassicConfig { fa, connectivity: Connectivity::Six, route: RoutePolicy::Adaptive, all_voxels: false, bias: 0, rule: LitRule::Plane };

@@ -14,10 +14,10 @@ use cell_core::beam::Origin;
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use host_sim::jobs::render::{RenderConfig, RenderInput, RenderLighting};
-use host_sim::machine::classic::ClassicConfig;
-use host_sim::machine::diffuse::LightConfig;
-use host_sim::machine::shade::Image;
-use host_sim::machine::triangles::ColumnTriangles;
+use host_sim::machine::grid::triangles::ColumnTriangles;
+use host_sim::machine::lighting::diffuse::LightConfig;
+use host_sim::machine::rays::classic::ClassicConfig;
+use host_sim::machine::shading::pixels::Image;
 use host_sim::precompute::{Contour, LoadConfig, Thickness};
 use host_sim::scene::Mesh;
 
@@ -137,12 +137,12 @@ fn render_f(
     f: u32,
 ) -> (Image, host_sim::truth::refrender::RefImage, Vec<u32>, u64) {
     let cfg = LoadConfig { n, thickness: setup.thickness, contour: setup.contour };
-    let mut loaded = host_sim::machine::loaded::load_scene(mesh, &cfg).unwrap();
+    let mut loaded = host_sim::machine::loading::loaded_scene::load_scene(mesh, &cfg).unwrap();
     if let Some(cap) = setup.triangle_cap {
         let polygons = host_sim::precompute::prepare(mesh, &cfg).unwrap().polygons;
         loaded.grid.triangles = ColumnTriangles::from_polygons_keeping(&polygons, n, cap).unwrap();
     }
-    let lights = host_sim::machine::loaded::resolve_lights(mesh, &loaded, &[]).unwrap();
+    let lights = host_sim::machine::loading::loaded_scene::resolve_lights(mesh, &loaded, &[]).unwrap();
     let light = LightConfig {
         rule: setup.rule,
         rays: setup.rays,

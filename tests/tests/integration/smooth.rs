@@ -13,7 +13,7 @@ use cell_core::normal::NormalCode;
 use cell_core::shade::VIEW;
 use cell_core::smooth::{record, VertexNormals, WEIGHT_ONE};
 use cell_core::units::MAX_N;
-use host_sim::machine::smooth::row_at;
+use host_sim::machine::shading::smooth_surface::row_at;
 use host_sim::precompute::{facet_packet, LoadConfig, Q};
 use host_sim::scene::normals::corner_normals;
 

@@ -22,10 +22,10 @@ use cell_core::reflect::ReflectNormal;
 use cell_core::route::RoutePolicy;
 use cell_core::trace::{write_event, Event, Parser};
 use host_sim::jobs::trace::{record, CellTrace, TraceJob};
-use host_sim::machine::capacity::{FA_CAP, LIT_CAP, OB_CAP};
-use host_sim::machine::classic::ClassicConfig;
-use host_sim::machine::diffuse::{FrustumBlocks, LightConfig};
-use host_sim::machine::reflect::ReflectConfig;
+use host_sim::machine::grid::capacity::{FA_CAP, LIT_CAP, OB_CAP};
+use host_sim::machine::lighting::diffuse::{FrustumBlocks, LightConfig};
+use host_sim::machine::rays::classic::ClassicConfig;
+use host_sim::machine::rays::mirror::ReflectConfig;
 use host_sim::precompute::LoadConfig;
 use rc2_tests::traces::{brighten_reflect_answers, flip_shadow_answers, mutate_row_material, trace_job};
 
@@ -349,9 +349,9 @@ fn peak_link_load_equals_the_busiest_link_in_the_traces() {
     let mut best = (0u64, u32::MAX);
     let mesh = host_sim::scene::load("cornell").unwrap();
     let load = LoadConfig::thin(n);
-    let scene = host_sim::machine::loaded::load_scene(&mesh, &load).unwrap();
-    let lights = host_sim::machine::loaded::resolve_lights(&mesh, &scene, &[]).unwrap();
-    let s = host_sim::machine::diffuse::source_at(0, lights[0], n).unwrap().voxel();
+    let scene = host_sim::machine::loading::loaded_scene::load_scene(&mesh, &load).unwrap();
+    let lights = host_sim::machine::loading::loaded_scene::resolve_lights(&mesh, &scene, &[]).unwrap();
+    let s = host_sim::machine::lighting::diffuse::source_at(0, lights[0], n).unwrap().voxel();
     for t in &traces {
         let mut per_port = [0u64; 8];
         let mut p = Parser::<U0>::new(&t.bytes);
@@ -368,7 +368,7 @@ fn peak_link_load_equals_the_busiest_link_in_the_traces() {
         }
     }
     let cfg = LightConfig { fa: 16, policy: Policy::Wavefront, merge: true, ..host_sim::config::plane_rule() };
-    let (_, stats) = host_sim::machine::lighting::run_diffusion(&mesh, &scene, &lights, &cfg, |_, _| {}).unwrap();
+    let (_, stats) = host_sim::machine::lighting::run::run_diffusion(&mesh, &scene, &lights, &cfg, |_, _| {}).unwrap();
     let c = &stats.sources[0].counts;
     assert!(best.0 > 0);
     assert_eq!(c.peak_link_load, best.0, "peak link load");
@@ -390,8 +390,9 @@ fn light_records_carry_the_wait_and_the_summary() {
     for (scene, n) in [("teapot-floor", 24), ("cow-floor", 21), ("cornell", 16)] {
         let mesh = host_sim::scene::load(scene).unwrap();
         let load = LoadConfig::thin(n);
-        let loaded = host_sim::machine::loaded::load_scene(&mesh, &load).unwrap();
-        let summary = host_sim::machine::diffuse::occupancy_summary(&loaded.grid, cell_core::lit::LitRule::Thesis);
+        let loaded = host_sim::machine::loading::loaded_scene::load_scene(&mesh, &load).unwrap();
+        let summary =
+            host_sim::machine::lighting::diffuse::occupancy_summary(&loaded.grid, cell_core::lit::LitRule::Thesis);
         assert!(!summary.is_empty());
         let setup = LightSetup {
             source: Source::at_voxel(SourceId(0), [3, 4, 5]).unwrap(),

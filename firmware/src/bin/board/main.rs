@@ -1,5 +1,5 @@
 //! One board of a grid of microcontrollers on real serial links (the grid
-//! of boards host-sim's `machine::async_tiles` simulates): four neighbour links and a host
+//! of boards host-sim's `machine::lighting::boards` simulates): four neighbour links and a host
 //! link, each a UART of QEMU's `mps2-an386` ([`uart`], an `embedded-io` driver) carrying
 //! `cell_core::wire` frames through a [`SerialLink`] (sequence numbers, acknowledgement,
 //! retransmission, resynchronisation after corrupted or dropped bytes).

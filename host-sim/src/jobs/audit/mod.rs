@@ -20,11 +20,11 @@ use cell_core::light::{BeamMsg, LitRun, LitRuns, OutBuffers, Policy};
 use cell_core::trace::{LightSetup, ShadeSetup};
 use cell_core::wire::{BEAM_PAYLOAD, HEADER, MAX_FRAME, ROW_PAYLOAD_BASE, TRAILER};
 
-use crate::machine::diffuse::{FrustumBlocks, LightConfig};
+use crate::machine::lighting::diffuse::{FrustumBlocks, LightConfig};
 
-use crate::machine::capacity::{FA_CAP, LIT_CAP, OB_CAP, TRIANGLE_CAP};
-use crate::machine::lighting::run_diffusion;
-use crate::machine::loaded::{load_scene, resolve_lights};
+use crate::machine::grid::capacity::{FA_CAP, LIT_CAP, OB_CAP, TRIANGLE_CAP};
+use crate::machine::lighting::run::run_diffusion;
+use crate::machine::loading::loaded_scene::{load_scene, resolve_lights};
 use crate::precompute::LoadConfig;
 use crate::scene::Mesh;
 
@@ -208,7 +208,7 @@ fn peaks(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig) -> Result<Peaks> {
 /// the firmware images `elfs`.
 pub fn audit(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig, elfs: &[PathBuf]) -> Result<Audit> {
     let p = peaks(mesh, cfg, light)?;
-    type Light = crate::machine::capacity::HostLightCell<U0>;
+    type Light = crate::machine::grid::capacity::HostLightCell<U0>;
     let (b_dexel, b_msg, b_run) = (size_of::<Dexel>(), size_of::<BeamMsg<U0>>(), size_of::<LitRun>());
     let static_cell = size_of::<Cell<DEFAULT_DEXELS>>();
     let static_light = size_of::<Light>();

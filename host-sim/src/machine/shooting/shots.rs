@@ -30,10 +30,10 @@ use cell_core::lit::LitRule;
 use cell_core::radiosity::{beam_quanta, corner_exact, front_rays, PatchId};
 use cell_core::units::{Coord, Depth};
 
-use crate::machine::capacity::{CellPatchRuns, CellReceived, DEFAULT_DEXELS};
-use crate::machine::diffuse::{diffuse_shot, DiffusionCounts, LightConfig};
+use crate::machine::grid::capacity::{CellPatchRuns, CellReceived, DEFAULT_DEXELS};
 use crate::machine::grid::{Grid, LightGrid};
-use crate::machine::loaded::world_to_voxel;
+use crate::machine::lighting::diffuse::{diffuse_shot, DiffusionCounts, LightConfig};
+use crate::machine::loading::loaded_scene::world_to_voxel;
 use crate::precompute::Fit;
 use crate::scene::patch_display::{by_face, locate};
 use crate::scene::patches::Patch;
@@ -107,7 +107,7 @@ pub fn map_patches<const D: usize>(
             let face = source_face.get(d.facet as usize).map(|&f| f as usize);
             let cands = face.and_then(|f| by_face.get(f)).map(Vec::as_slice).unwrap_or(&[]);
             for z in d.span.lo..=d.span.hi {
-                let w = crate::machine::loaded::voxel_to_world(fit, [x, y, z as f64]);
+                let w = crate::machine::loading::loaded_scene::voxel_to_world(fit, [x, y, z as f64]);
                 let best = locate(patches, cands, parry3d_f64::math::Vector::new(w[0], w[1], w[2]));
                 match best {
                     Some(p) => {
@@ -247,7 +247,7 @@ pub fn shoot(
     i: usize,
     cfg: &RadiosityConfig,
 ) -> Result<Shot> {
-    crate::machine::diffuse::with_f!(cfg.light.frac_bits, F => shoot_f::<F>(grid, fit, map, patches, i, cfg))
+    crate::machine::lighting::diffuse::with_f!(cfg.light.frac_bits, F => shoot_f::<F>(grid, fit, map, patches, i, cfg))
 }
 
 /// [`shoot`] under f = `F`.
@@ -521,7 +521,7 @@ fn solve_dyn(
             "radiosity: {} voxel runs of patches do not fit the cells' patch maps ({} runs per column \
              compiled): raise --patch-size",
             map.overflows,
-            crate::machine::capacity::PATCH_RUNS_CAP
+            crate::machine::grid::capacity::PATCH_RUNS_CAP
         );
     }
     let mut s = GridSolution {

@@ -23,7 +23,7 @@
 //!   board's termination [`Node`] with whether the board is passive (no packet, no beam to
 //!   emit, no cell holding a beam).
 //! * **Phases**: loading (0), then one lighting phase per source (1 ..= S), sources one after
-//!   another as in [`crate::machine::diffuse`]. The host hands the facet packets to board 0
+//!   another as in [`crate::machine::lighting::diffuse`]. The host hands the facet packets to board 0
 //!   (which holds pipeline cell 0) at the start. Board 0 declares the end of a phase and
 //!   starts the next one's token round; the board holding the next source starts emitting when
 //!   that token reaches it ([`cell_core::termination::Arrival`]). The host only reads the lit
@@ -59,12 +59,14 @@ use cell_core::termination::{Action, Node, Token};
 use cell_core::voxelize::PipelineCell;
 use cell_core::wire::TokenFrame;
 
-use crate::machine::capacity::HostLightCell;
-use crate::machine::diffuse::{check_light_run, initial_beams, AllSources, LightConfig, Lighting, SourceReport};
+use crate::machine::grid::capacity::HostLightCell;
+use crate::machine::grid::triangles::ColumnTriangles;
 use crate::machine::grid::LightGrid;
+use crate::machine::lighting::diffuse::{
+    check_light_run, initial_beams, AllSources, LightConfig, Lighting, SourceReport,
+};
+use crate::machine::lighting::occluders::SourceOccluders;
 use crate::machine::links::{sure, CellInbox, Took, BACK};
-use crate::machine::occluders::SourceOccluders;
-use crate::machine::triangles::ColumnTriangles;
 use crate::precompute::Prepared;
 use crate::rng::Rng;
 
@@ -274,7 +276,7 @@ struct Board<F: FracBits> {
 
 /// Run the loading and lighting phases of a prepared scene's facets and `sources` on
 /// asynchronous boards. Under exact occluders each column keeps its triangles as the
-/// synchronous grid's do (loaded with the facets, [`crate::machine::triangles`]).
+/// synchronous grid's do (loaded with the facets, [`crate::machine::grid::triangles`]).
 pub fn run(
     prepared: &Prepared,
     n: u32,
@@ -282,7 +284,7 @@ pub fn run(
     light: &LightConfig,
     cfg: &AsyncConfig,
 ) -> Result<AsyncRun> {
-    crate::machine::diffuse::with_f!(light.frac_bits, F => run_f::<F>(prepared, n, sources, light, cfg))
+    crate::machine::lighting::diffuse::with_f!(light.frac_bits, F => run_f::<F>(prepared, n, sources, light, cfg))
 }
 
 /// [`run`] under f = `F`.
@@ -332,7 +334,7 @@ fn run_f<F: FracBits>(
         .collect();
     let lighting = Lighting {
         n,
-        cells: crate::machine::diffuse::lit_columns(&ex.cells),
+        cells: crate::machine::lighting::diffuse::lit_columns(&ex.cells),
         reports,
         visited: None,
         link_faults: None,

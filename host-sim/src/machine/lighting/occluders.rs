@@ -1,5 +1,5 @@
 //! Exact occluders on the grid for one source (thesis §5.5.6; `cell_core::occluder`): each
-//! column's triangles ([`crate::machine::triangles`]) and its target ray.
+//! column's triangles ([`crate::machine::grid::triangles`]) and its target ray.
 //!
 //! A host speed-up beside them: each distinct triangle's plane along the source's rays in each
 //! of the six directions (`cell_core::occluder::SeenEntry`), computed once per source instead of by
@@ -12,9 +12,9 @@ use cell_core::occluder::{ColumnOccluders, SeenEntry, SeenTable, Triangle};
 use cell_core::receiver::{crosses_any, target, Target};
 use cell_core::units::Coord;
 
+use crate::machine::grid::pieces::par_map;
+use crate::machine::grid::triangles::ColumnTriangles;
 use crate::machine::grid::{neighbour, Grid};
-use crate::machine::tiles::par_map;
-use crate::machine::triangles::ColumnTriangles;
 
 /// Cycles of the contact exchange ([`cell_core::receiver`], "The neighbours' triangles"), once
 /// per source before its beams leave: every cell sends its contact segment's near end to its 8

@@ -15,7 +15,7 @@ use cell_core::facet::{PipelinePacket, RowPacket};
 use cell_core::normal::NormalCode;
 use cell_core::smooth::{record, Smooth, SmoothSurface, VertexNormals};
 
-use crate::machine::loaded::LoadedScene;
+use crate::machine::loading::loaded_scene::LoadedScene;
 use crate::precompute::LoadConfig;
 use crate::scene::normals::CornerNormals;
 use crate::scene::{Face, Mesh};

@@ -1,4 +1,4 @@
-//! The `voxelize` job: precompute, load the grid (wave or direct), summarise.
+//! The `voxelize` job's machine: precompute, load the grid (wave or direct), summarise.
 
 use std::time::Instant;
 
@@ -7,7 +7,9 @@ use cell_core::cell::Cell;
 use cell_core::dexel::Dexel;
 use cell_core::facet::{PipelinePacket, RowPacket};
 
-use crate::machine::grid::{Grid, LoadReport};
+use crate::machine::grid::limits::peak_rss_mib;
+use crate::machine::grid::Grid;
+use crate::machine::loading::wave::LoadReport;
 use crate::precompute::{prepare, Contour, LoadConfig, Prepared, Thickness};
 use crate::scene::binvox::Voxels;
 use crate::scene::Mesh;
@@ -146,14 +148,6 @@ pub struct VoxelizeStats {
     pub peak_rss_mib: Option<f64>,
 }
 
-/// Peak resident set size of this process in MiB (Linux only).
-pub fn peak_rss_mib() -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb / 1024.0)
-}
-
 /// Result of a voxelization.
 pub struct Voxelized<const D: usize> {
     /// The loaded grid.
@@ -195,12 +189,12 @@ pub fn voxelize_tapped<const D: usize>(
     mesh: &Mesh,
     cfg: &LoadConfig,
     engine: Engine,
-    tap: Option<&mut crate::machine::tap::Tap>,
+    tap: Option<&mut crate::machine::links::tap::Tap>,
     mut progress: impl FnMut(u64, u64),
 ) -> Result<Voxelized<D>> {
     let t0 = Instant::now();
     cfg.validate()?;
-    crate::machine::limits::check_grid_memory("grid of loading cells", cfg.n, std::mem::size_of::<Cell<D>>())?;
+    crate::machine::grid::limits::check_grid_memory("grid of loading cells", cfg.n, std::mem::size_of::<Cell<D>>())?;
     let prepared = prepare(mesh, cfg)?;
     let t1 = Instant::now();
     let mut grid = Grid::<D>::new(cfg.n, cfg.n);
@@ -216,7 +210,7 @@ pub fn voxelize_tapped<const D: usize>(
         }
     };
     let t2 = Instant::now();
-    grid.triangles = crate::machine::triangles::ColumnTriangles::from_polygons(&prepared.polygons, cfg.n)?;
+    grid.triangles = crate::machine::grid::triangles::ColumnTriangles::from_polygons(&prepared.polygons, cfg.n)?;
     let summary = grid.summary();
     let fit = prepared.fit.expect("prepare always fits");
     let cell = std::mem::size_of::<Cell<D>>() + std::mem::size_of::<RowPacket>();

@@ -1,7 +1,7 @@
 //! The trace tap: records, for chosen cells of a grid run, every message they receive, every
 //! compute cycle and every message a neighbour takes from them (`cell_core::trace` records), as the
 //! schedulers run: loading, beam diffusion, and the ray phases (the classic shadow rays of
-//! [`super::classic`] and the reflections of [`super::reflect`], with the answers their routers
+//! [`crate::machine::rays::classic`] and the reflections of [`crate::machine::rays::mirror`], with the answers their routers
 //! take and deliver). The `trace` job writes what it recorded; the firmware replays it.
 //!
 //! The link events come from [`Tracer`], a wrapper around any grid link (`cell_core::link::Link`):
@@ -24,9 +24,9 @@ use cell_core::shadow::{ShadowAnswer, ShadowCell, ShadowStep};
 use cell_core::trace::{write_event, Digester, Event, Header, LightSetup, Replayer, ShadeSetup, ShadowSetup};
 use cell_core::wire::{Message, RayMsg, MAX_RAY_FRAME};
 
-use super::capacity::{FA_CAP, LIT_CAP, OB_CAP};
 use super::faults::{FaultCounts, FaultTally};
-use super::links::{Journal, LinkId, Took, BACK};
+use super::{Journal, LinkId, Took, BACK};
+use crate::machine::grid::capacity::{FA_CAP, LIT_CAP, OB_CAP};
 
 /// Records one cell.
 pub struct CellRecorder {
@@ -241,7 +241,7 @@ impl Tap {
 
     /// A source's classic shadow-ray phase: its setup record, and under exact occluders each
     /// cell's own triangles after it.
-    pub fn shadow_setup(&mut self, setup: ShadowSetup, triangles: &crate::machine::triangles::ColumnTriangles) {
+    pub fn shadow_setup(&mut self, setup: ShadowSetup, triangles: &crate::machine::grid::triangles::ColumnTriangles) {
         let exact = setup.env.rule == LitRule::Exact;
         self.all::<U0>(&Event::Shadow(setup));
         if exact {

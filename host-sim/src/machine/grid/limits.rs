@@ -38,3 +38,11 @@ pub fn check_grid_memory(what: &str, n: u32, bytes_per_cell: usize) -> Result<()
     }
     Ok(())
 }
+
+/// Peak resident set size of this process in MiB (Linux only).
+pub fn peak_rss_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}

@@ -3,7 +3,7 @@
 //! After the light phase every voxel's lit state is known. Each cell whose visible voxel is
 //! reflective (`Kr > 0`, and `Kr` ≥ the threshold) emits a [`cell_core::reflect::ReflectRay`] (the view direction
 //! mirrored about its normal, [`cell_core::reflect`]) and waits. A ray walks voxel by voxel with
-//! the same cycle model as classic shadow rays ([`crate::machine::classic`]): one voxel step per cell and
+//! the same cycle model as classic shadow rays ([`crate::machine::rays::classic`]): one voxel step per cell and
 //! cycle, FIFOs of `fa` rays, one output buffer per link, one message per link and cycle, the
 //! no-loss rule (a ray that cannot leave waits, the cell is blocked for the cycle). The cell
 //! owning the first occupied voxel the ray meets shades it for the ray's direction; if that
@@ -11,7 +11,7 @@
 //! `--reflect-threshold`: Hall's adaptive depth, §1.2.5.1) it opens a **wait-table entry** and
 //! emits its own reflected ray, and answers its parent only when that answer came back (§1.3.2);
 //! otherwise it answers at once. Answers (linear RGB, Q12) are routed to the waiting cell on
-//! [`crate::machine::network`]; a ray leaving the grid answers black. A root combines
+//! [`crate::machine::rays::network`]; a ray leaving the grid answers black. A root combines
 //! `local + Kr · answer` (§5.5.5) and encodes its pixel.
 //!
 //! Per cycle: 1. compute — each cell takes the head of one of its 4 FIFOs (round robin) and does
@@ -35,7 +35,7 @@
 //!
 //! What one cell holds and does is [`cell_core::reflect_cell::ReflectCell`] (FIFOs, output
 //! slots, wait table, launch and send queues, all bounded: the capacities are
-//! [`REFLECT_FA_CAP`], [`WAIT_CAP`] and [`SEND_CAP`] of `machine/capacity.rs`); this module
+//! [`REFLECT_FA_CAP`], [`WAIT_CAP`] and [`SEND_CAP`] of `machine/grid/capacity.rs`); this module
 //! schedules the cells, moves their rays over the links and their answers over the routers, and
 //! stops with an error naming the cell and the capacity to raise if a store overflowed. The
 //! run reports the peaks of the wait tables and send queues (what a firmware must provision).
@@ -55,11 +55,11 @@ use cell_core::trace::{Event, ReflectSetup, MAX_MATERIALS};
 use cell_core::units::Depth;
 use cell_core::wire::RayMsg;
 
-use crate::machine::capacity::{HostReflectCell, REFLECT_FA_CAP, SEND_CAP, WAIT_CAP};
+use crate::machine::grid::capacity::{HostReflectCell, REFLECT_FA_CAP, SEND_CAP, WAIT_CAP};
 use crate::machine::grid::{neighbour, LightGrid};
-use crate::machine::loaded::LoadedScene;
-use crate::machine::network::Network;
-use crate::machine::tap::Tap;
+use crate::machine::links::tap::Tap;
+use crate::machine::loading::loaded_scene::LoadedScene;
+use crate::machine::rays::network::Network;
 use crate::scene::Mesh;
 
 /// Reflection-phase settings.
@@ -194,11 +194,11 @@ impl<'a> ShadeEnv<'a> {
         mask: &'a dyn Fn(u32, u32, u16) -> SourceMask,
     ) -> Self {
         ShadeEnv {
-            mats: mesh.materials.iter().map(crate::machine::shade::cell_material).collect(),
+            mats: mesh.materials.iter().map(crate::machine::shading::pixels::cell_material).collect(),
             kr: mesh.materials.iter().map(|m| m.kr).collect(),
             lights,
             params: ShadeParams {
-                ambient: [crate::machine::shade::AMBIENT; 3],
+                ambient: [crate::machine::shading::pixels::AMBIENT; 3],
                 normal_mode: normals,
                 eye: cell_core::shade::Eye::Grid,
             },
@@ -292,7 +292,7 @@ impl<'a> ReflectRun<'a> {
         let grid = &scene.grid;
         let (n, depth) = (grid.n, grid.depth);
         cfg.validate(n.max(depth))?;
-        crate::machine::limits::check_grid_memory("grid of reflection cells", n, size_of::<HostReflectCell>())?;
+        crate::machine::grid::limits::check_grid_memory("grid of reflection cells", n, size_of::<HostReflectCell>())?;
         let nn = n as usize;
         let renv = ReflectEnv {
             depth: cfg.depth,
@@ -540,7 +540,7 @@ fn fault_report<const FA: usize, const W: usize, const S: usize>(
     };
     bail!(
         "reflection cell overflow in {faulty} cell(s), first at cell ({}, {}): {what} in cell_core::cell \
-         (host-sim/src/machine/capacity.rs re-exports it)",
+         (host-sim/src/machine/grid/capacity.rs re-exports it)",
         i % n,
         i / n
     )

@@ -29,7 +29,7 @@ use cell_core::occupancy::FrustumTest;
 
 use super::summary::OccupiedBlocks;
 
-use crate::machine::tiles::par_map;
+use crate::machine::grid::pieces::par_map;
 
 /// The largest table built (bytes, for one source): above it (large n with fraction bits) the
 /// test always runs.

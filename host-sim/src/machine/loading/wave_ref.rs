@@ -6,7 +6,8 @@
 use cell_core::facet::{PipelinePacket, RowPacket};
 use cell_core::voxelize::PipelineCell;
 
-use crate::machine::grid::{Grid, LoadReport};
+use crate::machine::grid::Grid;
+use crate::machine::loading::wave::LoadReport;
 
 impl<const D: usize> Grid<D> {
     /// [`Grid::load_wave`] visiting all n + n² cells every cycle (slow; for tests).

@@ -15,12 +15,12 @@
 use anyhow::{anyhow, Result};
 use cell_core::beam::{trace_ray_voxel, Beam, FarDistance, FarOffset, FracBits, Layer, Source, SourceCoord, SourceId};
 
-use crate::machine::timing::Emission;
+use crate::machine::lighting::timing::Emission;
 
 /// The ray-by-ray mode's (cycles, inter-cell messages) on the empty n³ grid, source at the
 /// centre (or at the origin, `origin`), initial beams in the default emission order.
 pub fn ray_by_ray(n: u32, origin: bool, f: u32) -> Result<(u64, u64)> {
-    crate::machine::diffuse::with_f!(f, F => ray_by_ray_f::<F>(n, origin))
+    crate::machine::lighting::diffuse::with_f!(f, F => ray_by_ray_f::<F>(n, origin))
 }
 
 /// [`ray_by_ray`] under f = `F`.

@@ -13,8 +13,8 @@ use cell_core::shade::{
 
 use cell_core::smooth::{smooth_pixel, Smooth, SmoothSurface};
 
-use crate::machine::loaded::LoadedScene;
-use crate::machine::smooth::SmoothGrid;
+use crate::machine::loading::loaded_scene::LoadedScene;
+use crate::machine::shading::smooth_surface::SmoothGrid;
 use crate::scene::{Material, Mesh};
 
 /// Ambient intensity Ia.
@@ -67,7 +67,7 @@ pub enum Seen<'a> {
 }
 
 /// What the image of a diffusion reads, by its lit rule.
-pub fn seen(lighting: &crate::machine::diffuse::Lighting) -> Seen<'_> {
+pub fn seen(lighting: &crate::machine::lighting::diffuse::Lighting) -> Seen<'_> {
     match lighting.rule {
         LitRule::Thesis => Seen::FirstVoxel(Box::new(|x, y, z| lighting.mask(x, y, z))),
         LitRule::Plane | LitRule::Exact => Seen::Surface(Box::new(|x, y| lighting.visible_mask(x, y))),
@@ -87,7 +87,7 @@ pub fn shade_grid(
     mesh: &Mesh,
     scene: &LoadedScene,
     lights: &[PointLight],
-    lighting: &crate::machine::diffuse::Lighting,
+    lighting: &crate::machine::lighting::diffuse::Lighting,
     mode: NormalMode,
 ) -> Image {
     shade_grid_with(mesh, scene, lights, &seen(lighting), mode)
@@ -99,7 +99,7 @@ pub enum Ambient<'a> {
     /// The empirical ambient source of the local model (radiosity thesis §1.1.1): `Ia` the same
     /// everywhere, reflected with the material's `Ka`.
     Constant([f32; 3]),
-    /// Radiosity (`crate::machine::indirect`): per cell (row-major) the indirect irradiance of
+    /// Radiosity (`crate::machine::shooting::indirect`): per cell (row-major) the indirect irradiance of
     /// its visible point, reflected with the material's `Kd` like any diffuse light: `Ka := Kd`.
     Indirect(&'a [[f32; 3]]),
 }

@@ -9,11 +9,11 @@ use cell_core::light::{Activity, ActivityDelta, BeamMsg, LightEnv, OccupiedBox, 
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Relaxed};
 
 use super::*;
-use crate::machine::capacity::HostLightCell;
+use crate::machine::grid::capacity::HostLightCell;
+use crate::machine::grid::pieces::{merge_sorted, par_each, par_map, prefetch, prefetch_ends, tiles};
 use crate::machine::grid::Grid;
+use crate::machine::links::tap::Tap;
 use crate::machine::links::{self, lossless, sure, CellInbox, HostLink, Took, BACK};
-use crate::machine::tap::Tap;
-use crate::machine::tiles::{merge_sorted, par_each, par_map, prefetch, prefetch_ends, tiles};
 
 /// Active cells per piece of work handed to a thread (below it, splitting costs more than it
 /// saves).

@@ -35,11 +35,11 @@ pub fn load_scene(mesh: &Mesh, cfg: &LoadConfig) -> Result<LoadedScene> {
 pub fn load_scene_tapped(
     mesh: &Mesh,
     cfg: &LoadConfig,
-    tap: Option<&mut crate::machine::tap::Tap>,
+    tap: Option<&mut crate::machine::links::tap::Tap>,
 ) -> Result<LoadedScene> {
     cfg.validate()?;
     if mesh.faces.is_empty() {
-        crate::machine::limits::check_grid_memory(
+        crate::machine::grid::limits::check_grid_memory(
             "grid of loading cells",
             cfg.n,
             std::mem::size_of::<cell_core::cell::Cell<DEFAULT_DEXELS>>(),
@@ -54,10 +54,10 @@ pub fn load_scene_tapped(
             eye: Eye::Grid,
         });
     }
-    let v = crate::machine::load::voxelize_tapped::<DEFAULT_DEXELS>(
+    let v = crate::machine::loading::engines::voxelize_tapped::<DEFAULT_DEXELS>(
         mesh,
         cfg,
-        crate::machine::load::Engine::Wave,
+        crate::machine::loading::engines::Engine::Wave,
         tap,
         |_, _| {},
     )?;

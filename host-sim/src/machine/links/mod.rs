@@ -1,12 +1,28 @@
+//! The links between cells (thesis §4.4: one message per link, direction and cycle, credits, no
+//! loss): the level every stepping phase sends through, below them all.
+//!
+//! * this module — the grid's links behind `cell_core::link::Link` (the link seam).
+//! * [`faults`] — the fault-injecting link wrapper (a lossy wire and stop-and-wait).
+//! * [`tap`] — recording cell traces: the tracing link wrapper and the per-cell recorders the
+//!   phases feed, for the firmware to replay.
+//!
+//! Invariant: a link hands its far end every message once and in order, whatever wraps it (a
+//! fault is retransmitted, never applied twice); the step acts on the link's answer alone.
+//! The links stand on the grid level only; the phases hand them their events, never the
+//! reverse.
+//!
 //! The grid's links: one [`Link`] (`cell_core::link`'s seam) per directed neighbour link, and
 //! the receiving end the host hands them, a cell's FIFO as an [`Inbox`].
 //!
-//! The lighting phase's link step ([`crate::machine::diffuse`]) offers each sender's head
+//! The lighting phase's link step ([`crate::machine::lighting::diffuse`]) offers each sender's head
 //! message to its link and acts on the answer ([`cell_core::link::Sent`]) alone: the same step drives the
 //! perfect links ([`cell_core::link::PerfectLink`], the default), the fault injector
-//! ([`crate::machine::faults::FaultInjector`]) and the tracer ([`crate::machine::tap::Tracer`]),
+//! ([`crate::machine::links::faults::FaultInjector`]) and the tracer ([`crate::machine::links::tap::Tracer`]),
 //! each wrapping any link. The link set is chosen once per run; the step is generic over it
 //! (static dispatch, nothing allocated per message).
+
+pub mod faults;
+pub mod tap;
 
 use std::convert::Infallible;
 
@@ -14,7 +30,7 @@ use cell_core::beam::FracBits;
 use cell_core::light::{ActivityDelta, BeamMsg, Port};
 use cell_core::link::{Inbox, Link};
 
-use crate::machine::capacity::HostLightCell;
+use crate::machine::grid::capacity::HostLightCell;
 
 /// Port index of the receiving end of a link that leaves through port `p`: `BACK[p]`.
 pub const BACK: [usize; 8] = {
@@ -51,7 +67,7 @@ pub struct Took<F: FracBits> {
     pub msg: BeamMsg<F>,
 }
 
-/// Where a link wrapper that records ([`crate::machine::tap::Tracer`]) writes.
+/// Where a link wrapper that records ([`crate::machine::links::tap::Tracer`]) writes.
 pub trait Journal<F: FracBits> {
     /// A link's far end took a beam.
     fn took(&mut self, t: Took<F>);

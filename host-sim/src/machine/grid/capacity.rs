@@ -1,5 +1,5 @@
 //! The cell capacities host-sim compiles, and the lighting, shadow-ray and reflection cell types
-//! built from them (the grid type is [`super::grid::LightGrid`]).
+//! built from them (the grid type is [`super::LightGrid`]).
 //!
 //! The numbers themselves live in one place, [`cell_core::cell`], shared with the firmware: a
 //! trace recorded here is replayed there by a cell of exactly the same capacities.

@@ -11,7 +11,7 @@
 use anyhow::{bail, Result};
 use cell_core::occluder::Triangle;
 
-use crate::machine::capacity::TRIANGLE_CAP;
+use crate::machine::grid::capacity::TRIANGLE_CAP;
 
 /// Every column's triangles (empty when the scene was loaded without them).
 #[derive(Clone, Debug, Default)]

@@ -1,10 +1,10 @@
 //! Showing a radiosity solution on the grid (radiosity thesis §1.3.1, "Visualisation de la
-//! scène"; §1.1.1 and §1.3.2 for the ambient terms): after the shots ([`super::radiosity`]) every
+//! scène"; §1.1.1 and §1.3.2 for the ambient terms): after the shots ([`super::shots`]) every
 //! cell's pixel shows its direct light — the point lights' diffusion and shading, as without
 //! radiosity — plus the indirect light of its visible point, which takes the place of the local
 //! model's empirical ambient source (§1.1.1: "l'ensemble de l'énergie lumineuse qui provient de
 //! l'environnement par l'intermédiaire des diverses réflexions entre objets"): the cell shades
-//! with `Ia` its indirect irradiance and `Ka := Kd` ([`super::shade::Ambient::Indirect`]).
+//! with `Ia` its indirect irradiance and `Ka := Kd` ([`crate::machine::shading::pixels::Ambient::Indirect`]).
 //!
 //! In machine phases:
 //! 1. **host load** (once, with the patch runs): each cell gets the keys of its visible point —
@@ -31,8 +31,8 @@ use anyhow::{bail, Result};
 use cell_core::lit::LitRule;
 use parry3d_f64::math::Vector;
 
-use crate::machine::capacity::{CellIndirectFlat, CellIndirectSmooth};
-use crate::machine::loaded::{grid_to_world, LoadedScene};
+use crate::machine::grid::capacity::{CellIndirectFlat, CellIndirectSmooth};
+use crate::machine::loading::loaded_scene::{grid_to_world, LoadedScene};
 use crate::scene::patch_display::{by_face, locate, weights, Vertices};
 use crate::scene::patches::{Patch, Patches};
 use crate::scene::Mesh;

@@ -34,13 +34,13 @@ use cell_core::units::Coord;
 
 use cell_core::link::PerfectLink;
 
-use crate::machine::capacity::{HostLightCell, FA_CAP, LIT_CAP};
-use crate::machine::faults::{fault_counts, FaultCounts, FaultInjector, FaultTally, LinkFaults, Wire};
+use crate::machine::grid::capacity::{HostLightCell, FA_CAP, LIT_CAP};
 use crate::machine::grid::{Grid, LightGrid};
+use crate::machine::lighting::occluders::{SourceOccluders, CONTACT_EXCHANGE_CYCLES};
+use crate::machine::lighting::timing::Timing;
+use crate::machine::links::faults::{fault_counts, FaultCounts, FaultInjector, FaultTally, LinkFaults, Wire};
+use crate::machine::links::tap::{Tap, Tracer};
 use crate::machine::links::{GridLinks, HostLink};
-use crate::machine::occluders::{SourceOccluders, CONTACT_EXCHANGE_CYCLES};
-use crate::machine::tap::{Tap, Tracer};
-use crate::machine::timing::Timing;
 
 mod cycle;
 mod shortcut;
@@ -81,7 +81,7 @@ pub struct LightConfig {
     /// from the occupied box (its rays are counted as skipped).
     pub skip_dead_directions: bool,
     /// Send every link transfer through the codec and a fault injector, with acknowledgement
-    /// and retransmission ([`crate::machine::faults`]); `None`: perfect links.
+    /// and retransmission ([`crate::machine::links::faults`]); `None`: perfect links.
     pub faults: Option<LinkFaults>,
     /// Cycles in a row without progress (no beam processed, delivered or acknowledged) while
     /// beams are in flight before the run stops with a stall report (deadlock, dead link).
@@ -301,7 +301,7 @@ macro_rules! with_f {
     ($f:expr, $F:ident => $body:expr) => {{
         let f: u32 = $f;
         cell_core::with_frac_bits!(f, $F => $body)
-            .unwrap_or_else(|| Err($crate::machine::diffuse::unsupported_frac_bits(f)))
+            .unwrap_or_else(|| Err($crate::machine::lighting::diffuse::unsupported_frac_bits(f)))
     }};
 }
 pub(crate) use with_f;
@@ -497,7 +497,7 @@ fn idle_cells<F: FracBits>(n: u32) -> Vec<HostLightCell<F>> {
     cells
 }
 
-/// One radiosity shot (radiosity thesis §3.4; `machine::radiosity` drives it): the diffusion of
+/// One radiosity shot (radiosity thesis §3.4; `machine::shooting::shots` drives it): the diffusion of
 /// one source whose initial beams are `initial` (the shooting patch's front hemisphere) instead
 /// of the six full faces, every processed beam's absorbed and departed rays reported to `rays`.
 /// The thesis's lit rule only (its absorbed ray sets are whole beams), perfect links.
@@ -564,7 +564,11 @@ pub(crate) fn check_light_run<F: FracBits>(n: u32, sources: &[Source], cfg: &Lig
             FarDistance::<F>::MAX
         )
     })?;
-    crate::machine::limits::check_grid_memory("grid of lighting cells", n, std::mem::size_of::<HostLightCell<F>>())?;
+    crate::machine::grid::limits::check_grid_memory(
+        "grid of lighting cells",
+        n,
+        std::mem::size_of::<HostLightCell<F>>(),
+    )?;
     Ok(far)
 }
 
@@ -610,7 +614,7 @@ pub(crate) struct AllSources<'a, F: FracBits, const D: usize> {
 
 impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
     /// The sources of a run on `grid` whose cells are told no frustum summary (the
-    /// asynchronous boards, [`crate::machine::async_tiles`]: every cell's environment comes
+    /// asynchronous boards, [`crate::machine::lighting::boards`]: every cell's environment comes
     /// from [`AllSources::env`] as here).
     pub(crate) fn plain(grid: &'a Grid<D>, sources: &'a [Source], cfg: &'a LightConfig, far: FarDistance<F>) -> Self {
         let occupied = occupied_box(grid, cfg.rule);

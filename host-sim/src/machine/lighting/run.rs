@@ -5,11 +5,11 @@ use std::time::Instant;
 use anyhow::{bail, Result};
 use cell_core::light::Policy;
 
-use crate::machine::diffuse::{
+use crate::machine::lighting::diffuse::{
     diffuse, light_cell_bytes, unsupported_frac_bits, DiffusionCounts, LightConfig, Lighting, PhaseSeconds,
     SourceReport,
 };
-use crate::machine::loaded::LoadedScene;
+use crate::machine::loading::loaded_scene::LoadedScene;
 
 use crate::scene::Mesh;
 
@@ -59,7 +59,7 @@ pub struct LightStats {
     /// Peak resident memory (MiB).
     pub peak_rss_mib: Option<f64>,
     /// What the faulty links did (`--link-faults`).
-    pub link_faults: Option<crate::machine::faults::FaultCounts>,
+    pub link_faults: Option<crate::machine::links::faults::FaultCounts>,
 }
 
 /// Fail, naming the first cell and the capacity to raise, when a lit store overflowed (a lit
@@ -74,7 +74,7 @@ pub fn check_lit_overflow(lighting: &Lighting) -> Result<()> {
             full.len(),
             c.x,
             c.y,
-            crate::machine::capacity::LIT_CAP,
+            crate::machine::grid::capacity::LIT_CAP,
             lighting.lit_overflows()
         );
     }
@@ -90,7 +90,7 @@ pub fn check_triangle_overflow(grid: &crate::machine::grid::LightGrid) {
         eprintln!(
             "warning: {stores} triangle(s) left out of full columns (TRIANGLE_CAP = {} per column, \
              cell-core/src/cell.rs): light passes where they stand",
-            crate::machine::capacity::TRIANGLE_CAP
+            crate::machine::grid::capacity::TRIANGLE_CAP
         );
     }
 }
@@ -154,7 +154,7 @@ fn run_diffusion_with(
         sources: r.clone(),
         wall_seconds: wall,
         phase_seconds: Some(lighting.phases),
-        peak_rss_mib: crate::machine::load::peak_rss_mib(),
+        peak_rss_mib: crate::machine::grid::limits::peak_rss_mib(),
         link_faults: lighting.link_faults,
     };
     Ok((lighting, stats))

@@ -1,4 +1,5 @@
-//! The n × n grid of cells plus the vertical loading pipeline, stepped cycle by cycle.
+//! The loading wave: the vertical pipeline and the rows, stepped cycle by cycle, and the direct
+//! host path that evaluates the same integer formulas column by column.
 //!
 //! Cycle model of the loading phase (thesis §3.9): the host injects at most one facet packet per
 //! cycle into pipeline cell 0; a link carries one packet per cycle; a cell processes one packet
@@ -8,21 +9,11 @@
 //! needed: the wave is systolic. Only cells holding a packet are visited in a cycle, so idle
 //! regions cost nothing on the host.
 
-use cell_core::cell::Cell;
 use cell_core::facet::{PipelinePacket, RowPacket};
-use cell_core::light::Port;
 use cell_core::voxelize::{row_span, PipelineCell};
 
-use crate::machine::tap::Tap;
-
-/// The index (y·n + x) of the neighbour of cell `i` (same indexing) across port `p`, if it
-/// lies inside the n × n grid.
-pub fn neighbour(n: u32, i: usize, p: Port) -> Option<usize> {
-    let (dx, dy) = p.delta();
-    let (x, y) = ((i % n as usize) as i64 + dx as i64, (i / n as usize) as i64 + dy as i64);
-    let inside = (0..n as i64).contains(&x) && (0..n as i64).contains(&y);
-    inside.then(|| (y * n as i64 + x) as usize)
-}
+use crate::machine::grid::Grid;
+use crate::machine::links::tap::Tap;
 
 /// Counters of one loading run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -41,39 +32,7 @@ pub struct LoadReport {
     pub row_steps: u64,
 }
 
-/// The grid type the lighting jobs load into.
-pub type LightGrid = Grid<{ super::capacity::DEFAULT_DEXELS }>;
-
-/// The grid: n × n cells, each with room for `D` dexels.
-pub struct Grid<const D: usize> {
-    /// Side.
-    pub n: u32,
-    /// Voxels per column.
-    pub depth: u32,
-    /// Cells, row-major (`y·n + x`).
-    pub cells: Vec<Cell<D>>,
-    /// The triangles each column keeps for exact occluders, loaded with the facets (empty
-    /// until then).
-    pub triangles: crate::machine::triangles::ColumnTriangles,
-}
-
 impl<const D: usize> Grid<D> {
-    /// An empty grid.
-    pub fn new(n: u32, depth: u32) -> Self {
-        let mut cells = Vec::with_capacity(n as usize * n as usize);
-        for y in 0..n {
-            for x in 0..n {
-                cells.push(Cell::new(x as u16, y as u16));
-            }
-        }
-        Grid { n, depth, cells, triangles: Default::default() }
-    }
-
-    /// The cell at (x, y).
-    pub fn cell(&self, x: u32, y: u32) -> &Cell<D> {
-        &self.cells[(y * self.n + x) as usize]
-    }
-
     /// Run the loading wave (§3.9) over the packets, cycle by cycle. `progress` is called
     /// now and then with the cycle reached.
     pub fn load_wave(&mut self, packets: &[PipelinePacket], progress: impl FnMut(u64)) -> LoadReport {
@@ -184,22 +143,5 @@ impl<const D: usize> Grid<D> {
                 progress(i as u64);
             }
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn neighbours_lie_inside_the_grid_and_rows_do_not_wrap() {
-        let n = 3;
-        for p in Port::ALL {
-            let (dx, dy) = p.delta();
-            assert_eq!(neighbour(n, 4, p), Some((4 + 3 * dy as i64 + dx as i64) as usize), "the centre, {p:?}");
-        }
-        let count = |i: usize| Port::ALL.iter().filter(|&&p| neighbour(n, i, p).is_some()).count();
-        assert_eq!((count(0), count(8), count(5), count(1)), (3, 3, 5, 5), "corners three, edges five");
-        assert_eq!((neighbour(n, 2, Port::E), neighbour(n, 3, Port::W)), (None, None), "a row's ends do not wrap");
     }
 }

@@ -1,5 +1,5 @@
 //! The timing rules of the diffusion cycle model that the thesis leaves open (§4.4.1–4.4.3),
-//! one knob each, gathered in [`Timing`] inside [`crate::machine::diffuse::LightConfig`].
+//! one knob each, gathered in [`Timing`] inside [`crate::machine::lighting::diffuse::LightConfig`].
 //!
 //! rc2's model ([`Timing::RC2`], the default) charges one cycle per processed beam, moves one
 //! message per link and direction per cycle, counts the beam being processed inside the FIFO
@@ -13,7 +13,7 @@
 use anyhow::{bail, Result};
 use cell_core::beam::Direction;
 
-use crate::machine::capacity::{FA_CAP, OB_CAP};
+use crate::machine::grid::capacity::{FA_CAP, OB_CAP};
 
 /// Which initial beams the source emits first (§4.4.3: "Il vaut mieux envoyer d'abord en x et
 /// y … puis ensuite en z").

@@ -11,7 +11,7 @@
 //! [`cell_core::ray`]); a surface whose plane turns away from the source emits no ray (it is in
 //! its own shadow, counted as `back_facing`). Under exact occluders ([`LitRule::Exact`], the
 //! default of the `light` and `render` jobs) the ray walks the same line and each column it
-//! enters tests its own triangles ([`crate::machine::triangles`]) once against the exact
+//! enters tests its own triangles ([`crate::machine::grid::triangles`]) once against the exact
 //! segment from the light to ¼ voxel in front of the pixel's point
 //! ([`ShadowRay::advance_exact`]): the segment tested against every triangle of the scene, as
 //! long as no column's store is full. What one cell holds and does is
@@ -26,7 +26,7 @@
 //!    the cell is blocked for the cycle (the thesis's policy). Then the cell emits into the
 //!    room left below the FIFO limit (with `--emitters all` a column may emit more rays than
 //!    FA: they wait in the cell's emitter, which generates them from its dexels).
-//! 2. **links**: answers first ([`crate::machine::network`]: routers, virtual channels, credits), then
+//! 2. **links**: answers first ([`crate::machine::rays::network`]: routers, virtual channels, credits), then
 //!    rays (output buffer → neighbour FIFO when it has room); one message per link, direction
 //!    and cycle, whatever its kind.
 //! 3. each router hands at most one answer per cycle to its cell, which records it.
@@ -54,14 +54,14 @@ use cell_core::shadow::{EmitError, ShadowCell, ShadowEnv, ShadowStep};
 use cell_core::trace::ShadowSetup;
 use cell_core::wire::RayMsg;
 
-use crate::machine::diffuse::{DiffusionCounts, SourceReport};
+use crate::machine::lighting::diffuse::{DiffusionCounts, SourceReport};
 
-use crate::machine::capacity::{HostShadowCell, SHADOW_FA_CAP};
+use crate::machine::grid::capacity::{HostShadowCell, SHADOW_FA_CAP};
 use crate::machine::grid::{neighbour, LightGrid};
-use crate::machine::lighting::LightStats;
-use crate::machine::loaded::LoadedScene;
-use crate::machine::network::Network;
-use crate::machine::tap::Tap;
+use crate::machine::lighting::run::LightStats;
+use crate::machine::links::tap::Tap;
+use crate::machine::loading::loaded_scene::LoadedScene;
+use crate::machine::rays::network::Network;
 use crate::scene::Mesh;
 
 /// Classic-phase settings.
@@ -219,7 +219,7 @@ fn check_run(n: u32, lights: &[[f64; 3]], cfg: &ClassicConfig) -> Result<()> {
         bail!("--fa {} is out of range: 1 ..= {SHADOW_FA_CAP}", cfg.fa);
     }
     for (i, &l) in lights.iter().enumerate() {
-        crate::machine::diffuse::source_at(i, l, n)?;
+        crate::machine::lighting::diffuse::source_at(i, l, n)?;
     }
     if cfg.rule != LitRule::Thesis && cfg.connectivity != Connectivity::Six {
         bail!(
@@ -301,7 +301,10 @@ struct ClassicRun<'a> {
 }
 
 /// The error of a ray a cell could not emit.
-fn emit_error(c: &cell_core::cell::Cell<{ crate::machine::capacity::DEFAULT_DEXELS }>, e: EmitError) -> anyhow::Error {
+fn emit_error(
+    c: &cell_core::cell::Cell<{ crate::machine::grid::capacity::DEFAULT_DEXELS }>,
+    e: EmitError,
+) -> anyhow::Error {
     anyhow::anyhow!("shadow ray from ({}, {}, {}): {:?}", c.x, c.y, e.z, e.error)
 }
 
@@ -317,7 +320,11 @@ impl<'a> ClassicRun<'a> {
     ) -> Result<Self> {
         let grid = &scene.grid;
         let n = grid.n as usize;
-        crate::machine::limits::check_grid_memory("grid of shadow-ray cells", grid.n, size_of::<HostShadowCell>())?;
+        crate::machine::grid::limits::check_grid_memory(
+            "grid of shadow-ray cells",
+            grid.n,
+            size_of::<HostShadowCell>(),
+        )?;
         let env = ShadowEnv {
             source: lattice(light),
             rule: cfg.rule,
@@ -544,7 +551,7 @@ fn overflow_report<const FA: usize>(cells: &[ShadowCell<FA>], n: usize) -> Resul
     if let Some(i) = cells.iter().position(|c| c.counters.overflows > 0) {
         bail!(
             "shadow-ray FIFO overflow in {over} cell(s), first at cell ({}, {}): more than {FA} rays; raise \
-             SHADOW_FA_CAP in cell_core::cell (host-sim/src/machine/capacity.rs re-exports it)",
+             SHADOW_FA_CAP in cell_core::cell (host-sim/src/machine/grid/capacity.rs re-exports it)",
             i % n,
             i / n
         );
@@ -645,7 +652,7 @@ fn run_classic_with(
     let cl = classic_tapped(scene, lights, cfg, None, progress)?;
     let exact = cfg.rule == LitRule::Exact;
     if exact {
-        crate::machine::lighting::check_triangle_overflow(&scene.grid);
+        crate::machine::lighting::run::check_triangle_overflow(&scene.grid);
     }
     let wall = t0.elapsed().as_secs_f64();
     let as_diffusion = |c: &ClassicCounts| DiffusionCounts {
@@ -687,11 +694,11 @@ fn run_classic_with(
         lit_overflows: 0,
         triangle_overflows: if exact { scene.grid.triangles.overflows() } else { 0 },
         bytes_beam_message: std::mem::size_of::<ShadowRay>(),
-        bytes_light_cell: size_of::<HostShadowCell>() + size_of::<crate::machine::network::HostRouter<u8>>(),
+        bytes_light_cell: size_of::<HostShadowCell>() + size_of::<crate::machine::rays::network::HostRouter<u8>>(),
         sources,
         wall_seconds: wall,
         phase_seconds: None,
-        peak_rss_mib: crate::machine::load::peak_rss_mib(),
+        peak_rss_mib: crate::machine::grid::limits::peak_rss_mib(),
         link_faults: None,
     };
     Ok((cl, stats))
