@@ -12,7 +12,7 @@ use parry3d_f64::math::Vector;
 
 use crate::report::files::create;
 use crate::scene::{Face, Material, Mesh};
-use crate::truth::formfactor::point_to_polygon;
+use crate::truth::closed_form::point_to_polygon;
 use crate::truth::projective::figure::{FigurePoint, DISTANCES, FACETS};
 use crate::truth::projective::{figure, tables};
 

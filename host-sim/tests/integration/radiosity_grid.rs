@@ -11,7 +11,7 @@ use host_sim::machine::shooting::shots::{map_patches, reduce_cost, shoot, solve,
 use host_sim::precompute::LoadConfig;
 use host_sim::scene::patches::{subdivide, subdivide_voxels, Patches};
 use host_sim::scene::{Face, Material, Mesh};
-use host_sim::truth::formfactor::point_to_polygon;
+use host_sim::truth::closed_form::point_to_polygon;
 use host_sim::truth::radiosity::{progressive, ShootConfig};
 
 type V3 = [f64; 3];
@@ -164,7 +164,7 @@ fn the_supervisor_shoots_like_the_reference_solver_given_the_same_form_factors()
 }
 
 /// The machine's row against the exact point form factor (the closed form of the contour
-/// integral, `truth::formfactor::point_to_polygon`) from the pushed source: in the empty room
+/// integral, `truth::closed_form::point_to_polygon`) from the pushed source: in the empty room
 /// every patch sees every other, so the only errors are the grid's. A patch's voxels are
 /// assigned by their centres, so receivers gain or lose at most a strip one voxel wide along
 /// each edge: |ΔF_j| ≤ F_j · perimeter_j · 1 voxel / area_j (rays and quanta are far finer).

@@ -11,10 +11,10 @@ use std::f64::consts::PI;
 
 use host_sim::scene::patches::{subdivide, Patch, Patches};
 use host_sim::scene::{Face, Material, Mesh};
-use host_sim::truth::formfactor::{
-    parallel_rectangles, perpendicular_rectangles, point_to_parallel_rectangle, point_to_polygon, Estimator,
-    FormFactors, Sampling,
+use host_sim::truth::closed_form::{
+    parallel_rectangles, perpendicular_rectangles, point_to_parallel_rectangle, point_to_polygon,
 };
+use host_sim::truth::formfactor::{Estimator, FormFactors, Sampling};
 use host_sim::truth::radiosity::{
     ambient, balance, displayed, jacobi, progressive, rms_relative_error, solve, ShootConfig, Stop,
 };

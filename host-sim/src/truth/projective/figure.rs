@@ -11,7 +11,7 @@ use anyhow::Result;
 use parry3d_f64::math::Vector;
 
 use super::{tables, SurfaceSpec};
-use crate::truth::formfactor::point_to_polygon;
+use crate::truth::closed_form::point_to_polygon;
 
 /// The methods, in Table 2.1's column order (the names of [`SurfaceSpec::parse`]).
 pub use super::tables::METHODS;
@@ -124,7 +124,7 @@ mod tests {
             let sq = squares(d);
             let (x, n, facing) = FROM;
             let sum: f64 = sq.iter().map(|c| point_to_polygon(x, n, c, facing)).sum();
-            let block = crate::truth::formfactor::point_to_parallel_rectangle(-0.43, 0.57, -0.46, 0.54, d);
+            let block = crate::truth::closed_form::point_to_parallel_rectangle(-0.43, 0.57, -0.46, 0.54, d);
             assert!((sum - block).abs() < 1e-12, "d = {d}: {sum} against {block}");
         }
         let points = compute(&[16, 64]).unwrap();

@@ -27,7 +27,7 @@ use anyhow::Result;
 use parry3d_f64::math::Vector;
 
 use super::{check_resolution, octant_index, octant_len, Cone, ProjectionSurface, Resolution};
-use crate::truth::formfactor::{point_to_parallel_rectangle, point_to_polygon};
+use crate::truth::closed_form::{point_to_parallel_rectangle, point_to_polygon};
 
 /// A hemicube at resolution R (even).
 #[derive(Debug)]

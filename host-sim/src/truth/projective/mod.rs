@@ -381,7 +381,8 @@ mod tests {
     /// well as the light — top-patch rows of 0.997 — fixed by `Reference::surfaces_see`.)
     #[test]
     fn projective_rows_of_the_block_top_match_the_opening() {
-        use crate::truth::formfactor::{point_to_polygon, Estimator, FormFactors, Sampling};
+        use crate::truth::closed_form::point_to_polygon;
+        use crate::truth::formfactor::{Estimator, FormFactors, Sampling};
         use std::f64::consts::PI;
         let mesh = crate::scene::load("cornell").unwrap();
         let patches = crate::scene::patches::subdivide(&mesh, 300.0, 200).unwrap();

@@ -20,7 +20,7 @@ use std::sync::OnceLock;
 use anyhow::{bail, Result};
 
 use super::{check_resolution, octant_index, octant_len, ProjectionSurface, Resolution};
-use crate::truth::formfactor::point_to_parallel_rectangle;
+use crate::truth::closed_form::point_to_parallel_rectangle;
 
 /// The central square's half-side a (height 1).
 pub const INNER_HALF_SIDE: f64 = 1.8;

@@ -23,7 +23,7 @@ use std::sync::OnceLock;
 use anyhow::{bail, Result};
 
 use super::{check_resolution, ProjectionSurface, Resolution, NONE};
-use crate::truth::formfactor::point_to_parallel_rectangle;
+use crate::truth::closed_form::point_to_parallel_rectangle;
 
 /// The half-side D (height 1) that reproduces the thesis's Table 2.1: `ξ_N² = 28/29`.
 pub const THESIS_HALF_SIDE: f64 = 5.291_502_622_129_181; // √28

@@ -11,7 +11,7 @@
 use parry3d_f64::math::Vector;
 
 use super::ProjectionSurface;
-use crate::truth::formfactor::point_to_polygon;
+use crate::truth::closed_form::point_to_polygon;
 
 /// A surface at resolution R and its largest proxel angular radius δ (radians).
 pub type Make = fn(u32) -> (Box<dyn ProjectionSurface>, f64);

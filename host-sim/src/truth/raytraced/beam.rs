@@ -31,7 +31,7 @@ use parry3d_f64::math::Vector;
 
 use super::wallace::{centre, split};
 use super::{clip, segment_hits, Occluders, Receiver, Source};
-use crate::truth::formfactor::point_to_polygon;
+use crate::truth::closed_form::point_to_polygon;
 
 /// What a beam computation did, summed over receivers.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

@@ -30,7 +30,7 @@ use anyhow::{bail, Result};
 use parry3d_f64::math::Vector;
 
 use crate::scene::patches::area_vector;
-pub(crate) use crate::truth::formfactor::clip;
+pub(crate) use crate::truth::closed_form::clip;
 
 /// A hit closer than this fraction of the segment to either end does not block it.
 pub const SEGMENT_TOL: f64 = 1e-9;
@@ -173,7 +173,7 @@ pub(crate) mod testkit {
     //! Scenes with known form factors: a unit square source above a receiver, an occluding
     //! plate between them whose shadow on the source's plane is a known rectangle.
     use super::*;
-    use crate::truth::formfactor::point_to_parallel_rectangle;
+    use crate::truth::closed_form::point_to_parallel_rectangle;
 
     /// The axis-aligned rectangle `[x0, x1] × [y0, y1]` at height `z`, facing down (−z).
     pub fn rect_down(x0: f64, x1: f64, y0: f64, y1: f64, z: f64) -> Vec<Vector> {
