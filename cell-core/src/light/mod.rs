@@ -115,8 +115,8 @@ pub enum Policy {
     /// layer share their voxel in a cell), FIFO order among equals. Rays spread away from the
     /// axis, so a voxel's pieces come from its own position and the one nearer the axis: taken
     /// inside out, a cell's layer feeds the next cell's in the order that cell takes it, and
-    /// the pipelines of a ±x or ±y pyramid drain together (Cornell box n = 512: 56 % fewer
-    /// cycles than the wavefront, 7 % more beams; BENCHMARKS.md).
+    /// the pipelines of a ±x or ±y pyramid drain together (measured against the others:
+    /// BENCHMARKS.md, "How fast is lighting?").
     Radial,
 }
 

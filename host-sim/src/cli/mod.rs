@@ -144,7 +144,8 @@ pub enum PolicyArg {
     Wavefront,
     /// The wavefront's rule with ties at one layer broken by distance to the source's axis,
     /// nearest first: a cell's layer is taken in the order its rays spread, so the pipelines
-    /// of a face drain together (fewer cycles, a few more beams: BENCHMARKS.md).
+    /// of a face drain together (its cycles beside the others': BENCHMARKS.md, "How fast is
+    /// lighting?").
     Radial,
 }
 
