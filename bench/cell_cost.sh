@@ -42,10 +42,11 @@ print("\nThe cell `host-sim render` simulates by default (the capacities of `cel
 print("| part | bytes |\n|---|---|")
 for name, key in [("dexel store", "static_dexel_store"), ("FIFO", "static_fifo"), ("output buffers", "static_output_buffers"),
                   ("lit runs", "static_lit_runs"), ("inbound row packet", "bytes_row_packet")]:
-    print(f"| {name} | {int(r[key]):,} |".replace(",", " "))
-print(f"| column's triangle store (exact occluders) | {int(r['triangle_store']):,} |".replace(",", " "))
-print(f"| occupancy summary, 32 blocks (hidden-voxel skip) | {int(r['summary_32']):,} |".replace(",", " "))
-print(f"| **total** | **{total:,}** |".replace(",", " "))
+    print(f"| {name} | {int(r[key]):,} |".replace(",", " "))  # names carry no comma
+sp = lambda x: f"{int(x):,}".replace(",", " ")
+print(f"| column's triangle store (exact occluders) | {sp(r['triangle_store'])} |")
+print(f"| occupancy summary, 32 blocks (hidden-voxel skip) | {sp(r['summary_32'])} |")
+print(f"| **total** | **{sp(total)}** |")
 print("\nWhat each scene used (peaks over its cells), and the cell compiled with exactly those peaks (without the triangle store and summary):\n")
 print("| scene | n | peak dexels | peak FIFO | peak lit runs | peak triangles in a column | cell with those peaks |")
 print("|---|---|---|---|---|---|---|")
