@@ -347,7 +347,9 @@ fn at(l: &Load) -> (i32, i32) {
 }
 
 /// The light setup of a trace light record (`KIND_TILE_LIGHT`'s body), if the boards can run
-/// it: they run without the whole-grid skips (as host-sim's async_tiles does).
+/// it: with the receding-beam and dead-direction skips of its occupied box (the whole-grid
+/// reduction after loading, which the host makes as `host-sim trace` does), without the
+/// frustum summary or a sibling wait.
 pub fn light_setup(bytes: &[u8]) -> Option<LightSetup> {
     let (raw, _) = read_frame(bytes).ok()?;
     if raw.kind != kind::LIGHT {
@@ -356,7 +358,7 @@ pub fn light_setup(bytes: &[u8]) -> Option<LightSetup> {
     let mut r = Reader::new(raw.payload);
     let s = trace::get_light_setup(&mut r, trace::read_frustum).ok()?;
     r.finish().ok()?;
-    (s.frustum.is_none() && s.skip.is_none() && s.hold == 0).then_some(s)
+    (s.frustum.is_none() && s.hold == 0).then_some(s)
 }
 
 /// The shading inputs of a trace shading record ([`KIND_TILE_SHADE`]'s body).
@@ -494,13 +496,16 @@ impl<'s> TileBoard<'s> {
     }
 
     /// Entering the lighting phase of source i releases its initial beams (§4.3: its cell
-    /// makes them itself, from the light setup every board got), if its cell is on this board.
+    /// makes them itself, from the light setup every board got), if its cell is on this board;
+    /// with the setup's occupied box, not those of the directions in which no occupied voxel
+    /// lies (the dead-direction skip, as host-sim's `initial_beams`).
     fn entered(&mut self, p: u16) {
         let Some(env) = p.checked_sub(1).and_then(|i| self.envs.get(usize::from(i))) else { return };
         let sv = env.source.voxel();
         self.source_slot = self.c.slot(sv[0], sv[1]);
         if self.source_slot.is_some() {
-            for b in Beam::initial_six(env.source, env.far) {
+            let dead = |b: &Beam<U0>| env.skip.is_some_and(|bx| bx.receding(b.direction(), sv, sv.map(i64::from)));
+            for b in Beam::initial_six(env.source, env.far).into_iter().filter(|b| !dead(b)) {
                 let _ = self.emit.push_back(BeamMsg::new(b, sv[2] as u16));
             }
         }

@@ -32,6 +32,7 @@ use cell_core::beam::frac::U0;
 use cell_core::beam::{FarDistance, Origin, Source};
 use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::facet::PipelinePacket;
+use cell_core::light::OccupiedBox;
 use cell_core::lit::LitRule;
 use cell_core::occluder::ColumnOccluders;
 use cell_core::shade::{NormalMode, ShadeParams};
@@ -42,7 +43,7 @@ use cell_core::wire::board::{
 };
 use cell_core::wire::{put_pipe, PutExt, SliceWriter};
 use host_sim::machine::async_tiles::{run, AsyncConfig};
-use host_sim::machine::diffuse::LightConfig;
+use host_sim::machine::diffuse::{occupied_box, LightConfig};
 use host_sim::machine::grid::Grid;
 use host_sim::machine::loaded::{load_scene, resolve_lights, LoadedScene};
 use host_sim::machine::occluders::SourceOccluders;
@@ -79,6 +80,9 @@ pub(crate) struct Case {
     pub(crate) packets: Vec<PipelinePacket>,
     sources: Vec<Source>,
     light: LightConfig,
+    /// The grid's occupied box (`diffuse::occupied_box`): the boards' receding-beam and
+    /// dead-direction skips, which host-sim's asynchronous boards do not run.
+    skip: OccupiedBox,
     pub(crate) depth: u32,
     /// Per board, the frames the host loads into its cells after the light setups: the shading
     /// inputs, each column's triangles, each target's contact answer.
@@ -89,11 +93,13 @@ pub(crate) struct Case {
     shadowed: usize,
 }
 
-/// The lighting the boards run: `host-sim render`'s default cell (exact occluders, rays from the
-/// light, the radial policy, merging) less what host-sim's asynchronous boards refuse: the
-/// skips that need a whole-grid reduction after loading (receding beams, dead directions,
-/// hidden voxels; lit voxels and pixels do not depend on them) — and with the full lit store
-/// (`light`'s), so that every lit voxel is compared, not only the visible one's.
+/// The lighting host-sim's boards run for the oracle: `host-sim render`'s default cell (exact
+/// occluders, rays from the light, the radial policy, merging) less what host-sim's
+/// asynchronous boards refuse, the skips that need a whole-grid reduction after loading
+/// (receding beams, dead directions, hidden voxels), and with the full lit store (`light`'s),
+/// so that every lit voxel is compared, not only the visible one's. The QEMU boards run the
+/// receding-beam and dead-direction skips all the same (the host sends them the occupied box):
+/// lit voxels and pixels must not depend on them.
 pub(crate) fn boards_light() -> LightConfig {
     LightConfig {
         skip_receding: false,
@@ -145,6 +151,7 @@ fn case() -> Case {
         materials: mesh.materials.iter().map(cell_material).collect(),
     };
     let host_frames = load_frames(&r.grid, &sources, &shade);
+    let skip = occupied_box(&r.grid, light.rule);
     let mut cells: BTreeMap<(u16, u16), CellView> = BTreeMap::new();
     for c in &r.grid.cells {
         let dexels = c.store.dexels().iter().map(|d| (d.span.lo, d.span.hi, d.facet)).collect();
@@ -165,7 +172,7 @@ fn case() -> Case {
         let i = *y as usize * N as usize + *x as usize;
         view.2 = img.covered[i].then_some(img.rgb[i]);
     }
-    Case { packets: packets.clone(), sources, light, depth, host_frames, cells, shadowed }
+    Case { packets: packets.clone(), sources, light, skip, depth, host_frames, cells, shadowed }
 }
 
 /// Per board, the frames that load its cells after the light setups, as `host-sim trace`
@@ -226,7 +233,7 @@ impl Case {
                 fa: l.timing.fifo_limit(l.fa) as u16,
                 merge: l.merge,
                 source_bit: 1 << i,
-                skip: None,
+                skip: Some(self.skip),
                 hold: 0,
                 frustum: None,
                 rule: l.rule,
