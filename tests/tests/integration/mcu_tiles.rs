@@ -1,15 +1,18 @@
 //! Tiles of cells on a grid of microcontrollers: 2 × 2 emulated Cortex-M4F boards
 //! (`firmware/src/bin/board`, its tile exercise `tiles.rs`), each holding 4 × 4 cells of an
-//! 8 × 8 grid, load the Cornell box (its two blocks cast shadows) and light it from one source
-//! beside the corner the four boards share,
-//! asynchronously, over serial links between QEMU processes (`rc2_tests::boards`): loading
+//! 8 × 8 grid, load the Cornell box (its two blocks cast shadows) and light it from two sources
+//! one after another, the first beside the corner the four boards share, under `host-sim
+//! render`'s lit rule (exact occluders with rays from the light: the host loads each column's
+//! triangles and each target's contact answer into the cells, as a trace does), asynchronously,
+//! over serial links between QEMU processes (`rc2_tests::boards`): loading
 //! packets and beams cross board edges as frames, a beam to a diagonal neighbour is forwarded
 //! by a side neighbour, and the boards detect the end of each phase themselves (Safra's ring).
 //!
-//! The oracle is host-sim's simulation of the same machine (`machine::async_tiles`, B = 4):
-//! every cell's dexels (span and facet), lit voxels and pixel (`machine::shade::shade_grid` of
-//! that run; the boards shade with `cell_core::shade::cell_pixel` and the inputs
-//! `host-sim trace` records) must be the boards'. The lit set does
+//! The oracle is host-sim's simulation of the same machine (`machine::async_tiles`, B = 4,
+//! [`boards_light`]): every cell's dexels (span and facet) and lit voxels, and its pixel
+//! (`machine::shade::shade_grid` of a run under `render`'s visible-only lit store; the boards
+//! shade with `cell_core::shade::cell_pixel` and the inputs `host-sim trace` records) must be
+//! the boards'. The lit set does
 //! not depend on timing, so the same holds with corrupted and dropped bytes on the links and
 //! with one board's links slowed down. Each run also fails if a board hangs (no declaration
 //! within [`TIMEOUT`]; every QEMU is killed on every path out), if a frame is lost (basic
