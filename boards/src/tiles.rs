@@ -1,65 +1,79 @@
 //! The tile exercise (tests/tests/integration/mcu_tiles.rs on QEMU boards): each board holds
-//! a tile of cells of an n × n grid and runs the loading wave and one source's lighting on it,
-//! asynchronously (no global cycle), with cell-core's own cells — the real counterpart of
-//! host-sim's `machine::lighting::boards`, and the firmware's side of §4.4.4 (boards that detect a
-//! phase's end themselves). [`TileBoard`] is one board, driven by [`TileBoard::poll`] with its
-//! links; the exercise has no notion of time (only the links' retransmissions have, below it).
+//! a tile of cells of an n × n grid and runs the loading wave and the lighting of one or more
+//! sources, one after another, on it, asynchronously (no global cycle), with cell-core's own
+//! cells — the real counterpart of host-sim's `machine::lighting::boards`, and the firmware's side
+//! of §4.4.4 (boards that detect a phase's end themselves). [`TileBoard`] is one board, driven
+//! by [`TileBoard::poll`] with its links; the exercise has no notion of time (only the links'
+//! retransmissions have, below it).
 //!
 //! * **Setup** (host → board, UART 0): [`KIND_TILE_CONFIG`] (board id, neighbours, ring
-//!   position, tile origin and side, n, depth), then the light setup
-//!   ([`KIND_TILE_LIGHT`](cell_core::wire::board::KIND_TILE_LIGHT): a `cell_core::trace` light
-//!   record, which [`light_setup`] reads and the driver hands [`TileBoard::new`]), then, to the
-//!   board holding pipeline cell 0 (cell (0, 0)), the scene's pipeline packets ([`KIND_PIPE`]
-//!   at row 0). Then [`KIND_START`] to ring position 0. The host's frames are not basic
-//!   messages: they are all taken (acknowledged) before the detection starts.
+//!   position, tile origin and side, n, depth, sources S), then S light setups
+//!   ([`KIND_TILE_LIGHT`](cell_core::wire::board::KIND_TILE_LIGHT): `cell_core::trace` light
+//!   records, source i with id and bit i, which [`light_setup`] reads and the driver hands
+//!   [`TileBoard::new`]), then what the host loads into the cells, as a trace does for a
+//!   cell: the shading inputs ([`KIND_TILE_SHADE`]), under exact occluders each column's
+//!   triangles ([`KIND_TILE_TRIANGLES`]) and, per source, each contact segment's neighbour
+//!   answer ([`KIND_TILE_CONTACT`]); to the board holding pipeline cell 0 (cell (0, 0)), the
+//!   scene's pipeline packets ([`KIND_PIPE`] at row 0). Then [`KIND_START`] to ring position
+//!   0. The host's frames are not basic messages: they are all taken (acknowledged) before
+//!   the detection starts.
 //! * **Cells**: a slot per cell of the tile: a `cell_core::cell::Cell` (the dexel store
-//!   the loading fills with `Cell::load_step`) and a `cell_core::light::LightCell` (stepped
-//!   with the light setup's `LightEnv`, as the production cell does). The firmware has no
-//!   lighting or loading code of its own: it only moves packets and beams between cells.
+//!   the loading fills with `Cell::load_step`), a `cell_core::light::LightCell` (stepped
+//!   with the light setup's `LightEnv`, as the production cell does) and its column's exact
+//!   occluders (its triangles and its target ray, which the cell computes from its visible
+//!   surface with `cell_core::receiver::target` when it first steps a beam of a source). The
+//!   firmware has no lighting or loading code of its own: it only moves packets and beams
+//!   between cells.
 //! * **Loading** (phase 0): the work list holds pipeline packets (at pipeline row y, beside
 //!   cell (0, y)) and row packets (at cell (x, y)); each pass moves every item one cell
 //!   (`PipelineCell::step`, `Cell::load_step`), in order. An item whose next cell is on another
 //!   board goes into that link's outgoing queue ([`KIND_PIPE`], [`KIND_ROW_AT`]): loading only
 //!   flows east and north (+x, +y), in order on each link.
-//! * **Lighting** (phase 1): arrived beams go into their cell's FIFO when it has room (a beam
-//!   for a full FIFO waits; later beams for other cells do not), the source's board hands its
-//!   cell the next of the six initial beams it made from the light setup once it entered
-//!   phase 1, every cell holding a beam steps, and the head of every output buffer moves: to
-//!   the neighbour cell's FIFO inside the tile (when it has room), or into the outgoing queue
-//!   of the link towards the neighbour's board ([`KIND_TILE_BEAM`], addressed by cell). A beam
-//!   to a diagonal neighbour across a board corner goes first along x, then along y
-//!   ([`Config::route`]): the side neighbour forwards it (received, then sent again: both
-//!   counted as basic messages).
-//! * **Termination**: Safra's token ring (`cell_core::termination`) over the same links, three
-//!   phases: loading (0), lighting (1) and an empty phase (2) whose round tells every board
-//!   that the lighting was declared. A board is passive when it holds no loading item, no
-//!   beam (in a cell, an output buffer, the arrived queue or an outgoing queue) and, in phase
-//!   ≥ 1, no initial beam to emit. Ring position 0 tells the host each declaration
-//!   ([`KIND_DONE`]).
-//! * **Report**: on [`KIND_QUERY`], one [`KIND_TILE_CELL`] frame per cell (its dexels and
-//!   lit runs) and one [`KIND_TILE_STATE`].
+//! * **Lighting** (phase i + 1 for source i): arrived beams go into their cell's FIFO when it
+//!   has room (a beam for a full FIFO waits; later beams for other cells do not), the board
+//!   holding source i's cell hands it the next of the six initial beams it made from the light
+//!   setup once it entered the phase, every cell holding a beam steps (with the environment of
+//!   its beams' source: every beam in the machine is one source's, the next source's leaving
+//!   only once the last one's lighting was declared), and the head of every output buffer
+//!   moves: to the neighbour cell's FIFO inside the tile (when it has room), or into the
+//!   outgoing queue of the link towards the neighbour's board ([`KIND_TILE_BEAM`], addressed
+//!   by cell). A beam to a diagonal neighbour across a board corner goes first along x, then
+//!   along y ([`Config::route`]): the side neighbour forwards it (received, then sent again:
+//!   both counted as basic messages).
+//! * **Termination**: Safra's token ring (`cell_core::termination`) over the same links, S + 2
+//!   phases: loading (0), one lighting per source (1 … S) and an empty phase (S + 1) whose
+//!   round tells every board that the last lighting was declared. A board is passive when it
+//!   holds no loading item, no beam (in a cell, an output buffer, the arrived queue or an
+//!   outgoing queue) and no initial beam to emit. Ring position 0 tells the host each
+//!   declaration ([`KIND_DONE`]).
+//! * **Report**: on [`KIND_QUERY`], one [`KIND_TILE_CELL`] frame per cell (its dexels, lit
+//!   runs and pixel, `cell_core::shade::cell_pixel`) and one [`KIND_TILE_STATE`].
 //!
 //! **Invariant**: a board's termination counter is its basic frames sent − received between
 //! boards (loading packets and beams), a frame being counted when the link takes it and when
 //! the board takes it off the link; a frame is taken off a link only when the board has room
 //! for it (the link leaves it unacknowledged otherwise: nothing is dropped); so a declaration
 //! means no packet or beam is left anywhere. Work seen after a board learned a phase's
-//! declaration is counted as *late* ([`State`]), and every bounded queue's overflow or refusal
-//! is counted, never silent.
+//! declaration is counted as *late* ([`State`]: a loading item in a lighting phase, a beam of
+//! source i after phase i + 1), and every bounded queue's overflow or refusal is counted,
+//! never silent (a triangle beyond its column's store, a contact answer the cell's target does
+//! not ask for or one it lacks among them).
 
 use cell_core::beam::frac::U0;
 use cell_core::beam::{Beam, FarDistance};
-use cell_core::cell::{Cell, DEFAULT_DEXELS, FA_CAP, LIT_CAP, OB_CAP};
+use cell_core::cell::{Cell, DEFAULT_DEXELS, FA_CAP, LIT_CAP, OB_CAP, TRIANGLE_CAP};
 use cell_core::facet::{PipelinePacket, RowPacket};
 use cell_core::light::{ActivityDelta, BeamMsg, LightCell, LightEnv, Port};
 use cell_core::lit::LitRule;
+use cell_core::occluder::{ColumnOccluders, Triangle, TriangleStore};
+use cell_core::receiver::Target;
 use cell_core::shade::cell_pixel;
 use cell_core::termination::{Action, Node, Token};
 use cell_core::trace::{self, kind, LightSetup, ShadeSetup};
 use cell_core::voxelize::PipelineCell;
 use cell_core::wire::board::{
     KIND_DONE, KIND_PIPE, KIND_QUERY, KIND_ROW_AT, KIND_START, KIND_TILE_BEAM, KIND_TILE_CELL, KIND_TILE_CONFIG,
-    KIND_TILE_SHADE, KIND_TILE_STATE,
+    KIND_TILE_CONTACT, KIND_TILE_SHADE, KIND_TILE_STATE, KIND_TILE_TRIANGLES,
 };
 use cell_core::wire::{
     get_beam, get_pipe, get_row, get_token, put_beam, put_pipe, put_row, read_frame, ByteSink, PutExt, Reader,
@@ -82,11 +96,21 @@ pub const OUT: usize = 32;
 pub const ARRIVED: usize = 64;
 /// Initial beams (six directions).
 const EMIT: usize = 8;
+/// Light sources a board lights with, one after another (each its own lighting phase).
+pub const SOURCES: usize = 4;
+/// Triangles one [`KIND_TILE_TRIANGLES`] frame carries at most (4 + 8 × 36 = 292 B of body).
+pub const TRIANGLES_PER_FRAME: usize = 8;
+/// Bytes of one cell of a tile on the board: its dexel store, its lighting cell and its
+/// column's occluders (the board's state is [`SIDE`]² of them and its queues).
+pub const CELL_BYTES: usize = core::mem::size_of::<Slot>();
 /// Dexels and lit runs reported per cell.
 pub const REPORTED: usize = 16;
-/// Bytes of the longest frame a board sends: a row packet between boards (3 + 1 + 4 + 73 +
-/// 8 × 20 + 4 = 245 B), or a cell's report (3 + 1 + 22 + 2 × 16 × 8 + 4 = 286 B).
-pub const LINK_BUF: usize = 320;
+/// Bytes of the longest frame on a board's links: a row packet between boards (3 + 1 + 4 + 73 +
+/// 8 × 20 + 4 = 245 B), a cell's report (3 + 1 + 26 + 2 × 16 × 8 + 4 = 290 B), a column's
+/// triangles (3 + 1 + 4 + 8 × 36 + 4 = 300 B), or the host's shading record, a trace record
+/// of L lights and M materials (3 + 1 + 7 + 15 + 24 L + 52 M + 4 B: 490 B with 4 lights and 7
+/// materials: the Cornell box's record with two lights did not fit the former 320 B).
+pub const LINK_BUF: usize = 512;
 
 type Light = LightCell<U0, FA_CAP, OB_CAP, LIT_CAP>;
 
@@ -94,6 +118,55 @@ type Light = LightCell<U0, FA_CAP, OB_CAP, LIT_CAP>;
 struct Slot {
     cell: Cell<DEFAULT_DEXELS>,
     light: Light,
+    column: Column,
+}
+
+/// A column's exact occluders (`LitRule::Exact`), as a cell of the default image holds them:
+/// the triangles the host loads into it with the facets ([`KIND_TILE_TRIANGLES`]), and the
+/// target ray it computes itself from its visible surface (`cell_core::receiver::target`) for
+/// the source whose beams it steps, with its neighbours' answer to its contact query
+/// ([`KIND_TILE_CONTACT`], from the host as a trace's `NeighbourContact` record).
+#[derive(Debug)]
+struct Column {
+    triangles: TriangleStore<TRIANGLE_CAP>,
+    target: Option<Target>,
+    /// The source (index in the run) `target` is for; `None`: not computed yet.
+    target_of: Option<u8>,
+    /// Per source (bit i): the host gave the contact answer, and what it was.
+    answered: u32,
+    shadowed: u32,
+}
+
+impl Column {
+    const fn new() -> Column {
+        Column { triangles: TriangleStore::new(), target: None, target_of: None, answered: 0, shadowed: 0 }
+    }
+
+    /// The target ray of cell `cell` for source `i` of `env`, once per source (when the cell
+    /// first steps one of its beams: every column's loading is over by then). Returns false when
+    /// the host's contact answer and the target disagree (an answer missing or one too many).
+    fn aim(&mut self, cell: &Cell<DEFAULT_DEXELS>, i: u8, env: &LightEnv<'_, U0>) -> bool {
+        if self.target_of == Some(i) {
+            return true;
+        }
+        self.target_of = Some(i);
+        let (x, y) = (i32::from(cell.x), i32::from(cell.y));
+        let t = cell.visible.as_ref().and_then(|v| cell_core::receiver::target::<U0>(x, y, v, env.source, env.far));
+        let (answered, shadowed) = (self.answered >> i & 1 != 0, self.shadowed >> i & 1 != 0);
+        let contact = t.is_some_and(|t| t.contact.is_some());
+        self.target = t.map(|t| if contact { t.with_neighbour_answers(shadowed) } else { t });
+        answered == contact
+    }
+}
+
+impl ColumnOccluders for Column {
+    fn triangles(&self, _x: u16, _y: u16) -> &[Triangle] {
+        self.triangles.triangles()
+    }
+
+    fn target(&self, _x: u16, _y: u16) -> Option<&Target> {
+        self.target.as_ref()
+    }
 }
 
 /// A loading item.
@@ -130,19 +203,33 @@ pub struct Config {
     pub n: u16,
     /// Voxels per column.
     pub depth: u16,
+    /// Light sources, lit one after another (1 … [`SOURCES`]): as many light setups follow.
+    pub sources: u8,
 }
 
 impl Config {
     /// The configuration, if `kind` and `p` are one this board can hold: the [`Ring`] head, x0
-    /// (u16), y0 (u16), side, n (u16), depth (u16).
+    /// (u16), y0 (u16), side, n (u16), depth (u16), sources (u8).
     pub fn parse(kind: u8, p: &[u8]) -> Option<Config> {
-        if kind != KIND_TILE_CONFIG || p.len() != Ring::BYTES + 9 {
+        if kind != KIND_TILE_CONFIG || p.len() != Ring::BYTES + 10 {
             return None;
         }
         let u = |i: usize| u16::from_le_bytes([p[i], p[i + 1]]);
-        let c = Config { ring: Ring::parse(p)?, x0: u(8), y0: u(10), side: u16::from(p[12]), n: u(13), depth: u(15) };
+        let (x0, y0, side, n, depth, sources) = (u(8), u(10), u16::from(p[12]), u(13), u(15), p[17]);
+        let c = Config { ring: Ring::parse(p)?, x0, y0, side, n, depth, sources };
         let fits = (1..=SIDE as u16).contains(&c.side) && c.x0 + c.side <= c.n && c.y0 + c.side <= c.n;
-        fits.then_some(c)
+        (fits && (1..=SOURCES as u8).contains(&sources)).then_some(c)
+    }
+
+    /// The phase lighting source `i` (0: loading; the lighting phases 1 … `sources`; then the
+    /// empty phase that tells every board the last lighting was declared).
+    pub fn lighting_phase(&self, i: u8) -> u16 {
+        u16::from(i) + 1
+    }
+
+    /// The last phase: the empty one after the last source's lighting.
+    pub fn last_phase(&self) -> u16 {
+        u16::from(self.sources) + 1
     }
 
     /// Cell (x, y)'s index in the tile, if it is in the tile.
@@ -260,7 +347,9 @@ fn at(l: &Load) -> (i32, i32) {
 }
 
 /// The light setup of a trace light record (`KIND_TILE_LIGHT`'s body), if the boards can run
-/// it: they run without the whole-grid skips (as host-sim's async_tiles does).
+/// it: with the receding-beam and dead-direction skips of its occupied box (the whole-grid
+/// reduction after loading, which the host makes as `host-sim trace` does), without the
+/// frustum summary or a sibling wait.
 pub fn light_setup(bytes: &[u8]) -> Option<LightSetup> {
     let (raw, _) = read_frame(bytes).ok()?;
     if raw.kind != kind::LIGHT {
@@ -269,7 +358,7 @@ pub fn light_setup(bytes: &[u8]) -> Option<LightSetup> {
     let mut r = Reader::new(raw.payload);
     let s = trace::get_light_setup(&mut r, trace::read_frustum).ok()?;
     r.finish().ok()?;
-    (s.frustum.is_none() && s.skip.is_none() && s.hold == 0).then_some(s)
+    (s.frustum.is_none() && s.hold == 0).then_some(s)
 }
 
 /// The shading inputs of a trace shading record ([`KIND_TILE_SHADE`]'s body).
@@ -288,17 +377,18 @@ fn shade_setup(bytes: &[u8]) -> Option<ShadeSetup> {
 /// locals. It holds its lighting environment, which borrows the light setup and split order.
 pub struct TileBoard<'s> {
     c: Config,
-    env: LightEnv<'s, U0>,
+    /// Per source of the run, its lighting environment (at least one).
+    envs: Vec<LightEnv<'s, U0>, SOURCES>,
     slots: Vec<Slot, CELLS>,
     tally: ActivityDelta,
     work: Deque<Load, WORK>,
     host: Deque<PipelinePacket, HOST>,
     out: [Deque<Msg, OUT>; LINKS],
     arrived: Deque<(usize, BeamMsg<U0>), ARRIVED>,
-    /// The source's initial beams, before the lighting phase.
-    pending: Deque<BeamMsg<U0>, EMIT>,
-    /// The source's initial beams, released: handed to its cell one by one.
+    /// The initial beams of the source whose lighting phase the board entered, if its cell is
+    /// on this board: handed to its cell one by one.
     emit: Deque<BeamMsg<U0>, EMIT>,
+    /// The tile's slot of the source cell the initial beams in `emit` are for.
     source_slot: Option<usize>,
     node: Node,
     token: Option<Token>,
@@ -312,34 +402,35 @@ pub struct TileBoard<'s> {
 }
 
 impl<'s> TileBoard<'s> {
-    /// A board configured by `c` lighting with `env` (the light setup's, `LightSetup::env`:
-    /// the setup checked by [`light_setup`] and against `c`'s n and depth by the caller),
-    /// before the start.
+    /// A board configured by `c` lighting with `envs`, one environment per source in order (the
+    /// light setups', `LightSetup::env`: each checked by [`light_setup`] and against `c`'s n and
+    /// depth by the caller; their source bits and ids are the sources' indices), before the
+    /// start. With other than `c.sources` of them the board is misconfigured: it counts an
+    /// overflow, and without any it does nothing at all.
     ///
-    /// The board is large (its cells and queues: about 150 KB on the Cortex-M4F), so `new` is
+    /// The board is large (its cells and queues: about 190 KB on the Cortex-M4F), so `new` is
     /// one struct expression, built in the caller's place, and the cells are made in place by
     /// the first [`TileBoard::poll`]: a board built in a local of `new` and then returned cost
     /// the firmware's stack a second copy (198 KB more at the peak).
-    pub fn new(c: Config, env: LightEnv<'s, U0>) -> TileBoard<'s> {
-        let sv = env.source.voxel();
+    pub fn new(c: Config, envs: Vec<LightEnv<'s, U0>, SOURCES>) -> TileBoard<'s> {
+        let misconfigured = u32::from(envs.len() != usize::from(c.sources));
         TileBoard {
             c,
-            env,
+            envs,
             slots: Vec::new(),
             tally: ActivityDelta::new(),
             work: Deque::new(),
             host: Deque::new(),
             out: [const { Deque::new() }; LINKS],
             arrived: Deque::new(),
-            pending: Deque::new(),
             emit: Deque::new(),
-            source_slot: c.slot(sv[0], sv[1]),
-            // Loading (0), lighting (1), and the empty phase (2) that tells every board of the
-            // lighting's declaration.
-            node: Node::new(u16::from(c.ring.position), 2),
+            source_slot: None,
+            // Loading (0), one lighting phase per source, and the empty phase that tells every
+            // board of the last lighting's declaration.
+            node: Node::new(u16::from(c.ring.position), c.last_phase()),
             token: None,
             started: c.ring.position != 0,
-            st: State::default(),
+            st: State { overflows: misconfigured, ..State::default() },
             done_due: Deque::new(),
             report_next: None,
             shade: None,
@@ -347,21 +438,13 @@ impl<'s> TileBoard<'s> {
         }
     }
 
-    /// The tile's cells, and the source cell's six initial beams (§4.3: it makes them itself,
-    /// from the light setup every board got; they go out once the board enters the lighting
-    /// phase). Once, at the first poll.
+    /// The tile's cells. Once, at the first poll.
     fn make_cells(&mut self) {
         let c = self.c;
         let side = i32::from(c.side);
         for i in 0..side * side {
             let (x, y) = (c.x0 + (i % side) as u16, c.y0 + (i / side) as u16);
-            let _ = self.slots.push(Slot { cell: Cell::new(x, y), light: LightCell::new(x, y) });
-        }
-        if self.source_slot.is_some() {
-            let sv = self.env.source.voxel();
-            for b in Beam::initial_six(self.env.source, self.env.far) {
-                let _ = self.pending.push_back(BeamMsg::new(b, sv[2] as u16));
-            }
+            let _ = self.slots.push(Slot { cell: Cell::new(x, y), light: LightCell::new(x, y), column: Column::new() });
         }
     }
 
@@ -390,9 +473,9 @@ impl<'s> TileBoard<'s> {
         &self.node
     }
 
-    /// Whether the source's cell is on this board.
-    pub fn holds_source(&self) -> bool {
-        self.source_slot.is_some()
+    /// How many of the sources' cells are on this board.
+    pub fn holds_sources(&self) -> usize {
+        self.envs.iter().filter(|e| self.c.slot(e.source.voxel()[0], e.source.voxel()[1]).is_some()).count()
     }
 
     /// Whether the board holds no loading item, no beam (in a cell, an output buffer, the
@@ -412,11 +495,18 @@ impl<'s> TileBoard<'s> {
         self.passive() && self.done_due.is_empty() && self.report_next.is_none()
     }
 
-    /// Entering phase `p` = 1 (lighting) releases the initial beams.
+    /// Entering the lighting phase of source i releases its initial beams (§4.3: its cell
+    /// makes them itself, from the light setup every board got), if its cell is on this board;
+    /// with the setup's occupied box, not those of the directions in which no occupied voxel
+    /// lies (the dead-direction skip, as host-sim's `initial_beams`).
     fn entered(&mut self, p: u16) {
-        if p == 1 {
-            while let Some(b) = self.pending.pop_front() {
-                let _ = self.emit.push_back(b);
+        let Some(env) = p.checked_sub(1).and_then(|i| self.envs.get(usize::from(i))) else { return };
+        let sv = env.source.voxel();
+        self.source_slot = self.c.slot(sv[0], sv[1]);
+        if self.source_slot.is_some() {
+            let dead = |b: &Beam<U0>| env.skip.is_some_and(|bx| bx.receding(b.direction(), sv, sv.map(i64::from)));
+            for b in Beam::initial_six(env.source, env.far).into_iter().filter(|b| !dead(b)) {
+                let _ = self.emit.push_back(BeamMsg::new(b, sv[2] as u16));
             }
         }
     }
@@ -425,6 +515,9 @@ impl<'s> TileBoard<'s> {
     /// move every loading item one cell, step the lighting, send, act on the token, answer the
     /// host.
     pub fn poll(&mut self, links: &mut impl Links) -> Events {
+        if self.envs.is_empty() {
+            return Events::new();
+        }
         if self.slots.is_empty() {
             self.make_cells();
         }
@@ -455,7 +548,7 @@ impl<'s> TileBoard<'s> {
                 let _ = links.send(0, KIND_DONE, &p.to_le_bytes());
             } else if let Some(i) = self.report_next {
                 let n = if i < self.slots.len() {
-                    cell_report(&self.slots[i], self.env.rule, self.shade.as_ref(), &mut buf)
+                    cell_report(&self.slots[i], self.envs[0].rule, self.shade.as_ref(), &mut buf)
                 } else {
                     self.state_report(links, &mut buf)
                 };
@@ -486,7 +579,7 @@ impl<'s> TileBoard<'s> {
                 links.pop(l + 1);
                 continue;
             }
-            let Some(m) = decode(f.kind, f.payload, self.env.far) else {
+            let Some(m) = decode(f.kind, f.payload, self.envs[0].far) else {
                 self.st.overflows += 1;
                 links.pop(l + 1);
                 continue;
@@ -502,7 +595,14 @@ impl<'s> TileBoard<'s> {
                     self.work.push_back(ld).is_ok()
                 }
                 (Some(s), Msg::Beam(_, _, b)) => {
-                    st.late += u32::from(self.node.phase() >= 2);
+                    // A beam of a source whose lighting the board learned was declared.
+                    let i = b.beam.source().0;
+                    if usize::from(i) >= self.envs.len() {
+                        st.overflows += 1;
+                        links.pop(l + 1);
+                        continue;
+                    }
+                    st.late += u32::from(self.node.phase() > c.lighting_phase(i as u8));
                     let ok = self.arrived.push_back((s, b)).is_ok();
                     st.peak_arrived = st.peak_arrived.max(self.arrived.len() as u32);
                     ok
@@ -546,6 +646,20 @@ impl<'s> TileBoard<'s> {
                     Some(sh) => self.shade = Some(sh),
                     None => self.st.overflows += 1,
                 },
+                KIND_TILE_TRIANGLES if !self.triangles(f.payload) => self.st.overflows += 1,
+                KIND_TILE_CONTACT => match (r.u16(), r.u16(), r.u8(), r.u8(), r.finish()) {
+                    (Ok(x), Ok(y), Ok(i), Ok(a @ 0..=1), Ok(())) if usize::from(i) < self.envs.len() => {
+                        match self.c.slot(i32::from(x), i32::from(y)) {
+                            Some(s) => {
+                                let col = &mut self.slots[s].column;
+                                col.answered |= 1 << i;
+                                col.shadowed |= u32::from(a) << i;
+                            }
+                            None => self.st.overflows += 1,
+                        }
+                    }
+                    _ => self.st.overflows += 1,
+                },
                 KIND_START => self.started = true,
                 KIND_QUERY => {
                     let _ = events.push(Event::Queried);
@@ -560,6 +674,27 @@ impl<'s> TileBoard<'s> {
                 let _ = self.work.push_back(Load::Pipe(0, p));
             }
         }
+    }
+
+    /// A [`KIND_TILE_TRIANGLES`] body into its column's store; whether it was one and every
+    /// triangle fitted.
+    fn triangles(&mut self, p: &[u8]) -> bool {
+        let mut r = Reader::new(p);
+        let (Ok(x), Ok(y)) = (r.u16(), r.u16()) else { return false };
+        let Some(s) = self.c.slot(i32::from(x), i32::from(y)) else { return false };
+        let column = &mut self.slots[s].column.triangles;
+        let mut ok = true;
+        let mut k = 0;
+        while r.remaining() > 0 && k < TRIANGLES_PER_FRAME {
+            let mut v = [[0i32; 3]; 3];
+            for c in v.as_flattened_mut() {
+                let Ok(x) = r.i32() else { return false };
+                *c = x;
+            }
+            ok &= Triangle::new(v).is_some_and(|t| column.push(t));
+            k += 1;
+        }
+        ok && k > 0 && r.finish().is_ok()
     }
 
     /// Step 3, loading: every item one cell on, in order; stop while there is no room for what an
@@ -609,7 +744,7 @@ impl<'s> TileBoard<'s> {
     /// cell holding a beam, the output buffers' heads to their neighbour cells (inside the
     /// tile, when it has room) or their links' queues.
     fn light(&mut self) {
-        let (c, fa, merge) = (self.c, self.env.fa, self.env.merge);
+        let (c, fa, merge) = (self.c, self.envs[0].fa, self.envs[0].merge);
         let (st, tally) = (&mut self.st, &self.tally);
         for _ in 0..self.arrived.len() {
             let Some((s, b)) = self.arrived.pop_front() else { break };
@@ -627,12 +762,26 @@ impl<'s> TileBoard<'s> {
                 self.emit.pop_front();
             }
         }
+        let phase = self.node.phase();
         for s in self.slots.iter_mut() {
-            if !s.light.fifo.is_empty() {
-                st.steps += 1;
-                st.late += u32::from(self.node.phase() >= 2);
-                s.light.step(&s.cell, &self.env, tally);
-            }
+            // Every beam in the machine is one source's (the next source's beams leave once the
+            // last one's lighting was declared): the cell steps with that source's environment.
+            let Some(i) = s.light.fifo.first().map(|m| m.beam.source().0 as u8) else { continue };
+            let Some(&env) = self.envs.get(usize::from(i)) else {
+                st.overflows += 1;
+                s.light.fifo.clear();
+                continue;
+            };
+            st.steps += 1;
+            st.late += u32::from(phase > c.lighting_phase(i));
+            let Slot { cell, light, column } = s;
+            let env = if env.rule.is_exact() {
+                st.overflows += u32::from(!column.aim(cell, i, &env));
+                LightEnv { occluders: Some(&*column as &dyn ColumnOccluders), ..env }
+            } else {
+                env
+            };
+            light.step(cell, &env, tally);
         }
         for i in 0..self.slots.len() {
             let (x, y) = (i32::from(self.slots[i].cell.x), i32::from(self.slots[i].cell.y));

@@ -28,7 +28,7 @@
 //! A token is not a [`Message`]: cells never see one, a board's link driver dispatches on the
 //! raw frame's kind ([`read_frame`]), and an image that runs no detector (the production cell,
 //! whose flash budget is counted to the byte) carries no token decoder. The board exercises'
-//! own frames, kinds `0x60`–`0x70`, are listed in [`board`].
+//! own frames, kinds `0x60`–`0x72`, are listed in [`board`].
 //!
 //! `seq` is the link-level sequence number (for acknowledgement and retransmission); a trace
 //! leaves it 0.
@@ -682,10 +682,10 @@ pub mod board {
     /// Host → board: the tile exercise's configuration: id u8, neighbour ids on E, N, W, S
     /// (4 × u8, `0xFF`: none), ring position u8, ring length u8, link to the next ring position u8
     /// (0 … 3), tile origin x0 u16, y0 u16, tile side u8 (≤ the board's `SIDE`, 4), grid side
-    /// n u16, depth u16.
+    /// n u16, depth u16, light sources u8 (1 … the board's `SOURCES`, 4).
     pub const KIND_TILE_CONFIG: u8 = 0x69;
-    /// Host → board: the light setup, a whole `cell_core::trace` light record (its frame with
-    /// its own CRC).
+    /// Host → board: a source's light setup, a whole `cell_core::trace` light record (its frame
+    /// with its own CRC); one per source, in the order they are lit (source i: id and bit i).
     pub const KIND_TILE_LIGHT: u8 = 0x6A;
     /// Host → board 0 and board → board: a pipeline packet at pipeline row y: y u16, then
     /// `wire::put_pipe`.
@@ -711,6 +711,16 @@ pub mod board {
     /// `cell_core::trace` shading record; the cells shade their pixels when the host asks for the
     /// report, after the lighting was declared.
     pub const KIND_TILE_SHADE: u8 = 0x70;
+    /// Host → board, under exact occluders: triangles column (x, y) keeps
+    /// (`cell_core::occluder::Triangle`, as host-sim loads them with the facets,
+    /// `Triangle::crosses_column`): x u16, y u16, then 1 … 8 triangles, each its vertices
+    /// 9 × i32 (sixteenths of a voxel), in the column's order (more come in further frames).
+    /// Every light setup of the run uses them (a column's triangles do not depend on the source).
+    pub const KIND_TILE_TRIANGLES: u8 = 0x71;
+    /// Host → board, under exact occluders, for a cell whose target ray has a contact segment
+    /// for a source: x u16, y u16, the source's index in the run u8, its 8 neighbours' answers
+    /// to its contact query OR-ed u8 (0 or 1; the trace's `NeighbourContact` record).
+    pub const KIND_TILE_CONTACT: u8 = 0x72;
 }
 
 #[cfg(test)]

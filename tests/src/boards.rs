@@ -26,7 +26,7 @@ use crate::qemu::{self, QEMU};
 /// Grid side: `SIDE × SIDE` boards.
 pub const SIDE: usize = 2;
 /// Link buffer of the host's end (the board's `LINK_BUF`).
-pub const LINK_BUF: usize = 320;
+pub const LINK_BUF: usize = 512;
 /// No neighbour.
 pub const NONE: u8 = 0xFF;
 pub use cell_core::wire::board::{KIND_DONE, KIND_QUERY, KIND_START};
@@ -37,11 +37,10 @@ pub fn board_elf(tmp: &Path) -> &'static Path {
     static ELF: OnceLock<PathBuf> = OnceLock::new();
     ELF.get_or_init(|| {
         let dir = tmp.join("firmware-board");
-        // With its defmt log (stdout over semihosting), which a failing test shows decoded;
-        // without the default cell's features (the boards run the plane rule: issue 52's item 2
-        // is to run the default cell on them).
-        qemu::build_firmware(&dir, None, &["--bin", "board", "--no-default-features", "--features", "defmt"])
-            .join("board")
+        // With its defmt log (stdout over semihosting), which a failing test shows decoded, and
+        // the default cell's features (exact occluders and rays from the light in cell-core: the
+        // boards run `render`'s lit rule).
+        qemu::build_firmware(&dir, None, &["--bin", "board", "--features", "defmt"]).join("board")
     })
 }
 

@@ -16,21 +16,21 @@
 use std::collections::{BTreeMap, HashMap, VecDeque};
 
 use boards::safra::{item_bytes, SafraBoard};
-use boards::tiles::{beam_body, light_setup, TileBoard};
+use boards::tiles::{beam_body, light_setup, TileBoard, SOURCES};
 use boards::{Event, Events, Links};
 use cell_core::beam::frac::U0;
 use cell_core::beam::{Beam, FarDistance, SplitOrder};
-use cell_core::light::BeamMsg;
+use cell_core::light::{BeamMsg, LightEnv};
 use cell_core::serial::SerialLink;
 use cell_core::trace::LightSetup;
 use cell_core::wire::board::{
     KIND_PIPE, KIND_QUERY, KIND_START, KIND_TERM_CONFIG, KIND_TILE_BEAM, KIND_TILE_CELL, KIND_TILE_CONFIG,
-    KIND_TILE_SHADE, KIND_TILE_STATE, KIND_WORK,
+    KIND_TILE_STATE, KIND_WORK,
 };
 use cell_core::wire::{put_pipe, PutExt, RawFrame, SliceWriter};
 use rc2_tests::boards::{neighbour, ring_config, RING, SIDE};
 
-use super::mcu_tiles::{board_of, parse_cell, parse_state, the_case, BoardState, CellView, N};
+use super::mcu_tiles::{board_of, parse_cell, parse_state, the_case, BoardState, Case, CellView, N};
 
 /// A frame: kind and body.
 type Frame = (u8, Vec<u8>);
@@ -412,7 +412,8 @@ fn a_partial_frame_from_a_restarted_host_end_is_dropped_and_the_next_taken_once(
 
 /// Board `b`'s tile configuration, as the QEMU test sends it.
 fn tile_config(b: usize, depth: u32) -> boards::tiles::Config {
-    boards::tiles::Config::parse(KIND_TILE_CONFIG, &super::mcu_tiles::tile_config(b, depth))
+    let sources = the_case().sources();
+    boards::tiles::Config::parse(KIND_TILE_CONFIG, &super::mcu_tiles::tile_config(b, depth, sources))
         .expect("a tile configuration")
 }
 
@@ -447,6 +448,21 @@ fn a_beam_is_routed_along_x_then_y_to_the_board_of_its_cell() {
     }
 }
 
+/// The case's light setups, one per source (what the firmware's glue reads off the host link).
+fn light_setups(c: &Case) -> Vec<LightSetup> {
+    c.light_records().iter().map(|r| light_setup(r).expect("the case's light setup")).collect()
+}
+
+/// Every source's lighting environment, for a board.
+fn envs<'s>(setups: &'s [LightSetup], order: &'s SplitOrder) -> heapless::Vec<LightEnv<'s, U0>, SOURCES> {
+    setups.iter().map(|s| s.env(order).expect("an environment")).collect()
+}
+
+/// The phases a tile run declares: loading, one lighting per source, the news.
+fn phases(c: &Case) -> Vec<u16> {
+    (0..c.sources() as u16 + 2).collect()
+}
+
 /// A beam of the case's source for cell `at` (any beam: the board only moves it).
 fn some_beam(setup: &LightSetup) -> BeamMsg<U0> {
     let far = FarDistance::<U0>::new(setup.far).expect("a far distance");
@@ -456,14 +472,15 @@ fn some_beam(setup: &LightSetup) -> BeamMsg<U0> {
 #[test]
 fn a_beam_for_a_diagonal_board_is_forwarded_by_the_side_neighbour() {
     let c = the_case();
-    let setup = light_setup(&c.light_record()).expect("the case's light setup");
+    let setups = light_setups(c);
+    let setup = &setups[0];
     let order = SplitOrder::default();
     // Board 1 holds cells x 4 … 7, y 0 … 3; board 0 sends it (on its link W) a beam for cell
     // (4, 4), board 3's, diagonal to board 0's corner cell (3, 3).
     let mut net = Net::new();
-    let mut b1 = TileBoard::new(tile_config(1, c.depth), setup.env(&order).expect("an environment"));
+    let mut b1 = TileBoard::new(tile_config(1, c.depth), envs(&setups, &order));
     let mut body = [0u8; 64];
-    let n = beam_body(4, 4, &some_beam(&setup), &mut body).expect("a beam frame");
+    let n = beam_body(4, 4, &some_beam(setup), &mut body).expect("a beam frame");
     net.wire(0, 1).frames.push_back((KIND_TILE_BEAM, body[..n].to_vec()));
     b1.poll(&mut net.port(1));
     b1.poll(&mut net.port(1));
@@ -493,12 +510,12 @@ struct TileRun {
 /// then query every board. `schedule(pass, net, boards)` runs before each pass.
 fn tile_run(counters: bool, passes: usize, mut schedule: impl FnMut(usize, &mut Net, &[TileBoard])) -> TileRun {
     let c = the_case();
-    let setup = light_setup(&c.light_record()).expect("the case's light setup");
+    let setups = light_setups(c);
     let order = SplitOrder::default();
     let mut net = Net::new();
     let mut boards: Vec<TileBoard> = (0..SIDE * SIDE)
         .map(|b| {
-            let t = TileBoard::new(tile_config(b, c.depth), setup.env(&order).expect("an environment"));
+            let t = TileBoard::new(tile_config(b, c.depth), envs(&setups, &order));
             if counters {
                 t
             } else {
@@ -507,7 +524,7 @@ fn tile_run(counters: bool, passes: usize, mut schedule: impl FnMut(usize, &mut 
         })
         .collect();
     for b in 0..SIDE * SIDE {
-        net.host_in[b].push_back((KIND_TILE_SHADE, c.shade_record()));
+        net.host_in[b].extend(c.host_frames(b).iter().cloned());
     }
     for p in &c.packets {
         let mut buf = [0u8; 512];
@@ -538,7 +555,7 @@ fn tile_run(counters: bool, passes: usize, mut schedule: impl FnMut(usize, &mut 
     for pass in 0..passes {
         schedule(pass, &mut net, &boards);
         poll_all(&mut net, &mut boards, &mut declarations);
-        if declarations.len() == 3 {
+        if declarations.len() == c.sources() + 2 {
             break;
         }
     }
@@ -581,7 +598,7 @@ fn tile_run(counters: bool, passes: usize, mut schedule: impl FnMut(usize, &mut 
 fn in_memory_boards_load_and_light_the_cells_as_host_sim_does() {
     let c = the_case();
     let r = tile_run(true, 200_000, |_, _, _| {});
-    assert_eq!(r.declarations.iter().map(|d| d.0).collect::<Vec<_>>(), [0, 1, 2]);
+    assert_eq!(r.declarations.iter().map(|d| d.0).collect::<Vec<_>>(), phases(c));
     for &(p, in_flight, active) in &r.declarations {
         assert_eq!((in_flight, active), (0, 0), "phase {p} declared with work left");
     }
@@ -597,8 +614,8 @@ fn in_memory_boards_load_and_light_the_cells_as_host_sim_does() {
     // Every board heard of phases 1 and 2 (ring position 0 by declaring them).
     for (b, ev) in r.events.iter().enumerate() {
         let want: Vec<Event> = match b == INITIATOR {
-            true => vec![Event::Declared(0), Event::Declared(1), Event::Declared(2), Event::Queried],
-            false => vec![Event::Entered(1), Event::Entered(2), Event::Queried],
+            true => phases(c).into_iter().map(Event::Declared).chain([Event::Queried]).collect(),
+            false => phases(c).into_iter().skip(1).map(Event::Entered).chain([Event::Queried]).collect(),
         };
         assert_eq!(ev, &want, "board {b}");
     }
@@ -630,7 +647,7 @@ fn the_ring_waits_for_beams_a_late_wire_holds_and_the_counterless_mutant_does_no
     let c = the_case();
     let (r, released) = tile_late_wire(true);
     assert!(released, "beams were held on wire 2 → 3 while every board was passive");
-    assert_eq!(r.declarations.iter().map(|d| d.0).collect::<Vec<_>>(), [0, 1, 2]);
+    assert_eq!(r.declarations.iter().map(|d| d.0).collect::<Vec<_>>(), phases(c));
     for &(p, in_flight, active) in &r.declarations {
         assert_eq!((in_flight, active), (0, 0), "phase {p} declared with work left");
     }

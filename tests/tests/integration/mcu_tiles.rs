@@ -1,15 +1,18 @@
 //! Tiles of cells on a grid of microcontrollers: 2 × 2 emulated Cortex-M4F boards
 //! (`firmware/src/bin/board`, its tile exercise `tiles.rs`), each holding 4 × 4 cells of an
-//! 8 × 8 grid, load the Cornell box (its two blocks cast shadows) and light it from one source
-//! beside the corner the four boards share,
-//! asynchronously, over serial links between QEMU processes (`rc2_tests::boards`): loading
+//! 8 × 8 grid, load the Cornell box (its two blocks cast shadows) and light it from two sources
+//! one after another, the first beside the corner the four boards share, under `host-sim
+//! render`'s lit rule (exact occluders with rays from the light: the host loads each column's
+//! triangles and each target's contact answer into the cells, as a trace does), asynchronously,
+//! over serial links between QEMU processes (`rc2_tests::boards`): loading
 //! packets and beams cross board edges as frames, a beam to a diagonal neighbour is forwarded
 //! by a side neighbour, and the boards detect the end of each phase themselves (Safra's ring).
 //!
-//! The oracle is host-sim's simulation of the same machine (`machine::lighting::boards`, B = 4):
-//! every cell's dexels (span and facet), lit voxels and pixel (`machine::shading::pixels::shade_grid` of
-//! that run; the boards shade with `cell_core::shade::cell_pixel` and the inputs
-//! `host-sim trace` records) must be the boards'. The lit set does
+//! The oracle is host-sim's simulation of the same machine (`machine::lighting::boards`, B = 4,
+//! [`boards_light`]): every cell's dexels (span and facet) and lit voxels, and its pixel
+//! (`machine::shading::pixels::shade_grid` of a run under `render`'s visible-only lit store; the boards
+//! shade with `cell_core::shade::cell_pixel` and the inputs `host-sim trace` records) must be
+//! the boards'. The lit set does
 //! not depend on timing, so the same holds with corrupted and dropped bytes on the links and
 //! with one board's links slowed down. Each run also fails if a board hangs (no declaration
 //! within [`TIMEOUT`]; every QEMU is killed on every path out), if a frame is lost (basic
@@ -27,17 +30,25 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
+use boards::tiles::TRIANGLES_PER_FRAME;
 use cell_core::beam::frac::U0;
-use cell_core::beam::Source;
+use cell_core::beam::{FarDistance, Origin, Source};
+use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::facet::PipelinePacket;
+use cell_core::light::OccupiedBox;
+use cell_core::lit::LitRule;
+use cell_core::occluder::ColumnOccluders;
 use cell_core::shade::{NormalMode, ShadeParams};
 use cell_core::trace::{write_event, Event, LightSetup, ShadeSetup};
 use cell_core::wire::board::{
-    KIND_PIPE, KIND_TILE_CELL, KIND_TILE_CONFIG, KIND_TILE_LIGHT, KIND_TILE_SHADE, KIND_TILE_STATE,
+    KIND_PIPE, KIND_TILE_CELL, KIND_TILE_CONFIG, KIND_TILE_CONTACT, KIND_TILE_LIGHT, KIND_TILE_SHADE, KIND_TILE_STATE,
+    KIND_TILE_TRIANGLES,
 };
 use cell_core::wire::{put_pipe, PutExt, SliceWriter};
+use host_sim::machine::grid::Grid;
 use host_sim::machine::lighting::boards::{run, AsyncConfig};
-use host_sim::machine::lighting::diffuse::{source_at, LightConfig};
+use host_sim::machine::lighting::diffuse::{occupied_box, LightConfig};
+use host_sim::machine::lighting::occluders::SourceOccluders;
 use host_sim::machine::loading::loaded_scene::{load_scene, resolve_lights, LoadedScene};
 use host_sim::machine::shading::pixels::{cell_material, eye_lights, point_lights, shade_grid, AMBIENT};
 use host_sim::precompute::{prepare, LoadConfig};
@@ -49,10 +60,14 @@ use rc2_tests::qemu;
 pub(crate) const N: u32 = 8;
 /// Board side in cells.
 pub(crate) const TILE: u32 = N / SIDE as u32;
-/// A run (boot, loading, lighting, reports) must end within this.
-const TIMEOUT: Duration = Duration::from_secs(90);
-/// The light, in fractions of the scene's box (x, y up, z).
-const LIGHT: [f64; 3] = [0.4, 0.5, 0.45];
+/// A run (boot, loading, lighting, reports) must end within this: a hang detector. The
+/// faulty-link run of two sources under exact occluders took more than 90 s on a loaded
+/// 2-core machine (docs/FIRMWARE.md has the measured times).
+const TIMEOUT: Duration = Duration::from_secs(240);
+/// The lights, in fractions of the scene's box (x, y up, z), lit one after another: the first
+/// halfway up between the blocks, at a cell beside the corner the four boards share (its
+/// beams cross board edges every way, diagonally too); the second high on board 3's side.
+const LIGHTS: [[f64; 3]; 2] = [[0.4, 0.5, 0.45], [0.7, 0.8, 0.3]];
 /// Dexels and lit runs a cell report carries at most (the board's `REPORTED`).
 const REPORTED: usize = 16;
 
@@ -60,33 +75,60 @@ const REPORTED: usize = 16;
 /// and pixel (its rgb, if the cell shows a surface).
 pub(crate) type CellView = (Vec<(u16, u16, u32)>, Vec<(u32, u32)>, Option<[u8; 3]>);
 
-/// The scene, the light, and what host-sim's boards make of it.
+/// A host frame: kind and body.
+pub(crate) type HostFrame = (u8, Vec<u8>);
+
+/// The scene, the lights, and what host-sim's boards make of it.
 pub(crate) struct Case {
     pub(crate) packets: Vec<PipelinePacket>,
-    source: Source,
+    sources: Vec<Source>,
     light: LightConfig,
+    /// The grid's occupied box (`diffuse::occupied_box`): the boards' receding-beam and
+    /// dead-direction skips, which host-sim's asynchronous boards do not run.
+    skip: OccupiedBox,
     pub(crate) depth: u32,
-    shade: ShadeSetup,
+    /// Per board, the frames the host loads into its cells after the light setups: the shading
+    /// inputs, each column's triangles, each target's contact answer.
+    host_frames: Vec<Vec<HostFrame>>,
     pub(crate) cells: BTreeMap<(u16, u16), CellView>,
     /// Voxels of the box's walls, floor and ceiling that the light reaches in the empty box and
     /// not with its blocks: the blocks' shadows.
     shadowed: usize,
 }
 
-/// The Cornell box at n = 8 under one light, on host-sim's asynchronous boards of 4 × 4 cells,
-/// with the lighting defaults less the skips that need a whole-grid reduction.
+/// The lighting host-sim's boards run for the oracle: `host-sim render`'s default cell (exact
+/// occluders, rays from the light, the radial policy, merging) less what host-sim's
+/// asynchronous boards refuse, the skips that need a whole-grid reduction after loading
+/// (receding beams, dead directions, hidden voxels), and with the full lit store (`light`'s),
+/// so that every lit voxel is compared, not only the visible one's. The QEMU boards run the
+/// receding-beam and dead-direction skips all the same (the host sends them the occupied box):
+/// lit voxels and pixels must not depend on them.
+pub(crate) fn boards_light() -> LightConfig {
+    LightConfig {
+        skip_receding: false,
+        skip_dead_directions: false,
+        skip_hidden: false,
+        skip_frustum: false,
+        lit_visible_only: false,
+        ..host_sim::config::Preset::Render.light()
+    }
+}
+
+/// The Cornell box at n = 8 under [`LIGHTS`], on host-sim's asynchronous boards of 4 × 4
+/// cells, under [`boards_light`]; the pixels from a run under `render`'s own lit store (the
+/// visible voxel's marks only).
 fn case() -> Case {
     let mesh = host_sim::scene::load("cornell").unwrap();
     let cfg = LoadConfig::watertight(N);
     let loaded = load_scene(&mesh, &cfg).unwrap();
-    // Halfway up, between the blocks, at a cell beside the corner the four boards share: its
-    // beams cross board edges every way, diagonally too.
-    let lights = resolve_lights(&mesh, &loaded, &[LIGHT]).unwrap();
-    let sources: Vec<Source> = lights.iter().enumerate().map(|(i, p)| source_at(i, *p, N).unwrap()).collect();
-    let light = LightConfig { skip_receding: false, skip_dead_directions: false, ..host_sim::config::plane_rule() };
+    let lights = resolve_lights(&mesh, &loaded, &LIGHTS).unwrap();
+    let light = boards_light();
+    assert_eq!((light.rule, light.rays), (LitRule::Exact, Origin::Light), "render's lit rule");
+    let sources: Vec<Source> = lights.iter().enumerate().map(|(i, p)| light.source(i, *p, N).unwrap()).collect();
     let prepared = prepare(&mesh, &cfg).unwrap();
     let packets = &prepared.packets;
-    let r = run(&prepared, N, &sources, &light, &AsyncConfig { tile: TILE, ..Default::default() }).unwrap();
+    let tiles = AsyncConfig { tile: TILE, ..Default::default() };
+    let r = run(&prepared, N, &sources, &light, &tiles).unwrap();
     assert_eq!(r.early, None);
     // The same box without its blocks (the last ten faces; the first six, the box and its
     // lamp, fit the grid the same way and come first, so they keep their facet ids).
@@ -95,7 +137,7 @@ fn case() -> Case {
     let empty_prepared = prepare(&empty, &cfg).unwrap();
     let empty_packets = &empty_prepared.packets;
     assert_eq!(empty_packets[..], packets[..empty_packets.len()], "the box's packets are the same without the blocks");
-    let e = run(&empty_prepared, N, &sources, &light, &AsyncConfig { tile: TILE, ..Default::default() }).unwrap();
+    let e = run(&empty_prepared, N, &sources, &light, &tiles).unwrap();
     let with_blocks: std::collections::BTreeSet<[u32; 3]> = r.lighting.lit_voxels().map(|(v, _)| v).collect();
     let wall_voxel = |[x, y, z]: [u32; 3]| {
         let c = r.grid.cell(x, y);
@@ -105,13 +147,14 @@ fn case() -> Case {
             .any(|d| d.span.lo as u32 <= z && z <= d.span.hi as u32 && (d.facet as usize) < empty_packets.len())
     };
     let shadowed = e.lighting.lit_voxels().filter(|(v, _)| wall_voxel(*v) && !with_blocks.contains(v)).count();
-    // The shading inputs a cell gets (as `host-sim trace` records them), and the pixels
-    // host-sim shades from the boards' lit state.
+    // The shading inputs a cell gets (as `host-sim trace` records them).
     let shade = ShadeSetup {
         params: ShadeParams { ambient: [AMBIENT; 3], normal_mode: NormalMode::Facet, eye: loaded.eye },
         lights: eye_lights(&loaded.eye, &point_lights(&lights)).into_iter().collect(),
         materials: mesh.materials.iter().map(cell_material).collect(),
     };
+    let host_frames = load_frames(&r.grid, &sources, &shade);
+    let skip = occupied_box(&r.grid, light.rule);
     let mut cells: BTreeMap<(u16, u16), CellView> = BTreeMap::new();
     for c in &r.grid.cells {
         let dexels = c.store.dexels().iter().map(|d| (d.span.lo, d.span.hi, d.facet)).collect();
@@ -120,49 +163,104 @@ fn case() -> Case {
     for ([x, y, z], mask) in r.lighting.lit_voxels() {
         cells.get_mut(&(x as u16, y as u16)).unwrap().1.push((z, mask));
     }
+    // The pixels: host-sim's boards under `render`'s lit store (its skips refused by them, as
+    // above), shaded by host-sim (`machine::shading::pixels`).
+    let render = LightConfig { lit_visible_only: true, ..light };
+    let rv = run(&prepared, N, &sources, &render, &tiles).unwrap();
+    assert_eq!(rv.early, None);
     let depth = loaded.grid.depth;
-    let scene = LoadedScene { grid: r.grid, ..loaded };
-    let img = shade_grid(&mesh, &scene, &point_lights(&lights), &r.lighting, NormalMode::Facet);
+    let scene = LoadedScene { grid: rv.grid, ..loaded };
+    let img = shade_grid(&mesh, &scene, &point_lights(&lights), &rv.lighting, NormalMode::Facet);
     for ((x, y), view) in cells.iter_mut() {
         let i = *y as usize * N as usize + *x as usize;
         view.2 = img.covered[i].then_some(img.rgb[i]);
     }
-    Case { packets: packets.clone(), source: sources[0], light, depth, shade, cells, shadowed }
+    Case { packets: packets.clone(), sources, light, skip, depth, host_frames, cells, shadowed }
+}
+
+/// Per board, the frames that load its cells after the light setups, as `host-sim trace`
+/// records them for a cell (`machine::links::tap`): the shading record; each column's triangles
+/// (`grid.triangles`, the stores host-sim's boards loaded with the facets); and for each
+/// source, each cell whose target ray has a contact segment, its neighbours' answer
+/// (host-sim's `SourceOccluders`).
+fn load_frames(grid: &Grid<DEFAULT_DEXELS>, sources: &[Source], shade: &ShadeSetup) -> Vec<Vec<HostFrame>> {
+    let mut frames: Vec<Vec<HostFrame>> = vec![Vec::new(); SIDE * SIDE];
+    let mut buf = [0u8; 1024];
+    let n = write_event::<U0>(&Event::Shade(shade.clone()), &mut buf).unwrap();
+    for f in &mut frames {
+        f.push((KIND_TILE_SHADE, buf[..n].to_vec()));
+    }
+    assert!(grid.triangles.loaded() && grid.triangles.overflows() == 0, "every column kept its triangles");
+    for y in 0..N {
+        for x in 0..N {
+            for chunk in grid.triangles.column(x, y).chunks(TRIANGLES_PER_FRAME) {
+                let mut body = Vec::new();
+                body.extend((x as u16).to_le_bytes());
+                body.extend((y as u16).to_le_bytes());
+                for t in chunk {
+                    body.extend(t.vertices().as_flattened().iter().flat_map(|c| c.to_le_bytes()));
+                }
+                frames[board_of(x, y)].push((KIND_TILE_TRIANGLES, body));
+            }
+        }
+    }
+    let far = FarDistance::<U0>::new(N - 1).unwrap();
+    for (i, s) in sources.iter().enumerate() {
+        let occ = SourceOccluders::new(grid, s, far);
+        for y in 0..N {
+            for x in 0..N {
+                if let Some(t) = occ.target(x as u16, y as u16).filter(|t| t.contact.is_some()) {
+                    let mut body = Vec::new();
+                    body.extend((x as u16).to_le_bytes());
+                    body.extend((y as u16).to_le_bytes());
+                    body.extend([i as u8, u8::from(t.neighbour_shadow)]);
+                    frames[board_of(x, y)].push((KIND_TILE_CONTACT, body));
+                }
+            }
+        }
+    }
+    frames
 }
 
 impl Case {
-    /// The light record every board gets.
-    pub(crate) fn light_record(&self) -> Vec<u8> {
+    /// The light records every board gets, one per source in order.
+    pub(crate) fn light_records(&self) -> Vec<Vec<u8>> {
         let l = &self.light;
-        let setup = LightSetup {
-            source: self.source,
-            n: N,
-            depth: self.depth,
-            far: N - 1,
-            policy: l.policy,
-            fa: l.timing.fifo_limit(l.fa) as u16,
-            merge: l.merge,
-            source_bit: 1,
-            skip: None,
-            hold: 0,
-            frustum: None,
-            rule: l.rule,
-        };
-        let mut buf = [0u8; 256];
-        let n = write_event::<U0>(&Event::Light(setup), &mut buf).unwrap();
-        buf[..n].to_vec()
+        let records = self.sources.iter().enumerate().map(|(i, &source)| {
+            let setup = LightSetup {
+                source,
+                n: N,
+                depth: self.depth,
+                far: N - 1,
+                policy: l.policy,
+                fa: l.timing.fifo_limit(l.fa) as u16,
+                merge: l.merge,
+                source_bit: 1 << i,
+                skip: Some(self.skip),
+                hold: 0,
+                frustum: None,
+                rule: l.rule,
+            };
+            let mut buf = [0u8; 256];
+            let n = write_event::<U0>(&Event::Light(setup), &mut buf).unwrap();
+            buf[..n].to_vec()
+        });
+        records.collect()
     }
 
-    /// The shading record every board gets.
-    pub(crate) fn shade_record(&self) -> Vec<u8> {
-        let mut buf = [0u8; 1024];
-        let n = write_event::<U0>(&Event::Shade(self.shade.clone()), &mut buf).unwrap();
-        buf[..n].to_vec()
+    /// The frames that load board `b`'s cells after the light setups.
+    pub(crate) fn host_frames(&self, b: usize) -> &[HostFrame] {
+        &self.host_frames[b]
     }
 
-    /// The board holding the source's cell (which makes its initial beams itself).
+    /// Sources in the run.
+    pub(crate) fn sources(&self) -> usize {
+        self.sources.len()
+    }
+
+    /// The board holding the first source's cell (which makes its initial beams itself).
     pub(crate) fn source_board(&self) -> usize {
-        let sv = self.source.voxel();
+        let sv = self.sources[0].voxel();
         board_of(sv[0] as u32, sv[1] as u32)
     }
 
@@ -261,7 +359,7 @@ struct TileRun {
 
 /// Board `b`'s [`KIND_TILE_CONFIG`] body: its place in the ring, its tile of the grid, the
 /// grid's side and depth.
-pub(crate) fn tile_config(b: usize, depth: u32) -> Vec<u8> {
+pub(crate) fn tile_config(b: usize, depth: u32, sources: usize) -> Vec<u8> {
     let mut config = ring_config(b);
     let (x0, y0) = ((b % SIDE) as u32 * TILE, (b / SIDE) as u32 * TILE);
     config.extend((x0 as u16).to_le_bytes());
@@ -269,6 +367,7 @@ pub(crate) fn tile_config(b: usize, depth: u32) -> Vec<u8> {
     config.push(TILE as u8);
     config.extend((N as u16).to_le_bytes());
     config.extend((depth as u16).to_le_bytes());
+    config.push(sources as u8);
     config
 }
 
@@ -277,11 +376,15 @@ pub(crate) fn tile_config(b: usize, depth: u32) -> Vec<u8> {
 /// tells every board of the lighting's), then read every board's report.
 fn run_tiles(c: &Case, faults: Faults, slow: Option<Slow>) -> TileRun {
     let mut g = boot(board_elf(Path::new(env!("CARGO_TARGET_TMPDIR"))), faults, slow, TIMEOUT);
-    let (record, shading) = (c.light_record(), c.shade_record());
+    let records = c.light_records();
     for b in 0..SIDE * SIDE {
-        g.send(b, KIND_TILE_CONFIG, &tile_config(b, c.depth));
-        g.send(b, KIND_TILE_LIGHT, &record);
-        g.send(b, KIND_TILE_SHADE, &shading);
+        g.send(b, KIND_TILE_CONFIG, &tile_config(b, c.depth, c.sources()));
+        for r in &records {
+            g.send(b, KIND_TILE_LIGHT, r);
+        }
+        for (kind, body) in c.host_frames(b) {
+            g.send(b, *kind, body);
+        }
     }
     for p in &c.packets {
         let mut buf = [0u8; 512];
@@ -293,7 +396,10 @@ fn run_tiles(c: &Case, faults: Faults, slow: Option<Slow>) -> TileRun {
     }
     // Every host frame taken before the detection starts: they are not basic messages.
     g.settle();
-    let declared = g.declarations(3, &|k| format!("phase {k} (0 loading, 1 lighting, 2 the news)"));
+    let phases = c.sources() + 2;
+    let declared = g.declarations(phases, &|k| {
+        format!("phase {k} (0 loading, 1 … {} lighting one source each, then the news)", c.sources())
+    });
     let (cells, states) = query(&mut g);
     // Nothing after the reports: no board goes on working.
     let wait = Instant::now();
@@ -380,7 +486,7 @@ fn check_run(c: &Case, r: &TileRun, what: &str) {
         let (x0, y0) = ((b % SIDE) as u32 * TILE, (b / SIDE) as u32 * TILE);
         assert!(has(&format!("board {b}: tile of {TILE} x {TILE} cells at ({x0}, {y0})")), "{what}: board {b}'s log");
         assert!(has(&format!("board {b}: report (0 late, 0 overflows")), "{what}: board {b}'s log");
-        for phase in 1..=2 {
+        for phase in 1..=c.sources() + 1 {
             let line = match RING[0] == b {
                 true => format!("board {b}: declared the end of phase {}", phase - 1),
                 false => format!("board {b}: entered phase {phase}"),
@@ -425,6 +531,10 @@ pub(crate) fn the_case() -> &'static Case {
     CASE.get_or_init(|| {
         let c = case();
         assert!(c.lit() > 50 && c.shadowed > 0, "a lit scene with shadows: {} lit, {} shadowed", c.lit(), c.shadowed);
+        for i in 0..c.sources() {
+            let by = c.cells.values().flat_map(|v| &v.1).filter(|(_, mask)| mask >> i & 1 != 0).count();
+            assert!(by > 0, "source {i} lights no voxel");
+        }
         c
     })
 }

@@ -1,18 +1,19 @@
 //! The tile exercise's glue (the exercise itself, its protocol and invariant, is
 //! `boards::tiles`, a sans-IO state machine the host tests drive with in-memory links): wait
-//! for the light setup on the host link, then drive a [`TileBoard`] with the board's serial
+//! for the light setups on the host link (one per source), then drive a [`TileBoard`] with the board's serial
 //! links, log what it did (the QEMU test checks the log) and sleep when it is idle.
 //!
 //! **Invariant**: every pass polls every connected link's bytes before the board looks at its
 //! frames, and the board sleeps only when it is idle (nothing to do but wait for a frame), so
 //! the glue adds no state of its own: the board's behaviour is `boards::tiles`'s.
 
-use boards::tiles::{light_setup, TileBoard};
+use boards::tiles::{light_setup, TileBoard, SOURCES};
 #[cfg(feature = "defmt")]
 use boards::Event;
 use boards::{Links, LINKS};
 use cell_core::beam::SplitOrder;
 use cell_core::serial::{SerialLink, SerialStats};
+use cell_core::trace::LightSetup;
 use cell_core::wire::board::KIND_TILE_LIGHT;
 use cell_core::wire::RawFrame;
 
@@ -44,15 +45,16 @@ impl Links for Wires<'_> {
     }
 }
 
-/// Wait for the light setup on the host link (the host sends it right after the
-/// configuration), then run the exercise.
+/// Wait for the light setups on the host link (the host sends them right after the
+/// configuration, one per source in order), then run the exercise.
 pub fn run(mut board: Board, c: Config) -> ! {
     // The neighbour links carry row and pipeline packets: lift the short exercises' frame
     // limit. They have carried nothing yet (nothing goes between boards before the start).
     for l in &mut board.links[1..] {
         *l = SerialLink::new(TIMEOUT_US);
     }
-    let setup = loop {
+    let mut setups: heapless::Vec<LightSetup, SOURCES> = heapless::Vec::new();
+    while setups.len() < usize::from(c.sources) {
         let now = board.now();
         board.poll(0, now);
         let Some(f) = board.links[0].received() else {
@@ -62,21 +64,30 @@ pub fn run(mut board: Board, c: Config) -> ! {
         let s = (f.kind == KIND_TILE_LIGHT).then(|| light_setup(f.payload)).flatten();
         board.links[0].pop();
         if let Some(s) = s.filter(|s| s.n == u32::from(c.n) && s.depth == u32::from(c.depth)) {
-            break s;
+            let _ = setups.push(s);
         }
-    };
+    }
     let order = SplitOrder::default();
-    let Ok(env) = setup.env(&order) else { panic!("light setup beyond the bit budget") };
-    let mut tile = TileBoard::new(c, env);
+    let envs = setups.iter().map(|s| s.env(&order)).collect::<Result<heapless::Vec<_, SOURCES>, _>>();
+    let Ok(envs) = envs else { panic!("light setup beyond the bit budget") };
+    let mut tile = TileBoard::new(c, envs);
     log!(
-        "board {=u8}: tile of {=u16} x {=u16} cells at ({=u16}, {=u16}), ring position {=u8}, source here: {=bool}",
+        "board {=u8}: state {=usize} B ({=usize} B a cell, {=usize} cells at most)",
+        c.ring.id,
+        core::mem::size_of::<TileBoard>(),
+        boards::tiles::CELL_BYTES,
+        boards::tiles::SIDE * boards::tiles::SIDE
+    );
+    log!(
+        "board {=u8}: tile of {=u16} x {=u16} cells at ({=u16}, {=u16}), ring position {=u8}, {=usize} of {=u8} sources here",
         c.ring.id,
         c.side,
         c.side,
         c.x0,
         c.y0,
         c.ring.position,
-        tile.holds_source()
+        tile.holds_sources(),
+        c.sources
     );
     loop {
         let now = board.now();
