@@ -38,7 +38,7 @@ for n in $NS; do
 import json, os, re, sys
 o, scene, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
 def classic_line(log):
-    m = re.search(r"classic: (\d+) rays, .*?busiest cell (\d+) steps at distance (\d+); peak link load (\d+) at distance (\d+); peak FIFO (\d+)", open(log).read())
+    m = re.search(r"classic: (\d+) rays[^,]*, .*?busiest cell (\d+) steps at distance (\d+); peak link load (\d+) at distance (\d+); peak FIFO (\d+)", open(log).read())
     if not m:
         sys.exit(f"no classic summary in {log}")
     return [int(g) for g in m.groups()]

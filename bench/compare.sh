@@ -18,4 +18,6 @@ fi
 # falls back to trimesh alone (compare.py reports which tools ran).
 "$VENV/bin/pip" install -q trimesh numpy scipy embreex
 "$VENV/bin/pip" install -q open3d || echo "note: no open3d wheel for this Python; trimesh only" >&2
+. bench/lib.sh
+bench_header "bash bench/compare.sh $*"
 exec "$VENV/bin/python" bench/compare.py --host ./target/release/host-sim "$@"

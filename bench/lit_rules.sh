@@ -95,7 +95,7 @@ def ratio(k):
     return f"{int(a['cycles']) / int(b['cycles']):.2f}" if a and b else "–"
 table("Light cycles / host seconds of the light phase (cycles are exact; seconds from one run on a shared machine):",
       lambda r: f"{int(r['cycles']):,} / {float(r['light_s']):.1f} s".replace(",", " "),
-      ("default / thesis's machine, cycles", ratio))
+      ("default / thesis's machine, cycles", ratio) if {"exact", "thesis-thin"} <= set(methods) else None)
 table("Shadow disagreement against the f64 reference (% of the (pixel, light) pairs covered in both) / PSNR:",
       lambda r: f"{r['shadow_disagreement_pct']} % / {float(r['psnr_db']):.1f} dB")
 PY
