@@ -11,7 +11,7 @@
 # (e.g. EXTRA=--lit-visible-only for office scenes at n = 512, whose columns along a wall need
 # more lit runs than LIT_CAP; the image and counts are the same).
 # Then plots the table (bench/classic_plot.py, matplotlib in bench-out/venv) to $PLOT
-# (default docs/classic-vs-diffusion.png).
+# (default docs/classic-vs-diffusion.png). TABLE_ONLY=1 redraws the tables and the plot from the CSV.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 NS=${NS:-"64 128"}
@@ -22,7 +22,8 @@ mkdir -p bench-out
 cargo build --release -q -p host-sim
 B=./target/release/host-sim
 CSV=bench-out/classic.csv
-[[ ${APPEND:-0} == 1 && -f $CSV ]] || echo "scene,n,voxels,occupancy_pct,method,rays,messages,cycles,busiest_cell_load,busiest_cell_distance,peak_link_load,peak_link_distance,peak_fifo,shadow_disagreement_pct,psnr_db,wall_s" > "$CSV"
+[[ ( ${APPEND:-0} == 1 || ${TABLE_ONLY:-0} == 1 ) && -f $CSV ]] || echo "scene,n,voxels,occupancy_pct,method,rays,messages,cycles,busiest_cell_load,busiest_cell_distance,peak_link_load,peak_link_distance,peak_fifo,shadow_disagreement_pct,psnr_db,wall_s" > "$CSV"
+if [[ ${TABLE_ONLY:-0} != 1 ]]; then
 for n in $NS; do
   for scene in $SCENES; do
     o=bench-out/classic-$scene-$n
@@ -63,6 +64,7 @@ for method in ("diffusion", "classic", "all"):
 PY
   done
 done
+fi
 . bench/lib.sh
 {
 bench_header "NS=\"$NS\" SCENES=\"$SCENES\" ALL_MAX_N=$ALL_MAX_N${EXTRA:+ EXTRA=\"$EXTRA\"}${APPEND:+ APPEND=$APPEND} bash bench/classic.sh"
@@ -70,6 +72,7 @@ echo
 python3 - "$CSV" <<'PY'
 import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
+fmt = lambda x: f"{float(x):.2f}" if x else "–"
 by = {}
 for r in rows:
     by.setdefault((r["scene"], int(r["n"])), {})[r["method"]] = r
@@ -83,7 +86,7 @@ for (scene, n), m in by.items():
         dist = lambda a, b: f"{r[a]} ({r[b]})" if r[b] else r[a]
         print(f"| {scene} | {n} | {float(r['occupancy_pct']):.2f} | {k} | {r['rays']} | {r['messages']} | {r['cycles']} | "
               f"{dist('busiest_cell_load', 'busiest_cell_distance')} | {dist('peak_link_load', 'peak_link_distance') or '–'} | "
-              f"{r['shadow_disagreement_pct'] or '–'} | {r['psnr_db'] or '–'} |")
+              f"{fmt(r['shadow_disagreement_pct'])} | {fmt(r['psnr_db'])} |")
 print()
 print("| scene | n | occupancy % | messages per classic ray | diffusion messages | diffusion wins on messages above occupancy % | thesis 300/n % |")
 print("|---|---|---|---|---|---|---|")
@@ -92,7 +95,8 @@ for (scene, n), m in by.items():
         continue
     a, d = m["classic-all"], m["diffusion"]
     per = int(a["messages"]) / max(1, int(a["rays"]))
-    sources = int(a["rays"]) // max(1, int(a["voxels"]))
+    # Every voxel facing a light emits one ray per such light (those facing away emit none).
+    sources = max(1, round(int(a["rays"]) / max(1, int(a["voxels"]))))
     # Classic costs per·(occupancy·n³)·sources messages; diffusion's cost does not depend on it.
     cross = 100.0 * int(d["messages"]) / (per * n**3 * sources)
     print(f"| {scene} | {n} | {float(a['occupancy_pct']):.2f} | {per:.1f} | {d['messages']} | {cross:.2f} | {300 / n:.2f} |")

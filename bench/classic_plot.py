@@ -55,7 +55,7 @@ for scene in scenes:
             continue
         a, d = m["classic-all"], m["diffusion"]
         per = int(a["messages"]) / max(1, int(a["rays"]))
-        sources = int(a["rays"]) // max(1, int(a["voxels"]))
+        sources = max(1, round(int(a["rays"]) / max(1, int(a["voxels"]))))  # voxels facing away emit none
         cross.append((n, 100.0 * int(d["messages"]) / (per * n**3 * sources)))
         occ.append((n, float(a["occupancy_pct"])))
     if cross:
