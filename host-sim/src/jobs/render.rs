@@ -3,7 +3,7 @@
 //!
 //! Every cell shades its pixel ([`crate::machine::shade`]): orthographic view along +z, image y
 //! up, +x to the left as a camera looking along +z sees it. Lights are white, each of intensity
-//! 1/√(number of lights), ambient 0.2. With a reference the same scene is ray-cast in f64
+//! 1/√(number of lights) (shared by an area light's samples, `--area-light`), ambient 0.2. With a reference the same scene is ray-cast in f64
 //! ([`crate::truth::refrender`]) with the same camera, resolution and shading formula, and
 //! compared ([`crate::truth::compare`]).
 //!

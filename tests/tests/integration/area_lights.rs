@@ -195,7 +195,6 @@ fn penumbra_on_the_floor_matches_the_reference() {
         .any(|&i| reference.lit[i] != 0 && reference.lit[i] != all && lum(reference.rgb[i]) > max_dark));
 
     // Each sample alone.
-    let cfg = RenderConfig::diffusion(Preset::Render.light(), NormalMode::Facet);
     let mut mean_pct = 0.0;
     for (s, p) in src.positions.iter().enumerate() {
         let one = Sources { positions: vec![*p], intensity: vec![src.intensity[s]], light: vec![0] };
