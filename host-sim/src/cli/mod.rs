@@ -316,6 +316,19 @@ pub struct LightOpts {
     /// replaces the scene's own lights). Sources are diffused one after another.
     #[arg(long = "light", value_parser = parse_triple)]
     pub lights: Vec<[f64; 3]>,
+    /// Give the --light lights an extent: each is a square lamp W wide (grid-normalised, along
+    /// x and z, centred on its point), facing down (−y) like a ceiling lamp, which
+    /// --area-light samples. Without it a --light light is a point.
+    #[arg(long, value_name = "W")]
+    pub light_size: Option<f64>,
+    /// Sample every light that has an extent (the Cornell box's ceiling lamp, a --light with
+    /// --light-size) by S × S point sources at the centres of the cells of a regular S × S grid
+    /// over its area, each with 1/S² of its intensity (the same total light): soft shadows with
+    /// penumbrae. The f64 reference samples the same points with the same weights. Lights
+    /// without an extent stay points. Every sample is a source of the machine: at most 32 in
+    /// all. Default: 1 (a point at the lamp's centre).
+    #[arg(long, value_name = "S", value_parser = clap::value_parser!(u32).range(1..))]
+    pub area_light: Option<u32>,
     /// The run to start from, every other option changing it (the presets are written out in
     /// docs/CONFIGURATION.md): `render` (what `render` runs by default), `light` (what `light`
     /// runs: render's machine keeping every lit voxel), `trace` (what `trace` records and the

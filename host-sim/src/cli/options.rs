@@ -54,6 +54,7 @@ impl LightOpts {
             hold: self.hold,
             rule: self.lit_rule.map(Into::into),
             rays: self.rays_from.map(Into::into),
+            area_light: self.area_light,
         }
     }
 
@@ -66,6 +67,7 @@ impl LightOpts {
         let shadow_rays = self.classic.config(run.light.fa, run.light.rule);
         Ok(LightingOptions {
             lights: self.lights.clone(),
+            light_size: self.light_size,
             run,
             classic: classic.then_some(shadow_rays),
             refine: (self.classic.lighting == LightingArg::Refined).then_some(shadow_rays),
@@ -134,6 +136,9 @@ impl TryFrom<&TraceArgs> for TraceOptions {
     fn try_from(a: &TraceArgs) -> Result<Self> {
         let reflecting = a.reflect.reflections > 0;
         let light = a.light.options(&a.load, Preset::Trace, reflecting)?;
+        if light.run.area_light > 1 || light.light_size.is_some() {
+            bail!("--area-light and --light-size are render and light options: a trace records point lights");
+        }
         let (fa, rule) = (light.run.light.fa, light.run.light.rule);
         Ok(TraceOptions {
             scene: a.load.scene.clone(),

@@ -62,7 +62,7 @@ impl Preset {
 
     /// The whole configuration, every field written out.
     pub const fn config(self) -> RunConfig {
-        RunConfig { preset: self, load: self.load(), light: self.light() }
+        RunConfig { preset: self, load: self.load(), light: self.light(), area_light: 1 }
     }
 
     /// How the preset loads a scene.
@@ -141,6 +141,9 @@ pub struct RunConfig {
     pub load: LoadConfig,
     /// The diffusion (f included).
     pub light: LightConfig,
+    /// S: every light with an extent is sampled by S × S point sources (1: a point at its
+    /// centre), [`crate::machine::loading::loaded_scene::resolve_sources`].
+    pub area_light: u32,
 }
 
 /// What a command line changes in a preset: `None` keeps the preset's value.
@@ -184,6 +187,8 @@ pub struct Overrides {
     pub rule: Option<LitRule>,
     /// The rays' origin.
     pub rays: Option<Origin>,
+    /// S × S samples per area light.
+    pub area_light: Option<u32>,
 }
 
 /// What the job around the diffusion needs of it.
@@ -231,7 +236,7 @@ impl RunConfig {
             thickness: o.thickness.unwrap_or(base.load.thickness),
             contour: o.contour.unwrap_or(base.load.contour),
         };
-        let run = RunConfig { preset, load, light };
+        let run = RunConfig { preset, load, light, area_light: o.area_light.unwrap_or(base.area_light) };
         run.validate(needs)?;
         Ok(run)
     }
@@ -254,6 +259,9 @@ impl RunConfig {
                 "--reflections reads the lit state of the voxels reflected rays hit, hidden ones included: \
                  run without --lit-visible-only (and --skip-hidden)"
             );
+        }
+        if self.area_light == 0 {
+            bail!("--area-light 0: S is the number of samples along each side of a light, at least 1");
         }
         if needs.classic && l.rays == Origin::Light {
             bail!("--rays-from light is a diffusion option: classic shadow rays are traced to the light itself");
@@ -305,6 +313,7 @@ impl RunConfig {
             },
             hold: l.hold,
             link_faults: l.faults.is_some(),
+            area_light: self.area_light,
         }
     }
 }
@@ -364,6 +373,13 @@ pub struct RunSummary {
     pub hold: u16,
     /// Faulty links.
     pub link_faults: bool,
+    /// S: area lights sampled by S × S point sources (not written when 1: a point each).
+    #[serde(skip_serializing_if = "is_one")]
+    pub area_light: u32,
+}
+
+fn is_one(s: &u32) -> bool {
+    *s == 1
 }
 
 impl RunSummary {
@@ -394,6 +410,9 @@ impl RunSummary {
         }
         if self.link_faults {
             s += ", faulty links";
+        }
+        if self.area_light > 1 {
+            s += &format!(", area lights sampled {0} × {0}", self.area_light);
         }
         s
     }
@@ -465,6 +484,24 @@ mod tests {
             let line = p.config().describe();
             assert!(page.lines().any(|l| l == line), "docs/CONFIGURATION.md lacks the line\n{line}");
         }
+    }
+
+    /// `--area-light S` is a field of the run: named in the description and the JSON only when
+    /// S > 1 (S = 1, the presets', prints and writes what it did before the option); S = 0 is
+    /// refused.
+    #[test]
+    fn area_light_is_described_only_when_sampled() {
+        let o = Overrides { area_light: Some(3), ..Overrides::default() };
+        let r = RunConfig::resolve(Preset::Render, &o, Needs::default()).unwrap();
+        assert_eq!(r.area_light, 3);
+        assert!(r.describe().ends_with(", area lights sampled 3 × 3"), "{}", r.describe());
+        assert_eq!(serde_json::to_value(r.summary()).unwrap()["area_light"], 3);
+        let one = Overrides { area_light: Some(1), ..Overrides::default() };
+        let r1 = RunConfig::resolve(Preset::Render, &one, Needs::default()).unwrap();
+        assert_eq!(r1, Preset::Render.config());
+        assert!(serde_json::to_value(r1.summary()).unwrap().get("area_light").is_none());
+        let zero = Overrides { area_light: Some(0), ..Overrides::default() };
+        assert!(RunConfig::resolve(Preset::Render, &zero, Needs::default()).is_err());
     }
 
     /// The description names the preset and the decisive settings.

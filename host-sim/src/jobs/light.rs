@@ -9,7 +9,7 @@ use anyhow::{bail, Result};
 use crate::config::{RunConfig, RunSummary};
 use crate::machine::lighting::diffuse::{LightConfig, Lighting};
 use crate::machine::lighting::run::{run_diffusion, LightStats};
-use crate::machine::loading::loaded_scene::{load_scene, resolve_lights, LoadedScene};
+use crate::machine::loading::loaded_scene::{load_scene, resolve_sources, LightSampling, LoadedScene};
 use crate::machine::rays::classic::{run_classic, ClassicConfig, ClassicLighting};
 use crate::precompute::LoadConfig;
 use crate::report::files::{create, write_json};
@@ -22,6 +22,8 @@ use crate::scene::{self, Mesh};
 pub struct LightingOptions {
     /// Point lights at grid-normalised positions in 0..1 (empty: the scene's own).
     pub lights: Vec<[f64; 3]>,
+    /// `--light-size`: the `lights` as square lamps this wide (grid-normalised).
+    pub light_size: Option<f64>,
     /// What is loaded, f, and the complete diffusion configuration.
     pub run: RunConfig,
     /// Classic shadow rays instead of diffusion (`render`, `light`, `trace`).
@@ -39,6 +41,11 @@ impl LightingOptions {
     /// Grid side and surfaces.
     pub fn load(&self) -> &LoadConfig {
         &self.run.load
+    }
+
+    /// How the lights become point sources: `--light`, `--light-size`, `--area-light`.
+    pub fn sampling(&self) -> LightSampling<'_> {
+        LightSampling { cli: &self.lights, cli_size: self.light_size, area: self.run.area_light }
     }
 }
 
@@ -76,7 +83,7 @@ pub fn run(o: &LightOptions) -> Result<()> {
     let load = o.light.load();
     let mesh = crate::scene::camera::apply(scene::load(&o.scene)?, &o.view, load.n)?;
     let loaded = load_scene(&mesh, load)?;
-    let lights = resolve_lights(&mesh, &loaded, &o.light.lights)?;
+    let lights = resolve_sources(&mesh, &loaded, &o.light.sampling())?.positions;
     let lcfg = o.light.config();
     if o.light.refine.is_some() {
         bail!("--lighting refined is a render option (it refines the pixels' lit state): use render");

@@ -3,7 +3,7 @@
 //!
 //! Every cell shades its pixel ([`crate::machine::shading::pixels`]): orthographic view along +z, image y
 //! up, +x to the left as a camera looking along +z sees it. Lights are white, each of intensity
-//! 1/√(number of lights), ambient 0.2. With a reference the same scene is ray-cast in f64
+//! 1/√(number of lights) (shared by an area light's samples, `--area-light`), ambient 0.2. With a reference the same scene is ray-cast in f64
 //! ([`crate::truth::refrender`]) with the same camera, resolution and shading formula, and
 //! compared ([`crate::truth::compare`]).
 //!
@@ -15,7 +15,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Result};
 use cell_core::lit::LitRule;
-use cell_core::shade::NormalMode;
+use cell_core::shade::{NormalMode, PointLight};
 use cell_core::smooth::Smooth;
 
 use crate::config::RunSummary;
@@ -23,11 +23,11 @@ use crate::jobs::light::{classic_description, print_link_faults, LightingOptions
 use crate::jobs::render_radiosity::{self, DisplayPsnr, F64Solution, RadiosityRenderStats, RenderRadiosity, TruthPsnr};
 use crate::machine::lighting::diffuse::LightConfig;
 use crate::machine::lighting::run::{run_diffusion, LightStats};
-use crate::machine::loading::loaded_scene::{load_scene, resolve_lights, LoadedScene};
+use crate::machine::loading::loaded_scene::{load_scene, resolve_sources, LoadedScene, Sources};
 use crate::machine::rays::classic::{refine_edges, run_classic, ClassicConfig, ClassicCounts, RefineCounts};
 use crate::machine::rays::mirror::{reflect, ReflectConfig, ReflectCounts, ShadeEnv};
 use crate::machine::shading::pixels::{
-    point_lights, ref_lights, seen, shade_grid_ambient, Ambient, Image, Seen, AMBIENT,
+    point_lights, ref_lights, seen, shade_grid_ambient, weighted_lights, Ambient, Image, Seen, AMBIENT,
 };
 use crate::machine::shading::smooth_surface::{smooth_grid, SmoothGrid, SmoothScene, SmoothStats};
 use crate::machine::shooting::indirect::Display;
@@ -137,8 +137,11 @@ pub struct RenderInput<'a> {
     pub mesh: &'a Mesh,
     /// The scene loaded on the grid.
     pub scene: &'a LoadedScene,
-    /// Light positions in voxel units ([`resolve_lights`]).
+    /// Light positions in voxel units ([`resolve_sources`]).
     pub lights: &'a [[f64; 3]],
+    /// The intensity each light carries ([`Sources::intensity`]); `None`: 1/√(number of
+    /// lights) each.
+    pub intensity: Option<&'a [f32]>,
     /// The f64 reference to compare with ([`reference_image`]).
     pub reference: Option<&'a RefImage>,
     /// Wall time of the loading.
@@ -159,6 +162,7 @@ impl<'a> RenderInput<'a> {
             mesh,
             scene,
             lights,
+            intensity: None,
             reference: None,
             load_seconds: 0.0,
             reference_seconds: 0.0,
@@ -171,6 +175,19 @@ impl<'a> RenderInput<'a> {
     pub fn compared_with(self, reference: &'a RefImage) -> RenderInput<'a> {
         RenderInput { reference: Some(reference), ..self }
     }
+
+    /// The same lit by `sources` (positions and intensities).
+    pub fn with_sources(self, sources: &'a Sources) -> RenderInput<'a> {
+        RenderInput { lights: &sources.positions, intensity: Some(&sources.intensity), ..self }
+    }
+
+    /// The lights as the cells shade with them.
+    pub fn point_lights(&self) -> Vec<PointLight> {
+        match self.intensity {
+            Some(e) => weighted_lights(self.lights, e),
+            None => point_lights(self.lights),
+        }
+    }
 }
 
 /// Ray-cast the f64 reference of a loaded scene with the same camera, resolution and lights,
@@ -181,7 +198,18 @@ pub fn reference_image(
     light_positions: &[[f64; 3]],
     cfg: &RenderConfig,
 ) -> Result<RefImage> {
-    let rl = ref_lights(&point_lights(light_positions));
+    reference_image_lit(mesh, scene, &point_lights(light_positions), cfg)
+}
+
+/// [`reference_image`] with the lights' intensities given: the same lights as the cells'
+/// ([`RenderInput::point_lights`]), an area light's samples with the same weights.
+pub fn reference_image_lit(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    lights: &[PointLight],
+    cfg: &RenderConfig,
+) -> Result<RefImage> {
+    let rl = ref_lights(lights);
     let refl = match &cfg.lighting {
         RenderLighting::Reflections(r) => RefReflect { depth: r.depth as u32, threshold: r.threshold as f64 },
         RenderLighting::Diffusion | RenderLighting::Classic(_) | RenderLighting::Refined(_) => {
@@ -196,10 +224,10 @@ pub fn reference_image(
 pub fn smooth_reference_image(
     mesh: &Mesh,
     scene: &LoadedScene,
-    light_positions: &[[f64; 3]],
+    lights: &[PointLight],
     smooth: &SmoothScene,
 ) -> Result<RefImage> {
-    let rl = ref_lights(&point_lights(light_positions));
+    let rl = ref_lights(lights);
     let rs = crate::truth::refrender::RefSmooth { mode: smooth.mode, corners: &smooth.corners };
     crate::truth::refrender::render_reference_smooth(mesh, &scene.fit, scene.grid.n, &rl, [AMBIENT as f64; 3], &rs)
 }
@@ -294,7 +322,7 @@ fn render_reflect(
     let unreferenced = RenderInput { reference: None, ..*input };
     let mut r = shade(&unreferenced, cfg, &seen(&lighting), lstats, light_seconds);
     let t1 = Instant::now();
-    let lights = point_lights(light_positions);
+    let lights = input.point_lights();
     let env = ShadeEnv::new(mesh, &lights, cfg.normals, &mask);
     let refl = reflect(input.scene, &env, rcfg)?;
     let local_only = r.image.rgb.clone();
@@ -342,7 +370,7 @@ fn shade(
 ) -> Rendered {
     let (load_seconds, reference_seconds) = (input.load_seconds, input.reference_seconds);
     let t1 = Instant::now();
-    let lights = point_lights(input.lights);
+    let lights = input.point_lights();
     let constant = Ambient::Constant([AMBIENT; 3]);
     let ambient = input.indirect.map_or(constant, Ambient::Indirect);
     let image = shade_grid_ambient(input.mesh, input.scene, &lights, seen, cfg.normals, &ambient, input.smooth);
@@ -458,6 +486,9 @@ impl RenderOptions {
         if reflecting && light.lit_visible_only {
             bail!("--reflections needs the full lit store: resolve the run with `Needs::reflections`");
         }
+        if self.light.run.area_light > 1 && self.radiosity.is_some() {
+            bail!("--area-light with --radiosity: the radiosity phase shoots from point lights only (run one or the other)");
+        }
         if self.smooth.is_some() {
             let rule = self.light.classic.as_ref().map_or(light.rule, |c| c.rule);
             if rule == LitRule::Thesis {
@@ -478,12 +509,14 @@ impl RenderOptions {
 pub fn run(o: &RenderOptions) -> Result<()> {
     let cfg = o.config()?;
     let (mesh, loaded, load_seconds, smooth) = load_phase(o)?;
-    let lights = resolve_lights(&mesh, &loaded, &o.light.lights)?;
-    let radiosity = radiosity_phase(o, &mesh, &loaded, &lights, cfg.light.rule)?;
+    let sources = resolve_sources(&mesh, &loaded, &o.light.sampling())?;
+    let lights = &sources.positions;
+    let radiosity = radiosity_phase(o, &mesh, &loaded, lights, cfg.light.rule)?;
+    let lit = RenderInput::new(&mesh, &loaded, lights).with_sources(&sources);
     let t1 = Instant::now();
     let reference = match &smooth {
-        Some((s, _)) if o.reference => Some(smooth_reference_image(&mesh, &loaded, &lights, s)?),
-        _ => reference_phase(o, &mesh, &loaded, &lights, &cfg, radiosity.as_ref())?,
+        Some((s, _)) if o.reference => Some(smooth_reference_image(&mesh, &loaded, &lit.point_lights(), s)?),
+        _ => reference_phase(o, &lit, &cfg, radiosity.as_ref())?,
     };
     let input = RenderInput {
         reference: reference.as_ref(),
@@ -491,7 +524,7 @@ pub fn run(o: &RenderOptions) -> Result<()> {
         reference_seconds: t1.elapsed().as_secs_f64(),
         indirect: radiosity.as_ref().map(|r| &r.shown.cells[..]),
         smooth: smooth.as_ref().map(|(_, g)| g),
-        ..RenderInput::new(&mesh, &loaded, &lights)
+        ..lit
     };
     let pb = progress::bar(o.quiet, "light 1");
     let mut r = render(&input, &cfg, progress::light(&pb))?;
@@ -578,12 +611,11 @@ fn radiosity_phase(
 /// when the render has radiosity.
 fn reference_phase(
     o: &RenderOptions,
-    mesh: &Mesh,
-    loaded: &LoadedScene,
-    lights: &[[f64; 3]],
+    lit: &RenderInput<'_>,
     cfg: &RenderConfig,
     radiosity: Option<&RadiosityPhase>,
 ) -> Result<Option<RefImage>> {
+    let (mesh, loaded, lights) = (lit.mesh, lit.scene, lit.lights);
     if !o.reference {
         return Ok(None);
     }
@@ -592,7 +624,7 @@ fn reference_phase(
     }
     match radiosity {
         Some(rad) => rad.solved.f64_image(F64Solution::Reference, &rad.shown, mesh, loaded, lights),
-        None => reference_image(mesh, loaded, lights, cfg).map(Some),
+        None => reference_image_lit(mesh, loaded, &lit.point_lights(), cfg).map(Some),
     }
 }
 

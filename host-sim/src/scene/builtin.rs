@@ -25,6 +25,10 @@ pub const BUILTINS: &[(&str, &str)] = &[
     ("classe", "procedural classroom (thesis's Classe): 20 desks, 40 chairs, blackboard; 38 603 facets, 26 lights"),
 ];
 
+/// The Cornell box's ceiling lamp as published: the quad x 213..343, z 227..332 at y = 548.8
+/// (world units), facing down; its centre is the point light the box is lit by.
+pub const CORNELL_LAMP: SceneLight = SceneLight::world([278.0, 548.8, 279.5]).sized([130.0, 105.0]);
+
 const CORNELL_OBJ: &str = include_str!("../../scenes/cornell.obj");
 const CORNELL_MTL: &str = include_str!("../../scenes/cornell.mtl");
 const CORNELL_MIRROR_OBJ: &str = include_str!("../../scenes/cornell-mirror.obj");
@@ -51,7 +55,7 @@ pub fn load(scene: &str) -> Result<Mesh> {
         return Ok(Mesh {
             name: "empty".into(),
             materials: vec![Material::default()],
-            lights: vec![SceneLight::Grid([0.5; 3])],
+            lights: vec![SceneLight::grid([0.5; 3])],
             ..Default::default()
         });
     }
@@ -70,10 +74,11 @@ pub fn load(scene: &str) -> Result<Mesh> {
             None => Err(tobj::LoadError::OpenFileFailed),
         })?;
         mesh.lights = match scene {
-            // The centre of the published light quad (213..343 × 227..332 at y = 548.8).
-            "cornell" | "cornell-mirror" => vec![SceneLight::World([278.0, 548.8, 279.5])],
-            "facet" => vec![SceneLight::Grid([0.5, 0.5, 0.05])],
-            _ => vec![SceneLight::Grid([0.5, 0.95, 0.05])],
+            // The published light quad, 213..343 × 227..332 at y = 548.8: a point at its centre,
+            // and its extent for --area-light.
+            "cornell" | "cornell-mirror" => vec![CORNELL_LAMP],
+            "facet" => vec![SceneLight::grid([0.5, 0.5, 0.05])],
+            _ => vec![SceneLight::grid([0.5, 0.95, 0.05])],
         };
         return Ok(mesh);
     }

@@ -77,9 +77,9 @@ pub fn to_screen(mesh: Mesh, cam: &Camera, n: u32) -> Result<Mesh> {
     }
     // The depth range holds the used vertices and the scene's own lights (a light is a source
     // in the grid: it must lie in the screen cube too).
-    let lights = mesh.lights.iter().filter_map(|l| match l {
-        super::mesh::SceneLight::World(w) => Some(*w),
-        super::mesh::SceneLight::Grid(_) => None,
+    let lights = mesh.lights.iter().filter_map(|l| match l.at {
+        super::mesh::LightAt::World(w) => Some(w),
+        super::mesh::LightAt::Grid(_) => None,
     });
     let used = mesh.faces.iter().flat_map(|f| f.verts.iter().map(|&v| mesh.positions[v as usize]));
     let view = View::new(cam, n, used.chain(lights))?;

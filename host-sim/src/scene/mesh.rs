@@ -44,14 +44,75 @@ pub struct Face {
     pub material: u16,
 }
 
-/// A point light a scene carries.
+/// Where a light (or one of its samples) is.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum SceneLight {
+pub enum LightAt {
     /// At a world position; moved along −y to the first empty voxel if it falls in an occupied
     /// one (a ceiling light sits on the ceiling's voxels).
     World([f64; 3]),
     /// At grid-normalised coordinates (0..1 on each axis).
     Grid([f64; 3]),
+}
+
+impl LightAt {
+    /// The position, in the light's own units (world or grid-normalised).
+    pub const fn point(self) -> [f64; 3] {
+        match self {
+            LightAt::World(p) | LightAt::Grid(p) => p,
+        }
+    }
+
+    /// The same kind of position at `p`.
+    const fn with_point(self, p: [f64; 3]) -> LightAt {
+        match self {
+            LightAt::World(_) => LightAt::World(p),
+            LightAt::Grid(_) => LightAt::Grid(p),
+        }
+    }
+}
+
+/// A light a scene carries: a point, or a horizontal rectangle facing down (−y, a ceiling
+/// lamp) centred on its point, which `--area-light S` samples by S × S point sources
+/// ([`SceneLight::samples`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SceneLight {
+    /// Its centre.
+    pub at: LightAt,
+    /// The rectangle's width along x and depth along z, in the units of `at`; `None`: a point.
+    pub size: Option<[f64; 2]>,
+}
+
+impl SceneLight {
+    /// A point light at a world position.
+    pub const fn world(p: [f64; 3]) -> SceneLight {
+        SceneLight { at: LightAt::World(p), size: None }
+    }
+
+    /// A point light at grid-normalised coordinates.
+    pub const fn grid(t: [f64; 3]) -> SceneLight {
+        SceneLight { at: LightAt::Grid(t), size: None }
+    }
+
+    /// The same light as a rectangle `size` = [along x, along z] wide, facing −y.
+    pub const fn sized(self, size: [f64; 2]) -> SceneLight {
+        SceneLight { size: Some(size), ..self }
+    }
+
+    /// The point sources that sample it `s` × `s`: the centres of the cells of a regular
+    /// `s` × `s` grid over its rectangle (row-major: z outer, x inner), each of which carries
+    /// 1/(number of samples) of its intensity. A point light, or `s` = 1, is its own one
+    /// sample, at exactly its position.
+    pub fn samples(&self, s: u32) -> Vec<LightAt> {
+        let (Some([w, d]), true) = (self.size, s > 1) else {
+            return vec![self.at];
+        };
+        let c = self.at.point();
+        let offset = |i: u32, side: f64| ((f64::from(i) + 0.5) / f64::from(s) - 0.5) * side;
+        (0..s)
+            .flat_map(|k| (0..s).map(move |i| (i, k)))
+            .map(|(i, k)| self.at.with_point([c[0] + offset(i, w), c[1], c[2] + offset(k, d)]))
+            .collect()
+    }
 }
 
 /// A polygon mesh in world coordinates.
@@ -135,7 +196,7 @@ pub fn add_floor(mesh: &mut Mesh) {
     mesh.materials.push(Material { name: "floor".into(), kd: [0.6, 0.6, 0.55], ..Material::default() });
     let material = (mesh.materials.len() - 1) as u16;
     mesh.faces.push(Face { verts: vec![base, base + 1, base + 2, base + 3], material });
-    mesh.lights = vec![SceneLight::Grid([0.25, 0.8, 0.1])];
+    mesh.lights = vec![SceneLight::grid([0.25, 0.8, 0.1])];
 }
 
 /// OBJ bytes as text: invalid UTF-8 is refused (binary junk, wrong format).

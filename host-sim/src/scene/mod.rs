@@ -28,4 +28,4 @@ pub mod patches;
 pub mod view;
 
 pub use builtin::{load, BUILTINS};
-pub use mesh::{add_floor, load_obj_bytes, parse_obj, Face, Material, Mesh, SceneLight};
+pub use mesh::{add_floor, load_obj_bytes, parse_obj, Face, LightAt, Material, Mesh, SceneLight};

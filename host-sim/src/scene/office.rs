@@ -1234,7 +1234,7 @@ pub fn build(kind: Kind) -> Office {
         positions: all.positions,
         faces: all.faces,
         materials: materials(),
-        lights: s.lights.into_iter().map(SceneLight::World).collect(),
+        lights: s.lights.into_iter().map(SceneLight::world).collect(),
         // Built wound as `orient` says: closed solids outward, the open room inward.
         rewound: 0,
         screen: None,
@@ -1331,7 +1331,7 @@ mod tests {
         for k in Kind::ALL {
             let o = build(k);
             for (i, l) in o.mesh.lights.iter().enumerate() {
-                let SceneLight::World(p) = *l else { panic!("world lights") };
+                let crate::scene::LightAt::World(p) = l.at else { panic!("world lights") };
                 assert!(o.room.contains(p), "{} light {i} outside the room", k.name());
                 for ((c, lo), hi) in p.iter().zip(o.room.lo).zip(o.room.hi) {
                     let gap = (c - lo).min(hi - c);

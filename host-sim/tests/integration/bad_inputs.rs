@@ -190,6 +190,31 @@ fn bad_arguments_fail_clearly() {
             &["render", "cornell-mirror", "--n", "16", "--reflections", "1", "--lit-visible-only"],
             "run without --lit-visible-only",
         ),
+        // Area lights: every sample is a source of the machine (at most 32).
+        (&["render", "--n", "16", "--area-light", "6"], "make 36 point sources"),
+        (
+            &[
+                "render",
+                "--n",
+                "16",
+                "--light",
+                "0.3,0.9,0.3",
+                "--light",
+                "0.7,0.9,0.7",
+                "--light-size",
+                "0.1",
+                "--area-light",
+                "5",
+            ],
+            "make 50 point sources",
+        ),
+        (&["light", "--n", "16", "--area-light", "6"], "at most 32"),
+        (&["render", "--n", "16", "--area-light", "0"], "--area-light"),
+        (&["render", "--n", "16", "--light-size", "0.2"], "add --light"),
+        (&["render", "--n", "16", "--light", "0.05,0.9,0.5", "--light-size", "0.2"], "reaches outside the grid"),
+        (&["render", "--n", "16", "--light", "0.5,0.9,0.5", "--light-size", "0"], "0 < W <= 1"),
+        (&["render", "--n", "16", "--radiosity", "--area-light", "2"], "point lights only"),
+        (&["trace", "--n", "16", "--area-light", "2", "--out", "/nonexistent/t"], "a trace records point lights"),
         (&["no-such-command"], "no-such-command"),
     ];
     for (args, expect) in cases {

@@ -560,3 +560,33 @@ fn normals_facet_renders_byte_identical_to_the_default() {
     assert_eq!(phong_stats["smooth"]["bytes_per_cell"], 12);
     assert_eq!(phong_stats["smooth"]["normals_from"], "averaged");
 }
+
+/// `--area-light 1` is the run without the option: the same image, reference and difference
+/// PNGs to the byte, the same summary line and `run` statistics; `--area-light 2` samples the
+/// Cornell lamp by 4 sources and says so.
+#[test]
+fn area_light_one_is_the_point_light_to_the_byte() {
+    let run = |name: &str, extra: &[&str]| {
+        let out = tmp(&format!("{name}.png"), b"");
+        let stats = out.with_extension("json");
+        let mut args = vec!["render", "cornell", "--n", "24", "--reference", "--quiet"];
+        args.extend(["--out", out.to_str().unwrap(), "--stats", stats.to_str().unwrap()]);
+        args.extend(extra);
+        let (code, err) = host_sim(&args);
+        assert_eq!(code, 0, "{err}");
+        let read = |ext: &str| std::fs::read(out.with_file_name(format!("{name}{ext}"))).unwrap();
+        let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
+        let pngs = [read(".png"), read(".reference.png"), read(".diff.png")];
+        (pngs, json, err.lines().next().unwrap_or_default().to_string())
+    };
+    let (plain, plain_json, plain_line) = run("area-plain", &[]);
+    let (one, one_json, one_line) = run("area-one", &["--area-light", "1"]);
+    assert!(plain == one, "--area-light 1 changed the images");
+    assert_eq!(plain_json["run"], one_json["run"]);
+    assert_eq!(plain_json["light"]["sources"], one_json["light"]["sources"]);
+    assert_eq!(plain_line, one_line);
+    let (_, two_json, two_line) = run("area-two", &["--area-light", "2"]);
+    assert_eq!(two_json["run"]["area_light"], 2);
+    assert_eq!(two_json["light"]["sources"].as_array().unwrap().len(), 4);
+    assert!(two_line.ends_with("area lights sampled 2 × 2"), "{two_line}");
+}

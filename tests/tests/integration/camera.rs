@@ -136,7 +136,7 @@ fn cube() -> Mesh {
         positions: (0..8).map(c).collect(),
         faces: faces.iter().map(|f| Face { verts: f.to_vec(), material: 0 }).collect(),
         materials: vec![material("cube")],
-        lights: vec![SceneLight::World([1.6, 2.2, -3.0])],
+        lights: vec![SceneLight::world([1.6, 2.2, -3.0])],
         ..Mesh::default()
     }
 }
@@ -240,7 +240,7 @@ fn square_shadow(floor_up: bool) {
             near: None,
             far: None,
         };
-        let lit_mesh = Mesh { lights: vec![SceneLight::World(light)], ..mesh.clone() };
+        let lit_mesh = Mesh { lights: vec![SceneLight::world(light)], ..mesh.clone() };
         let image = render_through(lit_mesh, &cam, n);
         let pr = Projector::new(&cam, n);
         let (mut shadowed, mut lit) = (0, 0);

@@ -8,6 +8,7 @@
 
 mod common;
 
+mod area_lights;
 mod async_boards;
 mod bit_budget;
 mod board_grids;

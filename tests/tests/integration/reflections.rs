@@ -237,7 +237,7 @@ v 0 0 0\nv 0.02 0 0\nv 0 0.02 0\nv 1 1 1\nv 0.98 1 1\nv 1 0.98 1\n\
 usemtl mirror\nf 1 2 3 4\nusemtl patch\nf 5 6 7 8\nusemtl mirror\nf 9 10 11\nf 12 13 14\n";
     let mtl = "newmtl mirror\nKa 0 0 0\nKd 0.05 0.05 0.05\nKs 0 0 0\nKr 0.9\nnewmtl patch\nKe 1 1 1\n";
     let mut mesh = host_sim::scene::load_obj_bytes("mirror45", obj.as_bytes(), Some(mtl.as_bytes())).unwrap();
-    mesh.lights = vec![SceneLight::Grid([0.5, 0.2, 0.05])];
+    mesh.lights = vec![SceneLight::grid([0.5, 0.2, 0.05])];
     let n = 40;
     let (s, lights) = load(&mesh, n);
     let cfg = config(1, Connectivity::Six, 2, RoutePolicy::Adaptive);

@@ -8,7 +8,7 @@ use crate::machine::grid::LightGrid;
 
 use crate::machine::grid::Grid;
 use crate::precompute::{Fit, LoadConfig};
-use crate::scene::{Mesh, SceneLight};
+use crate::scene::{LightAt, Mesh, SceneLight};
 
 /// A loaded scene: its grid and the world ↔ grid mapping.
 pub struct LoadedScene {
@@ -103,52 +103,133 @@ pub fn normalised_to_voxel(t: [f64; 3], n: u32) -> [f64; 3] {
 /// Where a scene without lights (an OBJ file) gets its light: above, in front, a little left.
 pub const DEFAULT_LIGHT: [f64; 3] = [0.3, 0.95, 0.1];
 
+/// The point sources a run diffuses from and shades with: every light's samples
+/// ([`SceneLight::samples`]) in order, in voxel units, with the intensity (white) each carries.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sources {
+    /// Positions in voxel units.
+    pub positions: Vec<[f64; 3]>,
+    /// Intensity of each: its light's 1/√(number of lights), divided among the light's samples.
+    pub intensity: Vec<f32>,
+    /// Index of the light each samples.
+    pub light: Vec<usize>,
+}
+
+/// How a run's lights become point sources: `--light` (grid-normalised; empty: the scene's own),
+/// their `--light-size`, and `--area-light` S.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightSampling<'a> {
+    /// `--light` positions, grid-normalised (empty: the scene's own lights).
+    pub cli: &'a [[f64; 3]],
+    /// `--light-size`: the `--light` lights' square side, grid-normalised.
+    pub cli_size: Option<f64>,
+    /// S: each light with an extent is sampled by S × S point sources.
+    pub area: u32,
+}
+
 /// Light positions in voxel units: `--light` values (normalised, validated) if any, else the
-/// scene's own lights.
+/// scene's own lights; each light one source at its centre.
 pub fn resolve_lights(mesh: &Mesh, scene: &LoadedScene, cli: &[[f64; 3]]) -> Result<Vec<[f64; 3]>> {
-    let n = scene.grid.n;
-    if !cli.is_empty() {
-        return cli
+    let sampling = LightSampling { cli, cli_size: None, area: 1 };
+    Ok(resolve_sources(mesh, scene, &sampling)?.positions)
+}
+
+/// The lights of a run ([`LightSampling`]): the `--light` ones (validated, with their size) if
+/// any, else the scene's own (a default light if it has none).
+pub fn run_lights(mesh: &Mesh, sampling: &LightSampling<'_>) -> Result<Vec<SceneLight>> {
+    if sampling.area == 0 {
+        bail!("--area-light 0: S is the number of samples along each side of a light, at least 1");
+    }
+    if let Some(w) = sampling.cli_size {
+        if sampling.cli.is_empty() {
+            bail!("--light-size gives the --light lights an extent: add --light X,Y,Z");
+        }
+        if !w.is_finite() || w <= 0.0 || w > 1.0 {
+            bail!("--light-size {w}: the lamp's side is grid-normalised, 0 < W <= 1");
+        }
+    }
+    if !sampling.cli.is_empty() {
+        return sampling
+            .cli
             .iter()
             .enumerate()
             .map(|(i, t)| {
                 if t.iter().any(|c| !c.is_finite() || *c < 0.0 || *c > 1.0) {
                     bail!("--light {} = {:?} is outside the grid: coordinates are grid-normalised, 0 ..= 1", i + 1, t);
                 }
-                Ok(normalised_to_voxel(*t, n))
+                let light = SceneLight::grid(*t);
+                let Some(w) = sampling.cli_size else { return Ok(light) };
+                let light = light.sized([w, w]);
+                let outside = |c: f64| c - w / 2.0 < 0.0 || c + w / 2.0 > 1.0;
+                if outside(t[0]) || outside(t[2]) {
+                    bail!(
+                        "--light {} = {:?} with --light-size {w}: the lamp reaches outside the grid (0 ..= 1 along x and z)",
+                        i + 1,
+                        t
+                    );
+                }
+                Ok(light)
             })
             .collect();
     }
-    let default_light = [SceneLight::Grid(DEFAULT_LIGHT)];
-    let scene_lights: &[SceneLight] = if mesh.lights.is_empty() {
+    if mesh.lights.is_empty() {
         eprintln!(
             "note: scene '{}' has no lights; using one at grid-normalised {:?} (give your own with --light X,Y,Z)",
             mesh.name, DEFAULT_LIGHT
         );
-        &default_light
-    } else {
-        &mesh.lights
-    };
-    let mut out = Vec::new();
-    for l in scene_lights {
-        let p = match *l {
-            SceneLight::Grid(t) => normalised_to_voxel(t, n),
-            SceneLight::World(w) => {
-                let w = mesh.screen.as_ref().map_or(w, |s| s.view.to_screen(w));
-                let mut p = world_to_voxel(&scene.fit, w);
-                // Step down (−y) out of the occupied voxels the light's own quad sits in.
-                for _ in 0..n {
-                    let v = p.map(|c| (c + 0.5).floor());
-                    let inside = v.iter().all(|&c| c >= 0.0 && c < n as f64);
-                    if !inside || scene.grid.cell(v[0] as u32, v[1] as u32).store.occupied(v[2] as u16).is_none() {
-                        break;
-                    }
-                    p[1] -= 1.0;
-                }
-                p
-            }
-        };
-        out.push(p);
+        return Ok(vec![SceneLight::grid(DEFAULT_LIGHT)]);
+    }
+    Ok(mesh.lights.clone())
+}
+
+/// The point sources of a run: each light of [`run_lights`] sampled `sampling.area` squared
+/// times if it has an extent, in voxel units, each sample with its share of the light's
+/// intensity. More than the machine's [`cell_core::light::MAX_SOURCES`] sources under
+/// `--area-light` is an error.
+pub fn resolve_sources(mesh: &Mesh, scene: &LoadedScene, sampling: &LightSampling<'_>) -> Result<Sources> {
+    let lights = run_lights(mesh, sampling)?;
+    let samples: Vec<Vec<LightAt>> = lights.iter().map(|l| l.samples(sampling.area)).collect();
+    let count: usize = samples.iter().map(Vec::len).sum();
+    if sampling.area > 1 && count > cell_core::light::MAX_SOURCES {
+        let s = sampling.area;
+        bail!(
+            "--area-light {s}: {} light(s) sampled by {s} × {s} points make {count} point sources; the machine \
+             lights at most {} (one bit each in a cell's source mask): use a smaller S",
+            lights.len(),
+            cell_core::light::MAX_SOURCES
+        );
+    }
+    let e = 1.0 / (lights.len().max(1) as f32).sqrt();
+    let mut out = Sources { positions: Vec::new(), intensity: Vec::new(), light: Vec::new() };
+    for (i, pts) in samples.iter().enumerate() {
+        for &at in pts {
+            out.positions.push(voxel_position(mesh, scene, at));
+            out.intensity.push(e / pts.len() as f32);
+            out.light.push(i);
+        }
     }
     Ok(out)
+}
+
+/// A light's (or sample's) position in voxel units: a world one through the view, stepped
+/// down (−y) out of the occupied voxels its lamp sits in.
+fn voxel_position(mesh: &Mesh, scene: &LoadedScene, at: LightAt) -> [f64; 3] {
+    let n = scene.grid.n;
+    match at {
+        LightAt::Grid(t) => normalised_to_voxel(t, n),
+        LightAt::World(w) => {
+            let w = mesh.screen.as_ref().map_or(w, |s| s.view.to_screen(w));
+            let mut p = world_to_voxel(&scene.fit, w);
+            // Step down (−y) out of the occupied voxels the light's own quad sits in.
+            for _ in 0..n {
+                let v = p.map(|c| (c + 0.5).floor());
+                let inside = v.iter().all(|&c| c >= 0.0 && c < n as f64);
+                if !inside || scene.grid.cell(v[0] as u32, v[1] as u32).store.occupied(v[2] as u16).is_none() {
+                    break;
+                }
+                p[1] -= 1.0;
+            }
+            p
+        }
+    }
 }

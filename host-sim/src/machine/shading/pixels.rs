@@ -47,6 +47,13 @@ pub fn point_lights(positions: &[[f64; 3]]) -> Vec<PointLight> {
     positions.iter().map(|p| PointLight { pos: p.map(|c| c as f32), color: [e; 3] }).collect()
 }
 
+/// Lights as the cells see them, white, with the intensity each carries (an area light's
+/// samples share its intensity: [`crate::machine::loaded::Sources`]).
+pub fn weighted_lights(positions: &[[f64; 3]], intensity: &[f32]) -> Vec<PointLight> {
+    assert_eq!(positions.len(), intensity.len(), "one intensity per light");
+    positions.iter().zip(intensity).map(|(p, &e)| PointLight { pos: p.map(|c| c as f32), color: [e; 3] }).collect()
+}
+
 /// Lights (voxel units) as the cells under `eye` shade with them: in view space under a
 /// camera ([`Eye::Camera`]), unchanged in the grid's own view.
 pub fn eye_lights(eye: &Eye, lights: &[PointLight]) -> Vec<PointLight> {
