@@ -44,11 +44,11 @@ pub fn cell_material(m: &Material) -> CellMaterial {
 /// Lights as the cells see them (voxel units, white, 1/√L each).
 pub fn point_lights(positions: &[[f64; 3]]) -> Vec<PointLight> {
     let e = 1.0 / (positions.len().max(1) as f32).sqrt();
-    positions.iter().map(|p| PointLight { pos: p.map(|c| c as f32), color: [e; 3] }).collect()
+    weighted_lights(positions, &vec![e; positions.len()])
 }
 
 /// Lights as the cells see them, white, with the intensity each carries (an area light's
-/// samples share its intensity: [`crate::machine::loaded::Sources`]).
+/// samples share its intensity: [`crate::machine::loading::loaded_scene::Sources`]).
 pub fn weighted_lights(positions: &[[f64; 3]], intensity: &[f32]) -> Vec<PointLight> {
     assert_eq!(positions.len(), intensity.len(), "one intensity per light");
     positions.iter().zip(intensity).map(|(p, &e)| PointLight { pos: p.map(|c| c as f32), color: [e; 3] }).collect()
