@@ -71,6 +71,8 @@ bench_header "NS=\"$NS\" SCENES=\"$SCENES\" ALL_MAX_N=$ALL_MAX_N${EXTRA:+ EXTRA=
 echo
 python3 - "$CSV" <<'PY'
 import csv, sys
+sys.path.insert(0, "bench")
+from crossover import crossover
 rows = list(csv.DictReader(open(sys.argv[1])))
 fmt = lambda x: f"{float(x):.2f}" if x else "–"
 by = {}
@@ -94,11 +96,7 @@ for (scene, n), m in by.items():
     if "classic-all" not in m:
         continue
     a, d = m["classic-all"], m["diffusion"]
-    per = int(a["messages"]) / max(1, int(a["rays"]))
-    # Every voxel facing a light emits one ray per such light (those facing away emit none).
-    sources = max(1, round(int(a["rays"]) / max(1, int(a["voxels"]))))
-    # Classic costs per·(occupancy·n³)·sources messages; diffusion's cost does not depend on it.
-    cross = 100.0 * int(d["messages"]) / (per * n**3 * sources)
+    per, cross = crossover(d, a, n)
     print(f"| {scene} | {n} | {float(a['occupancy_pct']):.2f} | {per:.1f} | {d['messages']} | {cross:.2f} | {300 / n:.2f} |")
 PY
 } | tee bench-out/classic.md

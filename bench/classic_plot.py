@@ -17,6 +17,8 @@ import csv
 import sys
 from collections import defaultdict
 
+from crossover import crossover
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -47,16 +49,14 @@ for scene in scenes:
         ax[0].plot(x, [int(r["messages"]) for _, r in pts], ls, marker="o", color=colours[scene],
                    label=f"{scene} {method}")
         ax[1].plot(x, [int(r["cycles"]) for _, r in pts], ls, marker="o", color=colours[scene])
-    # Crossover: classic-all costs (messages per ray) x (occupancy n^3) x sources messages.
+    # Crossover (bench/crossover.py).
     cross, occ = [], []
     for n in ns:
         m = by[(scene, n)]
         if "classic-all" not in m or "diffusion" not in m:
             continue
         a, d = m["classic-all"], m["diffusion"]
-        per = int(a["messages"]) / max(1, int(a["rays"]))
-        sources = max(1, round(int(a["rays"]) / max(1, int(a["voxels"]))))  # voxels facing away emit none
-        cross.append((n, 100.0 * int(d["messages"]) / (per * n**3 * sources)))
+        cross.append((n, crossover(d, a, n)[1]))
         occ.append((n, float(a["occupancy_pct"])))
     if cross:
         ax[2].plot(*zip(*cross), "-", marker="o", color=colours[scene], label=f"{scene}: crossover")
