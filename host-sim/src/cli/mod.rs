@@ -502,6 +502,28 @@ impl From<LitRuleArg> for cell_core::lit::LitRule {
     }
 }
 
+/// Where `light-accuracy` measures a surface voxel's visibility ([`crate::jobs::accuracy::Measure`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum MeasureArg {
+    /// The voxel's centre, its own face ignored.
+    Centre,
+    /// Where the segment from the light enters the voxel.
+    Entry,
+    /// One voxel before the centre along the segment's major axis.
+    Reach,
+}
+
+impl From<MeasureArg> for crate::jobs::accuracy::Measure {
+    fn from(a: MeasureArg) -> Self {
+        use crate::jobs::accuracy::Measure;
+        match a {
+            MeasureArg::Centre => Measure::Centre,
+            MeasureArg::Entry => Measure::Entry,
+            MeasureArg::Reach => Measure::Reach,
+        }
+    }
+}
+
 /// How the host steps the grid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum SteppingArg {
@@ -723,6 +745,12 @@ pub struct AccuracyArgs {
     /// A light at grid-normalised X,Y,Z (repeatable; default: the scene's own).
     #[arg(long = "light", value_parser = parse_triple)]
     pub lights: Vec<[f64; 3]>,
+    /// Which point of a surface voxel the f64 visibility is taken at, on the exact segment
+    /// from the light to its centre: `centre` (its own face ignored), `entry` (where the
+    /// segment enters the voxel), `reach` (one voxel before the centre along the segment's
+    /// major axis: how far the machine's voxel ray must come unstopped under exact occluders).
+    #[arg(long, value_enum, default_value_t = MeasureArg::Centre)]
+    pub measure: MeasureArg,
     /// Output CSV.
     #[arg(long, default_value = "light-accuracy.csv")]
     pub out: PathBuf,

@@ -263,6 +263,7 @@ impl From<&AccuracyArgs> for AccuracyOptions {
             policy: a.policy.into(),
             rule: a.lit_rule.into(),
             lights: a.lights.clone(),
+            measure: a.measure.into(),
             out: a.out.clone(),
         }
     }

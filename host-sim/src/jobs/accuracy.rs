@@ -33,15 +33,63 @@ pub struct AccuracyOptions {
     pub rule: cell_core::lit::LitRule,
     /// Lights at grid-normalised positions (empty: the scene's own).
     pub lights: Vec<[f64; 3]>,
+    /// The point of each surface voxel whose f64 visibility the lit state is compared with.
+    pub measure: Measure,
     /// Output CSV.
     pub out: PathBuf,
+}
+
+/// Where a surface voxel's f64 visibility is measured, along the exact segment from the light
+/// to its centre (docs/LIGHTING.md, "The lit set").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Measure {
+    /// The centre, the voxel's own face ignored (the centre of a surface voxel often lies
+    /// behind its own face).
+    #[default]
+    Centre,
+    /// Where the segment enters the voxel's cube; no face ignored.
+    Entry,
+    /// One voxel before the centre along the segment's major axis: the previous layer's
+    /// centre plane, up to which the machine's voxel ray must arrive unstopped for the voxel
+    /// to be lit under exact occluders (`cell_core::receiver::voxel_ray`). No face ignored.
+    Reach,
+}
+
+impl Measure {
+    /// The CSV's name of the measure.
+    pub fn name(self) -> &'static str {
+        match self {
+            Measure::Centre => "centre",
+            Measure::Entry => "entry",
+            Measure::Reach => "reach",
+        }
+    }
+
+    /// The measured point of voxel `v` (centre at `v`, voxel units) for a light at `l` (voxel
+    /// units), or `None` when the light is inside the voxel's cube (or, for `Reach`, within a
+    /// voxel of the centre along the major axis): then the voxel's centre itself.
+    fn point(self, v: [f64; 3], l: [f64; 3]) -> Option<[f64; 3]> {
+        let d = [0, 1, 2].map(|i| v[i] - l[i]);
+        let t = match self {
+            Measure::Centre => return None,
+            // The last of the slabs' entries.
+            Measure::Entry => {
+                (0..3).filter(|&i| d[i] != 0.0).map(|i| (v[i] - 0.5 * d[i].signum() - l[i]) / d[i]).fold(0.0, f64::max)
+            }
+            Measure::Reach => {
+                let w = d.iter().map(|c| c.abs()).fold(0.0, f64::max);
+                (w - 1.0) / w
+            }
+        };
+        (t > 0.0 && t < 1.0).then(|| [0, 1, 2].map(|i| l[i] + t * d[i]))
+    }
 }
 
 /// Run the `light-accuracy` job: one CSV row and one Markdown row (stderr) per n and f.
 pub fn run(o: &AccuracyOptions) -> Result<()> {
     let mesh = crate::scene::load(&o.scene)?;
     let mut csv = create(&o.out)?;
-    writeln!(csv, "scene,n,frac_bits,surface_voxels,lit_discrete,lit_continuous,false_lit,false_dark,disagreement_pct,cycles,lower_bound,beams_processed,wall_seconds")?;
+    writeln!(csv, "scene,n,frac_bits,surface_voxels,lit_discrete,lit_continuous,false_lit,false_dark,disagreement_pct,cycles,lower_bound,beams_processed,wall_seconds,measure")?;
     eprintln!("| n | f | surface voxels | false lit | false dark | disagreement % | cycles | beams | wall s |");
     eprintln!("|---|---|---|---|---|---|---|---|---|");
     let rays = if o.rule.is_exact() { cell_core::beam::Origin::Light } else { cell_core::beam::Origin::SourceVoxel };
@@ -58,8 +106,8 @@ pub fn run(o: &AccuracyOptions) -> Result<()> {
         let lights = resolve_lights(&mesh, &loaded, &o.lights)?;
         for &f in &o.frac_bits {
             let (l, s) = run_diffusion(&mesh, &loaded, &lights, &LightConfig { frac_bits: f, ..lcfg }, |_, _| {})?;
-            let acc = accuracy(&mesh, &loaded, &lights, &l)?;
-            write_row(&mut csv, &mesh.name, n, f, &acc, &s)?;
+            let acc = accuracy(&mesh, &loaded, &lights, &l, o.measure)?;
+            write_row(&mut csv, &mesh.name, n, f, &acc, &s, o.measure)?;
         }
     }
     csv.flush()?;
@@ -68,10 +116,18 @@ pub fn run(o: &AccuracyOptions) -> Result<()> {
 }
 
 /// One row of the CSV and of the Markdown table.
-fn write_row(csv: &mut impl Write, scene: &str, n: u32, f: u32, acc: &Accuracy, s: &LightStats) -> Result<()> {
+fn write_row(
+    csv: &mut impl Write,
+    scene: &str,
+    n: u32,
+    f: u32,
+    acc: &Accuracy,
+    s: &LightStats,
+    m: Measure,
+) -> Result<()> {
     writeln!(
         csv,
-        "{},{n},{f},{},{},{},{},{},{:.4},{},{},{},{:.4}",
+        "{},{n},{f},{},{},{},{},{},{:.4},{},{},{},{:.4},{}",
         scene,
         acc.surface_voxels,
         acc.lit_discrete,
@@ -82,7 +138,8 @@ fn write_row(csv: &mut impl Write, scene: &str, n: u32, f: u32, acc: &Accuracy, 
         s.totals.cycles,
         s.totals.lower_bound,
         s.totals.beams_processed,
-        s.wall_seconds
+        s.wall_seconds,
+        m.name()
     )?;
     eprintln!(
         "| {n} | {f} | {} | {} | {} | {:.2} | {} | {} | {:.2} |",
@@ -120,9 +177,15 @@ pub struct Accuracy {
     pub disagreement_pct: f64,
 }
 
-/// Compare the discrete lit state of every surface voxel with f64 visibility of its centre
-/// from each light, ignoring the voxel's own face (docs/LIGHTING.md, "light-accuracy").
-pub fn accuracy(mesh: &Mesh, scene: &LoadedScene, lights: &[[f64; 3]], lighting: &Lighting) -> Result<Accuracy> {
+/// Compare the discrete lit state of every surface voxel with f64 visibility from each light
+/// of the point `measure` names (docs/LIGHTING.md, "light-accuracy").
+pub fn accuracy(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    lights: &[[f64; 3]],
+    lighting: &Lighting,
+    measure: Measure,
+) -> Result<Accuracy> {
     let (tris, ids) = crate::truth::refrender::mesh_triangles(mesh)?;
     let planes = face_planes(mesh);
     let reference = crate::truth::visibility::Reference::new(tris, ids)?;
@@ -146,7 +209,11 @@ pub fn accuracy(mesh: &Mesh, scene: &LoadedScene, lights: &[[f64; 3]], lighting:
                     if side == 0.0 || !empty.iter().any(|q| nrm.dot(*q - o).signum() == side) {
                         continue;
                     }
-                    a.count(mask >> si & 1 == 1, reference.visible(centre, l.to_array(), &[face]));
+                    let seen = match measure.point(v.map(|k| k as f64), lights[si]) {
+                        Some(p) => reference.visible(voxel_to_world(&scene.fit, p), l.to_array(), &[]),
+                        None => reference.visible(centre, l.to_array(), &[face]),
+                    };
+                    a.count(mask >> si & 1 == 1, seen);
                 }
             }
         }
@@ -195,4 +262,54 @@ fn face_planes(mesh: &Mesh) -> Vec<(Vector, Vector)> {
             (nrm.unwrap_or(Vector::ZERO), o)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Measure;
+
+    fn close(a: [f64; 3], b: [f64; 3]) -> bool {
+        a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12)
+    }
+
+    #[test]
+    fn the_measured_points_on_hand_worked_segments() {
+        let (v, l) = ([10.0, 3.0, 0.0], [0.0; 3]);
+        // Entry: the x slab is entered last, at t = 9.5 / 10.
+        assert!(close(Measure::Entry.point(v, l).unwrap(), [9.5, 2.85, 0.0]));
+        // Reach: one voxel back along x, the major axis.
+        assert!(close(Measure::Reach.point(v, l).unwrap(), [9.0, 2.7, 0.0]));
+        assert!(close(Measure::Reach.point([0.0, -5.0, 1.0], [0.0, 5.0, 1.0]).unwrap(), [0.0, -4.0, 1.0]));
+        assert_eq!(Measure::Centre.point(v, l), None);
+        // A light inside the voxel, or within a voxel of it along the major axis.
+        assert_eq!(Measure::Entry.point(v, [10.2, 3.4, -0.1]), None);
+        assert_eq!(Measure::Reach.point(v, [9.5, 3.0, 0.0]), None);
+    }
+
+    #[test]
+    fn the_entry_point_is_where_the_segment_meets_the_voxel() {
+        // Pseudo-random segments: the point lies on the cube's boundary, the segment just before
+        // it outside the cube, just after it inside.
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        let mut r = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let inside = |p: [f64; 3], v: [f64; 3]| (0..3).all(|i| (p[i] - v[i]).abs() <= 0.5);
+        for _ in 0..10_000 {
+            let v = [0, 1, 2].map(|_| (r() * 40.0).floor());
+            let l = [0, 1, 2].map(|_| r() * 40.0 - 0.3);
+            let Some(p) = Measure::Entry.point(v, l) else {
+                assert!(inside(l, v), "{l:?} outside {v:?} has an entry");
+                continue;
+            };
+            let edge = (0..3).map(|i| (p[i] - v[i]).abs()).fold(0.0, f64::max);
+            assert!((edge - 0.5).abs() < 1e-9, "{p:?} not on the boundary of {v:?}");
+            let at = |t: f64| [0, 1, 2].map(|i| p[i] + t * (v[i] - l[i]));
+            let len = (0..3).map(|i| (v[i] - l[i]).powi(2)).sum::<f64>().sqrt();
+            assert!(!inside(at(-1e-6 / len), v) && inside(at(1e-6 / len), v), "{l:?} → {v:?}: {p:?}");
+        }
+    }
 }
