@@ -89,7 +89,7 @@ impl Measure {
 pub fn run(o: &AccuracyOptions) -> Result<()> {
     let mesh = crate::scene::load(&o.scene)?;
     let mut csv = create(&o.out)?;
-    writeln!(csv, "scene,n,frac_bits,surface_voxels,lit_discrete,lit_continuous,false_lit,false_dark,disagreement_pct,cycles,lower_bound,beams_processed,wall_seconds,measure")?;
+    writeln!(csv, "scene,n,frac_bits,surface_voxels,lit_discrete,lit_continuous,false_lit,false_dark,disagreement_pct,cycles,lower_bound,beams_processed,wall_seconds,measure,grazing_voxels,grazing_disagreements,disagreement_pct_not_grazing")?;
     eprintln!("| n | f | surface voxels | false lit | false dark | disagreement % | cycles | beams | wall s |");
     eprintln!("|---|---|---|---|---|---|---|---|---|");
     let rays = if o.rule.is_exact() { cell_core::beam::Origin::Light } else { cell_core::beam::Origin::SourceVoxel };
@@ -127,7 +127,7 @@ fn write_row(
 ) -> Result<()> {
     writeln!(
         csv,
-        "{},{n},{f},{},{},{},{},{},{:.4},{},{},{},{:.4},{}",
+        "{},{n},{f},{},{},{},{},{},{:.4},{},{},{},{:.4},{},{},{},{:.4}",
         scene,
         acc.surface_voxels,
         acc.lit_discrete,
@@ -139,7 +139,10 @@ fn write_row(
         s.totals.lower_bound,
         s.totals.beams_processed,
         s.wall_seconds,
-        m.name()
+        m.name(),
+        acc.grazing_voxels,
+        acc.grazing_disagreements,
+        acc.disagreement_pct_not_grazing
     )?;
     eprintln!(
         "| {n} | {f} | {} | {} | {} | {:.2} | {} | {} | {:.2} |",
@@ -167,7 +170,7 @@ pub struct Accuracy {
     pub surface_voxels: u64,
     /// Of those, lit by beam diffusion.
     pub lit_discrete: u64,
-    /// Of those, whose centre sees the light in the continuous scene (ignoring its own face).
+    /// Of those, whose measured point ([`Measure`]) sees the light in the continuous scene.
     pub lit_continuous: u64,
     /// Lit by diffusion, dark in the continuous scene.
     pub false_lit: u64,
@@ -175,7 +178,18 @@ pub struct Accuracy {
     pub false_dark: u64,
     /// (false_lit + false_dark) / surface_voxels, in percent.
     pub disagreement_pct: f64,
+    /// Surface voxels whose face the light grazes: it lies less than [`GRAZING_DEGREES`] from
+    /// the face's plane (where a sixteenth of a voxel moves the shadow's edge by many voxels).
+    pub grazing_voxels: u64,
+    /// Of those, lit differently by diffusion and in f64.
+    pub grazing_disagreements: u64,
+    /// The disagreement over the other surface voxels, in percent.
+    pub disagreement_pct_not_grazing: f64,
 }
+
+/// Below this angle between the light's direction and a face's plane, a surface voxel's light
+/// is grazing ([`Accuracy::grazing_voxels`]).
+pub const GRAZING_DEGREES: f64 = 15.0;
 
 /// Compare the discrete lit state of every surface voxel with f64 visibility from each light
 /// of the point `measure` names (docs/LIGHTING.md, "light-accuracy").
@@ -213,19 +227,32 @@ pub fn accuracy(
                         Some(p) => reference.visible(voxel_to_world(&scene.fit, p), l.to_array(), &[]),
                         None => reference.visible(centre, l.to_array(), &[face]),
                     };
-                    a.count(mask >> si & 1 == 1, seen);
+                    let to_light = *l - Vector::from(centre);
+                    let sine = nrm.dot(to_light).abs() / (nrm.length() * to_light.length());
+                    a.count(mask >> si & 1 == 1, seen, sine < GRAZING_DEGREES.to_radians().sin());
                 }
             }
         }
     }
-    a.disagreement_pct = 100.0 * (a.false_lit + a.false_dark) as f64 / a.surface_voxels.max(1) as f64;
+    a.finish();
     Ok(a)
 }
 
 impl Accuracy {
-    /// One surface voxel and light: lit by diffusion (`disc`), visible in f64 (`cont`).
-    fn count(&mut self, disc: bool, cont: bool) {
+    /// The percentages, from the counts.
+    fn finish(&mut self) {
+        let wrong = self.false_lit + self.false_dark;
+        self.disagreement_pct = 100.0 * wrong as f64 / self.surface_voxels.max(1) as f64;
+        let (rest, rest_wrong) = (self.surface_voxels - self.grazing_voxels, wrong - self.grazing_disagreements);
+        self.disagreement_pct_not_grazing = 100.0 * rest_wrong as f64 / rest.max(1) as f64;
+    }
+
+    /// One surface voxel and light: lit by diffusion (`disc`), visible in f64 (`cont`), the
+    /// light grazing its face or not.
+    fn count(&mut self, disc: bool, cont: bool, grazing: bool) {
         self.surface_voxels += 1;
+        self.grazing_voxels += grazing as u64;
+        self.grazing_disagreements += (grazing && disc != cont) as u64;
         self.lit_discrete += disc as u64;
         self.lit_continuous += cont as u64;
         self.false_lit += (disc && !cont) as u64;
@@ -266,7 +293,23 @@ fn face_planes(mesh: &Mesh) -> Vec<(Vector, Vector)> {
 
 #[cfg(test)]
 mod tests {
-    use super::Measure;
+    use super::{Accuracy, Measure};
+
+    #[test]
+    fn grazing_voxels_are_counted_apart() {
+        let mut a = Accuracy::default();
+        // (lit by diffusion, visible in f64, grazing)
+        for (d, c, g) in
+            [(true, true, false), (true, false, false), (false, false, false), (false, true, true), (true, true, true)]
+        {
+            a.count(d, c, g);
+        }
+        a.finish();
+        assert_eq!((a.surface_voxels, a.false_lit, a.false_dark), (5, 1, 1));
+        assert_eq!((a.grazing_voxels, a.grazing_disagreements), (2, 1));
+        assert_eq!(a.disagreement_pct, 40.0);
+        assert!((a.disagreement_pct_not_grazing - 100.0 / 3.0).abs() < 1e-12);
+    }
 
     fn close(a: [f64; 3], b: [f64; 3]) -> bool {
         a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12)
