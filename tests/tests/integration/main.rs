@@ -22,6 +22,7 @@ mod faulty_links;
 mod firmware_qemu;
 mod fuzz_regressions;
 mod host_modes;
+mod lit_set;
 mod mcu_grid;
 mod mcu_tiles;
 mod never_lose;
