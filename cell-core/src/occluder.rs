@@ -84,8 +84,8 @@
 //! A [`Triangle`] is 36 bytes (nine `i32`); a [`TriangleStore<N>`] is 36·N + 8 on the MCU.
 //! [`Triangle::crosses_column`] keeps 1.4–2.4 triangles per column on average on teapot-floor
 //! and cow-floor at n = 128–512, 5–9 on the fandisk, 4–11 on bureau1, up to 206 in a column
-//! along a dense silhouette; a store of 64 loses at most 0.32 dB on them (BENCHMARKS, "What the
-//! cell's own arithmetic gives").
+//! along a dense silhouette; a store of 64 loses little on them (BENCHMARKS, "What the cell's
+//! own arithmetic gives").
 //!
 //! # Example
 //!

@@ -17,9 +17,10 @@
 //! two rays per pixel, sampling a region around the point the f64 reference samples, so a shadow
 //! edge comes out up to half a voxel too bright. Naming one ray, the nearest to the ray to the
 //! pixel's own point, and lighting the pixel iff that ray arrives, is the receiver half of the
-//! fix measured in docs/LIGHTING.md ("Shadow edges at the pixel"): with exact occluders
-//! ([`crate::occluder`]) and rays from the light, teapot-floor and cow-floor at n = 128 go from
-//! 27.1 / 27.2 dB to 32.7 / 31.0 dB, bureau1 at n = 256 from 28.7 to 31.9 dB.
+//! fix described in docs/LIGHTING.md ("Shadow edges at the pixel"): with exact occluders
+//! ([`crate::occluder`]) and rays from the light it takes the shadow edges of the meshes to
+//! within the lattice's rounding (figures: BENCHMARKS.md, "How the default lit rule was
+//! chosen").
 //!
 //! # Definition
 //!
@@ -49,26 +50,25 @@
 //! ray. Where the light grazes the surface, the plane cuts the bracketing voxel z_v so that its
 //! one ray may lie on the inner side, and z_v + 1 lies behind the surface: the two bracketing
 //! voxels alone then offer no candidate and a lit pixel stays dark, in moiré arcs over the
-//! grazed face (the Cornell box's tall block seen in the fitted view: 0.36 % of the pixels at
-//! n = 256, 0.42 % at 512, growing with n). Voxel z_v − 1, in front of the surface, holds rays
-//! on its outer side next to the point; with it the nearest-ray receiver's error there is
-//! 0.01 % (`tests/examples/lit_bounds.rs`, docs/LIGHTING.md).
+//! grazed face (the Cornell box's tall block seen in the fitted view, growing with n). Voxel
+//! z_v − 1, in front of the surface, holds rays on its outer side next to the point; with it
+//! the nearest-ray receiver's moiré is gone (`tests/examples/lit_bounds.rs`, docs/LIGHTING.md).
 //!
 //! # Contact shadows
 //!
 //! The target ray decides whether light reaches the pixel's *voxel*: a ray stopped in the
 //! segment that ends there still arrives. So a shadow cast from closer than a voxel — a
 //! shelf's underside over a desk, a drawer's front, a poster on a wall at n = 128 — is lost:
-//! on bureau1 at n = 128, 243 pixels too bright against 10 too dark. The cell therefore also
+//! on bureau1 at n = 128 most of its wrong pixels were such, too bright. The cell therefore also
 //! tests the exact segment from the light S to the point X₁ of the ray to P where the visible
 //! plane's value falls to [`CONTACT_GAP`] (¼ voxel in front of the surface, along its normal's
 //! largest axis; X₁ rounded to the 1/[`POINT_UNITS`] grid) against the triangles its own column
 //! keeps ([`Target::shadowed_by`]): one crossing and the pixel is in shadow. The gap keeps the
 //! surface's own triangles (and its neighbours', within lattice rounding of its plane) from
 //! shadowing it; only the column's triangles are known, so the test is the near end of the
-//! exact ray, which is where the lattice ray's arrival is blind. Measured
-//! (`bench/lit_rules.sh`, docs/LIGHTING.md): bureau1 2.64 → 1.60 % at n = 128, 0.52 → 0.53 % at
-//! 256; cow-floor 0.44 → 0.42 % and 0.17 → 0.16 %; Cornell box and teapot-floor unchanged.
+//! exact ray, which is where the lattice ray's arrival is blind. It pays on bureau1 at n = 128
+//! and changes little elsewhere (`bench/lit_rules.sh`; BENCHMARKS.md, "How the default lit rule
+//! was chosen").
 //!
 //! # The neighbours' triangles
 //!
@@ -76,7 +76,7 @@
 //! does not keep: the edge of a panel one column over. The contact segment passes through the
 //! neighbouring column there, the lattice target ray (up to half a voxel off the exact ray)
 //! misses the edge, and whole lines of pixels along such edges come out lit (bureau1 at
-//! n = 128: columns of 14, 7 and 5 pixels along its bookcase, 33 pixels in all). So once per
+//! n = 128, along its bookcase). So once per
 //! light, after computing its target, a cell sends its contact segment's near end to its 8
 //! neighbours (the light is known to all); each tests the segment from the light to it against
 //! its own triangles ([`crosses_any`], the same exact test) and answers one bit; the OR is
@@ -84,12 +84,12 @@
 //! ([`Target::with_neighbour_answers`]), and the pixel is lit only if it is clear too
 //! ([`Target::in_contact_shadow`]). Any crossing is a true one up to the vertex lattice (the
 //! segment is exact and ends [`CONTACT_GAP`] in front of the surface), so a neighbour darkens
-//! pixels the mesh shadows: on bureau1 at n = 128 the f64 reference lights one of the 503
-//! pixels only a neighbour's triangle shadows, its segment within rounding of that triangle's
-//! edge (`tests/tests/integration/render.rs`). The exchange costs one query and one answer per link and
-//! a test of 8 queries per cell; beams do not change. Measured (`bench/lit_rules.sh`,
-//! docs/LIGHTING.md): bureau1 0.76 → 0.42 % at n = 128 (29.3 → 31.9 dB); testing two rings
-//! of neighbours instead of one gains 0.15 dB more there.
+//! pixels the mesh shadows: on bureau1 at n = 128 the f64 reference lights only a pixel or so
+//! of those a neighbour's triangle shadows, its segment within rounding of that triangle's edge
+//! (`tests/tests/integration/render.rs` checks it). The exchange costs one query and one answer
+//! per link and a test of 8 queries per cell; beams do not change. Its effect: BENCHMARKS.md,
+//! "How the default lit rule was chosen"; testing two rings of neighbours instead of one was
+//! tried and gained too little to keep.
 //!
 //! # Bit budget
 //!

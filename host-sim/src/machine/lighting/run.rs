@@ -82,8 +82,8 @@ pub fn check_lit_overflow(lighting: &Lighting) -> Result<()> {
 }
 
 /// Warn when a column met more triangles than it keeps (`TRIANGLE_CAP`): the first ones in
-/// stream order stop rays, the others let them through (measured: at most 0.32 dB on the
-/// meshes of BENCHMARKS).
+/// stream order stop rays, the others let them through (what it costs: BENCHMARKS.md, "What the
+/// cell's own arithmetic gives").
 pub fn check_triangle_overflow(grid: &crate::machine::grid::LightGrid) {
     let stores = grid.triangles.overflows();
     if stores > 0 {
