@@ -5,7 +5,7 @@
 # by what the machine shows there, the PSNR with the reference's own lit flags and with `truth`,
 # and the default with only its shadow-edge pixels re-tested.
 # NS (default "128 256") and SCENES (default "cornell teapot-floor cow-floor bureau1") choose the
-# runs. Writes bench-out/wrong-pixels.csv (one line per scene and n) and bench-out/wrong-pixels.md
+# runs; APPEND=1 adds their rows to the CSV's (the table then has both). Writes bench-out/wrong-pixels.csv (one line per scene and n) and bench-out/wrong-pixels.md
 # (the table, with the command, commit, machine and date; raw outputs in bench-out/wrong-pixels/).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -16,7 +16,7 @@ X=${CARGO_TARGET_DIR:-target}/release/examples/lit_bounds
 D=bench-out/wrong-pixels
 mkdir -p "$D"
 CSV=bench-out/wrong-pixels.csv
-echo "scene,n,wrong,light,coincident,edge,other,psnr_default_db,psnr_reference_flags_db,psnr_truth_db,refined_disagreement_pct,refined_psnr_db,refined_pixels,wall_s" > "$CSV"
+[[ ${APPEND:-0} == 1 && -f $CSV ]] || echo "scene,n,wrong,light,coincident,edge,other,psnr_default_db,psnr_reference_flags_db,psnr_truth_db,refined_disagreement_pct,refined_psnr_db,refined_pixels,wall_s" > "$CSV"
 for n in $NS; do
   for scene in $SCENES; do
     o=$D/$scene-$n
@@ -43,7 +43,7 @@ PY
 done
 . bench/lib.sh
 {
-  bench_header "NS=\"$NS\" SCENES=\"$SCENES\" bash bench/wrong_pixels.sh  (lit_bounds SCENE N target0+cell64+source truth reference, then the same with --refine)"
+  bench_header "${APPEND:+APPEND=$APPEND }NS=\"$NS\" SCENES=\"$SCENES\" bash bench/wrong_pixels.sh  (lit_bounds SCENE N target0+cell64+source truth reference, then the same with --refine)"
   echo
   python3 - "$CSV" <<'PY'
 import csv, sys
