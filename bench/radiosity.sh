@@ -16,7 +16,6 @@ THREADS=${THREADS:-2}
 OUT=${OUT:-bench-out/radiosity.csv}
 mkdir -p "$(dirname "$OUT")"
 OUT=$(realpath "$OUT")
-REV=$(git -C "$(dirname "$0")" rev-parse --short HEAD 2>/dev/null || echo unknown)
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
 echo "scene,n,patch_size,patches,shots,residual,reference_shots,diffusion_cycles_per_shot,reduce_cycles_per_shot,messages_per_shot,bytes_per_cell_added,rms_machine,rms_direct_only,wall_seconds,command" > "$OUT"
@@ -37,12 +36,13 @@ print(",".join(str(v) for v in [
     f"{s['wall_seconds']:.1f}", '"' + sys.argv[3] + '"']))
 PY
 done
-python3 - "$OUT" "$REV" > "${OUT%.csv}.md" <<'PY'
-import csv, datetime, sys
+. "$(dirname "$0")/lib.sh"
+(cd "$(dirname "$0")/.." && bench_header "ROWS=\"$ROWS\" THREADS=$THREADS bash bench/radiosity.sh $1") > "${OUT%.csv}.md"
+echo "* the runs took $((SECONDS / 60)) min $((SECONDS % 60)) s in all (one after another)" >> "${OUT%.csv}.md"
+echo >> "${OUT%.csv}.md"
+python3 - "$OUT" >> "${OUT%.csv}.md" <<'PY'
+import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
-print(f"`bash bench/radiosity.sh target/release/host-sim` (ROWS as below), commit {sys.argv[2]}, "
-      f"{datetime.date.today().isoformat()}, 2-core VM:")
-print()
 print("```text")
 for r in rows:
     print(r["command"])
