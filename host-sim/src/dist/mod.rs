@@ -76,6 +76,11 @@ pub fn start() -> Result<Session> {
 pub fn fail(e: &anyhow::Error) -> std::process::ExitCode {
     let (rank, size) = place();
     if size > 1 {
+        if rank > 0 {
+            // An error of every rank (a bad input) is rank 0's to tell: its abort ends this
+            // rank within the pause. An error of this rank alone is told after it.
+            std::thread::sleep(std::time::Duration::from_secs(2));
+        }
         eprintln!("error (rank {rank} of {size}): {e:#}");
         #[cfg(feature = "mpi")]
         ranks::abort(1);
