@@ -901,7 +901,13 @@ fn dispatch(command: Command) -> Result<()> {
             if helper && o.light.classic.is_some() {
                 return Ok(());
             }
-            jobs::render::run(&jobs::render::RenderOptions { quiet: o.quiet || helper, ..o })
+            if helper {
+                // A helper rank only diffuses its share of the sources: no reference image, no
+                // radiosity (neither changes the grid or the diffusion; rank 0 does both).
+                let o = jobs::render::RenderOptions { quiet: true, reference: false, radiosity: None, ..o };
+                return jobs::render::run(&o);
+            }
+            jobs::render::run(&o)
         }
         Command::Light(a) => {
             let o: jobs::light::LightOptions = (&a).try_into()?;
