@@ -217,6 +217,23 @@ fn a_rank_that_dies_ends_the_run_with_an_error() {
     }
 }
 
+/// A rank that panics (a bug; `RC2_MPI_PANIC_RANK`) before sending its part: it aborts every
+/// rank instead of leaving rank 0 waiting.
+#[test]
+fn a_rank_that_panics_ends_the_run_with_an_error() {
+    let dir = scratch("panic");
+    let mut c = mpirun_with(2, &["-x", "RC2_MPI_PANIC_RANK"]);
+    c.env("RC2_MPI_PANIC_RANK", "1").args(["render", "cornell", "--n", "32"]).args(FIVE_LIGHTS);
+    c.arg("--out").arg(dir.join("x.png"));
+    let out = run_within(c, Duration::from_secs(120));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "rank 1 panicked and the run succeeded: {err}");
+    assert!(err.contains("RC2_MPI_PANIC_RANK=1"), "{err}");
+    assert!(err.contains("error (rank 1 of 2): panicked (a bug): aborting every rank"), "{err}");
+    assert!(!dir.join("x.png").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// The ranks of a running `mpirun` (by id), from /proc: (pid, rank).
 fn ranks_of(mpirun: u32) -> Vec<(u32, String)> {
     let mut out = Vec::new();

@@ -62,6 +62,23 @@ pub struct Session {
     _universe: Option<ranks::Universe>,
 }
 
+impl Drop for Session {
+    /// At the end of a run of several ranks, wait for every rank before MPI is finalised, one
+    /// test a millisecond (a rank done early waits for rank 0 without keeping a core busy).
+    /// A rank that panicked aborts them all instead: the others may be waiting for its part.
+    fn drop(&mut self) {
+        #[cfg(feature = "mpi")]
+        if self._universe.is_some() {
+            if std::thread::panicking() {
+                let (rank, size) = place();
+                eprintln!("error (rank {rank} of {size}): panicked (a bug): aborting every rank");
+                ranks::abort(101);
+            }
+            ranks::wait_for_all();
+        }
+    }
+}
+
 /// Start MPI if this process was launched by `mpirun` and has the `mpi` feature; else nothing.
 pub fn start() -> Result<Session> {
     Ok(Session {

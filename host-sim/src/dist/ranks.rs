@@ -6,6 +6,7 @@ use std::sync::OnceLock;
 use anyhow::{bail, Context, Result};
 use mpi::datatype::PartitionMut;
 use mpi::environment::Threading;
+use mpi::request::{Request, Scope};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use mpi::Count;
@@ -52,14 +53,19 @@ pub fn abort(code: i32) -> ! {
 
 /// Send this rank's part to rank 0; on rank 0, every rank's part in rank order, its own first.
 ///
-/// `RC2_MPI_DIE_RANK=r` (a test's hook) makes rank r die here, its part diffused and not sent:
-/// the run must end with an error, never wait for it.
+/// `RC2_MPI_DIE_RANK=r` (a test's hook) makes rank r abort here, its part diffused and not
+/// sent; `RC2_MPI_PANIC_RANK=r` makes it panic: the run must end with an error, never wait for
+/// the part.
 pub fn gather(part: Lighting) -> Result<Option<Vec<Lighting>>> {
     let world = SimpleCommunicator::world();
     let (rank, size) = (world.rank() as usize, world.size() as usize);
-    if std::env::var("RC2_MPI_DIE_RANK").ok().and_then(|r| r.parse::<usize>().ok()) == Some(rank) {
+    let hook = |var: &str| std::env::var(var).ok().and_then(|r| r.parse::<usize>().ok()) == Some(rank);
+    if hook("RC2_MPI_DIE_RANK") {
         eprintln!("rank {rank}: RC2_MPI_DIE_RANK={rank}: dying before sending its lighting part");
         std::process::abort();
+    }
+    if hook("RC2_MPI_PANIC_RANK") {
+        panic!("rank {rank}: RC2_MPI_PANIC_RANK={rank}: panicking before sending its lighting part");
     }
     let root = world.process_at_rank(0);
     if rank > 0 {
@@ -67,13 +73,15 @@ pub fn gather(part: Lighting) -> Result<Option<Vec<Lighting>>> {
         let len = Count::try_from(bytes.len()).with_context(|| {
             format!("rank {rank}'s lighting part is {} bytes: more than one MPI message holds", bytes.len())
         })?;
-        root.gather_into(&len);
-        root.gather_varcount_into(&bytes[..]);
+        mpi::request::scope(|scope| {
+            settle(root.immediate_gather_into(scope, &len));
+            settle(root.immediate_gather_varcount_into(scope, &bytes[..]));
+        });
         return Ok(None);
     }
     // Rank 0 keeps its own part and sends itself nothing.
     let mut counts = vec![0 as Count; size];
-    root.gather_into_root(&(0 as Count), &mut counts[..]);
+    mpi::request::scope(|scope| settle(root.immediate_gather_into_root(scope, &(0 as Count), &mut counts[..])));
     let mut displs = Vec::with_capacity(size);
     let mut total: i64 = 0;
     for c in &counts {
@@ -83,7 +91,8 @@ pub fn gather(part: Lighting) -> Result<Option<Vec<Lighting>>> {
     let mut buf = vec![0u8; usize::try_from(total).context("lighting parts")?];
     {
         let mut into = PartitionMut::new(&mut buf[..], &counts[..], &displs[..]);
-        root.gather_varcount_into_root(&[] as &[u8], &mut into);
+        let empty: &[u8] = &[];
+        mpi::request::scope(|scope| settle(root.immediate_gather_varcount_into_root(scope, empty, &mut into)));
     }
     let mut parts = Vec::with_capacity(size);
     parts.push(part);
@@ -92,4 +101,25 @@ pub fn gather(part: Lighting) -> Result<Option<Vec<Lighting>>> {
         parts.push(decode_part(&buf[at..at + len]).with_context(|| format!("rank {r}'s lighting part"))?);
     }
     Ok(Some(parts))
+}
+
+/// Wait until every rank is here (a barrier, tested every millisecond: [`settle`]).
+pub fn wait_for_all() {
+    let world = SimpleCommunicator::world();
+    settle(world.immediate_barrier());
+}
+
+/// Wait for `req` without keeping a core busy: test it every millisecond. (A blocking
+/// collective polls at full speed, and the rank that waits — one whose share is done — would
+/// take a core from the ranks still diffusing on every core.)
+fn settle<'a, D: ?Sized, S: Scope<'a>>(mut req: Request<'a, D, S>) {
+    loop {
+        match req.test() {
+            Ok(_) => return,
+            Err(r) => {
+                req = r;
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            }
+        }
+    }
 }
