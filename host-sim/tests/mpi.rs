@@ -172,6 +172,17 @@ fn light_finds_the_same_lit_voxels_on_3_ranks() {
     same_as_one_process("light5-thesis", &args, &[("--lit-out", "lit.csv")], &[2]);
 }
 
+/// The diffusion spread, then rank 0's own phases on the merged lit sets: the shadow-edge
+/// refinement (five lights) and mirror reflections (the full lit store).
+#[test]
+fn refined_and_reflected_renders_alike_on_2_ranks() {
+    let png = [("--out", "image.png")];
+    let mut refined = vec!["render", "cornell", "--n", "32", "--lighting", "refined"];
+    refined.extend(FIVE_LIGHTS);
+    same_as_one_process("refined", &refined, &png, &[2]);
+    same_as_one_process("mirror", &["render", "cornell-mirror", "--n", "32", "--reflections", "2"], &png, &[2]);
+}
+
 /// What is not spread runs on rank 0 alone, with the same result: classic shadow rays, and a
 /// diffusion over faulty links (each link's faults run on from source to source).
 #[test]
