@@ -11,6 +11,8 @@
 //! * [`jobs`] — what a user runs, each job behind a plain options struct: render, light,
 //!   light-accuracy, diffusion-table, voxelize, trace, audit, bench, scenes; lit-voxel dumps.
 //! * [`report`] — PNG, plots, progress bars, output files.
+//! * [`dist`] — past one process: with the `mpi` feature, a render's sources spread over MPI
+//!   ranks (docs/MPI.md); without it, one process.
 //! * [`cli`] — the command line (the only place that knows clap): it parses the arguments,
 //!   converts them into the jobs' options and calls the job.
 //!
@@ -21,6 +23,7 @@
 
 pub mod cli;
 pub mod config;
+pub mod dist;
 pub mod jobs;
 pub mod machine;
 pub mod precompute;

@@ -913,11 +913,37 @@ pub fn run(cli: Cli) -> Result<()> {
 }
 
 /// Each command's job, with its arguments converted into the job's options ([`options`]).
+///
+/// Under MPI (docs/MPI.md) the ranks other than 0 take part in `render` and `light` only (their
+/// diffusion's sources are spread over the ranks), quietly; under classic shadow rays, and in
+/// every other command, rank 0 works alone.
 fn dispatch(command: Command) -> Result<()> {
+    let helper = crate::dist::helper();
+    if helper && !matches!(command, Command::Render(_) | Command::Light(_)) {
+        return Ok(());
+    }
     match command {
         Command::Voxelize(a) => jobs::voxelize::run(&(&a).into()),
-        Command::Render(a) => jobs::render::run(&(&a).try_into()?),
-        Command::Light(a) => jobs::light::run(&(&a).try_into()?),
+        Command::Render(a) => {
+            let o: jobs::render::RenderOptions = (&a).try_into()?;
+            if helper && o.light.classic.is_some() {
+                return Ok(());
+            }
+            if helper {
+                // A helper rank only diffuses its share of the sources: no reference image, no
+                // radiosity (neither changes the grid or the diffusion; rank 0 does both).
+                let o = jobs::render::RenderOptions { quiet: true, reference: false, radiosity: None, ..o };
+                return jobs::render::run(&o);
+            }
+            jobs::render::run(&o)
+        }
+        Command::Light(a) => {
+            let o: jobs::light::LightOptions = (&a).try_into()?;
+            if helper && o.light.classic.is_some() {
+                return Ok(());
+            }
+            jobs::light::run(&jobs::light::LightOptions { quiet: o.quiet || helper, ..o })
+        }
         Command::DiffusionTable(a) => jobs::table::run(&(&a).into()),
         Command::LightAccuracy(a) => jobs::accuracy::run(&(&a).into()),
         Command::Bench(a) => jobs::bench::run(&(&a).into()),

@@ -7,8 +7,9 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 
 use crate::config::{RunConfig, RunSummary};
+use crate::dist::run_diffusion;
 use crate::machine::lighting::diffuse::{LightConfig, Lighting};
-use crate::machine::lighting::run::{run_diffusion, LightStats};
+use crate::machine::lighting::run::LightStats;
 use crate::machine::loading::loaded_scene::{load_scene, resolve_sources, LightSampling, LoadedScene};
 use crate::machine::rays::classic::{run_classic, ClassicConfig, ClassicLighting};
 use crate::precompute::LoadConfig;

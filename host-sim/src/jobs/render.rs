@@ -19,10 +19,11 @@ use cell_core::shade::{NormalMode, PointLight};
 use cell_core::smooth::Smooth;
 
 use crate::config::RunSummary;
+use crate::dist::run_diffusion;
 use crate::jobs::light::{classic_description, print_link_faults, LightingOptions};
 use crate::jobs::render_radiosity::{self, DisplayPsnr, F64Solution, RadiosityRenderStats, RenderRadiosity, TruthPsnr};
 use crate::machine::lighting::diffuse::LightConfig;
-use crate::machine::lighting::run::{run_diffusion, LightStats};
+use crate::machine::lighting::run::LightStats;
 use crate::machine::loading::loaded_scene::{load_scene, resolve_sources, LoadedScene, Sources};
 use crate::machine::rays::classic::{refine_edges, run_classic, ClassicConfig, ClassicCounts, RefineCounts};
 use crate::machine::rays::mirror::{reflect, ReflectConfig, ReflectCounts, ShadeEnv};

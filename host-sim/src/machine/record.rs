@@ -17,7 +17,7 @@ use cell_core::shade::{cell_pixel, Eye, NormalMode, ShadeParams};
 use cell_core::trace::{Event, ShadeSetup, MAX_LIGHTS, MAX_MATERIALS};
 
 use crate::machine::grid::capacity::{HostLightCell, FA_CAP, LIT_CAP, OB_CAP};
-use crate::machine::lighting::diffuse::{diffuse_cells, with_f, LightConfig, Lighting};
+use crate::machine::lighting::diffuse::{diffuse_cells, with_f, LightConfig, Lighting, Share};
 use crate::machine::links::tap::{CellRecorder, Tap};
 use crate::machine::loading::loaded_scene::LoadedScene;
 use crate::machine::rays::classic::{classic_tapped, ClassicConfig, ClassicLighting};
@@ -93,8 +93,14 @@ fn record_f<F: FracBits>(job: &TraceJob<'_>) -> Result<Vec<CellTrace>> {
     }
     let lit = match &job.classic {
         None => {
-            let (lighting, cells) =
-                diffuse_cells::<F, DEFAULT_DEXELS>(&scene.grid, &sources, &job.light, Some(&mut tap), &mut |_, _| {})?;
+            let (lighting, cells) = diffuse_cells::<F, DEFAULT_DEXELS>(
+                &scene.grid,
+                &sources,
+                &job.light,
+                Share::ALL,
+                Some(&mut tap),
+                &mut |_, _| {},
+            )?;
             Lit::Beams(lighting, cells)
         }
         Some(c) => Lit::Rays(classic_tapped(&scene, &lights, c, Some(&mut tap), &mut |_, _| {})?, c.rule),

@@ -4,10 +4,16 @@ use std::fs::File;
 use std::io::BufWriter;
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 
 /// Create (or truncate) `path` for buffered writing; the error names the path.
 pub fn create(path: &Path) -> Result<BufWriter<File>> {
+    // Under MPI only rank 0 writes (docs/MPI.md): a helper rank that got here is a bug, not a
+    // second copy of the file.
+    let (rank, size) = crate::dist::place();
+    if rank > 0 {
+        bail!("rank {rank} of {size} would write {}: only rank 0 writes files", path.display());
+    }
     let f = File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
     Ok(BufWriter::new(f))
 }

@@ -6,8 +6,8 @@ use anyhow::{bail, Result};
 use cell_core::light::Policy;
 
 use crate::machine::lighting::diffuse::{
-    diffuse, light_cell_bytes, unsupported_frac_bits, DiffusionCounts, LightConfig, Lighting, PhaseSeconds,
-    SourceReport,
+    diffuse_share, light_cell_bytes, unsupported_frac_bits, DiffusionCounts, LightConfig, Lighting, PhaseSeconds,
+    Share, SourceReport,
 };
 use crate::machine::loading::loaded_scene::LoadedScene;
 
@@ -115,17 +115,44 @@ fn run_diffusion_with(
     cfg: &LightConfig,
     progress: &mut dyn FnMut(usize, u64),
 ) -> Result<(Lighting, LightStats)> {
+    let t0 = Instant::now();
+    let lighting = diffuse_part(scene, lights, cfg, Share::ALL, progress)?;
+    let wall = t0.elapsed().as_secs_f64();
+    summarise(mesh, scene, cfg, lighting, wall)
+}
+
+/// One share of a lighting run's sources diffused ([`Share`]): a part for
+/// [`crate::machine::lighting::diffuse::merge_parts`], whose result [`summarise`] checks and
+/// counts as [`run_diffusion`] does.
+pub fn diffuse_part(
+    scene: &LoadedScene,
+    lights: &[[f64; 3]],
+    cfg: &LightConfig,
+    share: Share,
+    progress: &mut dyn FnMut(usize, u64),
+) -> Result<Lighting> {
+    light_cell_bytes(cfg.frac_bits).ok_or_else(|| unsupported_frac_bits(cfg.frac_bits))?;
+    let n = scene.grid.n;
+    let sources = lights.iter().enumerate().map(|(i, p)| cfg.source(i, *p, n)).collect::<Result<Vec<_>>>()?;
+    diffuse_share(&scene.grid, &sources, cfg, share, progress)
+}
+
+/// The checks and statistics of a lighting run of every source (`wall`: its wall time): the
+/// lit-store overflow is an error, the triangle overflow a warning.
+pub fn summarise(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    cfg: &LightConfig,
+    lighting: Lighting,
+    wall: f64,
+) -> Result<(Lighting, LightStats)> {
     let (bytes_beam_message, bytes_light_cell) =
         light_cell_bytes(cfg.frac_bits).ok_or_else(|| unsupported_frac_bits(cfg.frac_bits))?;
     let n = scene.grid.n;
-    let sources = lights.iter().enumerate().map(|(i, p)| cfg.source(i, *p, n)).collect::<Result<Vec<_>>>()?;
-    let t0 = Instant::now();
-    let lighting = diffuse(&scene.grid, &sources, cfg, progress)?;
     check_lit_overflow(&lighting)?;
     if cfg.rule == cell_core::lit::LitRule::Exact {
         check_triangle_overflow(&scene.grid);
     }
-    let wall = t0.elapsed().as_secs_f64();
     let r = &lighting.reports;
     let mut totals = DiffusionCounts::default();
     for s in r {

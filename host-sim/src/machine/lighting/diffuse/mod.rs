@@ -43,11 +43,13 @@ use crate::machine::links::tap::{Tap, Tracer};
 use crate::machine::links::{GridLinks, HostLink};
 
 mod cycle;
+mod share;
 mod shortcut;
 mod summary;
 
 use cycle::diffuse_one;
 pub(crate) use cycle::initial_beams;
+pub use share::{decode_part, encode_part, merge_parts, Share};
 use shortcut::Shortcut;
 pub use summary::{occupancy_summary, occupied_box, FrustumBlocks, Summary};
 
@@ -422,7 +424,22 @@ pub fn diffuse_in<const D: usize>(
     cfg: &LightConfig,
     mut progress: impl FnMut(usize, u64),
 ) -> Result<Lighting> {
-    diffuse_at(grid, sources, cfg, None, &mut progress)
+    diffuse_at(grid, sources, cfg, Share::ALL, None, &mut progress)
+}
+
+/// [`diffuse`] of one share of the sources only ([`Share`]): the others are skipped, each
+/// source keeping its index (its bit in the masks, its report's `source`). The parts of every
+/// share of a run, put together by [`merge_parts`], are the whole run's [`Lighting`] (sources
+/// share nothing but the lit stores and the counters, which add up: see [`Share::spreads`] for
+/// the settings under which they share more).
+pub fn diffuse_share(
+    grid: &LightGrid,
+    sources: &[Source],
+    cfg: &LightConfig,
+    share: Share,
+    progress: &mut dyn FnMut(usize, u64),
+) -> Result<Lighting> {
+    diffuse_at(grid, sources, cfg, share, None, progress)
 }
 
 /// [`diffuse`], recording what the cells watched by `tap` receive and send.
@@ -433,7 +450,7 @@ pub fn diffuse_tapped(
     tap: Option<&mut Tap>,
     progress: &mut dyn FnMut(usize, u64),
 ) -> Result<Lighting> {
-    diffuse_at(grid, sources, cfg, tap, progress)
+    diffuse_at(grid, sources, cfg, Share::ALL, tap, progress)
 }
 
 /// The cells' build for `cfg.frac_bits`, picked once for a grid of capacity `D`.
@@ -441,10 +458,11 @@ fn diffuse_at<const D: usize>(
     grid: &Grid<D>,
     sources: &[Source],
     cfg: &LightConfig,
+    share: Share,
     tap: Option<&mut Tap>,
     progress: &mut dyn FnMut(usize, u64),
 ) -> Result<Lighting> {
-    with_f!(cfg.frac_bits, F => diffuse_cells::<F, D>(grid, sources, cfg, tap, progress).map(|(l, _)| l))
+    with_f!(cfg.frac_bits, F => diffuse_cells::<F, D>(grid, sources, cfg, share, tap, progress).map(|(l, _)| l))
 }
 
 /// [`diffuse_tapped`] under f = `F`, also returning the cells themselves (what a cell trace's
@@ -458,6 +476,7 @@ pub(crate) fn diffuse_cells<F: FracBits, const D: usize>(
     grid: &Grid<D>,
     sources: &[Source],
     cfg: &LightConfig,
+    share: Share,
     tap: Option<&mut Tap>,
     progress: &mut dyn FnMut(usize, u64),
 ) -> Result<(Lighting, Vec<HostLightCell<F>>)> {
@@ -471,7 +490,10 @@ pub(crate) fn diffuse_cells<F: FracBits, const D: usize>(
     let frustum = frustum_summary(grid, cfg, tap.is_some())?;
     check_recording(cfg, tap.is_some())?;
     cfg.timing.check(cfg.fa, cfg.faults.is_none() && tap.is_none())?;
-    let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref(), shot: None };
+    if share != Share::ALL && !Share::spreads(cfg, tap.is_some()) {
+        bail!("this lighting run's sources share more than the lit stores (link faults, a snapshot, visited voxels or a cell trace): it cannot be split");
+    }
+    let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref(), shot: None, share };
     let wire = cfg.faults.map(|faults| Wire { faults, far: far.get() });
     match (&wire, tap) {
         (None, None) => run.diffuse(cells, GridLinks::new(n, |_| PerfectLink), None, progress),
@@ -523,7 +545,7 @@ pub(crate) fn diffuse_shot<F: FracBits, const D: usize>(
     let occupied = occupied_box(grid, cfg.rule);
     let frustum = frustum_summary(grid, cfg, false)?;
     let shot = Some(Shot { initial, rays });
-    let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref(), shot };
+    let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref(), shot, share: Share::ALL };
     run.diffuse(idle_cells(grid.n), GridLinks::new(grid.n, |_| PerfectLink), None, &mut progress).map(|(l, _)| l)
 }
 
@@ -610,6 +632,8 @@ pub(crate) struct AllSources<'a, F: FracBits, const D: usize> {
     occupied: OccupiedBox,
     frustum: Option<&'a Summary>,
     shot: Option<Shot<'a, F>>,
+    /// The sources this run diffuses (the others are skipped).
+    share: Share,
 }
 
 impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
@@ -618,7 +642,7 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
     /// from [`AllSources::env`] as here).
     pub(crate) fn plain(grid: &'a Grid<D>, sources: &'a [Source], cfg: &'a LightConfig, far: FarDistance<F>) -> Self {
         let occupied = occupied_box(grid, cfg.rule);
-        AllSources { grid, sources, cfg, far, occupied, frustum: None, shot: None }
+        AllSources { grid, sources, cfg, far, occupied, frustum: None, shot: None, share: Share::ALL }
     }
 
     /// Diffuse the sources one after another over `cells`, through `links`.
@@ -638,7 +662,7 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
         // The summary's occupied blocks, the same for every source: what each source's
         // frustum shortcut is filled from (not for a radiosity shot's few rays).
         let blocks = self.frustum.filter(|_| self.shot.is_none()).map(|s| (s, s.occupied_blocks()));
-        for (si, src) in self.sources.iter().enumerate() {
+        for (si, src) in self.sources.iter().enumerate().filter(|(si, _)| self.share.takes(*si)) {
             let mut lap = Lap::start();
             let occluders = (cfg.rule == LitRule::Exact).then(|| SourceOccluders::new(self.grid, src, self.far));
             let mut env = self.env(src, si, &order, occluders.as_ref().map(|o| o as &dyn ColumnOccluders));

@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# Sources over MPI ranks (docs/MPI.md): the plain binary, `mpirun -np 1` and `mpirun -np 2`
+# (each rank with all cores' threads, then with one thread each) on a many-light scene.
+# RUNS interleaved runs of each (default 3), the median wall time; every image compared byte
+# for byte with the plain binary's. Needs Open MPI (openmpi-bin libopenmpi-dev libclang-dev).
+#   SCENE=classe N=256 RUNS=3 bash bench/mpi_sources.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+. bench/lib.sh
+SCENE=${SCENE:-classe}
+N=${N:-256}
+RUNS=${RUNS:-3}
+OUT=bench-out/mpi
+mkdir -p "$OUT"
+# Two builds of one target folder: keep each binary under its own name.
+cargo build --release -q -p host-sim
+cp target/release/host-sim "$OUT/host-sim-plain"
+cargo build --release -q -p host-sim --features mpi
+cp target/release/host-sim "$OUT/host-sim-mpi"
+# mpirun refuses root without these (CI's machine runs as root).
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+ARGS="render $SCENE --n $N --quiet"
+names=("plain" "np1" "np2" "np2t1")
+cmds=(
+  "$OUT/host-sim-plain $ARGS"
+  "mpirun -np 1 $OUT/host-sim-mpi $ARGS"
+  "mpirun --oversubscribe -np 2 $OUT/host-sim-mpi $ARGS"
+  "mpirun --oversubscribe -np 2 $OUT/host-sim-mpi --threads 1 $ARGS"
+)
+declare -A times
+for run in $(seq "$RUNS"); do
+  for i in "${!names[@]}"; do
+    t0=$(date +%s.%N)
+    ${cmds[$i]} --out "$OUT/${names[$i]}.png" 2> "$OUT/${names[$i]}.log"
+    t1=$(date +%s.%N)
+    times[${names[$i]}]+="$(echo "$t1 - $t0" | bc) "
+    cmp -s "$OUT/plain.png" "$OUT/${names[$i]}.png" || { echo "${names[$i]}: image differs from the plain binary's" >&2; exit 1; }
+  done
+done
+bench_header "SCENE=$SCENE N=$N RUNS=$RUNS bash bench/mpi_sources.sh"
+lights=$(grep -o '[0-9]* light(s)' "$OUT/plain.log" | head -1)
+echo "* scene: $SCENE at n = $N, $lights; every image byte-identical to the plain binary's"
+echo
+echo "| command | wall s (runs) | median s | vs plain |"
+echo "|---|---|---|---|"
+plain_median=$(echo "${times[plain]}" | tr ' ' '\n' | grep . | sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}')
+for i in "${!names[@]}"; do
+  ts=$(echo "${times[${names[$i]}]}" | tr ' ' '\n' | grep . | sort -g)
+  median=$(echo "$ts" | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}')
+  list=$(echo "${times[${names[$i]}]}" | awk '{for (i = 1; i <= NF; i++) printf "%s%.1f", (i > 1 ? ", " : ""), $i}')
+  shown=${cmds[$i]//$OUT\//}
+  printf '| `%s` | %s | %.1f | %.2f× |\n' "$shown" "$list" "$median" "$(echo "$plain_median / $median" | bc -l)"
+done

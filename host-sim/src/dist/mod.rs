@@ -1,0 +1,150 @@
+//! Past one process (docs/MPI.md): with the `mpi` feature and `mpirun -np K host-sim …`, the
+//! lighting run's sources are spread over the K ranks. Each rank loads the same scene
+//! (deterministic), diffuses the sources s with s % K = rank on its own copy of the grid
+//! ([`Share`]), and rank 0 gathers the parts, merges them
+//! ([`crate::machine::lighting::diffuse::merge_parts`]) and carries on alone: shading, files,
+//! summary. The result is the one-process run's, byte for byte (the parts share nothing but
+//! what adds up). The other ranks stop once their part is sent ([`Finished`]).
+//!
+//! Without the feature (the default build), or run without `mpirun`, this is one process:
+//! [`run_diffusion`] is the machine's own. Nothing of MPI leaves this folder; the machine
+//! knows shares of sources, not ranks.
+
+use std::time::Instant;
+
+use anyhow::Result;
+
+use crate::machine::lighting::diffuse::{LightConfig, Lighting, Share};
+use crate::machine::lighting::run::{self, LightStats};
+use crate::machine::loading::loaded_scene::LoadedScene;
+use crate::scene::Mesh;
+
+#[cfg(feature = "mpi")]
+mod ranks;
+
+/// The error a rank other than 0 stops with once its part of the work is handed to rank 0:
+/// not a failure ([`is_finished`]), the process exits successfully and says nothing.
+#[derive(Debug)]
+pub struct Finished;
+
+impl std::fmt::Display for Finished {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("this rank's part is done; rank 0 carries on")
+    }
+}
+
+impl std::error::Error for Finished {}
+
+/// Whether `e` is [`Finished`]: this rank's work is done, not failed.
+pub fn is_finished(e: &anyhow::Error) -> bool {
+    e.downcast_ref::<Finished>().is_some()
+}
+
+/// This process's rank and the number of ranks: (0, 1) without MPI.
+pub fn place() -> (usize, usize) {
+    #[cfg(feature = "mpi")]
+    if let Some(p) = ranks::place() {
+        return p;
+    }
+    (0, 1)
+}
+
+/// Whether this process is a rank other than 0: it neither prints a summary nor writes a file,
+/// and takes part only in what is spread over the ranks.
+pub fn helper() -> bool {
+    place().0 > 0
+}
+
+/// What `main` holds for the whole run: MPI, started when the process was launched by
+/// `mpirun` (with the `mpi` feature), finalised when this is dropped.
+pub struct Session {
+    #[cfg(feature = "mpi")]
+    _universe: Option<ranks::Universe>,
+}
+
+impl Drop for Session {
+    /// At the end of a run of several ranks, wait for every rank before MPI is finalised, one
+    /// test a millisecond (a rank done early waits for rank 0 without keeping a core busy).
+    /// A rank that panicked aborts them all instead: the others may be waiting for its part.
+    fn drop(&mut self) {
+        #[cfg(feature = "mpi")]
+        if self._universe.is_some() {
+            if std::thread::panicking() {
+                let (rank, size) = place();
+                eprintln!("error (rank {rank} of {size}): panicked (a bug): aborting every rank");
+                ranks::abort(101);
+            }
+            ranks::wait_for_all();
+        }
+    }
+}
+
+/// Start MPI if this process was launched by `mpirun` and has the `mpi` feature; else nothing.
+pub fn start() -> Result<Session> {
+    Ok(Session {
+        #[cfg(feature = "mpi")]
+        _universe: ranks::start()?,
+    })
+}
+
+/// End a failed run: print `e` and, with several ranks, abort them all (`MPI_Abort`: a rank
+/// that fails never leaves the others waiting for its part). Returns the exit status of a run
+/// of one process.
+pub fn fail(e: &anyhow::Error) -> std::process::ExitCode {
+    let (rank, size) = place();
+    if size > 1 {
+        if rank > 0 {
+            // An error of every rank (a bad input) is rank 0's to tell: its abort ends this
+            // rank within the pause. An error of this rank alone is told after it.
+            std::thread::sleep(std::time::Duration::from_secs(2));
+        }
+        eprintln!("error (rank {rank} of {size}): {e:#}");
+        #[cfg(feature = "mpi")]
+        ranks::abort(1);
+    }
+    eprintln!("error: {e:#}");
+    std::process::ExitCode::FAILURE
+}
+
+/// The lighting run of every source ([`run::run_diffusion`]), its sources spread over the ranks
+/// when there are several: rank 0 returns the whole run, the other ranks [`Finished`] once
+/// their part is sent. A run whose sources cannot be split ([`Share::spreads`]) runs on rank 0
+/// alone.
+pub fn run_diffusion(
+    mesh: &Mesh,
+    scene: &LoadedScene,
+    lights: &[[f64; 3]],
+    cfg: &LightConfig,
+    mut progress: impl FnMut(usize, u64),
+) -> Result<(Lighting, LightStats)> {
+    let (rank, size) = place();
+    if size == 1 {
+        return run::run_diffusion(mesh, scene, lights, cfg, progress);
+    }
+    if !Share::spreads(cfg, false) {
+        if rank > 0 {
+            return Err(Finished.into());
+        }
+        eprintln!(
+            "note: this run's sources share more than their lit marks (link faults or a snapshot): rank 0 diffuses them all"
+        );
+        return run::run_diffusion(mesh, scene, lights, cfg, progress);
+    }
+    let t0 = Instant::now();
+    let part = run::diffuse_part(scene, lights, cfg, Share { index: rank, of: size }, &mut progress)?;
+    let Some(parts) = gather(part)? else { return Err(Finished.into()) };
+    let lighting = crate::machine::lighting::diffuse::merge_parts(parts)?;
+    run::summarise(mesh, scene, cfg, lighting, t0.elapsed().as_secs_f64())
+}
+
+/// Every rank's part on rank 0, in rank order (`None` on the other ranks, once sent).
+#[cfg(feature = "mpi")]
+fn gather(part: Lighting) -> Result<Option<Vec<Lighting>>> {
+    ranks::gather(part)
+}
+
+/// One process: its own part is the whole run.
+#[cfg(not(feature = "mpi"))]
+fn gather(part: Lighting) -> Result<Option<Vec<Lighting>>> {
+    Ok(Some(vec![part]))
+}

@@ -1,0 +1,125 @@
+//! The MPI side of [`super`] (rsmpi over the system's MPI): starting, the ranks' places,
+//! gathering the lighting parts on rank 0, aborting every rank.
+
+use std::sync::OnceLock;
+
+use anyhow::{bail, Context, Result};
+use mpi::datatype::PartitionMut;
+use mpi::environment::Threading;
+use mpi::request::{Request, Scope};
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+use mpi::Count;
+
+pub use mpi::environment::Universe;
+
+use crate::machine::lighting::diffuse::{decode_part, encode_part, Lighting};
+
+/// (rank, ranks), once MPI is started.
+static PLACE: OnceLock<(usize, usize)> = OnceLock::new();
+
+/// (rank, ranks) when MPI was started.
+pub fn place() -> Option<(usize, usize)> {
+    PLACE.get().copied()
+}
+
+/// Whether an MPI launcher started this process: Open MPI's `mpirun` sets
+/// `OMPI_COMM_WORLD_SIZE`, PMIx and PMI launchers (MPICH's hydra, Slurm) `PMIX_RANK` or
+/// `PMI_RANK`. Run by hand, the binary is one process and never touches MPI.
+fn launched() -> bool {
+    ["OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK"].iter().any(|v| std::env::var_os(v).is_some())
+}
+
+/// Start MPI when launched by an MPI launcher. The jobs run on the thread pool's threads, one
+/// MPI call at a time: `MPI_THREAD_SERIALIZED`.
+pub fn start() -> Result<Option<Universe>> {
+    if !launched() {
+        return Ok(None);
+    }
+    let (universe, threading) =
+        mpi::initialize_with_threading(Threading::Serialized).context("MPI was already started in this process")?;
+    if threading < Threading::Serialized {
+        bail!("this MPI library gives threading level {threading:?}: host-sim needs Serialized");
+    }
+    let world = universe.world();
+    let _ = PLACE.set((world.rank() as usize, world.size() as usize));
+    Ok(Some(universe))
+}
+
+/// Abort every rank of the run (`MPI_Abort` on the world), with exit status `code`.
+pub fn abort(code: i32) -> ! {
+    SimpleCommunicator::world().abort(code)
+}
+
+/// Send this rank's part to rank 0; on rank 0, every rank's part in rank order, its own first.
+///
+/// `RC2_MPI_DIE_RANK=r` (a test's hook) makes rank r abort here, its part diffused and not
+/// sent; `RC2_MPI_PANIC_RANK=r` makes it panic: the run must end with an error, never wait for
+/// the part.
+pub fn gather(part: Lighting) -> Result<Option<Vec<Lighting>>> {
+    let world = SimpleCommunicator::world();
+    let (rank, size) = (world.rank() as usize, world.size() as usize);
+    let hook = |var: &str| std::env::var(var).ok().and_then(|r| r.parse::<usize>().ok()) == Some(rank);
+    if hook("RC2_MPI_DIE_RANK") {
+        eprintln!("rank {rank}: RC2_MPI_DIE_RANK={rank}: dying before sending its lighting part");
+        std::process::abort();
+    }
+    if hook("RC2_MPI_PANIC_RANK") {
+        panic!("rank {rank}: RC2_MPI_PANIC_RANK={rank}: panicking before sending its lighting part");
+    }
+    let root = world.process_at_rank(0);
+    if rank > 0 {
+        let bytes = encode_part(&part)?;
+        let len = Count::try_from(bytes.len()).with_context(|| {
+            format!("rank {rank}'s lighting part is {} bytes: more than one MPI message holds", bytes.len())
+        })?;
+        mpi::request::scope(|scope| {
+            settle(root.immediate_gather_into(scope, &len));
+            settle(root.immediate_gather_varcount_into(scope, &bytes[..]));
+        });
+        return Ok(None);
+    }
+    // Rank 0 keeps its own part and sends itself nothing.
+    let mut counts = vec![0 as Count; size];
+    mpi::request::scope(|scope| settle(root.immediate_gather_into_root(scope, &(0 as Count), &mut counts[..])));
+    let mut displs = Vec::with_capacity(size);
+    let mut total: i64 = 0;
+    for c in &counts {
+        displs.push(Count::try_from(total).context("the lighting parts together exceed one MPI message")?);
+        total += i64::from(*c);
+    }
+    let mut buf = vec![0u8; usize::try_from(total).context("lighting parts")?];
+    {
+        let mut into = PartitionMut::new(&mut buf[..], &counts[..], &displs[..]);
+        let empty: &[u8] = &[];
+        mpi::request::scope(|scope| settle(root.immediate_gather_varcount_into_root(scope, empty, &mut into)));
+    }
+    let mut parts = Vec::with_capacity(size);
+    parts.push(part);
+    for r in 1..size {
+        let (at, len) = (displs[r] as usize, counts[r] as usize);
+        parts.push(decode_part(&buf[at..at + len]).with_context(|| format!("rank {r}'s lighting part"))?);
+    }
+    Ok(Some(parts))
+}
+
+/// Wait until every rank is here (a barrier, tested every millisecond: [`settle`]).
+pub fn wait_for_all() {
+    let world = SimpleCommunicator::world();
+    settle(world.immediate_barrier());
+}
+
+/// Wait for `req` without keeping a core busy: test it every millisecond. (A blocking
+/// collective polls at full speed, and the rank that waits — one whose share is done — would
+/// take a core from the ranks still diffusing on every core.)
+fn settle<'a, D: ?Sized, S: Scope<'a>>(mut req: Request<'a, D, S>) {
+    loop {
+        match req.test() {
+            Ok(_) => return,
+            Err(r) => {
+                req = r;
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            }
+        }
+    }
+}
