@@ -3,7 +3,7 @@
 # (each rank with all cores' threads, then with one thread each) on a many-light scene.
 # RUNS interleaved runs of each (default 3), the median wall time; every image compared byte
 # for byte with the plain binary's. Needs Open MPI (openmpi-bin libopenmpi-dev libclang-dev).
-#   SCENE=classe N=256 RUNS=3 bash bench/mpi_sources.sh
+#   SCENE=classe N=256 RUNS=3 bash bench/mpi_sources.sh   (SKIP_BUILD=1: reuse bench-out/mpi's binaries)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . bench/lib.sh
@@ -13,19 +13,25 @@ RUNS=${RUNS:-3}
 OUT=bench-out/mpi
 mkdir -p "$OUT"
 # Two builds of one target folder: keep each binary under its own name.
-cargo build --release -q -p host-sim
-cp target/release/host-sim "$OUT/host-sim-plain"
-cargo build --release -q -p host-sim --features mpi
-cp target/release/host-sim "$OUT/host-sim-mpi"
+if [[ ${SKIP_BUILD:-0} != 1 ]]; then
+  cargo build --release -q -p host-sim
+  cp target/release/host-sim "$OUT/host-sim-plain"
+  cargo build --release -q -p host-sim --features mpi
+  cp target/release/host-sim "$OUT/host-sim-mpi"
+fi
 # mpirun refuses root without these (CI's machine runs as root).
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 ARGS="render $SCENE --n $N --quiet"
-names=("plain" "np1" "np2" "np2t1")
+# Open MPI binds each rank to one core by default (np <= 2): a rank then sees one core and runs
+# one thread. The --bind-to none rows let each rank's threads use every core.
+names=("plain" "np1" "np1free" "np2" "np2t1" "np2t1free")
 cmds=(
   "$OUT/host-sim-plain $ARGS"
   "mpirun -np 1 $OUT/host-sim-mpi $ARGS"
+  "mpirun -np 1 --bind-to none $OUT/host-sim-mpi $ARGS"
   "mpirun --oversubscribe -np 2 $OUT/host-sim-mpi $ARGS"
   "mpirun --oversubscribe -np 2 $OUT/host-sim-mpi --threads 1 $ARGS"
+  "mpirun --oversubscribe -np 2 --bind-to none $OUT/host-sim-mpi --threads 1 $ARGS"
 )
 declare -A times
 for run in $(seq "$RUNS"); do
