@@ -329,30 +329,27 @@ mod tests {
         assert_eq!(Measure::Reach.point(v, [9.5, 3.0, 0.0]), None);
     }
 
-    #[test]
-    fn the_entry_point_is_where_the_segment_meets_the_voxel() {
-        // Pseudo-random segments: the point lies on the cube's boundary, the segment just before
-        // it outside the cube, just after it inside.
-        let mut s = 0x2545_f491_4f6c_dd1du64;
-        let mut r = || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let inside = |p: [f64; 3], v: [f64; 3]| (0..3).all(|i| (p[i] - v[i]).abs() <= 0.5);
-        for _ in 0..10_000 {
-            let v = [0, 1, 2].map(|_| (r() * 40.0).floor());
-            let l = [0, 1, 2].map(|_| r() * 40.0 - 0.3);
-            let Some(p) = Measure::Entry.point(v, l) else {
-                assert!(inside(l, v), "{l:?} outside {v:?} has an entry");
-                continue;
-            };
-            let edge = (0..3).map(|i| (p[i] - v[i]).abs()).fold(0.0, f64::max);
-            assert!((edge - 0.5).abs() < 1e-9, "{p:?} not on the boundary of {v:?}");
-            let at = |t: f64| [0, 1, 2].map(|i| p[i] + t * (v[i] - l[i]));
-            let len = (0..3).map(|i| (v[i] - l[i]).powi(2)).sum::<f64>().sqrt();
-            assert!(!inside(at(-1e-6 / len), v) && inside(at(1e-6 / len), v), "{l:?} → {v:?}: {p:?}");
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(10_000))]
+        /// The entry point lies on the cube's boundary, the segment just before it outside the
+        /// cube and just after it inside; a light inside the cube has none.
+        #[test]
+        fn the_entry_point_is_where_the_segment_meets_the_voxel(
+            v in proptest::array::uniform3(0i32..40),
+            l in proptest::array::uniform3(-0.3f64..39.7),
+        ) {
+            let v = v.map(f64::from);
+            let inside = |p: [f64; 3]| (0..3).all(|i| (p[i] - v[i]).abs() <= 0.5);
+            match Measure::Entry.point(v, l) {
+                None => proptest::prop_assert!(inside(l), "{l:?} outside {v:?} has an entry"),
+                Some(p) => {
+                    let edge = (0..3).map(|i| (p[i] - v[i]).abs()).fold(0.0, f64::max);
+                    proptest::prop_assert!((edge - 0.5).abs() < 1e-9, "{p:?} not on the boundary of {v:?}");
+                    let at = |t: f64| [0, 1, 2].map(|i| p[i] + t * (v[i] - l[i]));
+                    let len = (0..3).map(|i| (v[i] - l[i]).powi(2)).sum::<f64>().sqrt();
+                    proptest::prop_assert!(!inside(at(-1e-6 / len)) && inside(at(1e-6 / len)), "{l:?} → {v:?}: {p:?}");
+                }
+            }
         }
     }
 }
