@@ -18,7 +18,7 @@
 #   info.txt              binary, date and run times (not compared)
 # The runs `threads1` and `threads2` (--threads 1 / 2) must also give identical files: results
 # never depend on the host's threads. Every other run uses --threads 2.
-# Total 35-40 s on a 2-core machine (busy); the runs themselves about 20 s.
+# Total 35-40 s on a 2-core machine (busy); the runs themselves about 20 s. HEAVY=1: see RUNS.
 set -u -o pipefail
 
 usage() {
@@ -79,6 +79,20 @@ RUNS=(
     "threads1         render --n 32 --threads 1"
     "threads2         render --n 32 --threads 2"
 )
+# HEAVY=1 adds larger grids (about 40 s more): more cycles, merges, per-ray visits and busy
+# links than the n <= 128 runs reach.
+if [ "${HEAVY:-0}" = 1 ]; then
+    RUNS+=(
+        "cornell256       render --n 256"
+        "teapot256        render teapot-floor --n 256"
+        "bureau1-256      render bureau1 --n 256"
+        "bureau2-128      render bureau2 --n 128"
+        "fandisk128       render fandisk --n 128"
+        "light-cow128     light cow-floor --n 128"
+        "light-plane128   light bureau1 --n 128 --lit-rule plane --rays-from voxel"
+        "classe64         render classe --n 64"
+    )
+fi
 
 # finish SCRATCH OUT LABEL...: one python pass over every run's raw outputs in SCRATCH/LABEL/
 # (stdout, stderr, w/ = the files it wrote) into OUT/LABEL.*:

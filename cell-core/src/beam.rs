@@ -967,6 +967,17 @@ impl<F: FracBits> Beam<F> {
         order: &SplitOrder,
         mut emit: impl FnMut(SubBeam<F>),
     ) -> Result<(), BeamError> {
+        let split = self.split_axes(source, far, at)?;
+        split.each(order, |offset, i, j| emit(SubBeam { offset, beam: split.sub_beam(self, i, j) }));
+        Ok(())
+    }
+
+    /// The split of the beam held at `at` (see [`Beam::split_with`]), axis by axis: which rays
+    /// of each transverse axis go to each of the three voxels at layer k + 1. The sub-beams are
+    /// the non-empty products of the two axes' pieces ([`Split::each`], [`Split::sub_beam`]).
+    /// Same errors as [`Beam::split_with`].
+    #[inline]
+    pub fn split_axes(&self, source: &Source, far: FarDistance<F>, at: Transverse) -> Result<Split, BeamError> {
         if self.source != source.id {
             return Err(BeamError::WrongSource);
         }
@@ -980,29 +991,77 @@ impl<F: FracBits> Beam<F> {
         // k + 1 ≤ D ≤ MAX_FAR, so 0 < T_{k+1} ≤ 16·(k + 1) < 2³¹.
         let next = Layer(self.layer.0 + 1);
         let q = 2 * source.reach(self.dir, next);
-        let cu = split_axis(self.u, source.pos[ua.index()], at.u, far, q);
-        let cv = split_axis(self.v, source.pos[va.index()], at.v, far, q);
-        let sub = |offset, u, v| SubBeam { offset, beam: Beam { u, v, layer: next, ..*self } };
+        Ok(Split {
+            u: split_axis(self.u, source.pos[ua.index()], at.u, far, q),
+            v: split_axis(self.v, source.pos[va.index()], at.v, far, q),
+        })
+    }
+}
+
+/// The rays of one transverse axis of a beam that go to voxel x − 1, x, x + 1 at the next layer
+/// (index 0, 1, 2): `lo[i] ..= hi[i]` in lattice steps (`to_bits`), for the pieces of `mask`
+/// (bit i); the others are empty.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AxisSplit {
+    lo: [i32; 3],
+    hi: [i32; 3],
+    mask: u8,
+}
+
+impl AxisSplit {
+    /// The non-empty pieces (bit i: voxel x − 1 + i).
+    pub const fn mask(&self) -> u8 {
+        self.mask
+    }
+
+    /// Piece i's rays (meaningful when bit i of [`AxisSplit::mask`] is set).
+    pub fn range<F: FracBits>(&self, i: usize) -> RayRange<F> {
+        RayRange { lo: FarOffset::<F>::from_bits(self.lo[i]), hi: FarOffset::<F>::from_bits(self.hi[i]) }
+    }
+}
+
+/// A beam's split into sub-beams, axis by axis ([`Beam::split_axes`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Split {
+    /// The u-axis pieces.
+    pub u: AxisSplit,
+    /// The v-axis pieces.
+    pub v: AxisSplit,
+}
+
+impl Split {
+    /// `f(offset, i, j)` for each non-empty sub-beam (u piece i, v piece j, offset (i − 1,
+    /// j − 1)), in `order`.
+    #[inline]
+    pub fn each(&self, order: &SplitOrder, mut f: impl FnMut(Offset, usize, usize)) {
+        let (mu, mv) = (self.u.mask, self.v.mask);
         if order.row_major {
             // The default order, du outer and dv inner: a missing u piece skips its whole row.
-            for (i, u) in cu.into_iter().enumerate() {
-                let Some(u) = u else { continue };
-                for (j, v) in cv.into_iter().enumerate() {
-                    if let Some(v) = v {
-                        emit(sub(Offset { du: i as i8 - 1, dv: j as i8 - 1 }, u, v));
+            for i in 0..3 {
+                if mu >> i & 1 == 0 {
+                    continue;
+                }
+                for j in 0..3 {
+                    if mv >> j & 1 == 1 {
+                        f(Offset { du: i as i8 - 1, dv: j as i8 - 1 }, i, j);
                     }
                 }
             }
-            return Ok(());
+            return;
         }
         for &offset in order.offsets() {
             // A `SplitOrder` holds valid offsets only (checked when it was made).
             let (i, j) = ((offset.du + 1) as usize, (offset.dv + 1) as usize);
-            if let (Some(u), Some(v)) = (cu[i], cv[j]) {
-                emit(sub(offset, u, v));
+            if mu >> i & 1 == 1 && mv >> j & 1 == 1 {
+                f(offset, i, j);
             }
         }
-        Ok(())
+    }
+
+    /// Sub-beam (i, j) of `beam` (the beam split): its rays at layer k + 1.
+    #[inline]
+    pub fn sub_beam<F: FracBits>(&self, beam: &Beam<F>, i: usize, j: usize) -> Beam<F> {
+        Beam { u: self.u.range(i), v: self.v.range(j), layer: Layer(beam.layer.0 + 1), ..*beam }
     }
 }
 
@@ -1067,36 +1126,34 @@ const fn ceil_div(n: i64, q: i64) -> i64 {
 
 /// The rays of `range` that go to x − 1, x, x + 1 (indices 0, 1, 2) at layer k + 1 (q = 2·T_{k+1}),
 /// for the cell at transverse coordinate `x` and source coordinate `src`. See the module doc
-/// for the budget: every product below is < 2⁶³ in magnitude.
-fn split_axis<F: FracBits>(
-    range: RayRange<F>,
-    src: SourceCoord,
-    x: i32,
-    far: FarDistance<F>,
-    q: i64,
-) -> [Option<RayRange<F>>; 3] {
+/// for the budget: every product below is < 2⁶³ in magnitude. A quotient is taken only for a
+/// plane the range straddles.
+#[inline]
+fn split_axis<F: FracBits>(range: RayRange<F>, src: SourceCoord, x: i32, far: FarDistance<F>, q: i64) -> AxisSplit {
     let planes = AxisPlanes::new(src, x, far, q);
     let AxisPlanes { q, n1, n2 } = planes;
-    let class = |a: i64| planes.class(a);
-    let lo = range.lo.to_bits() as i64;
-    let hi = range.hi.to_bits() as i64;
-    let mut out = [None; 3];
-    let (cl, ch) = (class(lo), class(hi));
+    let (lo, hi) = (range.lo.to_bits(), range.hi.to_bits());
+    let (cl, ch) = (planes.class(lo as i64), planes.class(hi as i64));
+    let mut out = AxisSplit { lo: [0; 3], hi: [0; 3], mask: 0 };
     if cl == ch {
-        out[cl] = Some(range);
+        (out.lo[cl], out.hi[cl], out.mask) = (lo, hi, 1 << cl);
         return out;
     }
-    // The beam straddles a plane: the first lattice rays at or above U1 and U2.
-    let t1 = ceil_div(n1, q);
-    let t2 = ceil_div(n2, q);
-    let piece = |a: i64, b: i64| -> Option<RayRange<F>> {
-        let (a, b) = (a.max(lo), b.min(hi));
-        // Both within [lo, hi] ⊂ i32.
-        (a <= b).then(|| RayRange { lo: FarOffset::<F>::from_bits(a as i32), hi: FarOffset::<F>::from_bits(b as i32) })
-    };
-    out[0] = piece(lo, t1 - 1);
-    out[1] = piece(t1, t2 - 1);
-    out[2] = piece(t2, hi);
+    // The beam straddles a plane: the first lattice rays at or above U1 (when the range
+    // starts below it) and U2 (when it ends at or above it), both within lo + 1 ..= hi (so in
+    // i32). The ray below U1 is in x − 1, the one at U2 in x + 1: those pieces are not empty.
+    let t1 = if cl == 0 { ceil_div(n1, q) as i32 } else { lo };
+    let t2 = if ch == 2 { ceil_div(n2, q) as i32 } else { hi + 1 };
+    if cl == 0 {
+        (out.lo[0], out.hi[0], out.mask) = (lo, t1 - 1, 1);
+    }
+    let (a, b) = (t1.max(lo), (t2 - 1).min(hi));
+    if a <= b {
+        (out.lo[1], out.hi[1], out.mask) = (a, b, out.mask | 2);
+    }
+    if ch == 2 {
+        (out.lo[2], out.hi[2], out.mask) = (t2, hi, out.mask | 4);
+    }
     out
 }
 
@@ -1345,7 +1402,7 @@ mod tests {
         let far = FarDistance::<U0>::new(8).unwrap();
         let r = RayRange::<U0>::new(FarOffset::from_num(0), FarOffset::from_num(0)).unwrap();
         let out = split_axis(r, SourceCoord::ZERO, 0, far, 32);
-        assert_eq!(out, [None, Some(r), None]);
+        assert_eq!((out.mask(), out.range::<U0>(1)), (0b010, r));
     }
 
     /// `complete` against the per-ray oracle, exhaustively on small cases: for every voxel of

@@ -108,7 +108,7 @@
 //! assert!(!(0..=8).any(|k| occ.meets(8, 0, k)));
 //! ```
 
-use crate::beam::{Direction, FarDistance, FracBits, Source};
+use crate::beam::{Axis, Direction, FarDistance, FracBits, Source};
 use crate::lit::{Narrow, RayPlane, Test};
 use crate::triangle::{cross64, dot, sub};
 pub use crate::triangle::{Triangle, COORD_LIMIT};
@@ -347,6 +347,101 @@ pub trait ColumnOccluders: core::fmt::Debug + Sync {
     fn seen(&self, _x: crate::units::Coord, _y: crate::units::Coord) -> Option<SeenTable<'_>> {
         None
     }
+    /// Everything column (x, y) holds for the exact visit, in one call (a host looks the column
+    /// up once per beam, not once per item). The default gathers the methods above, without
+    /// near windows.
+    fn column(&self, x: crate::units::Coord, y: crate::units::Coord) -> Column<'_> {
+        Column { triangles: self.triangles(x, y), seen: self.seen(x, y), target: self.target(x, y), near: None }
+    }
+}
+
+/// One column as the exact visit reads it ([`ColumnOccluders::column`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Column<'a> {
+    /// The triangles it keeps.
+    pub triangles: &'a [Triangle],
+    /// Their planes under the current source, if precomputed.
+    pub seen: Option<SeenTable<'a>>,
+    /// Its target ray for the current source.
+    pub target: Option<&'a crate::receiver::Target>,
+    /// Beside each triangle, its [`NearWindows`], if the host computed them (`None`: every
+    /// triangle is tested, as a cell does).
+    pub near: Option<&'a [NearWindows]>,
+}
+
+/// A triangle's depth windows in its column ([`near_voxels`]), per principal axis (x, y, z),
+/// clamped to the column's depths: `[lo, hi]`, inclusive, empty when lo > hi.
+pub type NearWindows = [[crate::units::Depth; 2]; 3];
+
+impl Column<'_> {
+    /// Which triangles a beam along `dir` at voxel depth `z` may cut, when it is at layer 2 or
+    /// later and carries no notch: bit i for triangle i ([`ALL_CANDIDATES`] without windows, or
+    /// for a column of more than 64 triangles). A triangle left out is one [`ExactVisit`] would
+    /// find uncrossed, so the visit is the same without it.
+    pub fn candidates(&self, dir: Direction, z: crate::units::Depth) -> u64 {
+        let Some(windows) = self.near.filter(|w| w.len() <= 64) else { return ALL_CANDIDATES };
+        let a = dir.principal().index();
+        windows.iter().enumerate().fold(0u64, |m, (i, w)| m | u64::from(w[a][0] <= z && z <= w[a][1]) << i)
+    }
+}
+
+/// The [`NearWindows`] of `tri` in column (x, y) of a grid whose columns hold depths
+/// `0 ..= max_depth`.
+pub fn near_windows(tri: &Triangle, x: i32, y: i32, max_depth: crate::units::Depth) -> NearWindows {
+    [Axis::X, Axis::Y, Axis::Z].map(|axis| {
+        let (lo, hi) = near_voxels(tri, x, y, axis);
+        let (lo, hi) = (lo.max(0), hi.min(max_depth as i64));
+        if lo > hi {
+            [1, 0]
+        } else {
+            [lo as crate::units::Depth, hi as crate::units::Depth]
+        }
+    })
+}
+
+/// Every triangle a column keeps may be cut by a beam ([`ExactVisit::new`]'s `candidates`).
+pub const ALL_CANDIDATES: u64 = u64::MAX;
+
+/// The voxel depths z of column (x, y) at which a beam along `axis` may have rays crossing
+/// `tri`'s plane between layers k − 1 and k + 1, for a beam at layer k ≥ 2 carrying no notch:
+/// `(lo, hi)`, inclusive (empty when lo > hi). At any other z of the column such a beam's visit
+/// finds the triangle uncrossed ([`ExactVisit`]), so a host may leave it out
+/// ([`ColumnOccluders::near`]); the window depends on neither the source nor the far distance.
+///
+/// Why: a beam at voxel V of layer k holds only rays that lie in V at layer k (the split sends
+/// each ray to the voxel it occupies, merges join beams of one voxel), so at layer k's centre
+/// plane they are within 8 sixteenths of V's centre across the axis. Layers k − 1 and k + 1 are
+/// 16 sixteenths before and after it along the axis (k − 1 ≥ 1: T > 0 there, no clamping at the
+/// origin), and a ray moves at most 16 sixteenths across per 16 along (|a|, |b| ≤ N). So every
+/// point the visit reads (the rays at T_{k−1} and T_{k+1}) lies in the box of half-widths 16
+/// along the axis and 24 across it around V's centre `16·V`. If the plane `g = n·(P − V₀)` keeps
+/// one strict sign over that box (g > 0 everywhere, or g ≤ 0 everywhere: the sign the visit
+/// reads), the visit's corners agree at both layers and it skips the triangle. Over the box g
+/// lies within `g(16·V) ± R`, R = Σ |nᵢ|·hᵢ, and `g(16·V) = A + 16·n_z·z` is affine in z: the
+/// depths where the sign may change are those with −R < A + 16·n_z·z ≤ R, one interval.
+///
+/// Exact in `i128`: |n| < 2⁴⁹ per component, coordinates differences < 2²⁵, so every term is
+/// below 2⁷⁶.
+pub fn near_voxels(tri: &Triangle, x: i32, y: i32, axis: Axis) -> (i64, i64) {
+    let n = tri.normal();
+    let v0 = tri.vertex(0);
+    let h = [0, 1, 2].map(|i| if i == axis.index() { 16i128 } else { 24 });
+    let r: i128 = (0..3).map(|i| n[i].abs() * h[i]).sum();
+    let a = n[0] * (16 * x as i128 - v0[0] as i128) + n[1] * (16 * y as i128 - v0[1] as i128) - n[2] * v0[2] as i128;
+    let b = 16 * n[2];
+    let clamp = |z: i128| z.clamp(i64::MIN as i128, i64::MAX as i128) as i64;
+    if b == 0 {
+        return if -r < a && a <= r { (i64::MIN, i64::MAX) } else { (1, 0) };
+    }
+    // −R < A + B·z ≤ R, for B > 0 and (negating) for B < 0.
+    let (lo, hi) = if b > 0 {
+        ((-r - a).div_euclid(b) + 1, (r - a).div_euclid(b))
+    } else {
+        let b = -b;
+        // A − R ≤ B·z < A + R.
+        (-((r - a).div_euclid(b)), (a + r - 1).div_euclid(b))
+    };
+    (clamp(lo), clamp(hi))
 }
 
 /// Most triangles one [`ExactVisit`] reads tests for (those it cannot decide on the whole
@@ -402,6 +497,9 @@ pub struct ExactVisit<'a, 't, F: FracBits> {
     /// Too many undecided triangles: each ray is judged on its own.
     per_ray: bool,
     triangles: &'a [Triangle],
+    /// Bit i: triangle i may cut the beam ([`ALL_CANDIDATES`]: any may; the others the caller
+    /// knows the visit would find uncrossed, [`near_voxels`]).
+    candidates: u64,
     /// The triangles' planes, when the host precomputed them.
     seen: Option<SeenTable<'a>>,
     source: &'a Source,
@@ -435,14 +533,17 @@ fn code_out(c: u64) -> crate::lit::Out {
 impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
     /// The visit at layer `k` of a beam with lattice rectangle `a × b` (inclusive), terminal or
     /// not, with the notch start `notch` (for a ±z beam that stayed in its column), in a column
-    /// keeping `triangles` (with their planes `seen`, if precomputed); its tests go to `tests`
-    /// (whatever it held is dropped).
+    /// keeping `triangles` (with their planes `seen`, if precomputed) of which those of
+    /// `candidates` may cut it (bit i: triangle i; [`ALL_CANDIDATES`] for every one, a cell's
+    /// choice; the rest must be triangles the visit would find uncrossed, [`near_voxels`]); its
+    /// tests go to `tests` (whatever it held is dropped).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub fn new(
         tests: &'t mut ExactTests,
         triangles: &'a [Triangle],
         seen: Option<SeenTable<'a>>,
+        candidates: u64,
         source: &'a Source,
         dir: Direction,
         far: FarDistance<F>,
@@ -461,6 +562,7 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
             notch,
             per_ray: false,
             triangles,
+            candidates,
             seen,
             source,
             dir,
@@ -488,6 +590,13 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
     fn sort_triangles(&mut self, (a, b): ((i64, i64), (i64, i64))) {
         let (source, dir, far, k, notch) = (self.source, self.dir, self.far, self.k, self.notch);
         let v = self;
+        // Triangle i ≥ 64 is always a candidate (it has no bit).
+        let (candidates, len) = (v.candidates, v.triangles.len());
+        let candidate = |i: usize| i >= 64 || candidates >> i & 1 == 1;
+        let low = if len >= 64 { u64::MAX } else { (1 << len) - 1 };
+        if len <= 64 && candidates & low == 0 {
+            return; // every triangle would be found uncrossed
+        }
         let Some(view) = View::new(source, dir, far) else { return };
         let corners = [(a.0, b.0), (a.0, b.1), (a.1, b.0), (a.1, b.1)];
         // Some(value) when a test's values at the corners agree: it is constant on the rectangle.
@@ -510,6 +619,9 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
         let nn = view.nn as i64;
         let narrow_square = corners.iter().all(|&(a, b)| a.abs() <= nn && b.abs() <= nn);
         for (i, tri) in v.triangles.iter().enumerate() {
+            if !candidate(i) {
+                continue;
+            }
             // The plane first: most triangles are crossed by no ray near this layer, and their
             // edges are never built. A table's narrow plane is read from its coefficients
             // (the same `i64` form and signs as below), before any `Seen` is built.
@@ -794,6 +906,16 @@ mod tests {
         (Triangle::new(v).unwrap(), src.with_origin(origin), dir, far, origin)
     }
 
+    /// A configuration of [`random_config`] with up to `more − 1` further triangles.
+    fn random_triangles<F: FracBits>(s: &mut u64, more: u64) -> (StdVec<Triangle>, Source, Direction, FarDistance<F>) {
+        let (first, src, dir, far, _) = random_config::<F>(s);
+        let mut tris = std::vec![first];
+        for _ in 0..lcg(s) % more {
+            tris.push(random_config::<F>(s).0);
+        }
+        (tris, src, dir, far)
+    }
+
     /// The origin and lead, restated from the module doc and [`Source::lead`]: from the light,
     /// the lead is measured from the last centre plane at or behind it (in [0, 16)).
     fn origin_and_lead(src: &Source, dir: Direction, origin: Origin) -> ([i64; 3], i64) {
@@ -852,11 +974,7 @@ mod tests {
         let mut s = seed;
         let (mut decided, mut undecided) = (0, 0);
         for _ in 0..400 {
-            let (first, src, dir, far, _) = random_config::<F>(&mut s);
-            let mut tris = std::vec![first];
-            for _ in 0..lcg(&mut s) % 5 {
-                tris.push(random_config::<F>(&mut s).0);
-            }
+            let (tris, src, dir, far) = random_triangles::<F>(&mut s, 5);
             let table: StdVec<[SeenEntry; 6]> =
                 tris.iter().map(|t| Direction::ALL.map(|d| SeenEntry::of(t, &src, d, far))).collect();
             let ids: StdVec<u32> = (0..tris.len() as u32).collect();
@@ -869,8 +987,9 @@ mod tests {
             let terminal = lcg(&mut s) % 4 == 0;
             let (mut t1, mut t2) = (ExactTests::new(), ExactTests::new());
             let seen = Some(SeenTable { ids: &ids, seen: &table });
-            let with = ExactVisit::new(&mut t1, &tris, seen, &src, dir, far, k, rect, terminal, notch);
-            let without = ExactVisit::new(&mut t2, &tris, None, &src, dir, far, k, rect, terminal, notch);
+            let with = ExactVisit::new(&mut t1, &tris, seen, ALL_CANDIDATES, &src, dir, far, k, rect, terminal, notch);
+            let without =
+                ExactVisit::new(&mut t2, &tris, None, ALL_CANDIDATES, &src, dir, far, k, rect, terminal, notch);
             let case = std::format!("{tris:?} {src:?} {dir:?} k {k} notch {notch:?} rect {rect:?}");
             assert_eq!(with.tests(), without.tests(), "{case}");
             assert_eq!(
@@ -893,6 +1012,121 @@ mod tests {
             }
         }
         assert!(decided > 40 && undecided > 40, "both kinds of visit met ({decided} decided, {undecided} not)");
+    }
+
+    /// The window oracle: the plane's values at the eight corners of the box of half-widths
+    /// 16 along `axis`, 24 across, around the voxel centre (16x, 16y, 16z) — the extremes of an
+    /// affine function over a box — straddle 0 (some > 0 and some ≤ 0) exactly at the depths
+    /// of [`near_voxels`].
+    #[test]
+    fn near_voxels_are_the_depths_whose_box_the_plane_cuts() {
+        let mut s = 21u64;
+        let (mut inside, mut outside) = (0, 0);
+        for case in 0..3000 {
+            let m = if case % 3 == 0 { 16 } else { 1 };
+            let v = [0; 3]
+                .map(|_| [r(&mut s, 160 / m) * m, r(&mut s, 160 / m) * m, r(&mut s, 400 / m) * m].map(|c| c as i32));
+            let tri = Triangle::new(v).unwrap();
+            let (x, y) = (r(&mut s, 6) as i32, r(&mut s, 6) as i32);
+            let axis = [Axis::X, Axis::Y, Axis::Z][case % 3];
+            let (lo, hi) = near_voxels(&tri, x, y, axis);
+            let n = tri.normal();
+            let v0 = tri.vertex(0);
+            for z in -40..=40i64 {
+                let c = [16 * x as i64, 16 * y as i64, 16 * z];
+                let h = [0, 1, 2].map(|i| if i == axis.index() { 16 } else { 24 });
+                let values = (0..8).map(|bits| {
+                    let p = [0, 1, 2].map(|i| c[i] + if bits >> i & 1 == 1 { h[i] } else { -h[i] });
+                    dot(n, sub(p, v0))
+                });
+                let (mut pos, mut non_pos) = (false, false);
+                for g in values {
+                    pos |= g > 0;
+                    non_pos |= g <= 0;
+                }
+                let cut = pos && non_pos;
+                assert_eq!(lo <= z && z <= hi, cut, "{v:?} column ({x}, {y}) {axis:?} z {z}: window {lo}..={hi}");
+                if cut {
+                    inside += 1
+                } else {
+                    outside += 1
+                }
+            }
+        }
+        assert!(inside > 10_000 && outside > 10_000, "both kinds of depth tested ({inside} in, {outside} out)");
+    }
+
+    /// A visit told which triangles may cut the beam ([`Column::candidates`] from the
+    /// triangles' [`near_windows`]) is the visit that tests them all, for beams as the machine
+    /// makes them: at layer k ≥ 2, no notch, rays of one voxel (a sub-rectangle of the rays
+    /// that occupy it, found ray by ray with [`crate::beam::trace_ray_voxel`]).
+    fn near_windows_are_transparent<F: FracBits>(seed: u64) {
+        use crate::beam::{trace_ray_voxel, FarOffset, Layer};
+        use crate::lit::Rule;
+        let mut s = seed;
+        let (mut skipped, mut kept) = (0, 0);
+        for _ in 0..400 {
+            let (tris, src, dir, far) = random_triangles::<F>(&mut s, 6);
+            let nn = far.scaled();
+            let k = 2 + (lcg(&mut s) % (far.get() as u64 - 1)) as i64;
+            // A voxel of layer k that some ray reaches, and the rays that occupy it.
+            let (a, b) = (r(&mut s, nn), r(&mut s, nn));
+            let at = |a: i64, b: i64| {
+                let off = |x: i64| FarOffset::<F>::from_bits(x as i32);
+                trace_ray_voxel(&src, dir, off(a), off(b), far, Layer(k as u32))
+            };
+            let (tu, tv) = at(a, b);
+            let us: StdVec<i64> = (-nn..=nn).filter(|&a| at(a, 0).0 == tu).collect();
+            let vs: StdVec<i64> = (-nn..=nn).filter(|&b| at(0, b).1 == tv).collect();
+            let pick = |s: &mut u64, l: &[i64]| {
+                let (i, j) = ((lcg(s) % l.len() as u64) as usize, (lcg(s) % l.len() as u64) as usize);
+                (l[i.min(j)], l[i.max(j)])
+            };
+            let rect = (pick(&mut s, &us), pick(&mut s, &vs));
+            // The voxel in grid coordinates: its slab along the axis, (tu, tv) across.
+            let (w, (ua, va)) = (dir.principal().index(), dir.transverse());
+            let mut voxel = [0i64; 3];
+            voxel[w] = src.slab(dir, Layer(k as u32));
+            voxel[ua.index()] = tu;
+            voxel[va.index()] = tv;
+            if voxel[2] < 0 {
+                continue; // depths are unsigned
+            }
+            let near: StdVec<NearWindows> =
+                tris.iter().map(|t| near_windows(t, voxel[0] as i32, voxel[1] as i32, u16::MAX)).collect();
+            let column = Column { triangles: &tris, seen: None, target: None, near: Some(&near) };
+            let candidates = column.candidates(dir, voxel[2] as u16);
+            let terminal = lcg(&mut s) % 4 == 0;
+            let (mut t1, mut t2) = (ExactTests::new(), ExactTests::new());
+            let with = ExactVisit::new(&mut t1, &tris, None, candidates, &src, dir, far, k, rect, terminal, None);
+            let all = ExactVisit::new(&mut t2, &tris, None, ALL_CANDIDATES, &src, dir, far, k, rect, terminal, None);
+            let case = std::format!("{tris:?} {src:?} {dir:?} k {k} rect {rect:?} candidates {candidates:b}");
+            assert_eq!(with.tests(), all.tests(), "{case}");
+            assert_eq!(
+                (with.is_plain(), with.is_uniform(), with.per_ray(), with.absent, with.absorbed, with.terminal),
+                (all.is_plain(), all.is_uniform(), all.per_ray(), all.absent, all.absorbed, all.terminal),
+                "{case}"
+            );
+            for a in rect.0 .0..=rect.0 .1 {
+                for b in rect.1 .0..=rect.1 .1 {
+                    assert_eq!(
+                        with.verdict(with.bits(a, b), false),
+                        all.verdict(all.bits(a, b), false),
+                        "{case} ({a}, {b})"
+                    );
+                }
+            }
+            skipped += (0..tris.len()).filter(|&i| candidates >> i & 1 == 0).count();
+            kept += (candidates & ((1 << tris.len()) - 1)).count_ones() as usize;
+        }
+        assert!(skipped > 100 && kept > 100, "triangles both left out ({skipped}) and kept ({kept})");
+    }
+
+    #[test]
+    fn near_windows_change_no_visit() {
+        near_windows_are_transparent::<frac::U0>(31);
+        near_windows_are_transparent::<frac::U1>(32);
+        near_windows_are_transparent::<frac::U2>(33);
     }
 
     #[test]

@@ -40,7 +40,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         if self.frustum_skips(m, env, f) {
             return;
         }
-        self.route(&m.beam, m.z, env, f, |_| Sub::Send(false, Local::NONE));
+        self.route(&m.beam, m.z, env, f, Decide::PLAIN);
     }
 
     /// The empty-frustum skip ([`LightEnv::frustum`]): drops the beam (its rays skipped) when
@@ -66,31 +66,27 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     /// Split `beam` (held at voxel `z` of this column) and file its sub-beams into `f`: `decide`
     /// says, by transverse offset, whether a sub-beam is sent (terminal or not, with what local
     /// state) or absorbed here. Sub-beams leaving the grid count as exited, those the receding
-    /// skip drops as skipped; `rays` counts a sub-beam's rays (its rectangle's, unless a notch
-    /// removes some).
-    pub(super) fn route(
-        &self,
-        beam: &Beam<F>,
-        z: Depth,
-        env: &LightEnv<'_, F>,
-        f: &mut Fate<'_, F>,
-        mut decide: impl FnMut(crate::beam::Offset) -> Sub,
-    ) {
-        let mut rays = |b: &Beam<F>, terminal: bool| (b.ray_count(), if terminal { b.ray_count() } else { 0 });
-        self.route_counted(beam, z, env, f, &mut decide, &mut rays);
+    /// skip drops as skipped; a sub-beam's rays are its rectangle's.
+    #[inline]
+    pub(super) fn route(&self, beam: &Beam<F>, z: Depth, env: &LightEnv<'_, F>, f: &mut Fate<'_, F>, decide: Decide) {
+        self.route_counted(beam, z, env, f, decide, None);
     }
 
-    /// [`LightCell::route`] with the rays of each sub-beam counted by `rays(sub-beam, terminal)`:
-    /// `(rays, of which terminal at the next layer)`.
+    /// [`LightCell::route`] with, when `fixed` is given, every sub-beam's rays counted as
+    /// `(rays, of which terminal at the next layer)` = `fixed` instead of its rectangle's (a
+    /// notch removes some: the caller counted them).
     pub(super) fn route_counted(
         &self,
         beam: &Beam<F>,
         z: Depth,
         env: &LightEnv<'_, F>,
         f: &mut Fate<'_, F>,
-        decide: &mut dyn FnMut(crate::beam::Offset) -> Sub,
-        rays: &mut RayCount<'_, F>,
+        decide: Decide,
+        fixed: Option<(u64, u64)>,
     ) {
+        let rays = |b: &Beam<F>, terminal: bool| {
+            fixed.unwrap_or_else(|| (b.ray_count(), if terminal { b.ray_count() } else { 0 }))
+        };
         let dir = beam.direction();
         let (pos, at) = self.at(dir, z);
         let Fate { subs, exited, skipped, absorbed, after_empty, after_outside, events, .. } = f;
@@ -106,48 +102,56 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             }
             _ => dir.sign(),
         };
-        let split = beam.split_each(env.source, env.far, at, env.order, |sb| {
-            let (terminal, local) = match decide(sb.offset) {
+        // At the far plane (k = D) or for a beam that is not this source's: the next layer is
+        // outside every grid the far distance was chosen for; the rays leave.
+        let Ok(split) = beam.split_axes(env.source, env.far, at) else {
+            *exited += rays(beam, false).0;
+            record(events, None, beam);
+            return;
+        };
+        // The voxel of the sub-beam with offset (0, 0): one layer on; a sub-beam's offset moves
+        // it on the transverse axes.
+        let (ua, va) = dir.transverse();
+        let (ua, va) = (ua.index(), va.index());
+        let mut ahead = pos;
+        ahead[w] += step_w as i64;
+        split.each(env.order, |offset, i, j| {
+            let sb = split.sub_beam(beam, i, j);
+            let (terminal, local) = match decide.at(offset) {
                 Sub::Send(t, l) => (t, l),
                 Sub::Absorb => {
-                    *absorbed += rays(&sb.beam, false).0;
-                    record(events, Some(z), &sb.beam);
+                    *absorbed += rays(&sb, false).0;
+                    record(events, Some(z), &sb);
                     return;
                 }
             };
-            let mut d = dir.displacement(sb.offset);
-            d[w] = step_w;
-            let to = [pos[0] + d[0] as i64, pos[1] + d[1] as i64, pos[2] + d[2] as i64];
+            let mut to = ahead;
+            to[ua] += offset.du as i64;
+            to[va] += offset.dv as i64;
             if bounds.keeps(dir, to) {
-                let target = match Port::from_delta(d[0], d[1]) {
+                let target = match Port::from_delta((to[0] - pos[0]) as i8, (to[1] - pos[1]) as i8) {
                     Some(p) => Target::Out(p),
                     None => Target::SelfFifo,
                 };
                 // A ray staying in its column meets the same dexel's plane, or another dexel
                 // (the column rule), or an empty voxel next: it carries no outside flag.
                 let outside = after_outside && target != Target::SelfFifo;
-                let beam = sb.beam.with_terminal(terminal).with_after_empty(after_empty).with_after_outside(outside);
+                let beam = sb.with_terminal(terminal).with_after_empty(after_empty).with_after_outside(outside);
                 let msg = BeamMsg { local, ..BeamMsg::new(beam, to[2] as Depth) };
                 // At most nine sub-beams: never full.
                 let _ = subs.push((target, msg));
             } else if !bounds.in_grid(to) {
-                *exited += rays(&sb.beam, terminal).0;
-                record(events, None, &sb.beam);
+                *exited += rays(&sb, terminal).0;
+                record(events, None, &sb);
             } else {
                 // Dropped by the receding skip; a terminal ray dies at its next voxel anyway
                 // (lighting nothing: it is beyond every occupied voxel): absorbed.
-                let (all, dying) = rays(&sb.beam, terminal);
+                let (all, dying) = rays(&sb, terminal);
                 *absorbed += dying;
                 *skipped += all - dying;
-                record(events, None, &sb.beam);
+                record(events, None, &sb);
             }
         });
-        // At the far plane (k = D) or for a beam that is not this source's: the next layer is
-        // outside every grid the far distance was chosen for; the rays leave.
-        if split.is_err() {
-            *exited += rays(beam, false).0;
-            record(events, None, beam);
-        }
     }
 
     /// The plane rule ([`crate::lit`]) at this beam's voxel.
@@ -179,7 +183,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             if m.local == Local::NONE && self.frustum_skips(m, env, f) {
                 return;
             }
-            self.route(b, m.z, env, f, |_| Sub::Send(false, Local::NONE));
+            self.route(b, m.z, env, f, Decide::PLAIN);
             return;
         }
         let stay = self.staying(b, env);
@@ -200,14 +204,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                         Out::Terminal => Sub::Send(true, Local::NONE),
                         _ => Sub::Absorb,
                     };
-                    let z = m.z;
-                    self.route(b, z, env, f, |o| {
-                        if o == STAY && stay.is_some() {
-                            stay_sub
-                        } else {
-                            Sub::Send(send, Local::NONE)
-                        }
-                    });
+                    let decide = Decide { other: Sub::Send(send, Local::NONE), stay: stay.map(|_| stay_sub) };
+                    self.route(b, m.z, env, f, decide);
                 }
             }
             return;
@@ -229,16 +227,33 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         let dir = b.direction();
         let k = b.layer().0 as i64;
         let (u, v) = (lattice(b.u()), lattice(b.v()));
-        let triangles = env.occluders.map_or(&[][..], |o| o.triangles(self.x, self.y));
-        let seen = env.occluders.and_then(|o| o.seen(self.x, self.y));
+        let column = env.occluders.map(|o| o.column(self.x, self.y));
+        let triangles = column.map_or(&[][..], |c| c.triangles);
         let notch = m.local.notch().map(|n| n.t1 as i64);
+        // The triangles that may cut a plain beam past layer 1, when the host knows them
+        // ([`crate::occluder::near_voxels`]); otherwise every one.
+        let candidates = match (column, notch, k >= 2) {
+            (Some(c), None, true) => c.candidates(dir, m.z),
+            _ => ALL_CANDIDATES,
+        };
         let mut tests = ExactTests::new();
-        let mut visit =
-            ExactVisit::new(&mut tests, triangles, seen, env.source, dir, env.far, k, (u, v), b.is_terminal(), notch);
+        let mut visit = ExactVisit::new(
+            &mut tests,
+            triangles,
+            column.and_then(|c| c.seen),
+            candidates,
+            env.source,
+            dir,
+            env.far,
+            k,
+            (u, v),
+            b.is_terminal(),
+            notch,
+        );
         f.per_ray = visit.per_ray();
         // The receiver: the column's target ray, if this beam brings it here (absent rays were
         // absorbed earlier; a terminal or absorbed one still arrived).
-        let target = env.occluders.and_then(|o| o.target(self.x, self.y));
+        let target = column.and_then(|c| c.target);
         if let Some(t) = target.filter(|t| t.z == m.z as i64 && t.in_beam(b)) {
             // It arrived, and no triangle of this column or its neighbours shadows the pixel
             // from close by.
@@ -257,7 +272,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             if m.local == Local::NONE && !f.visible && self.frustum_skips(m, env, f) {
                 return;
             }
-            self.route(b, m.z, env, f, |_| Sub::Send(false, Local::NONE));
+            self.route(b, m.z, env, f, Decide::PLAIN);
             return;
         }
         let stay = self.staying(b, env);
@@ -282,13 +297,8 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 Out::Continue | Out::Terminal => {
                     let send = out.out == Out::Terminal;
                     let stay_sub = Sub::Send(stays.out == Out::Terminal, carry);
-                    self.route(b, m.z, env, f, |o| {
-                        if o == STAY && stay.is_some() {
-                            stay_sub
-                        } else {
-                            Sub::Send(send, Local::NONE)
-                        }
-                    });
+                    let decide = Decide { other: Sub::Send(send, Local::NONE), stay: stay.map(|_| stay_sub) };
+                    self.route(b, m.z, env, f, decide);
                 }
             }
             return;
@@ -341,6 +351,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 &mut tests,
                 triangles,
                 seen,
+                ALL_CANDIDATES,
                 env.source,
                 dir,
                 env.far,
@@ -479,7 +490,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
                 };
                 let rect = beam.with_rays(range::<F>(u), range::<F>(v));
                 f.after_outside = outside;
-                self.route(&rect, m.z, env, f, |_| Sub::Send(terminal, Local::NONE));
+                self.route(&rect, m.z, env, f, Decide::all(Sub::Send(terminal, Local::NONE)));
                 piece += 1;
                 if piece < count {
                     f.keep = Some(BeamMsg { beam, local: Local { piece, ..m.local }, ..*m });
@@ -550,8 +561,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         }
         f.absorbed += present - going;
         if going > 0 {
-            let mut decide = |_| Sub::Send(false, carry);
-            self.route_counted(&beam, m.z, env, f, &mut decide, &mut |_, _| (going, dying));
+            self.route_counted(&beam, m.z, env, f, Decide::all(Sub::Send(false, carry)), Some((going, dying)));
         }
     }
 }

@@ -58,7 +58,7 @@ use crate::dexel::{Dexel, DexelStore};
 use crate::lit::{spans, uniform, Along, Arrival, LitRule, Notch, Out, RayPlane, Rule, Segments, Verdict, Visit};
 use crate::occluder::ColumnOccluders;
 #[cfg(feature = "exact-occluders")]
-use crate::occluder::{ExactTests, ExactVisit, EXACT_SEGMENTS};
+use crate::occluder::{ExactTests, ExactVisit, ALL_CANDIDATES, EXACT_SEGMENTS};
 use crate::occupancy::FrustumTest;
 use crate::units::{Coord, Depth};
 
@@ -349,9 +349,33 @@ enum Sub {
     Absorb,
 }
 
-/// Counts a sub-beam's rays: `(rays, of which terminal at the next layer)`, given the
-/// sub-beam and whether it is sent terminal.
-type RayCount<'a, F> = dyn FnMut(&Beam<F>, bool) -> (u64, u64) + 'a;
+/// What becomes of each sub-beam of a split, by its offset: the one that stays in the column
+/// (offset (0, 0) of a ±z beam below the far plane) takes `stay` when given, every other one
+/// `other`.
+#[derive(Clone, Copy)]
+struct Decide {
+    other: Sub,
+    stay: Option<Sub>,
+}
+
+impl Decide {
+    /// Every sub-beam sent plain.
+    const PLAIN: Decide = Decide { other: Sub::Send(false, Local::NONE), stay: None };
+
+    /// Every sub-beam as `s`.
+    const fn all(s: Sub) -> Decide {
+        Decide { other: s, stay: None }
+    }
+
+    /// The fate of the sub-beam with offset `o`.
+    #[inline]
+    fn at(&self, o: crate::beam::Offset) -> Sub {
+        match self.stay {
+            Some(s) if o == STAY => s,
+            _ => self.other,
+        }
+    }
+}
 
 /// The sub-beam offset of the rays that stay in the column (a ±z beam's only).
 const STAY: crate::beam::Offset = crate::beam::Offset { du: 0, dv: 0 };

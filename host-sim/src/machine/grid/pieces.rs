@@ -8,6 +8,7 @@
 //! zipped `par_iter` per phase there was about a quarter of host-sim's LLVM IR). A piece is
 //! hundreds of cells, so the indirect call costs nothing measurable.
 
+use std::sync::atomic::{AtomicBool, AtomicPtr, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Mutex, PoisonError};
 
 use rayon::prelude::*;
@@ -55,6 +56,163 @@ pub fn par_map<T: Send>(len: usize, f: &(dyn Fn(usize) -> T + Sync)) -> Vec<T> {
 /// The one rayon pipeline behind [`par_each`].
 fn par_indices(count: usize, work: &(dyn Fn(usize) + Sync)) {
     (0..count).into_par_iter().for_each(work);
+}
+
+/// The threads of rayon's pool kept awake for a whole loop of many short parallel phases (a
+/// diffusion runs two or three a machine cycle, each a fraction of a millisecond): between
+/// phases the helpers spin, so a phase starts without waking a sleeping worker through the
+/// kernel, which cost about a tenth of the CPU time of a two-thread render. Items are handed out
+/// in index order to whichever thread asks next (like [`par_each`], results go through what
+/// the work captures), so what a phase computes does not depend on the threads.
+///
+/// Only the thread that made the team hands out work ([`Team::each`]). Its helpers are threads
+/// of their own, not rayon's: the pool's other workers sleep while a team lives.
+pub struct Team<'s> {
+    state: &'s TeamState,
+}
+
+/// What the team's threads share: the phase on offer (null: none), its generation, the helpers
+/// inside a phase, and the stop flag.
+struct TeamState {
+    job: AtomicPtr<Job<'static>>,
+    generation: AtomicU64,
+    inside: AtomicUsize,
+    stop: AtomicBool,
+}
+
+/// One phase: its work, the item count, the next item to hand out, the items done, and the
+/// first panic of an item (re-raised on the caller once the phase is over).
+struct Job<'w> {
+    work: &'w (dyn Fn(usize) + Sync),
+    count: usize,
+    next: AtomicUsize,
+    done: AtomicUsize,
+    panic: Mutex<Option<Box<dyn std::any::Any + Send>>>,
+}
+
+impl Job<'_> {
+    /// Take and run items until none is left. An item that panics still counts as done (the
+    /// caller must not return while others run), its panic kept for the caller.
+    fn run(&self) {
+        loop {
+            let i = self.next.fetch_add(1, Ordering::Relaxed);
+            if i >= self.count {
+                return;
+            }
+            if let Err(p) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| (self.work)(i))) {
+                self.panic.lock().unwrap_or_else(PoisonError::into_inner).get_or_insert(p);
+            }
+            self.done.fetch_add(1, Ordering::Release);
+        }
+    }
+}
+
+/// Run `f` with a [`Team`] as large as the current rayon pool (`--threads`): the caller and
+/// threads of its own for the rest (scoped: started here, joined before returning; a pool of
+/// one has no helpers, the team's phases run on the caller).
+pub fn with_team<R>(f: impl FnOnce(&Team<'_>) -> R) -> R {
+    let state = TeamState {
+        job: AtomicPtr::new(std::ptr::null_mut()),
+        generation: AtomicU64::new(0),
+        inside: AtomicUsize::new(0),
+        stop: AtomicBool::new(false),
+    };
+    let helpers = rayon::current_num_threads().saturating_sub(1);
+    if helpers == 0 {
+        return f(&Team { state: &state });
+    }
+    std::thread::scope(|s| {
+        for _ in 0..helpers {
+            s.spawn(|| state.help());
+        }
+        // Stops the helpers however `f` ends (a panic in it unwinds through here).
+        struct Stop<'a>(&'a AtomicBool);
+        impl Drop for Stop<'_> {
+            fn drop(&mut self) {
+                self.0.store(true, Ordering::Release);
+            }
+        }
+        let _stop = Stop(&state.stop);
+        f(&Team { state: &state })
+    })
+}
+
+impl TeamState {
+    /// A helper: wait for phases (spinning, then yielding its core now and then) and work on
+    /// them until the team stops.
+    fn help(&self) {
+        let mut seen = 0u64;
+        let mut idle = 0u32;
+        while !self.stop.load(Ordering::Acquire) {
+            let g = self.generation.load(Ordering::Acquire);
+            if g == seen {
+                idle = idle.saturating_add(1);
+                if idle % 256 == 0 {
+                    std::thread::yield_now();
+                } else {
+                    std::hint::spin_loop();
+                }
+                continue;
+            }
+            idle = 0;
+            // Announce before reading the job: the caller does not end a phase while a helper
+            // that may have read it is inside.
+            self.inside.fetch_add(1, Ordering::AcqRel);
+            let job = self.job.load(Ordering::Acquire);
+            if !job.is_null() {
+                // SAFETY: a non-null `job` points to the `Job` of a phase `Team::each` has
+                // published and not yet retired: it retires it (nulls the pointer, then waits
+                // for `inside` to drop to zero) before the `Job` and the work it borrows go out
+                // of scope, and this helper counted itself in `inside` before loading it.
+                #[allow(unsafe_code)]
+                unsafe {
+                    (*job).run()
+                };
+            }
+            seen = g;
+            self.inside.fetch_sub(1, Ordering::AcqRel);
+        }
+    }
+}
+
+impl Team<'_> {
+    /// `work(item)` for each item, on the team's threads; returns when every item is done
+    /// (like [`par_each`]).
+    pub fn each<T: Send>(&self, items: Vec<T>, work: impl Fn(T) + Sync) {
+        let count = items.len();
+        if count == 0 {
+            return;
+        }
+        let slots: Vec<Mutex<Option<T>>> = items.into_iter().map(|t| Mutex::new(Some(t))).collect();
+        let run = |i: usize| {
+            // Each index is handed out once, so each slot is taken once.
+            let item = slots[i].lock().unwrap_or_else(PoisonError::into_inner).take();
+            if let Some(t) = item {
+                work(t);
+            }
+        };
+        if count == 1 {
+            return run(0);
+        }
+        let job =
+            Job { work: &run, count, next: AtomicUsize::new(0), done: AtomicUsize::new(0), panic: Mutex::new(None) };
+        let st = self.state;
+        // The helpers see the job only between here and its retirement below.
+        st.job.store((&job as *const Job<'_>).cast_mut().cast(), Ordering::Release);
+        st.generation.fetch_add(1, Ordering::AcqRel);
+        job.run();
+        while job.done.load(Ordering::Acquire) < count {
+            std::hint::spin_loop();
+        }
+        // Retire: no helper reads the job once it is null, and those that read it are counted.
+        st.job.store(std::ptr::null_mut(), Ordering::Release);
+        while st.inside.load(Ordering::Acquire) != 0 {
+            std::hint::spin_loop();
+        }
+        if let Some(p) = job.panic.into_inner().unwrap_or_else(PoisonError::into_inner) {
+            std::panic::resume_unwind(p);
+        }
+    }
 }
 
 /// Ask the CPU to start loading the cache line at `p` (a hint: no effect on results, never a
@@ -111,6 +269,39 @@ mod tests {
         assert!(out.iter().enumerate().all(|(i, &v)| v == i as u32 * 3 + 1));
         assert_eq!(par_map(1000, &|i| i * i), (0..1000).map(|i| i * i).collect::<Vec<_>>());
         par_each(Vec::<u8>::new(), |_| unreachable!("no items"));
+    }
+
+    /// A team of 1 to 4 threads runs every item of every phase once, phase after phase (many
+    /// short phases, as a diffusion's cycles), and a panicking item reaches the caller after
+    /// the phase, with the team still usable.
+    #[test]
+    fn a_team_runs_every_item_once_and_passes_panics_on() {
+        for threads in 1..=4 {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                with_team(|team| {
+                    let mut out = vec![0u32; 300];
+                    for phase in 0..200u32 {
+                        let len = (phase as usize * 7) % 300;
+                        let items: Vec<(usize, &mut u32)> = out[..len].iter_mut().enumerate().collect();
+                        team.each(items, |(i, r)| *r += i as u32 + phase);
+                    }
+                    let want: Vec<u32> = (0..300usize)
+                        .map(|i| (0..200u32).filter(|&p| i < (p as usize * 7) % 300).map(|p| i as u32 + p).sum())
+                        .collect();
+                    assert_eq!(out, want, "{threads} threads");
+                    let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                        team.each((0..64).collect(), |i: u32| assert!(i != 41, "item 41"));
+                    }));
+                    assert!(caught.is_err(), "the panic reaches the caller");
+                    let count = AtomicUsize::new(0);
+                    team.each((0..64).collect(), |_: u32| {
+                        count.fetch_add(1, Ordering::Relaxed);
+                    });
+                    assert_eq!(count.into_inner(), 64);
+                });
+            });
+        }
     }
 
     #[test]

@@ -9,9 +9,11 @@
 //! average.
 
 use anyhow::{bail, Result};
-use cell_core::occluder::Triangle;
+use cell_core::occluder::{near_windows, NearWindows, Triangle};
+use cell_core::units::Depth;
 
 use crate::machine::grid::capacity::TRIANGLE_CAP;
+use crate::machine::grid::pieces::par_map;
 
 /// Every column's triangles (empty when the scene was loaded without them).
 #[derive(Clone, Debug, Default)]
@@ -23,6 +25,8 @@ pub struct ColumnTriangles {
     /// Beside each kept triangle, its index in `distinct` (the scene's triangles, each once).
     ids: Vec<u32>,
     distinct: Vec<Triangle>,
+    /// Beside each kept triangle, its windows ([`NearWindows`]).
+    near: Vec<NearWindows>,
     overflows: u64,
 }
 
@@ -84,7 +88,25 @@ impl ColumnTriangles {
             }
             start.push(flat.len() as u32);
         }
-        Ok(ColumnTriangles { n, start, tris: flat, ids, distinct: tris, overflows })
+        let near = all_near_windows(&start, &flat, n);
+        Ok(ColumnTriangles { n, start, tris: flat, ids, distinct: tris, near, overflows })
+    }
+
+    /// Column (x, y)'s triangles, their indices in [`ColumnTriangles::distinct`] and their
+    /// near windows, from one lookup.
+    pub fn column_parts(&self, x: u32, y: u32) -> (&[Triangle], &[u32], &[NearWindows]) {
+        let i = (y * self.n + x) as usize;
+        if x < self.n {
+            if let Some(&[a, b]) = self.start.get(i..i + 2) {
+                let r = a as usize..b as usize;
+                if let (Some(t), Some(ids), Some(near)) =
+                    (self.tris.get(r.clone()), self.ids.get(r.clone()), self.near.get(r))
+                {
+                    return (t, ids, near);
+                }
+            }
+        }
+        (&[], &[], &[])
     }
 
     /// The range of column (x, y) in the flat arrays (empty outside the grid or unloaded).
@@ -130,4 +152,20 @@ impl ColumnTriangles {
     pub fn max_per_column(&self) -> usize {
         self.start.windows(2).map(|w| (w[1] - w[0]) as usize).max().unwrap_or(0)
     }
+}
+
+/// The windows of every kept triangle (`flat`, columns cut by `start`), row by row in parallel.
+fn all_near_windows(start: &[u32], flat: &[Triangle], n: u32) -> Vec<NearWindows> {
+    let rows = par_map(n as usize, &|y| {
+        let (a, b) = (start[y * n as usize] as usize, start[(y + 1) * n as usize] as usize);
+        let mut out = Vec::with_capacity(b - a);
+        for x in 0..n as usize {
+            let i = y * n as usize + x;
+            for t in &flat[start[i] as usize..start[i + 1] as usize] {
+                out.push(near_windows(t, x as i32, y as i32, Depth::MAX));
+            }
+        }
+        out
+    });
+    rows.concat()
 }

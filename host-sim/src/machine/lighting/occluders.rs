@@ -8,7 +8,7 @@
 
 use cell_core::beam::{Direction, FarDistance, FracBits, Source};
 use cell_core::light::Port;
-use cell_core::occluder::{ColumnOccluders, SeenEntry, SeenTable, Triangle};
+use cell_core::occluder::{Column, ColumnOccluders, SeenEntry, SeenTable, Triangle};
 use cell_core::receiver::{crosses_any, target, Target};
 use cell_core::units::Coord;
 
@@ -73,5 +73,15 @@ impl ColumnOccluders for SourceOccluders<'_> {
 
     fn seen(&self, x: Coord, y: Coord) -> Option<SeenTable<'_>> {
         Some(SeenTable { ids: self.triangles.ids(x as u32, y as u32), seen: &self.seen })
+    }
+
+    fn column(&self, x: Coord, y: Coord) -> Column<'_> {
+        let (triangles, ids, near) = self.triangles.column_parts(x as u32, y as u32);
+        Column {
+            triangles,
+            seen: Some(SeenTable { ids, seen: &self.seen }),
+            target: self.targets.get(y as usize * self.n as usize + x as usize).and_then(Option::as_ref),
+            near: Some(near),
+        }
     }
 }

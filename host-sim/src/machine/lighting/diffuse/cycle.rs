@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Re
 
 use super::*;
 use crate::machine::grid::capacity::HostLightCell;
-use crate::machine::grid::pieces::{merge_sorted, par_each, par_map, prefetch, prefetch_ends, tiles};
+use crate::machine::grid::pieces::{merge_sorted, par_map, prefetch, prefetch_ends, tiles, with_team, Team};
 use crate::machine::grid::Grid;
 use crate::machine::links::tap::Tap;
 use crate::machine::links::{self, lossless, sure, CellInbox, HostLink, Took, BACK};
@@ -275,28 +275,30 @@ pub(super) fn diffuse_one<F: FracBits, const D: usize, L: HostLink<F>>(
     progress: &mut dyn FnMut(u64),
 ) -> Result<SourceReport> {
     let mut run = Run::new(grid, cells, links, src, si, env, cfg, dead, rec);
-    let mut lap = Lap::start();
-    while run.running() && cfg.stop_at.is_none_or(|t| run.cycle < t) {
-        let mut moved = run.emit();
-        lap.lap(&mut phases.emit);
-        let pieces = run.step();
-        lap.lap(&mut phases.step);
-        moved |= run.gather_steps(pieces);
-        lap.lap(&mut phases.gather);
-        moved |= run.links();
-        lap.lap(&mut phases.links);
-        run.pop();
-        lap.lap(&mut phases.pop);
-        run.cycle += 1;
-        let busy_now = run.next_active();
-        run.settle(busy_now, moved)?;
-        lap.lap(&mut phases.next);
-        if run.cycle % 256 == 0 {
-            progress(run.cycle);
+    with_team(|team| {
+        let mut lap = Lap::start();
+        while run.running() && cfg.stop_at.is_none_or(|t| run.cycle < t) {
+            let mut moved = run.emit();
+            lap.lap(&mut phases.emit);
+            let pieces = run.step(team);
+            lap.lap(&mut phases.step);
+            moved |= run.gather_steps(pieces);
+            lap.lap(&mut phases.gather);
+            moved |= run.links(team);
+            lap.lap(&mut phases.links);
+            run.pop(team);
+            lap.lap(&mut phases.pop);
+            run.cycle += 1;
+            let busy_now = run.next_active();
+            run.settle(busy_now, moved)?;
+            lap.lap(&mut phases.next);
+            if run.cycle % 256 == 0 {
+                progress(run.cycle);
+            }
         }
-    }
-    progress(run.cycle);
-    Ok(run.finish())
+        progress(run.cycle);
+        Ok(run.finish())
+    })
 }
 
 /// The six initial beams of `src` that the dead-direction skip keeps, their rays counted in
@@ -538,7 +540,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
     ///    cells' link offers (the message at the front of each busy output buffer) while the
     ///    cell is in cache: the same offers, in the same order, as a pass after all steps.
     ///    The number of pieces, whose results [`Run::gather_steps`] takes next.
-    fn step(&mut self) -> usize {
+    fn step(&mut self, team: &Team<'_>) -> usize {
         let k = StepCtx {
             grid: self.grid,
             env: self.env,
@@ -559,7 +561,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         self.cuts.extend(pieces.iter().skip(1).map(|&(_, base, _)| base as u32));
         let count = pieces.len();
         let done = scratch_for(&mut self.scratch, count);
-        par_each(pieces.into_iter().zip(done.iter_mut()).collect(), |((tile, base, idx), r)| {
+        team.each(pieces.into_iter().zip(done.iter_mut()).collect(), |((tile, base, idx), r)| {
             k.step_piece(tile, base, idx, r);
         });
         count
@@ -619,7 +621,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
     ///    port's offers are in receiver order already (a port's receiver is its sender plus a
     ///    constant): the lists are merged ([`link_order`]), not sorted. Every offer goes
     ///    through its link ([`HostLink`]); whether a beam was delivered or acknowledged.
-    fn links(&mut self) -> bool {
+    fn links(&mut self, team: &Team<'_>) -> bool {
         let k = PullCtx {
             env: self.env,
             cycle: self.cycle,
@@ -635,7 +637,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         let groups = by_receiver(self.cells, self.links, &mut self.offers, &self.cuts);
         let count = groups.len();
         let pulled = scratch_for(&mut self.scratch, count);
-        par_each(groups.into_iter().zip(pulled.iter_mut()).collect(), |(piece, r)| k.pull_piece(piece, r));
+        team.each(groups.into_iter().zip(pulled.iter_mut()).collect(), |(piece, r)| k.pull_piece(piece, r));
         let mut moved = false;
         for r in &self.scratch[..count] {
             self.sleepers.count -= r.roused;
@@ -655,7 +657,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
     /// room the emitter checks first; otherwise in parallel over the visited cells (every
     /// sender is one). A cell's last pop leaves its flag right (receptions came before the
     /// pops).
-    fn pop(&mut self) {
+    fn pop(&mut self, team: &Team<'_>) {
         let (taken, unacked, in_active) = (&self.taken_ports, &self.unacked_ports, &self.in_active);
         if self.defer_pops {
             let c = &mut self.cells[self.s_idx];
@@ -666,7 +668,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         }
         let (lossless, stepping) = (self.lossless, self.stepping);
         let visit = if stepping == Stepping::AllCells { &self.all } else { &self.active };
-        par_each(tiles(self.cells, visit, PIECE), |(tile, base, idx)| {
+        team.each(tiles(self.cells, visit, PIECE), |(tile, base, idx)| {
             for (k, &i) in idx.iter().enumerate() {
                 if let Some(&j) = idx.get(k + AHEAD) {
                     prefetch_cell(&tile[j as usize - base], 0);
