@@ -347,12 +347,17 @@ pub trait ColumnOccluders: core::fmt::Debug + Sync {
     fn seen(&self, _x: crate::units::Coord, _y: crate::units::Coord) -> Option<SeenTable<'_>> {
         None
     }
-    /// Everything column (x, y) holds for the exact visit, in one call (a host looks the column
-    /// up once per beam, not once per item). The default gathers the methods above, without
-    /// near windows.
-    fn column(&self, x: crate::units::Coord, y: crate::units::Coord) -> Column<'_> {
-        Column { triangles: self.triangles(x, y), seen: self.seen(x, y), target: self.target(x, y), near: None }
+    /// Everything column (x, y) holds for the exact visit of a beam at voxel depth `z`, in one
+    /// call (a host looks the column up once per beam, not once per item): its target ray only
+    /// if that ray's voxel is at `z`. The default gathers the methods above, without near
+    /// windows.
+    fn column(&self, x: crate::units::Coord, y: crate::units::Coord, z: crate::units::Depth) -> Column<'_> {
+        let target = self.target(x, y).filter(|t| t.z == z as i64);
+        Column { triangles: self.triangles(x, y), seen: self.seen(x, y), target, near: None }
     }
+    /// A hint that column (x, y) is visited soon (a host holding every column may start loading
+    /// its data); no effect on any result.
+    fn prefetch(&self, _x: crate::units::Coord, _y: crate::units::Coord) {}
 }
 
 /// One column as the exact visit reads it ([`ColumnOccluders::column`]).
@@ -362,7 +367,7 @@ pub struct Column<'a> {
     pub triangles: &'a [Triangle],
     /// Their planes under the current source, if precomputed.
     pub seen: Option<SeenTable<'a>>,
-    /// Its target ray for the current source.
+    /// Its target ray for the current source, if it ends at the visited depth.
     pub target: Option<&'a crate::receiver::Target>,
     /// Beside each triangle, its [`NearWindows`], if the host computed them (`None`: every
     /// triangle is tested, as a cell does).

@@ -227,7 +227,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         let dir = b.direction();
         let k = b.layer().0 as i64;
         let (u, v) = (lattice(b.u()), lattice(b.v()));
-        let column = env.occluders.map(|o| o.column(self.x, self.y));
+        let column = env.occluders.map(|o| o.column(self.x, self.y, m.z));
         let triangles = column.map_or(&[][..], |c| c.triangles);
         let notch = m.local.notch().map(|n| n.t1 as i64);
         // The triangles that may cut a plain beam past layer 1, when the host knows them
@@ -254,7 +254,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         // The receiver: the column's target ray, if this beam brings it here (absent rays were
         // absorbed earlier; a terminal or absorbed one still arrived).
         let target = column.and_then(|c| c.target);
-        if let Some(t) = target.filter(|t| t.z == m.z as i64 && t.in_beam(b)) {
+        if let Some(t) = target.filter(|t| t.in_beam(b)) {
             // It arrived, and no triangle of this column or its neighbours shadows the pixel
             // from close by.
             let lit = visit.verdict(visit.bits(t.a, t.b), false).out.present() && !t.in_contact_shadow(triangles);

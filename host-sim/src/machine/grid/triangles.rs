@@ -13,7 +13,7 @@ use cell_core::occluder::{near_windows, NearWindows, Triangle};
 use cell_core::units::Depth;
 
 use crate::machine::grid::capacity::TRIANGLE_CAP;
-use crate::machine::grid::pieces::par_map;
+use crate::machine::grid::pieces::{par_map, prefetch};
 
 /// Every column's triangles (empty when the scene was loaded without them).
 #[derive(Clone, Debug, Default)]
@@ -107,6 +107,14 @@ impl ColumnTriangles {
             }
         }
         (&[], &[], &[])
+    }
+
+    /// Start loading what [`ColumnTriangles::column_parts`] reads of column (x, y) first.
+    pub fn prefetch(&self, x: u32, y: u32) {
+        let i = (y * self.n + x) as usize;
+        if let Some(&a) = self.start.get(i) {
+            prefetch(self.near.as_ptr().wrapping_add(a as usize));
+        }
     }
 
     /// The range of column (x, y) in the flat arrays (empty outside the grid or unloaded).

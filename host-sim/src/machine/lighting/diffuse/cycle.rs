@@ -6,6 +6,7 @@
 use anyhow::{bail, Result};
 use cell_core::beam::{Beam, Direction, FarDistance, FracBits, Source};
 use cell_core::light::{Activity, ActivityDelta, BeamMsg, LightEnv, OccupiedBox, Port, Step};
+use cell_core::lit::LitRule;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Relaxed};
 
 use super::*;
@@ -554,6 +555,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
             n: self.grid.n as usize,
             wave: self.env.policy.by_layer(),
             link_rate: self.link_rate,
+            reads_dexels: self.env.rule != LitRule::Exact || !self.env.lit_visible_only,
         };
         let visit = if self.stepping == Stepping::AllCells { &self.all } else { &self.active };
         let pieces = tiles(self.cells, visit, PIECE);
@@ -829,6 +831,9 @@ struct StepCtx<'a, 'e, F: FracBits, const D: usize> {
     wave: bool,
     /// Messages offered per output buffer ([`Timing::link_rate`]).
     link_rate: usize,
+    /// A step may read the column's dexels (every rule but exact occluders with the
+    /// visible-only lit store).
+    reads_dexels: bool,
 }
 
 impl<F: FracBits, const D: usize> StepCtx<'_, '_, F, D> {
@@ -860,7 +865,14 @@ impl<F: FracBits, const D: usize> StepCtx<'_, '_, F, D> {
     /// Prefetch what stepping cell `j` (`cj`) reads first.
     fn prefetch(&self, cj: &HostLightCell<F>, j: usize) {
         prefetch_cell(cj, 4);
-        prefetch_ends(&self.grid.cells[j].store);
+        // Exact occluders with the visible-only lit store read the column's triangles and
+        // target ray, not its dexels.
+        if self.reads_dexels {
+            prefetch_ends(&self.grid.cells[j].store);
+        }
+        if let Some(o) = self.env.occluders {
+            o.prefetch(cj.x, cj.y);
+        }
         if self.defer_pops {
             // The buffers its pending pops will shift.
             let t = taken_mask(self.taken_ports[j].load(Relaxed));
