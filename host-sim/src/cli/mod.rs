@@ -12,7 +12,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use crate::jobs;
 use crate::precompute::LoadConfig;
 use crate::scene::camera::{Camera, Projection, ViewChoice};
-use value_args::{ContourArg, EngineArg, FrustumBlocksArg, ThicknessArg};
+use value_args::{ContourArg, EngineArg, FrustumBlocksArg, OracleSkipArg, ThicknessArg};
 
 /// RC² cellular ray-tracing machine — host simulator.
 ///
@@ -406,6 +406,13 @@ pub struct LightOpts {
     /// `trace`: a cell trace carries the 8 × 8 × 8 summary).
     #[arg(long, value_enum)]
     pub frustum_blocks: Option<FrustumBlocksArg>,
+    /// A measurement, not a cell's rule: the host, which knows every pixel's target ray, drops
+    /// each beam that carries none to a later layer (`rays`), or whose voxel lies on none before
+    /// its target (`voxels`), its rays counted as skipped. The same image; the beams, messages
+    /// and cycles left are what the image needs. Needs exact occluders and the visible-only lit
+    /// store. Default: off.
+    #[arg(long, value_enum)]
+    pub oracle_skip: Option<OracleSkipArg>,
     /// The sibling wait: a beam that does not yet hold every ray its voxel can receive waits
     /// up to this many cycles (while its FIFO has room) for the pieces from its other parent
     /// voxels to merge into it: fewer beams and messages, same lit voxels. 0: off. Wavefront

@@ -54,6 +54,7 @@ impl LightOpts {
             hold: self.hold,
             rule: self.lit_rule.map(Into::into),
             rays: self.rays_from.map(Into::into),
+            oracle_skip: self.oracle_skip.map(Into::into),
             area_light: self.area_light,
         }
     }

@@ -1,7 +1,7 @@
 //! Command-line mirrors of the domain's option enums: the domain types stay free of clap; each
 //! mirror carries the `--help` text of its values and converts into the domain type.
 
-use crate::machine::lighting::diffuse::FrustumBlocks;
+use crate::machine::lighting::diffuse::{FrustumBlocks, OracleSkip};
 use crate::machine::loading::engines::Engine;
 use crate::precompute::{Contour, Thickness};
 
@@ -75,6 +75,27 @@ pub enum FrustumBlocksArg {
     /// 32 × 32 × 32 blocks, `u32` rows: 9 384 bytes per cell.
     #[value(name = "32")]
     B32,
+}
+
+/// `--oracle-skip`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum OracleSkipArg {
+    /// The machine as it is.
+    Off,
+    /// Drop beams whose voxel lies on no pixel's target ray before its target.
+    Voxels,
+    /// Drop beams that hold no pixel's target ray of a later layer.
+    Rays,
+}
+
+impl From<OracleSkipArg> for OracleSkip {
+    fn from(a: OracleSkipArg) -> Self {
+        match a {
+            OracleSkipArg::Off => OracleSkip::Off,
+            OracleSkipArg::Voxels => OracleSkip::Voxels,
+            OracleSkipArg::Rays => OracleSkip::Rays,
+        }
+    }
 }
 
 impl From<FrustumBlocksArg> for FrustumBlocks {

@@ -18,7 +18,7 @@ use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 
 use crate::machine::grid::capacity::TRIANGLE_CAP;
-use crate::machine::lighting::diffuse::{FrustumBlocks, LightConfig, Stepping, DEFAULT_STALL_CYCLES};
+use crate::machine::lighting::diffuse::{FrustumBlocks, LightConfig, OracleSkip, Stepping, DEFAULT_STALL_CYCLES};
 use crate::machine::lighting::timing::Timing;
 use crate::machine::links::faults::LinkFaults;
 use crate::precompute::{Contour, LoadConfig, Thickness};
@@ -95,6 +95,7 @@ impl Preset {
             rule: LitRule::Exact,
             rays: Origin::Light,
             timing: Timing::RC2,
+            oracle_skip: OracleSkip::Off,
             stop_at: None,
         };
         match self {
@@ -187,6 +188,8 @@ pub struct Overrides {
     pub rule: Option<LitRule>,
     /// The rays' origin.
     pub rays: Option<Origin>,
+    /// The oracle skip.
+    pub oracle_skip: Option<OracleSkip>,
     /// S × S samples per area light.
     pub area_light: Option<u32>,
 }
@@ -229,6 +232,7 @@ impl RunConfig {
             hold: o.hold.unwrap_or(b.hold),
             rule: o.rule.unwrap_or(b.rule),
             rays,
+            oracle_skip: o.oracle_skip.unwrap_or(b.oracle_skip),
             ..*b
         };
         let load = LoadConfig {
@@ -260,6 +264,12 @@ impl RunConfig {
                  run without --lit-visible-only (and --skip-hidden)"
             );
         }
+        if l.oracle_skip != OracleSkip::Off && (l.rule != LitRule::Exact || !l.lit_visible_only) {
+            bail!(
+                "--oracle-skip drops the beams no pixel's target ray is in: it needs exact occluders \
+                 (--lit-rule exact) and the visible-only lit store (render's default)"
+            );
+        }
         if self.area_light == 0 {
             bail!("--area-light 0: S is the number of samples along each side of a light, at least 1");
         }
@@ -282,6 +292,8 @@ impl RunConfig {
             (l.skip_dead_directions, "dead directions"),
             (l.skip_frustum, "empty frustum"),
             (l.skip_hidden, "hidden"),
+            (l.oracle_skip == OracleSkip::Voxels, "oracle (target voxels)"),
+            (l.oracle_skip == OracleSkip::Rays, "oracle (target rays)"),
         ];
         RunSummary {
             preset: self.preset,

@@ -307,3 +307,40 @@ fn hidden_skip_keeps_the_visible_lit_set_and_the_image() {
     let err = err.to_string();
     assert!(err.contains("--lit-visible-only"), "{err}");
 }
+
+/// The oracle skip (a measurement: the host drops every beam that carries no pixel's target
+/// ray, or whose voxel is on none) leaves the render's visible lit set and image as they are,
+/// on 1 or 2 threads, and its dropped rays are counted (conservation); the per-ray oracle drops
+/// at least what the per-voxel one does, and both drop beams on every scene. Without exact
+/// occluders and the visible-only store it is refused.
+#[test]
+fn the_oracle_skip_keeps_the_image() {
+    use host_sim::machine::lighting::diffuse::OracleSkip;
+    for (scene, n) in [("cornell", 48), ("teapot-floor", 40), ("bureau1", 48)] {
+        let s = setup(scene, n);
+        let render = host_sim::config::Preset::Render.light();
+        let off = run(&s, render, 2);
+        let mut beams = Vec::new();
+        for skip in [OracleSkip::Voxels, OracleSkip::Rays] {
+            let on = run(&s, LightConfig { oracle_skip: skip, ..render }, 1);
+            assert_eq!((&on.lit, &on.png), (&off.lit, &off.png), "{scene}: {skip:?}: visible lit set and image");
+            assert_eq!(
+                on,
+                run(&s, LightConfig { oracle_skip: skip, ..render }, 2),
+                "{scene}: {skip:?}: 1 vs 2 threads"
+            );
+            let (a, b) = (&on.reports[0].counts, &off.reports[0].counts);
+            assert_eq!(a.rays_emitted, a.rays_absorbed + a.rays_exited + a.rays_skipped, "{scene}: conservation");
+            assert!(a.rays_skipped > b.rays_skipped, "{scene}: {skip:?} drops rays");
+            beams.push(a.beams_processed);
+        }
+        let all = off.reports[0].counts.beams_processed;
+        assert!(beams[1] <= beams[0] && beams[0] < all, "{scene}: beams rays ≤ voxels < off: {beams:?} / {all}");
+    }
+    let s = setup("cornell", 16);
+    let cfg = LightConfig { oracle_skip: OracleSkip::Rays, ..host_sim::config::Preset::Light.light() };
+    let Err(err) = run_diffusion(&s.0, &s.1, &s.2, &cfg, |_, _| {}) else {
+        panic!("the oracle skip ran with the full lit store");
+    };
+    assert!(err.to_string().contains("--oracle-skip"), "{err}");
+}

@@ -57,6 +57,11 @@ impl<'a> SourceOccluders<'a> {
         SourceOccluders { n, triangles: tris, targets, target_z, seen }
     }
 
+    /// Every column's target ray (row-major; `None`: no ray lights its pixel).
+    pub fn targets(&self) -> &[Option<Target>] {
+        &self.targets
+    }
+
     /// Messages of the contact exchange: a query and an answer per link from each cell with a
     /// contact segment to a neighbour inside the grid.
     pub fn exchange_messages(&self) -> u64 {

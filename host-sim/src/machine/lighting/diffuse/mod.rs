@@ -43,12 +43,14 @@ use crate::machine::links::tap::{Tap, Tracer};
 use crate::machine::links::{GridLinks, HostLink};
 
 mod cycle;
+mod oracle;
 mod share;
 mod shortcut;
 mod summary;
 
 use cycle::diffuse_one;
 pub(crate) use cycle::initial_beams;
+pub use oracle::OracleSkip;
 pub use share::{decode_part, encode_part, merge_parts, Share};
 use shortcut::Shortcut;
 pub use summary::{occupancy_summary, occupied_box, FrustumBlocks, Summary};
@@ -114,6 +116,11 @@ pub struct LightConfig {
     /// The timing rules the thesis leaves open ([`Timing`]). Exact: changes
     /// cycles, messages and FIFO occupancy, never lit voxels.
     pub timing: Timing,
+    /// The oracle skip ([`OracleSkip`], needs exact occluders and `lit_visible_only`): the host
+    /// drops every beam that carries no pixel's target ray to a later layer — not a cell's rule
+    /// (a cell would need every target ray through its column), a measure of the work no pixel
+    /// needs. Same image; fewer beams, messages and cycles.
+    pub oracle_skip: OracleSkip,
     /// Stop each source's diffusion after this many cycles, beams still in flight (a snapshot
     /// of the grid: which cells hold beams, which voxels were visited; the thesis's time-lapse,
     /// §4.4.3). A source that ran until then is not checked for conservation. `None`: run
@@ -599,6 +606,9 @@ fn frustum_summary<const D: usize>(grid: &Grid<D>, cfg: &LightConfig, tapped: bo
     if cfg.skip_hidden && !cfg.lit_visible_only {
         bail!("the hidden-voxel skip drops the light of hidden voxels: use it with --lit-visible-only");
     }
+    if cfg.oracle_skip != OracleSkip::Off && (cfg.rule != LitRule::Exact || !cfg.lit_visible_only) {
+        bail!("--oracle-skip reads the pixels' target rays: it needs exact occluders and --lit-visible-only");
+    }
     let frustum =
         (cfg.skip_hidden || cfg.skip_frustum).then(|| Summary::of(grid, cfg.frustum_blocks, cfg.skip_hidden, cfg.rule));
     if tapped && frustum.as_ref().is_some_and(|s| s.traceable().is_none()) {
@@ -670,6 +680,13 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
             let shortcut = blocks.as_ref().and_then(|(s, b)| Shortcut::new(s.test(), src, self.far, b));
             if let Some(s) = &shortcut {
                 env.frustum = Some(s);
+            }
+            // The oracle skip, around whichever frustum test the cells run.
+            let needed = occluders
+                .as_ref()
+                .and_then(|o| oracle::Needed::new(cfg.oracle_skip, env.frustum, o, src, self.far, grid));
+            if let Some(t) = &needed {
+                env.frustum = Some(t);
             }
             let before: Vec<LightCounters> = cells.iter().map(|c| c.counters).collect();
             for c in cells.iter_mut() {
