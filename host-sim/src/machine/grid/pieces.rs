@@ -137,6 +137,21 @@ pub fn with_team<R>(f: impl FnOnce(&Team<'_>) -> R) -> R {
     })
 }
 
+/// One round of waiting for another thread, the `round`-th in a row: a spin (a phase is a
+/// fraction of a millisecond), then, past a few thousand rounds, the core handed back to the
+/// scheduler each round (more threads than cores: a test harness running diffusions side by
+/// side, another process), and past a few hundred thousand a short sleep (a long serial stretch
+/// of the caller).
+fn wait(round: u32) {
+    if round < 4096 {
+        std::hint::spin_loop();
+    } else if round < 1 << 18 {
+        std::thread::yield_now();
+    } else {
+        std::thread::sleep(std::time::Duration::from_micros(50));
+    }
+}
+
 impl TeamState {
     /// A helper: wait for phases (spinning, then yielding its core now and then) and work on
     /// them until the team stops.
@@ -147,11 +162,7 @@ impl TeamState {
             let g = self.generation.load(Ordering::Acquire);
             if g == seen {
                 idle = idle.saturating_add(1);
-                if idle % 256 == 0 {
-                    std::thread::yield_now();
-                } else {
-                    std::hint::spin_loop();
-                }
+                wait(idle);
                 continue;
             }
             idle = 0;
@@ -201,13 +212,16 @@ impl Team<'_> {
         st.job.store((&job as *const Job<'_>).cast_mut().cast(), Ordering::Release);
         st.generation.fetch_add(1, Ordering::AcqRel);
         job.run();
+        let mut spins = 0u32;
         while job.done.load(Ordering::Acquire) < count {
-            std::hint::spin_loop();
+            spins = spins.saturating_add(1);
+            wait(spins);
         }
         // Retire: no helper reads the job once it is null, and those that read it are counted.
         st.job.store(std::ptr::null_mut(), Ordering::Release);
         while st.inside.load(Ordering::Acquire) != 0 {
-            std::hint::spin_loop();
+            spins = spins.saturating_add(1);
+            wait(spins);
         }
         if let Some(p) = job.panic.into_inner().unwrap_or_else(PoisonError::into_inner) {
             std::panic::resume_unwind(p);
