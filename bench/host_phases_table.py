@@ -23,7 +23,7 @@ CONCERNS = [
     ("beam split (cell)", r"beam\.rs|bounds\.rs|split|ceil_div"),
     ("fate and routing (cell)", r"fate"),
     ("step, FIFO, output buffers, accept (cell)", r"light/mod\.rs|out\.rs|msg\.rs|LightCell|activity|heapless"),
-    ("engine: pieces, offers, links, lists (host)", r"diffuse|tiles|links|call_mut|mem(move|cpy|set)|rayon|crossbeam"),
+    ("engine: pieces, offers, links, lists (host)", r"diffuse|tiles|pieces|links|call_mut|mem(move|cpy|set)|rayon|crossbeam"),
 ]
 OTHER = "other: loading, shading, runtime"
 

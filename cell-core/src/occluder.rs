@@ -108,7 +108,7 @@
 //! assert!(!(0..=8).any(|k| occ.meets(8, 0, k)));
 //! ```
 
-use crate::beam::{Axis, Direction, FarDistance, FracBits, Source};
+use crate::beam::{Direction, FarDistance, FracBits, Source};
 use crate::lit::{Narrow, RayPlane, Test};
 use crate::triangle::{cross64, dot, sub};
 pub use crate::triangle::{Triangle, COORD_LIMIT};
@@ -374,40 +374,37 @@ pub struct Column<'a> {
     pub near: Option<&'a [NearWindows]>,
 }
 
-/// A triangle's depth windows in its column ([`near_voxels`]), per principal axis (x, y, z),
-/// clamped to the column's depths: `[lo, hi]`, inclusive, empty when lo > hi.
-pub type NearWindows = [[crate::units::Depth; 2]; 3];
+/// A triangle's depth window in its column ([`near_voxels`]), clamped to the column's depths:
+/// `[lo, hi]`, inclusive, empty when lo > hi. 4 bytes beside each triangle a column keeps.
+pub type NearWindows = [crate::units::Depth; 2];
 
 impl Column<'_> {
-    /// Which triangles a beam along `dir` at voxel depth `z` may cut, when it is at layer 2 or
-    /// later and carries no notch: bit i for triangle i ([`ALL_CANDIDATES`] without windows, or
-    /// for a column of more than 64 triangles). A triangle left out is one [`ExactVisit`] would
-    /// find uncrossed, so the visit is the same without it.
-    pub fn candidates(&self, dir: Direction, z: crate::units::Depth) -> u64 {
+    /// Which triangles a beam at voxel depth `z` may cut, when it is at layer 2 or later and
+    /// carries no notch: bit i for triangle i ([`ALL_CANDIDATES`] without windows, or for a
+    /// column of more than 64 triangles). A triangle left out is one [`ExactVisit`] would find
+    /// uncrossed, so the visit is the same without it.
+    pub fn candidates(&self, z: crate::units::Depth) -> u64 {
         let Some(windows) = self.near.filter(|w| w.len() <= 64) else { return ALL_CANDIDATES };
-        let a = dir.principal().index();
-        windows.iter().enumerate().fold(0u64, |m, (i, w)| m | u64::from(w[a][0] <= z && z <= w[a][1]) << i)
+        windows.iter().enumerate().fold(0u64, |m, (i, w)| m | u64::from(w[0] <= z && z <= w[1]) << i)
     }
 }
 
 /// The [`NearWindows`] of `tri` in column (x, y) of a grid whose columns hold depths
 /// `0 ..= max_depth`.
 pub fn near_windows(tri: &Triangle, x: i32, y: i32, max_depth: crate::units::Depth) -> NearWindows {
-    [Axis::X, Axis::Y, Axis::Z].map(|axis| {
-        let (lo, hi) = near_voxels(tri, x, y, axis);
-        let (lo, hi) = (lo.max(0), hi.min(max_depth as i64));
-        if lo > hi {
-            [1, 0]
-        } else {
-            [lo as crate::units::Depth, hi as crate::units::Depth]
-        }
-    })
+    let (lo, hi) = near_voxels(tri, x, y);
+    let (lo, hi) = (lo.max(0), hi.min(max_depth as i64));
+    if lo > hi {
+        [1, 0]
+    } else {
+        [lo as crate::units::Depth, hi as crate::units::Depth]
+    }
 }
 
 /// Every triangle a column keeps may be cut by a beam ([`ExactVisit::new`]'s `candidates`).
 pub const ALL_CANDIDATES: u64 = u64::MAX;
 
-/// The voxel depths z of column (x, y) at which a beam along `axis` may have rays crossing
+/// The voxel depths z of column (x, y) at which a beam (of any direction) may have rays crossing
 /// `tri`'s plane between layers k − 1 and k + 1, for a beam at layer k ≥ 2 carrying no notch:
 /// `(lo, hi)`, inclusive (empty when lo > hi). At any other z of the column such a beam's visit
 /// finds the triangle uncrossed ([`ExactVisit`]), so a host may leave it out
@@ -419,7 +416,9 @@ pub const ALL_CANDIDATES: u64 = u64::MAX;
 /// 16 sixteenths before and after it along the axis (k − 1 ≥ 1: T > 0 there, no clamping at the
 /// origin), and a ray moves at most 16 sixteenths across per 16 along (|a|, |b| ≤ N). So every
 /// point the visit reads (the rays at T_{k−1} and T_{k+1}) lies in the box of half-widths 16
-/// along the axis and 24 across it around V's centre `16·V`. If the plane `g = n·(P − V₀)` keeps
+/// along the axis and 24 across it around V's centre `16·V`, so in the cube of half-width 24
+/// whatever the direction (one window serves every direction, a little wider along the axis than
+/// it need be: 4 bytes per triangle, not 12). If the plane `g = n·(P − V₀)` keeps
 /// one strict sign over that box (g > 0 everywhere, or g ≤ 0 everywhere: the sign the visit
 /// reads), the visit's corners agree at both layers and it skips the triangle. Over the box g
 /// lies within `g(16·V) ± R`, R = Σ |nᵢ|·hᵢ, and `g(16·V) = A + 16·n_z·z` is affine in z: the
@@ -427,11 +426,10 @@ pub const ALL_CANDIDATES: u64 = u64::MAX;
 ///
 /// Exact in `i128`: |n| < 2⁴⁹ per component, coordinates differences < 2²⁵, so every term is
 /// below 2⁷⁶.
-pub fn near_voxels(tri: &Triangle, x: i32, y: i32, axis: Axis) -> (i64, i64) {
+pub fn near_voxels(tri: &Triangle, x: i32, y: i32) -> (i64, i64) {
     let n = tri.normal();
     let v0 = tri.vertex(0);
-    let h = [0, 1, 2].map(|i| if i == axis.index() { 16i128 } else { 24 });
-    let r: i128 = (0..3).map(|i| n[i].abs() * h[i]).sum();
+    let r: i128 = n.iter().map(|c| c.abs() * 24).sum();
     let a = n[0] * (16 * x as i128 - v0[0] as i128) + n[1] * (16 * y as i128 - v0[1] as i128) - n[2] * v0[2] as i128;
     let b = 16 * n[2];
     let clamp = |z: i128| z.clamp(i64::MIN as i128, i64::MAX as i128) as i64;
@@ -1019,10 +1017,9 @@ mod tests {
         assert!(decided > 40 && undecided > 40, "both kinds of visit met ({decided} decided, {undecided} not)");
     }
 
-    /// The window oracle: the plane's values at the eight corners of the box of half-widths
-    /// 16 along `axis`, 24 across, around the voxel centre (16x, 16y, 16z) — the extremes of an
-    /// affine function over a box — straddle 0 (some > 0 and some ≤ 0) exactly at the depths
-    /// of [`near_voxels`].
+    /// The window oracle: the plane's values at the eight corners of the cube of half-width 24
+    /// around the voxel centre (16x, 16y, 16z) — the extremes of an affine function over a box
+    /// — straddle 0 (some > 0 and some ≤ 0) exactly at the depths of [`near_voxels`].
     #[test]
     fn near_voxels_are_the_depths_whose_box_the_plane_cuts() {
         let mut s = 21u64;
@@ -1033,13 +1030,12 @@ mod tests {
                 .map(|_| [r(&mut s, 160 / m) * m, r(&mut s, 160 / m) * m, r(&mut s, 400 / m) * m].map(|c| c as i32));
             let tri = Triangle::new(v).unwrap();
             let (x, y) = (r(&mut s, 6) as i32, r(&mut s, 6) as i32);
-            let axis = [Axis::X, Axis::Y, Axis::Z][case % 3];
-            let (lo, hi) = near_voxels(&tri, x, y, axis);
+            let (lo, hi) = near_voxels(&tri, x, y);
             let n = tri.normal();
             let v0 = tri.vertex(0);
             for z in -40..=40i64 {
                 let c = [16 * x as i64, 16 * y as i64, 16 * z];
-                let h = [0, 1, 2].map(|i| if i == axis.index() { 16 } else { 24 });
+                let h = [24; 3];
                 let values = (0..8).map(|bits| {
                     let p = [0, 1, 2].map(|i| c[i] + if bits >> i & 1 == 1 { h[i] } else { -h[i] });
                     dot(n, sub(p, v0))
@@ -1050,7 +1046,7 @@ mod tests {
                     non_pos |= g <= 0;
                 }
                 let cut = pos && non_pos;
-                assert_eq!(lo <= z && z <= hi, cut, "{v:?} column ({x}, {y}) {axis:?} z {z}: window {lo}..={hi}");
+                assert_eq!(lo <= z && z <= hi, cut, "{v:?} column ({x}, {y}) z {z}: window {lo}..={hi}");
                 if cut {
                     inside += 1
                 } else {
@@ -1100,7 +1096,7 @@ mod tests {
             let near: StdVec<NearWindows> =
                 tris.iter().map(|t| near_windows(t, voxel[0] as i32, voxel[1] as i32, u16::MAX)).collect();
             let column = Column { triangles: &tris, seen: None, target: None, near: Some(&near) };
-            let candidates = column.candidates(dir, voxel[2] as u16);
+            let candidates = column.candidates(voxel[2] as u16);
             let terminal = lcg(&mut s) % 4 == 0;
             let (mut t1, mut t2) = (ExactTests::new(), ExactTests::new());
             let with = ExactVisit::new(&mut t1, &tris, None, candidates, &src, dir, far, k, rect, terminal, None);

@@ -233,7 +233,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         // The triangles that may cut a plain beam past layer 1, when the host knows them
         // ([`crate::occluder::near_voxels`]); otherwise every one.
         let candidates = match (column, notch, k >= 2) {
-            (Some(c), None, true) => c.candidates(dir, m.z),
+            (Some(c), None, true) => c.candidates(m.z),
             _ => ALL_CANDIDATES,
         };
         let mut tests = ExactTests::new();

@@ -25,7 +25,7 @@ pub struct ColumnTriangles {
     /// Beside each kept triangle, its index in `distinct` (the scene's triangles, each once).
     ids: Vec<u32>,
     distinct: Vec<Triangle>,
-    /// Beside each kept triangle, its windows ([`NearWindows`]).
+    /// Beside each kept triangle, its depth window ([`NearWindows`]).
     near: Vec<NearWindows>,
     overflows: u64,
 }
