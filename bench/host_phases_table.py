@@ -17,7 +17,7 @@ PARALLEL = {"step", "links"}
 # Concerns by source file (the file a line of inlined code comes from), or by function name
 # for library code; first match wins.
 CONCERNS = [
-    ("frustum test (cell)", r"occupancy"),
+    ("frustum test (cell, and the host's table of its commonest answer)", r"occupancy|shortcut"),
     ("exact occluders (cell, and the host's per-source tables)",
      r"occluder|/lit\.rs|lit::|receiver|triangles?\.rs|occluders\.rs|ExactVisit|Seen"),
     ("beam split (cell)", r"beam\.rs|bounds\.rs|split|ceil_div"),
