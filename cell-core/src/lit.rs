@@ -107,6 +107,8 @@
 
 use crate::beam::{Direction, FarDistance, FracBits, Source};
 use crate::plane::DexelPlane;
+use crate::units::Depth;
+use crate::visible::VisibleSurface;
 use heapless::Vec;
 
 /// Which lit rule the cells apply. No default: a host's run names it (rc2's host: its presets).
@@ -127,7 +129,32 @@ pub enum LitRule {
     Exact,
 }
 
+/// The questions the rest of the machine asks of a lit rule, answered here once, so that no
+/// phase re-decides them with its own `match`. The rule's ray-by-ray behaviour itself (which
+/// rays a voxel stops or lights) is dispatched in one place per algorithm: the beam's fate
+/// ([`crate::light`]) and the classic shadow ray's emission ([`crate::shadow`]).
+///
+/// ```
+/// use cell_core::lit::LitRule;
+/// // What a trace byte or a message encodes, and back.
+/// for &rule in LitRule::ALL {
+///     assert_eq!(LitRule::from_code(rule.code()), Some(rule));
+///     assert_eq!(LitRule::from_name(rule.name()), Some(rule));
+/// }
+/// assert_eq!(LitRule::from_code(3), None);
+/// // The thesis's cell shades the first voxel of its column; the others the visible surface.
+/// assert!(!LitRule::Thesis.shades_visible_surface());
+/// assert!(LitRule::Plane.shades_visible_surface());
+/// assert_eq!(LitRule::Plane.receiver_window(), Some((0, 1)));
+/// ```
 impl LitRule {
+    /// Every rule this build of the cell has.
+    #[cfg(feature = "exact-occluders")]
+    pub const ALL: &'static [LitRule] = &[LitRule::Thesis, LitRule::Plane, LitRule::Exact];
+    /// Every rule this build of the cell has.
+    #[cfg(not(feature = "exact-occluders"))]
+    pub const ALL: &'static [LitRule] = &[LitRule::Thesis, LitRule::Plane];
+
     /// Whether this is the exact-occluder rule (always `false` without the feature).
     pub const fn is_exact(self) -> bool {
         #[cfg(feature = "exact-occluders")]
@@ -137,6 +164,98 @@ impl LitRule {
             let _ = self;
             false
         }
+    }
+
+    /// The rule's name, as hosts spell it in options and outputs.
+    pub const fn name(self) -> &'static str {
+        match self {
+            LitRule::Thesis => "thesis",
+            LitRule::Plane => "plane",
+            #[cfg(feature = "exact-occluders")]
+            LitRule::Exact => "exact",
+        }
+    }
+
+    /// The rule named `name` ([`LitRule::name`]), if this build has it.
+    pub fn from_name(name: &str) -> Option<LitRule> {
+        LitRule::ALL.iter().copied().find(|r| r.name() == name)
+    }
+
+    /// The rule's code in a trace record or an exchanged part (4 bits): 0 thesis, 1 plane,
+    /// 2 exact.
+    pub const fn code(self) -> u8 {
+        match self {
+            LitRule::Thesis => 0,
+            LitRule::Plane => 1,
+            #[cfg(feature = "exact-occluders")]
+            LitRule::Exact => 2,
+        }
+    }
+
+    /// The rule of code `code` ([`LitRule::code`]); `None` for an unknown code or one this
+    /// build lacks (a cell without exact occluders refuses code 2, never runs another rule).
+    pub const fn from_code(code: u8) -> Option<LitRule> {
+        match code {
+            0 => Some(LitRule::Thesis),
+            1 => Some(LitRule::Plane),
+            #[cfg(feature = "exact-occluders")]
+            2 => Some(LitRule::Exact),
+            _ => None,
+        }
+    }
+
+    /// Whether the cells need their column's triangles (the triangle store, the target ray,
+    /// the neighbours' contact answers) for this rule: exact occluders only.
+    pub const fn needs_triangles(self) -> bool {
+        self.is_exact()
+    }
+
+    /// Whether a column's pixel is its *visible surface* (the facet its centre line meets,
+    /// [`crate::visible`]: the plane rule and exact occluders), not the first voxel of its first
+    /// dexel (the thesis's cell). It decides what a cell shades, which lit mark its pixel reads,
+    /// where a classic shadow ray leaves from, and whether smooth normals or shadow-edge
+    /// refinement can apply.
+    pub const fn shades_visible_surface(self) -> bool {
+        !matches!(self, LitRule::Thesis)
+    }
+
+    /// Whether the rule tests rays one by one, so that a beam is cut into pieces of uniform
+    /// verdict and a classic ray walks the exact 6-connected segment (the plane rule and exact
+    /// occluders); the thesis's rule treats a beam whole.
+    pub const fn cuts_rays(self) -> bool {
+        !matches!(self, LitRule::Thesis)
+    }
+
+    /// The voxels of a column where a ray may light its visible surface, as offsets from the
+    /// surface's voxel `z_v` ([`crate::visible::VisibleSurface::z_v`]): the two bracketing it
+    /// (`z_v ..= z_v + 1`) under the plane rule, and the one in front of them too under exact
+    /// occluders (`z_v − 1 ..= z_v + 1`, where the target ray may arrive: [`crate::receiver`]).
+    /// `None` for the thesis's rule, whose pixel is the first voxel.
+    pub const fn receiver_window(self) -> Option<(i64, i64)> {
+        match self {
+            LitRule::Thesis => None,
+            LitRule::Plane => Some((0, 1)),
+            #[cfg(feature = "exact-occluders")]
+            LitRule::Exact => Some((-1, 1)),
+        }
+    }
+
+    /// Whether voxel `z` of a column receives its pixel's light: the first voxel of its first
+    /// dexel (`first`) under the thesis's rule, a voxel of [`LitRule::receiver_window`] around
+    /// its visible surface under the others. What a lit store restricted to the pixels keeps.
+    pub fn receives(self, first: Option<Depth>, visible: Option<&VisibleSurface>, z: Depth) -> bool {
+        match self.receiver_window() {
+            None => first == Some(z),
+            Some((lo, hi)) => visible.is_some_and(|v| (v.z_v as i64 + lo..=v.z_v as i64 + hi).contains(&(z as i64))),
+        }
+    }
+
+    /// How many voxels beyond an occupied voxel a beam may still be stopped: 1 under exact
+    /// occluders (a segment ending next to an occupied voxel may meet one of its triangles),
+    /// 0 under the rules that read the voxel's own dexel. The skips keep every beam that can
+    /// come this near an occupied voxel.
+    pub const fn occluder_reach(self) -> u16 {
+        self.is_exact() as u16
     }
 }
 
@@ -757,6 +876,41 @@ impl Visit {
 mod tests {
     extern crate std;
     use super::*;
+
+    /// Which voxels receive a column's light, against the definitions each rule's cell reads
+    /// elsewhere: the thesis's first voxel, the plane rule's two bracketing voxels
+    /// ([`VisibleSurface::brackets`]), exact occluders' three ([`VisibleSurface::receives`]).
+    #[test]
+    fn each_rule_receives_where_its_cell_reads_the_pixel() {
+        use crate::normal::NormalCode;
+        let plane = DexelPlane { id: 0, nx: 0, ny: 0, nz: -(16384 << 16), e: 8192 };
+        for z_v in -1..8 {
+            let v = VisibleSurface {
+                num: 2 * z_v as i64 + 1,
+                den: 2,
+                facet: 0,
+                material: 0,
+                normal: NormalCode::default(),
+                plane,
+                z_v,
+            };
+            for first in [None, Some(0), Some(3)] {
+                for z in 0..10u16 {
+                    assert_eq!(LitRule::Thesis.receives(first, Some(&v), z), first == Some(z));
+                    assert_eq!(LitRule::Plane.receives(first, Some(&v), z), v.brackets(z as i64));
+                    assert!(!LitRule::Plane.receives(first, None, z));
+                    #[cfg(feature = "exact-occluders")]
+                    assert_eq!(LitRule::Exact.receives(first, Some(&v), z), v.receives(z as i64));
+                }
+            }
+        }
+        for &r in LitRule::ALL {
+            assert_eq!(r.receiver_window().is_some(), r.shades_visible_surface(), "{r:?}");
+            assert_eq!(r.needs_triangles(), r.is_exact());
+            assert_eq!(r.occluder_reach() > 0, r.needs_triangles());
+        }
+        assert_eq!(LitRule::from_name("exactly"), None);
+    }
 
     /// The firmware's division (`floor_div` on ARM) is `div_euclid`, exactly: at the ends of
     /// the range and on random values.

@@ -632,10 +632,10 @@ pub fn cell_pixel<const D: usize>(
     lights: &[PointLight],
     params: &ShadeParams,
 ) -> Option<Pixel> {
-    match rule {
-        crate::lit::LitRule::Thesis => pixel(cell.x, cell.y, &cell.store, reached, materials, lights, params),
-        // The plane rule and exact occluders: the visible surface.
-        _ => cell.visible.as_ref().map(|v| surface_pixel(cell.x, cell.y, v, visible_lit, materials, lights, params)),
+    if rule.shades_visible_surface() {
+        cell.visible.as_ref().map(|v| surface_pixel(cell.x, cell.y, v, visible_lit, materials, lights, params))
+    } else {
+        pixel(cell.x, cell.y, &cell.store, reached, materials, lights, params)
     }
 }
 

@@ -227,10 +227,10 @@ impl<const FA: usize> ShadowCell<FA> {
     /// Start a source: point the emitter at the column's surfaces and launch what fits.
     pub fn start<const D: usize>(&mut self, cell: &Cell<D>, env: &ShadowEnv) -> Result<(), EmitError> {
         let first = cell.store.dexels().first().map(|d| (0, d.span.lo));
-        self.emitter = match env.rule {
-            LitRule::Thesis => Emitter { surface: false, next: first },
-            // The plane rule and exact occluders.
-            _ => Emitter { surface: cell.visible.is_some(), next: first.filter(|_| env.all_voxels) },
+        self.emitter = if env.rule.shades_visible_surface() {
+            Emitter { surface: cell.visible.is_some(), next: first.filter(|_| env.all_voxels) }
+        } else {
+            Emitter { surface: false, next: first }
         };
         self.launch(cell, env).map(|_| ())
     }

@@ -343,7 +343,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         let (u, v) = (lattice(b.u()), lattice(b.v()));
         let (dir, k) = (b.direction(), b.layer().0 as i64);
         #[cfg(feature = "exact-occluders")]
-        if env.rule == LitRule::Exact {
+        if env.rule.is_exact() {
             let triangles = env.occluders.map_or(&[][..], |o| o.triangles(self.x, self.y));
             let seen = env.occluders.and_then(|o| o.seen(self.x, self.y));
             let mut tests = ExactTests::new();

@@ -728,8 +728,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     /// entry still holds the rectangle of pieces already sent).
     #[cfg(debug_assertions)]
     fn check_conservation<const D: usize>(&self, i: usize, fate: &Fate<'_, F>, cell: &Cell<D>, env: &LightEnv<'_, F>) {
-        if env.rule != LitRule::Thesis && self.fifo[i].local.piece == 0 && fate.keep.is_none_or(|k| k.local.piece == 0)
-        {
+        if env.rule.cuts_rays() && self.fifo[i].local.piece == 0 && fate.keep.is_none_or(|k| k.local.piece == 0) {
             let before = self.present_rays(&self.fifo[i], cell, env);
             let subs: u64 = fate.subs.iter().map(|(_, s)| self.present_rays(s, cell, env)).sum();
             let kept = fate.keep.as_ref().map_or(0, |k| self.present_rays(k, cell, env));
@@ -808,15 +807,10 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
     /// Mark voxel `z` lit by this source, where the lit store keeps it.
     #[inline(always)]
     fn mark_lit<const D: usize>(&mut self, z: Depth, cell: &Cell<D>, env: &LightEnv<'_, F>) {
-        let shown = match env.rule {
-            LitRule::Thesis => !env.lit_visible_only || cell.store.dexels().first().is_some_and(|d| d.span.lo == z),
-            // The image reads the visible surface's mark; the lit store is for the lit set,
-            // restricted to the two voxels bracketing the visible surface (and under exact
-            // occluders the one in front of them, where the target ray may arrive).
-            LitRule::Plane => !env.lit_visible_only || cell.visible.is_some_and(|v| v.brackets(z as i64)),
-            #[cfg(feature = "exact-occluders")]
-            LitRule::Exact => !env.lit_visible_only || cell.visible.is_some_and(|v| v.receives(z as i64)),
-        };
+        // The image reads its pixel's mark; the full lit store is for the lit set, the
+        // visible-only one keeps the voxels that receive the pixel's light.
+        let shown = !env.lit_visible_only
+            || env.rule.receives(cell.store.dexels().first().map(|d| d.span.lo), cell.visible.as_ref(), z);
         if shown && !self.lit.mark(z, env.source_bit) {
             self.counters.lit_overflows += 1;
         }

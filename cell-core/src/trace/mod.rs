@@ -434,12 +434,7 @@ fn put_light_setup(w: &mut SliceWriter<'_>, s: &LightSetup) -> Result<(), Encode
             }
         }
     }
-    let rule = match s.rule {
-        LitRule::Thesis => 0,
-        LitRule::Plane => 1,
-        #[cfg(feature = "exact-occluders")]
-        LitRule::Exact => 2,
-    };
+    let rule = s.rule.code();
     let origin: u8 = match s.source.origin {
         Origin::SourceVoxel => 0,
         #[cfg(feature = "rays-from-light")]
@@ -582,13 +577,7 @@ pub fn get_light_setup(
     };
     s.frustum = frustum(r, s.n, s.depth)?;
     let code = r.u8()?;
-    s.rule = match code & 0x0f {
-        0 => LitRule::Thesis,
-        1 => LitRule::Plane,
-        #[cfg(feature = "exact-occluders")]
-        2 => LitRule::Exact,
-        _ => return Err(DecodeError::BadValue("lit rule").into()),
-    };
+    s.rule = LitRule::from_code(code & 0x0f).ok_or(DecodeError::BadValue("lit rule"))?;
     s.source.origin = match code >> 4 {
         0 => Origin::SourceVoxel,
         #[cfg(feature = "rays-from-light")]
@@ -1104,7 +1093,7 @@ impl<
     /// anything else: a trace without them does not replay).
     fn neighbour_contact(&mut self, shadowed: bool) -> Result<(), ReplayError> {
         let bad = DecodeError::BadValue("a neighbour contact answer without a target's contact segment");
-        if !matches!(self.rays, Rays::Idle) || !self.setup.ok_or(ReplayError::NoLightSetup)?.rule.is_exact() {
+        if !matches!(self.rays, Rays::Idle) || !self.setup.ok_or(ReplayError::NoLightSetup)?.rule.needs_triangles() {
             return Err(bad.into());
         }
         #[cfg(feature = "exact-occluders")]
@@ -1128,7 +1117,7 @@ impl<
             rays::Rays::Shadow(_, s) => s.env.rule,
             _ => self.setup.ok_or(ReplayError::NoLightSetup)?.rule,
         };
-        if !rule.is_exact() {
+        if !rule.needs_triangles() {
             return Err(DecodeError::BadValue("a triangle outside exact occluders").into());
         }
         #[cfg(feature = "exact-occluders")]
@@ -1147,7 +1136,7 @@ impl<
         #[allow(unused_mut)]
         let mut env = setup.env(&order)?;
         #[cfg(feature = "exact-occluders")]
-        if setup.rule == LitRule::Exact {
+        if setup.rule.needs_triangles() {
             env.occluders = Some(&self.column);
         }
         for _ in 0..n {
@@ -1223,7 +1212,7 @@ impl ReplayColumn {
     /// surface under exact occluders.
     fn start<F: FracBits, const D: usize>(&mut self, cell: &Cell<D>, s: &LightSetup) -> Result<(), ReplayError> {
         self.clear();
-        if s.rule.is_exact() {
+        if s.rule.needs_triangles() {
             let far = FarDistance::new(s.far).ok_or(ReplayError::BadFar)?;
             self.target = cell
                 .visible

@@ -146,12 +146,7 @@ fn flag(r: &mut Reader<'_>, what: &'static str) -> Result<bool, DecodeError> {
 pub(super) fn put_shadow_setup(w: &mut SliceWriter<'_>, s: &ShadowSetup) -> Result<(), EncodeError> {
     let e = &s.env;
     e.source.iter().try_for_each(|&c| w.i32(c))?;
-    w.u8(match e.rule {
-        LitRule::Thesis => 0,
-        LitRule::Plane => 1,
-        #[cfg(feature = "exact-occluders")]
-        LitRule::Exact => 2,
-    })?;
+    w.u8(e.rule.code())?;
     w.u8(connectivity_code(e.connectivity))?;
     w.u8(e.all_voxels as u8)?;
     w.u8(e.bias)?;
@@ -163,14 +158,9 @@ pub(super) fn put_shadow_setup(w: &mut SliceWriter<'_>, s: &ShadowSetup) -> Resu
 /// The payload of a shadow setup record.
 pub(super) fn get_shadow_setup(r: &mut Reader<'_>) -> Result<ShadowSetup, DecodeError> {
     let source = [r.i32()?, r.i32()?, r.i32()?];
-    let rule = match r.u8()? {
-        0 => LitRule::Thesis,
-        1 => LitRule::Plane,
-        // The column's triangles follow in their own records ([`super::Event::Triangle`]).
-        #[cfg(feature = "exact-occluders")]
-        2 => LitRule::Exact,
-        _ => return Err(DecodeError::BadValue("lit rule")),
-    };
+    // Under exact occluders the column's triangles follow in their own records
+    // ([`super::Event::Triangle`]).
+    let rule = LitRule::from_code(r.u8()?).ok_or(DecodeError::BadValue("lit rule"))?;
     let connectivity = connectivity_of(r.u8()?)?;
     let all_voxels = flag(r, "emitters")?;
     let (bias, fa) = (r.u8()?, r.u16()? as usize);

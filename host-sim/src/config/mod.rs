@@ -264,7 +264,7 @@ impl RunConfig {
                  run without --lit-visible-only (and --skip-hidden)"
             );
         }
-        if l.oracle_skip != OracleSkip::Off && (l.rule != LitRule::Exact || !l.lit_visible_only) {
+        if l.oracle_skip != OracleSkip::Off && (!l.rule.needs_triangles() || !l.lit_visible_only) {
             bail!(
                 "--oracle-skip drops the beams no pixel's target ray is in: it needs exact occluders \
                  (--lit-rule exact) and the visible-only lit store (render's default)"
@@ -332,19 +332,16 @@ impl RunConfig {
 
 /// The CLI name of a lit rule.
 pub const fn rule_name(r: LitRule) -> &'static str {
-    match r {
-        LitRule::Thesis => "thesis",
-        LitRule::Plane => "plane",
-        LitRule::Exact => "exact",
-    }
+    r.name()
 }
 
 /// Bytes a cell's stores take beyond its dexels and its lighting cell under run `l`: the
 /// column's triangle store under exact occluders, the occupancy summary when a skip tests it.
 pub fn extra_cell_bytes(l: &LightConfig) -> usize {
-    let triangles = match l.rule {
-        LitRule::Exact => std::mem::size_of::<cell_core::occluder::TriangleStore<TRIANGLE_CAP>>(),
-        _ => 0,
+    let triangles = if l.rule.needs_triangles() {
+        std::mem::size_of::<cell_core::occluder::TriangleStore<TRIANGLE_CAP>>()
+    } else {
+        0
     };
     let summary = if l.skip_frustum || l.skip_hidden { l.frustum_blocks.bytes() } else { 0 };
     triangles + summary

@@ -51,17 +51,21 @@ pub struct Knobs {
 }
 
 impl Knobs {
-    /// The configuration `render` runs with no options.
-    pub const DEFAULT: Knobs = Knobs {
-        f: crate::config::DEFAULT_FRAC_BITS,
-        thickness: Thickness::Standard,
-        contour: Contour::Conservative,
-        normals: NormalMode::Facet,
-        fa: 16,
-        policy: Policy::Radial,
-        rule: LitRule::Exact,
-        rays: Origin::Light,
-        refine: false,
+    /// The configuration `render` runs with no options: its preset's
+    /// ([`crate::config::Preset::Render`]), flat normals, no shadow-edge refinement.
+    pub const DEFAULT: Knobs = {
+        let (load, light) = (crate::config::Preset::Render.load(), crate::config::Preset::Render.light());
+        Knobs {
+            f: light.frac_bits,
+            thickness: load.thickness,
+            contour: load.contour,
+            normals: NormalMode::Facet,
+            fa: light.fa,
+            policy: light.policy,
+            rule: light.rule,
+            rays: light.rays,
+            refine: false,
+        }
     };
 
     /// What `render` ran with no options before the plane rule: the thesis's rule on thin

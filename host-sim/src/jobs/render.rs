@@ -298,9 +298,10 @@ fn render_classic(
     let (cl, stats) = run_classic(input.mesh, input.scene, input.lights, classic_cfg, progress)?;
     let light_seconds = t0.elapsed().as_secs_f64();
     let r = {
-        let seen = match classic_cfg.rule {
-            LitRule::Thesis => Seen::FirstVoxel(Box::new(|x, y, _| cl.mask(x, y))),
-            LitRule::Plane | LitRule::Exact => Seen::Surface(Box::new(|x, y| cl.mask(x, y))),
+        let seen = if classic_cfg.rule.shades_visible_surface() {
+            Seen::Surface(Box::new(|x, y| cl.mask(x, y)))
+        } else {
+            Seen::FirstVoxel(Box::new(|x, y, _| cl.mask(x, y)))
         };
         shade(input, cfg, &seen, stats, light_seconds)
     };
@@ -492,7 +493,7 @@ impl RenderOptions {
         }
         if self.smooth.is_some() {
             let rule = self.light.classic.as_ref().map_or(light.rule, |c| c.rule);
-            if rule == LitRule::Thesis {
+            if !rule.shades_visible_surface() {
                 bail!(
                     "--normals gouraud|phong shade the surface a column's centre line meets: they need \
                      --lit-rule plane or exact (the thesis's rule shows the first voxel, whose point on its facet is not known)"

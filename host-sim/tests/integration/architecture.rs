@@ -406,3 +406,76 @@ fn f_is_confined_to_the_machine() {
         c.code.iter().filter(|(_, code)| code.contains("with_frac_bits!")).map(|(m, _)| name(m)).collect();
     assert_eq!(dispatch, ["machine::lighting::diffuse"], "one place picks the cells' build for an f");
 }
+
+/// The places in `code` that decide something by the lit rule's variant: a `match` arm on it
+/// (`LitRule::Plane =>`, `LitRule::Thesis | …`) or a comparison with one (`== LitRule::Exact`).
+/// Naming a variant as a value (a preset, a parsed option) is not a decision.
+fn rule_decisions(code: &str) -> usize {
+    let mut n = 0;
+    for (i, _) in code.match_indices("LitRule::") {
+        let rest = &code[i + "LitRule::".len()..];
+        let variant = rest.find(|ch: char| !ch.is_alphanumeric() && ch != '_').unwrap_or(rest.len());
+        if !rest[..variant].starts_with(|ch: char| ch.is_uppercase()) {
+            continue; // a method or constant (`LitRule::from_code`, `LitRule::ALL`)
+        }
+        let after = rest[variant..].trim_start();
+        // An arm, alone or closing a tuple pattern (`(true, LitRule::Plane) =>`).
+        let closed = after.trim_start_matches(|ch: char| ch == ')' || ch.is_whitespace());
+        let arm = after.starts_with("=>") || (after.starts_with(')') && closed.starts_with("=>"));
+        let or = after.starts_with('|') && !after.starts_with("||");
+        let before = code[..i].trim_end_matches(|ch: char| ch.is_alphanumeric() || ch == '_' || ch == ':').trim_end();
+        let compared = before.ends_with("==") || before.ends_with("!=");
+        let alternative = before.ends_with('|') && !before.ends_with("||");
+        // `if let LitRule::Plane = …`, `if let (LitRule::Plane, …) = …`, `matches!(r, LitRule::Plane)`.
+        let line = &code[code[..i].rfind('\n').map_or(0, |k| k + 1)..i];
+        let pattern = line.rfind("if let ").is_some_and(|k| !line[k..].contains('='))
+            || line.rfind("matches!(").is_some_and(|k| !line[k..].contains(')'));
+        n += (arm || or || compared || alternative || pattern) as usize;
+    }
+    n
+}
+
+#[test]
+fn rule_decisions_are_arms_and_comparisons_not_values() {
+    let decided = "match r { LitRule::Thesis => 0, cell_core::lit::LitRule::Plane | LitRule::Exact => 1 }\n\
+                   if cfg.rule == LitRule::Exact {} if a != cell_core::lit::LitRule::Thesis {}\n\
+                   match (v, r) { (true, LitRule::Plane) => 1, _ => 0 }\n\
+                   if let (LitRule::Plane, Some(s)) = (r, s) {}\n\
+                   matches!(r, LitRule::Exact)";
+    assert_eq!(rule_decisions(decided), 8);
+    let values = "let r = LitRule::Plane; f(LitRule::Exact, x); LitRule::from_code(2); LitRule::ALL;\n\
+                  a || LitRule::Thesis.is_exact(); if let Some(r) = f(LitRule::Plane) {} rule: LitRule::Exact,";
+    assert_eq!(rule_decisions(values), 0);
+}
+
+/// The lit rule is asked in one place (issue: "the lit rule re-decided at ~65 lines"): what a
+/// pixel reads, which marks a cell keeps, which voxels receive, what needs triangles, how a rule
+/// is encoded or named are methods of `cell_core::lit::LitRule`; the rule's ray-by-ray work is
+/// dispatched once per algorithm. Nothing else matches on its variants or compares with one.
+#[test]
+fn the_lit_rule_is_asked_in_one_place() {
+    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
+    // (crate, module) → decisions allowed there, and why.
+    let allowed: BTreeMap<(&str, &str), usize> = [
+        // The rule's own answers.
+        (("cell-core", "lit"), usize::MAX),
+        // A beam's fate: the rule's algorithm, dispatched once per visit.
+        (("cell-core", "light::fate"), 3),
+        // A classic shadow ray's emission point: the rule's algorithm, dispatched once per ray.
+        (("cell-core", "shadow"), 1),
+        // A radiosity shot is defined under the thesis's rule only: a validation.
+        (("host-sim", "machine::lighting::diffuse"), 1),
+    ]
+    .into();
+    let mut bad = Vec::new();
+    for (krate, src) in [("host-sim", here.join("src")), ("cell-core", here.join("../cell-core/src"))] {
+        for (m, code) in &read_crate_at(&src).code {
+            let (name, n) = (name(m), rule_decisions(code));
+            let limit = allowed.get(&(krate, name.as_str())).copied().unwrap_or(0);
+            if n > limit {
+                bad.push(format!("{krate} {name}: {n} (allowed {limit})"));
+            }
+        }
+    }
+    assert!(bad.is_empty(), "the lit rule decided by its variants outside cell_core::lit: {bad:?}");
+}

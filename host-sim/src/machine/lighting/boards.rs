@@ -53,7 +53,6 @@ use cell_core::beam::{FracBits, Source, SplitOrder};
 use cell_core::facet::{PipelinePacket, RowPacket};
 use cell_core::light::{Activity, ActivityDelta, BeamMsg, LightCell, LightEnv, Port};
 use cell_core::link::{Link, PerfectLink, Sent};
-use cell_core::lit::LitRule;
 use cell_core::occluder::ColumnOccluders;
 use cell_core::termination::{Action, Node, Token};
 use cell_core::voxelize::PipelineCell;
@@ -311,7 +310,7 @@ fn run_f<F: FracBits>(
     let mut ex = Executor::<F>::new(&prepared.packets, n, sources.len(), cfg)?;
     let mut grid = LightGrid::new(n, n);
     ex.schedule(0, |ex, b| ex.step_loading(b, &mut grid), |_, _, _| {})?;
-    let exact = light.rule == LitRule::Exact;
+    let exact = light.rule.needs_triangles();
     if exact {
         grid.triangles = ColumnTriangles::from_polygons(&prepared.polygons, n)?;
     }

@@ -150,7 +150,7 @@ pub fn summarise(
         light_cell_bytes(cfg.frac_bits).ok_or_else(|| unsupported_frac_bits(cfg.frac_bits))?;
     let n = scene.grid.n;
     check_lit_overflow(&lighting)?;
-    if cfg.rule == cell_core::lit::LitRule::Exact {
+    if cfg.rule.needs_triangles() {
         check_triangle_overflow(&scene.grid);
     }
     let r = &lighting.reports;
@@ -171,11 +171,7 @@ pub fn summarise(
         totals,
         lit_voxels: lighting.lit_voxels().count() as u64,
         lit_overflows: lighting.lit_overflows(),
-        triangle_overflows: if cfg.rule == cell_core::lit::LitRule::Exact {
-            scene.grid.triangles.overflows()
-        } else {
-            0
-        },
+        triangle_overflows: if cfg.rule.needs_triangles() { scene.grid.triangles.overflows() } else { 0 },
         bytes_beam_message,
         bytes_light_cell,
         sources: r.clone(),

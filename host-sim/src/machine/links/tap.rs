@@ -16,7 +16,6 @@ use cell_core::cell::DEFAULT_DEXELS;
 use cell_core::facet::RowPacket;
 use cell_core::light::{BeamMsg, FrustumSummary, LightEnv, Port, Step};
 use cell_core::link::{Link, Sent};
-use cell_core::lit::LitRule;
 use cell_core::occluder::Triangle;
 use cell_core::reflect::Answer;
 use cell_core::reflect_cell::{ReflectAnswer, ReflectCell};
@@ -242,7 +241,7 @@ impl Tap {
     /// A source's classic shadow-ray phase: its setup record, and under exact occluders each
     /// cell's own triangles after it.
     pub fn shadow_setup(&mut self, setup: ShadowSetup, triangles: &crate::machine::grid::triangles::ColumnTriangles) {
-        let exact = setup.env.rule == LitRule::Exact;
+        let exact = setup.env.rule.needs_triangles();
         self.all::<U0>(&Event::Shadow(setup));
         if exact {
             self.triangles::<U0>(|x, y| triangles.column(x, y));

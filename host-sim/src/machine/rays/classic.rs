@@ -221,7 +221,7 @@ fn check_run(n: u32, lights: &[[f64; 3]], cfg: &ClassicConfig) -> Result<()> {
     for (i, &l) in lights.iter().enumerate() {
         crate::machine::lighting::diffuse::source_at(i, l, n)?;
     }
-    if cfg.rule != LitRule::Thesis && cfg.connectivity != Connectivity::Six {
+    if cfg.rule.cuts_rays() && cfg.connectivity != Connectivity::Six {
         bail!(
             "the plane rule and exact occluders walk the exact segment (6-connected): use \
              --ray-connectivity 6, or --lit-rule thesis for {}-connected rays",
@@ -598,7 +598,7 @@ fn refine_edges_with(
     progress: &mut dyn FnMut(usize, u64),
 ) -> Result<RefineCounts> {
     let n = scene.grid.n as usize;
-    if cfg.rule == LitRule::Thesis {
+    if !cfg.rule.shades_visible_surface() {
         bail!("shadow-edge refinement needs visible surfaces: use --lit-rule exact or plane");
     }
     check_run(scene.grid.n, lights, cfg)?;
@@ -650,7 +650,7 @@ fn run_classic_with(
 ) -> Result<(ClassicLighting, LightStats)> {
     let t0 = Instant::now();
     let cl = classic_tapped(scene, lights, cfg, None, progress)?;
-    let exact = cfg.rule == LitRule::Exact;
+    let exact = cfg.rule.needs_triangles();
     if exact {
         crate::machine::lighting::run::check_triangle_overflow(&scene.grid);
     }

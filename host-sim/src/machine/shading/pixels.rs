@@ -6,7 +6,6 @@
 //! cells' shading error against the same formula in f64 with the same inputs.
 
 use cell_core::light::SourceMask;
-use cell_core::lit::LitRule;
 use cell_core::shade::{
     pixel, shading_normal_toward, surface_pixel, Eye, Material as CellMaterial, NormalMode, PointLight, ShadeParams,
 };
@@ -75,9 +74,10 @@ pub enum Seen<'a> {
 
 /// What the image of a diffusion reads, by its lit rule.
 pub fn seen(lighting: &crate::machine::lighting::diffuse::Lighting) -> Seen<'_> {
-    match lighting.rule {
-        LitRule::Thesis => Seen::FirstVoxel(Box::new(|x, y, z| lighting.mask(x, y, z))),
-        LitRule::Plane | LitRule::Exact => Seen::Surface(Box::new(|x, y| lighting.visible_mask(x, y))),
+    if lighting.rule.shades_visible_surface() {
+        Seen::Surface(Box::new(|x, y| lighting.visible_mask(x, y)))
+    } else {
+        Seen::FirstVoxel(Box::new(|x, y, z| lighting.mask(x, y, z)))
     }
 }
 

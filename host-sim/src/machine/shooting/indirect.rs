@@ -152,9 +152,10 @@ pub fn visible_points(mesh: &Mesh, scene: &LoadedScene, rule: LitRule) -> Vec<Op
         .iter()
         .map(|c| {
             let (x, y) = (c.x as f64, c.y as f64);
-            let (facet, z) = match rule {
-                LitRule::Thesis => c.store.dexels().first().map(|d| (d.facet, d.span.lo as f64))?,
-                LitRule::Plane | LitRule::Exact => c.visible.as_ref().map(|s| (s.facet, s.depth() as f64))?,
+            let (facet, z) = if rule.shades_visible_surface() {
+                c.visible.as_ref().map(|s| (s.facet, s.depth() as f64))?
+            } else {
+                c.store.dexels().first().map(|d| (d.facet, d.span.lo as f64))?
             };
             Some((face(facet)?, Vector::from(grid_to_world(mesh, scene, [x, y, z]))))
         })

@@ -6,7 +6,6 @@
 use anyhow::{bail, Result};
 use cell_core::beam::{Beam, Direction, FarDistance, FracBits, Source};
 use cell_core::light::{Activity, ActivityDelta, BeamMsg, LightEnv, OccupiedBox, Port, Step};
-use cell_core::lit::LitRule;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Relaxed};
 
 use super::*;
@@ -555,7 +554,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
             n: self.grid.n as usize,
             wave: self.env.policy.by_layer(),
             link_rate: self.link_rate,
-            reads_dexels: self.env.rule != LitRule::Exact || !self.env.lit_visible_only,
+            reads_dexels: !self.env.rule.needs_triangles() || !self.env.lit_visible_only,
         };
         let visit = if self.stepping == Stepping::AllCells { &self.all } else { &self.active };
         let pieces = tiles(self.cells, visit, PIECE);

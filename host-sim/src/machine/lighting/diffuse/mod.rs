@@ -606,7 +606,7 @@ fn frustum_summary<const D: usize>(grid: &Grid<D>, cfg: &LightConfig, tapped: bo
     if cfg.skip_hidden && !cfg.lit_visible_only {
         bail!("the hidden-voxel skip drops the light of hidden voxels: use it with --lit-visible-only");
     }
-    if cfg.oracle_skip != OracleSkip::Off && (cfg.rule != LitRule::Exact || !cfg.lit_visible_only) {
+    if cfg.oracle_skip != OracleSkip::Off && (!cfg.rule.needs_triangles() || !cfg.lit_visible_only) {
         bail!("--oracle-skip reads the pixels' target rays: it needs exact occluders and --lit-visible-only");
     }
     let frustum =
@@ -674,7 +674,7 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
         let blocks = self.frustum.filter(|_| self.shot.is_none()).map(|s| (s, s.occupied_blocks()));
         for (si, src) in self.sources.iter().enumerate().filter(|(si, _)| self.share.takes(*si)) {
             let mut lap = Lap::start();
-            let occluders = (cfg.rule == LitRule::Exact).then(|| SourceOccluders::new(self.grid, src, self.far));
+            let occluders = cfg.rule.needs_triangles().then(|| SourceOccluders::new(self.grid, src, self.far));
             let mut env = self.env(src, si, &order, occluders.as_ref().map(|o| o as &dyn ColumnOccluders));
             // The host's table of the frustum test's commonest answer (same answers, faster).
             let shortcut = blocks.as_ref().and_then(|(s, b)| Shortcut::new(s.test(), src, self.far, b));

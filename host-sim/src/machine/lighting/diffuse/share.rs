@@ -8,7 +8,7 @@
 //! [`encode_part`] and [`decode_part`] carry a part as bytes between processes (the MPI
 //! layer, `crate::dist`, moves them; nothing here knows how).
 
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use cell_core::light::{LightCounters, LitRun, LitRuns, SourceMask};
 use cell_core::lit::LitRule;
 use cell_core::units::Depth;
@@ -194,7 +194,7 @@ pub fn encode_part(l: &Lighting) -> Result<Vec<u8>> {
     let mut w = Writer(Vec::with_capacity(64 + l.cells.len() * 96));
     w.0.extend_from_slice(MAGIC);
     w.u32(l.n);
-    w.u8(rule_code(l.rule));
+    w.u8(l.rule.code());
     w.u64(l.cells.len() as u64);
     for c in &l.cells {
         w.u16(c.x);
@@ -227,7 +227,9 @@ pub fn decode_part(bytes: &[u8]) -> Result<Lighting> {
         bail!("not an encoded lighting part (or one of another version)");
     }
     let n = r.u32()?;
-    let rule = rule_of(r.u8()?)?;
+    let code = r.u8()?;
+    let rule = LitRule::from_code(code)
+        .ok_or_else(|| anyhow!("a lighting part names lit rule {code}, which does not exist"))?;
     let len = r.len(16)?;
     let mut cells = Vec::with_capacity(len);
     let mut voxels = Vec::new();
@@ -263,23 +265,6 @@ pub fn decode_part(bytes: &[u8]) -> Result<Lighting> {
         bail!("{} bytes left over after a lighting part", bytes.len() - r.at);
     }
     Ok(Lighting { n, cells, reports, visited: None, link_faults: None, rule, phases })
-}
-
-fn rule_code(rule: LitRule) -> u8 {
-    match rule {
-        LitRule::Thesis => 0,
-        LitRule::Plane => 1,
-        LitRule::Exact => 2,
-    }
-}
-
-fn rule_of(code: u8) -> Result<LitRule> {
-    Ok(match code {
-        0 => LitRule::Thesis,
-        1 => LitRule::Plane,
-        2 => LitRule::Exact,
-        _ => bail!("a lighting part names lit rule {code}, which does not exist"),
-    })
 }
 
 fn counters_to(w: &mut Writer, c: &LightCounters) {

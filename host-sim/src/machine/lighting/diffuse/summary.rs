@@ -125,68 +125,61 @@ fn summarise<const B: usize, R: BlockRow, const D: usize>(
     let mut s = OccupancySummary::new(grid.n, grid.depth);
     for c in &grid.cells {
         let (x, y) = (c.x as u32, c.y as u32);
-        match (visible_only, rule) {
-            (false, LitRule::Exact) => {
-                // A ray meets a triangle within one voxel of its voxels at the segment's ends,
-                // and every point of a triangle lies in an occupied voxel: a beam can do
-                // something only near an occupied voxel, or at its target.
-                if let Some((lo, hi)) = active_span(c, grid.depth, rule) {
-                    for (nx, ny) in neighbourhood(x, y, grid.n) {
-                        s.mark_span(nx, ny, lo as u32, hi as u32);
-                    }
+        if visible_only {
+            if let Some((lo, hi)) = pixel_span(c, grid.depth, rule) {
+                s.mark_span(x, y, lo as u32, hi as u32);
+            }
+        } else if rule.occluder_reach() > 0 {
+            // A ray meets a triangle within one voxel of its voxels at the segment's ends,
+            // and every point of a triangle lies in an occupied voxel: a beam can do
+            // something only near an occupied voxel, or at its target.
+            if let Some((lo, hi)) = active_span(c, grid.depth, rule) {
+                for (nx, ny) in neighbourhood(x, y, grid.n) {
+                    s.mark_span(nx, ny, lo as u32, hi as u32);
                 }
             }
-            (false, _) => {
-                s.mark_column(x, y, c.store.dexels());
-                // Under the plane rule a ray may light the pixel in an empty voxel bracketing
-                // the visible surface: a beam that can reach one is not empty.
-                if let (LitRule::Plane, Some((lo, hi))) = (rule, active_span(c, grid.depth, rule)) {
-                    s.mark_span(x, y, lo as u32, hi as u32);
-                }
-            }
-            (true, LitRule::Thesis) => {
-                if let Some(d) = c.store.dexels().first() {
-                    s.mark_span(x, y, d.span.lo as u32, d.span.lo as u32);
-                }
-            }
-            (true, LitRule::Plane | LitRule::Exact) => {
-                if let Some((lo, hi)) = c.visible.map(|v| receiver_span(&v, grid.depth, rule)) {
-                    s.mark_span(x, y, lo as u32, hi as u32);
-                }
+        } else {
+            s.mark_column(x, y, c.store.dexels());
+            // Under the plane rule a ray may light the pixel in an empty voxel bracketing
+            // the visible surface: a beam that can reach one is not empty.
+            if let Some((lo, hi)) = active_span(c, grid.depth, rule).filter(|_| rule.shades_visible_surface()) {
+                s.mark_span(x, y, lo as u32, hi as u32);
             }
         }
     }
     s
 }
 
-/// The voxels of a column where a ray may light its pixel, clipped to the grid: the two
-/// bracketing its visible surface under the plane rule, and the one in front of them too under
-/// exact occluders (where the target ray may arrive, `cell_core::receiver`).
+/// The voxels of column `c` that receive its pixel's light ([`LitRule::receives`]), clipped
+/// to the grid: its first voxel under the thesis's rule, the receiver window around its
+/// visible surface under the others.
+fn pixel_span<const D: usize>(c: &cell_core::cell::Cell<D>, depth: u32, rule: LitRule) -> Option<(u16, u16)> {
+    match rule.receiver_window() {
+        None => c.store.dexels().first().map(|d| (d.span.lo, d.span.lo)),
+        Some(_) => c.visible.map(|v| receiver_span(&v, depth, rule)),
+    }
+}
+
+/// The voxels of a column where a ray may light its visible surface ([`LitRule::receiver_window`]),
+/// clipped to the grid.
 fn receiver_span(v: &cell_core::visible::VisibleSurface, depth: u32, rule: LitRule) -> (u16, u16) {
     let top = depth as i64 - 1;
-    let front = (rule == LitRule::Exact) as i64;
-    let (lo, hi) = ((v.z_v as i64 - front).clamp(0, top), (v.z_v as i64 + 1).clamp(0, top));
+    let (front, back) = rule.receiver_window().unwrap_or((0, 0));
+    let (lo, hi) = ((v.z_v as i64 + front).clamp(0, top), (v.z_v as i64 + back).clamp(0, top));
     (lo as u16, hi as u16)
 }
 
 /// The depths of column `c` where a beam can do something besides passing: its occupied
-/// voxels, and under the plane rule the two voxels bracketing its visible surface (where a ray
-/// may light the pixel in an empty voxel), clipped to the grid. The skips keep every beam that
-/// can reach one.
+/// voxels (grown by the rule's [`LitRule::occluder_reach`]), and where the pixel is the visible
+/// surface the voxels that receive its light (a ray may light the pixel in an empty voxel),
+/// clipped to the grid. The skips keep every beam that can reach one.
 fn active_span<const D: usize>(c: &cell_core::cell::Cell<D>, depth: u32, rule: LitRule) -> Option<(u16, u16)> {
     let ds = c.store.dexels();
     let occupied = ds.first().zip(ds.last()).map(|(f, l)| (f.span.lo, l.span.hi));
     let top = depth as i64 - 1;
-    // Under exact occluders a segment ending in a voxel next to an occupied one may meet a
-    // triangle: the occupied span grows by one voxel each way.
-    let occupied = match rule {
-        LitRule::Exact => occupied.map(|(lo, hi)| (lo.saturating_sub(1), (hi as i64 + 1).min(top) as u16)),
-        _ => occupied,
-    };
-    let bracket = match rule {
-        LitRule::Thesis => None,
-        LitRule::Plane | LitRule::Exact => c.visible.map(|v| receiver_span(&v, depth, rule)),
-    };
+    let reach = rule.occluder_reach();
+    let occupied = occupied.map(|(lo, hi)| (lo.saturating_sub(reach), (hi as i64 + reach as i64).min(top) as u16));
+    let bracket = c.visible.filter(|_| rule.shades_visible_surface()).map(|v| receiver_span(&v, depth, rule));
     match (occupied, bracket) {
         (Some(a), Some(b)) => Some((a.0.min(b.0), a.1.max(b.1))),
         (a, b) => a.or(b),
@@ -200,7 +193,7 @@ pub fn occupied_box<const D: usize>(grid: &Grid<D>, rule: LitRule) -> OccupiedBo
     for c in &grid.cells {
         if let Some((lo, hi)) = active_span(c, grid.depth, rule) {
             // Exact occluders: one column more each way ([`active_span`]).
-            let g = (rule == LitRule::Exact) as u16;
+            let g = rule.occluder_reach();
             let last = grid.n.saturating_sub(1) as u16;
             b.lo = [b.lo[0].min(c.x.saturating_sub(g)), b.lo[1].min(c.y.saturating_sub(g)), b.lo[2].min(lo)];
             b.hi = [b.hi[0].max((c.x + g).min(last)), b.hi[1].max((c.y + g).min(last)), b.hi[2].max(hi)];
