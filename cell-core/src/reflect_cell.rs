@@ -36,7 +36,7 @@
 //! use cell_core::dexel::FacetTag;
 //! use cell_core::plane::ColumnPlane;
 //! use cell_core::ray::{Connectivity, Q};
-//! use cell_core::reflect::ReflectNormal;
+//! use cell_core::reflect::{HitPoint, ReflectNormal};
 //! use cell_core::reflect_cell::{ReflectCell, ReflectEnv, Surfaces};
 //! use cell_core::shade::{Eye, Material, NormalMode, ShadeParams};
 //! use cell_core::units::Span;
@@ -52,6 +52,7 @@
 //!     depth: 1,
 //!     threshold: 0.01,
 //!     normal: ReflectNormal::Face,
+//!     hit: HitPoint::Centre,
 //!     skip_own_facet: true,
 //!     connectivity: Connectivity::Six,
 //!     fa: 2,
@@ -82,7 +83,8 @@ use crate::dexel::Dexel;
 use crate::light::{Port, SourceMask};
 use crate::ray::{Connectivity, LineError};
 use crate::reflect::{
-    combine, hit_normal, reflected_dir, to_answer, toward_origin, Answer, ReflectNormal, ReflectRay, ReflectStep,
+    combine, hit_normal, hit_point, reflected_dir, to_answer, toward_origin, walk_start, Answer, HitPoint, Incident,
+    ReflectNormal, ReflectRay, ReflectStep,
 };
 use crate::route::Routed;
 use crate::shade::{encode, facing_mask, shade_linear_toward, shading_normal, Material, PointLight, ShadeParams, VIEW};
@@ -100,6 +102,8 @@ pub struct ReflectEnv {
     pub threshold: f32,
     /// Normal that mirrors the rays (§5.2).
     pub normal: ReflectNormal,
+    /// Where a reflected ray leaves the voxel it reflects from (§5.3).
+    pub hit: HitPoint,
     /// Ignore voxels of the facet a ray left (§5.5.2).
     pub skip_own_facet: bool,
     /// Connectivity of the rays' lines.
@@ -166,20 +170,23 @@ impl Surfaces<'_> {
     }
 }
 
-/// The ray a voxel `at` of dexel `d` emits after being reached by a ray of direction
-/// `incident` entering by the faces `entry` (the primary ray: (0, 0, 1), face −z), answering to
-/// `parent`'s slot; `Ok(None)` when the mirrored direction is degenerate.
+/// The ray a voxel `at` of dexel `d` emits after being reached by the ray `incident` (the
+/// primary ray: [`Incident::primary`]), from the point the environment's [`HitPoint`] rule
+/// gives, answering to `parent`'s slot; `Ok(None)` when the mirrored direction is degenerate.
 pub fn child_ray(
     at: [u16; 3],
     d: &Dexel,
-    incident: ([i32; 3], u8),
+    incident: &Incident,
     env: &ReflectEnv,
     parent: ([u16; 2], u16),
     level: u8,
     weight: f32,
 ) -> Result<Option<ReflectRay>, LineError> {
-    let Some(dir) = reflected_dir(incident.0, incident.1, d.normal, env.normal, env.span) else { return Ok(None) };
-    ReflectRay::new(at, dir, env.connectivity, parent.0, parent.1, d.facet, level, weight).map(Some)
+    let Some(dir) = reflected_dir(incident.dir, incident.entry, d.normal, env.normal, env.span) else {
+        return Ok(None);
+    };
+    let from = walk_start(hit_point(at, incident, &d.plane, d.span.lo, env.hit), dir, at, env.connectivity);
+    ReflectRay::leaving(from, dir, env.connectivity, parent.0, parent.1, d.facet, level, weight).map(Some)
 }
 
 /// A ray a cell could not build: the voxel and why.
@@ -374,7 +381,7 @@ impl<const FA: usize, const W: usize, const S: usize> ReflectCell<FA, W, S> {
         }
         let Some(slot) = self.open(WaitEntry { parent: None, local, kr }) else { return Ok(false) };
         let at = [x, y, d.span.lo];
-        match child_ray(at, d, ([0, 0, 1], 0b100), env, ([x, y], slot), 1, kr)
+        match child_ray(at, d, &Incident::primary(x, y), env, ([x, y], slot), 1, kr)
             .map_err(|error| RayError { at, error })?
         {
             Some(r) => self.queue_launch(r),
@@ -479,7 +486,7 @@ impl<const FA: usize, const W: usize, const S: usize> ReflectCell<FA, W, S> {
             Some(slot) => {
                 let at = [cell.x, cell.y, z];
                 let from = ([cell.x, cell.y], slot);
-                let r = child_ray(at, d, (ray.dir, ray.entry), env, from, ray.level + 1, w)
+                let r = child_ray(at, d, &Incident::of(ray), env, from, ray.level + 1, w)
                     .map_err(|error| RayError { at, error })?;
                 if r.is_none() {
                     self.close(slot);
@@ -615,6 +622,7 @@ mod tests {
             depth,
             threshold: 0.01,
             normal: ReflectNormal::Face,
+            hit: HitPoint::Centre,
             skip_own_facet: true,
             connectivity: Connectivity::Six,
             fa,
@@ -626,7 +634,7 @@ mod tests {
 
     /// A level-1 ray coming down column (1, 1) from z = 6 toward the mirror at z = 3.
     fn falling(slot: u16) -> ReflectRay {
-        ReflectRay::new([1, 1, 6], [0, 0, -SPAN], Connectivity::Six, [0, 0], slot, 7, 1, 1.0).unwrap()
+        ReflectRay::leaving([Q, Q, 6 * Q], [0, 0, -SPAN], Connectivity::Six, [0, 0], slot, 7, 1, 1.0).unwrap()
     }
 
     fn surfaces(mats: &[Material]) -> Surfaces<'_> {

@@ -1044,7 +1044,7 @@ mod tests {
             let r = ShadowRay::new([3, 4, 5], [40 * Q, -9 * Q + 3, 60 * Q], c, 11).unwrap().with_bias(2);
             rays.push(RayMsg::Shadow(r.for_surface()));
             let dir = [-7 * Q, 5 * Q, -31 * Q];
-            let mut f = ReflectRay::new([9, 8, 7], dir, c, [1, 2], 3, 4, 5, 0.25).unwrap();
+            let mut f = ReflectRay::leaving([9 * Q, 8 * Q, 7 * Q], dir, c, [1, 2], 3, 4, 5, 0.25).unwrap();
             let store = crate::dexel::DexelStore::<4>::new();
             while f.line.remaining() > 20 {
                 let _ = f.advance(&store, 64, 64, true);

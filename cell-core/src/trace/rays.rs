@@ -80,7 +80,7 @@ use crate::beam::FracBits;
 use crate::light::{Port, SourceMask};
 use crate::lit::LitRule;
 use crate::ray::{Connectivity, MAX_SPAN};
-use crate::reflect::{Answer, ReflectNormal, MAX_GRID};
+use crate::reflect::{Answer, HitPoint, ReflectNormal, MAX_GRID};
 use crate::reflect_cell::{ReflectAnswer, ReflectCell, ReflectEnv, Surfaces};
 use crate::shadow::{ShadowAnswer, ShadowCell, ShadowEnv, ShadowStep};
 use crate::wire::{
@@ -173,7 +173,8 @@ pub(super) fn put_reflect_setup(w: &mut SliceWriter<'_>, s: &ReflectSetup) -> Re
     let e = &s.env;
     w.u8(e.depth)?;
     w.f32(e.threshold)?;
-    w.u8(matches!(e.normal, ReflectNormal::Face) as u8)?;
+    // Bit 0: the face-flip normal; bits 1–2: the hit point rule (0, the centre, in older traces).
+    w.u8(matches!(e.normal, ReflectNormal::Face) as u8 | e.hit.code() << 1)?;
     w.u8(e.skip_own_facet as u8)?;
     w.u8(connectivity_code(e.connectivity))?;
     w.u16(e.fa as u16)?;
@@ -191,7 +192,9 @@ pub(super) fn put_reflect_setup(w: &mut SliceWriter<'_>, s: &ReflectSetup) -> Re
 /// refused by the reader).
 pub(super) fn get_reflect_setup(r: &mut Reader<'_>) -> Result<ReflectSetup, DecodeError> {
     let (depth, threshold) = (r.u8()?, r.f32()?);
-    let normal = if flag(r, "reflection normal")? { ReflectNormal::Face } else { ReflectNormal::Facet };
+    let code = r.u8()?;
+    let normal = if code & 1 != 0 { ReflectNormal::Face } else { ReflectNormal::Facet };
+    let hit = HitPoint::from_code(code >> 1).ok_or(DecodeError::BadValue("reflection normal or hit point"))?;
     let skip_own_facet = flag(r, "own-facet skip")?;
     let connectivity = connectivity_of(r.u8()?)?;
     let fa = r.u16()? as usize;
@@ -202,7 +205,7 @@ pub(super) fn get_reflect_setup(r: &mut Reader<'_>) -> Result<ReflectSetup, Deco
     if n > MAX_GRID || grid_depth > MAX_GRID {
         return Err(DecodeError::BadValue("reflection grid"));
     }
-    let env = ReflectEnv { depth, threshold, normal, skip_own_facet, connectivity, fa, span, n, grid_depth };
+    let env = ReflectEnv { depth, threshold, normal, hit, skip_own_facet, connectivity, fa, span, n, grid_depth };
     let caps = [r.u16()?, r.u16()?, r.u16()?];
     let mut kr = Vec::new();
     for _ in 0..r.u8()? {
@@ -561,6 +564,7 @@ mod tests {
             depth: 3,
             threshold: 0.25,
             normal: ReflectNormal::Face,
+            hit: HitPoint::Exact,
             skip_own_facet: false,
             connectivity: Connectivity::Eighteen,
             fa: 2,
@@ -699,7 +703,7 @@ mod tests {
                 fa,
             };
             let shadow = ShadowSetup { env, source_bit: 1 << k, fifo: 4 };
-            let renv = ReflectEnv { depth, threshold, span, n, grid_depth: grid, fa, connectivity: Connectivity::ALL[k], ..reflect().env };
+            let renv = ReflectEnv { depth, threshold, span, n, grid_depth: grid, fa, connectivity: Connectivity::ALL[k], hit: HitPoint::ALL[k], ..reflect().env };
             let reflect = ReflectSetup { env: renv, kr: kr.iter().copied().collect(), caps: [2, 2, 2] };
             let mut frames = std::vec::Vec::new();
             let mut buf = [0u8; MAX_RAY_FRAME];
@@ -708,7 +712,7 @@ mod tests {
                 frames.push(buf[..len].to_vec());
             }
             let dir = [ends[1][0] - 16, ends[1][1], ends[1][2] - 48];
-            if let Ok(ray) = crate::reflect::ReflectRay::new([1, 0, 3], dir, Connectivity::ALL[k], [0, 0], 1, 2, 1, 0.5) {
+            if let Ok(ray) = crate::reflect::ReflectRay::leaving([crate::ray::Q, 0, 3 * crate::ray::Q], dir, Connectivity::ALL[k], [0, 0], 1, 2, 1, 0.5) {
                 let len = RayMsg::Reflect(ray).emit(0, &mut buf).unwrap();
                 frames.push(buf[..len].to_vec());
             }

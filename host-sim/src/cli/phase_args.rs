@@ -3,7 +3,7 @@
 
 use cell_core::lit::LitRule;
 use cell_core::ray::Connectivity;
-use cell_core::reflect::ReflectNormal;
+use cell_core::reflect::{HitPoint, ReflectNormal};
 use cell_core::route::RoutePolicy;
 
 use crate::jobs::radiosity::RadiositySettings;
@@ -108,6 +108,18 @@ pub enum ReflectNormalArg {
     Face,
 }
 
+/// Where a reflected ray leaves the voxel it reflects from (§5.3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum HitArg {
+    /// Where the incident ray entered the voxel, on the face it crossed (§5.3.1).
+    Edge,
+    /// The voxel's centre: the incident ray moved parallel to itself through it (§5.3.2).
+    Centre,
+    /// Where the incident ray meets the plane the voxel's dexel stores, kept inside the voxel
+    /// (§5.3.3).
+    Exact,
+}
+
 /// Command-line options of the reflection phase (`render`, `trace`).
 #[derive(clap::Args, Debug, Clone)]
 pub struct ReflectOpts {
@@ -122,6 +134,12 @@ pub struct ReflectOpts {
     /// Normal that mirrors the reflected rays: facet (stored normal) or face (face flip, §5.5.4).
     #[arg(long, value_enum, default_value_t = ReflectNormalArg::Facet)]
     pub reflect_normal: ReflectNormalArg,
+    /// Where a reflected ray leaves the voxel it reflects from, and so the origin of its line
+    /// (thesis §5.3): the entry point on the voxel's face, the voxel's centre, or the exact
+    /// intersection with the facet plane the voxel stores (moved into the voxel when it lies
+    /// outside it).
+    #[arg(long, value_enum, default_value_t = HitArg::Centre)]
+    pub hit: HitArg,
     /// Let reflected rays hit the voxels of the facet they left (shows the §5.5.2 self-collision).
     #[arg(long)]
     pub reflect_self_hits: bool,
@@ -136,6 +154,11 @@ impl ReflectOpts {
             normal: match self.reflect_normal {
                 ReflectNormalArg::Facet => ReflectNormal::Facet,
                 ReflectNormalArg::Face => ReflectNormal::Face,
+            },
+            hit: match self.hit {
+                HitArg::Edge => HitPoint::Edge,
+                HitArg::Centre => HitPoint::Centre,
+                HitArg::Exact => HitPoint::Exact,
             },
             skip_own_facet: !self.reflect_self_hits,
             connectivity: classic.connectivity,

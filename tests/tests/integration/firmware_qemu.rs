@@ -29,7 +29,7 @@ use cell_core::beam::frac::U0;
 use cell_core::beam::Origin;
 use cell_core::lit::LitRule;
 use cell_core::ray::Connectivity;
-use cell_core::reflect::ReflectNormal;
+use cell_core::reflect::{HitPoint, ReflectNormal};
 use cell_core::route::RoutePolicy;
 use host_sim::jobs::trace::{record, CellTrace, TraceJob};
 use host_sim::machine::lighting::diffuse::{FrustumBlocks, LightConfig};
@@ -417,6 +417,7 @@ fn record_ray_sets(dir: &Path) -> Vec<(String, CellTrace)> {
         depth: 4,
         threshold: 0.01,
         normal,
+        hit: HitPoint::Centre,
         skip_own_facet: true,
         connectivity: six,
         fa: 16,

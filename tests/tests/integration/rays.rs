@@ -53,6 +53,22 @@ proptest! {
         check(a, b);
     }
 
+    /// Long lines from points on a voxel's faces (where a reflected ray leaves under
+    /// `--hit edge`: the entered face, or the lattice point just inside the high face).
+    #[test]
+    fn lines_from_voxel_faces_match_the_reference(
+        v in prop::array::uniform3(0i64..64),
+        inside in prop::array::uniform3(-8i64..8),
+        face in 0usize..3,
+        high in prop::bool::ANY,
+        d in prop::array::uniform3(-2000i64..2000),
+    ) {
+        let q = Q as i64;
+        let mut a = [0, 1, 2].map(|k| v[k] * q + inside[k]);
+        a[face] = v[face] * q + if high { q / 2 - 1 } else { -q / 2 };
+        check(a, [0, 1, 2].map(|k| a[k] + d[k]));
+    }
+
     /// Lines between voxel centres (the shadow-ray case) over a 512 grid.
     #[test]
     fn centre_lines_match_the_reference(a in prop::array::uniform3(0i64..512), b in prop::array::uniform3(0i64..512)) {

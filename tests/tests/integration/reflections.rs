@@ -4,7 +4,9 @@
 
 use cell_core::dexel::Dexel;
 use cell_core::ray::{Connectivity, Q};
-use cell_core::reflect::{combine, hit_normal, reflected_dir, to_answer, toward_origin, Answer, ReflectNormal};
+use cell_core::reflect::{
+    combine, hit_normal, reflected_dir, to_answer, toward_origin, Answer, HitPoint, ReflectNormal,
+};
 use cell_core::route::RoutePolicy;
 use cell_core::shade::{encode, facing_mask, shade_linear_toward, NormalMode};
 use host_sim::jobs::render::{reference_image, render, RenderConfig, RenderInput, RenderLighting, Rendered};
@@ -48,6 +50,7 @@ fn config(depth: u8, conn: Connectivity, fa: usize, route: RoutePolicy) -> Refle
         depth,
         threshold: 0.01,
         normal: ReflectNormal::Facet,
+        hit: HitPoint::Centre,
         skip_own_facet: true,
         connectivity: conn,
         fa,
@@ -64,11 +67,92 @@ struct Tally {
     max_level: u8,
 }
 
-/// Sequential per-ray evaluation of the tree below the voxel `at` (dexel `d`) reached by a ray
-/// of direction `incident` (entered by `entry`): the reflected line walked with the independent
-/// f64 walks of `oracle::lines`, the hit found by scanning the columns, then recursion; the same
-/// shading and combination formulas as a cell. Returns the answer the voxel's reflected ray
-/// brings back.
+/// Where a reflected ray leaves voxel `at` (dexel `d`) under `hit` (thesis §5.3), for the
+/// incident line `origin + t·incident` (lattice units) that entered it by the faces `entry`:
+/// continuous geometry in f64 — the voxel's centre, the point of the last entered face on the
+/// line, or the line's point on the dexel's plane — rounded half up to the lattice and kept
+/// inside the voxel.
+fn oracle_hit(hit: HitPoint, at: [i64; 3], d: &Dexel, origin: [i64; 3], incident: [i32; 3], entry: u8) -> [i64; 3] {
+    let q = Q as i64;
+    let centre = at.map(|c| c * q);
+    let dir = incident.map(i64::from);
+    let on_line = |axis: usize, value: i64| -> [f64; 3] {
+        // The line's point whose coordinate `axis` is `value`.
+        [0, 1, 2].map(|j| {
+            if j == axis {
+                value as f64
+            } else {
+                origin[j] as f64 + ((value - origin[axis]) * dir[j]) as f64 / dir[axis] as f64
+            }
+        })
+    };
+    let p: Option<[f64; 3]> = match hit {
+        HitPoint::Centre => None,
+        HitPoint::Edge => {
+            let mut best: Option<(f64, usize)> = None;
+            for k in (0..3).filter(|&k| entry & (1 << k) != 0 && dir[k] != 0) {
+                let face = centre[k] - dir[k].signum() * q / 2;
+                let t = (face - origin[k]) as f64 / dir[k] as f64;
+                if best.is_none_or(|(b, _)| t > b) {
+                    best = Some((t, k));
+                }
+            }
+            best.map(|(_, k)| on_line(k, centre[k] - dir[k].signum() * q / 2))
+        }
+        HitPoint::Exact => {
+            let pl = &d.plane;
+            let s = 65536i128;
+            let g = s * pl.nx as i128 * (origin[0] - q * at[0]) as i128
+                + s * pl.ny as i128 * (origin[1] - q * at[1]) as i128
+                + pl.nz as i128 * (origin[2] - q * d.span.lo as i64) as i128
+                + q as i128 * s * pl.e as i128;
+            let slope = s * pl.nx as i128 * dir[0] as i128
+                + s * pl.ny as i128 * dir[1] as i128
+                + pl.nz as i128 * dir[2] as i128;
+            (slope != 0).then(|| [0, 1, 2].map(|j| origin[j] as f64 - g as f64 * dir[j] as f64 / slope as f64))
+        }
+    };
+    match p {
+        None => centre,
+        Some(p) => [0, 1, 2].map(|k| ((p[k] + 0.5).floor() as i64).clamp(centre[k] - q / 2, centre[k] + q / 2 - 1)),
+    }
+}
+
+/// Where the walk of a ray leaving lattice point `a` of voxel `at` along `dir` starts: `a` for
+/// the 6-connected walk; for the 26/18 walks (whose first voxel is the line's at the first
+/// centre plane of their major axis) the line's point on the centre plane of `at`, in f64,
+/// rounded half up and kept inside the voxel.
+fn oracle_start(a: [i64; 3], dir: [i32; 3], at: [i64; 3], conn: Connectivity) -> [i64; 3] {
+    let q = Q as i64;
+    if conn == Connectivity::Six {
+        return a;
+    }
+    let d = dir.map(i64::from);
+    let mut m = 0;
+    for i in 1..3 {
+        if d[i].abs() > d[m].abs() {
+            m = i;
+        }
+    }
+    let c = at.map(|v| v * q);
+    if d[m] == 0 {
+        return a;
+    }
+    [0, 1, 2].map(|i| {
+        if i == m {
+            c[m]
+        } else {
+            let v = a[i] as f64 + ((c[m] - a[m]) * d[i]) as f64 / d[m] as f64;
+            ((v + 0.5).floor() as i64).clamp(c[i] - q / 2, c[i] + q / 2 - 1)
+        }
+    })
+}
+
+/// Sequential per-ray evaluation of the tree below the voxel `at` (dexel `d`) reached by the
+/// ray `origin + t·incident` (entered by `entry`): the reflected line, from the hit point of
+/// [`oracle_hit`], walked with the independent f64 walks of `oracle::lines`, the hit found by
+/// scanning the columns, then recursion; the same shading and combination formulas as a cell.
+/// Returns the answer the voxel's reflected ray brings back.
 #[allow(clippy::too_many_arguments)]
 fn trace(
     s: &LoadedScene,
@@ -76,7 +160,7 @@ fn trace(
     cfg: &ReflectConfig,
     at: [i64; 3],
     d: &Dexel,
-    incident: [i32; 3],
+    (origin, incident): ([i64; 3], [i32; 3]),
     entry: u8,
     level: u8,
     weight: f32,
@@ -86,7 +170,7 @@ fn trace(
     t.max_level = t.max_level.max(level);
     let span = ray_span(s.grid.n, s.grid.depth);
     let Some(dir) = reflected_dir(incident, entry, d.normal, cfg.normal, span) else { return [0; 3] };
-    let a = at.map(|c| c * Q as i64);
+    let a = oracle_start(oracle_hit(cfg.hit, at, d, origin, incident, entry), dir, at, cfg.connectivity);
     let b = [0, 1, 2].map(|k| a[k] + dir[k] as i64);
     let path = match cfg.connectivity {
         Connectivity::Six => walk6(a, b, Q as i64),
@@ -116,7 +200,7 @@ fn trace(
         let w2 = weight * kr;
         if kr > 0.0 && level < cfg.depth && w2 >= cfg.threshold {
             t.waits += 1;
-            let child = trace(s, env, cfg, v, h, dir, hit_entry, level + 1, w2, t);
+            let child = trace(s, env, cfg, v, h, (a, dir), hit_entry, level + 1, w2, t);
             return to_answer(combine(local, kr, child));
         }
         return to_answer(local);
@@ -136,7 +220,8 @@ fn hall_of_mirrors() -> Mesh {
     mesh
 }
 
-/// The grid's trees (FIFOs of 1, 2 and 16 rays per class, every connectivity, both routings)
+/// The grid's trees (FIFOs of 1, 2 and 16 rays per class, every connectivity, both routings;
+/// rays from the voxel's centre, and from the entry point and the exact hit with FIFOs of 16)
 /// give every root exactly the answer of the sequential per-ray oracle, so the same pixels;
 /// every ray is answered once, and no run stalls.
 #[test]
@@ -149,8 +234,8 @@ fn grid_trees_match_a_per_ray_oracle() {
         let mask = |x, y, z| lighting.mask(x, y, z);
         let pl = host_sim::machine::shading::pixels::point_lights(&lights);
         let env = ShadeEnv::new(&mesh, &pl, NormalMode::Facet, &mask);
-        for conn in Connectivity::ALL {
-            let cfg0 = config(depth, conn, 1, RoutePolicy::DiagonalFirst);
+        for (hit, conn) in HitPoint::ALL.into_iter().flat_map(|h| Connectivity::ALL.map(|c| (h, c))) {
+            let cfg0 = ReflectConfig { hit, ..config(depth, conn, 1, RoutePolicy::DiagonalFirst) };
             // Oracle.
             let mut want: Vec<Option<Answer>> = vec![None; (n * n) as usize];
             let mut want_rgb: Vec<Option<[u8; 3]>> = vec![None; (n * n) as usize];
@@ -160,18 +245,18 @@ fn grid_trees_match_a_per_ray_oracle() {
                 let (local, kr) = env.visible_local(c.x, c.y, d);
                 if kr > 0.0 && kr >= cfg0.threshold {
                     let at = [c.x as i64, c.y as i64, d.span.lo as i64];
-                    let a = trace(&s, &env, &cfg0, at, d, [0, 0, 1], 0b100, 1, kr, &mut t);
+                    let primary = [c.x as i64 * Q as i64, c.y as i64 * Q as i64, 0];
+                    let a = trace(&s, &env, &cfg0, at, d, (primary, [0, 0, 1]), 0b100, 1, kr, &mut t);
                     want[i] = Some(a);
                     want_rgb[i] = Some(combine(local, kr, a).map(encode));
                 }
             }
             let roots = want.iter().filter(|a| a.is_some()).count() as u64;
             assert!(roots > 20 && t.hits > 0, "{}: the scene has mirrors and their rays hit", mesh.name);
-            for (fa, route) in
-                [(1, RoutePolicy::DiagonalFirst), (2, RoutePolicy::Adaptive), (16, RoutePolicy::Adaptive)]
-            {
-                let cfg = config(depth, conn, fa, route);
-                let what = format!("{} n {n} {conn:?} FA {fa} {route:?}", mesh.name);
+            let fifos = [(1, RoutePolicy::DiagonalFirst), (2, RoutePolicy::Adaptive), (16, RoutePolicy::Adaptive)];
+            for &(fa, route) in &fifos[if hit == HitPoint::Centre { 0 } else { 2 }..] {
+                let cfg = ReflectConfig { hit, ..config(depth, conn, fa, route) };
+                let what = format!("{} n {n} {conn:?} FA {fa} {route:?} hit {hit:?}", mesh.name);
                 let r = reflect(&s, &env, &cfg).unwrap_or_else(|e| panic!("{what}: {e}"));
                 assert_eq!(r.root_answers, want, "{what}");
                 assert_eq!(r.rgb, want_rgb, "{what}");

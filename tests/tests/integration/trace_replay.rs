@@ -18,7 +18,7 @@ use cell_core::beam::{FracBits, Origin};
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
 use cell_core::ray::Connectivity;
-use cell_core::reflect::ReflectNormal;
+use cell_core::reflect::{HitPoint, ReflectNormal};
 use cell_core::route::RoutePolicy;
 use cell_core::trace::{write_event, Event, Parser};
 use host_sim::jobs::trace::{record, CellTrace, TraceJob};
@@ -288,6 +288,7 @@ fn reflections(depth: u8, normal: ReflectNormal) -> ReflectConfig {
         depth,
         threshold: 0.01,
         normal,
+        hit: HitPoint::Centre,
         skip_own_facet: true,
         connectivity: Connectivity::Six,
         fa: 16,
@@ -313,6 +314,17 @@ fn every_cell_replays_the_reflection_phase() {
     };
     assert!(check_ray_phase("cornell-mirror", 16, Vec::new(), None, Some(cfg))[0] > 0, "rays crossed links");
     check_ray_phase("cornell-mirror", 16, Vec::new(), None, Some(reflections(2, ReflectNormal::Face)));
+    // The rays leaving from the face they entered by and from the facet plane (§5.3.1, §5.3.3).
+    for hit in [HitPoint::Edge, HitPoint::Exact] {
+        let k = check_ray_phase(
+            "cornell-mirror",
+            16,
+            Vec::new(),
+            None,
+            Some(ReflectConfig { hit, ..reflections(4, ReflectNormal::Facet) }),
+        );
+        assert!(k[0] > 0, "{hit:?}: rays crossed links");
+    }
 }
 
 /// A cell of each ray phase, recorded alone: every flipped byte, every truncation and every

@@ -47,7 +47,7 @@ use cell_core::beam::frac::U0;
 use cell_core::dexel::Dexel;
 use cell_core::light::{Port, SourceMask};
 use cell_core::ray::{Connectivity, Q};
-use cell_core::reflect::{Answer, ReflectNormal, MAX_GRID};
+use cell_core::reflect::{Answer, HitPoint, ReflectNormal, MAX_GRID};
 use cell_core::reflect_cell::{Delivered, RayError, ReflectAnswer, ReflectCell, ReflectEnv, Surfaces};
 use cell_core::route::RoutePolicy;
 use cell_core::shade::{Material as CellMaterial, NormalMode, PointLight, ShadeParams};
@@ -72,6 +72,8 @@ pub struct ReflectConfig {
     pub threshold: f32,
     /// Normal that mirrors the rays (§5.2).
     pub normal: ReflectNormal,
+    /// Where a reflected ray leaves the voxel it reflects from (§5.3).
+    pub hit: HitPoint,
     /// Ignore voxels of the facet a ray left (off: the §5.5.2 self-collision shows).
     pub skip_own_facet: bool,
     /// Connectivity of the rays' lines.
@@ -105,6 +107,8 @@ impl ReflectConfig {
 /// Counters of a reflection run.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct ReflectCounts {
+    /// Where reflected rays left their voxels (`--hit`: centre, edge or exact, §5.3).
+    pub hit: &'static str,
     /// Cycles until the last root had its answer.
     pub cycles: u64,
     /// Visible reflective voxels that emitted (tree roots).
@@ -298,6 +302,7 @@ impl<'a> ReflectRun<'a> {
             depth: cfg.depth,
             threshold: cfg.threshold,
             normal: cfg.normal,
+            hit: cfg.hit,
             skip_own_facet: cfg.skip_own_facet,
             connectivity: cfg.connectivity,
             fa: cfg.fa,
@@ -488,6 +493,7 @@ impl<'a> ReflectRun<'a> {
     /// The result: the roots' pixels and answers, the cells' counters summed (peaks by maximum).
     fn finish(self) -> Reflected {
         let mut k = ReflectCounts {
+            hit: hit_name(self.renv.hit),
             cycles: self.cycle,
             ray_messages: self.ray_messages,
             answer_messages: self.net.hops,
@@ -546,10 +552,20 @@ fn fault_report<const FA: usize, const W: usize, const S: usize>(
     )
 }
 
+/// The `--hit` name of a hit point rule.
+pub const fn hit_name(h: HitPoint) -> &'static str {
+    match h {
+        HitPoint::Centre => "centre",
+        HitPoint::Edge => "edge",
+        HitPoint::Exact => "exact",
+    }
+}
+
 /// One line of reflection counters for the job summaries.
 pub fn summary(c: &ReflectCounts) -> String {
     format!(
-        "reflections: {} cycles, {} trees, {} rays (deepest level {}), {} hits, {} exits, {} waits, {} voxel steps, {} ray + {} answer messages; cut by depth {}, by threshold {}; peak FIFO {}, wait table {}, send queue {}",
+        "reflections (hit {}): {} cycles, {} trees, {} rays (deepest level {}), {} hits, {} exits, {} waits, {} voxel steps, {} ray + {} answer messages; cut by depth {}, by threshold {}; peak FIFO {}, wait table {}, send queue {}",
+        c.hit,
         c.cycles,
         c.roots,
         c.rays,
@@ -582,7 +598,7 @@ mod tests {
     #[test]
     fn a_full_fifo_is_reported_naming_the_cell_and_the_capacity() {
         let mut cells = [ReflectCell::<2, 2, 2>::new(), ReflectCell::new(), ReflectCell::new(), ReflectCell::new()];
-        let ray = ReflectRay::new([1, 1, 6], [0, 0, -Q], Connectivity::Six, [0, 0], 0, 7, 1, 1.0).unwrap();
+        let ray = ReflectRay::leaving([Q, Q, 6 * Q], [0, 0, -Q], Connectivity::Six, [0, 0], 0, 7, 1, 1.0).unwrap();
         for _ in 0..2 {
             cells[3].accept(0, ray).unwrap();
         }
