@@ -69,6 +69,58 @@ pub enum Command {
     Scenes,
     /// Subdivide a mesh (1 → 4 midpoint splits) to about TARGET triangles and write an OBJ.
     Subdivide(SubdivideArgs),
+    /// Thesis §5.5.4: a point source's rays reflected by a voxelized flat mirror, each mirrored
+    /// and started as a cell does it: the cloud of virtual images around the true one S′ (the
+    /// reflected lines' closest approach to it) and the screen cells no reflected ray reaches
+    /// (the dark zone); a PNG of both, and with --csv the figures.
+    VirtualImages(VirtualImagesArgs),
+}
+
+/// Options of `virtual-images`.
+#[derive(Args, Debug)]
+pub struct VirtualImagesArgs {
+    /// Grid side.
+    #[arg(long, default_value_t = 64)]
+    pub n: u32,
+    /// Where a reflected ray leaves the voxel it hit (thesis §5.3): the entry point on the face
+    /// it crossed, the voxel's centre, or the exact intersection with the dexel's facet plane.
+    #[arg(long, value_enum, default_value_t = phase_args::HitArg::Centre)]
+    pub hit: phase_args::HitArg,
+    /// Normal that mirrors the rays: facet (the stored normal, §5.2.1) or face (the face flip,
+    /// §5.2.2).
+    #[arg(long, value_enum, default_value_t = phase_args::ReflectNormalArg::Facet)]
+    pub reflect_normal: phase_args::ReflectNormalArg,
+    /// Connectivity of the rays' walks: 6, 18 or 26.
+    #[arg(long, default_value_t = 6, value_parser = phase_args::parse_connectivity)]
+    pub ray_connectivity: u8,
+    /// Tilt of the mirror about y, degrees (0: parallel to the grid's faces, no staircase).
+    #[arg(long, default_value_t = 20.0)]
+    pub tilt: f64,
+    /// Rays from the source per mirror column: K × K points of the column's voxel (1 ..= 8).
+    #[arg(long, default_value_t = 4)]
+    pub rays_per_voxel: u32,
+    /// The picture: the cloud around S′ (left, ±4 voxels, one grid line a voxel) and the screen
+    /// (right: grey, rays per cell; red, cells of the mirror's footprint no ray reached).
+    #[arg(long, default_value = "virtual-images.png")]
+    pub out: PathBuf,
+    /// Write the figures as one CSV line (with its header) to this file.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+}
+
+impl From<&VirtualImagesArgs> for jobs::virtual_images::VirtualImagesOptions {
+    fn from(a: &VirtualImagesArgs) -> Self {
+        jobs::virtual_images::VirtualImagesOptions {
+            n: a.n,
+            hit: phase_args::hit_point(a.hit),
+            normal: phase_args::reflect_normal(a.reflect_normal),
+            connectivity: phase_args::connectivity(a.ray_connectivity),
+            tilt_deg: a.tilt,
+            rays_per_voxel: a.rays_per_voxel,
+            out: a.out.clone(),
+            csv: a.csv.clone(),
+        }
+    }
 }
 
 /// Options of `radiosity`.
@@ -963,6 +1015,15 @@ fn dispatch(command: Command) -> Result<()> {
         }
         Command::Subdivide(a) => jobs::scenes::subdivide(&(&a).into()),
         Command::FormFactors(a) => jobs::form_factors::run(&(&a).into()),
+        Command::VirtualImages(a) => {
+            let r = jobs::virtual_images::run(&(&a).into())?;
+            println!(
+                "virtual images (n = {}, hit {:?}, {:?} normals, {}-connected): {} rays, {} reflected; closest approach to S' mean {:.3}, rms {:.3}, max {:.3} voxels ({:.1} % within one voxel); screen: {} footprint cells, {:.2} % dark ({:.2} % with the same rays reflected exactly); wrote {}",
+                a.n, a.hit, a.reflect_normal, a.ray_connectivity, r.rays, r.reflected, r.spread_mean, r.spread_rms,
+                r.spread_max, 100.0 * r.within_one_voxel, r.footprint_cells, r.dark_pct, r.dark_continuous_pct, a.out.display()
+            );
+            Ok(())
+        }
     }
 }
 

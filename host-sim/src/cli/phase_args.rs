@@ -69,7 +69,16 @@ pub enum EmittersArg {
     All,
 }
 
-fn parse_connectivity(s: &str) -> std::result::Result<u8, String> {
+/// The connectivity of a `--ray-connectivity` value (6, 18 or 26).
+pub fn connectivity(k: u8) -> Connectivity {
+    match k {
+        18 => Connectivity::Eighteen,
+        26 => Connectivity::TwentySix,
+        _ => Connectivity::Six,
+    }
+}
+
+pub(crate) fn parse_connectivity(s: &str) -> std::result::Result<u8, String> {
     match s {
         "6" => Ok(6),
         "18" => Ok(18),
@@ -83,11 +92,7 @@ impl ClassicOpts {
     pub fn config(&self, fa: usize, rule: LitRule) -> ClassicConfig {
         ClassicConfig {
             fa,
-            connectivity: match self.ray_connectivity {
-                18 => Connectivity::Eighteen,
-                26 => Connectivity::TwentySix,
-                _ => Connectivity::Six,
-            },
+            connectivity: connectivity(self.ray_connectivity),
             route: match self.route {
                 RouteArg::Dor => RoutePolicy::DiagonalFirst,
                 RouteArg::Adaptive => RoutePolicy::Adaptive,
@@ -118,6 +123,23 @@ pub enum HitArg {
     /// Where the incident ray meets the plane the voxel's dexel stores, kept inside the voxel
     /// (§5.3.3).
     Exact,
+}
+
+/// The normal of a `--reflect-normal` value.
+pub fn reflect_normal(a: ReflectNormalArg) -> ReflectNormal {
+    match a {
+        ReflectNormalArg::Facet => ReflectNormal::Facet,
+        ReflectNormalArg::Face => ReflectNormal::Face,
+    }
+}
+
+/// The hit rule of a `--hit` value.
+pub fn hit_point(a: HitArg) -> HitPoint {
+    match a {
+        HitArg::Edge => HitPoint::Edge,
+        HitArg::Centre => HitPoint::Centre,
+        HitArg::Exact => HitPoint::Exact,
+    }
 }
 
 /// Command-line options of the reflection phase (`render`, `trace`).
@@ -151,15 +173,8 @@ impl ReflectOpts {
         ReflectConfig {
             depth: self.reflections,
             threshold: self.reflect_threshold,
-            normal: match self.reflect_normal {
-                ReflectNormalArg::Facet => ReflectNormal::Facet,
-                ReflectNormalArg::Face => ReflectNormal::Face,
-            },
-            hit: match self.hit {
-                HitArg::Edge => HitPoint::Edge,
-                HitArg::Centre => HitPoint::Centre,
-                HitArg::Exact => HitPoint::Exact,
-            },
+            normal: reflect_normal(self.reflect_normal),
+            hit: hit_point(self.hit),
             skip_own_facet: !self.reflect_self_hits,
             connectivity: classic.connectivity,
             fa,

@@ -28,4 +28,5 @@ pub mod render_radiosity;
 pub mod scenes;
 pub mod table;
 pub mod trace;
+pub mod virtual_images;
 pub mod voxelize;

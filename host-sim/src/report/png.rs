@@ -23,3 +23,13 @@ pub fn write_png(path: &Path, n: u32, rgb: &[[u8; 3]]) -> Result<()> {
     w.write_image_data(&data)?;
     Ok(())
 }
+
+/// Write a `w` × `h` RGB picture (index y·w + x, top row first, as drawn) as PNG.
+pub fn write_png_rect(path: &Path, w: u32, h: u32, rgb: &[[u8; 3]]) -> Result<()> {
+    let mut enc = png::Encoder::new(create(path)?, w, h);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut out = enc.write_header()?;
+    out.write_image_data(&rgb.iter().flatten().copied().collect::<Vec<u8>>())?;
+    Ok(())
+}
