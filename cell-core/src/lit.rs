@@ -139,8 +139,8 @@ pub enum LitRule {
 /// // What a trace byte or a message encodes, and back.
 /// for &rule in LitRule::ALL {
 ///     assert_eq!(LitRule::from_code(rule.code()), Some(rule));
-///     assert_eq!(LitRule::from_name(rule.name()), Some(rule));
 /// }
+/// assert_eq!(LitRule::Plane.name(), "plane");
 /// assert_eq!(LitRule::from_code(3), None);
 /// // The thesis's cell shades the first voxel of its column; the others the visible surface.
 /// assert!(!LitRule::Thesis.shades_visible_surface());
@@ -174,11 +174,6 @@ impl LitRule {
             #[cfg(feature = "exact-occluders")]
             LitRule::Exact => "exact",
         }
-    }
-
-    /// The rule named `name` ([`LitRule::name`]), if this build has it.
-    pub fn from_name(name: &str) -> Option<LitRule> {
-        LitRule::ALL.iter().copied().find(|r| r.name() == name)
     }
 
     /// The rule's code in a trace record or an exchanged part (4 bits): 0 thesis, 1 plane,
@@ -909,7 +904,6 @@ mod tests {
             assert_eq!(r.needs_triangles(), r.is_exact());
             assert_eq!(r.occluder_reach() > 0, r.needs_triangles());
         }
-        assert_eq!(LitRule::from_name("exactly"), None);
     }
 
     /// The firmware's division (`floor_div` on ARM) is `div_euclid`, exactly: at the ends of

@@ -75,6 +75,15 @@ impl HitPoint {
     /// Every hit rule.
     pub const ALL: [HitPoint; 3] = [HitPoint::Centre, HitPoint::Edge, HitPoint::Exact];
 
+    /// The rule's name, as hosts spell it (`--hit`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            HitPoint::Centre => "centre",
+            HitPoint::Edge => "edge",
+            HitPoint::Exact => "exact",
+        }
+    }
+
     /// The rule's code in a reflection setup record (2 bits).
     pub const fn code(self) -> u8 {
         match self {

@@ -112,8 +112,8 @@ impl From<&VirtualImagesArgs> for jobs::virtual_images::VirtualImagesOptions {
     fn from(a: &VirtualImagesArgs) -> Self {
         jobs::virtual_images::VirtualImagesOptions {
             n: a.n,
-            hit: phase_args::hit_point(a.hit),
-            normal: phase_args::reflect_normal(a.reflect_normal),
+            hit: a.hit.into(),
+            normal: a.reflect_normal.into(),
             connectivity: phase_args::connectivity(a.ray_connectivity),
             tilt_deg: a.tilt,
             rays_per_voxel: a.rays_per_voxel,

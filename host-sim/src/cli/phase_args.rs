@@ -125,20 +125,22 @@ pub enum HitArg {
     Exact,
 }
 
-/// The normal of a `--reflect-normal` value.
-pub fn reflect_normal(a: ReflectNormalArg) -> ReflectNormal {
-    match a {
-        ReflectNormalArg::Facet => ReflectNormal::Facet,
-        ReflectNormalArg::Face => ReflectNormal::Face,
+impl From<ReflectNormalArg> for ReflectNormal {
+    fn from(a: ReflectNormalArg) -> Self {
+        match a {
+            ReflectNormalArg::Facet => ReflectNormal::Facet,
+            ReflectNormalArg::Face => ReflectNormal::Face,
+        }
     }
 }
 
-/// The hit rule of a `--hit` value.
-pub fn hit_point(a: HitArg) -> HitPoint {
-    match a {
-        HitArg::Edge => HitPoint::Edge,
-        HitArg::Centre => HitPoint::Centre,
-        HitArg::Exact => HitPoint::Exact,
+impl From<HitArg> for HitPoint {
+    fn from(a: HitArg) -> Self {
+        match a {
+            HitArg::Edge => HitPoint::Edge,
+            HitArg::Centre => HitPoint::Centre,
+            HitArg::Exact => HitPoint::Exact,
+        }
     }
 }
 
@@ -173,8 +175,8 @@ impl ReflectOpts {
         ReflectConfig {
             depth: self.reflections,
             threshold: self.reflect_threshold,
-            normal: reflect_normal(self.reflect_normal),
-            hit: hit_point(self.hit),
+            normal: self.reflect_normal.into(),
+            hit: self.hit.into(),
             skip_own_facet: !self.reflect_self_hits,
             connectivity: classic.connectivity,
             fa,

@@ -23,7 +23,7 @@ use cell_core::reflect::{
     hit_point, reflected_dir, scaled, walk_start, HitPoint, Incident, ReflectNormal, ReflectRay, ReflectStep,
 };
 
-use crate::machine::loading::loaded_scene::{load_scene, world_to_voxel};
+use crate::machine::loading::loaded_scene::{load_scene, world_to_voxel, LoadedScene};
 use crate::precompute::LoadConfig;
 use crate::report::files::create;
 
@@ -91,6 +91,10 @@ fn add(a: [f64; 3], b: [f64; 3], s: f64) -> [f64; 3] {
     [a[0] + s * b[0], a[1] + s * b[1], a[2] + s * b[2]]
 }
 
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
@@ -143,6 +147,24 @@ pub fn run(o: &VirtualImagesOptions) -> Result<VirtualImages> {
 
 /// The experiment (see the module doc); writes the picture to `o.out`.
 pub fn measure(o: &VirtualImagesOptions) -> Result<VirtualImages> {
+    validate(o)?;
+    let mesh = crate::scene::load_obj_bytes(
+        "mirror",
+        scene_obj(o.tilt_deg).as_bytes(),
+        Some(b"newmtl mirror\nKd 0.1 0.1 0.1\nKr 0.9\nnewmtl frame\nKd 0.5 0.5 0.5\n"),
+    )?;
+    let s = load_scene(&mesh, &LoadConfig::watertight(o.n))?;
+    let mirror = mesh.materials.iter().position(|m| m.name == "mirror").unwrap_or(0) as u16;
+    let g = Geometry::new(&s, o.tilt_deg);
+    let traced = reflect_rays(o, &s, mirror, &g)?;
+    let footprint = footprint(&g);
+    let r = summarise(&traced, &footprint);
+    picture(o, &traced.cloud, &traced.counts, &footprint)?;
+    Ok(r)
+}
+
+/// Refuse what the experiment cannot run.
+fn validate(o: &VirtualImagesOptions) -> Result<()> {
     if !(8..=512).contains(&o.n) {
         bail!("--n must be within 8 ..= 512 (got {})", o.n);
     }
@@ -152,38 +174,84 @@ pub fn measure(o: &VirtualImagesOptions) -> Result<VirtualImages> {
     if !(1..=8).contains(&o.rays_per_voxel) {
         bail!("--rays-per-voxel must be within 1 ..= 8 (got {})", o.rays_per_voxel);
     }
-    let mesh = crate::scene::load_obj_bytes(
-        "mirror",
-        scene_obj(o.tilt_deg).as_bytes(),
-        Some(b"newmtl mirror\nKd 0.1 0.1 0.1\nKr 0.9\nnewmtl frame\nKd 0.5 0.5 0.5\n"),
-    )?;
-    let s = load_scene(&mesh, &LoadConfig::watertight(o.n))?;
-    let mirror = mesh.materials.iter().position(|m| m.name == "mirror").unwrap_or(0) as u16;
-    let (n, depth) = (s.grid.n, s.grid.depth);
-    let q = Q as f64;
-    // World → the rays' lattice (voxel v's centre at Q·v).
-    let lat = |w: [f64; 3]| world_to_voxel(&s.fit, w).map(|c| c * q);
-    let (u, v, nw) = frame(o.tilt_deg);
-    // S and S′ in lattice units; the plane through CENTRE with normal nw.
-    let src = lat(SOURCE);
-    let image = add(SOURCE, nw, -2.0 * dot([0, 1, 2].map(|k| SOURCE[k] - CENTRE[k]), nw));
-    let s_img = lat(image);
-    let src_i = src.map(|c| c.round() as i32);
-    let span = 2 * Q * n.max(depth) as i32;
-    let screen_z = lat([0.0, 0.0, SCREEN_Z])[2];
-    let mut counts = vec![0u32; (n * n) as usize];
-    let mut exact_counts = vec![0u32; (n * n) as usize];
-    let mut cloud: Vec<[f64; 2]> = Vec::new();
-    let mut spreads: Vec<f64> = Vec::new();
-    let mut rays = 0u64;
-    let cell_of = |p: [f64; 3]| -> Option<usize> {
+    Ok(())
+}
+
+/// The experiment's points and planes in the rays' lattice (voxel v's centre at Q·v).
+struct Geometry {
+    n: u32,
+    /// The source, and its lattice point.
+    src: [f64; 3],
+    src_i: [i32; 3],
+    /// S′, the source mirrored about the continuous mirror.
+    image: [f64; 3],
+    /// The mirror's centre, in-plane axes, normal (toward the source) and half side.
+    centre: [f64; 3],
+    u: [f64; 3],
+    v: [f64; 3],
+    normal: [f64; 3],
+    half: f64,
+    /// The screen plane's z.
+    screen_z: f64,
+}
+
+impl Geometry {
+    fn new(s: &LoadedScene, tilt_deg: f64) -> Self {
+        let lat = |w: [f64; 3]| world_to_voxel(&s.fit, w).map(|c| c * Q as f64);
+        let (u, v, normal) = frame(tilt_deg);
+        let src = lat(SOURCE);
+        let image = lat(add(SOURCE, normal, -2.0 * dot(sub(SOURCE, CENTRE), normal)));
+        Geometry {
+            n: s.grid.n,
+            src,
+            src_i: src.map(|c| c.round() as i32),
+            image,
+            centre: lat(CENTRE),
+            u,
+            v,
+            normal,
+            half: HALF / s.fit.voxel * Q as f64,
+            screen_z: lat([0.0, 0.0, SCREEN_Z])[2],
+        }
+    }
+
+    /// The screen cell (index y·n + x) where a line from `a` along `d` crosses the screen plane
+    /// going toward it, if inside the grid.
+    fn on_screen(&self, a: [f64; 3], d: [f64; 3]) -> Option<usize> {
+        let t = (self.screen_z - a[2]) / d[2];
+        if d[2] == 0.0 || t <= 0.0 {
+            return None;
+        }
+        let (q, n) = (Q as f64, self.n);
+        let p = add(a, d, t);
         let (x, y) = ((p[0] / q + 0.5).floor(), (p[1] / q + 0.5).floor());
         (x >= 0.0 && y >= 0.0 && x < n as f64 && y < n as f64).then(|| (y as u32 * n + x as u32) as usize)
-    };
-    // Where a line from `a` along `d` (lattice) crosses the screen plane going toward it.
-    let on_screen = |a: [f64; 3], d: [f64; 3]| -> Option<usize> {
-        let t = (screen_z - a[2]) / d[2];
-        (d[2] != 0.0 && t > 0.0).then(|| cell_of(add(a, d, t))).flatten()
+    }
+}
+
+/// What the reflected rays did.
+struct Traced {
+    rays: u64,
+    /// Per reflected ray: its closest approach to S′ (voxels), and that point in the mirror's
+    /// (u, v) axes relative to S′.
+    spreads: Vec<f64>,
+    cloud: Vec<[f64; 2]>,
+    /// Rays per screen cell: the discrete reflected rays, and the same rays reflected exactly.
+    counts: Vec<u32>,
+    exact_counts: Vec<u32>,
+}
+
+/// Walk the source's rays to the mirror, reflect each as a cell does, and follow it back.
+fn reflect_rays(o: &VirtualImagesOptions, s: &LoadedScene, mirror: u16, g: &Geometry) -> Result<Traced> {
+    let (n, depth) = (s.grid.n, s.grid.depth);
+    let span = 2 * Q * n.max(depth) as i32;
+    let q = Q as f64;
+    let mut t = Traced {
+        rays: 0,
+        spreads: Vec::new(),
+        cloud: Vec::new(),
+        counts: vec![0; (n * n) as usize],
+        exact_counts: vec![0; (n * n) as usize],
     };
     let k = o.rays_per_voxel as i32;
     for c in &s.grid.cells {
@@ -195,74 +263,84 @@ pub fn measure(o: &VirtualImagesOptions) -> Result<VirtualImages> {
             // A point of the column's first voxel: k × k sub-positions in x and y.
             let off = |m: i32| (2 * m + 1) * Q / (2 * k) - Q / 2;
             let target = [c.x as i32 * Q + off(i), c.y as i32 * Q + off(j), d0.span.lo as i32 * Q];
-            let Some(dir) = scaled([0, 1, 2].map(|a| (target[a] - src_i[a]) as i64), span) else { continue };
-            rays += 1;
-            let mut ray = ReflectRay::leaving(src_i, dir, o.connectivity, [0, 0], 0, u32::MAX, 1, 1.0)
+            let Some(dir) = scaled([0, 1, 2].map(|a| (target[a] - g.src_i[a]) as i64), span) else { continue };
+            t.rays += 1;
+            let mut ray = ReflectRay::leaving(g.src_i, dir, o.connectivity, [0, 0], 0, u32::MAX, 1, 1.0)
                 .map_err(|e| anyhow::anyhow!("a ray from the source cannot be walked: {e:?}"))?;
-            let hit = loop {
-                let w = ray.line.voxel();
-                if w[0] < 0 || w[1] < 0 || w[0] >= n as i32 || w[1] >= n as i32 {
-                    break None;
-                }
-                match ray.advance(&s.grid.cell(w[0] as u32, w[1] as u32).store, n, depth, false) {
-                    ReflectStep::Hit(h, z) => break Some((h, [w[0] as u16, w[1] as u16, z])),
-                    ReflectStep::Exit => break None,
-                    _ => {}
-                }
-            };
-            let Some((h, at)) = hit.filter(|(h, _)| h.material == mirror) else { continue };
+            let Some((h, at)) = first_hit(&mut ray, s).filter(|(h, _)| h.material == mirror) else { continue };
             let inc = Incident::of(&ray);
             let Some(r) = reflected_dir(inc.dir, inc.entry, h.normal, o.normal, span) else { continue };
             let from = walk_start(hit_point(at, &inc, &h.plane, h.span.lo, o.hit), r, at, o.connectivity);
             let (a, rd) = (from.map(f64::from), r.map(f64::from));
             // Closest approach of the line a + t·rd to S′.
-            let t = dot([0, 1, 2].map(|x| s_img[x] - a[x]), rd) / dot(rd, rd);
-            let p = add(a, rd, t);
-            let w = [0, 1, 2].map(|x| (p[x] - s_img[x]) / q);
-            spreads.push(dot(w, w).sqrt());
-            cloud.push([dot(w, u), dot(w, v)]);
-            if let Some(cell) = on_screen(a, rd) {
-                counts[cell] += 1;
+            let p = add(a, rd, dot(sub(g.image, a), rd) / dot(rd, rd));
+            let w = sub(p, g.image).map(|c| c / q);
+            t.spreads.push(dot(w, w).sqrt());
+            t.cloud.push([dot(w, g.u), dot(w, g.v)]);
+            if let Some(cell) = g.on_screen(a, rd) {
+                t.counts[cell] += 1;
             }
             // The continuous ray: S → target meets the plane at X, reflected through S′.
-            let sd = [0, 1, 2].map(|x| target[x] as f64 - src[x]);
-            let centre = lat(CENTRE);
-            let tx = dot([0, 1, 2].map(|x| centre[x] - src[x]), nw) / dot(sd, nw);
-            let xp = add(src, sd, tx);
-            if let Some(cell) = on_screen(xp, [0, 1, 2].map(|x| xp[x] - s_img[x])) {
-                exact_counts[cell] += 1;
+            let sd = sub(target.map(f64::from), g.src);
+            let xp = add(g.src, sd, dot(sub(g.centre, g.src), g.normal) / dot(sd, g.normal));
+            if let Some(cell) = g.on_screen(xp, sub(xp, g.image)) {
+                t.exact_counts[cell] += 1;
             }
         }
     }
-    // The footprint: screen cells whose line to S′ crosses the mirror square.
-    let centre = lat(CENTRE);
-    let half = HALF / s.fit.voxel * q;
-    let mut footprint = vec![false; (n * n) as usize];
-    for (idx, f) in footprint.iter_mut().enumerate() {
-        let p = [(idx as u32 % n) as f64 * q, (idx as u32 / n) as f64 * q, screen_z];
-        let d = [0, 1, 2].map(|x| p[x] - s_img[x]);
-        let t = dot([0, 1, 2].map(|x| centre[x] - s_img[x]), nw) / dot(d, nw);
-        let x = add(s_img, d, t);
-        let rel = [0, 1, 2].map(|a| x[a] - centre[a]);
-        *f = t > 0.0 && dot(rel, u).abs() < half && dot(rel, v).abs() < half;
+    Ok(t)
+}
+
+/// The first occupied voxel `ray` meets (its dexel and voxel), walking the grid as the cells
+/// do; `None` when it leaves the grid.
+fn first_hit(ray: &mut ReflectRay, s: &LoadedScene) -> Option<(cell_core::dexel::Dexel, [u16; 3])> {
+    let (n, depth) = (s.grid.n, s.grid.depth);
+    loop {
+        let w = ray.line.voxel();
+        if w[0] < 0 || w[1] < 0 || w[0] >= n as i32 || w[1] >= n as i32 {
+            return None;
+        }
+        match ray.advance(&s.grid.cell(w[0] as u32, w[1] as u32).store, n, depth, false) {
+            ReflectStep::Hit(h, z) => return Some((h, [w[0] as u16, w[1] as u16, z])),
+            ReflectStep::Exit => return None,
+            _ => {}
+        }
     }
+}
+
+/// The mirror's continuous footprint: the screen cells whose line to S′ crosses the mirror
+/// square.
+fn footprint(g: &Geometry) -> Vec<bool> {
+    let (n, q) = (g.n, Q as f64);
+    (0..n * n)
+        .map(|idx| {
+            let p = [(idx % n) as f64 * q, (idx / n) as f64 * q, g.screen_z];
+            let d = sub(p, g.image);
+            let t = dot(sub(g.centre, g.image), g.normal) / dot(d, g.normal);
+            let rel = sub(add(g.image, d, t), g.centre);
+            t > 0.0 && dot(rel, g.u).abs() < g.half && dot(rel, g.v).abs() < g.half
+        })
+        .collect()
+}
+
+/// The figures of the traced rays against the footprint.
+fn summarise(t: &Traced, footprint: &[bool]) -> VirtualImages {
     let fp = footprint.iter().filter(|&&f| f).count() as u64;
     let dark =
         |cs: &[u32]| 100.0 * footprint.iter().zip(cs).filter(|(&f, &c)| f && c == 0).count() as f64 / fp.max(1) as f64;
+    let spreads = &t.spreads;
     let m = spreads.len().max(1) as f64;
-    let r = VirtualImages {
-        rays,
+    VirtualImages {
+        rays: t.rays,
         reflected: spreads.len() as u64,
         spread_mean: spreads.iter().sum::<f64>() / m,
         spread_rms: (spreads.iter().map(|x| x * x).sum::<f64>() / m).sqrt(),
         spread_max: spreads.iter().cloned().fold(0.0, f64::max),
         within_one_voxel: spreads.iter().filter(|&&x| x <= 1.0).count() as f64 / m,
         footprint_cells: fp,
-        dark_pct: dark(&counts),
-        dark_continuous_pct: dark(&exact_counts),
-    };
-    picture(o, &cloud, &counts, &footprint)?;
-    Ok(r)
+        dark_pct: dark(&t.counts),
+        dark_continuous_pct: dark(&t.exact_counts),
+    }
 }
 
 /// Side of the cloud panel: ±`CLOUD_VOXELS` voxels around S′, `CLOUD_PX` pixels a voxel.

@@ -493,7 +493,7 @@ impl<'a> ReflectRun<'a> {
     /// The result: the roots' pixels and answers, the cells' counters summed (peaks by maximum).
     fn finish(self) -> Reflected {
         let mut k = ReflectCounts {
-            hit: hit_name(self.renv.hit),
+            hit: self.renv.hit.name(),
             cycles: self.cycle,
             ray_messages: self.ray_messages,
             answer_messages: self.net.hops,
@@ -550,15 +550,6 @@ fn fault_report<const FA: usize, const W: usize, const S: usize>(
         i % n,
         i / n
     )
-}
-
-/// The `--hit` name of a hit point rule.
-pub const fn hit_name(h: HitPoint) -> &'static str {
-    match h {
-        HitPoint::Centre => "centre",
-        HitPoint::Edge => "edge",
-        HitPoint::Exact => "exact",
-    }
 }
 
 /// One line of reflection counters for the job summaries.

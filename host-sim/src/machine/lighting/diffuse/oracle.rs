@@ -31,17 +31,6 @@ pub enum OracleSkip {
     Rays,
 }
 
-impl OracleSkip {
-    /// The option's name (`--oracle-skip`).
-    pub const fn name(self) -> &'static str {
-        match self {
-            OracleSkip::Off => "off",
-            OracleSkip::Voxels => "voxels",
-            OracleSkip::Rays => "rays",
-        }
-    }
-}
-
 /// Lattice rays per side of a tile of [`Needed`]'s ray table (the tile's largest layer lets a
 /// query pass over the whole tile).
 const TILE: usize = 16;
