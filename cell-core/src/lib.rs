@@ -18,6 +18,8 @@
 //! * [`lit`] — the lit rules: the thesis's (§5.5.5) and the plane rule for grazing light (§5.5.6).
 //! * [`radiosity`] — a shooting patch's energy: the form factor of a beam's rays, exactly
 //!   conserved by the split, and the per-column patch accumulators (radiosity thesis §1.3.2, §3.4).
+//! * [`proxel`] — proxel-parallel form factors (radiosity thesis §6.2): a cell's share of a
+//!   projection surface's proxels, their depth test, and the quanta of the facets it owns.
 //! * [`occupancy`] — a coarse block summary of the scene and the sound empty-frustum beam skip.
 //! * [`wire`] — the bytes a link carries: framed messages with a CRC (parse and emit).
 //! * [`link`] — the link seam: one `Link` trait for the perfect link, the `embedded-hal` link
@@ -52,6 +54,7 @@ pub mod normal;
 pub mod occluder;
 pub mod occupancy;
 pub mod plane;
+pub mod proxel;
 pub mod radiosity;
 pub mod ray;
 pub mod receiver;

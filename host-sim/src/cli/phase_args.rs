@@ -6,10 +6,11 @@ use cell_core::ray::Connectivity;
 use cell_core::reflect::{HitPoint, ReflectNormal};
 use cell_core::route::RoutePolicy;
 
-use crate::jobs::radiosity::RadiositySettings;
+use crate::jobs::radiosity::{RadiositySettings, ShotsBy};
 use crate::machine::rays::classic::ClassicConfig;
 use crate::machine::rays::mirror::ReflectConfig;
 use crate::machine::shooting::indirect::Display;
+use crate::machine::shooting::proxels::Update;
 
 /// How the lighting jobs compute the lit state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -216,6 +217,77 @@ pub struct RadiosityOpts {
     /// reference's and the machine's images against it.
     #[arg(long, requires = "reference")]
     pub truth_error: bool,
+    /// How the machine computes each shot's form factors [default: beams]. `beams`: one beam
+    /// diffusion from the shooting patch (radiosity thesis ch. 5). `proxels-hemicube`,
+    /// `proxels-disk`: the shooter's hemicube or projection disk distributed over the cells
+    /// (thesis §6.2: cyclic proxels, patches modulo the cells, each triangle's projection
+    /// broadcast and z-tested in the zones its bounding rectangle covers); the shots CSV then
+    /// adds the projection's and every update strategy's costs (docs/RADIOSITY.md).
+    #[arg(long, value_enum, value_name = "METHOD")]
+    pub shots_by: Option<ShotsByArg>,
+    /// With --shots-by proxels-*: the surface's resolution R (the hemicube's R × R top face,
+    /// R even; the disk's R × R square) [default: 2n].
+    #[arg(long, value_name = "R", requires = "shots_by")]
+    pub resolution: Option<u32>,
+    /// With --shots-by proxels-*: the update (proxel quanta to their patches' cells, thesis
+    /// §6.2.6) the shots' cycles count; the CSV has them all [default: reduce]. `xnet-proxels`:
+    /// proxels move east then south, zone after zone; `xnet-modulo`: each cell starts at its
+    /// own zone; `xnet-facets`: patches visit every cell; `router-proxels`, `router-modulo`:
+    /// through a global router of 16-cell groups (the MasPar's); `reduce`: per-cell sums
+    /// merged to cell (0, 0) along the rows and column 0.
+    #[arg(long, value_enum, value_name = "STRATEGY", requires = "shots_by")]
+    pub update: Option<UpdateArg>,
+}
+
+/// `--shots-by`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ShotsByArg {
+    /// Beam diffusion (thesis ch. 5).
+    Beams,
+    /// The hemicube on the cells (§6.2).
+    ProxelsHemicube,
+    /// The projection disk on the cells (§6.2).
+    ProxelsDisk,
+}
+
+impl From<ShotsByArg> for ShotsBy {
+    fn from(a: ShotsByArg) -> Self {
+        match a {
+            ShotsByArg::Beams => ShotsBy::Beams,
+            ShotsByArg::ProxelsHemicube => ShotsBy::ProxelsHemicube,
+            ShotsByArg::ProxelsDisk => ShotsBy::ProxelsDisk,
+        }
+    }
+}
+
+/// `--update`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum UpdateArg {
+    /// Proxels over the links, zone after zone.
+    XnetProxels,
+    /// Proxels over the links, the modulo zone choice.
+    XnetModulo,
+    /// Patches visiting every cell.
+    XnetFacets,
+    /// Proxels through a global router.
+    RouterProxels,
+    /// The router, the modulo zone choice.
+    RouterModulo,
+    /// Per-cell sums merged to cell (0, 0).
+    Reduce,
+}
+
+impl From<UpdateArg> for Update {
+    fn from(a: UpdateArg) -> Self {
+        match a {
+            UpdateArg::XnetProxels => Update::XnetProxels,
+            UpdateArg::XnetModulo => Update::XnetModulo,
+            UpdateArg::XnetFacets => Update::XnetFacets,
+            UpdateArg::RouterProxels => Update::RouterProxels,
+            UpdateArg::RouterModulo => Update::RouterModulo,
+            UpdateArg::Reduce => Update::Reduce,
+        }
+    }
 }
 
 impl RadiosityOpts {
@@ -228,6 +300,9 @@ impl RadiosityOpts {
             (self.offset.is_some(), "--offset"),
             (self.form_factors.is_some(), "--form-factors"),
             (self.truth_error, "--truth-error"),
+            (self.shots_by.is_some(), "--shots-by"),
+            (self.resolution.is_some(), "--resolution"),
+            (self.update.is_some(), "--update"),
         ]
         .into_iter()
         .find_map(|(given, flag)| given.then_some(flag))
@@ -243,6 +318,9 @@ impl From<&RadiosityOpts> for RadiositySettings {
             residual: a.residual.unwrap_or(d.residual),
             offset: a.offset.unwrap_or(d.offset),
             estimator: a.form_factors.unwrap_or(d.estimator),
+            shots_by: a.shots_by.map_or(d.shots_by, Into::into),
+            resolution: a.resolution.or(d.resolution),
+            update: a.update.map_or(d.update, Into::into),
         }
     }
 }

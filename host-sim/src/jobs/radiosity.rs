@@ -12,7 +12,8 @@ use cell_core::beam::frac::U0;
 
 use crate::machine::grid::capacity::HostLightCell;
 use crate::machine::loading::loaded_scene::{load_scene, LoadedScene};
-use crate::machine::shooting::shots::{solve, GridSolution, RadiosityConfig, ShotLog};
+use crate::machine::shooting::proxels::{ProxelConfig, SurfaceKind, Update};
+use crate::machine::shooting::shots::{solve, solve_by_proxels, GridSolution, RadiosityConfig, ShotLog};
 use crate::precompute::LoadConfig;
 use crate::report::convergence::{plot_residuals, Series};
 use crate::report::files::{create, write_json};
@@ -39,6 +40,37 @@ pub struct RadiositySettings {
     /// How the f64 reference estimates its form factors (`--form-factors`; default: the
     /// ray-cast contour estimator).
     pub estimator: Estimator,
+    /// How the machine shoots (`--shots-by`).
+    pub shots_by: ShotsBy,
+    /// With a projection: its resolution (`--resolution`; `None`: the default for the grid,
+    /// [`ProxelConfig::default_resolution`]).
+    pub resolution: Option<u32>,
+    /// With a projection: the update the shots' cycles count (`--update`).
+    pub update: Update,
+}
+
+/// How the machine computes a shot's form factors (`--shots-by`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ShotsBy {
+    /// One beam diffusion per shot (radiosity thesis ch. 5, [`crate::machine::shooting::shots`]).
+    #[default]
+    Beams,
+    /// The shooter's hemicube distributed over the cells (§6.2, [`crate::machine::shooting::proxels`]).
+    ProxelsHemicube,
+    /// The shooter's projection disk distributed over the cells (§6.2).
+    ProxelsDisk,
+}
+
+impl ShotsBy {
+    /// Its `--shots-by` name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ShotsBy::Beams => "beams",
+            ShotsBy::ProxelsHemicube => "proxels-hemicube",
+            ShotsBy::ProxelsDisk => "proxels-disk",
+        }
+    }
 }
 
 impl Default for RadiositySettings {
@@ -49,6 +81,9 @@ impl Default for RadiositySettings {
             residual: 0.01,
             offset: crate::machine::shooting::shots::DEFAULT_OFFSET,
             estimator: Estimator::Contour,
+            shots_by: ShotsBy::Beams,
+            resolution: None,
+            update: Update::default(),
         }
     }
 }
@@ -60,6 +95,17 @@ impl RadiositySettings {
         let mut cfg = RadiosityConfig::new(crate::config::plane_rule(), self.residual, self.shots);
         cfg.offset = self.offset;
         cfg
+    }
+
+    /// With a projection, what the cells project on an n × n grid.
+    pub fn proxels(&self, n: u32) -> Option<ProxelConfig> {
+        let surface = match self.shots_by {
+            ShotsBy::Beams => return None,
+            ShotsBy::ProxelsHemicube => SurfaceKind::Hemicube,
+            ShotsBy::ProxelsDisk => SurfaceKind::Disk,
+        };
+        let resolution = self.resolution.unwrap_or_else(|| ProxelConfig::default_resolution(n));
+        Some(ProxelConfig { surface, resolution, update: self.update })
     }
 
     /// The patches of `mesh` on a grid of voxel size `voxel` (world units).
@@ -142,6 +188,78 @@ pub struct RadiosityStats {
     pub wall_seconds: f64,
     /// With `--reference`: the comparison.
     pub reference: Option<ReferenceStats>,
+    /// With `--shots-by proxels-*`: what the cells projected and what it cost.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub proxels: Option<ProxelStats>,
+}
+
+/// A solution shot by projection: the surface, and its phases' costs per shot.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ProxelStats {
+    /// `--shots-by`.
+    pub shots_by: ShotsBy,
+    /// Resolution R.
+    pub resolution: u32,
+    /// The update the cycles count.
+    pub update: Update,
+    /// Bytes a cell holds for them (proxel store and patch share).
+    pub bytes_per_cell: usize,
+    /// Mean per shot: select and shooter broadcast cycles.
+    pub select_cycles_per_shot: f64,
+    /// Mean per shot: projection cycles (cull, broadcasts, zone tests).
+    pub projection_cycles_per_shot: f64,
+    /// Mean per shot: triangles broadcast.
+    pub triangles_per_shot: f64,
+    /// Proxel tests that found their triangle over the zone tests the SIMD cells made (the
+    /// thesis's *rendement*, Fig. 6.15.b).
+    pub zone_yield: f64,
+    /// The same over the proxels inside the rectangles (a MIMD cell's tests).
+    pub rect_yield: f64,
+    /// Every update strategy: its name, mean cycles and messages per shot.
+    pub updates: Vec<UpdateStats>,
+}
+
+/// One update strategy over a solution.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct UpdateStats {
+    /// `--update` name.
+    pub update: &'static str,
+    /// Mean cycles per shot.
+    pub cycles_per_shot: f64,
+    /// Mean messages per shot.
+    pub messages_per_shot: f64,
+}
+
+/// The proxel statistics of a solution shot by projection (`None` for beams).
+fn proxel_stats(settings: &RadiositySettings, n: u32, s: &GridSolution) -> Option<ProxelStats> {
+    let cfg = settings.proxels(n)?;
+    let costs: Vec<&crate::machine::shooting::proxels::ProxelCost> =
+        s.shots.iter().filter_map(|x| x.proxel.as_ref()).collect();
+    let k = costs.len().max(1) as f64;
+    let mean = |f: &dyn Fn(&crate::machine::shooting::proxels::ProxelCost) -> u64| {
+        costs.iter().map(|c| f(c)).sum::<u64>() as f64 / k
+    };
+    let (hits, zones, rects) = (mean(&|c| c.hits), mean(&|c| c.zone_tests), mean(&|c| c.rect_tests));
+    Some(ProxelStats {
+        shots_by: settings.shots_by,
+        resolution: cfg.resolution,
+        update: cfg.update,
+        bytes_per_cell: crate::machine::shooting::proxels::bytes_per_cell(),
+        select_cycles_per_shot: mean(&|c| c.select_cycles),
+        projection_cycles_per_shot: mean(&|c| c.projection_cycles),
+        triangles_per_shot: mean(&|c| c.triangles),
+        zone_yield: hits / zones.max(1.0),
+        rect_yield: hits / rects.max(1.0),
+        updates: Update::ALL
+            .iter()
+            .enumerate()
+            .map(|(u, up)| UpdateStats {
+                update: up.name(),
+                cycles_per_shot: mean(&|c| c.updates[u].cycles),
+                messages_per_shot: mean(&|c| c.updates[u].messages),
+            })
+            .collect(),
+    })
 }
 
 /// The machine against the f64 reference on the same patches and stopping rule.
@@ -204,13 +322,13 @@ pub fn run(o: &RadiosityOptions) -> Result<()> {
     let scene = load_scene(&mesh, &o.load)?;
     let p = o.solve.patches(&mesh, scene.fit.voxel)?;
     let t0 = Instant::now();
-    let s = solve_with_bar(&scene, &p, &o.solve.machine(), o.quiet)?;
+    let s = solve_with_bar(&scene, &p, &o.solve, o.quiet)?;
     let wall = t0.elapsed().as_secs_f64();
     let truth = o.truth_error.then_some(o.truth_cache.as_deref());
     let compared = o.reference.then(|| compare(&p, &s, &o.solve, o.reference_self_error, truth)).transpose()?;
     let plot = o.residual_plot.clone().unwrap_or_else(|| format!("{}_residual.png", mesh.name).into());
     plot_residual(&plot, &mesh.name, scene.grid.n, &s, compared.as_ref().map(|c| &c.solution), o.solve.residual)?;
-    let stats = summarise(&mesh.name, &scene, &p, &s, wall, compared.map(|c| c.stats));
+    let stats = summarise(&mesh.name, &scene, &p, &s, &o.solve, wall, compared.map(|c| c.stats));
     write_patches(&o.patches_csv.clone().unwrap_or_else(|| format!("{}_patches.csv", mesh.name).into()), &p, &s)?;
     write_shots(&o.shots_csv.clone().unwrap_or_else(|| format!("{}_shots.csv", mesh.name).into()), &s.shots)?;
     if let Some(path) = &o.stats {
@@ -251,14 +369,27 @@ fn plot_residual(
     Ok(())
 }
 
-/// The machine's solution, with a progress bar showing the residual.
-pub fn solve_with_bar(scene: &LoadedScene, p: &Patches, cfg: &RadiosityConfig, quiet: bool) -> Result<GridSolution> {
+/// The machine's solution, shot as `settings` says, with a progress bar showing the residual.
+pub fn solve_with_bar(
+    scene: &LoadedScene,
+    p: &Patches,
+    settings: &RadiositySettings,
+    quiet: bool,
+) -> Result<GridSolution> {
+    if settings.shots_by == ShotsBy::Beams && settings.resolution.is_some() {
+        bail!("radiosity: --resolution is the projection's (--shots-by proxels-hemicube or proxels-disk); beam shots have none");
+    }
+    let cfg = settings.machine();
     let pb = progress::bar(quiet, "shots");
     pb.set_length(cfg.max_shots.min(100_000) as u64);
-    let s = solve(&scene.grid, &scene.fit, &scene.source_face, &p.patches, cfg, |k, r| {
+    let mut bar = |k: usize, r: f64| {
         pb.set_position(k as u64);
         pb.set_message(format!("residual {r:.4}"));
-    });
+    };
+    let s = match settings.proxels(scene.grid.n) {
+        None => solve(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &cfg, bar),
+        Some(proxels) => solve_by_proxels(scene.grid.n, &p.patches, &cfg, proxels, &mut bar),
+    };
     pb.finish_and_clear();
     s
 }
@@ -435,6 +566,7 @@ pub fn summarise(
     scene: &LoadedScene,
     p: &Patches,
     s: &GridSolution,
+    settings: &RadiositySettings,
     wall_seconds: f64,
     reference: Option<ReferenceStats>,
 ) -> RadiosityStats {
@@ -447,12 +579,12 @@ pub fn summarise(
         shots: s.shots.len(),
         stop: s.stop,
         residual: s.residual,
-        cycles: sum(&|x| x.cost.cycles()),
-        messages: sum(&|x| x.cost.messages()),
+        cycles: sum(&|x| x.cycles()),
+        messages: sum(&|x| x.messages()),
         beams_processed: sum(&|x| x.cost.diffusion.beams_processed),
         diffusion_cycles_per_shot: sum(&|x| x.cost.diffusion.cycles) as f64 / k,
         reduce_cycles_per_shot: sum(&|x| x.cost.reduce_cycles) as f64 / k,
-        messages_per_shot: sum(&|x| x.cost.messages()) as f64 / k,
+        messages_per_shot: sum(&|x| x.messages()) as f64 / k,
         bytes_per_cell_added: crate::machine::shooting::shots::bytes_per_cell_added(),
         bytes_per_light_cell: std::mem::size_of::<HostLightCell<U0>>(),
         zero_area_faces: p.summary.degenerate_faces,
@@ -460,6 +592,7 @@ pub fn summarise(
         received_overflows: s.received_overflows,
         wall_seconds,
         reference,
+        proxels: proxel_stats(settings, scene.grid.n, s),
     }
 }
 
@@ -484,15 +617,24 @@ fn write_patches(path: &std::path::Path, p: &Patches, s: &GridSolution) -> Resul
 /// One row per shot: the shooter, the residual after it, the balance and the costs.
 fn write_shots(path: &std::path::Path, shots: &[ShotLog]) -> Result<()> {
     let mut w = create(path)?;
+    let proxels = shots.iter().any(|x| x.proxel.is_some());
+    let mut extra = String::new();
+    if proxels {
+        extra.push_str(",select_cycles,projection_cycles,projection_messages,triangles,zone_tests,rect_tests,hits");
+        for u in Update::ALL {
+            let name = u.name().replace('-', "_");
+            extra.push_str(&format!(",update_{name}_cycles,update_{name}_messages"));
+        }
+    }
     writeln!(
         w,
         "shot,patch,unshot_power,residual_after,emitted,received,lost,left,negative,own,\
          diffusion_cycles,diffusion_messages,broadcast_cycles,broadcast_messages,reduce_cycles,reduce_messages,\
-         supervisor_ops,cycles,messages"
+         supervisor_ops,cycles,messages{extra}"
     )?;
     for (k, x) in shots.iter().enumerate() {
         let c = &x.cost;
-        writeln!(
+        write!(
             w,
             "{k},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             x.patch,
@@ -511,9 +653,26 @@ fn write_shots(path: &std::path::Path, shots: &[ShotLog]) -> Result<()> {
             c.reduce_cycles,
             c.reduce_messages,
             c.supervisor_ops,
-            c.cycles(),
-            c.messages()
+            x.cycles(),
+            x.messages()
         )?;
+        if let Some(p) = &x.proxel {
+            write!(
+                w,
+                ",{},{},{},{},{},{},{}",
+                p.select_cycles,
+                p.projection_cycles,
+                p.projection_messages,
+                p.triangles,
+                p.zone_tests,
+                p.rect_tests,
+                p.hits
+            )?;
+            for u in &p.updates {
+                write!(w, ",{},{}", u.cycles, u.messages)?;
+            }
+        }
+        writeln!(w)?;
     }
     eprintln!("  wrote {}", path.display());
     Ok(())
@@ -533,6 +692,32 @@ pub fn print_summary(s: &RadiosityStats) {
         "  bytes per cell added {} (lighting cell {}), zero-area faces skipped {}, unmapped voxels {}, accumulator overflows {}",
         s.bytes_per_cell_added, s.bytes_per_light_cell, s.zero_area_faces, s.unmapped_voxels, s.received_overflows
     );
+    if let Some(x) = &s.proxels {
+        eprintln!(
+            "  shots by {} (R = {}, {} bytes per cell): per shot select {:.0} + projection {:.0} cycles ({:.0} triangles broadcast, yield {:.4} of zone tests, {:.4} of rectangle tests)",
+            x.shots_by.name(),
+            x.resolution,
+            x.bytes_per_cell,
+            x.select_cycles_per_shot,
+            x.projection_cycles_per_shot,
+            x.triangles_per_shot,
+            x.zone_yield,
+            x.rect_yield
+        );
+        let ups: Vec<String> = x
+            .updates
+            .iter()
+            .map(|u| {
+                format!(
+                    "{}{} {:.0}",
+                    u.update,
+                    if u.update == x.update.name() { " (counted)" } else { "" },
+                    u.cycles_per_shot
+                )
+            })
+            .collect();
+        eprintln!("  update cycles per shot: {}", ups.join(", "));
+    }
     if let Some(r) = &s.reference {
         eprintln!(
             "  reference ({} shots, {:.1} s, form factors {}): per-patch RMS relative error {:.4} (direct light only {:.4})",

@@ -165,7 +165,7 @@ pub fn solve(
     let (world, shot_grid) = (world.as_ref().unwrap_or(mesh), own.as_ref().unwrap_or(loaded));
     let p = settings.patches(world, shot_grid.fit.voxel)?;
     let t0 = Instant::now();
-    let s = solve_with_bar(shot_grid, &p, &settings.machine(), quiet)?;
+    let s = solve_with_bar(shot_grid, &p, settings, quiet)?;
     let wall = t0.elapsed().as_secs_f64();
     let irradiance = |ff: &FormFactors, sol: Solution| -> Result<(PerPatch, PerPatch)> {
         Ok((indirect_irradiance(&p.patches, &sol, |i| ff.row(i))?, sol.unshot))
@@ -178,7 +178,7 @@ pub fn solve(
         (None, None, None)
     };
     Ok(Solved {
-        stats: summarise(&mesh.name, shot_grid, &p, &s, wall, compared),
+        stats: summarise(&mesh.name, shot_grid, &p, &s, settings, wall, compared),
         faces: world.faces.len(),
         patches: p,
         machine: s,

@@ -411,6 +411,53 @@ fn radiosity_run(name: &str, args: &[&str]) -> (i32, String, serde_json::Value) 
     (code, err, json)
 }
 
+/// `--shots-by proxels-*`: the run says what it shot by, its shots CSV balances every shot in
+/// integers and carries every update strategy's costs; bad resolutions and options that need a
+/// projection are refused.
+#[test]
+fn radiosity_shots_by_projection() {
+    for method in ["proxels-hemicube", "proxels-disk"] {
+        let name = format!("shots-by-{method}");
+        let (code, err, json) =
+            radiosity_run(&name, &["cornell", "--n", "16", "--residual", "0.05", "--shots-by", method]);
+        assert_eq!(code, 0, "{err}");
+        assert!(err.contains(&format!("shots by {method} (R = 32")), "{err}");
+        assert_eq!(json["proxels"]["shots_by"], method, "{json}");
+        assert!(json["residual"].as_f64().unwrap() <= 0.05, "{json}");
+        let csv = std::fs::read_to_string(tmp(&format!("{name}.json"), b"x").with_extension("shots.csv")).unwrap();
+        let mut lines = csv.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        let col = |c: &str| header.iter().position(|h| *h == c).unwrap_or_else(|| panic!("no column {c}"));
+        for c in
+            ["update_xnet_modulo_cycles", "update_router_modulo_messages", "update_reduce_cycles", "projection_cycles"]
+        {
+            col(c);
+        }
+        let mut shots = 0;
+        for line in lines {
+            let v: Vec<i64> = line.split(',').map(|x| x.parse::<f64>().unwrap() as i64).collect();
+            let [e, r, l, o] = ["emitted", "received", "lost", "left"].map(|c| v[col(c)]);
+            assert_eq!(r + l + o, e, "{line}");
+            assert_eq!(e, 1 << 30, "a surface's quanta are 2^30: {line}");
+            shots += 1;
+        }
+        assert_eq!(shots, json["shots"].as_u64().unwrap());
+    }
+    for (bad, why) in [
+        (&["--shots-by", "proxels-hemicube", "--resolution", "9"][..], "even"),
+        (&["--shots-by", "proxels-disk", "--resolution", "4000"][..], "--resolution"),
+        (&["--shots-by", "beams", "--resolution", "16"][..], "beam shots have none"),
+        (&["--resolution", "16"][..], "--shots-by"),
+        (&["--update", "reduce"][..], "--shots-by"),
+    ] {
+        let mut args = vec!["radiosity", "cornell", "--n", "16", "--quiet"];
+        args.extend(bad);
+        let (code, err) = host_sim(&args);
+        assert_ne!(code, 0, "{bad:?}: {err}");
+        assert!(err.contains(why), "{bad:?}: {err}");
+    }
+}
+
 #[test]
 fn radiosity_against_a_converged_truth_converges_with_the_hemicube() {
     let error = |spec: &str| {

@@ -41,3 +41,11 @@ pub type CellIndirectFlat = IndirectPixel<1>;
 /// A cell's indirect light under the smooth display: the records of its patch's corners (a
 /// patch has 3 or 4).
 pub type CellIndirectSmooth = IndirectPixel<4>;
+
+/// Proxels one cell holds for proxel-parallel shots (radiosity thesis §6.2): 256 × 40 bytes,
+/// 10 KiB, within a MasPar PE's 16 KB; enough for a hemicube of R = 2n (12 per cell) and a disk
+/// of R = 1024 on 128 × 128 cells (64 per cell).
+pub const PROXEL_CAP: usize = 256;
+
+/// Patches one cell owns for proxel-parallel shots (the modulo distribution: ⌈P/n²⌉).
+pub const FACET_SHARE_CAP: usize = 64;

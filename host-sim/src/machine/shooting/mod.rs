@@ -4,6 +4,8 @@
 //!
 //! * [`shots`] — one shot in machine phases (broadcast, diffusion, collection, the costed
 //!   reduction to the supervisor) and the supervisor's progressive loop.
+//! * [`proxels`] — shots by projection (radiosity thesis §6.2): the shooter's hemicube or disk
+//!   distributed over the cells, its depth buffer z-tested there, the update's alternatives costed.
 //! * [`indirect`] — showing the solution (radiosity thesis §1.3.1): each cell's indirect light
 //!   of its visible point, broadcast and costed, handed to shading as its ambient term.
 //!
@@ -13,4 +15,5 @@
 //! Radiosity stands on the grid, the loaded scene and the lighting phase.
 
 pub mod indirect;
+pub mod proxels;
 pub mod shots;

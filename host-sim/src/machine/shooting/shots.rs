@@ -208,9 +208,22 @@ pub struct ShotLog {
     /// Its cost.
     #[serde(flatten)]
     pub cost: ShotCost,
+    /// A proxel shot's cost ([`super::proxels`]; `None` for a beam shot).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub proxel: Option<super::proxels::ProxelCost>,
 }
 
 impl ShotLog {
+    /// Grid cycles of the shot, whichever way it was shot.
+    pub fn cycles(&self) -> u64 {
+        self.cost.cycles() + self.proxel.as_ref().map_or(0, |p| p.cycles())
+    }
+
+    /// Messages of the shot, whichever way it was shot.
+    pub fn messages(&self) -> u64 {
+        self.cost.messages() + self.proxel.as_ref().map_or(0, |p| p.messages())
+    }
+
     /// Received + lost + left = emitted, exactly.
     pub fn balanced(&self) -> bool {
         self.received + self.lost + self.left == self.emitted
@@ -352,13 +365,19 @@ fn merge(inputs: &[&[(u32, u64)]]) -> Stream {
 /// merged westward, then column 0 northward (module doc). Returns the patch totals, the cycle
 /// the supervisor has the end marker, and the messages sent.
 pub fn reduce_cost(n: u32, received: &[CellReceived]) -> (Vec<(PatchId, i64)>, u64, u64) {
+    let entries: Vec<&[(PatchId, i64)]> = received.iter().map(|r| r.entries()).collect();
+    reduce_entries(n, &entries)
+}
+
+/// [`reduce_cost`] of any per-cell (patch, quanta) lists, each sorted by patch.
+pub fn reduce_entries<E: AsRef<[(PatchId, i64)]>>(n: u32, cells: &[E]) -> (Vec<(PatchId, i64)>, u64, u64) {
     let n = n as usize;
     let mut quanta = std::collections::BTreeMap::<PatchId, i64>::new();
-    for &(p, q) in received.iter().flat_map(|r| r.entries()) {
+    for &(p, q) in cells.iter().flat_map(|r| r.as_ref()) {
         *quanta.entry(p).or_insert(0) += q;
     }
     let own = |i: usize| -> Stream {
-        let mut s: Stream = received[i].entries().iter().map(|e| (e.0 as u32, 0)).collect();
+        let mut s: Stream = cells[i].as_ref().iter().map(|e| (e.0 as u32, 0)).collect();
         s.push((END, 0));
         s
     };
@@ -508,13 +527,7 @@ fn solve_dyn(
     cfg: &RadiosityConfig,
     progress: &mut dyn FnMut(usize, f64),
 ) -> Result<GridSolution> {
-    let emitted_power = check_patches(patches)?;
-    if !(cfg.stop_fraction >= 0.0 && cfg.stop_fraction < 1.0) {
-        bail!("radiosity: the residual must be in [0, 1), got {}", cfg.stop_fraction);
-    }
-    if !(cfg.offset.is_finite() && cfg.offset >= 0.0) {
-        bail!("radiosity: the source offset must be a finite number of voxels ≥ 0, got {}", cfg.offset);
-    }
+    check_settings(patches, cfg)?;
     let map = map_patches(grid, fit, source_face, patches)?;
     if map.overflows > 0 {
         bail!(
@@ -524,6 +537,48 @@ fn solve_dyn(
             crate::machine::grid::capacity::PATCH_RUNS_CAP
         );
     }
+    let mut s = progressive(patches, cfg, &mut |i| shoot(grid, fit, &map, patches, i, cfg), progress)?;
+    s.map_overflows = map.overflows;
+    s.unmapped_voxels = map.unmapped;
+    Ok(s)
+}
+
+/// Progressive refinement with shots by projection ([`super::proxels`]) on an n × n grid: the
+/// same supervisor arithmetic and stopping rule as [`solve`], each shot's form factors from the
+/// cells' depth buffer of the shooter's surface.
+pub fn solve_by_proxels(
+    n: u32,
+    patches: &[Patch],
+    cfg: &RadiosityConfig,
+    proxels: super::proxels::ProxelConfig,
+    progress: &mut dyn FnMut(usize, f64),
+) -> Result<GridSolution> {
+    check_settings(patches, cfg)?;
+    let mut grid = super::proxels::ProxelGrid::new(n, patches, proxels)?;
+    progressive(patches, cfg, &mut |i| grid.shoot(patches, i), progress)
+}
+
+/// Check the patches and the stopping rule.
+fn check_settings(patches: &[Patch], cfg: &RadiosityConfig) -> Result<()> {
+    check_patches(patches)?;
+    if !(cfg.stop_fraction >= 0.0 && cfg.stop_fraction < 1.0) {
+        bail!("radiosity: the residual must be in [0, 1), got {}", cfg.stop_fraction);
+    }
+    if !(cfg.offset.is_finite() && cfg.offset >= 0.0) {
+        bail!("radiosity: the source offset must be a finite number of voxels ≥ 0, got {}", cfg.offset);
+    }
+    Ok(())
+}
+
+/// The supervisor's loop: shoot the patch with the most unshot power (`shoot(i)`) until the
+/// residual or the shot budget of `cfg` is reached.
+fn progressive(
+    patches: &[Patch],
+    cfg: &RadiosityConfig,
+    shoot: &mut dyn FnMut(usize) -> Result<Shot>,
+    progress: &mut dyn FnMut(usize, f64),
+) -> Result<GridSolution> {
+    let emitted_power = check_patches(patches)?;
     let mut s = GridSolution {
         radiosity: patches.iter().map(|p| p.emission).collect(),
         unshot: patches.iter().map(|p| p.emission).collect(),
@@ -532,8 +587,8 @@ fn solve_dyn(
         stop: GridStop::ShotBudget,
         emitted_power,
         residual: 1.0,
-        map_overflows: map.overflows,
-        unmapped_voxels: map.unmapped,
+        map_overflows: 0,
+        unmapped_voxels: 0,
         received_overflows: 0,
     };
     while s.residual > cfg.stop_fraction {
@@ -541,7 +596,7 @@ fn solve_dyn(
             return Ok(s);
         }
         let i = select(patches, &s.unshot);
-        let shot = shoot(grid, fit, &map, patches, i, cfg)?;
+        let shot = shoot(i)?;
         apply(patches, &mut s, i, shot);
         progress(s.shots.len(), s.residual);
     }
@@ -584,7 +639,8 @@ fn apply(patches: &[Patch], s: &mut GridSolution, i: usize, shot: Shot) {
     let unshot: f64 = patches.iter().zip(&s.unshot).map(|(p, u)| power(*u, p.area)).sum();
     s.residual = unshot / s.emitted_power;
     log.residual_after = s.residual;
-    log.cost.supervisor_ops = patches.len() as u64 + totals.len() as u64;
+    // A proxel shot's cells select and update their own patches (its cost has them).
+    log.cost.supervisor_ops = if log.proxel.is_some() { 0 } else { patches.len() as u64 + totals.len() as u64 };
     s.received_overflows += log.overflows;
     s.shots.push(log);
 }

@@ -156,6 +156,25 @@ fn clip_above(v: &[[f64; 3]; 3]) -> Vec<[f64; 3]> {
     out
 }
 
+/// One plane, the bounding square R × R (sample `j·R + i`), its proxels outside the disk absent.
+impl super::Planar for Disk {
+    fn planes(&self) -> Vec<(u32, u32)> {
+        vec![(self.r, self.r)]
+    }
+    fn sample_at(&self, plane: usize, i: u32, j: u32) -> Option<usize> {
+        (plane == 0 && i < self.r && j < self.r && self.sqrt_at(i, j) > 0.0).then(|| (j * self.r + i) as usize)
+    }
+    fn rects(&self, local: &[[f64; 3]; 3]) -> Vec<super::PlaneRect> {
+        bounding_rect(local)
+            .map(|rect| {
+                let ((i0, i1), (j0, j1)) = (self.span(rect[0], rect[1]), self.span(rect[2], rect[3]));
+                super::PlaneRect { plane: 0, i0, i1, j0, j1 }
+            })
+            .into_iter()
+            .collect()
+    }
+}
+
 impl ProjectionSurface for Disk {
     fn name(&self) -> &'static str {
         "disk"

@@ -26,7 +26,7 @@ use std::sync::OnceLock;
 use anyhow::Result;
 use parry3d_f64::math::Vector;
 
-use super::{check_resolution, octant_index, octant_len, Cone, ProjectionSurface, Resolution};
+use super::{check_resolution, octant_index, octant_len, Cone, Planar, ProjectionSurface, Resolution};
 use crate::truth::closed_form::{point_to_parallel_rectangle, point_to_polygon};
 
 /// A hemicube at resolution R (even).
@@ -88,34 +88,10 @@ impl Hemicube {
     /// One facet's depth-buffer pass on the five faces, over its projection's bounding
     /// rectangle on each.
     fn project(&self, f: u32, cone: &Cone, local: &[[f64; 3]; 3], zbuf: &mut [(f64, u32)]) {
-        let (r, w) = (self.r, 2.0 / self.r as f64);
-        let h = r / 2;
-        // Each face: the axis it faces (index, sign), its two in-face axes, its first sample.
-        let faces: [(usize, f64, usize, usize, usize); 5] = [
-            (2, 1.0, 0, 1, 0),
-            (0, 1.0, 1, 2, (r * r) as usize),
-            (0, -1.0, 1, 2, (r * r + r * h) as usize),
-            (1, 1.0, 0, 2, (r * r + 2 * r * h) as usize),
-            (1, -1.0, 0, 2, (r * r + 3 * r * h) as usize),
-        ];
-        for (face, &(axis, sign, ua, va, first)) in faces.iter().enumerate() {
-            let depth = |p: &[f64; 3]| sign * p[axis];
-            let poly = clip_in_front(local, axis, sign);
-            if poly.len() < 3 {
-                continue;
-            }
-            let mut rect = [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY];
-            for p in &poly {
-                let (u, v) = (p[ua] / depth(p), p[va] / depth(p));
-                rect = [rect[0].min(u), rect[1].max(u), rect[2].min(v), rect[3].max(v)];
-            }
-            let top = face == 0;
-            let Some((i0, i1)) = Self::span(rect[0], rect[1], -1.0, r, w) else { continue };
-            let (v_lo, v_cells) = if top { (-1.0, r) } else { (0.0, h) };
-            let Some((j0, j1)) = Self::span(rect[2], rect[3], v_lo, v_cells, w) else { continue };
-            for i in i0..=i1 {
-                for j in j0..=j1 {
-                    let k = if top { first + (j * r + i) as usize } else { first + (i * h + j) as usize };
+        for rect in self.rects(local) {
+            for i in rect.i0..=rect.i1 {
+                for j in rect.j0..=rect.j1 {
+                    let k = self.sample_at(rect.plane, i, j).expect("a hemicube proxel exists");
                     if let Some(t) = cone.hit(self.direction(k)) {
                         let slot = &mut zbuf[k];
                         if t < slot.0 {
@@ -125,6 +101,19 @@ impl Hemicube {
                 }
             }
         }
+    }
+
+    /// Each face: the axis it faces (index, sign), its two in-face axes, its first sample.
+    fn faces(&self) -> [(usize, f64, usize, usize, usize); 5] {
+        let r = self.r;
+        let h = r / 2;
+        [
+            (2, 1.0, 0, 1, 0),
+            (0, 1.0, 1, 2, (r * r) as usize),
+            (0, -1.0, 1, 2, (r * r + r * h) as usize),
+            (1, 1.0, 0, 2, (r * r + 2 * r * h) as usize),
+            (1, -1.0, 0, 2, (r * r + 3 * r * h) as usize),
+        ]
     }
 
     fn side_delta(&self, j: u32, k: u32) -> f64 {
@@ -201,6 +190,47 @@ impl ProjectionSurface for Hemicube {
         }
         let rest = (k - r * r) % (r * r / 2);
         self.side_delta((rest / (r / 2)) as u32, (rest % (r / 2)) as u32)
+    }
+}
+
+/// Planes 0 (top, R × R, sample `j·R + i`) and 1–4 (+x, −x, +y, −y: R columns along the
+/// face's horizontal axis × R/2 rows of height, sample `first + i·R/2 + j`).
+impl Planar for Hemicube {
+    fn planes(&self) -> Vec<(u32, u32)> {
+        let (r, h) = (self.r, self.r / 2);
+        vec![(r, r), (r, h), (r, h), (r, h), (r, h)]
+    }
+    fn sample_at(&self, plane: usize, i: u32, j: u32) -> Option<usize> {
+        let (r, h) = (self.r, self.r / 2);
+        let first = self.faces().get(plane)?.4;
+        if plane == 0 {
+            (i < r && j < r).then(|| (j * r + i) as usize)
+        } else {
+            (i < r && j < h).then(|| first + (i * h + j) as usize)
+        }
+    }
+    fn rects(&self, local: &[[f64; 3]; 3]) -> Vec<super::PlaneRect> {
+        let (r, w) = (self.r, 2.0 / self.r as f64);
+        let h = r / 2;
+        let mut out = Vec::new();
+        for (face, &(axis, sign, ua, va, _)) in self.faces().iter().enumerate() {
+            let depth = |p: &[f64; 3]| sign * p[axis];
+            let poly = clip_in_front(local, axis, sign);
+            if poly.len() < 3 {
+                continue;
+            }
+            let mut rect = [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY];
+            for p in &poly {
+                let (u, v) = (p[ua] / depth(p), p[va] / depth(p));
+                rect = [rect[0].min(u), rect[1].max(u), rect[2].min(v), rect[3].max(v)];
+            }
+            let top = face == 0;
+            let Some((i0, i1)) = Self::span(rect[0], rect[1], -1.0, r, w) else { continue };
+            let (v_lo, v_cells) = if top { (-1.0, r) } else { (0.0, h) };
+            let Some((j0, j1)) = Self::span(rect[2], rect[3], v_lo, v_cells, w) else { continue };
+            out.push(super::PlaneRect { plane: face, i0, i1, j0, j1 });
+        }
+        out
     }
 }
 

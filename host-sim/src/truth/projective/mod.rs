@@ -124,6 +124,38 @@ pub trait ProjectionSurface: Sync + Send + fmt::Debug {
 /// No facet in a proxel.
 pub const NONE: u32 = u32::MAX;
 
+/// The proxels a facet's projection may cover on one plane of a surface: the bounding rectangle
+/// `[i0, i1] × [j0, j1]` of proxel indices on plane `plane` (§6.2.4: a conservative rectangle,
+/// every proxel whose centre the projection covers is inside).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PlaneRect {
+    /// The plane ([`Planar::planes`]).
+    pub plane: usize,
+    /// First and last column.
+    pub i0: u32,
+    /// Last column.
+    pub i1: u32,
+    /// First row.
+    pub j0: u32,
+    /// Last row.
+    pub j1: u32,
+}
+
+/// A surface made of planes of proxels on a square lattice (the hemicube's five faces, the
+/// disk's bounding square): what a grid of cells distributes zone by zone (radiosity thesis
+/// §6.2.3) and restricts per facet to bounding rectangles (§6.2.4).
+pub trait Planar: ProjectionSurface {
+    /// Each plane's columns × rows.
+    fn planes(&self) -> Vec<(u32, u32)>;
+    /// The sample of proxel (i, j) of plane `plane`, if that proxel exists (the disk's square
+    /// has none outside the disk).
+    fn sample_at(&self, plane: usize, i: u32, j: u32) -> Option<usize>;
+    /// The bounding rectangles of the facet with vertices `local` (in the surface's frame)
+    /// on each plane its projection reaches: the rectangles the surface's own depth buffer
+    /// scans.
+    fn rects(&self, local: &[[f64; 3]; 3]) -> Vec<PlaneRect>;
+}
+
 /// A facet seen from the centre: the three edge planes through the origin, oriented so that the
 /// facet's projection is where all three are ≥ 0, and its own plane `p · d = h`.
 #[derive(Clone, Copy, Debug)]
