@@ -17,8 +17,8 @@
 //!    that facet, where a [`FacetShare`] adds them up.
 //!
 //! **Invariants.** A proxel keeps the nearest facet whose cone contains its centre direction, the
-//! first one among equals (facets arrive in a fixed order): exactly the host's sequential depth
-//! buffer. The quanta of a shot are integers: every proxel's quanta end in exactly one facet's
+//! first one in modelling order among equals, whatever order the facets arrive in: exactly the
+//! host's sequential depth buffer. The quanta of a shot are integers: every proxel's quanta end in exactly one facet's
 //! sum or in the count of proxels that saw nothing, so the sums add up to the surface's total
 //! exactly. A full store refuses a proxel and counts it ([`ProxelStore::overflows`]).
 //!
@@ -170,13 +170,14 @@ impl<const N: usize> ProxelStore<N> {
     }
 
     /// The depth test of facet `facet` at the proxel in `slot`: it keeps the facet when the
-    /// proxel's direction is inside the facet's cone and nearer than what it kept (strictly:
-    /// the first facet among equals stays). Returns whether it kept it; `false` for a slot
-    /// out of range.
+    /// proxel's direction is inside the facet's cone and nearer than what it kept, or as near
+    /// and earlier in modelling order (so that the facet kept does not depend on the order the
+    /// facets arrive in: the broadcast sends them in order, the hybrid method's spans come in
+    /// any). Returns whether it kept it; `false` for a slot out of range.
     pub fn z_test(&mut self, slot: usize, facet: FacetId, cone: &ProxelCone) -> bool {
         let Some(p) = self.slots.get_mut(slot) else { return false };
         match cone.hit(p.dir) {
-            Some(t) if t < p.depth => {
+            Some(t) if t < p.depth || (t == p.depth && facet < p.facet) => {
                 p.depth = t;
                 p.facet = facet;
                 true
@@ -278,7 +279,8 @@ mod tests {
         assert!(s.z_test(0, 2, &near));
         assert!(!s.z_test(0, 3, &far));
         assert!(!s.z_test(0, 4, &near), "an equal depth keeps the first facet");
-        assert_eq!(s.kept(0), Some((2, 5)));
+        assert!(s.z_test(0, 0, &near), "an equal depth and an earlier facet: it is kept, whatever the order");
+        assert_eq!(s.kept(0), Some((0, 5)));
         assert!(!s.z_test(9, 1, &near), "a slot out of range is no test");
         s.clear();
         assert_eq!(s.kept(0), None);

@@ -221,15 +221,18 @@ pub struct RadiosityOpts {
     /// diffusion from the shooting patch (radiosity thesis ch. 5). `proxels-hemicube`,
     /// `proxels-disk`: the shooter's hemicube or projection disk distributed over the cells
     /// (thesis §6.2: cyclic proxels, patches modulo the cells, each triangle's projection
-    /// broadcast and z-tested in the zones its bounding rectangle covers); the shots CSV then
-    /// adds the projection's and every update strategy's costs (docs/RADIOSITY.md).
+    /// broadcast and z-tested in the zones its bounding rectangle covers). `hybrid`: the
+    /// hemicube by the method of §6.4 (each triangle cut into spans by the cell that owns it,
+    /// the spans sent to the cells of their first proxels and z-buffered along the rows). The
+    /// shots CSV then adds the projection's and every update strategy's costs
+    /// (docs/RADIOSITY.md).
     #[arg(long, value_enum, value_name = "METHOD")]
     pub shots_by: Option<ShotsByArg>,
-    /// With --shots-by proxels-*: the surface's resolution R (the hemicube's R × R top face,
+    /// With --shots-by proxels-* or hybrid: the surface's resolution R (the hemicube's R × R top face,
     /// R even; the disk's R × R square) [default: 2n].
     #[arg(long, value_name = "R", requires = "shots_by")]
     pub resolution: Option<u32>,
-    /// With --shots-by proxels-*: the update (proxel quanta to their patches' cells, thesis
+    /// With --shots-by proxels-* or hybrid: the update (proxel quanta to their patches' cells, thesis
     /// §6.2.6) the shots' cycles count; the CSV has them all [default: reduce]. `xnet-proxels`:
     /// proxels move east then south, zone after zone; `xnet-modulo`: each cell starts at its
     /// own zone; `xnet-facets`: patches visit every cell; `router-proxels`, `router-modulo`:
@@ -248,6 +251,8 @@ pub enum ShotsByArg {
     ProxelsHemicube,
     /// The projection disk on the cells (§6.2).
     ProxelsDisk,
+    /// The hemicube by spans (§6.4).
+    Hybrid,
 }
 
 impl From<ShotsByArg> for ShotsBy {
@@ -256,6 +261,7 @@ impl From<ShotsByArg> for ShotsBy {
             ShotsByArg::Beams => ShotsBy::Beams,
             ShotsByArg::ProxelsHemicube => ShotsBy::ProxelsHemicube,
             ShotsByArg::ProxelsDisk => ShotsBy::ProxelsDisk,
+            ShotsByArg::Hybrid => ShotsBy::Hybrid,
         }
     }
 }

@@ -111,6 +111,9 @@ pub struct ProxelConfig {
     pub resolution: u32,
     /// The update the shot's cycles count.
     pub update: Update,
+    /// Project by the hybrid method of §6.4 (spans per triangle on their owners, z-buffered
+    /// along the rows) instead of broadcasting each triangle (hemicube only).
+    pub hybrid: bool,
 }
 
 impl ProxelConfig {
@@ -166,6 +169,28 @@ pub struct ProxelCost {
     pub updates: UpdateCosts,
     /// The patches' radiosity updates in their cells: ⌈P/n²⌉ cycles.
     pub apply_cycles: u64,
+    /// The hybrid projection's phases (§6.4; zero for the broadcast projection).
+    pub hybrid: HybridCost,
+}
+
+/// The phases of a hybrid projection (§6.4).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct HybridCost {
+    /// Span pieces (a span cut at zone edges: each piece lies on consecutive cells of a row).
+    pub spans: u64,
+    /// Proxels the pieces cover (the z-tests made).
+    pub span_proxels: u64,
+    /// Generation on the triangles' owners: the busiest cell's rows (one per row, one per
+    /// triangle set up).
+    pub generate_cycles: u64,
+    /// Distribution of the pieces to their first cells over the links (rounds of one piece per
+    /// cell: n east-west cycles and n per piece piled on the busiest cell), counted.
+    pub distribute_cycles: u64,
+    /// The same distribution through a global router of 4 × 4-cell groups (not counted).
+    pub distribute_router_cycles: u64,
+    /// Propagation along the rows (a piece moves one cell east per cycle, z-testing there;
+    /// a cell whose incoming slot is free starts one of its own): the slowest row's cycles.
+    pub propagate_cycles: u64,
 }
 
 impl ProxelCost {
@@ -212,6 +237,8 @@ pub struct ProxelGrid {
     owner: Vec<u32>,
     /// The most triangles one cell owns.
     triangles_per_cell: u64,
+    /// With the hybrid projection: the hemicube that cuts triangles into spans.
+    spanner: Option<Hemicube>,
 }
 
 /// Bytes one cell holds for proxel shots (its proxel store and patch share).
@@ -251,6 +278,11 @@ impl ProxelGrid {
         if n == 0 {
             bail!("proxel shots: the grid side must be at least 1");
         }
+        let spanner = match (cfg.hybrid, cfg.surface) {
+            (false, _) => None,
+            (true, SurfaceKind::Hemicube) => Some(Hemicube::new(cfg.resolution)?),
+            (true, SurfaceKind::Disk) => bail!("the hybrid projection (§6.4) runs on the hemicube, not the disk"),
+        };
         let cells_n = (n as usize).pow(2);
         let deltas: Vec<f64> = (0..surface.samples()).map(|k| surface.delta(k)).collect();
         let quanta = quantize(&deltas);
@@ -323,6 +355,7 @@ impl ProxelGrid {
             triangles,
             owner,
             triangles_per_cell,
+            spanner,
         })
     }
 
@@ -395,6 +428,116 @@ impl ProxelGrid {
         zones
     }
 
+    /// Phase 2 by the hybrid method (§6.4): each owner cuts its triangles into spans (one per
+    /// proxel row of each face), cut again at zone edges into pieces; each piece goes to the cell
+    /// holding its first proxel, then moves east along its row, z-tested by every cell it
+    /// passes. Returns per triangle its zones covered (for the moving-facets update), and fills
+    /// `cost`.
+    fn project_hybrid(&mut self, x: Vector, normal: Vector, cost: &mut ProxelCost) -> Vec<u64> {
+        let n = self.n;
+        let cells = (n as usize).pow(2);
+        let (t, b, nn) = frame(normal);
+        self.cells.iter_mut().for_each(|c| c.clear());
+        let spanner = self.spanner.as_ref().expect("a hybrid grid has its spanner");
+        let mut zones = vec![0u64; self.triangles.len()];
+        let mut cones = vec![None; self.triangles.len()];
+        let mut generate = vec![0u64; cells];
+        // Per owner cell, its pieces: (triangle, plane, row, first column, length).
+        let mut pieces: Vec<Vec<Piece>> = vec![Vec::new(); cells];
+        for (f, tri) in self.triangles.iter().enumerate() {
+            let local = tri.map(|p| {
+                let d = p - x;
+                [d.dot(t), d.dot(b), d.dot(nn)]
+            });
+            let Some(cone) = ProxelCone::new(local) else { continue };
+            let spans = spanner.spans(&local);
+            if spans.is_empty() {
+                continue;
+            }
+            cones[f] = Some(cone);
+            zones[f] = self.surface.rects(&local).iter().map(|r| self.zones_covered(r)).sum();
+            cost.triangles += 1;
+            let owner = self.owner[f] as usize % cells;
+            generate[owner] += 1 + spans.len() as u64;
+            for sp in spans {
+                let mut i = sp.i0;
+                while i <= sp.i1 {
+                    let end = sp.i1.min((i / n + 1) * n - 1);
+                    pieces[owner].push((f as u32, sp.plane, sp.j, i, end - i + 1));
+                    i = end + 1;
+                }
+            }
+        }
+        let h = &mut cost.hybrid;
+        h.generate_cycles = generate.iter().copied().max().unwrap_or(0);
+        // Distribution: round r, every cell sends its r-th piece.
+        let rounds = pieces.iter().map(Vec::len).max().unwrap_or(0);
+        let groups_side = n.div_ceil(GROUP_SIDE) as usize;
+        let group =
+            |c: usize| (c / n as usize / GROUP_SIDE as usize) * groups_side + (c % n as usize) / GROUP_SIDE as usize;
+        let mut arrivals = vec![0u32; cells];
+        let mut router = vec![0u32; 2 * groups_side * groups_side];
+        // Per grid row, per cell, the pieces that start there.
+        let mut starts: Vec<Vec<std::collections::VecDeque<Piece>>> =
+            vec![vec![std::collections::VecDeque::new(); n as usize]; n as usize];
+        for r in 0..rounds {
+            arrivals.iter_mut().for_each(|a| *a = 0);
+            router.iter_mut().for_each(|a| *a = 0);
+            for (c, list) in pieces.iter().enumerate() {
+                let Some(&piece) = list.get(r) else { continue };
+                let (dx, dy) = (piece.3 % n, piece.2 % n);
+                let (sx, sy) = (c as u32 % n, c as u32 / n);
+                arrivals[(sy * n + dx) as usize] += 1;
+                router[2 * group(c)] += 1;
+                router[2 * group((dy * n + dx) as usize) + 1] += 1;
+                cost.projection_messages += (sx.abs_diff(dx) + sy.abs_diff(dy)) as u64;
+                starts[dy as usize][dx as usize].push_back(piece);
+                h.spans += 1;
+                h.span_proxels += piece.4 as u64;
+            }
+            let peak = *arrivals.iter().max().unwrap_or(&0) as u64;
+            h.distribute_cycles += n as u64 + n as u64 * peak;
+            h.distribute_router_cycles += *router.iter().max().unwrap_or(&0) as u64;
+        }
+        // Propagation, row by row of cells: a belt of one piece per cell.
+        for row in starts.iter_mut() {
+            let mut slot: Vec<Option<(Piece, u32)>> = vec![None; n as usize];
+            let mut cycles = 0u64;
+            loop {
+                for (x, s) in slot.iter_mut().enumerate() {
+                    if s.is_none() {
+                        *s = row[x].pop_front().map(|p| (p, 0));
+                    }
+                }
+                if slot.iter().all(Option::is_none) {
+                    break;
+                }
+                cycles += 1;
+                let mut next = vec![None; n as usize];
+                for (x, s) in slot.iter().enumerate() {
+                    let Some(((f, plane, j, i0, len), off)) = *s else { continue };
+                    let k = self.surface.sample_at(plane, i0 + off, j);
+                    if let Some((c, sl)) = k.and_then(|k| self.place[k]) {
+                        cost.rect_tests += 1;
+                        let cone = cones[f as usize].as_ref().expect("a piece's triangle has its cone");
+                        if self.cells[c as usize].z_test(sl as usize, f, cone) {
+                            cost.hits += 1;
+                        }
+                    }
+                    if off + 1 < len {
+                        next[x + 1] = Some(((f, plane, j, i0, len), off + 1));
+                        cost.projection_messages += 1;
+                    }
+                }
+                slot = next;
+            }
+            h.propagate_cycles = h.propagate_cycles.max(cycles);
+        }
+        cost.zone_tests = h.span_proxels;
+        cost.projection_cycles = h.generate_cycles + h.distribute_cycles + h.propagate_cycles;
+        zones
+    }
+
     /// One proxel shot of patch `i`.
     pub fn shoot(&mut self, patches: &[Patch], i: usize) -> Result<Shot> {
         let n = self.n as u64;
@@ -406,7 +549,11 @@ impl ProxelGrid {
         cost.select_cycles = 2 * (n - 1) + eccentricity + FRAME_WORDS;
         cost.select_messages = 2 * (cells - 1);
         let p = &patches[i];
-        let tri_zones = self.project(p.centroid, p.normal, &mut cost);
+        let tri_zones = if self.spanner.is_some() {
+            self.project_hybrid(p.centroid, p.normal, &mut cost)
+        } else {
+            self.project(p.centroid, p.normal, &mut cost)
+        };
         // Phase 3: what each proxel kept goes to its patch's cell.
         let sends = self.sends(patches, p.centroid);
         self.shares.iter_mut().for_each(|s| s.clear());
@@ -548,6 +695,9 @@ impl ProxelGrid {
     }
 }
 
+/// A span piece of the hybrid projection: (triangle, plane, row, first column, length).
+type Piece = (u32, usize, u32, u32, u32);
+
 /// What one proxel sends in the update.
 #[derive(Clone, Copy, Debug)]
 enum Send {
@@ -568,7 +718,7 @@ mod tests {
     }
 
     fn cfg(surface: SurfaceKind, resolution: u32) -> ProxelConfig {
-        ProxelConfig { surface, resolution, update: Update::Reduce }
+        ProxelConfig { surface, resolution, update: Update::Reduce, hybrid: false }
     }
 
     /// The host's sequential projective method on the same triangles: its depth buffer (every
@@ -603,14 +753,17 @@ mod tests {
     #[test]
     fn the_cells_depth_buffer_is_the_host_projective_methods() {
         let patches = cornell(150.0);
-        for (surface, r, n) in [
-            (SurfaceKind::Hemicube, 16, 4),
-            (SurfaceKind::Hemicube, 22, 5),
-            (SurfaceKind::Disk, 21, 4),
-            (SurfaceKind::Disk, 32, 7),
-            (SurfaceKind::Hemicube, 8, 16),
+        for (surface, r, n, hybrid) in [
+            (SurfaceKind::Hemicube, 16, 4, false),
+            (SurfaceKind::Hemicube, 22, 5, false),
+            (SurfaceKind::Disk, 21, 4, false),
+            (SurfaceKind::Disk, 32, 7, false),
+            (SurfaceKind::Hemicube, 8, 16, false),
+            (SurfaceKind::Hemicube, 16, 4, true),
+            (SurfaceKind::Hemicube, 30, 7, true),
+            (SurfaceKind::Hemicube, 64, 8, true),
         ] {
-            let mut grid = ProxelGrid::new(n, &patches, cfg(surface, r)).unwrap();
+            let mut grid = ProxelGrid::new(n, &patches, ProxelConfig { hybrid, ..cfg(surface, r) }).unwrap();
             let reference: Box<dyn ProjectionSurface> = match surface {
                 SurfaceKind::Hemicube => Box::new(Hemicube::new(r).unwrap()),
                 SurfaceKind::Disk => Box::new(Disk::new(r).unwrap()),
@@ -618,7 +771,7 @@ mod tests {
             for i in (0..patches.len()).step_by(7) {
                 let shot = grid.shoot(&patches, i).unwrap();
                 let (ids, ff) = host(reference.as_ref(), &patches, i);
-                assert_eq!(grid.depth_buffer(), ids, "{surface:?} R = {r}, n = {n}, shooter {i}");
+                assert_eq!(grid.depth_buffer(), ids, "{surface:?} R = {r}, n = {n}, hybrid {hybrid}, shooter {i}");
                 assert!(ids.iter().any(|&t| t != NONE), "shooter {i} sees something");
                 let one = FORM_FACTOR_ONE as f64;
                 let mut got = vec![0i64; patches.len()];
@@ -687,5 +840,8 @@ mod tests {
         assert!(e.contains("do not fit") && e.contains("--resolution"), "{e}");
         let e = ProxelGrid::new(2, &patches, cfg(SurfaceKind::Hemicube, 7)).err().unwrap().to_string();
         assert!(e.contains("even"), "{e}");
+        let hybrid_disk = ProxelConfig { hybrid: true, ..cfg(SurfaceKind::Disk, 8) };
+        let e = ProxelGrid::new(2, &patches, hybrid_disk).err().unwrap().to_string();
+        assert!(e.contains("hemicube"), "{e}");
     }
 }

@@ -210,6 +210,27 @@ impl Planar for Hemicube {
         }
     }
     fn rects(&self, local: &[[f64; 3]; 3]) -> Vec<super::PlaneRect> {
+        self.outlines(local).into_iter().map(|(rect, _)| rect).collect()
+    }
+}
+
+/// One row of proxels a facet's projection may cover: columns `i0..=i1` of row `j` on `plane`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Span {
+    /// The face.
+    pub plane: usize,
+    /// The row.
+    pub j: u32,
+    /// First column.
+    pub i0: u32,
+    /// Last column.
+    pub i1: u32,
+}
+
+impl Hemicube {
+    /// Per face the facet's projection reaches: its bounding rectangle and the facet clipped in
+    /// front of the face (a convex polygon whose projection is the outline on the face).
+    fn outlines(&self, local: &[[f64; 3]; 3]) -> Vec<(super::PlaneRect, Vec<[f64; 3]>)> {
         let (r, w) = (self.r, 2.0 / self.r as f64);
         let h = r / 2;
         let mut out = Vec::new();
@@ -228,7 +249,52 @@ impl Planar for Hemicube {
             let Some((i0, i1)) = Self::span(rect[0], rect[1], -1.0, r, w) else { continue };
             let (v_lo, v_cells) = if top { (-1.0, r) } else { (0.0, h) };
             let Some((j0, j1)) = Self::span(rect[2], rect[3], v_lo, v_cells, w) else { continue };
-            out.push(super::PlaneRect { plane: face, i0, i1, j0, j1 });
+            out.push((super::PlaneRect { plane: face, i0, i1, j0, j1 }, poly));
+        }
+        out
+    }
+
+    /// The spans of a facet (radiosity thesis §6.4, Fig. 6.16): per face and proxel row of its
+    /// bounding rectangle, the columns whose centres its outline may cover, widened by one
+    /// proxel each side (a conservative span; the cells' cone test decides), within the
+    /// rectangle. The row's centre line is a plane through the centre (`p_v = v₀ · depth`),
+    /// cut with the clipped facet in 3D (well conditioned even where the facet grazes the
+    /// face's plane and its projection runs to infinity). Rows the facet misses give none.
+    pub fn spans(&self, local: &[[f64; 3]; 3]) -> Vec<Span> {
+        let w = 2.0 / self.r as f64;
+        let faces = self.faces();
+        let mut out = Vec::new();
+        for (rect, poly) in self.outlines(local) {
+            let (axis, sign, ua, va, _) = faces[rect.plane];
+            let v_lo = if rect.plane == 0 { -1.0 } else { 0.0 };
+            let col = |u: f64| ((u + 1.0) / w - 0.5).floor();
+            for j in rect.j0..=rect.j1 {
+                let v0 = v_lo + (j as f64 + 0.5) * w;
+                let side = |p: &[f64; 3]| p[va] - v0 * sign * p[axis];
+                let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                for k in 0..poly.len() {
+                    let (p, q) = (poly[k], poly[(k + 1) % poly.len()]);
+                    let (sp, sq) = (side(&p), side(&q));
+                    let mut cut = |x: [f64; 3]| {
+                        let u = x[ua] / (sign * x[axis]);
+                        lo = lo.min(u);
+                        hi = hi.max(u);
+                    };
+                    if sp == 0.0 {
+                        cut(p);
+                    }
+                    if (sp < 0.0 && sq > 0.0) || (sp > 0.0 && sq < 0.0) {
+                        let t = sp / (sp - sq);
+                        cut(std::array::from_fn(|c| p[c] + t * (q[c] - p[c])));
+                    }
+                }
+                if lo > hi || lo.is_nan() || hi.is_nan() {
+                    continue;
+                }
+                let i0 = col(lo).max(rect.i0 as f64).min(rect.i1 as f64) as u32;
+                let i1 = (col(hi) + 1.0).max(rect.i0 as f64).min(rect.i1 as f64) as u32;
+                out.push(Span { plane: rect.plane, j, i0, i1 });
+            }
         }
         out
     }
