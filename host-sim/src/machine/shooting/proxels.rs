@@ -194,19 +194,19 @@ pub struct HybridCost {
 }
 
 impl ProxelCost {
+    /// The chosen update's cost.
+    fn chosen(&self) -> UpdateCost {
+        self.updates[Update::ALL.iter().position(|&u| u == self.update).unwrap_or(0)]
+    }
+
     /// Cycles of the shot under its chosen update.
     pub fn cycles(&self) -> u64 {
-        self.select_cycles
-            + self.projection_cycles
-            + self.updates[Update::ALL.iter().position(|&u| u == self.update).unwrap_or(0)].cycles
-            + self.apply_cycles
+        self.select_cycles + self.projection_cycles + self.chosen().cycles + self.apply_cycles
     }
 
     /// Messages of the shot under its chosen update.
     pub fn messages(&self) -> u64 {
-        self.select_messages
-            + self.projection_messages
-            + self.updates[Update::ALL.iter().position(|&u| u == self.update).unwrap_or(0)].messages
+        self.select_messages + self.projection_messages + self.chosen().messages
     }
 }
 
