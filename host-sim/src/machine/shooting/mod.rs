@@ -6,6 +6,8 @@
 //!   reduction to the supervisor) and the supervisor's progressive loop.
 //! * [`proxels`] — shots by projection (radiosity thesis §6.2): the shooter's hemicube or disk
 //!   distributed over the cells, its depth buffer z-tested there, the update's alternatives costed.
+//! * [`reduce`] — the pipelined merge of the cells' (patch, quanta) lists to the supervisor,
+//!   costed to the cycle; both kinds of shot use it.
 //! * [`indirect`] — showing the solution (radiosity thesis §1.3.1): each cell's indirect light
 //!   of its visible point, broadcast and costed, handed to shading as its ambient term.
 //!
@@ -16,4 +18,5 @@
 
 pub mod indirect;
 pub mod proxels;
+pub mod reduce;
 pub mod shots;

@@ -41,7 +41,7 @@ use crate::machine::grid::capacity::{FACET_SHARE_CAP, PROXEL_CAP};
 use crate::scene::patches::Patch;
 use crate::truth::projective::{disk::Disk, frame, hemicube::Hemicube, Planar, PlaneRect};
 
-use super::shots::{Shot, ShotLog};
+use super::reduce::reduce_entries;
 
 /// The projection surface the cells share.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -73,7 +73,7 @@ pub enum Update {
     /// The router with the "modulo" zone choice.
     RouterModulo,
     /// rc2's own: each cell sums its proxels per patch, and the sums are merged along the rows
-    /// and column 0 to cell (0, 0) as a beam shot's are ([`super::shots::reduce_cost`]).
+    /// and column 0 to cell (0, 0) as a beam shot's are ([`super::reduce`]).
     #[default]
     Reduce,
 }
@@ -207,6 +207,31 @@ impl ProxelCost {
     /// Messages of the shot under its chosen update.
     pub fn messages(&self) -> u64 {
         self.select_messages + self.projection_messages + self.chosen().messages
+    }
+}
+
+/// What one proxel shot delivered: per patch (id, quanta) after the update, and the shot's
+/// quanta accounted for (`received + hidden + left = emitted`, exactly).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ProxelShot {
+    /// (patch, quanta) of the front-facing patches, by patch id.
+    pub totals: Vec<(PatchId, i64)>,
+    /// Quanta of the whole surface.
+    pub emitted: i64,
+    /// Quanta the front-facing patches received.
+    pub received: i64,
+    /// Quanta of proxels whose nearest triangle is seen from behind.
+    pub hidden: i64,
+    /// Quanta of proxels that saw nothing.
+    pub left: i64,
+    /// The phases' costs.
+    pub cost: ProxelCost,
+}
+
+impl ProxelShot {
+    /// Received + hidden + left = emitted, exactly.
+    pub fn balanced(&self) -> bool {
+        self.received + self.hidden + self.left == self.emitted
     }
 }
 
@@ -539,7 +564,7 @@ impl ProxelGrid {
     }
 
     /// One proxel shot of patch `i`.
-    pub fn shoot(&mut self, patches: &[Patch], i: usize) -> Result<Shot> {
+    pub fn shoot(&mut self, patches: &[Patch], i: usize) -> Result<ProxelShot> {
         let n = self.n as u64;
         let cells = n * n;
         let mut cost = ProxelCost { update: self.cfg.update, ..Default::default() };
@@ -581,19 +606,10 @@ impl ProxelGrid {
             .collect();
         let emitted = self.total_quanta as i64;
         let left = emitted - received as i64 - hidden as i64;
-        let log = ShotLog {
-            patch: i,
-            emitted,
-            received: received as i64,
-            lost: hidden as i64,
-            left,
-            proxel: Some(cost),
-            ..Default::default()
-        };
         if left < 0 {
             bail!("proxel shot of patch {i}: received {received} + hidden {hidden} exceed the surface's {emitted}");
         }
-        Ok(Shot { totals, log, source: None })
+        Ok(ProxelShot { totals, emitted, received: received as i64, hidden: hidden as i64, left, cost })
     }
 
     /// Per cell, per zone (in zone order), what its proxel sends: to a front-facing patch, or
@@ -689,7 +705,7 @@ impl ProxelGrid {
                 m.into_iter().collect()
             })
             .collect();
-        let (_, cycles, messages) = super::shots::reduce_entries(self.n, &entries);
+        let (_, cycles, messages) = reduce_entries(self.n, &entries);
         out[5] = UpdateCost { cycles, messages };
         out
     }
@@ -786,7 +802,7 @@ mod tests {
                         g as f64 / one
                     );
                 }
-                let l = &shot.log;
+                let l = &shot;
                 assert!(l.balanced(), "{l:?}");
                 assert_eq!(l.emitted as u64, grid.total_quanta());
                 let nothing = (0..ids.len()).filter(|&k| ids[k] == NONE && reference.delta(k) > 0.0).count();
@@ -817,7 +833,7 @@ mod tests {
         let mut grid = ProxelGrid::new(2, &patches, cfg(SurfaceKind::Hemicube, 4)).unwrap();
         let i = 0;
         let shot = grid.shoot(&patches, i).unwrap();
-        let cost = shot.log.proxel.as_ref().unwrap();
+        let cost = &shot.cost;
         let sends = grid.sends(&patches, patches[i].centroid);
         let zones = grid.zones.len();
         // Eq. 6.1's bounds per round with a message: 2n ≤ cycles ≤ n + n².

@@ -38,6 +38,9 @@ use crate::precompute::Fit;
 use crate::scene::patch_display::{by_face, locate};
 use crate::scene::patches::Patch;
 
+use super::proxels::{ProxelConfig, ProxelCost, ProxelGrid, ProxelShot};
+pub use super::reduce::reduce_cost;
+
 /// Default push of a shot's source off its patch, in voxels along the normal: beyond the
 /// surface's own voxels (a facet's band is at most √3/2 voxel thick on each side), so that no
 /// front-hemisphere ray starts inside them.
@@ -210,7 +213,7 @@ pub struct ShotLog {
     pub cost: ShotCost,
     /// A proxel shot's cost ([`super::proxels`]; `None` for a beam shot).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub proxel: Option<super::proxels::ProxelCost>,
+    pub proxel: Option<ProxelCost>,
 }
 
 impl ShotLog {
@@ -327,81 +330,6 @@ fn shoot_f<F: FracBits>(
         );
     }
     Ok(Shot { totals, log, source: Some(source) })
-}
-
-/// A stream on a link: (patch, arrival cycle) by increasing patch, closed by an end marker
-/// (patch [`END`]).
-type Stream = Vec<(u32, u64)>;
-
-/// The end marker's key.
-const END: u32 = u32::MAX;
-
-/// The pipelined merge of sorted streams in one cell, as it leaves on the cell's outgoing
-/// link (arrival cycles at the receiver): entry p goes once every input has shown its first
-/// key ≥ p (then no smaller or equal key can come), one message per cycle; equal keys leave
-/// as one entry (their quanta added).
-fn merge(inputs: &[&[(u32, u64)]]) -> Stream {
-    let mut keys: Vec<u32> = inputs.iter().flat_map(|s| s.iter().map(|e| e.0)).collect();
-    keys.sort_unstable();
-    keys.dedup();
-    let mut at = vec![0usize; inputs.len()];
-    let (mut out, mut last) = (Vec::with_capacity(keys.len()), None::<u64>);
-    for p in keys {
-        let mut ready = 0;
-        for (s, i) in inputs.iter().zip(at.iter_mut()) {
-            while s[*i].0 < p {
-                *i += 1;
-            }
-            ready = ready.max(s[*i].1);
-        }
-        let send = last.map_or(ready, |l| ready.max(l + 1));
-        last = Some(send);
-        out.push((p, send + 1));
-    }
-    out
-}
-
-/// The reduction of every cell's [`CellReceived`] to the supervisor at (0, 0): row streams
-/// merged westward, then column 0 northward (module doc). Returns the patch totals, the cycle
-/// the supervisor has the end marker, and the messages sent.
-pub fn reduce_cost(n: u32, received: &[CellReceived]) -> (Vec<(PatchId, i64)>, u64, u64) {
-    let entries: Vec<&[(PatchId, i64)]> = received.iter().map(|r| r.entries()).collect();
-    reduce_entries(n, &entries)
-}
-
-/// [`reduce_cost`] of any per-cell (patch, quanta) lists, each sorted by patch.
-pub fn reduce_entries<E: AsRef<[(PatchId, i64)]>>(n: u32, cells: &[E]) -> (Vec<(PatchId, i64)>, u64, u64) {
-    let n = n as usize;
-    let mut quanta = std::collections::BTreeMap::<PatchId, i64>::new();
-    for &(p, q) in cells.iter().flat_map(|r| r.as_ref()) {
-        *quanta.entry(p).or_insert(0) += q;
-    }
-    let own = |i: usize| -> Stream {
-        let mut s: Stream = cells[i].as_ref().iter().map(|e| (e.0 as u32, 0)).collect();
-        s.push((END, 0));
-        s
-    };
-    let mut messages = 0u64;
-    let mut from_south: Option<Stream> = None;
-    for y in (0..n).rev() {
-        let mut from_east: Option<Stream> = None;
-        for x in (1..n).rev() {
-            let mine = own(y * n + x);
-            let ins: Vec<&[(u32, u64)]> = [Some(&mine[..]), from_east.as_deref()].into_iter().flatten().collect();
-            let out = merge(&ins);
-            messages += out.len() as u64;
-            from_east = Some(out);
-        }
-        let mine = own(y * n);
-        let ins: Vec<&[(u32, u64)]> =
-            [Some(&mine[..]), from_east.as_deref(), from_south.as_deref()].into_iter().flatten().collect();
-        let out = merge(&ins);
-        messages += out.len() as u64;
-        from_south = Some(out);
-    }
-    let cycles = from_south.as_ref().and_then(|s| s.last()).map_or(0, |e| e.1);
-    let totals = quanta.into_iter().collect();
-    (totals, cycles, messages)
 }
 
 /// Why the machine stopped shooting.
@@ -550,12 +478,20 @@ pub fn solve_by_proxels(
     n: u32,
     patches: &[Patch],
     cfg: &RadiosityConfig,
-    proxels: super::proxels::ProxelConfig,
+    proxels: ProxelConfig,
     progress: &mut dyn FnMut(usize, f64),
 ) -> Result<GridSolution> {
     check_settings(patches, cfg)?;
-    let mut grid = super::proxels::ProxelGrid::new(n, patches, proxels)?;
-    progressive(patches, cfg, &mut |i| grid.shoot(patches, i), progress)
+    let mut grid = ProxelGrid::new(n, patches, proxels)?;
+    progressive(patches, cfg, &mut |i| grid.shoot(patches, i).map(|shot| proxel_shot(i, shot)), progress)
+}
+
+/// A proxel shot of patch `i` as the supervisor logs it: what its front-facing patches
+/// received, what triangles seen from behind hid (`lost`), what saw nothing (`left`).
+fn proxel_shot(i: usize, shot: ProxelShot) -> Shot {
+    let ProxelShot { totals, emitted, received, hidden, left, cost } = shot;
+    let log = ShotLog { patch: i, emitted, received, lost: hidden, left, proxel: Some(cost), ..Default::default() };
+    Shot { totals, log, source: None }
 }
 
 /// Check the patches and the stopping rule.
