@@ -257,11 +257,10 @@ fn proxel_stats(settings: &RadiositySettings, n: u32, s: &GridSolution) -> Optio
         rect_yield: hits / rects.max(1.0),
         updates: Update::ALL
             .iter()
-            .enumerate()
-            .map(|(u, up)| UpdateStats {
+            .map(|up| UpdateStats {
                 update: up.name(),
-                cycles_per_shot: mean(&|c| c.updates[u].cycles),
-                messages_per_shot: mean(&|c| c.updates[u].messages),
+                cycles_per_shot: mean(&|c| c.updates[up.index()].cycles),
+                messages_per_shot: mean(&|c| c.updates[up.index()].messages),
             })
             .collect(),
     })
@@ -689,9 +688,18 @@ pub fn print_summary(s: &RadiosityStats) {
         "{}: n = {}, {} patches, {} shots ({:?}), residual {:.4}, {:.1} s",
         s.scene, s.n, s.patches, s.shots, s.stop, s.residual, s.wall_seconds
     );
+    let phases = match &s.proxels {
+        None => format!("diffusion {:.0}, reduction {:.0}", s.diffusion_cycles_per_shot, s.reduce_cycles_per_shot),
+        Some(x) => format!(
+            "select {:.0}, projection {:.0}, update and apply {:.0}",
+            x.select_cycles_per_shot,
+            x.projection_cycles_per_shot,
+            s.cycles as f64 / s.shots.max(1) as f64 - x.select_cycles_per_shot - x.projection_cycles_per_shot
+        ),
+    };
     eprintln!(
-        "  cycles {} (per shot: diffusion {:.0}, reduction {:.0}), messages {} ({:.0} per shot)",
-        s.cycles, s.diffusion_cycles_per_shot, s.reduce_cycles_per_shot, s.messages, s.messages_per_shot
+        "  cycles {} (per shot: {phases}), messages {} ({:.0} per shot)",
+        s.cycles, s.messages, s.messages_per_shot
     );
     eprintln!(
         "  bytes per cell added {} (lighting cell {}), zero-area faces skipped {}, unmapped voxels {}, accumulator overflows {}",
@@ -699,7 +707,7 @@ pub fn print_summary(s: &RadiosityStats) {
     );
     if let Some(x) = &s.proxels {
         eprintln!(
-            "  shots by {} (R = {}, {} bytes per cell): per shot select {:.0} + projection {:.0} cycles ({:.0} triangles broadcast, yield {:.4} of zone tests, {:.4} of rectangle tests)",
+            "  shots by {} (R = {}, {} bytes per cell): per shot select {:.0} + projection {:.0} cycles ({:.0} triangles projected, yield {:.4} of zone tests, {:.4} of rectangle tests)",
             x.shots_by.name(),
             x.resolution,
             x.bytes_per_cell,

@@ -89,6 +89,11 @@ impl Update {
         Update::Reduce,
     ];
 
+    /// Its place in [`Update::ALL`] (and in [`UpdateCosts`]).
+    pub fn index(self) -> usize {
+        Update::ALL.iter().position(|&u| u == self).expect("every strategy is in ALL")
+    }
+
     /// Its name (`--update`, the CSV's columns `update_<name>` with `-` as `_`).
     pub fn name(self) -> &'static str {
         match self {
@@ -129,6 +134,77 @@ const FRAME_WORDS: u64 = 12;
 
 /// Cells per global-router group (the MasPar's clusters of 4 × 4 PEs).
 const GROUP_SIDE: u32 = 4;
+
+/// One round of point-to-point messages, each cell sending at most one, costed both ways the
+/// thesis compares (§6.2.6): over the 8 links, east-west on the sender's row to the
+/// destination's column then north-south, n cycles and n more per message piled on the busiest
+/// cell of that column walk (Eq. 6.1); and through a global router of 4 × 4-cell groups, one
+/// message per cycle in and out of each group (the busiest group's count).
+struct Round {
+    n: u64,
+    groups_side: u64,
+    /// Per cell, the messages that turn north-south there.
+    turns: Vec<u32>,
+    /// Per group, messages sent (even slots) and received (odd slots).
+    router: Vec<u32>,
+    /// Link hops of the round.
+    hops: u64,
+    /// Messages of the round.
+    messages: u64,
+}
+
+impl Round {
+    fn new(n: u32) -> Round {
+        let groups_side = n.div_ceil(GROUP_SIDE) as u64;
+        let n = n as u64;
+        Round {
+            n,
+            groups_side,
+            turns: vec![0; (n * n) as usize],
+            router: vec![0; 2 * (groups_side * groups_side) as usize],
+            hops: 0,
+            messages: 0,
+        }
+    }
+
+    /// Start the next round.
+    fn clear(&mut self) {
+        self.turns.iter_mut().for_each(|c| *c = 0);
+        self.router.iter_mut().for_each(|c| *c = 0);
+        (self.hops, self.messages) = (0, 0);
+    }
+
+    /// Cell `from` sends one message to cell `to` (row-major indices).
+    fn send(&mut self, from: u64, to: u64) {
+        let n = self.n;
+        let (x, y, dx, dy) = (from % n, from / n, to % n, to / n);
+        let group = |x: u64, y: u64| ((y / GROUP_SIDE as u64) * self.groups_side + x / GROUP_SIDE as u64) as usize;
+        self.router[2 * group(x, y)] += 1;
+        self.router[2 * group(dx, dy) + 1] += 1;
+        self.turns[(y * n + dx) as usize] += 1;
+        self.hops += x.abs_diff(dx) + y.abs_diff(dy);
+        self.messages += 1;
+    }
+
+    /// The round over the 8 links (zero for a round without messages).
+    fn xnet(&self) -> UpdateCost {
+        let peak = *self.turns.iter().max().unwrap_or(&0) as u64;
+        let cycles = if self.messages > 0 { self.n + self.n * peak } else { 0 };
+        UpdateCost { cycles, messages: self.hops }
+    }
+
+    /// The round through the router.
+    fn routed(&self) -> UpdateCost {
+        UpdateCost { cycles: *self.router.iter().max().unwrap_or(&0) as u64, messages: self.messages }
+    }
+}
+
+impl std::ops::AddAssign for UpdateCost {
+    fn add_assign(&mut self, o: UpdateCost) {
+        self.cycles += o.cycles;
+        self.messages += o.messages;
+    }
+}
 
 /// The cost of an update strategy on one shot.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -196,7 +272,7 @@ pub struct HybridCost {
 impl ProxelCost {
     /// The chosen update's cost.
     fn chosen(&self) -> UpdateCost {
-        self.updates[Update::ALL.iter().position(|&u| u == self.update).unwrap_or(0)]
+        self.updates[self.update.index()]
     }
 
     /// Cycles of the shot under its chosen update.
@@ -497,32 +573,24 @@ impl ProxelGrid {
         h.generate_cycles = generate.iter().copied().max().unwrap_or(0);
         // Distribution: round r, every cell sends its r-th piece.
         let rounds = pieces.iter().map(Vec::len).max().unwrap_or(0);
-        let groups_side = n.div_ceil(GROUP_SIDE) as usize;
-        let group =
-            |c: usize| (c / n as usize / GROUP_SIDE as usize) * groups_side + (c % n as usize) / GROUP_SIDE as usize;
-        let mut arrivals = vec![0u32; cells];
-        let mut router = vec![0u32; 2 * groups_side * groups_side];
+        let mut round = Round::new(n);
         // Per grid row, per cell, the pieces that start there.
         let mut starts: Vec<Vec<std::collections::VecDeque<Piece>>> =
             vec![vec![std::collections::VecDeque::new(); n as usize]; n as usize];
         for r in 0..rounds {
-            arrivals.iter_mut().for_each(|a| *a = 0);
-            router.iter_mut().for_each(|a| *a = 0);
+            round.clear();
             for (c, list) in pieces.iter().enumerate() {
                 let Some(&piece) = list.get(r) else { continue };
                 let (dx, dy) = (piece.3 % n, piece.2 % n);
-                let (sx, sy) = (c as u32 % n, c as u32 / n);
-                arrivals[(sy * n + dx) as usize] += 1;
-                router[2 * group(c)] += 1;
-                router[2 * group((dy * n + dx) as usize) + 1] += 1;
-                cost.projection_messages += (sx.abs_diff(dx) + sy.abs_diff(dy)) as u64;
+                round.send(c as u64, (dy * n + dx) as u64);
                 starts[dy as usize][dx as usize].push_back(piece);
                 h.spans += 1;
                 h.span_proxels += piece.4 as u64;
             }
-            let peak = *arrivals.iter().max().unwrap_or(&0) as u64;
-            h.distribute_cycles += n as u64 + n as u64 * peak;
-            h.distribute_router_cycles += *router.iter().max().unwrap_or(&0) as u64;
+            let (xnet, routed) = (round.xnet(), round.routed());
+            cost.projection_messages += xnet.messages;
+            h.distribute_cycles += xnet.cycles;
+            h.distribute_router_cycles += routed.cycles;
         }
         // Propagation, row by row of cells: a belt of one piece per cell.
         for row in starts.iter_mut() {
@@ -647,37 +715,21 @@ impl ProxelGrid {
         };
         let mut out = UpdateCosts::default();
         // Moving proxels, by rounds: which zone cell c sends in round z.
-        for (slot, modulo) in [(0usize, false), (1, true), (3, false), (4, true)] {
-            let router = slot >= 3;
-            let mut cost = UpdateCost::default();
-            let groups_side = (self.n as u64).div_ceil(GROUP_SIDE as u64);
-            let mut count = vec![0u32; if router { (groups_side * groups_side) as usize * 2 } else { cells as usize }];
+        let mut round = Round::new(self.n);
+        for (modulo, xnet, routed) in
+            [(false, Update::XnetProxels, Update::RouterProxels), (true, Update::XnetModulo, Update::RouterModulo)]
+        {
             for z in 0..nz {
-                count.iter_mut().for_each(|c| *c = 0);
-                let mut any = false;
+                round.clear();
                 for c in 0..cells {
                     let zone = if modulo { (c + z) % nz } else { z };
-                    let Some(d) = sends[c as usize][zone as usize].as_ref().and_then(dest) else { continue };
-                    any = true;
-                    let (x, y, dx, dy) = (c % n, c / n, d % n, d / n);
-                    if router {
-                        let g =
-                            |x: u64, y: u64| ((y / GROUP_SIDE as u64) * groups_side + x / GROUP_SIDE as u64) as usize;
-                        count[2 * g(x, y)] += 1;
-                        count[2 * g(dx, dy) + 1] += 1;
-                        cost.messages += 1;
-                    } else {
-                        // East-west to the column first, on the sender's row.
-                        count[(y * n + dx) as usize] += 1;
-                        cost.messages += x.abs_diff(dx) + y.abs_diff(dy);
+                    if let Some(d) = sends[c as usize][zone as usize].as_ref().and_then(dest) {
+                        round.send(c, d);
                     }
                 }
-                if any {
-                    let peak = *count.iter().max().unwrap_or(&0) as u64;
-                    cost.cycles += if router { peak } else { n + n * peak };
-                }
+                out[xnet.index()] += round.xnet();
+                out[routed.index()] += round.routed();
             }
-            out[slot] = cost;
         }
         // Moving facets: passes of one patch per cell, each visiting the n² cells; a step
         // costs one hop and the busiest visitor's zone tests.
@@ -691,7 +743,7 @@ impl ProxelGrid {
             facets.cycles += cells * (1 + busiest);
             facets.messages += pass.len() as u64 * cells;
         }
-        out[2] = facets;
+        out[Update::XnetFacets.index()] = facets;
         // rc2's reduction: per cell its sums per patch, merged to (0, 0).
         let entries: Vec<Vec<(PatchId, i64)>> = sends
             .iter()
@@ -706,7 +758,7 @@ impl ProxelGrid {
             })
             .collect();
         let (_, cycles, messages) = reduce_entries(self.n, &entries);
-        out[5] = UpdateCost { cycles, messages };
+        out[Update::Reduce.index()] = UpdateCost { cycles, messages };
         out
     }
 }
@@ -839,14 +891,14 @@ mod tests {
         // Eq. 6.1's bounds per round with a message: 2n ≤ cycles ≤ n + n².
         let rounds =
             (0..zones).filter(|&z| (0..4).any(|c| matches!(sends[c][z], Some(Send::To { .. })))).count() as u64;
-        let x = cost.updates[0].cycles;
+        let x = cost.updates[Update::XnetProxels.index()].cycles;
         assert!(x >= rounds * 4 && x <= rounds * (2 + 4), "xnet {x}, {rounds} rounds");
         // One group of 16 holds the whole 2 × 2 grid: a round costs its messages.
         let messages: u64 = sends.iter().flatten().filter(|s| matches!(s, Some(Send::To { .. }))).count() as u64;
-        assert_eq!(cost.updates[3].messages, messages);
-        assert_eq!(cost.updates[4].messages, messages);
+        assert_eq!(cost.updates[Update::RouterProxels.index()].messages, messages);
+        assert_eq!(cost.updates[Update::RouterModulo.index()].messages, messages);
         // Moving facets: ⌈P/4⌉ passes of 4 steps.
-        assert!(cost.updates[2].cycles >= patches.len().div_ceil(4) as u64 * 4);
+        assert!(cost.updates[Update::XnetFacets.index()].cycles >= patches.len().div_ceil(4) as u64 * 4);
     }
 
     #[test]
