@@ -4,18 +4,17 @@
 # patches to the same residual, one row per (scene, n, method): shots, cycles and messages per
 # shot and in all, the projection's phases, bytes per cell, the SIMD yield, and with a
 # reference the per-patch RMS error against the f64 solver. Then every update strategy's
-# cycles per shot (§6.2.6) and the "modulo" gains beside the thesis's (bureau2, disk, 16 K PEs:
-# ≈ 20 at R = 256, ≈ 34 at R = 1024).
+# cycles per shot (§6.2.6) on the same runs; the thesis's own update figures are
+# bench/proxel_router.sh's.
 #
 # Usage: bench/proxel_shots.sh BIN   (env ROWS="scene:n:residual:reference(0|1) ...";
 #        METHODS="beams proxels-hemicube proxels-disk hybrid";
-#        GAINS="scene:n:R:shots ..." for the modulo-gain rows (disk); THREADS=2;
+#        THREADS=2;
 #        OUT=bench-out/proxel_shots.csv, markdown in ${OUT%.csv}.md)
 set -euo pipefail
 [ $# -eq 1 ] || { echo "usage: bench/proxel_shots.sh BIN" >&2; exit 2; }
 BIN=$(realpath -e "$1")
 ROWS=${ROWS:-"cornell:32:0.01:1 cornell:64:0.01:1 bureau1:32:0.05:0 bureau2:32:0.05:0 classe:32:0.05:0"}
-GAINS=${GAINS:-"bureau2:128:256:10 bureau2:128:1024:10"}
 THREADS=${THREADS:-2}
 METHODS=${METHODS:-"beams proxels-hemicube proxels-disk hybrid"}
 OUT=${OUT:-bench-out/proxel_shots.csv}
@@ -54,19 +53,14 @@ for row in $ROWS; do
   IFS=: read -r scene n res ref <<< "$row"
   for m in $METHODS; do run "$scene" "$n" "$m" "$res" "$ref"; done
 done
-for row in $GAINS; do
-  IFS=: read -r scene n r shots <<< "$row"
-  run "$scene" "$n" proxels-disk 0.01 0 --resolution "$r" --shots "$shots"
-done
 . "$(dirname "$0")/lib.sh"
-(cd "$(dirname "$0")/.." && bench_header "ROWS=\"$ROWS\" METHODS=\"$METHODS\" GAINS=\"$GAINS\" THREADS=$THREADS bash bench/proxel_shots.sh $1") > "${OUT%.csv}.md"
+(cd "$(dirname "$0")/.." && bench_header "ROWS=\"$ROWS\" METHODS=\"$METHODS\" THREADS=$THREADS bash bench/proxel_shots.sh $1") > "${OUT%.csv}.md"
 echo "* the runs took $((SECONDS / 60)) min $((SECONDS % 60)) s in all (one after another)" >> "${OUT%.csv}.md"
 echo >> "${OUT%.csv}.md"
-python3 - "$OUT" "$GAINS" >> "${OUT%.csv}.md" <<'PY'
+python3 - "$OUT" >> "${OUT%.csv}.md" <<'PY'
 import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
-gains = len(sys.argv[2].split())
-main, gain = rows[:len(rows) - gains], rows[len(rows) - gains:]
+main = rows
 def n(v): return f"{int(float(v)):,}".replace(",", " ") if v else "—"
 print("Same patches, same residual; cycles count the update `reduce` (rc2's merge to cell (0, 0)).")
 print()
