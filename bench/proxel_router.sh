@@ -24,10 +24,10 @@ for row in $ROWS; do
   (cd "$TMP" && "$BIN" "${args[@]}" --stats s.json --patches-csv p.csv --residual-plot r.png > log 2>&1) \
     || { cat "$TMP/log" >&2; exit 1; }
   python3 - "$TMP/s.json" "host-sim ${args[*]}" >> "$OUT" <<'PY'
-import json, math, sys
+import json, sys
 s = json.load(open(sys.argv[1]))
 p = s["proxels"]
-groups = math.ceil(s["n"] / 4) ** 2
+groups = p["router_groups"]
 for u in p["updates"]:
     print(f'{s["scene"]},{s["n"]},{p["resolution"]},{s["shots"]},{groups},{u["update"]},'
           f'{u["cycles_per_shot"]:.1f},{u["messages_per_shot"]:.1f},"{sys.argv[2]}"')

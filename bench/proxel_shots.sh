@@ -60,13 +60,12 @@ echo >> "${OUT%.csv}.md"
 python3 - "$OUT" >> "${OUT%.csv}.md" <<'PY'
 import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
-main = rows
 def n(v): return f"{int(float(v)):,}".replace(",", " ") if v else "—"
 print("Same patches, same residual; cycles count the update `reduce` (rc2's merge to cell (0, 0)).")
 print()
 print("| scene | n | patches | shots by | R | shots | residual | cycles / shot | of which projection | update | messages / shot | bytes / cell | yield (zones / rectangles) | RMS vs reference | wall s |")
 print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-for r in main:
+for r in rows:
     y = f"{r['zone_yield']} / {r['rect_yield']}" if r["zone_yield"] else "—"
     print(f"| {r['scene']} | {r['n']} | {n(r['patches'])} | {r['shots_by']} | {r['resolution'] or '—'} | {n(r['shots'])} | {r['residual']} | "
           f"{n(r['cycles_per_shot'])} | {n(r['projection_cycles_per_shot'])} | {n(r['update_cycles_per_shot'])} | {n(r['messages_per_shot'])} | "

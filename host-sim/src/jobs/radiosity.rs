@@ -209,6 +209,8 @@ pub struct ProxelStats {
     pub update: Update,
     /// Bytes a cell holds for them (proxel store and patch share).
     pub bytes_per_cell: usize,
+    /// Groups of the router strategies' global router.
+    pub router_groups: u32,
     /// Mean per shot: select and shooter broadcast cycles.
     pub select_cycles_per_shot: f64,
     /// Mean per shot: projection cycles (cull, broadcasts, zone tests).
@@ -250,6 +252,7 @@ fn proxel_stats(settings: &RadiositySettings, n: u32, s: &GridSolution) -> Optio
         resolution: cfg.resolution,
         update: cfg.update,
         bytes_per_cell: crate::machine::shooting::proxels::bytes_per_cell(),
+        router_groups: crate::machine::shooting::proxels::router_groups(n),
         select_cycles_per_shot: mean(&|c| c.select_cycles),
         projection_cycles_per_shot: mean(&|c| c.projection_cycles),
         triangles_per_shot: mean(&|c| c.triangles),

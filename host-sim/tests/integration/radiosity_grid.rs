@@ -7,7 +7,8 @@
 use cell_core::radiosity::Received;
 use host_sim::machine::grid::capacity::CellReceived;
 use host_sim::machine::loading::loaded_scene::{load_scene, LoadedScene};
-use host_sim::machine::shooting::shots::{map_patches, reduce_cost, shoot, solve, PatchMap, RadiosityConfig};
+use host_sim::machine::shooting::reduce::reduce_cost;
+use host_sim::machine::shooting::shots::{map_patches, shoot, solve, PatchMap, RadiosityConfig};
 use host_sim::precompute::LoadConfig;
 use host_sim::scene::patches::{subdivide, subdivide_voxels, Patches};
 use host_sim::scene::{Face, Material, Mesh};

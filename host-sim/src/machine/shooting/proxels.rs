@@ -305,9 +305,10 @@ pub struct ProxelShot {
 }
 
 impl ProxelShot {
-    /// Received + hidden + left = emitted, exactly.
+    /// What the patches' cells hold + hidden + left = emitted, exactly (nothing lost between
+    /// the proxels and the patch shares).
     pub fn balanced(&self) -> bool {
-        self.received + self.hidden + self.left == self.emitted
+        self.totals.iter().map(|e| e.1).sum::<i64>() + self.hidden + self.left == self.emitted
     }
 }
 
@@ -340,6 +341,12 @@ pub struct ProxelGrid {
     triangles_per_cell: u64,
     /// With the hybrid projection: the hemicube that cuts triangles into spans.
     spanner: Option<Hemicube>,
+}
+
+/// Groups of the global router on an n × n grid (4 × 4 cells each, the last row and column
+/// of groups partial when n is not a multiple of 4).
+pub const fn router_groups(n: u32) -> u32 {
+    n.div_ceil(GROUP_SIDE).pow(2)
 }
 
 /// Bytes one cell holds for proxel shots (its proxel store and patch share).
@@ -677,7 +684,11 @@ impl ProxelGrid {
         if left < 0 {
             bail!("proxel shot of patch {i}: received {received} + hidden {hidden} exceed the surface's {emitted}");
         }
-        Ok(ProxelShot { totals, emitted, received: received as i64, hidden: hidden as i64, left, cost })
+        let shot = ProxelShot { totals, emitted, received: received as i64, hidden: hidden as i64, left, cost };
+        if !shot.balanced() {
+            bail!("proxel shot of patch {i}: the patches' cells hold less than the {received} quanta sent to them");
+        }
+        Ok(shot)
     }
 
     /// Per cell, per zone (in zone order), what its proxel sends: to a front-facing patch, or

@@ -39,7 +39,7 @@ use crate::scene::patch_display::{by_face, locate};
 use crate::scene::patches::Patch;
 
 use super::proxels::{ProxelConfig, ProxelCost, ProxelGrid, ProxelShot};
-pub use super::reduce::reduce_cost;
+use super::reduce::reduce_cost;
 
 /// Default push of a shot's source off its patch, in voxels along the normal: beyond the
 /// surface's own voxels (a facet's band is at most √3/2 voxel thick on each side), so that no
