@@ -65,6 +65,7 @@ RUNS=(
     "radrender32      render --n 32 --radiosity --residual 0.1"
     # light: lit sets
     "light64          light --n 64"
+    "light-f0-64      light --n 64 --frac-bits 0"
     "light-cow64      light cow-floor --n 64"
     "light-plane64    light --n 64 --lit-rule plane --rays-from voxel"
     "light-faults64   light --n 64 --link-faults corrupt=0.01,drop=0.01,seed=3"

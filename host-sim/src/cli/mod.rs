@@ -398,7 +398,7 @@ pub struct LightOpts {
     pub fa: Option<usize>,
     /// Fraction bits f of the far-plane ray offsets (0 = the thesis's integer rays; up to 24,
     /// bounded by D·2^f < 2^31). More bits: more rays, fewer missed voxels at grazing angles,
-    /// more beams and cycles. Default: the preset's (0).
+    /// more beams and cycles. Default: the preset's (1 for `light`, 0 for the others).
     #[arg(long)]
     pub frac_bits: Option<u32>,
     /// Which beam a cell processes first. Default: the preset's (radial; wavefront with

@@ -23,9 +23,16 @@ use crate::machine::lighting::timing::Timing;
 use crate::machine::links::faults::LinkFaults;
 use crate::precompute::{Contour, LoadConfig, Thickness};
 
-/// Fraction bits f every preset runs: f = 1 is the accuracy knob for faces lit at extreme
-/// grazing angles, at several times the cycles (BENCHMARKS.md, "How accurate is the image?").
+/// Fraction bits f of the presets but `light`'s: the thesis's integer rays. f = 1 is the
+/// accuracy knob for faces lit at grazing angles, at two to three times the cycles
+/// (BENCHMARKS.md, "How accurate is the image?").
 pub const DEFAULT_FRAC_BITS: u32 = 0;
+
+/// Fraction bits f of the `light` preset: its lit set is every voxel's, grazed faces included,
+/// and at f = 0 the lattice is a voxel apart at the far plane — twice the disagreement with f64
+/// visibility of f = 1 on the held-out meshes (BENCHMARKS.md, "Is `light`'s lit set right?").
+/// The image reads one target ray per pixel and keeps f = 0.
+pub const LIGHT_FRAC_BITS: u32 = 1;
 
 /// A named run configuration ([`Preset::config`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
@@ -100,7 +107,7 @@ impl Preset {
         };
         match self {
             Preset::Render => LightConfig { lit_visible_only: true, skip_hidden: true, ..rc2 },
-            Preset::Light => rc2,
+            Preset::Light => LightConfig { frac_bits: LIGHT_FRAC_BITS, ..rc2 },
             Preset::Trace => LightConfig {
                 rule: LitRule::Plane,
                 rays: Origin::SourceVoxel,
@@ -127,10 +134,15 @@ impl std::fmt::Display for Preset {
 }
 
 /// The plane rule from the source voxel on the `light` preset's machine (full lit store,
-/// 32-block summaries): what the firmware's default image runs, with the lit set every voxel
+/// 32-block summaries) with the thesis's integer rays (f = 0): what the firmware's default image runs, with the lit set every voxel
 /// has. Tests of the diffusion engine itself start from it (fast, and every lit voxel kept).
 pub const fn plane_rule() -> LightConfig {
-    LightConfig { rule: LitRule::Plane, rays: Origin::SourceVoxel, ..Preset::Light.light() }
+    LightConfig {
+        rule: LitRule::Plane,
+        rays: Origin::SourceVoxel,
+        frac_bits: DEFAULT_FRAC_BITS,
+        ..Preset::Light.light()
+    }
 }
 
 /// A run: what is loaded and the diffusion.
@@ -333,6 +345,13 @@ impl RunConfig {
 /// The CLI name of a lit rule.
 pub const fn rule_name(r: LitRule) -> &'static str {
     r.name()
+}
+
+/// Bytes of a cell's loading state: its dexel store (the default capacity) and the row packet
+/// it receives facets in.
+pub const fn loading_cell_bytes() -> usize {
+    std::mem::size_of::<cell_core::cell::Cell<{ cell_core::cell::DEFAULT_DEXELS }>>()
+        + std::mem::size_of::<cell_core::facet::RowPacket>()
 }
 
 /// Bytes a cell's stores take beyond its dexels and its lighting cell under run `l`: the

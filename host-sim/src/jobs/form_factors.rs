@@ -159,7 +159,7 @@ pub fn beam_shot(distance: f64, n: u32) -> Result<BeamShot> {
     let scene =
         crate::machine::loading::loaded_scene::load_scene(&mesh, &crate::precompute::LoadConfig::watertight(n))?;
     let patches = crate::scene::patches::subdivide(&mesh, 1e9, 16)?;
-    let cfg = RadiosityConfig::new(crate::config::Preset::Light.light(), 0.0, 1);
+    let cfg = RadiosityConfig::new(crate::config::plane_rule(), 0.0, 1);
     let patch_of = |face: usize| patches.patches.iter().position(|p| p.face == face).expect("one patch per face");
     let (ff, source) =
         shot_form_factors(&scene.grid, &scene.fit, &scene.source_face, &patches.patches, patch_of(0), &cfg)?;

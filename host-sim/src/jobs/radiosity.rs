@@ -8,9 +8,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{anyhow, bail, Result};
-use cell_core::beam::frac::U0;
 
-use crate::machine::grid::capacity::HostLightCell;
 use crate::machine::loading::loaded_scene::{load_scene, LoadedScene};
 use crate::machine::shooting::proxels::{ProxelConfig, SurfaceKind, Update};
 use crate::machine::shooting::shots::{solve, solve_by_proxels, GridSolution, RadiosityConfig, ShotLog};
@@ -180,8 +178,12 @@ pub struct RadiosityStats {
     pub messages_per_shot: f64,
     /// Bytes a cell adds for radiosity: its patch map, its accumulator and the shot's normal.
     pub bytes_per_cell_added: usize,
-    /// Bytes of the lighting cell it extends.
+    /// Bytes of the lighting cell it extends (FIFO, output buffers, lit runs).
     pub bytes_per_light_cell: usize,
+    /// Bytes of the whole cell a beam shot runs: loading (dexels, row packet), the lighting
+    /// cell, the stores the shots' diffusion uses (none under the thesis's rule) and what
+    /// radiosity adds.
+    pub bytes_per_cell: usize,
     /// Faces the subdivision skipped as zero-area (they get no patch; their voxels, if any,
     /// count as unmapped).
     pub zero_area_faces: usize,
@@ -579,6 +581,10 @@ pub fn summarise(
 ) -> RadiosityStats {
     let k = s.shots.len().max(1) as f64;
     let sum = |f: &dyn Fn(&ShotLog) -> u64| s.shots.iter().map(f).sum::<u64>();
+    let shot = settings.machine();
+    let light_cell = crate::machine::lighting::diffuse::light_cell_bytes(shot.light.frac_bits)
+        .expect("the shots' f is one the lighting cells are built for")
+        .1;
     RadiosityStats {
         scene: name.to_string(),
         n: scene.grid.n,
@@ -593,7 +599,11 @@ pub fn summarise(
         reduce_cycles_per_shot: sum(&|x| x.cost.reduce_cycles) as f64 / k,
         messages_per_shot: sum(&|x| x.messages()) as f64 / k,
         bytes_per_cell_added: crate::machine::shooting::shots::bytes_per_cell_added(),
-        bytes_per_light_cell: std::mem::size_of::<HostLightCell<U0>>(),
+        bytes_per_light_cell: light_cell,
+        bytes_per_cell: crate::config::loading_cell_bytes()
+            + light_cell
+            + crate::config::extra_cell_bytes(&shot.light)
+            + crate::machine::shooting::shots::bytes_per_cell_added(),
         zero_area_faces: p.summary.degenerate_faces,
         unmapped_voxels: s.unmapped_voxels,
         received_overflows: s.received_overflows,
@@ -705,8 +715,14 @@ pub fn print_summary(s: &RadiosityStats) {
         s.cycles, s.messages, s.messages_per_shot
     );
     eprintln!(
-        "  bytes per cell added {} (lighting cell {}), zero-area faces skipped {}, unmapped voxels {}, accumulator overflows {}",
-        s.bytes_per_cell_added, s.bytes_per_light_cell, s.zero_area_faces, s.unmapped_voxels, s.received_overflows
+        "  bytes per cell {} (loading {}, lighting cell {}, radiosity {}), zero-area faces skipped {}, unmapped voxels {}, accumulator overflows {}",
+        s.bytes_per_cell,
+        crate::config::loading_cell_bytes(),
+        s.bytes_per_light_cell,
+        s.bytes_per_cell_added,
+        s.zero_area_faces,
+        s.unmapped_voxels,
+        s.received_overflows
     );
     if let Some(x) = &s.proxels {
         eprintln!(

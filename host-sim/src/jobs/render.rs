@@ -383,9 +383,7 @@ fn shade(
     let cmp = input.reference.map(|r| crate::truth::compare::compare(&image.rgb, &image.covered, &image.lit, r));
     // With smooth shading a loading cell also holds the packet's vertex normals and its record.
     let smooth_bytes = input.smooth.map_or(0, |g| g.stats.bytes_per_packet + g.stats.bytes_per_cell);
-    let load_cell = std::mem::size_of::<cell_core::cell::Cell<{ cell_core::cell::DEFAULT_DEXELS }>>()
-        + std::mem::size_of::<cell_core::facet::RowPacket>()
-        + smooth_bytes;
+    let load_cell = crate::config::loading_cell_bytes() + smooth_bytes;
     let stores = crate::config::extra_cell_bytes(&cfg.light);
     let stats = RenderStats {
         run: None,

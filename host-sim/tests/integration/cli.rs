@@ -458,6 +458,38 @@ fn radiosity_shots_by_projection() {
     }
 }
 
+/// A beam shot's cell, as `radiosity --stats` counts it, is the cell `render --thesis` counts
+/// (the shots' diffusion runs the thesis's rule from the source voxel with f = 0: dexels, row
+/// packet, lighting cell, no triangle store or summary) and what radiosity adds to it; the
+/// summary line names the whole.
+#[test]
+fn a_radiosity_cell_is_the_thesis_render_cell_and_what_radiosity_adds() {
+    let (code, err, shots) = radiosity_run("bytes-radiosity", &["cornell", "--n", "16", "--residual", "0.2"]);
+    assert_eq!(code, 0, "{err}");
+    let render_stats = tmp("bytes-render.json", b"");
+    let png = render_stats.with_extension("png");
+    let (code, err) = host_sim(&[
+        "render",
+        "cornell",
+        "--n",
+        "16",
+        "--thesis",
+        "--quiet",
+        "--out",
+        png.to_str().unwrap(),
+        "--stats",
+        render_stats.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let render: serde_json::Value = serde_json::from_slice(&std::fs::read(&render_stats).unwrap()).unwrap();
+    assert_eq!(render["bytes_per_cell_stores"], 0, "{render}");
+    let [whole, added, light] =
+        ["bytes_per_cell", "bytes_per_cell_added", "bytes_per_light_cell"].map(|k| shots[k].as_u64().unwrap());
+    assert_eq!(whole - added, render["bytes_per_cell"].as_u64().unwrap(), "{shots}\n{render}");
+    assert_eq!(light, render["light"]["bytes_light_cell"].as_u64().unwrap(), "{shots}\n{render}");
+    assert!(added > 0 && light > 0 && whole > added + light, "{shots}");
+}
+
 #[test]
 fn radiosity_against_a_converged_truth_converges_with_the_hemicube() {
     let error = |spec: &str| {
