@@ -32,6 +32,8 @@
 //! * [`route`] — destination-addressed routers with virtual channels, deadlock-free (§1.3, §4.1.3).
 //! * [`reflect`] — reflected rays: mirrored directions, the ray walk, answers (§5.2, §5.5).
 //! * [`reflect_cell`] — the reflection cell: ray FIFOs, wait table, answers (§1.3.2, §5.5.5).
+//! * [`refract`] — the refracted branch's direction: Snell's law in integers, total internal
+//!   reflection (§1.1, §1.2.5).
 //! * [`visible`] — the surface the pixel shows: a per-cell depth test of the exact facets during loading.
 //! * [`shade`] — Phong/Blinn shading of the visible voxel with `micromath` (§1.1, §5.2).
 //! * [`smooth`] — smooth shading (feature `smooth-normals`): vertex normals in the packets,
@@ -60,6 +62,7 @@ pub mod ray;
 pub mod receiver;
 pub mod reflect;
 pub mod reflect_cell;
+pub mod refract;
 pub mod route;
 pub mod serial;
 pub mod shade;

@@ -212,10 +212,10 @@ pub fn reference_image_lit(
 ) -> Result<RefImage> {
     let rl = ref_lights(lights);
     let refl = match &cfg.lighting {
-        RenderLighting::Reflections(r) => RefReflect { depth: r.depth as u32, threshold: r.threshold as f64 },
-        RenderLighting::Diffusion | RenderLighting::Classic(_) | RenderLighting::Refined(_) => {
-            RefReflect { depth: 0, threshold: 0.0 }
+        RenderLighting::Reflections(r) => {
+            RefReflect { depth: r.depth as u32, threshold: r.threshold as f64, refract: false }
         }
+        RenderLighting::Diffusion | RenderLighting::Classic(_) | RenderLighting::Refined(_) => RefReflect::NONE,
     };
     crate::truth::refrender::render_reference_reflect(mesh, &scene.fit, scene.grid.n, &rl, [AMBIENT as f64; 3], &refl)
 }

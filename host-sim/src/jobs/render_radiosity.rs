@@ -255,7 +255,7 @@ impl Solved {
         let surfaces = Surfaces::new(&self.patches, self.faces, p.stats.display)?;
         let at = |face: u32, x: [f64; 3]| surfaces.value_at(records, face as usize, Vector::from(x));
         let rl = ref_lights(&point_lights(lights));
-        let refl = RefReflect { depth: 0, threshold: 0.0 };
+        let refl = RefReflect::NONE;
         render_reference_ambient(mesh, &loaded.fit, loaded.grid.n, &rl, RefAmbient::Indirect(&at), &refl)
     }
 }

@@ -27,11 +27,32 @@ pub struct Material {
     /// Mirror reflectance `Kr` in 0..1 (MTL keyword `Kr`, one value; 0: not reflective). A
     /// reflective surface adds `Kr` × the intensity its reflected ray brings back (§5.5.5).
     pub kr: f32,
+    /// Index of refraction `Ni`, in (0, 4] (1: vacuum, the default; glass 1.5). The refracted
+    /// branch's direction is `cell_core::refract`'s; no job traces refracted rays yet
+    /// (docs/REFLECTIONS.md).
+    pub ni: f32,
+    /// Transparency `Kt` in 0..1: `1 − d` (MTL `d`, dissolve), or `Tr` where a file gives that
+    /// instead; 0, opaque, by default.
+    pub kt: f32,
+    /// Transmission filter `Tf` (the colour a transparent surface lets through); white by
+    /// default.
+    pub tf: [f32; 3],
 }
 
 impl Default for Material {
     fn default() -> Self {
-        Material { name: "default".into(), ka: [0.1; 3], kd: [0.7; 3], ks: [0.0; 3], ns: 1.0, ke: [0.0; 3], kr: 0.0 }
+        Material {
+            name: "default".into(),
+            ka: [0.1; 3],
+            kd: [0.7; 3],
+            ks: [0.0; 3],
+            ns: 1.0,
+            ke: [0.0; 3],
+            kr: 0.0,
+            ni: 1.0,
+            kt: 0.0,
+            tf: [1.0; 3],
+        }
     }
 }
 
@@ -142,8 +163,56 @@ pub struct Mesh {
     pub face_normals: Vec<Vec<u32>>,
 }
 
-fn convert_material(m: &tobj::Material) -> Material {
+/// The numbers of MTL keyword `key` (an unknown one to tobj), if the material has it.
+fn mtl_numbers(m: &tobj::Material, key: &str) -> Option<Result<Vec<f32>>> {
+    let text = m.unknown_param.get(key)?;
+    Some(
+        text.split_whitespace()
+            .map(|t| t.parse::<f32>().map_err(|_| anyhow::anyhow!("material {}: {key} {text}: not a number", m.name)))
+            .collect(),
+    )
+}
+
+/// What a material lets through: `Ni`, `Kt` (from `d` or `Tr`) and `Tf`, each checked: an
+/// index outside (0, 4] (the refraction's bit budget, `cell_core::refract`; `Ni 0`, which
+/// exporters write for none, is the default 1), a transparency outside 0..1 or a filter that
+/// is not three numbers in 0..1 is refused, naming the material.
+fn transmission(m: &tobj::Material) -> Result<(f32, f32, [f32; 3])> {
     let d = Material::default();
+    let ni = match m.optical_density {
+        // Exporters write `Ni 0` for a material that sets none.
+        None | Some(0.0) => d.ni,
+        Some(n) if n.is_finite() && n > 0.0 && n <= 4.0 => n as f32,
+        Some(n) => bail!("material {}: Ni {n}: an index of refraction is in (0, 4]", m.name),
+    };
+    let unit = |what: &str, v: f32| -> Result<f32> {
+        if (0.0..=1.0).contains(&v) {
+            Ok(v)
+        } else {
+            bail!("material {}: {what} {v}: outside 0..1", m.name)
+        }
+    };
+    let kt = match (m.dissolve, mtl_numbers(m, "Tr")) {
+        (Some(dissolve), _) => 1.0 - unit("d", dissolve as f32)?,
+        (None, Some(tr)) => match tr?[..] {
+            [t] => unit("Tr", t)?,
+            _ => bail!("material {}: Tr takes one number", m.name),
+        },
+        (None, None) => d.kt,
+    };
+    let tf = match mtl_numbers(m, "Tf") {
+        None => d.tf,
+        Some(v) => match v?[..] {
+            [r, g, b] => [unit("Tf", r)?, unit("Tf", g)?, unit("Tf", b)?],
+            _ => bail!("material {}: Tf takes three numbers (spectral and CIE XYZ forms are not read)", m.name),
+        },
+    };
+    Ok((ni, kt, tf))
+}
+
+fn convert_material(m: &tobj::Material) -> Result<Material> {
+    let d = Material::default();
+    let (ni, kt, tf) = transmission(m)?;
     let f = |v: Option<[f64; 3]>, dv: [f32; 3]| v.map(|c| c.map(|x| x as f32)).unwrap_or(dv);
     let ke = m
         .unknown_param
@@ -154,7 +223,7 @@ fn convert_material(m: &tobj::Material) -> Material {
         })
         .or(m.emissive.map(|c| c.map(|x| x as f32)))
         .unwrap_or(d.ke);
-    Material {
+    Ok(Material {
         name: m.name.clone(),
         ka: f(m.ambient, d.ka),
         kd: f(m.diffuse, d.kd),
@@ -167,7 +236,10 @@ fn convert_material(m: &tobj::Material) -> Material {
             .and_then(|s| s.split_whitespace().next()?.parse::<f32>().ok())
             .filter(|k| k.is_finite())
             .map_or(d.kr, |k| k.clamp(0.0, 1.0)),
-    }
+        ni,
+        kt,
+        tf,
+    })
 }
 
 /// Put a floor under a mesh as the camera sees it: the view looks along +z, so the floor is the
@@ -260,7 +332,11 @@ where
         .map_err(|e| anyhow::anyhow!("{name}: malformed OBJ ({e})"))?;
     let mut materials = vec![Material::default()];
     match mats {
-        Ok(ms) => materials.extend(ms.iter().map(convert_material)),
+        Ok(ms) => {
+            for m in &ms {
+                materials.push(convert_material(m).map_err(|e| anyhow::anyhow!("{name}: {e}"))?);
+            }
+        }
         Err(e) => {
             if text.lines().any(|l| l.trim_start().starts_with("mtllib")) {
                 eprintln!("warning: {name}: material library not loaded ({e}); using the default material");
@@ -349,6 +425,38 @@ mod tests {
         }
         assert_eq!(short_colour(b"Kd 1 2 3\n  Ks 1\n"), Some((2, "Ks".into(), 1)));
         assert_eq!(short_colour(b"Kd 1 2 3\nKsx 1\n"), None);
+    }
+
+    /// MTL's transmission keywords: `Ni`, `d` (or `Tr`) and `Tf` read into the material;
+    /// values outside their ranges refused with the material's name, never clamped.
+    #[test]
+    fn transmission_keywords_are_read_and_checked() {
+        let obj = b"mtllib x.mtl\nusemtl glass\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        let load = |mtl: &str| load_obj_bytes("t", obj, Some(format!("newmtl glass\nKd 1 1 1\n{mtl}").as_bytes()));
+        let glass = |mtl: &str| load(mtl).unwrap().materials.pop().unwrap();
+        let m = glass("Ni 1.5\nd 0.25\nTf 0.9 0.8 0.7\n");
+        assert_eq!((m.ni, m.kt, m.tf), (1.5, 0.75, [0.9, 0.8, 0.7]));
+        let m = glass("Tr 0.4\n");
+        assert_eq!((m.ni, m.kt, m.tf), (1.0, 0.4, [1.0; 3]));
+        // d wins over Tr (files that carry both mean the same by them).
+        assert_eq!(glass("d 1\nTr 0.3\n").kt, 0.0);
+        let plain = glass("");
+        assert_eq!((plain.ni, plain.kt, plain.tf), (1.0, 0.0, [1.0; 3]));
+        assert_eq!(glass("Ni 0\n").ni, 1.0, "exporters' Ni 0: none set");
+        for (bad, why) in [
+            ("Ni -1\n", "Ni -1"),
+            ("Ni 5\n", "Ni 5"),
+            ("Ni nan\n", "Ni NaN"),
+            ("d 1.5\n", "d 1.5"),
+            ("Tr -0.1\n", "Tr -0.1"),
+            ("Tr 0.1 0.2\n", "Tr takes one number"),
+            ("Tf 0.9 0.8\n", "Tf takes three numbers"),
+            ("Tf 0.9 x 0.7\n", "not a number"),
+            ("Tf 0.9 2 0.7\n", "Tf 2"),
+        ] {
+            let err = load(bad).expect_err(bad).to_string();
+            assert!(err.contains("material glass") && err.contains(why), "{bad}: {err}");
+        }
     }
 
     #[test]

@@ -178,7 +178,7 @@ fn materials() -> Vec<Material> {
         ks: [ks; 3],
         ns,
         ke: [0.0; 3],
-        kr: 0.0,
+        ..Material::default()
     };
     vec![
         Material::default(),

@@ -220,19 +220,44 @@ pub fn mesh_triangles(mesh: &Mesh) -> Result<(Vec<WorldTriangle>, Vec<u32>)> {
 /// Errors: `n = 0`, more than 32 lights, a non-finite or non-positive voxel size, a face with a
 /// vertex or material index out of range, or no non-degenerate triangle at all.
 pub fn render_reference(mesh: &Mesh, fit: &Fit, n: u32, lights: &[RefLight], ambient: [f64; 3]) -> Result<RefImage> {
-    render_reference_reflect(mesh, fit, n, lights, ambient, &RefReflect { depth: 0, threshold: 0.0 })
+    render_reference_reflect(mesh, fit, n, lights, ambient, &RefReflect::NONE)
 }
 
 /// Mirror reflections of the reference (the grid's rule, `crate::machine::rays::mirror`): a surface with
 /// `Kr > 0` adds `Kr` × the colour its exactly reflected ray brings back (§5.5.5); the tree
 /// stops at `depth` reflections or when the product of the Kr along the path falls below
 /// `threshold` (Hall, §1.2.5.1); a ray that hits nothing brings back black.
+///
+/// With `refract`, a surface with transparency `Kt > 0` also adds `Kt·Tf` ⊙ the colour its
+/// refracted ray brings back (§1.1's `I_T`): Snell's direction ([`refracted`]) between air
+/// (index 1) and the material's `Ni`, entering where the ray meets the face's outer side (its
+/// winding, closed meshes outward) and leaving on the inner side; beyond the critical angle the
+/// transmitted share is reflected instead (total internal reflection). Each refraction is a
+/// level of the tree like a reflection (`depth`, `threshold` with the product of `Kr` and `Kt`
+/// weights). Shadow rays still stop at transparent surfaces, as in the machine. No job turns it
+/// on yet: the machine has no refracted rays (docs/REFLECTIONS.md).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RefReflect {
     /// Largest number of reflections (0: none).
     pub depth: u32,
     /// Smallest contribution weight that still reflects.
     pub threshold: f64,
+    /// Whether transparent surfaces refract too.
+    pub refract: bool,
+}
+
+impl RefReflect {
+    /// No reflected or refracted rays.
+    pub const NONE: RefReflect = RefReflect { depth: 0, threshold: 0.0, refract: false };
+}
+
+/// Snell's refracted direction of unit incident direction `i` at a surface of unit normal `n`
+/// (either orientation) with `eta` = n₁ / n₂ (the incident side's index over the other's); `None`
+/// beyond the critical angle. The result is a unit vector on the far side of the surface.
+pub fn refracted(i: Vector, n: Vector, eta: f64) -> Option<Vector> {
+    let (n, c1) = if n.dot(i) > 0.0 { (-n, n.dot(i)) } else { (n, -n.dot(i)) };
+    let k = 1.0 - eta * eta * (1.0 - c1 * c1);
+    (k >= 0.0).then(|| eta * i + (eta * c1 - k.sqrt()) * n)
 }
 
 /// The ambient term `Ka ⊙ Ia` of the reference's shading.
@@ -327,16 +352,43 @@ impl RefScene<'_> {
             // R = I − 2(I·N)N with I = −v.
             let vn = v.dot(normal);
             let r = 2.0 * vn * normal - v;
-            if let Some((t, f2, n2)) = self.reference.first_hit(p.to_array(), r.to_array(), self.max_t, &[facet]) {
-                let p2 = p + t * r;
-                let back = normalize(-r).unwrap_or(Vector::new(0.0, 0.0, -1.0));
-                let (c2, _) = self.colour(p2, Vector::from(n2), f2, back, level + 1, w);
-                for k in 0..3 {
-                    c[k] += kr * c2[k];
-                }
+            let c2 = self.trace(p, r, facet, level, w);
+            for k in 0..3 {
+                c[k] += kr * c2[k];
+            }
+        }
+        let kt = f64::from(m.kt);
+        let w = weight * kt;
+        if self.reflect.refract && kt > 0.0 && level <= self.reflect.depth && w >= self.reflect.threshold {
+            let i = -v;
+            let outward = self.outward(facet);
+            let ni = f64::from(m.ni);
+            let eta = if outward.dot(i) < 0.0 { 1.0 / ni } else { ni };
+            // Beyond the critical angle the transmitted share goes the mirror's way.
+            let t = refracted(i, normal, eta).unwrap_or(i - 2.0 * i.dot(normal) * normal);
+            let c2 = self.trace(p, t, facet, level, w);
+            for k in 0..3 {
+                c[k] += kt * f64::from(m.tf[k]) * c2[k];
             }
         }
         (c, mask)
+    }
+
+    /// The colour a secondary ray from `p` (on `facet`) along `dir` brings back: the colour of
+    /// the first surface it meets at tree level `level + 1`, black if it meets none.
+    fn trace(&self, p: Vector, dir: Vector, facet: u32, level: u32, weight: f64) -> [f64; 3] {
+        let Some((t, f2, n2)) = self.reference.first_hit(p.to_array(), dir.to_array(), self.max_t, &[facet]) else {
+            return [0.0; 3];
+        };
+        let back = normalize(-dir).unwrap_or(Vector::new(0.0, 0.0, -1.0));
+        self.colour(p + t * dir, Vector::from(n2), f2, back, level + 1, weight).0
+    }
+
+    /// The unit normal of `facet` on its outer side (its winding), in the space rays are traced in.
+    fn outward(&self, facet: u32) -> Vector {
+        let f = &self.mesh.faces[facet as usize];
+        let pts: Vec<[f64; 3]> = f.verts.iter().map(|&k| self.mesh.positions[k as usize]).collect();
+        normalize(Vector::from(crate::scene::normals::newell(&pts))).unwrap_or(Vector::Z)
     }
 }
 
@@ -364,8 +416,7 @@ pub fn render_reference_smooth(
     if smooth.corners.len() != mesh.faces.len() {
         bail!("refrender: {} faces but corner normals for {}", mesh.faces.len(), smooth.corners.len());
     }
-    let mut scene =
-        RefScene::new(mesh, fit, n, lights, RefAmbient::Constant(ambient), &RefReflect { depth: 0, threshold: 0.0 })?;
+    let mut scene = RefScene::new(mesh, fit, n, lights, RefAmbient::Constant(ambient), &RefReflect::NONE)?;
     scene.smooth = Some(*smooth);
     let mut img = RefImage::empty(n, lights.len() as u32);
     for y in 0..n {
@@ -564,7 +615,7 @@ mod tests {
     type V3 = [f64; 3];
 
     fn mat(ka: [f32; 3], kd: [f32; 3], ks: [f32; 3], ns: f32, ke: [f32; 3]) -> Material {
-        Material { name: "m".into(), ka, kd, ks, ns, ke, kr: 0.0 }
+        Material { name: "m".into(), ka, kd, ks, ns, ke, ..Material::default() }
     }
 
     /// Test fit: a non-trivial origin and voxel size.
@@ -941,6 +992,80 @@ mod tests {
                 }
             }
             assert_eq!(seen, 200);
+        }
+    }
+
+    /// Snell's law from angles: sin θ₂ = η·sin θ₁ in the plane of incidence, on the far side,
+    /// a unit vector; nothing beyond the critical angle; through a parallel slab (air → glass →
+    /// air) the ray leaves along the direction it came in.
+    #[test]
+    fn refracted_obeys_snell() {
+        let n = Vector::new(0.3, -0.4, 0.866_025_403_784_438_6).normalize();
+        let (u, w) = (n.any_orthonormal_vector(), n.cross(n.any_orthonormal_vector()));
+        for eta in [1.0 / 1.5, 1.5, 1.0 / 1.33, 1.33, 1.0] {
+            for deg in (0..90).step_by(7) {
+                for phi in [0.0f64, 1.0, 2.5] {
+                    let th = (deg as f64).to_radians();
+                    let tangent = phi.cos() * u + phi.sin() * w;
+                    let i = th.sin() * tangent - th.cos() * n;
+                    let want_sin = eta * th.sin();
+                    let Some(t) = refracted(i, n, eta) else {
+                        assert!(want_sin > 1.0, "eta {eta}, {deg}°: reflected below the critical angle");
+                        continue;
+                    };
+                    assert!(want_sin <= 1.0 + 1e-12, "eta {eta}, {deg}°: passes beyond the critical angle");
+                    assert!((t.length() - 1.0).abs() < 1e-12);
+                    assert!((t.dot(tangent) - want_sin).abs() < 1e-12, "eta {eta}, {deg}°: {t:?}");
+                    assert!(t.dot(n) < 0.0 && t.dot(i.cross(n)).abs() < 1e-12);
+                    // The same with the normal the other way round.
+                    assert!((refracted(i, -n, eta).unwrap() - t).length() < 1e-12);
+                    if eta < 1.0 {
+                        let out = refracted(t, n, 1.0 / eta).expect("leaves the slab: the reverse path");
+                        assert!((out - i).length() < 1e-12, "{out:?} vs {i:?}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// A transparent pane (no colour of its own, `Kt` = 1, filter `Tf`) in front of the plane,
+    /// under ambient light only: with refraction each pixel of the pane shows the plane behind
+    /// it through the filter (`Tf` ⊙ `Ka` ⊙ ambient, the view at normal incidence going
+    /// straight on); without, the pane is black. The plane around it is the same either way.
+    #[test]
+    fn a_glass_pane_shows_what_is_behind_through_its_filter() {
+        let mut mesh = plane_mesh(false);
+        let base = mesh.positions.len() as u32;
+        for p in [[10.5, 10.5, 20.0], [20.5, 10.5, 20.0], [20.5, 30.5, 20.0], [10.5, 30.5, 20.0]] {
+            mesh.positions.push(w(p));
+        }
+        mesh.faces.push(Face { verts: (base..base + 4).collect(), material: 1 });
+        let tf = [0.5, 1.0, 0.25];
+        mesh.materials[1] = Material { kt: 1.0, tf, ni: 1.5, ..mat([0.0; 3], [0.0; 3], [0.0; 3], 1.0, [0.0; 3]) };
+        let plane = &mesh.materials[0];
+        let through = [0, 1, 2].map(|c| gamma(f64::from(tf[c]) * f64::from(plane.ka[c]) * AMB[c]));
+        let around = [0, 1, 2].map(|c| gamma(f64::from(plane.ka[c]) * AMB[c]));
+        assert!(through != around && through != [0; 3]);
+        for refract in [true, false] {
+            let r = RefReflect { depth: 2, threshold: 0.0, refract };
+            let img = render_reference_reflect(&mesh, &FIT, N, &[], AMB, &r).unwrap();
+            let mut seen = 0;
+            for y in 11..=30 {
+                for x in 11..=20 {
+                    let i = img.index(x, y);
+                    assert_eq!(img.facet[i], 1, "({x}, {y})");
+                    let want = if refract { through } else { [0; 3] };
+                    assert!(
+                        (0..3).all(|c| img.rgb[i][c].abs_diff(want[c]) <= 1),
+                        "({x}, {y}): {:?} vs {want:?}",
+                        img.rgb[i]
+                    );
+                    seen += 1;
+                }
+            }
+            assert_eq!(seen, 200);
+            let i = img.index(40, 40);
+            assert_eq!((img.facet[i], img.rgb[i]), (0, around));
         }
     }
 

@@ -67,7 +67,7 @@ proptest! {
         let mut nn = unit(n);
         if nn[2] > 0.0 { nn = nn.map(|c| -c); } // facing the viewer (VIEW = −z)
         let ns = ns.round(); // the cell raises to an integer power
-        let m = Material { name: "m".into(), ka, kd, ks, ns, ke: [0.0; 3], kr: 0.0 };
+        let m = Material { name: "m".into(), ka, kd, ks, ns, ke: [0.0; 3], ..Material::default() };
         let cm = CellMaterial { ka, kd, ks, ns, ke: [0.0; 3] };
         let pl: Vec<PointLight> = lights.iter().map(|(pos, color)| PointLight { pos: *pos, color: *color }).collect();
         let rl: Vec<RefLight> = lights.iter().map(|(pos, color)| RefLight { pos: pos.map(|c| c as f64), color: color.map(|c| c as f64) }).collect();
