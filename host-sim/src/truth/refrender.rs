@@ -963,15 +963,21 @@ mod tests {
         assert_eq!(d, vec![[255, 40, 240], [80, 80, 80], [0, 0, 0], [0, 0, 0]]);
     }
 
-    #[test]
-    fn emitters_show_their_own_colour() {
-        // An emitter quad in front of a diffuse plane, no lights and zero ambient.
-        let mut mesh = plane_mesh(false);
+    /// A quad of material `material` at z = 20 in front of the plane, over pixels x 11..=20,
+    /// y 11..=30.
+    fn add_front_quad(mesh: &mut Mesh, material: u16) {
         let base = mesh.positions.len() as u32;
         for p in [[10.5, 10.5, 20.0], [20.5, 10.5, 20.0], [20.5, 30.5, 20.0], [10.5, 30.5, 20.0]] {
             mesh.positions.push(w(p));
         }
-        mesh.faces.push(Face { verts: (base..base + 4).collect(), material: 2 });
+        mesh.faces.push(Face { verts: (base..base + 4).collect(), material });
+    }
+
+    #[test]
+    fn emitters_show_their_own_colour() {
+        // An emitter quad in front of a diffuse plane, no lights and zero ambient.
+        let mut mesh = plane_mesh(false);
+        add_front_quad(&mut mesh, 2);
         mesh.materials.push(mat([1.0; 3], [0.8; 3], [0.5; 3], 8.0, [17.0, 8.5, 0.0]));
         let want = [255, gamma(0.5), 0];
         assert_eq!(want, [255, 186, 0]);
@@ -1035,11 +1041,7 @@ mod tests {
     #[test]
     fn a_glass_pane_shows_what_is_behind_through_its_filter() {
         let mut mesh = plane_mesh(false);
-        let base = mesh.positions.len() as u32;
-        for p in [[10.5, 10.5, 20.0], [20.5, 10.5, 20.0], [20.5, 30.5, 20.0], [10.5, 30.5, 20.0]] {
-            mesh.positions.push(w(p));
-        }
-        mesh.faces.push(Face { verts: (base..base + 4).collect(), material: 1 });
+        add_front_quad(&mut mesh, 1);
         let tf = [0.5, 1.0, 0.25];
         mesh.materials[1] = Material { kt: 1.0, tf, ni: 1.5, ..mat([0.0; 3], [0.0; 3], [0.0; 3], 1.0, [0.0; 3]) };
         let plane = &mesh.materials[0];
