@@ -499,6 +499,13 @@ pub struct ExactVisit<'a, 't, F: FracBits> {
     notch: Option<i64>,
     /// Too many undecided triangles: each ray is judged on its own.
     per_ray: bool,
+    /// With `per_ray`: the triangles each ray is judged against — bit i for the undecided
+    /// triangles [`ExactVisit::sort_triangles`] met before it gave up, then every candidate
+    /// from the one it stopped at (`judged_from`) on. The others meet no ray of the rectangle
+    /// or are decided on all of it (their verdict is in the flags): judging them again for
+    /// every ray changed nothing and was most of a visit's time on dense columns.
+    judged: u64,
+    judged_from: usize,
     triangles: &'a [Triangle],
     /// Bit i: triangle i may cut the beam ([`ALL_CANDIDATES`]: any may; the others the caller
     /// knows the visit would find uncrossed, [`near_voxels`]).
@@ -564,6 +571,8 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
             arrival_terminal,
             notch,
             per_ray: false,
+            judged: 0,
+            judged_from: 0,
             triangles,
             candidates,
             seen,
@@ -581,6 +590,7 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
     /// the stack (each holds up to [`MAX_EXACT_TESTS`] tests, 5.5 KB on the MCU).
     pub fn rejudge(&mut self, rect: ((i64, i64), (i64, i64)), arrival_terminal: bool) {
         (self.absent, self.absorbed, self.terminal, self.per_ray) = (false, false, false, false);
+        (self.judged, self.judged_from) = (0, 0);
         self.arrival_terminal = arrival_terminal;
         self.tests.clear();
         self.sort_triangles(rect);
@@ -684,8 +694,12 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
             }
             if v.tests.len() + PER_TRIANGLE > MAX_EXACT_TESTS {
                 v.per_ray = true;
+                v.judged_from = i;
                 v.tests.clear();
                 break;
+            }
+            if i < 64 {
+                v.judged |= 1 << i;
             }
             for t in tests {
                 let _ = v.tests.push(t);
@@ -752,7 +766,13 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
     fn judge(&self, a: i64, b: i64) -> (bool, bool, bool) {
         let mut acc = (false, false, false);
         let Some(view) = View::new(self.source, self.dir, self.far) else { return acc };
+        let judged = |i: usize| {
+            i >= 64 || if i < self.judged_from { self.judged >> i & 1 == 1 } else { self.candidates >> i & 1 == 1 }
+        };
         for (i, tri) in self.triangles.iter().enumerate() {
+            if !judged(i) {
+                continue;
+            }
             let mut slot = None;
             let Some(occ) = self.seen_of(i, tri, &view, &mut slot).map(|s| s.occluder(tri, &view)) else { continue };
             let bits = occ
