@@ -20,6 +20,8 @@
 #   teapot-256      render teapot-floor --n 256
 #   bureau1-256     render bureau1 --n 256
 #   bureau2-256     render bureau2 --n 256         (2 lights)
+#   classe-128      render classe --n 128          (26 lights; columns dense with triangles)
+#   classe-light-32 light classe --n 32            (every voxel's lit state: the full lit store)
 #   radiosity-64    radiosity cornell --n 64 --residual 0.01
 #
 # Instructions: valgrind --tool=cachegrind --cache-sim=no (I refs of the whole process) with
@@ -42,7 +44,8 @@
 # CSV columns (blank where the job does not report the figure):
 #   row, binary (base|new), rep (1..REPS; "cg" for the cachegrind run),
 #   wall_s (measured around the process), light_s (render: stats light.wall_seconds;
-#   radiosity: none), beams (render: light.beams_processed; radiosity: none),
+#   radiosity, light: none), beams (render: light.beams_processed; light: beams_processed;
+#   radiosity: none),
 #   core_s (user + sys CPU s, /usr/bin/time), ns_per_beam (core_s × 1e9 / beams),
 #   peak_rss_mib (/usr/bin/time %M), instr (cachegrind I refs), instr_per_beam,
 #   cycles (simulated: render light.cycles, radiosity cycles), job_wall_s (the job's own
@@ -101,6 +104,7 @@ NPROC=$(nproc)
 out_args() {
   case $1 in
     render) echo "--quiet --out $2.png --stats $2.json" ;;
+    light) echo "--quiet --lit-out $2.lit.csv --stats $2.json" ;;
     radiosity) echo "--quiet --patches-csv $2.patches.csv --shots-csv $2.shots.csv --residual-plot $2.residual.png --stats $2.json" ;;
     *) die "no output options known for job '$1'" ;;
   esac

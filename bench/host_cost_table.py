@@ -4,8 +4,9 @@
   host_cost_table.py fields STATS.json
       One comma-separated line: job_wall_s,light_s,beams,cycles,messages (blank where the
       job's stats have no such key). render: light.{wall_seconds,beams_processed,cycles,
-      messages}; radiosity: no light seconds and no beam count in its stats, cycles and
-      messages at the top level.
+      messages}; light: beams, cycles and messages at the top level, no light seconds of its
+      own; radiosity: no light seconds and no beam count in its stats, cycles and messages at
+      the top level.
   host_cost_table.py same REF.json OTHER.json
       Compare the simulated counts of two stats files: every key named like *wall*,
       *seconds* or peak_rss* is dropped (at any depth), the rest must be equal. Prints the
@@ -46,7 +47,7 @@ def fields(path):
         vals = [s.get("wall_seconds"), get(s, "light", "wall_seconds"),
                 get(s, "light", "beams_processed"), get(s, "light", "cycles"),
                 get(s, "light", "messages")]
-    else:  # radiosity (and anything else with top-level counts)
+    else:  # light, radiosity (and anything else with top-level counts)
         vals = [s.get("wall_seconds"), s.get("light_seconds"), s.get("beams_processed"),
                 s.get("cycles"), s.get("messages")]
     print(",".join(fmt(v) for v in vals))
