@@ -24,7 +24,7 @@ use crate::machine::links::faults::LinkFaults;
 use crate::precompute::{Contour, LoadConfig, Thickness};
 
 /// Fraction bits f of the presets but `light`'s: the thesis's integer rays. f = 1 is the
-/// accuracy knob for faces lit at grazing angles, at two to three times the cycles
+/// accuracy knob for faces lit at grazing angles, at about twice the cycles
 /// (BENCHMARKS.md, "How accurate is the image?").
 pub const DEFAULT_FRAC_BITS: u32 = 0;
 
@@ -134,8 +134,9 @@ impl std::fmt::Display for Preset {
 }
 
 /// The plane rule from the source voxel on the `light` preset's machine (full lit store,
-/// 32-block summaries) with the thesis's integer rays (f = 0): what the firmware's default image runs, with the lit set every voxel
-/// has. Tests of the diffusion engine itself start from it (fast, and every lit voxel kept).
+/// 32-block summaries) with the thesis's integer rays (f = 0): what the firmware's default
+/// image runs, with the lit set every voxel has. Tests of the diffusion engine itself start
+/// from it (fast, and every lit voxel kept).
 pub const fn plane_rule() -> LightConfig {
     LightConfig {
         rule: LitRule::Plane,
