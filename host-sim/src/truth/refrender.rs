@@ -346,13 +346,13 @@ impl RefScene<'_> {
                 shade_linear_view_f64(p_vox, n, v_arr, &m, &self.lights, mask, at(facet, p.to_array()))
             }
         };
+        // R = I − 2(I·N)N with I = −v: the reflected ray, and the transmitted share's way
+        // beyond the critical angle.
+        let mirrored = || 2.0 * v.dot(normal) * normal - v;
         let kr = f64::from(m.kr);
         let w = weight * kr;
         if kr > 0.0 && level <= self.reflect.depth && w >= self.reflect.threshold {
-            // R = I − 2(I·N)N with I = −v.
-            let vn = v.dot(normal);
-            let r = 2.0 * vn * normal - v;
-            let c2 = self.trace(p, r, facet, level, w);
+            let c2 = self.trace(p, mirrored(), facet, level, w);
             for k in 0..3 {
                 c[k] += kr * c2[k];
             }
@@ -364,8 +364,7 @@ impl RefScene<'_> {
             let outward = self.outward(facet);
             let ni = f64::from(m.ni);
             let eta = if outward.dot(i) < 0.0 { 1.0 / ni } else { ni };
-            // Beyond the critical angle the transmitted share goes the mirror's way.
-            let t = refracted(i, normal, eta).unwrap_or(i - 2.0 * i.dot(normal) * normal);
+            let t = refracted(i, normal, eta).unwrap_or_else(mirrored);
             let c2 = self.trace(p, t, facet, level, w);
             for k in 0..3 {
                 c[k] += kt * f64::from(m.tf[k]) * c2[k];
