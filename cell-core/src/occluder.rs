@@ -109,7 +109,7 @@
 //! ```
 
 use crate::beam::{Direction, FarDistance, FracBits, Source};
-use crate::lit::{Narrow, RayPlane, Test};
+use crate::lit::{Along, Narrow, RayPlane, Segments, Test};
 use crate::triangle::{cross64, dot, sub};
 pub use crate::triangle::{Triangle, COORD_LIMIT};
 use heapless::Vec;
@@ -167,9 +167,14 @@ pub struct Seen {
 impl Seen {
     /// The plane of `tri` along the rays of `view`; `None` as for [`Occluder::new`].
     fn new(tri: &Triangle, view: &View) -> Option<Seen> {
+        Seen::with_normal(tri.normal(), tri.vertex(0), view)
+    }
+
+    /// [`Seen::new`] of the triangle with normal `n` and first vertex `v0`.
+    #[inline]
+    fn with_normal(n: [i128; 3], v0: [i64; 3], view: &View) -> Option<Seen> {
         let (w, u, v) = view.axes;
-        let n = tri.normal();
-        let k0 = view.nn * dot(n, sub(view.o, tri.vertex(0)));
+        let k0 = view.nn * dot(n, sub(view.o, v0));
         // Δ = n·(V₀ − O) = −K₀/N: its sign orients the edge tests.
         if k0 == 0 {
             return None;
@@ -182,17 +187,27 @@ impl Seen {
 
     /// The whole occluder: the plane and the three edges.
     fn occluder(&self, tri: &Triangle, view: &View) -> Occluder {
+        Occluder { plane: self.plane, edges: [0, 1, 2].map(|j| self.edge(tri, view, j)) }
+    }
+
+    /// Edge j of the occluder ((V₀, V₁), (V₁, V₂), (V₂, V₀) for j = 0, 1, 2): one at a time, so
+    /// that a visit stops building at the first edge no ray of its beam is inside.
+    #[inline]
+    fn edge(&self, tri: &Triangle, view: &View, j: usize) -> RayPlane {
         let (w, u, v) = view.axes;
         // Differences ≤ 2²⁴ and their cross products ≤ 2⁴⁹ (the module doc's bit budget), times
         // 2·sgn Δ·s ≤ 2⁵¹: `i64`; only the product with N needs `i128`, one widening multiply.
-        let rel = [0, 1, 2].map(|i| [0, 1, 2].map(|c| tri.vertices()[i][c] as i64 - view.o[c]));
+        // Written out, not as array maps: the host's compiler kept nested maps out of line, and
+        // building edges was a fifth of a dense scene's time.
+        let vs = tri.vertices();
+        let rel = |i: usize| {
+            let p = vs[i];
+            [p[0] as i64 - view.o[0], p[1] as i64 - view.o[1], p[2] as i64 - view.o[2]]
+        };
+        let m = cross64(rel(j), rel((j + 1) % 3));
         let o = 2 * self.orient as i64;
-        let edges = [(0, 1), (1, 2), (2, 0)].map(|(i, j)| {
-            let m = cross64(rel[i], rel[j]);
-            let kw = (o * m[w] * view.sign as i64) as i128 * view.nn + 1;
-            RayPlane::from_coefficients(0, kw, (o * m[u]) as i128, (o * m[v]) as i128, view.lead)
-        });
-        Occluder { plane: self.plane, edges }
+        let kw = (o * m[w] * view.sign as i64) as i128 * view.nn + 1;
+        RayPlane::from_coefficients(0, kw, (o * m[u]) as i128, (o * m[v]) as i128, view.lead)
     }
 }
 
@@ -214,12 +229,14 @@ impl SeenEntry {
 
     /// The entry of `tri` along `source`'s rays in `dir` at far distance `far`.
     pub fn of<F: FracBits>(tri: &Triangle, source: &Source, dir: Direction, far: FarDistance<F>) -> SeenEntry {
-        let Some(seen) = View::new(source, dir, far).and_then(|view| Seen::new(tri, &view)) else {
-            return SeenEntry::NONE;
-        };
-        match seen.narrow {
-            Some(n) => SeenEntry { k: n.coefficients(), orient: seen.orient },
-            None => SeenEntry::WIDE,
+        Self::from_seen(View::new(source, dir, far).and_then(|view| Seen::new(tri, &view)))
+    }
+
+    fn from_seen(seen: Option<Seen>) -> SeenEntry {
+        match seen {
+            None => SeenEntry::NONE,
+            Some(Seen { narrow: Some(n), orient, .. }) => SeenEntry { k: n.coefficients(), orient },
+            Some(_) => SeenEntry::WIDE,
         }
     }
 
@@ -244,16 +261,49 @@ impl SeenEntry {
     }
 }
 
+/// One source's rays in each of the six directions, for a host filling a table of
+/// [`SeenEntry`]s: [`SeenEntry::of`] for every direction of a triangle, its normal computed
+/// once, the rays' origin once per source.
+#[derive(Clone, Copy, Debug)]
+pub struct SourceViews([Option<View>; 6]);
+
+impl SourceViews {
+    /// The views of `source`'s rays at far distance `far`.
+    pub fn new<F: FracBits>(source: &Source, far: FarDistance<F>) -> Self {
+        SourceViews(Direction::ALL.map(|d| View::new(source, d, far)))
+    }
+
+    /// `tri`'s entries in the six directions ([`Direction::index`] order): each
+    /// [`SeenEntry::of`].
+    pub fn entries(&self, tri: &Triangle) -> [SeenEntry; 6] {
+        let (n, v0) = (tri.normal(), tri.vertex(0));
+        self.0.map(|view| SeenEntry::from_seen(view.and_then(|view| Seen::with_normal(n, v0, &view))))
+    }
+}
+
 /// The planes of a column's triangles, computed once per source by a host that holds every
-/// column ([`ColumnOccluders::seen`]): triangle i of the column is `seen[ids[i]][dir]`. The
-/// visit reads the same [`Seen`] it would compute, so the verdicts are the same.
+/// column ([`ColumnOccluders::seen`]): triangle i of the column in direction `dir` is
+/// [`SeenTable::entry`], `seen[dir.index() · distinct + ids[i]]`. The visit reads the same
+/// [`Seen`] it would compute, so the verdicts are the same.
 #[derive(Clone, Copy, Debug)]
 pub struct SeenTable<'a> {
-    /// Per triangle of the column, its row in `seen`.
+    /// Per triangle of the column, its distinct triangle's number.
     pub ids: &'a [u32],
-    /// Per distinct triangle, its plane for each direction ([`Direction::index`] order) under
-    /// the current source and far distance.
-    pub seen: &'a [[SeenEntry; 6]],
+    /// Per direction ([`Direction::index`] order), then per distinct triangle, its plane under
+    /// the current source and far distance. Direction first: a beam reads one direction, and
+    /// the neighbours of a triangle in the mesh, often in the same column, share its cache line
+    /// (triangle first, a row of six entries was a cache miss per triangle on dense scenes).
+    pub seen: &'a [SeenEntry],
+    /// Distinct triangles (the length of one direction's part of `seen`).
+    pub distinct: usize,
+}
+
+impl SeenTable<'_> {
+    /// The entry of the column's triangle i in direction `dir`.
+    #[inline]
+    pub fn entry(&self, i: usize, dir: Direction) -> &SeenEntry {
+        &self.seen[dir.index() as usize * self.distinct + self.ids[i] as usize]
+    }
 }
 
 /// Bits of [`Occluder::tests`] that must all hold (the three edges).
@@ -639,7 +689,7 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
             // edges are never built. A table's narrow plane is read from its coefficients
             // (the same `i64` form and signs as below), before any `Seen` is built.
             if let Some(t) = v.seen.filter(|_| narrow_square) {
-                let entry = &t.seen[t.ids[i] as usize][v.dir.index() as usize];
+                let entry = t.entry(i, v.dir);
                 match entry.narrow(&view) {
                     Some(n) => {
                         // σ_t = k0 + T_t·form with T_t ≥ 0 is non-decreasing in the form, and the
@@ -674,16 +724,22 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
             if uncrossed(sigma_at(t_first), sigma_at(t_last)) {
                 continue;
             }
-            let sigma = [k - 1, k, k + 1, t1].map(|t| constant(sigma_at(t)));
-            let tests = seen.occluder(tri, &view).exact_tests(k, t1);
+            // The edges one by one: at the first one outside which every ray of the rectangle
+            // lies, the triangle meets no ray and the others are never built.
             let mut fixed = [None; PER_TRIANGLE];
-            for (i, t) in tests[..3].iter().enumerate() {
-                fixed[i] = fixed_on(t);
+            let mut edges = [seen.plane; 3];
+            let outside = (0..3).any(|j| {
+                edges[j] = seen.edge(tri, &view, j);
+                fixed[j] = fixed_on(&Test { plane: edges[j], t: 1 });
+                fixed[j] == Some(false)
+            });
+            if outside {
+                continue;
             }
-            if fixed[..3].contains(&Some(false)) {
-                continue; // outside an edge everywhere: meets no ray
+            let tests = Occluder { plane: seen.plane, edges }.exact_tests(k, t1);
+            for (f, t) in fixed[3..].iter_mut().zip([k - 1, k, k + 1, t1]) {
+                *f = constant(sigma_at(t));
             }
-            fixed[3..].copy_from_slice(&sigma);
             if fixed.iter().all(Option::is_some) {
                 let bits = fixed.iter().enumerate().fold(0u64, |m, (i, x)| m | ((*x == Some(true)) as u64) << i);
                 let (absent, absorbed, terminal) = Self::triangle(bits, notch.is_some());
@@ -753,7 +809,7 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
     fn seen_of<'s>(&self, i: usize, tri: &Triangle, view: &View, slot: &'s mut Option<Seen>) -> Option<&'s Seen> {
         *slot = match self.seen {
             Some(t) => {
-                let s = t.seen[t.ids[i] as usize][self.dir.index() as usize].seen(tri, view);
+                let s = t.entry(i, self.dir).seen(tri, view);
                 debug_assert_eq!(s, Seen::new(tri, view), "a precomputed plane differs from the triangle's");
                 s
             }
@@ -762,15 +818,17 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
         slot.as_ref()
     }
 
+    /// Whether the per-ray path judges rays against triangle i of the column (see `judged`).
+    fn judges(&self, i: usize) -> bool {
+        i >= 64 || if i < self.judged_from { self.judged >> i & 1 == 1 } else { self.candidates >> i & 1 == 1 }
+    }
+
     /// Ray (a, b) judged against every triangle of the column.
     fn judge(&self, a: i64, b: i64) -> (bool, bool, bool) {
         let mut acc = (false, false, false);
         let Some(view) = View::new(self.source, self.dir, self.far) else { return acc };
-        let judged = |i: usize| {
-            i >= 64 || if i < self.judged_from { self.judged >> i & 1 == 1 } else { self.candidates >> i & 1 == 1 }
-        };
         for (i, tri) in self.triangles.iter().enumerate() {
-            if !judged(i) {
+            if !self.judges(i) {
                 continue;
             }
             let mut slot = None;
@@ -790,10 +848,69 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
     /// verdicts' codes.
     pub fn bits(&self, a: i64, b: i64) -> u64 {
         if self.per_ray {
-            let j = self.judge(a, b);
-            return out_code(self.out(j, false)) | out_code(self.out(j, true)) << 2;
+            return self.codes(self.judge(a, b));
         }
         self.tests.iter().enumerate().fold(0u64, |m, (i, t)| m | (t.holds(a, b) as u64) << i)
+    }
+
+    /// A per-ray judgement as the codes of its verdicts (leaving the column, staying in it).
+    fn codes(&self, j: (bool, bool, bool)) -> u64 {
+        out_code(self.out(j, false)) | out_code(self.out(j, true)) << 2
+    }
+
+    /// The per-ray path's line: the rays `lo ..= hi` along `along` (the other offset at
+    /// `fixed`) judged 64 at a time, each judged triangle's occluder built once per 64 rays and
+    /// each of its tests read as the interval of the line where it holds
+    /// ([`Test::interval`], the same signs as [`Test::holds`]), so a ray's verdict is the one
+    /// [`ExactVisit::judge`] gives it. Segments as [`crate::lit::Rule::line`]'s.
+    fn line_per_ray<const C: usize>(&self, along: Along, fixed: i64, lo: i64, hi: i64, out: &mut Segments<C>) {
+        out.clear();
+        let view = View::new(self.source, self.dir, self.far);
+        let (k, t1, notched) = (self.k, self.notch.unwrap_or(self.k - 1), self.notch.is_some());
+        let mut x0 = lo;
+        while x0 <= hi {
+            let x1 = hi.min(x0.saturating_add(63));
+            // Bit x − x0: ray x is absent, absorbed, made terminal by some judged triangle.
+            let (mut absent, mut absorbed, mut terminal) = (0u64, 0u64, 0u64);
+            for (i, tri) in self.triangles.iter().enumerate() {
+                let Some(view) = view.as_ref().filter(|_| self.judges(i)) else { continue };
+                let mut slot = None;
+                let Some(occ) = self.seen_of(i, tri, view, &mut slot).map(|s| s.occluder(tri, view)) else { continue };
+                let mask = |t: Test| {
+                    let (first, last) = t.interval(along, fixed, x0, x1);
+                    if first > last {
+                        return 0;
+                    }
+                    let width = (last - first + 1) as u32;
+                    (if width >= 64 { u64::MAX } else { (1u64 << width) - 1 }) << (first - x0) as u32
+                };
+                let [e0, e1, e2, prev, now, next, start] = occ.exact_tests(k, t1);
+                let inside = mask(e0) & mask(e1) & mask(e2);
+                if inside == 0 {
+                    continue;
+                }
+                let (prev, now, next) = (mask(prev), mask(now), mask(next));
+                if notched {
+                    absent |= inside & (mask(start) ^ prev);
+                }
+                absorbed |= inside & (prev ^ now);
+                terminal |= inside & (now ^ next);
+            }
+            for x in x0..=x1 {
+                let bit = |m: u64| m >> (x - x0) as u32 & 1 == 1;
+                let bits = self.codes((bit(absent), bit(absorbed), bit(terminal)));
+                if out.last().is_none_or(|l| l.1 != bits) && out.push((x, bits)).is_err() {
+                    // More verdict changes on one line than segments: the rest of the line
+                    // takes the last verdict (never met; the host's conservation check would
+                    // fail).
+                    return;
+                }
+            }
+            if x1 == hi {
+                break;
+            }
+            x0 = x1 + 1;
+        }
     }
 }
 
@@ -833,19 +950,7 @@ impl<F: FracBits> crate::lit::Rule for ExactVisit<'_, '_, F> {
         if !self.per_ray {
             return crate::lit::segments(self.tests, along, fixed, lo, hi, out);
         }
-        out.clear();
-        for x in lo..=hi {
-            let (a, b) = match along {
-                crate::lit::Along::V => (fixed, x),
-                crate::lit::Along::U => (x, fixed),
-            };
-            let bits = self.bits(a, b);
-            if out.last().is_none_or(|l| l.1 != bits) && out.push((x, bits)).is_err() {
-                // More verdict changes on one line than segments: the rest of the line takes
-                // the last verdict (never met; the host's conservation check would fail).
-                break;
-            }
-        }
+        self.line_per_ray(along, fixed, lo, hi, out)
     }
 
     fn run_end(&self, along: crate::lit::Along, start: i64, end: i64, lo: i64, hi: i64) -> i64 {
@@ -998,8 +1103,13 @@ mod tests {
         let (mut decided, mut undecided) = (0, 0);
         for _ in 0..400 {
             let (tris, src, dir, far) = random_triangles::<F>(&mut s, 5);
-            let table: StdVec<[SeenEntry; 6]> =
-                tris.iter().map(|t| Direction::ALL.map(|d| SeenEntry::of(t, &src, d, far))).collect();
+            let table: StdVec<SeenEntry> =
+                Direction::ALL.iter().flat_map(|&d| tris.iter().map(move |t| SeenEntry::of(t, &src, d, far))).collect();
+            let views = SourceViews::new(&src, far);
+            for (i, t) in tris.iter().enumerate() {
+                let row = Direction::ALL.map(|d| table[d.index() as usize * tris.len() + i]);
+                assert_eq!(views.entries(t), row, "one source's views give each direction's entry");
+            }
             let ids: StdVec<u32> = (0..tris.len() as u32).collect();
             let nn = far.scaled();
             let k = 1 + (lcg(&mut s) % far.get() as u64) as i64;
@@ -1009,7 +1119,7 @@ mod tests {
             let rect = ((a0.min(a1), a0.max(a1)), (b0.min(b1), b0.max(b1)));
             let terminal = lcg(&mut s) % 4 == 0;
             let (mut t1, mut t2) = (ExactTests::new(), ExactTests::new());
-            let seen = Some(SeenTable { ids: &ids, seen: &table });
+            let seen = Some(SeenTable { ids: &ids, seen: &table, distinct: tris.len() });
             let with = ExactVisit::new(&mut t1, &tris, seen, ALL_CANDIDATES, &src, dir, far, k, rect, terminal, notch);
             let without =
                 ExactVisit::new(&mut t2, &tris, None, ALL_CANDIDATES, &src, dir, far, k, rect, terminal, notch);
@@ -1035,6 +1145,55 @@ mod tests {
             }
         }
         assert!(decided > 40 && undecided > 40, "both kinds of visit met ({decided} decided, {undecided} not)");
+    }
+
+    /// The per-ray path's lines (64 rays at a time, each test read as an interval of the line)
+    /// give every ray the verdict codes of judging it alone ([`ExactVisit::bits`]: each test
+    /// read at the ray), along both axes, on lines longer than 64 rays.
+    fn per_ray_lines_judge_each_ray_alone<F: FracBits>(seed: u64) {
+        use crate::lit::Rule;
+        let mut s = seed;
+        let (mut visits, mut long, mut changes) = (0, 0, 0);
+        for _ in 0..300 {
+            let (tris, src, dir, far) = random_triangles::<F>(&mut s, 40);
+            let nn = far.scaled();
+            let k = 1 + (lcg(&mut s) % far.get() as u64) as i64;
+            let notch = (lcg(&mut s) % 3 == 0).then(|| (lcg(&mut s) % k as u64) as i64);
+            let (lo, hi) = (-nn + r(&mut s, 2).abs(), nn - r(&mut s, 2).abs());
+            let mut tests = ExactTests::new();
+            let rect = ((lo, hi), (lo, hi));
+            let terminal = lcg(&mut s) % 8 == 0;
+            let v = ExactVisit::new(&mut tests, &tris, None, ALL_CANDIDATES, &src, dir, far, k, rect, terminal, notch);
+            if !v.per_ray() {
+                continue;
+            }
+            visits += 1;
+            long += (hi - lo + 1 > 64) as u32;
+            let mut seg: Segments<EXACT_SEGMENTS> = Segments::new();
+            for along in [Along::V, Along::U] {
+                for fixed in (lo..=hi).step_by(11) {
+                    v.line(along, fixed, lo, hi, &mut seg);
+                    assert_eq!(seg.first().map(|s| s.0), Some(lo));
+                    changes += seg.len() - 1;
+                    for (start, stop, bits) in spans(&seg, hi) {
+                        for x in start..=stop {
+                            let (a, b) = if along == Along::V { (fixed, x) } else { (x, fixed) };
+                            assert_eq!(bits, v.bits(a, b), "{tris:?} {src:?} {dir:?} k {k} ray ({a}, {b})");
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            visits > 30 && long > 10 && changes > 1000,
+            "{visits} per-ray visits, {long} with long lines, {changes} changes"
+        );
+    }
+
+    #[test]
+    fn per_ray_lines_are_rays_judged_alone() {
+        per_ray_lines_judge_each_ray_alone::<frac::U2>(21);
+        per_ray_lines_judge_each_ray_alone::<frac::U3>(22);
     }
 
     /// The window oracle: the plane's values at the eight corners of the cube of half-width 24

@@ -20,7 +20,7 @@ pub struct Triangle {
 }
 
 pub(crate) fn sub(p: [i64; 3], q: [i64; 3]) -> [i128; 3] {
-    [0, 1, 2].map(|i| (p[i] - q[i]) as i128)
+    [(p[0] - q[0]) as i128, (p[1] - q[1]) as i128, (p[2] - q[2]) as i128]
 }
 
 pub(crate) fn cross(p: [i128; 3], q: [i128; 3]) -> [i128; 3] {
@@ -56,8 +56,13 @@ impl Triangle {
     /// n = (V₁ − V₀) × (V₂ − V₀), exact: differences ≤ 2²⁴, so each product is below 2⁴⁸ and
     /// each component below 2⁴⁹, in `i64` (the module doc's bit budget).
     pub fn normal(&self) -> [i128; 3] {
-        let d = |i: usize| [0, 1, 2].map(|c| self.v[i][c] as i64 - self.v[0][c] as i64);
-        cross64(d(1), d(2)).map(i128::from)
+        // Written out: the host's compiler kept nested array maps out of line here.
+        let d = |i: usize| {
+            let (p, q) = (self.v[i], self.v[0]);
+            [p[0] as i64 - q[0] as i64, p[1] as i64 - q[1] as i64, p[2] as i64 - q[2] as i64]
+        };
+        let m = cross64(d(1), d(2));
+        [m[0] as i128, m[1] as i128, m[2] as i128]
     }
 
     /// Whether the triangle's projection on z meets the closed square of column (x, y)

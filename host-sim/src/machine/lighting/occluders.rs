@@ -6,9 +6,9 @@
 //! every beam that visits a column keeping it (a cell computes it per beam; the verdicts are
 //! the same).
 
-use cell_core::beam::{Direction, FarDistance, FracBits, Source};
+use cell_core::beam::{FarDistance, FracBits, Source};
 use cell_core::light::Port;
-use cell_core::occluder::{Column, ColumnOccluders, SeenEntry, SeenTable, Triangle};
+use cell_core::occluder::{Column, ColumnOccluders, SeenEntry, SeenTable, SourceViews, Triangle};
 use cell_core::receiver::{crosses_any, target, Target};
 use cell_core::units::{Coord, Depth};
 
@@ -33,8 +33,9 @@ pub struct SourceOccluders<'a> {
     /// Per column, its target voxel's depth (−1: no target): 4 bytes a beam reads, where the
     /// target is ~100.
     target_z: Vec<i32>,
-    /// Per distinct triangle, its plane in each direction ([`ColumnTriangles::distinct`]).
-    seen: Vec<[SeenEntry; 6]>,
+    /// Per direction, then per distinct triangle ([`ColumnTriangles::distinct`]), its plane
+    /// (`cell_core::occluder::SeenTable`'s layout).
+    seen: Vec<SeenEntry>,
 }
 
 impl<'a> SourceOccluders<'a> {
@@ -52,9 +53,16 @@ impl<'a> SourceOccluders<'a> {
             Some(t.with_neighbour_answers(shadowed))
         });
         let distinct = tris.distinct();
-        let seen = par_map(distinct.len(), &|k| Direction::ALL.map(|d| SeenEntry::of(&distinct[k], source, d, far)));
+        let views = SourceViews::new(source, far);
+        let rows = par_map(distinct.len(), &|k| views.entries(&distinct[k]));
+        let seen = (0..6).flat_map(|d| rows.iter().map(move |row| row[d])).collect();
         let target_z = targets.iter().map(|t| t.as_ref().map_or(-1, |t| t.z as i32)).collect();
         SourceOccluders { n, triangles: tris, targets, target_z, seen }
+    }
+
+    /// The planes of the triangles `ids` (a column's).
+    fn table<'s>(&'s self, ids: &'s [u32]) -> SeenTable<'s> {
+        SeenTable { ids, seen: &self.seen, distinct: self.seen.len() / 6 }
     }
 
     /// Every column's target ray (row-major; `None`: no ray lights its pixel).
@@ -81,7 +89,7 @@ impl ColumnOccluders for SourceOccluders<'_> {
     }
 
     fn seen(&self, x: Coord, y: Coord) -> Option<SeenTable<'_>> {
-        Some(SeenTable { ids: self.triangles.ids(x as u32, y as u32), seen: &self.seen })
+        Some(self.table(self.triangles.ids(x as u32, y as u32)))
     }
 
     fn column(&self, x: Coord, y: Coord, z: Depth) -> Column<'_> {
@@ -91,7 +99,7 @@ impl ColumnOccluders for SourceOccluders<'_> {
         let here = self.target_z.get(i) == Some(&(z as i32));
         Column {
             triangles,
-            seen: Some(SeenTable { ids, seen: &self.seen }),
+            seen: Some(self.table(ids)),
             target: if here { self.targets.get(i).and_then(Option::as_ref) } else { None },
             near: Some(near),
         }
