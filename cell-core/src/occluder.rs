@@ -167,14 +167,9 @@ pub struct Seen {
 impl Seen {
     /// The plane of `tri` along the rays of `view`; `None` as for [`Occluder::new`].
     fn new(tri: &Triangle, view: &View) -> Option<Seen> {
-        Seen::with_normal(tri.normal(), tri.vertex(0), view)
-    }
-
-    /// [`Seen::new`] of the triangle with normal `n` and first vertex `v0`.
-    #[inline]
-    fn with_normal(n: [i128; 3], v0: [i64; 3], view: &View) -> Option<Seen> {
         let (w, u, v) = view.axes;
-        let k0 = view.nn * dot(n, sub(view.o, v0));
+        let n = tri.normal();
+        let k0 = view.nn * dot(n, sub(view.o, tri.vertex(0)));
         // Δ = n·(V₀ − O) = −K₀/N: its sign orients the edge tests.
         if k0 == 0 {
             return None;
@@ -262,8 +257,8 @@ impl SeenEntry {
 }
 
 /// One source's rays in each of the six directions, for a host filling a table of
-/// [`SeenEntry`]s: [`SeenEntry::of`] for every direction of a triangle, its normal computed
-/// once, the rays' origin once per source.
+/// [`SeenEntry`]s: [`SeenEntry::of`] with the rays' origin and lead found once per source and
+/// direction, not once per triangle.
 #[derive(Clone, Copy, Debug)]
 pub struct SourceViews([Option<View>; 6]);
 
@@ -273,11 +268,10 @@ impl SourceViews {
         SourceViews(Direction::ALL.map(|d| View::new(source, d, far)))
     }
 
-    /// `tri`'s entries in the six directions ([`Direction::index`] order): each
-    /// [`SeenEntry::of`].
-    pub fn entries(&self, tri: &Triangle) -> [SeenEntry; 6] {
-        let (n, v0) = (tri.normal(), tri.vertex(0));
-        self.0.map(|view| SeenEntry::from_seen(view.and_then(|view| Seen::with_normal(n, v0, &view))))
+    /// `tri`'s entry in direction `dir`: [`SeenEntry::of`].
+    #[inline]
+    pub fn entry(&self, tri: &Triangle, dir: Direction) -> SeenEntry {
+        SeenEntry::from_seen(self.0[dir.index() as usize].as_ref().and_then(|view| Seen::new(tri, view)))
     }
 }
 
@@ -1108,7 +1102,7 @@ mod tests {
             let views = SourceViews::new(&src, far);
             for (i, t) in tris.iter().enumerate() {
                 let row = Direction::ALL.map(|d| table[d.index() as usize * tris.len() + i]);
-                assert_eq!(views.entries(t), row, "one source's views give each direction's entry");
+                assert_eq!(Direction::ALL.map(|d| views.entry(t, d)), row, "one source's views give each entry");
             }
             let ids: StdVec<u32> = (0..tris.len() as u32).collect();
             let nn = far.scaled();

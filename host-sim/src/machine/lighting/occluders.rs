@@ -6,7 +6,7 @@
 //! every beam that visits a column keeping it (a cell computes it per beam; the verdicts are
 //! the same).
 
-use cell_core::beam::{FarDistance, FracBits, Source};
+use cell_core::beam::{Direction, FarDistance, FracBits, Source};
 use cell_core::light::Port;
 use cell_core::occluder::{Column, ColumnOccluders, SeenEntry, SeenTable, SourceViews, Triangle};
 use cell_core::receiver::{crosses_any, target, Target};
@@ -53,9 +53,8 @@ impl<'a> SourceOccluders<'a> {
             Some(t.with_neighbour_answers(shadowed))
         });
         let distinct = tris.distinct();
-        let views = SourceViews::new(source, far);
-        let rows = par_map(distinct.len(), &|k| views.entries(&distinct[k]));
-        let seen = (0..6).flat_map(|d| rows.iter().map(move |row| row[d])).collect();
+        let (views, m) = (SourceViews::new(source, far), distinct.len());
+        let seen = par_map(6 * m, &|j| views.entry(&distinct[j % m], Direction::ALL[j / m]));
         let target_z = targets.iter().map(|t| t.as_ref().map_or(-1, |t| t.z as i32)).collect();
         SourceOccluders { n, triangles: tris, targets, target_z, seen }
     }
