@@ -185,10 +185,17 @@ impl Seen {
         Occluder { plane: self.plane, edges: [0, 1, 2].map(|j| self.edge(tri, view, j)) }
     }
 
-    /// Edge j of the occluder ((V₀, V₁), (V₁, V₂), (V₂, V₀) for j = 0, 1, 2): one at a time, so
-    /// that a visit stops building at the first edge no ray of its beam is inside.
+    /// Edge j of the occluder ((V₀, V₁), (V₁, V₂), (V₂, V₀) for j = 0, 1, 2).
     #[inline]
     fn edge(&self, tri: &Triangle, view: &View, j: usize) -> RayPlane {
+        let (kw, cb, cg) = self.edge_form(tri, view, j);
+        RayPlane::from_coefficients(0, kw, cb as i128, cg as i128, view.lead)
+    }
+
+    /// Edge j's form `kw + cb·a + cg·b` (its plane has k0 = 0: the test at t = 1 holds iff
+    /// T = max(16 − lead, 0) > 0 and the form is positive), with |cb|, |cg| < 2⁵¹.
+    #[inline]
+    fn edge_form(&self, tri: &Triangle, view: &View, j: usize) -> (i128, i64, i64) {
         let (w, u, v) = view.axes;
         // Differences ≤ 2²⁴ and their cross products ≤ 2⁴⁹ (the module doc's bit budget), times
         // 2·sgn Δ·s ≤ 2⁵¹: `i64`; only the product with N needs `i128`, one widening multiply.
@@ -201,8 +208,23 @@ impl Seen {
         };
         let m = cross64(rel(j), rel((j + 1) % 3));
         let o = 2 * self.orient as i64;
-        let kw = (o * m[w] * view.sign as i64) as i128 * view.nn + 1;
-        RayPlane::from_coefficients(0, kw, (o * m[u]) as i128, (o * m[v]) as i128, view.lead)
+        ((o * m[w] * view.sign as i64) as i128 * view.nn + 1, o * m[u], o * m[v])
+    }
+
+    /// Edge j's test ([`Occluder::tests`], at t = 1) where it is constant on the rectangle
+    /// `a × b`: its value there, else `None`. The form is affine in (a, b), so it keeps one
+    /// sign on the rectangle iff its least and greatest values there do (4 products, in `i128`:
+    /// < 2⁸⁴ by the module doc's budget), and no edge needs building to know it.
+    #[inline]
+    fn edge_on(&self, tri: &Triangle, view: &View, j: usize, (a, b): ((i64, i64), (i64, i64))) -> Option<bool> {
+        if 16 - view.lead <= 0 {
+            return Some(false); // T = 0 at t = 1: the value is 0, the test holds nowhere
+        }
+        let (kw, cb, cg) = self.edge_form(tri, view, j);
+        let (p0, p1) = (cb as i128 * a.0 as i128, cb as i128 * a.1 as i128);
+        let (q0, q1) = (cg as i128 * b.0 as i128, cg as i128 * b.1 as i128);
+        let (lo, hi) = (kw + p0.min(p1) + q0.min(q1), kw + p0.max(p1) + q0.max(q1));
+        ((lo > 0) == (hi > 0)).then_some(lo > 0)
     }
 }
 
@@ -661,11 +683,6 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
         // Planes whose values fit `i64` for every ray of the far square are read in `i64`
         // ([`RayPlane::narrow`]: the same signs).
         let in_square = |n: &Narrow| corners.iter().all(|&(a, b)| n.covers(a, b));
-        // Edges are read at t = 1 (`Occluder::tests`), where T = max(16 − lead, 0) ≤ 16.
-        let fixed_on = |t: &Test| match t.plane.narrow(view.nn as i64, 16).filter(|n| t.t == 1 && in_square(n)) {
-            Some(n) => constant(corners.map(|(a, b)| n.positive_with(n.form(a, b), t.t))),
-            None => constant(corners.map(|(a, b)| t.holds(a, b))),
-        };
         let t1 = notch.unwrap_or(k - 1);
         // No ray crosses the plane between t₁ and k + 1: σ is monotone along each ray, so its
         // sign at the earliest and the latest of those layers, at the rectangle's corners,
@@ -718,19 +735,16 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
             if uncrossed(sigma_at(t_first), sigma_at(t_last)) {
                 continue;
             }
-            // The edges one by one: at the first one outside which every ray of the rectangle
-            // lies, the triangle meets no ray and the others are never built.
+            // The edges one by one, from their forms alone: at the first one outside which
+            // every ray of the rectangle lies the triangle meets no ray; the edges' planes are
+            // built only for a triangle left undecided.
             let mut fixed = [None; PER_TRIANGLE];
-            let mut edges = [seen.plane; 3];
-            let outside = (0..3).any(|j| {
-                edges[j] = seen.edge(tri, &view, j);
-                fixed[j] = fixed_on(&Test { plane: edges[j], t: 1 });
+            if (0..3).any(|j| {
+                fixed[j] = seen.edge_on(tri, &view, j, (a, b));
                 fixed[j] == Some(false)
-            });
-            if outside {
+            }) {
                 continue;
             }
-            let tests = Occluder { plane: seen.plane, edges }.exact_tests(k, t1);
             for (f, t) in fixed[3..].iter_mut().zip([k - 1, k, k + 1, t1]) {
                 *f = constant(sigma_at(t));
             }
@@ -751,7 +765,7 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
             if i < 64 {
                 v.judged |= 1 << i;
             }
-            for t in tests {
+            for t in seen.occluder(tri, &view).exact_tests(k, t1) {
                 let _ = v.tests.push(t);
             }
         }
@@ -1139,6 +1153,72 @@ mod tests {
             }
         }
         assert!(decided > 40 && undecided > 40, "both kinds of visit met ({decided} decided, {undecided} not)");
+    }
+
+    /// Every ray's verdict in a visit is the module doc's, read from [`Occluder::meets`] ray by
+    /// ray (checked against the crossing-point oracle above): absent if a triangle meets it in a
+    /// segment after the notch's start and before layer k, absorbed if the beam arrived
+    /// terminal or a triangle meets it in segment k, terminal (leaving the column) if one meets
+    /// it in segment k + 1. Whatever the visit decided on the whole rectangle, cut by tests or
+    /// judged ray by ray.
+    fn visit_is_the_ray_by_ray_verdict<F: FracBits>(seed: u64) {
+        use crate::lit::{Out, Rule};
+        let mut s = seed;
+        let (mut uniform, mut cut, mut per_ray, mut stopped) = (0, 0, 0, 0);
+        for i in 0..300 {
+            // Every third configuration dense enough for the per-ray path.
+            let (tris, src, dir, far) = random_triangles::<F>(&mut s, if i % 3 == 0 { 48 } else { 12 });
+            let occs: StdVec<Occluder> = tris.iter().filter_map(|t| Occluder::new(t, &src, dir, far)).collect();
+            let nn = far.scaled();
+            let k = 1 + (lcg(&mut s) % far.get() as u64) as i64;
+            let notch = (lcg(&mut s) % 3 == 0).then(|| (lcg(&mut s) % k as u64) as i64);
+            let end = |s: &mut u64| r(s, nn);
+            let (a0, a1, b0, b1) = (end(&mut s), end(&mut s), end(&mut s), end(&mut s));
+            let rect = ((a0.min(a1), a0.max(a1)), (b0.min(b1), b0.max(b1)));
+            let terminal = lcg(&mut s) % 6 == 0;
+            let mut tests = ExactTests::new();
+            let v = ExactVisit::new(&mut tests, &tris, None, ALL_CANDIDATES, &src, dir, far, k, rect, terminal, notch);
+            match (v.per_ray(), v.is_uniform()) {
+                (true, _) => per_ray += 1,
+                (false, true) => uniform += 1,
+                (false, false) => cut += 1,
+            }
+            for a in rect.0 .0..=rect.0 .1 {
+                for b in rect.1 .0..=rect.1 .1 {
+                    let meets = |layer: i64| occs.iter().any(|o| o.meets(a, b, layer));
+                    let absent = notch.is_some_and(|t1| (t1 + 1..k).any(meets));
+                    let absorbed = terminal || meets(k);
+                    let leaves_terminal = meets(k + 1);
+                    for stays in [false, true] {
+                        let want = if absent {
+                            Out::Absent
+                        } else if absorbed {
+                            Out::Absorbed
+                        } else if leaves_terminal && !stays {
+                            Out::Terminal
+                        } else {
+                            Out::Continue
+                        };
+                        stopped += (want != Out::Continue) as u32;
+                        let got = v.verdict(v.bits(a, b), stays).out;
+                        assert_eq!(
+                            got, want,
+                            "{tris:?} {src:?} {dir:?} k {k} notch {notch:?} ray ({a}, {b}) stays {stays}"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(
+            uniform > 20 && cut > 20 && per_ray > 5 && stopped > 1000,
+            "{uniform} uniform, {cut} cut, {per_ray} per-ray visits, {stopped} stopped"
+        );
+    }
+
+    #[test]
+    fn visits_give_each_ray_the_verdict_of_its_crossings() {
+        visit_is_the_ray_by_ray_verdict::<frac::U0>(31);
+        visit_is_the_ray_by_ray_verdict::<frac::U1>(32);
     }
 
     /// The per-ray path's lines (64 rays at a time, each test read as an interval of the line)
