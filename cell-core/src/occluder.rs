@@ -721,8 +721,7 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
                     None => {}
                 }
             }
-            let mut slot = None;
-            let Some(seen) = v.seen_of(i, tri, &view, &mut slot) else { continue };
+            let Some(seen) = v.seen_of(i, tri, &view) else { continue };
             let narrow = seen.narrow.filter(in_square);
             let (forms, forms64) = match narrow {
                 Some(n) => ([0; 4], corners.map(|(a, b)| n.form(a, b))),
@@ -812,18 +811,17 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
     }
 
     /// Triangle i of the column (`tri`) seen along the rays of `view`: rebuilt from the host's
-    /// table entry, or computed, into `slot`.
-    #[inline]
-    fn seen_of<'s>(&self, i: usize, tri: &Triangle, view: &View, slot: &'s mut Option<Seen>) -> Option<&'s Seen> {
-        *slot = match self.seen {
+    /// table entry, or computed.
+    #[inline(always)]
+    fn seen_of(&self, i: usize, tri: &Triangle, view: &View) -> Option<Seen> {
+        match self.seen {
             Some(t) => {
                 let s = t.entry(i, self.dir).seen(tri, view);
                 debug_assert_eq!(s, Seen::new(tri, view), "a precomputed plane differs from the triangle's");
                 s
             }
             None => Seen::new(tri, view),
-        };
-        slot.as_ref()
+        }
     }
 
     /// Whether the per-ray path judges rays against triangle i of the column (see `judged`).
@@ -839,8 +837,7 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
             if !self.judges(i) {
                 continue;
             }
-            let mut slot = None;
-            let Some(occ) = self.seen_of(i, tri, &view, &mut slot).map(|s| s.occluder(tri, &view)) else { continue };
+            let Some(occ) = self.seen_of(i, tri, &view).map(|s| s.occluder(tri, &view)) else { continue };
             let bits = occ
                 .exact_tests(self.k, self.notch.unwrap_or(self.k - 1))
                 .iter()
@@ -882,8 +879,7 @@ impl<'a, 't, F: FracBits> ExactVisit<'a, 't, F> {
             let (mut absent, mut absorbed, mut terminal) = (0u64, 0u64, 0u64);
             for (i, tri) in self.triangles.iter().enumerate() {
                 let Some(view) = view.as_ref().filter(|_| self.judges(i)) else { continue };
-                let mut slot = None;
-                let Some(occ) = self.seen_of(i, tri, view, &mut slot).map(|s| s.occluder(tri, view)) else { continue };
+                let Some(occ) = self.seen_of(i, tri, view).map(|s| s.occluder(tri, view)) else { continue };
                 let mask = |t: Test| {
                     let (first, last) = t.interval(along, fixed, x0, x1);
                     if first > last {
