@@ -1048,6 +1048,16 @@ mod tests {
         (tris, src, dir, far)
     }
 
+    /// A random visit of a beam under `far`: its layer k ≥ 1, a notch start (one in three) and a
+    /// rectangle of lattice rays within the far square.
+    fn random_visit<F: FracBits>(s: &mut u64, far: FarDistance<F>) -> (i64, Option<i64>, ((i64, i64), (i64, i64))) {
+        let nn = far.scaled();
+        let k = 1 + (lcg(s) % far.get() as u64) as i64;
+        let notch = (lcg(s) % 3 == 0).then(|| (lcg(s) % k as u64) as i64);
+        let (a0, a1, b0, b1) = (r(s, nn), r(s, nn), r(s, nn), r(s, nn));
+        (k, notch, ((a0.min(a1), a0.max(a1)), (b0.min(b1), b0.max(b1))))
+    }
+
     /// The origin and lead, restated from the module doc and [`Source::lead`]: from the light,
     /// the lead is measured from the last centre plane at or behind it (in [0, 16)).
     fn origin_and_lead(src: &Source, dir: Direction, origin: Origin) -> ([i64; 3], i64) {
@@ -1115,12 +1125,7 @@ mod tests {
                 assert_eq!(Direction::ALL.map(|d| views.entry(t, d)), row, "one source's views give each entry");
             }
             let ids: StdVec<u32> = (0..tris.len() as u32).collect();
-            let nn = far.scaled();
-            let k = 1 + (lcg(&mut s) % far.get() as u64) as i64;
-            let notch = (lcg(&mut s) % 3 == 0).then(|| (lcg(&mut s) % k as u64) as i64);
-            let end = |s: &mut u64| r(s, nn);
-            let (a0, a1, b0, b1) = (end(&mut s), end(&mut s), end(&mut s), end(&mut s));
-            let rect = ((a0.min(a1), a0.max(a1)), (b0.min(b1), b0.max(b1)));
+            let (k, notch, rect) = random_visit(&mut s, far);
             let terminal = lcg(&mut s) % 4 == 0;
             let (mut t1, mut t2) = (ExactTests::new(), ExactTests::new());
             let seen = Some(SeenTable { ids: &ids, seen: &table, distinct: tris.len() });
@@ -1165,12 +1170,7 @@ mod tests {
             // Every third configuration dense enough for the per-ray path.
             let (tris, src, dir, far) = random_triangles::<F>(&mut s, if i % 3 == 0 { 48 } else { 12 });
             let occs: StdVec<Occluder> = tris.iter().filter_map(|t| Occluder::new(t, &src, dir, far)).collect();
-            let nn = far.scaled();
-            let k = 1 + (lcg(&mut s) % far.get() as u64) as i64;
-            let notch = (lcg(&mut s) % 3 == 0).then(|| (lcg(&mut s) % k as u64) as i64);
-            let end = |s: &mut u64| r(s, nn);
-            let (a0, a1, b0, b1) = (end(&mut s), end(&mut s), end(&mut s), end(&mut s));
-            let rect = ((a0.min(a1), a0.max(a1)), (b0.min(b1), b0.max(b1)));
+            let (k, notch, rect) = random_visit(&mut s, far);
             let terminal = lcg(&mut s) % 6 == 0;
             let mut tests = ExactTests::new();
             let v = ExactVisit::new(&mut tests, &tris, None, ALL_CANDIDATES, &src, dir, far, k, rect, terminal, notch);
