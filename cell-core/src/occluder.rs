@@ -1048,9 +1048,12 @@ mod tests {
         (tris, src, dir, far)
     }
 
+    /// A rectangle of lattice rays, `(a0, a1) × (b0, b1)`.
+    type Rect = ((i64, i64), (i64, i64));
+
     /// A random visit of a beam under `far`: its layer k ≥ 1, a notch start (one in three) and a
     /// rectangle of lattice rays within the far square.
-    fn random_visit<F: FracBits>(s: &mut u64, far: FarDistance<F>) -> (i64, Option<i64>, ((i64, i64), (i64, i64))) {
+    fn random_visit<F: FracBits>(s: &mut u64, far: FarDistance<F>) -> (i64, Option<i64>, Rect) {
         let nn = far.scaled();
         let k = 1 + (lcg(s) % far.get() as u64) as i64;
         let notch = (lcg(s) % 3 == 0).then(|| (lcg(s) % k as u64) as i64);
