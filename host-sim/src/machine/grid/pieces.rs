@@ -61,14 +61,17 @@ fn par_indices(count: usize, work: &(dyn Fn(usize) + Sync)) {
 /// The threads of rayon's pool kept awake for a whole loop of many short parallel phases (a
 /// diffusion runs two or three a machine cycle, each a fraction of a millisecond): between
 /// phases the helpers spin, so a phase starts without waking a sleeping worker through the
-/// kernel, which cost about a tenth of the CPU time of a two-thread render. Items are handed out
-/// in index order to whichever thread asks next (like [`par_each`], results go through what
-/// the work captures), so what a phase computes does not depend on the threads.
+/// kernel, which cost about a tenth of the CPU time of a two-thread render. Each thread works
+/// through its own contiguous lane of a phase's items, then helps with the others' (see `Job`;
+/// like [`par_each`], results go through what the work captures), so what a phase computes does
+/// not depend on the threads.
 ///
 /// Only the thread that made the team hands out work ([`Team::each`]). Its helpers are threads
 /// of their own, not rayon's: the pool's other workers sleep while a team lives.
 pub struct Team<'s> {
     state: &'s TeamState,
+    /// The caller and its helpers.
+    threads: usize,
 }
 
 /// What the team's threads share: the phase on offer (null: none), its generation, the helpers
@@ -80,29 +83,62 @@ struct TeamState {
     stop: AtomicBool,
 }
 
-/// One phase: its work, the item count, the next item to hand out, the items done, and the
-/// first panic of an item (re-raised on the caller once the phase is over).
+/// The most threads a team has lanes for (more share the last lanes' items).
+const MAX_LANES: usize = 64;
+
+/// One phase: its work, the item count, its lanes, the items done, and the first panic of an
+/// item (re-raised on the caller once the phase is over).
+///
+/// The items are cut into one contiguous lane per thread of the team (thread t: items
+/// `t · count / T ..`), each with the next item it hands out. A thread empties its own lane
+/// first, then helps the others, in lane order. Consecutive phases cut alike, and the grid's
+/// phases list cells in row-major order, so a thread keeps working on about the same cells
+/// cycle after cycle, in its own core's cache, instead of cells going to whichever thread asks
+/// first.
 struct Job<'w> {
     work: &'w (dyn Fn(usize) + Sync),
     count: usize,
-    next: AtomicUsize,
+    threads: usize,
+    next: [AtomicUsize; MAX_LANES],
     done: AtomicUsize,
     panic: Mutex<Option<Box<dyn std::any::Any + Send>>>,
 }
 
-impl Job<'_> {
-    /// Take and run items until none is left. An item that panics still counts as done (the
-    /// caller must not return while others run), its panic kept for the caller.
-    fn run(&self) {
-        loop {
-            let i = self.next.fetch_add(1, Ordering::Relaxed);
-            if i >= self.count {
-                return;
+impl<'w> Job<'w> {
+    fn new(work: &'w (dyn Fn(usize) + Sync), count: usize, threads: usize) -> Self {
+        let threads = threads.clamp(1, MAX_LANES);
+        Job {
+            work,
+            count,
+            threads,
+            next: std::array::from_fn(|l| AtomicUsize::new(Self::lane_start(count, threads, l))),
+            done: AtomicUsize::new(0),
+            panic: Mutex::new(None),
+        }
+    }
+
+    /// The first item of lane `l` (lane `threads` ends the last one).
+    fn lane_start(count: usize, threads: usize, l: usize) -> usize {
+        count * l.min(threads) / threads
+    }
+
+    /// Thread `me`: take and run items, from its own lane and then the others', until none is
+    /// left. An item that panics still counts as done (the caller must not return while others
+    /// run), its panic kept for the caller.
+    fn run(&self, me: usize) {
+        let t = self.threads;
+        for l in (0..t).map(|k| (me + k) % t) {
+            let end = Self::lane_start(self.count, t, l + 1);
+            loop {
+                let i = self.next[l].fetch_add(1, Ordering::Relaxed);
+                if i >= end {
+                    break;
+                }
+                if let Err(p) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| (self.work)(i))) {
+                    self.panic.lock().unwrap_or_else(PoisonError::into_inner).get_or_insert(p);
+                }
+                self.done.fetch_add(1, Ordering::Release);
             }
-            if let Err(p) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| (self.work)(i))) {
-                self.panic.lock().unwrap_or_else(PoisonError::into_inner).get_or_insert(p);
-            }
-            self.done.fetch_add(1, Ordering::Release);
         }
     }
 }
@@ -119,11 +155,12 @@ pub fn with_team<R>(f: impl FnOnce(&Team<'_>) -> R) -> R {
     };
     let helpers = rayon::current_num_threads().saturating_sub(1);
     if helpers == 0 {
-        return f(&Team { state: &state });
+        return f(&Team { state: &state, threads: 1 });
     }
     std::thread::scope(|s| {
-        for _ in 0..helpers {
-            s.spawn(|| state.help());
+        for me in 1..=helpers {
+            let state = &state;
+            s.spawn(move || state.help(me));
         }
         // Stops the helpers however `f` ends (a panic in it unwinds through here).
         struct Stop<'a>(&'a AtomicBool);
@@ -133,7 +170,7 @@ pub fn with_team<R>(f: impl FnOnce(&Team<'_>) -> R) -> R {
             }
         }
         let _stop = Stop(&state.stop);
-        f(&Team { state: &state })
+        f(&Team { state: &state, threads: helpers + 1 })
     })
 }
 
@@ -155,7 +192,7 @@ fn wait(round: u32) {
 impl TeamState {
     /// A helper: wait for phases (spinning, then yielding its core now and then) and work on
     /// them until the team stops.
-    fn help(&self) {
+    fn help(&self, me: usize) {
         let mut seen = 0u64;
         let mut idle = 0u32;
         while !self.stop.load(Ordering::Acquire) {
@@ -177,7 +214,7 @@ impl TeamState {
                 // of scope, and this helper counted itself in `inside` before loading it.
                 #[allow(unsafe_code)]
                 unsafe {
-                    (*job).run()
+                    (*job).run(me)
                 };
             }
             seen = g;
@@ -205,13 +242,12 @@ impl Team<'_> {
         if count == 1 {
             return run(0);
         }
-        let job =
-            Job { work: &run, count, next: AtomicUsize::new(0), done: AtomicUsize::new(0), panic: Mutex::new(None) };
+        let job = Job::new(&run, count, self.threads);
         let st = self.state;
         // The helpers see the job only between here and its retirement below.
         st.job.store((&job as *const Job<'_>).cast_mut().cast(), Ordering::Release);
         st.generation.fetch_add(1, Ordering::AcqRel);
-        job.run();
+        job.run(0);
         let mut spins = 0u32;
         while job.done.load(Ordering::Acquire) < count {
             spins = spins.saturating_add(1);
@@ -315,6 +351,25 @@ mod tests {
                     assert_eq!(count.into_inner(), 64);
                 });
             });
+        }
+    }
+
+    /// A job's lanes cut its items into contiguous runs, one per thread, of sizes differing by
+    /// at most one, covering every item once (any count, any team size, beyond the lane limit).
+    #[test]
+    fn lanes_cut_the_items_into_one_run_per_thread() {
+        let work = |_: usize| {};
+        for threads in [1usize, 2, 3, 7, MAX_LANES, MAX_LANES + 5] {
+            for count in [0usize, 1, 2, 5, 63, 64, 65, 1000] {
+                let job = Job::new(&work, count, threads);
+                let t = threads.min(MAX_LANES);
+                assert_eq!(job.threads, t);
+                let bounds: Vec<usize> = (0..=t).map(|l| Job::lane_start(count, t, l)).collect();
+                assert_eq!((bounds[0], bounds[t]), (0, count));
+                let sizes: Vec<usize> = bounds.windows(2).map(|w| w[1] - w[0]).collect();
+                assert!(sizes.iter().max().unwrap() - sizes.iter().min().unwrap() <= 1, "{count} over {t}: {sizes:?}");
+                (0..t).for_each(|l| assert_eq!(job.next[l].load(Ordering::Relaxed), bounds[l]));
+            }
         }
     }
 
