@@ -6,6 +6,7 @@
 use anyhow::{bail, Result};
 use cell_core::beam::{Beam, Direction, FarDistance, FracBits, Source};
 use cell_core::light::{Activity, ActivityDelta, BeamMsg, LightEnv, OccupiedBox, Port, Step};
+use cell_core::units::Coord;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Relaxed};
 
 use super::*;
@@ -870,7 +871,9 @@ impl<F: FracBits, const D: usize> StepCtx<'_, '_, F, D> {
             prefetch_ends(&self.grid.cells[j].store);
         }
         if let Some(o) = self.env.occluders {
-            o.prefetch(cj.x, cj.y);
+            // The column from its index, not from the cell's `x`, `y`: reading those would wait
+            // for the very line `prefetch_cell` just asked for.
+            o.prefetch((j % self.n) as Coord, (j / self.n) as Coord);
         }
         if self.defer_pops {
             // The buffers its pending pops will shift.
