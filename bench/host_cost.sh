@@ -40,6 +40,9 @@
 #   BASE_REV, NEW_REV  the commits the binaries were built from, for the header (default: the
 #                   git HEAD of the tree holding the binary, if any)
 #   KEEP_TMP=1      keep the temporary directory (stats JSONs, logs, images)
+#   NEW_KEYS=ignore a stats key that only one build writes (a field added between the two) is
+#                   named on stderr and not compared (default: it fails the run like any
+#                   difference); keys both write must still be equal
 #
 # CSV columns (blank where the job does not report the figure):
 #   row, binary (base|new), rep (1..REPS; "cg" for the cachegrind run),
