@@ -33,8 +33,15 @@ pub const SHADOW_FA_CAP: usize = FA_CAP;
 pub const REFLECT_FA_CAP: usize = 16;
 
 /// Wait-table entries of the reflection cell: trees waiting at one cell at once (the root's
-/// included); each entry may hold one child ray waiting for FIFO room.
+/// included), and slots of the launch queue of child rays waiting for FIFO room.
 pub const WAIT_CAP: usize = 16;
+
+/// Wait-table entries of the reflection cells of a scene with transparent materials: there every
+/// glass voxel a ray meets has two children, and a glass solid focuses many trees into a few
+/// columns (peaks of 20–45 entries measured on `cornell-glass` at n = 64–128, depths 4–8;
+/// BENCHMARKS "Refraction"). Scenes without glass keep [`WAIT_CAP`], the firmware's
+/// (host-sim's `machine::rays::mirror` picks the cell type).
+pub const GLASS_WAIT_CAP: usize = 64;
 
 /// Triangles a column keeps for exact occluders ([`crate::occluder::TriangleStore`]): 64 loses
 /// at most 0.32 dB on the meshes measured (BENCHMARKS); a column that needs more counts the

@@ -31,7 +31,7 @@ use crate::normal::NormalCode;
 use crate::plane::DexelPlane;
 use crate::ray::{cell_step, Connectivity, Line, LineError, MAX_SPAN, Q};
 use crate::shade::{dot, normalise};
-use crate::units::FacetId;
+use crate::units::{FacetId, MaterialId};
 
 /// Largest grid side reflected rays support (spans of 2·Q·n ≤ [`MAX_SPAN`]).
 pub const MAX_GRID: u32 = (MAX_SPAN / (2 * Q)) as u32;
@@ -272,6 +272,11 @@ pub struct ReflectRay {
     pub entry: u8,
     /// Whether the current voxel is still the emitting one (not tested).
     pub fresh: bool,
+    /// The transparent material the ray travels inside, once a refraction took it in (`None`:
+    /// outside every solid). Only measured (the leaks of §5.5.2: a ray inside that meets another
+    /// material, or leaves the grid, went through its solid's surface); the ray's wire form does
+    /// not carry it (traces hold no transparent material).
+    pub inside: Option<MaterialId>,
 }
 
 /// What the cell holding a [`ReflectRay`] does with it this cycle.
@@ -320,7 +325,18 @@ impl ReflectRay {
         weight: f32,
     ) -> Result<Self, LineError> {
         let b = [a[0] + dir[0], a[1] + dir[1], a[2] + dir[2]];
-        Ok(ReflectRay { line: Line::new(a, b, conn)?, dir, parent, slot, facet, level, weight, entry: 0, fresh: true })
+        Ok(ReflectRay {
+            line: Line::new(a, b, conn)?,
+            dir,
+            parent,
+            slot,
+            facet,
+            level,
+            weight,
+            entry: 0,
+            fresh: true,
+            inside: None,
+        })
     }
 
     /// The 4 classes of rays by the signs of their x and y steps (bit 0: x decreasing, bit 1: y

@@ -634,7 +634,7 @@ pub fn get_reflect_ray(r: &mut Reader<'_>) -> Result<ReflectRay, DecodeError> {
     if entry >> 3 != 0 {
         return Err(DecodeError::BadValue("reflected ray entry faces"));
     }
-    Ok(ReflectRay { line, dir, parent, slot, facet, level, weight, entry, fresh })
+    Ok(ReflectRay { line, dir, parent, slot, facet, level, weight, entry, fresh, inside: None })
 }
 
 // ---------------------------------------------------------------------------------------------

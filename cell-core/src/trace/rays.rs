@@ -386,7 +386,8 @@ impl<
         let shade = self.shade.as_ref().ok_or(ReplayError::NoPhaseSetup)?;
         self.rays = Rays::Reflect(ReflectCell::new(), s);
         let Rays::Reflect(cell, s) = &mut self.rays else { return Err(ReplayError::NoPhaseSetup) };
-        let surfaces = Surfaces { mats: &shade.materials, kr: &s.kr, lights: &shade.lights, params: shade.params };
+        let surfaces =
+            Surfaces { mats: &shade.materials, kr: &s.kr, transmit: &[], lights: &shade.lights, params: shade.params };
         let lit = &self.light.lit;
         if s.env.depth > 0 {
             cell.plant_root(&self.cell, &surfaces, &|z| lit.mask_at(z), &s.env).map_err(|_| ReplayError::Ray)?;
@@ -419,8 +420,13 @@ impl<
             }
             Rays::Reflect(cell, s) => {
                 let shade = self.shade.as_ref().ok_or(ReplayError::NoPhaseSetup)?;
-                let surfaces =
-                    Surfaces { mats: &shade.materials, kr: &s.kr, lights: &shade.lights, params: shade.params };
+                let surfaces = Surfaces {
+                    mats: &shade.materials,
+                    kr: &s.kr,
+                    transmit: &[],
+                    lights: &shade.lights,
+                    params: shade.params,
+                };
                 let lit = &self.light.lit;
                 let send = |a: ReflectAnswer| {
                     if takes {

@@ -213,7 +213,7 @@ pub fn reference_image_lit(
     let rl = ref_lights(lights);
     let refl = match &cfg.lighting {
         RenderLighting::Reflections(r) => {
-            RefReflect { depth: r.depth as u32, threshold: r.threshold as f64, refract: false }
+            RefReflect { depth: r.depth as u32, threshold: r.threshold as f64, refract: true }
         }
         RenderLighting::Diffusion | RenderLighting::Classic(_) | RenderLighting::Refined(_) => RefReflect::NONE,
     };
@@ -346,7 +346,7 @@ fn render_reflect(
 }
 
 /// PSNR of the image with and without its reflections against the reference, over the whole
-/// image and over the pixels where the reference sees a mirror.
+/// image, over the pixels where the reference sees a mirror, and over those where it sees glass.
 fn compare_reflections(mesh: &Mesh, rgb: &[[u8; 3]], local_only: &[[u8; 3]], rf: &RefImage, c: &mut ReflectCounts) {
     let mirror: Vec<bool> = rf
         .facet
@@ -359,6 +359,16 @@ fn compare_reflections(mesh: &Mesh, rgb: &[[u8; 3]], local_only: &[[u8; 3]], rf:
     c.mirror_psnr_db = Some(psnr(rgb, &rf.rgb, &mirror));
     c.mirror_psnr_without_db = Some(psnr(local_only, &rf.rgb, &mirror));
     c.mirror_pixels = mirror.iter().filter(|&&m| m).count() as u64;
+    let glass: Vec<bool> = rf
+        .facet
+        .iter()
+        .map(|&f| mesh.faces.get(f as usize).is_some_and(|fc| mesh.materials[fc.material as usize].kt > 0.0))
+        .collect();
+    c.glass_pixels = glass.iter().filter(|&&g| g).count() as u64;
+    if c.glass_pixels > 0 {
+        c.glass_psnr_db = Some(psnr(rgb, &rf.rgb, &glass));
+        c.glass_psnr_without_db = Some(psnr(local_only, &rf.rgb, &glass));
+    }
 }
 
 /// Shade with the given lit state, compare with the input's reference and assemble the

@@ -135,6 +135,7 @@ fn reflections(
     let env = ShadeEnv {
         mats: shade.materials.to_vec(),
         kr: job.mesh.materials.iter().map(|m| m.kr).collect(),
+        transmit: job.mesh.materials.iter().map(crate::machine::rays::mirror::transmit).collect(),
         lights: &shade.lights,
         params: shade.params,
         mask: &mask,

@@ -9,6 +9,7 @@ use super::mesh::{add_floor, load_mtl_bytes, obj_text, parse_obj, Material, Mesh
 pub const BUILTINS: &[(&str, &str)] = &[
     ("cornell", "the Cornell box (published geometry: 5 walls, ceiling light, two blocks)"),
     ("cornell-mirror", "the Cornell box with the tall block a mirror (Kr 0.85): for --reflections"),
+    ("cornell-glass", "the Cornell box with the short block and a sphere of glass (Ni 1.5, Kt 0.9): for --reflections"),
     ("empty", "nothing: an empty grid with one light at the centre (the thesis's diffusion experiment)"),
     ("facet", "a single triangle in general position"),
     ("teapot", "Utah teapot, 6 320 triangles (open surface)"),
@@ -33,6 +34,8 @@ const CORNELL_OBJ: &str = include_str!("../../scenes/cornell.obj");
 const CORNELL_MTL: &str = include_str!("../../scenes/cornell.mtl");
 const CORNELL_MIRROR_OBJ: &str = include_str!("../../scenes/cornell-mirror.obj");
 const CORNELL_MIRROR_MTL: &str = include_str!("../../scenes/cornell-mirror.mtl");
+const CORNELL_GLASS_OBJ: &str = include_str!("../../scenes/cornell-glass.obj");
+const CORNELL_GLASS_MTL: &str = include_str!("../../scenes/cornell-glass.mtl");
 const FACET_OBJ: &str = "# rc2 built-in: one triangle in general position\n\
 v 0.10 0.20 0.30\nv 0.90 0.35 0.60\nv 0.40 0.85 0.15\nf 1 2 3\n";
 
@@ -40,6 +43,7 @@ fn builtin_source(name: &str) -> Option<(&'static str, Option<&'static str>)> {
     Some(match name {
         "cornell" => (CORNELL_OBJ, Some(CORNELL_MTL)),
         "cornell-mirror" => (CORNELL_MIRROR_OBJ, Some(CORNELL_MIRROR_MTL)),
+        "cornell-glass" => (CORNELL_GLASS_OBJ, Some(CORNELL_GLASS_MTL)),
         "facet" => (FACET_OBJ, None),
         "teapot" => (include_str!("../../scenes/teapot.obj"), None),
         "cow" => (include_str!("../../scenes/cow.obj"), None),
@@ -76,7 +80,7 @@ pub fn load(scene: &str) -> Result<Mesh> {
         mesh.lights = match scene {
             // The published light quad, 213..343 × 227..332 at y = 548.8: a point at its centre,
             // and its extent for --area-light.
-            "cornell" | "cornell-mirror" => vec![CORNELL_LAMP],
+            "cornell" | "cornell-mirror" | "cornell-glass" => vec![CORNELL_LAMP],
             "facet" => vec![SceneLight::grid([0.5, 0.5, 0.05])],
             _ => vec![SceneLight::grid([0.5, 0.95, 0.05])],
         };

@@ -49,7 +49,7 @@ pub enum ViewChoice {
 
 /// The camera a built-in scene is published with, if any.
 pub fn scene_camera(name: &str) -> Option<Camera> {
-    matches!(name, "cornell" | "cornell-mirror").then_some(Camera::CORNELL)
+    matches!(name, "cornell" | "cornell-mirror" | "cornell-glass").then_some(Camera::CORNELL)
 }
 
 /// `mesh` as `choice` sees it: unchanged (fitted), or in screen space through a camera.

@@ -28,8 +28,8 @@ pub struct Material {
     /// reflective surface adds `Kr` × the intensity its reflected ray brings back (§5.5.5).
     pub kr: f32,
     /// Index of refraction `Ni`, in (0, 4] (1: vacuum, the default; glass 1.5). The refracted
-    /// branch's direction is `cell_core::refract`'s; no job traces refracted rays yet
-    /// (docs/REFLECTIONS.md).
+    /// branch's direction is `cell_core::refract`'s; `render --reflections D` traces refracted
+    /// rays through every material with `Kt > 0` (docs/REFLECTIONS.md).
     pub ni: f32,
     /// Transparency `Kt` in 0..1: `1 − d` (MTL `d`, dissolve), or `Tr` where a file gives that
     /// instead; 0, opaque, by default.

@@ -234,8 +234,8 @@ pub fn render_reference(mesh: &Mesh, fit: &Fit, n: u32, lights: &[RefLight], amb
 /// winding, closed meshes outward) and leaving on the inner side; beyond the critical angle the
 /// transmitted share is reflected instead (total internal reflection). Each refraction is a
 /// level of the tree like a reflection (`depth`, `threshold` with the product of `Kr` and `Kt`
-/// weights). Shadow rays still stop at transparent surfaces, as in the machine. No job turns it
-/// on yet: the machine has no refracted rays (docs/REFLECTIONS.md).
+/// weights). Shadow rays still stop at transparent surfaces, as in the machine. `render
+/// --reflections D --reference` turns it on (the machine's refracted rays: docs/REFLECTIONS.md).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RefReflect {
     /// Largest number of reflections (0: none).

@@ -1,16 +1,16 @@
-//! The cell capacities host-sim compiles, and the lighting, shadow-ray and reflection cell types
-//! built from them (the grid type is [`super::LightGrid`]).
+//! The cell capacities host-sim compiles, and the lighting and shadow-ray cell types built from
+//! them (the reflection cells' are `machine::rays::mirror`'s) (the grid type is [`super::LightGrid`]).
 //!
 //! The numbers themselves live in one place, [`cell_core::cell`], shared with the firmware: a
 //! trace recorded here is replayed there by a cell of exactly the same capacities.
 
 use cell_core::light::LightCell;
 use cell_core::radiosity::{IndirectPixel, PatchRuns, Received};
-use cell_core::reflect_cell::ReflectCell;
 use cell_core::shadow::ShadowCell;
 
 pub use cell_core::cell::{
-    DEFAULT_DEXELS, FA_CAP, LIT_CAP, OB_CAP, REFLECT_FA_CAP, SEND_CAP, SHADOW_FA_CAP, TRIANGLE_CAP, WAIT_CAP,
+    DEFAULT_DEXELS, FA_CAP, GLASS_WAIT_CAP, LIT_CAP, OB_CAP, REFLECT_FA_CAP, SEND_CAP, SHADOW_FA_CAP, TRIANGLE_CAP,
+    WAIT_CAP,
 };
 
 /// The host's lighting cell type.
@@ -18,9 +18,6 @@ pub type HostLightCell<F> = LightCell<F, FA_CAP, OB_CAP, LIT_CAP>;
 
 /// The host's classic shadow-ray cell type.
 pub type HostShadowCell = ShadowCell<SHADOW_FA_CAP>;
-
-/// The host's reflection cell type.
-pub type HostReflectCell = ReflectCell<REFLECT_FA_CAP, WAIT_CAP, SEND_CAP>;
 
 /// Patch runs a cell's voxel → patch map holds (radiosity: the patches its column crosses).
 pub const PATCH_RUNS_CAP: usize = 32;

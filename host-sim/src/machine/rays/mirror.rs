@@ -48,14 +48,14 @@ use cell_core::dexel::Dexel;
 use cell_core::light::{Port, SourceMask};
 use cell_core::ray::{Connectivity, Q};
 use cell_core::reflect::{Answer, HitPoint, ReflectNormal, MAX_GRID};
-use cell_core::reflect_cell::{Delivered, RayError, ReflectAnswer, ReflectCell, ReflectEnv, Surfaces};
+use cell_core::reflect_cell::{Delivered, RayError, ReflectAnswer, ReflectCell, ReflectEnv, Surfaces, Transmit};
 use cell_core::route::RoutePolicy;
 use cell_core::shade::{Material as CellMaterial, NormalMode, PointLight, ShadeParams};
 use cell_core::trace::{Event, ReflectSetup, MAX_MATERIALS};
 use cell_core::units::Depth;
 use cell_core::wire::RayMsg;
 
-use crate::machine::grid::capacity::{HostReflectCell, REFLECT_FA_CAP, SEND_CAP, WAIT_CAP};
+use crate::machine::grid::capacity::{GLASS_WAIT_CAP, REFLECT_FA_CAP, SEND_CAP, WAIT_CAP};
 use crate::machine::grid::{neighbour, LightGrid};
 use crate::machine::links::tap::Tap;
 use crate::machine::loading::loaded_scene::LoadedScene;
@@ -127,8 +127,16 @@ pub struct ReflectCounts {
     pub hits: u64,
     /// Rays that left the grid (answered black).
     pub exits: u64,
-    /// Hit voxels that reflected again and waited for their child before answering.
+    /// Hit voxels that reflected or refracted again and waited for their children before
+    /// answering.
     pub waits: u64,
+    /// Refracted (transmitted) rays made, total internal reflections included (§1.1's `I_T`).
+    pub refracted: u64,
+    /// Of those, rays beyond the critical angle, sent along the mirrored direction.
+    pub total_internal: u64,
+    /// Rays inside a transparent solid that met another material or left the grid without
+    /// crossing its surface (§5.5.2's leak through a discrete surface).
+    pub leaks: u64,
     /// Deepest ray level reached (1: rays from visible voxels).
     pub max_level: u8,
     /// Reflective hit voxels that did not reflect: tree depth reached.
@@ -153,6 +161,12 @@ pub struct ReflectCounts {
     pub mirror_psnr_without_db: Option<f64>,
     /// Those pixels.
     pub mirror_pixels: u64,
+    /// PSNR over the pixels where the reference sees a transparent surface (`Kt > 0`).
+    pub glass_psnr_db: Option<f64>,
+    /// The same without reflections and refractions.
+    pub glass_psnr_without_db: Option<f64>,
+    /// Those pixels.
+    pub glass_pixels: u64,
 }
 
 impl ReflectCounts {
@@ -181,6 +195,8 @@ pub struct ShadeEnv<'a> {
     pub mats: Vec<CellMaterial>,
     /// Kr by material id.
     pub kr: Vec<f32>,
+    /// How each material transmits (Kt, Tf, Ni), by material id.
+    pub transmit: Vec<Transmit>,
     /// Lights.
     pub lights: &'a [PointLight],
     /// Shading parameters (ambient, the normal mode of the visible voxels).
@@ -200,6 +216,7 @@ impl<'a> ShadeEnv<'a> {
         ShadeEnv {
             mats: mesh.materials.iter().map(crate::machine::shading::pixels::cell_material).collect(),
             kr: mesh.materials.iter().map(|m| m.kr).collect(),
+            transmit: mesh.materials.iter().map(transmit).collect(),
             lights,
             params: ShadeParams {
                 ambient: [crate::machine::shading::pixels::AMBIENT; 3],
@@ -212,13 +229,20 @@ impl<'a> ShadeEnv<'a> {
 
     /// The cells' view of the materials and lights.
     pub fn surfaces(&self) -> Surfaces<'_> {
-        Surfaces { mats: &self.mats, kr: &self.kr, lights: self.lights, params: self.params }
+        Surfaces { mats: &self.mats, kr: &self.kr, transmit: &self.transmit, lights: self.lights, params: self.params }
     }
 
     /// The visible voxel of column (x, y) as the camera sees it: linear local intensity and Kr.
     pub fn visible_local(&self, x: u16, y: u16, d: &Dexel) -> ([f32; 3], f32) {
         self.surfaces().visible_local(x, y, d, (self.mask)(x as u32, y as u32, d.span.lo))
     }
+}
+
+/// How a mesh material transmits, as the cells hold it (an index outside the refraction's bit
+/// budget, which the MTL reader refuses, reads as 1).
+pub fn transmit(m: &crate::scene::mesh::Material) -> Transmit {
+    let ni = cell_core::refract::ior_code(m.ni).unwrap_or(cell_core::refract::IOR_ONE);
+    Transmit { kt: m.kt, tf: m.tf, ni }
 }
 
 /// Span (lattice units) of a reflected ray's line: long enough to leave the grid from anywhere.
@@ -239,7 +263,21 @@ pub fn reflect_tapped(
     cfg: &ReflectConfig,
     tap: Option<&mut Tap>,
 ) -> Result<Reflected> {
-    let mut run = ReflectRun::new(scene, env, cfg, tap)?;
+    // A refracting tree branches at every glass voxel: its cells need the larger wait table.
+    match env.transmit.iter().any(|t| t.kt > 0.0) {
+        true => run_cells::<GLASS_WAIT_CAP>(scene, env, cfg, tap),
+        false => run_cells::<WAIT_CAP>(scene, env, cfg, tap),
+    }
+}
+
+/// [`reflect_tapped`] with cells of `W` wait-table entries.
+fn run_cells<const W: usize>(
+    scene: &LoadedScene,
+    env: &ShadeEnv,
+    cfg: &ReflectConfig,
+    tap: Option<&mut Tap>,
+) -> Result<Reflected> {
+    let mut run = ReflectRun::<W>::new(scene, env, cfg, tap)?;
     while run.roots_left > 0 {
         let mut moved = run.compute()?;
         moved += run.answers();
@@ -266,11 +304,11 @@ fn ray_error(e: RayError) -> anyhow::Error {
 /// The state of the reflection phase from cycle to cycle, and its phases (the module doc's
 /// per-cycle steps). The cells ([`ReflectCell`]) do the per-cell work; the run moves their rays
 /// over the links and their answers over the routers.
-struct ReflectRun<'a> {
+struct ReflectRun<'a, const W: usize> {
     grid: &'a LightGrid,
     env: &'a ShadeEnv<'a>,
     renv: ReflectEnv,
-    cells: Vec<HostReflectCell>,
+    cells: Vec<ReflectCell<REFLECT_FA_CAP, W, SEND_CAP>>,
     /// Trees whose root has no answer yet.
     roots_left: u64,
     ray_messages: u64,
@@ -285,7 +323,7 @@ struct ReflectRun<'a> {
     tap: Option<&'a mut Tap>,
 }
 
-impl<'a> ReflectRun<'a> {
+impl<'a, const W: usize> ReflectRun<'a, W> {
     /// The roots' rays ready to launch (or their black answers ready to send).
     fn new(
         scene: &'a LoadedScene,
@@ -296,7 +334,11 @@ impl<'a> ReflectRun<'a> {
         let grid = &scene.grid;
         let (n, depth) = (grid.n, grid.depth);
         cfg.validate(n.max(depth))?;
-        crate::machine::grid::limits::check_grid_memory("grid of reflection cells", n, size_of::<HostReflectCell>())?;
+        crate::machine::grid::limits::check_grid_memory(
+            "grid of reflection cells",
+            n,
+            size_of::<ReflectCell<REFLECT_FA_CAP, W, SEND_CAP>>(),
+        )?;
         let nn = n as usize;
         let renv = ReflectEnv {
             depth: cfg.depth,
@@ -311,10 +353,15 @@ impl<'a> ReflectRun<'a> {
             grid_depth: depth,
         };
         if let Some(t) = tap.as_deref_mut() {
+            if env.transmit.iter().any(|t| t.kt > 0.0) {
+                bail!(
+                    "a traced reflection phase carries no transparent materials (the trace's setup has no Kt, Tf, Ni)"
+                );
+            }
             let Ok(kr) = heapless::Vec::from_slice(&env.kr) else {
                 bail!("{} materials: a trace carries at most {MAX_MATERIALS}", env.kr.len());
             };
-            let caps = [REFLECT_FA_CAP, WAIT_CAP, SEND_CAP].map(|c| c as u16);
+            let caps = [REFLECT_FA_CAP, W, SEND_CAP].map(|c| c as u16);
             t.all::<U0>(&Event::Reflect(ReflectSetup { env: renv, kr, caps }));
         }
         let mut run = ReflectRun {
@@ -396,7 +443,7 @@ impl<'a> ReflectRun<'a> {
                     in_active[i] = true;
                     woken.push(i);
                 }
-                Delivered::Forwarded | Delivered::Stray => {}
+                Delivered::Forwarded | Delivered::Waiting | Delivered::Stray => {}
             }
         })
     }
@@ -508,6 +555,9 @@ impl<'a> ReflectRun<'a> {
             k.hits += m.hits as u64;
             k.exits += m.exits as u64;
             k.waits += m.waits as u64;
+            k.refracted += m.refracted as u64;
+            k.total_internal += m.total_internal as u64;
+            k.leaks += m.leaks as u64;
             k.cut_depth += m.cut_depth as u64;
             k.cut_threshold += m.cut_threshold as u64;
             k.blocked_cell_cycles += m.blocked as u64;
@@ -532,7 +582,8 @@ fn fault_report<const FA: usize, const W: usize, const S: usize>(
     let Some(i) = cells.iter().position(|c| c.counters.faults() > 0) else { return Ok(()) };
     let k = &cells[i].counters;
     let what = if k.wait_overflows > 0 {
-        format!("wait table full (more than {W} trees waiting at once); raise WAIT_CAP")
+        let cap = if W == WAIT_CAP { "WAIT_CAP" } else { "GLASS_WAIT_CAP" };
+        format!("wait table full (more than {W} trees waiting at once); raise {cap}")
     } else if k.send_overflows > 0 {
         format!("send queue full (more than {S} answers for the router); raise SEND_CAP")
     } else if k.fifo_overflows > 0 {
