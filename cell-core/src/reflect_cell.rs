@@ -261,8 +261,7 @@ pub fn transmitted_dir(
     if incident == [0; 3] || nv == [0; 3] {
         return None;
     }
-    let a: i64 = (0..3).map(|k| incident[k] as i64 * nv[k] as i64).sum();
-    let (from, to) = if a < 0 { (IOR_ONE, ni) } else { (ni, IOR_ONE) };
+    let (from, to) = if enters(incident, normal) { (IOR_ONE, ni) } else { (ni, IOR_ONE) };
     match refract(incident, nv, from, to) {
         Refraction::Through(t) => scaled(t, span).map(|t| (t, false)),
         Refraction::TotalInternal => reflected_dir(incident, entry, normal, mode, span).map(|r| (r, true)),
@@ -290,11 +289,17 @@ pub fn transmitted_ray(
     ray_along(at, d, incident, env, slot, level, weight, dir).map(|mut r| {
         // Through the surface: into the solid from its outer side, out of it from the inner.
         if !tir {
-            let a: i64 = (0..3).map(|k| incident.dir[k] as i64 * normal_int(d.normal)[k] as i64).sum();
-            r.inside = (a < 0).then_some(d.material);
+            r.inside = enters(incident.dir, d.normal).then_some(d.material);
         }
         Some((r, tir))
     })
+}
+
+/// Whether a ray of direction `incident` meets a surface of normal code `normal` (its facet's
+/// winding) on its outer side (`I·N < 0`): it enters the solid there.
+fn enters(incident: [i32; 3], normal: crate::normal::NormalCode) -> bool {
+    let nv = normal_int(normal);
+    (0..3).map(|k| incident[k] as i64 * nv[k] as i64).sum::<i64>() < 0
 }
 
 /// The bit of an answer's slot that names the refracted child (clear: the reflected one).
@@ -859,8 +864,7 @@ mod tests {
     }
 
     fn surfaces(mats: &[Material]) -> Surfaces<'_> {
-        let params = ShadeParams { ambient: [0.25; 3], normal_mode: NormalMode::Facet, eye: crate::shade::Eye::Grid };
-        Surfaces { mats, kr: &[0.5], transmit: &[], lights: &[], params }
+        glass_surfaces(mats, &[0.5], &[])
     }
 
     /// Step until nothing is left to walk; the router refuses every answer.

@@ -348,22 +348,19 @@ fn render_reflect(
 /// PSNR of the image with and without its reflections against the reference, over the whole
 /// image, over the pixels where the reference sees a mirror, and over those where it sees glass.
 fn compare_reflections(mesh: &Mesh, rgb: &[[u8; 3]], local_only: &[[u8; 3]], rf: &RefImage, c: &mut ReflectCounts) {
-    let mirror: Vec<bool> = rf
-        .facet
-        .iter()
-        .map(|&f| mesh.faces.get(f as usize).is_some_and(|fc| mesh.materials[fc.material as usize].kr > 0.0))
-        .collect();
+    // The pixels where the reference sees a face whose material passes `test`.
+    let sees = |test: fn(&crate::scene::Material) -> bool| -> Vec<bool> {
+        let face = |f: u32| mesh.faces.get(f as usize).map(|fc| &mesh.materials[fc.material as usize]);
+        rf.facet.iter().map(|&f| face(f).is_some_and(test)).collect()
+    };
+    let mirror = sees(|m| m.kr > 0.0);
     let all = vec![true; mirror.len()];
     c.psnr_db = Some(psnr(rgb, &rf.rgb, &all));
     c.psnr_without_db = Some(psnr(local_only, &rf.rgb, &all));
     c.mirror_psnr_db = Some(psnr(rgb, &rf.rgb, &mirror));
     c.mirror_psnr_without_db = Some(psnr(local_only, &rf.rgb, &mirror));
     c.mirror_pixels = mirror.iter().filter(|&&m| m).count() as u64;
-    let glass: Vec<bool> = rf
-        .facet
-        .iter()
-        .map(|&f| mesh.faces.get(f as usize).is_some_and(|fc| mesh.materials[fc.material as usize].kt > 0.0))
-        .collect();
+    let glass = sees(|m| m.kt > 0.0);
     c.glass_pixels = glass.iter().filter(|&&g| g).count() as u64;
     if c.glass_pixels > 0 {
         c.glass_psnr_db = Some(psnr(rgb, &rf.rgb, &glass));

@@ -354,13 +354,10 @@ usemtl mirror\nf 1 2 3 4\nusemtl patch\nf 5 6 7 8\nusemtl mirror\nf 9 10 11\nf 1
     assert!(shown > 10 && dark > 50 && checked > 100, "shown {shown}, dark {dark}, checked {checked}");
 }
 
-/// f64 Snell (the oracle): unit incident `i`, unit normal `n` (either side), η = n₁/n₂.
+/// f64 Snell (the oracle: the reference's own, continuous geometry): unit incident `i`, unit
+/// normal `n` (either side), η = n₁/n₂; `None` beyond the critical angle.
 fn snell(i: [f64; 3], n: [f64; 3], eta: f64) -> Option<[f64; 3]> {
-    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    let n = if dot(n, i) > 0.0 { n.map(|c| -c) } else { n };
-    let c1 = -dot(n, i);
-    let k = 1.0 - eta * eta * (1.0 - c1 * c1);
-    (k >= 0.0).then(|| [0, 1, 2].map(|j| eta * i[j] + (eta * c1 - k.sqrt()) * n[j]))
+    host_sim::truth::refrender::refracted(i.into(), n.into(), eta).map(|t| [t.x, t.y, t.z])
 }
 
 /// A glass slab (Ni 1.5, Kt 0.9) tilted 45° about y in front of a backdrop whose left half

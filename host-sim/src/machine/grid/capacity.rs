@@ -1,5 +1,5 @@
 //! The cell capacities host-sim compiles, and the lighting and shadow-ray cell types built from
-//! them (the reflection cells' are `machine::rays::mirror`'s) (the grid type is [`super::LightGrid`]).
+//! them; the grid type is [`super::LightGrid`], the reflection cells' types `machine::rays::mirror`'s.
 //!
 //! The numbers themselves live in one place, [`cell_core::cell`], shared with the firmware: a
 //! trace recorded here is replayed there by a cell of exactly the same capacities.

@@ -232,6 +232,11 @@ impl<'a> ShadeEnv<'a> {
         Surfaces { mats: &self.mats, kr: &self.kr, transmit: &self.transmit, lights: self.lights, params: self.params }
     }
 
+    /// Whether some material transmits (the trees branch in two at its voxels).
+    pub fn refracts(&self) -> bool {
+        self.transmit.iter().any(|t| t.kt > 0.0)
+    }
+
     /// The visible voxel of column (x, y) as the camera sees it: linear local intensity and Kr.
     pub fn visible_local(&self, x: u16, y: u16, d: &Dexel) -> ([f32; 3], f32) {
         self.surfaces().visible_local(x, y, d, (self.mask)(x as u32, y as u32, d.span.lo))
@@ -264,7 +269,7 @@ pub fn reflect_tapped(
     tap: Option<&mut Tap>,
 ) -> Result<Reflected> {
     // A refracting tree branches at every glass voxel: its cells need the larger wait table.
-    match env.transmit.iter().any(|t| t.kt > 0.0) {
+    match env.refracts() {
         true => run_cells::<GLASS_WAIT_CAP>(scene, env, cfg, tap),
         false => run_cells::<WAIT_CAP>(scene, env, cfg, tap),
     }
@@ -353,7 +358,7 @@ impl<'a, const W: usize> ReflectRun<'a, W> {
             grid_depth: depth,
         };
         if let Some(t) = tap.as_deref_mut() {
-            if env.transmit.iter().any(|t| t.kt > 0.0) {
+            if env.refracts() {
                 bail!(
                     "a traced reflection phase carries no transparent materials (the trace's setup has no Kt, Tf, Ni)"
                 );
