@@ -73,6 +73,7 @@ pub mod termination;
 pub mod trace;
 pub mod triangle;
 pub mod units;
+pub mod visibility;
 pub mod visible;
 pub mod voxelize;
 pub mod wire;

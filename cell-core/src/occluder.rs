@@ -413,13 +413,27 @@ pub trait ColumnOccluders: core::fmt::Debug + Sync {
     fn seen(&self, _x: crate::units::Coord, _y: crate::units::Coord) -> Option<SeenTable<'_>> {
         None
     }
+    /// Column (x, y)'s target voxel for the current source, where it counts its candidate rays
+    /// (`None`: it does not count them, [`crate::visibility::Visibility::Target`]).
+    fn target_voxel(
+        &self,
+        _x: crate::units::Coord,
+        _y: crate::units::Coord,
+    ) -> Option<&crate::visibility::TargetVoxel> {
+        None
+    }
+    /// Column (x, y)'s cell took `rays` more candidate rays to its target voxel (one processed
+    /// beam's, [`crate::visibility::TargetVoxel::count`]): added to what its target voxel
+    /// received for the current source. Called only for a column with a target voxel.
+    fn arrived(&self, _x: crate::units::Coord, _y: crate::units::Coord, _rays: u64) {}
     /// Everything column (x, y) holds for the exact visit of a beam at voxel depth `z`, in one
     /// call (a host looks the column up once per beam, not once per item): its target ray only
     /// if that ray's voxel is at `z`. The default gathers the methods above, without near
     /// windows.
     fn column(&self, x: crate::units::Coord, y: crate::units::Coord, z: crate::units::Depth) -> Column<'_> {
         let target = self.target(x, y).filter(|t| t.z == z as i64);
-        Column { triangles: self.triangles(x, y), seen: self.seen(x, y), target, near: None }
+        let voxel = self.target_voxel(x, y).filter(|t| t.z == z as i64);
+        Column { triangles: self.triangles(x, y), seen: self.seen(x, y), target, voxel, near: None }
     }
     /// A hint that column (x, y) is visited soon (a host holding every column may start loading
     /// its data); no effect on any result.
@@ -435,6 +449,8 @@ pub struct Column<'a> {
     pub seen: Option<SeenTable<'a>>,
     /// Its target ray for the current source, if it ends at the visited depth.
     pub target: Option<&'a crate::receiver::Target>,
+    /// Its target voxel, if it counts candidate rays and that voxel is at the visited depth.
+    pub voxel: Option<&'a crate::visibility::TargetVoxel>,
     /// Beside each triangle, its [`NearWindows`], if the host computed them (`None`: every
     /// triangle is tested, as a cell does).
     pub near: Option<&'a [NearWindows]>,
@@ -1347,7 +1363,7 @@ mod tests {
             }
             let near: StdVec<NearWindows> =
                 tris.iter().map(|t| near_windows(t, voxel[0] as i32, voxel[1] as i32, u16::MAX)).collect();
-            let column = Column { triangles: &tris, seen: None, target: None, near: Some(&near) };
+            let column = Column { triangles: &tris, seen: None, target: None, voxel: None, near: Some(&near) };
             let candidates = column.candidates(voxel[2] as u16);
             let terminal = lcg(&mut s) % 4 == 0;
             let (mut t1, mut t2) = (ExactTests::new(), ExactTests::new());

@@ -265,13 +265,11 @@ pub(crate) fn contact_point(
     Some([0, 1, 2].map(|i| s[i] + ((2 * num * (p[i] - s[i]) as i128 + den).div_euclid(2 * den)) as i64))
 }
 
-/// The face whose rays reach point `p` (in 1/[`POINT_UNITS`] voxel): its rays' origin and
-/// lead, the exact ray's distance to `p` along the axis (`dist`) and its transverse offsets
+/// The face whose rays reach point `p` (in 1/[`POINT_UNITS`] voxel): its rays' origin, the exact ray's distance to `p` along the axis (`dist`) and its transverse offsets
 /// scaled by it (a = an/dist, b = bn/dist, in lattice steps of the far square).
 struct Face {
     dir: Direction,
     o: [i64; 3],
-    lead: i64,
     dist: i128,
     an: i128,
     bn: i128,
@@ -282,12 +280,12 @@ impl Face {
     /// does or the rays' origin lies outside [`COORD_LIMIT`].
     fn towards(p: [i128; 3], source: &Source, nn: i128) -> Option<Face> {
         let face = Direction::ALL.into_iter().find_map(|dir| {
-            let (o, lead) = (source.ray_origin(dir), source.lead(dir));
+            let o = source.ray_origin(dir);
             let (w, (u, v)) = (dir.principal().index(), dir.transverse());
             let dist = dir.sign() as i128 * (p[w] - 256 * o[w] as i128);
             let off = |i: usize| (p[i] - 256 * o[i] as i128) * nn;
             let (an, bn) = (off(u.index()), off(v.index()));
-            (dist > 0 && an.abs() <= nn * dist && bn.abs() <= nn * dist).then_some(Face { dir, o, lead, dist, an, bn })
+            (dist > 0 && an.abs() <= nn * dist && bn.abs() <= nn * dist).then_some(Face { dir, o, dist, an, bn })
         })?;
         (face.o.iter().all(|c| c.abs() <= COORD_LIMIT)).then_some(face)
     }
@@ -300,6 +298,29 @@ fn rays_in_voxel(q: i64, o: i64, nn: i128, tk: i128) -> (i128, i128) {
     let lo = ceil_div(nn * (16 * q as i128 - 8 - o as i128), tk).max(-nn);
     let hi = (ceil_div(nn * (16 * q as i128 + 8 - o as i128), tk) - 1).min(nn);
     (lo, hi)
+}
+
+/// The lattice rectangle (inclusive) of `dir`'s rays whose voxel at layer `k` is `q`:
+/// [`rays_in_voxel`] along each transverse axis; `None` when it is empty or the layer lies at or
+/// behind the rays' origin.
+pub fn voxel_rays<F: FracBits>(
+    q: [i64; 3],
+    dir: Direction,
+    k: i64,
+    source: &Source,
+    far: FarDistance<F>,
+) -> Option<((i64, i64), (i64, i64))> {
+    let (o, lead) = (source.ray_origin(dir), source.lead(dir));
+    let tk = (16 * k - lead) as i128;
+    if tk <= 0 {
+        return None;
+    }
+    let nn = far.scaled() as i128;
+    let (ua, va) = dir.transverse();
+    let range = |i: usize| rays_in_voxel(q[i], o[i], nn, tk);
+    let ((a0, a1), (b0, b1)) = (range(ua.index()), range(va.index()));
+    // Within ±N < 2³¹ (`rays_in_voxel` clamps).
+    (a0 <= a1 && b0 <= b1).then_some(((a0 as i64, a1 as i64), (b0 as i64, b1 as i64)))
 }
 
 /// The ray that decides whether occupied voxel (x, y, z) is lit in the full lit store under
@@ -315,18 +336,14 @@ pub fn voxel_ray<F: FracBits>(x: i32, y: i32, z: i64, source: &Source, far: FarD
         return None;
     }
     let nn = far.scaled() as i128;
-    let Face { dir, o, lead, dist, an, bn } = Face::towards(q.map(|c| g * c as i128), source, nn)?;
-    let (w, (ua, va)) = (dir.principal().index(), dir.transverse());
+    let Face { dir, dist, an, bn, .. } = Face::towards(q.map(|c| g * c as i128), source, nn)?;
+    let w = dir.principal().index();
     let k = source.layer_at(dir, q[w]);
     if k < 1 || k > far.get() as i64 {
         return None;
     }
-    let tk = (16 * k - lead) as i128;
-    let ((a0, a1), (b0, b1)) =
-        (rays_in_voxel(q[ua.index()], o[ua.index()], nn, tk), rays_in_voxel(q[va.index()], o[va.index()], nn, tk));
-    if a0 > a1 || b0 > b1 {
-        return None;
-    }
+    let ((a0, a1), (b0, b1)) = voxel_rays(q, dir, k, source, far)?;
+    let (a0, a1, b0, b1) = (a0 as i128, a1 as i128, b0 as i128, b1 as i128);
     let round = |n: i128| (2 * n + dist).div_euclid(2 * dist);
     // The nearest lattice point of the box to (a, b): each coordinate rounded, then clamped.
     let (a, b) = (round(an).clamp(a0, a1) as i64, round(bn).clamp(b0, b1) as i64);
@@ -366,9 +383,8 @@ pub fn target<F: FracBits>(
 ) -> Option<Target> {
     let p = pixel_point(x, y, vis)?.map(i128::from);
     let nn = far.scaled() as i128;
-    let Face { dir, o, lead, dist, an, bn } = Face::towards(p, source, nn)?;
-    let (w, (ua, va)) = (dir.principal().index(), dir.transverse());
-    let (u, v) = (ua.index(), va.index());
+    let Face { dir, dist, an, bn, .. } = Face::towards(p, source, nn)?;
+    let w = dir.principal().index();
     // The visible plane along this face's rays (its reference voxel is the same for every
     // candidate voxel); a back face is lit by no ray.
     let plane = RayPlane::new(&vis.plane, [x as i64, y as i64, vis.z_v as i64], source, dir, far);
@@ -390,12 +406,8 @@ pub fn target<F: FracBits>(
         if k < 1 || k > depth {
             continue;
         }
-        let tk = (16 * k - lead) as i128;
-        let range = |i: usize| rays_in_voxel(q[i], o[i], nn, tk);
-        let ((a0, a1), (b0, b1)) = (range(u), range(v));
-        if a0 > a1 || b0 > b1 {
-            continue;
-        }
+        let Some(((a0, a1), (b0, b1))) = voxel_rays(q, dir, k, source, far) else { continue };
+        let (a0, a1, b0, b1) = (a0 as i128, a1 as i128, b0 as i128, b1 as i128);
         let (ca, cb) = (round(an).clamp(a0, a1), round(bn).clamp(b0, b1));
         for ta in (ca - SEARCH as i128).max(a0)..=(ca + SEARCH as i128).min(a1) {
             for tb in (cb - SEARCH as i128).max(b0)..=(cb + SEARCH as i128).min(b1) {

@@ -251,6 +251,12 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
             notch,
         );
         f.per_ray = visit.per_ray();
+        // The lit-ray ratio: the candidates this beam brings to the column's target voxel
+        // ([`crate::visibility`]); those of a rectangle the step keeps are taken back below.
+        let counted = column.and_then(|c| c.voxel).filter(|tv| tv.receives(b));
+        if let Some(tv) = counted {
+            f.arrived += tv.count::<_, EXACT_SEGMENTS>(&visit, u, v);
+        }
         // The receiver: the column's target ray, if this beam brings it here (absent rays were
         // absorbed earlier; a terminal or absorbed one still arrived).
         let target = column.and_then(|c| c.target);
@@ -306,6 +312,11 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         let revisit =
             |b: &Beam<F>, v: &mut ExactVisit<'_, '_, F>| v.rejudge((lattice(b.u()), lattice(b.v())), b.is_terminal());
         self.peel::<_, EXACT_SEGMENTS>(m, &mut visit, &revisit, stay, carry, env, f);
+        // The kept rest is counted by the step that takes it (the visit holds for it: peeling
+        // took it again on what it keeps).
+        if let (Some(tv), Some(rest)) = (counted, f.keep) {
+            f.arrived -= tv.count::<_, EXACT_SEGMENTS>(&visit, lattice(rest.beam.u()), lattice(rest.beam.v()));
+        }
     }
 
     /// The local state a ±z beam's staying rays carry to the next layer of this column (see

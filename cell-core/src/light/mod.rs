@@ -278,6 +278,9 @@ struct Fate<'s, F: FracBits> {
     /// The exact-occluder visit judged ray by ray ([`LightCounters::per_ray_visits`]).
     #[cfg(feature = "exact-occluders")]
     per_ray: bool,
+    /// Candidate rays brought to the column's target voxel ([`crate::visibility`]).
+    #[cfg(feature = "exact-occluders")]
+    arrived: u64,
 }
 
 /// A beam's sub-beams and where each goes (at most nine).
@@ -311,6 +314,8 @@ impl<'s, F: FracBits> Fate<'s, F> {
             after_outside: false,
             #[cfg(feature = "exact-occluders")]
             per_ray: false,
+            #[cfg(feature = "exact-occluders")]
+            arrived: 0,
         }
     }
 
@@ -330,6 +335,7 @@ impl<'s, F: FracBits> Fate<'s, F> {
         #[cfg(feature = "exact-occluders")]
         {
             self.per_ray = false;
+            self.arrived = 0;
         }
     }
 }
@@ -778,6 +784,11 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         #[cfg(feature = "exact-occluders")]
         {
             self.counters.per_ray_visits += fate.per_ray as u32;
+            if fate.arrived > 0 {
+                if let Some(o) = env.occluders {
+                    o.arrived(self.x, self.y, fate.arrived);
+                }
+            }
         }
         if fate.lit {
             self.mark_lit(m.z, cell, env);

@@ -12,7 +12,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use crate::jobs;
 use crate::precompute::LoadConfig;
 use crate::scene::camera::{Camera, Projection, ViewChoice};
-use value_args::{ContourArg, EngineArg, FrustumBlocksArg, OracleSkipArg, ThicknessArg};
+use value_args::{ContourArg, EngineArg, FrustumBlocksArg, OracleSkipArg, ThicknessArg, VisibilityArg};
 
 /// RC² cellular ray-tracing machine — host simulator.
 ///
@@ -491,6 +491,17 @@ pub struct LightOpts {
     /// --thesis and --lighting classic).
     #[arg(long, value_enum)]
     pub rays_from: Option<RaysFromArg>,
+    /// How a pixel's visibility of each light is decided under exact occluders (thesis
+    /// §5.5.5, "several rays reach one pixel"): `target`, lit iff its one target ray arrives;
+    /// `ratio`, the cells count the lattice rays of the target ray's voxel that lie on the
+    /// surface's lit side and the share of them that arrive weighs the light (soft shadow
+    /// edges: a pixel half covered by a shadow gets about half the light); `majority`, lit iff
+    /// more than half of them arrive (the thesis's "> 0.5"). Same beams, cycles and messages;
+    /// more fraction bits (--frac-bits) give each voxel more rays to count. With --reference,
+    /// the f64 reference then samples each pixel's footprint on its surface (8 × 8 points)
+    /// and weighs the light by the share that sees it (or by its majority). Default: target.
+    #[arg(long, value_enum)]
+    pub visibility: Option<VisibilityArg>,
     /// Classic shadow rays instead of diffusion.
     #[command(flatten)]
     pub classic: crate::cli::phase_args::ClassicOpts,

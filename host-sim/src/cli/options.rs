@@ -56,6 +56,7 @@ impl LightOpts {
             rays: self.rays_from.map(Into::into),
             oracle_skip: self.oracle_skip.map(Into::into),
             area_light: self.area_light,
+            visibility: self.visibility.map(Into::into),
         }
     }
 
@@ -122,7 +123,7 @@ impl TryFrom<&LightArgs> for LightOptions {
         Ok(LightOptions {
             scene: a.load.scene.clone(),
             view: a.load.camera.choice(),
-            light: a.light.options(&a.load, Preset::Light, false)?,
+            light: render_only_visibility(a.light.options(&a.load, Preset::Light, false)?, "light")?,
             stats: a.stats.clone(),
             lit_out: a.lit_out.clone(),
             dump_lit: a.dump_lit.clone(),
@@ -131,12 +132,24 @@ impl TryFrom<&LightArgs> for LightOptions {
     }
 }
 
+/// `light` refused `--visibility ratio|majority` for a `job` that shows no pixels.
+fn render_only_visibility(light: LightingOptions, job: &str) -> Result<LightingOptions> {
+    let v = light.run.light.visibility;
+    if v.counts_rays() {
+        bail!(
+            "--visibility {} weighs the lights of each pixel: a render option (`{job}` reports lit voxels, not pixels)",
+            v.name()
+        );
+    }
+    Ok(light)
+}
+
 impl TryFrom<&TraceArgs> for TraceOptions {
     type Error = anyhow::Error;
 
     fn try_from(a: &TraceArgs) -> Result<Self> {
         let reflecting = a.reflect.reflections > 0;
-        let light = a.light.options(&a.load, Preset::Trace, reflecting)?;
+        let light = render_only_visibility(a.light.options(&a.load, Preset::Trace, reflecting)?, "trace")?;
         if light.run.area_light > 1 || light.light_size.is_some() {
             bail!("--area-light and --light-size are render and light options: a trace records point lights");
         }

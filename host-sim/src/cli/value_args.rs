@@ -98,6 +98,28 @@ impl From<OracleSkipArg> for OracleSkip {
     }
 }
 
+/// `--visibility`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum VisibilityArg {
+    /// Lit iff the pixel's target ray arrives.
+    Target,
+    /// The share of the target voxel's rays that arrive weighs the light.
+    Ratio,
+    /// Lit iff more than half of them arrive.
+    Majority,
+}
+
+impl From<VisibilityArg> for cell_core::visibility::Visibility {
+    fn from(a: VisibilityArg) -> Self {
+        use cell_core::visibility::Visibility;
+        match a {
+            VisibilityArg::Target => Visibility::Target,
+            VisibilityArg::Ratio => Visibility::Ratio,
+            VisibilityArg::Majority => Visibility::Majority,
+        }
+    }
+}
+
 impl From<FrustumBlocksArg> for FrustumBlocks {
     fn from(a: FrustumBlocksArg) -> Self {
         match a {

@@ -16,6 +16,7 @@ use anyhow::{bail, Result};
 use cell_core::beam::Origin;
 use cell_core::light::Policy;
 use cell_core::lit::LitRule;
+use cell_core::visibility::Visibility;
 
 use crate::machine::grid::capacity::TRIANGLE_CAP;
 use crate::machine::lighting::diffuse::{FrustumBlocks, LightConfig, OracleSkip, Stepping, DEFAULT_STALL_CYCLES};
@@ -104,6 +105,7 @@ impl Preset {
             timing: Timing::RC2,
             oracle_skip: OracleSkip::Off,
             stop_at: None,
+            visibility: Visibility::Target,
         };
         match self {
             Preset::Render => LightConfig { lit_visible_only: true, skip_hidden: true, ..rc2 },
@@ -205,6 +207,8 @@ pub struct Overrides {
     pub oracle_skip: Option<OracleSkip>,
     /// S × S samples per area light.
     pub area_light: Option<u32>,
+    /// How a pixel's visibility of a light is decided.
+    pub visibility: Option<Visibility>,
 }
 
 /// What the job around the diffusion needs of it.
@@ -246,6 +250,7 @@ impl RunConfig {
             rule: o.rule.unwrap_or(b.rule),
             rays,
             oracle_skip: o.oracle_skip.unwrap_or(b.oracle_skip),
+            visibility: o.visibility.unwrap_or(b.visibility),
             ..*b
         };
         let load = LoadConfig {
@@ -281,6 +286,13 @@ impl RunConfig {
             bail!(
                 "--oracle-skip drops the beams no pixel's target ray is in: it needs exact occluders \
                  (--lit-rule exact) and the visible-only lit store (render's default)"
+            );
+        }
+        if l.visibility.counts_rays() && !l.rule.needs_triangles() {
+            bail!(
+                "--visibility {} counts the rays reaching each pixel's target voxel: it needs exact occluders \
+                 (--lit-rule exact, the default)",
+                l.visibility.name()
             );
         }
         if self.area_light == 0 {
@@ -339,6 +351,7 @@ impl RunConfig {
             hold: l.hold,
             link_faults: l.faults.is_some(),
             area_light: self.area_light,
+            visibility: l.visibility.name(),
         }
     }
 }
@@ -405,6 +418,14 @@ pub struct RunSummary {
     /// S: area lights sampled by S × S point sources (not written when 1: a point each).
     #[serde(skip_serializing_if = "is_one")]
     pub area_light: u32,
+    /// `ratio` or `majority`: how pixels weigh the rays reaching them (not written for
+    /// `target`, the default).
+    #[serde(skip_serializing_if = "is_target")]
+    pub visibility: &'static str,
+}
+
+fn is_target(v: &&'static str) -> bool {
+    *v == Visibility::Target.name()
 }
 
 fn is_one(s: &u32) -> bool {
@@ -442,6 +463,9 @@ impl RunSummary {
         }
         if self.area_light > 1 {
             s += &format!(", area lights sampled {0} × {0}", self.area_light);
+        }
+        if self.visibility != Visibility::Target.name() {
+            s += &format!(", visibility by lit-ray {}", self.visibility);
         }
         s
     }

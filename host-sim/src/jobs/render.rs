@@ -37,7 +37,8 @@ use crate::report::png::write_png;
 use crate::report::progress;
 use crate::scene::{self, Mesh};
 use crate::truth::compare::psnr;
-use crate::truth::refrender::{RefImage, RefReflect};
+use crate::truth::refrender::{RefFootprint, RefImage, RefReflect};
+use cell_core::visibility::Visibility;
 
 /// Everything `render --stats` reports.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -217,8 +218,19 @@ pub fn reference_image_lit(
         }
         RenderLighting::Diffusion | RenderLighting::Classic(_) | RenderLighting::Refined(_) => RefReflect::NONE,
     };
-    crate::truth::refrender::render_reference_reflect(mesh, &scene.fit, scene.grid.n, &rl, [AMBIENT as f64; 3], &refl)
+    let (fit, n, ambient) = (&scene.fit, scene.grid.n, [AMBIENT as f64; 3]);
+    match cfg.light.visibility {
+        Visibility::Target => crate::truth::refrender::render_reference_reflect(mesh, fit, n, &rl, ambient, &refl),
+        v => {
+            let footprint = RefFootprint { samples: FOOTPRINT_SAMPLES, majority: v == Visibility::Majority };
+            crate::truth::refrender::render_reference_footprint(mesh, fit, n, &rl, ambient, &refl, footprint)
+        }
+    }
 }
+
+/// Points per side of a pixel's footprint the reference samples under `--visibility ratio` and
+/// `majority` ([`RefFootprint`]): 64 per pixel, a weight to 1/64.
+pub const FOOTPRINT_SAMPLES: u32 = 8;
 
 /// [`reference_image`] shaded smoothly as `smooth` says (the same corner normals and mode as the
 /// cells; the f64 interpolation of [`crate::truth::refrender::RefSmooth`]).
@@ -495,6 +507,21 @@ impl RenderOptions {
         }
         if self.light.run.area_light > 1 && self.radiosity.is_some() {
             bail!("--area-light with --radiosity: the radiosity phase shoots from point lights only (run one or the other)");
+        }
+        if light.visibility.counts_rays() {
+            let other = [
+                (self.light.classic.is_some(), "--lighting classic|refined"),
+                (reflecting, "--reflections"),
+                (self.radiosity.is_some(), "--radiosity"),
+                (self.smooth.is_some(), "--normals gouraud|phong"),
+            ];
+            if let Some((_, what)) = other.iter().find(|o| o.0) {
+                bail!(
+                    "--visibility {} weighs each pixel's lights by the diffusion's ray counts: not done with {what} yet \
+                     (run one or the other)",
+                    light.visibility.name()
+                );
+            }
         }
         if self.smooth.is_some() {
             let rule = self.light.classic.as_ref().map_or(light.rule, |c| c.rule);

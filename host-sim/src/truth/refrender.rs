@@ -315,9 +315,104 @@ struct RefScene<'a> {
     /// Length of a reflected ray.
     max_t: f64,
     reflect: RefReflect,
+    /// Weigh each light by the share of the pixel's footprint that sees it
+    /// ([`render_reference_footprint`]); `None`: the pixel's point decides.
+    footprint: Option<RefFootprint>,
+}
+
+/// How the reference weighs a light by a pixel's footprint (the machine's lit-ray ratio,
+/// `cell_core::visibility`): `samples` × `samples` points of the pixel's square, each carried
+/// along the primary ray through it to the plane of the surface the pixel's centre sees.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RefFootprint {
+    /// Points per side of the pixel.
+    pub samples: u32,
+    /// Lit iff more than half the points see the light (the machine's `majority`), instead of
+    /// weighed by their share (`ratio`).
+    pub majority: bool,
+}
+
+/// [`render_reference_reflect`] with each light weighed by the share of each pixel's footprint
+/// that sees it ([`RefFootprint`]) at the visible point (reflected rays' hits keep their point's
+/// own visibility).
+pub fn render_reference_footprint(
+    mesh: &Mesh,
+    fit: &Fit,
+    n: u32,
+    lights: &[RefLight],
+    ambient: [f64; 3],
+    reflect: &RefReflect,
+    footprint: RefFootprint,
+) -> Result<RefImage> {
+    if footprint.samples == 0 {
+        bail!("refrender: a footprint needs at least one sample per side");
+    }
+    let mut scene = RefScene::new(mesh, fit, n, lights, RefAmbient::Constant(ambient), reflect)?;
+    scene.footprint = Some(footprint);
+    Ok(scene.image(n, lights.len() as u32))
 }
 
 impl RefScene<'_> {
+    /// The `n` × `n` image of the scene, lit by its `lights` lights.
+    fn image(&self, n: u32, lights: u32) -> RefImage {
+        let mut img = RefImage::empty(n, lights);
+        for y in 0..n {
+            for x in 0..n {
+                self.pixel(x, y, &mut img);
+            }
+        }
+        img
+    }
+
+    /// The primary ray through point (sx, sy) of the image (pixel units, the pixel's centre at
+    /// x + ½): from one voxel in front of the grid along +z, or the camera's.
+    fn primary(&self, sx: f64, sy: f64, n: u32) -> (Vector, Vector) {
+        let (o, vx) = (self.origin, self.voxel);
+        match &self.view {
+            Some(v) => v.ray(sx / n as f64, sy / n as f64),
+            None => (Vector::new(o.x + sx * vx, o.y + sy * vx, o.z - vx), Vector::Z),
+        }
+    }
+
+    /// Each light's weight at pixel (x, y), whose centre sees `facet` at point `p` (unit normal
+    /// `normal` facing the eye): the share of `f`'s points of the pixel whose primary ray meets
+    /// that facet at a point that faces the light and sees it (points whose ray meets another
+    /// surface or none do not count: the weight is the visibility of the surface the pixel
+    /// shows, not its coverage; without any such point, `p` alone); under `majority`, 1 above
+    /// half, else 0.
+    fn footprint_weights(
+        &self,
+        f: RefFootprint,
+        (x, y, n): (u32, u32, u32),
+        (p, normal, facet): (Vector, Vector, u32),
+    ) -> Vec<f64> {
+        let s = f.samples;
+        let mut hits: Vec<(Vector, Vector, u32)> = (0..s * s)
+            .filter_map(|k| {
+                let (i, j) = ((k % s) as f64, (k / s) as f64);
+                let (o, d) = self.primary(x as f64 + (i + 0.5) / s as f64, y as f64 + (j + 0.5) / s as f64, n);
+                let (t, hit, nq) = self.reference.first_hit(o.to_array(), d.to_array(), self.primary_t, &[])?;
+                (hit == facet).then(|| (o + t * d, Vector::from(nq), hit))
+            })
+            .collect();
+        if hits.is_empty() {
+            hits.push((p, normal, facet));
+        }
+        self.lights_world
+            .iter()
+            .map(|lw| {
+                let sees = |(q, nq, facet): &&(Vector, Vector, u32)| {
+                    nq.dot(*lw - *q) > 0.0 && self.reference.visible(q.to_array(), lw.to_array(), &[*facet])
+                };
+                let share = hits.iter().filter(sees).count() as f64 / hits.len() as f64;
+                match f.majority {
+                    true => (share > 0.5) as u8 as f64,
+                    false => share,
+                }
+            })
+            .collect()
+    }
+
     /// Lit: the surface faces the light (no attached shadow) and sees it.
     fn lit_mask(&self, p: Vector, normal: Vector, facet: u32) -> u32 {
         let mut mask = 0u32;
@@ -334,16 +429,40 @@ impl RefScene<'_> {
     /// the eye), reflections included from tree level `level` (1 for a visible point) with
     /// contribution weight `weight` of the ray that reached it. Also the lit mask.
     fn colour(&self, p: Vector, normal: Vector, facet: u32, v: Vector, level: u32, weight: f64) -> ([f64; 3], u32) {
+        self.colour_weighed(p, normal, facet, v, level, weight, None)
+    }
+
+    /// [`RefScene::colour`] with each light's intensity weighed by `lights` (its weight per
+    /// light, [`RefScene::footprint_weights`]; the lit mask: those with a weight) instead of
+    /// the point's own visibility.
+    #[allow(clippy::too_many_arguments)]
+    fn colour_weighed(
+        &self,
+        p: Vector,
+        normal: Vector,
+        facet: u32,
+        v: Vector,
+        level: u32,
+        weight: f64,
+        lights: Option<&[f64]>,
+    ) -> ([f64; 3], u32) {
         let (o, vx) = (self.origin, self.voxel);
-        let mask = self.lit_mask(p, normal, facet);
+        let (mask, weighed) = match lights {
+            Some(w) => {
+                let mask = w.iter().enumerate().fold(0u32, |m, (s, &w)| m | ((w > 0.0) as u32) << s);
+                let scaled = self.lights.iter().zip(w).map(|(l, &w)| RefLight { color: l.color.map(|c| c * w), ..*l });
+                (mask, std::borrow::Cow::Owned(scaled.collect::<Vec<_>>()))
+            }
+            None => (self.lit_mask(p, normal, facet), std::borrow::Cow::Borrowed(&self.lights[..])),
+        };
         let p_vox = if self.view.is_some() { p } else { (p - o) / vx - Vector::splat(0.5) };
         let m = &self.mesh.materials[self.mesh.faces[facet as usize].material as usize];
         let (p_vox, n, v_arr) = (p_vox.to_array(), normal.to_array(), v.to_array());
         let mut c = match self.ambient {
-            RefAmbient::Constant(a) => shade_linear_view_f64(p_vox, n, v_arr, m, &self.lights, mask, a),
+            RefAmbient::Constant(a) => shade_linear_view_f64(p_vox, n, v_arr, m, &weighed, mask, a),
             RefAmbient::Indirect(at) => {
                 let m = Material { ka: m.kd, ..m.clone() };
-                shade_linear_view_f64(p_vox, n, v_arr, &m, &self.lights, mask, at(facet, p.to_array()))
+                shade_linear_view_f64(p_vox, n, v_arr, &m, &weighed, mask, at(facet, p.to_array()))
             }
         };
         // R = I − 2(I·N)N with I = −v: the reflected ray, and the transmitted share's way
@@ -417,13 +536,7 @@ pub fn render_reference_smooth(
     }
     let mut scene = RefScene::new(mesh, fit, n, lights, RefAmbient::Constant(ambient), &RefReflect::NONE)?;
     scene.smooth = Some(*smooth);
-    let mut img = RefImage::empty(n, lights.len() as u32);
-    for y in 0..n {
-        for x in 0..n {
-            scene.pixel(x, y, &mut img);
-        }
-    }
-    Ok(img)
+    Ok(scene.image(n, lights.len() as u32))
 }
 
 /// [`render_reference_reflect`] with any ambient term ([`RefAmbient`]).
@@ -436,13 +549,7 @@ pub fn render_reference_ambient(
     reflect: &RefReflect,
 ) -> Result<RefImage> {
     let scene = RefScene::new(mesh, fit, n, lights, ambient, reflect)?;
-    let mut img = RefImage::empty(n, lights.len() as u32);
-    for y in 0..n {
-        for x in 0..n {
-            scene.pixel(x, y, &mut img);
-        }
-    }
-    Ok(img)
+    Ok(scene.image(n, lights.len() as u32))
 }
 
 impl<'a> RefScene<'a> {
@@ -504,6 +611,7 @@ impl<'a> RefScene<'a> {
             // Reflected rays are unit vectors: far enough to leave the fitted cube from anywhere.
             max_t: 2.0 * primary_t,
             reflect: *reflect,
+            footprint: None,
         })
     }
 
@@ -578,11 +686,7 @@ impl<'a> RefScene<'a> {
     /// Pixel (x, y): the primary ray along +z from one voxel in front of the grid, or the
     /// camera's ray through the pixel's centre.
     fn pixel(&self, x: u32, y: u32, img: &mut RefImage) {
-        let (o, vx) = (self.origin, self.voxel);
-        let (origin, dir) = match &self.view {
-            Some(v) => v.ray((x as f64 + 0.5) / img.n as f64, (y as f64 + 0.5) / img.n as f64),
-            None => (Vector::new(o.x + (x as f64 + 0.5) * vx, o.y + (y as f64 + 0.5) * vx, o.z - vx), Vector::Z),
-        };
+        let (origin, dir) = self.primary(x as f64 + 0.5, y as f64 + 0.5, img.n);
         let Some((t, facet, normal)) = self.reference.first_hit(origin.to_array(), dir.to_array(), self.primary_t, &[])
         else {
             return;
@@ -595,7 +699,11 @@ impl<'a> RefScene<'a> {
         let smooth = self.smooth.and_then(|s| Some((s, self.interpolate(&s, facet, q, -dir)?)));
         let (c, mask) = match smooth {
             Some((s, (n, l))) => self.smooth_colour(p, Vector::from(normal), facet, -dir, s.mode, &n, &l),
-            None => self.colour(p, Vector::from(normal), facet, -dir, 1, 1.0),
+            None => {
+                let normal = Vector::from(normal);
+                let weights = self.footprint.map(|f| self.footprint_weights(f, (x, y, img.n), (p, normal, facet)));
+                self.colour_weighed(p, normal, facet, -dir, 1, 1.0, weights.as_deref())
+            }
         };
         let i = y as usize * img.n as usize + x as usize;
         img.rgb[i] = c.map(encode_gamma);
@@ -1139,5 +1247,43 @@ mod tests {
             facet: vec![0; 4],
         };
         assert_eq!(img.rows_top_down(), vec![[3; 3], [4; 3], [1; 3], [2; 3]]);
+    }
+
+    /// The footprint weights against the shadow's area: a light 70 voxels below the occluder
+    /// and 87.5 below the plane (off to one side, so that the shadow falls clear of the
+    /// occluder's own image) casts a shadow 1.25 times its size (area 1.25² × 64 = 100 square
+    /// voxels, a pixel being one); the pixels' shadowed shares (1 − weight) add up to it within
+    /// the sampling's error along the shadow's 46-voxel edge, weights are multiples of 1/64,
+    /// and the edge's pixels are fractional. Majority weights are 0 or 1, and 1 exactly where
+    /// the share is above ½.
+    #[test]
+    fn footprint_weights_add_up_to_the_shadow_area() {
+        let mesh = plane_mesh(true);
+        let light = RefLight { pos: [32.0, 110.0, -47.5], ..LIGHT };
+        let scene = RefScene::new(&mesh, &FIT, N, &[light], RefAmbient::Constant(AMB), &RefReflect::NONE).unwrap();
+        let ratio = RefFootprint { samples: 8, majority: false };
+        let majority = RefFootprint { majority: true, ..ratio };
+        let (mut shadow, mut fractional) = (0.0, 0);
+        for y in 0..N {
+            for x in 0..N {
+                let (o, d) = scene.primary(x as f64 + 0.5, y as f64 + 0.5, N);
+                let Some((t, facet, nrm)) = scene.reference.first_hit(o.to_array(), d.to_array(), scene.primary_t, &[])
+                else {
+                    continue;
+                };
+                if facet != 0 {
+                    continue;
+                }
+                let centre = (o + t * d, Vector::from(nrm), facet);
+                let w = scene.footprint_weights(ratio, (x, y, N), centre)[0];
+                assert_eq!((w * 64.0).round(), w * 64.0, "({x}, {y}): {w}");
+                shadow += 1.0 - w;
+                fractional += (w > 0.0 && w < 1.0) as u32;
+                let m = scene.footprint_weights(majority, (x, y, N), centre)[0];
+                assert_eq!(m, (w > 0.5) as u8 as f64, "({x}, {y})");
+            }
+        }
+        assert!((shadow - 100.0).abs() < 2.0, "shadowed area {shadow}, 100 expected");
+        assert!(fractional > 30, "{fractional} fractional pixels along a 46-voxel edge");
     }
 }

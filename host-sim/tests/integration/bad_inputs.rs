@@ -215,6 +215,15 @@ fn bad_arguments_fail_clearly() {
         (&["render", "--n", "16", "--light", "0.5,0.9,0.5", "--light-size", "0"], "0 < W <= 1"),
         (&["render", "--n", "16", "--radiosity", "--area-light", "2"], "point lights only"),
         (&["trace", "--n", "16", "--area-light", "2", "--out", "/nonexistent/t"], "a trace records point lights"),
+        // The lit-ray ratio: counted by exact occluders' cells, shown by render's diffusion.
+        (&["render", "--n", "16", "--visibility", "ratio", "--lit-rule", "plane"], "needs exact occluders"),
+        (&["render", "--n", "16", "--visibility", "majority", "--reflections", "2"], "not done with --reflections"),
+        (
+            &["render", "--n", "16", "--visibility", "ratio", "--lighting", "classic"],
+            "not done with --lighting classic",
+        ),
+        (&["render", "--n", "16", "--visibility", "ratio", "--radiosity"], "not done with --radiosity"),
+        (&["light", "--n", "16", "--visibility", "ratio"], "a render option"),
         (&["no-such-command"], "no-such-command"),
     ];
     for (args, expect) in cases {

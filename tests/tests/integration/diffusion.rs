@@ -46,11 +46,7 @@ fn exact_oracle<F: FracBits>(g: &G, src16: &[[i64; 3]], origin: Origin) -> (RayO
         Origin::Light => RaysFrom::Light,
     };
     // The scene's triangles, from the columns that keep them (voxel-centre sixteenths).
-    let tris: BTreeSet<[[i64; 3]; 3]> = (0..g.n)
-        .flat_map(|y| (0..g.n).map(move |x| (x, y)))
-        .flat_map(|(x, y)| g.triangles.column(x, y).iter().map(|t| t.vertices().map(|v| v.map(i64::from))))
-        .collect();
-    let tris: Vec<[[i64; 3]; 3]> = tris.into_iter().collect();
+    let tris = scene_triangles(g);
     let scene = exact::Scene::new(n, &tris);
     let far = FarDistance::<F>::new(g.n - 1).expect("far distance");
     let mut out = RayOutcome { lit: BTreeMap::new(), rays_emitted: 0, rays_absorbed: 0, rays_exited: 0 };
@@ -69,15 +65,7 @@ fn exact_oracle<F: FracBits>(g: &G, src16: &[[i64; 3]], origin: Origin) -> (RayO
             let fate = exact::trace_ray_exact(&scene, s, from, F::U32, dir, t.a, t.b);
             // A triangle kept by the column or one of its 8 neighbours crossing the contact
             // segment shadows the pixel.
-            let (x, y) = (c.x as i64, c.y as i64);
-            let kept: Vec<usize> = (y - 1..=y + 1)
-                .flat_map(|v| (x - 1..=x + 1).map(move |u| (u, v)))
-                .filter(|&(u, v)| (0..n).contains(&u) && (0..n).contains(&v))
-                .flat_map(|(u, v)| scene.kept(u, v).iter().copied())
-                .collect();
-            let contact = t.contact.is_some_and(|[x0, x1]| {
-                kept.iter().any(|&i| exact::segment_crosses(&scene.triangles[i], x0, x1, POINT_UNITS / 16))
-            });
+            let contact = contact_shadowed(&scene, [c.x as i64, c.y as i64], &t);
             if exact::reaches(fate, t.layer as i64) && !contact {
                 *visible.entry([c.x as i64, c.y as i64]).or_insert(0) |= 1u64 << si;
             }
@@ -97,6 +85,48 @@ fn exact_oracle<F: FracBits>(g: &G, src16: &[[i64; 3]], origin: Origin) -> (RayO
         }
     }
     (out, visible)
+}
+
+/// The scene's triangles, from the columns that keep them (voxel-centre sixteenths).
+fn scene_triangles(g: &G) -> Vec<[[i64; 3]; 3]> {
+    let tris: BTreeSet<[[i64; 3]; 3]> = (0..g.n)
+        .flat_map(|y| (0..g.n).map(move |x| (x, y)))
+        .flat_map(|(x, y)| g.triangles.column(x, y).iter().map(|t| t.vertices().map(|v| v.map(i64::from))))
+        .collect();
+    tris.into_iter().collect()
+}
+
+/// Whether a triangle kept by column `[x, y]` or one of its 8 neighbours crosses target `t`'s
+/// contact segment (the oracle's rational crossing test): the pixel is in a contact shadow.
+fn contact_shadowed(scene: &exact::Scene<'_>, [x, y]: [i64; 2], t: &cell_core::receiver::Target) -> bool {
+    let n = scene.n;
+    let kept: Vec<usize> = (y - 1..=y + 1)
+        .flat_map(|v| (x - 1..=x + 1).map(move |u| (u, v)))
+        .filter(|&(u, v)| (0..n).contains(&u) && (0..n).contains(&v))
+        .flat_map(|(u, v)| scene.kept(u, v).iter().copied())
+        .collect();
+    t.contact.is_some_and(|[x0, x1]| {
+        kept.iter().any(|&i| exact::segment_crosses(&scene.triangles[i], x0, x1, POINT_UNITS / 16))
+    })
+}
+
+/// A random exact-occluder case of the proptests: triangles on the loading lattice (`raw_tris`
+/// in 0..=20, scaled to 0.8·n voxels), sources anywhere (`raw_src` in 0..=1000 of the grid),
+/// rays from the light (with the FIFO it needs) or the source voxel.
+fn exact_case(
+    n: u32,
+    raw_tris: &[[[i64; 3]; 3]],
+    raw_src: &[[i64; 3]],
+    light_origin: bool,
+    cfg: LightConfig,
+) -> (G, Vec<[i64; 3]>, LightConfig) {
+    let tris: Vec<[[i64; 3]; 3]> = raw_tris.iter().map(|t| t.map(|p| p.map(|c| c * 8 * n as i64 / 10))).collect();
+    let src16: Vec<[i64; 3]> = raw_src.iter().map(|p| p.map(|c| c * 16 * (n as i64 - 1) / 1000)).collect();
+    let (rays, fa) = match light_origin {
+        true => (Origin::Light, cfg.fa.max(cell_core::light::MIN_FA_FROM_LIGHT)),
+        false => (Origin::SourceVoxel, cfg.fa),
+    };
+    (grid_with(n, &tris), src16, LightConfig { rays, fa, ..cfg })
 }
 
 /// The cell's direction of the oracle's face `dir`.
@@ -239,14 +269,7 @@ proptest! {
         f in prop::sample::select(vec![0u32, 1, 2]),
         cfg in config_of(vec![LitRule::Exact]),
     ) {
-        let tris: Vec<[[i64; 3]; 3]> = raw_tris.iter().map(|t| t.map(|p| p.map(|c| c * 8 * n as i64 / 10))).collect();
-        let src16: Vec<[i64; 3]> = raw_src.iter().map(|p| p.map(|c| c * 16 * (n as i64 - 1) / 1000)).collect();
-        let g = grid_with(n, &tris);
-        let (rays, fa) = match light_origin {
-            true => (Origin::Light, cfg.fa.max(cell_core::light::MIN_FA_FROM_LIGHT)),
-            false => (Origin::SourceVoxel, cfg.fa),
-        };
-        let cfg = LightConfig { rays, fa, ..cfg };
+        let (g, src16, cfg) = exact_case(n, &raw_tris, &raw_src, light_origin, cfg);
         cell_core::with_frac_bits!(f, F => check_against_rays::<F>(&g, &src16, cfg)).unwrap()?;
     }
 
@@ -583,4 +606,148 @@ fn phase_seconds_are_laps_inside_the_light_wall() {
     }
     assert!(phases.step > 0.0 && stats.totals.beams_processed > 0);
     assert!(phases.total() <= stats.wall_seconds, "{} s of phases in {} s", phases.total(), stats.wall_seconds);
+}
+
+/// The lit-ray ratio's oracle (`cell_core::visibility`): for every column with a target ray and
+/// every source, the candidates R — every lattice ray of the target's face, enumerated, whose
+/// voxel at the target's layer is the target voxel (`RaysFrom::voxel`) and that lies on the
+/// visible plane's outer side at that layer or the one before (`oracle::lit::plane_value_on`)
+/// — and r, those of them the exact walk (`oracle::exact`) brings to that layer; the weight
+/// `⌊255·r/R + ½⌋` (`majority`: 255 iff 2r > R), 0 in a contact shadow. Keyed by (column,
+/// source).
+fn ratio_oracle<F: FracBits>(
+    g: &G,
+    src16: &[[i64; 3]],
+    origin: Origin,
+    majority: bool,
+) -> BTreeMap<([i64; 2], usize), (u64, u64, u8)> {
+    let n = g.n as i64;
+    let from = match origin {
+        Origin::SourceVoxel => RaysFrom::Voxel,
+        Origin::Light => RaysFrom::Light,
+    };
+    let tris = scene_triangles(g);
+    let scene = exact::Scene::new(n, &tris);
+    let far = FarDistance::<F>::new(g.n - 1).expect("far distance");
+    let (d, m) = (n - 1, (n - 1) << F::U32);
+    let columns = common::columns_of(g);
+    let mut out = BTreeMap::new();
+    for (si, &s) in src16.iter().enumerate() {
+        let source = sources(&[s])[0].with_origin(origin);
+        for c in &g.cells {
+            let (x, y) = (c.x as i64, c.y as i64);
+            let Some(t) = c.visible.as_ref().and_then(|v| target(c.x as i32, c.y as i32, v, &source, far)) else {
+                continue;
+            };
+            let vis = columns(x, y).expect("a target needs a visible surface");
+            let dir = (0..6).find(|&d| oracle_direction(d) == t.dir).expect("six directions");
+            let k = t.layer as i64;
+            let (mut total, mut arrived) = (0u64, 0u64);
+            for a in -m..=m {
+                for b in -m..=m {
+                    if from.voxel(s, dir, a, b, d, F::U32, k) != [x, y, t.z] {
+                        continue;
+                    }
+                    let side = |layer| {
+                        rc2_tests::oracle::lit::plane_value_on(&vis.plane, x, y, from, s, dir, a, b, d, F::U32, layer)
+                            > 0
+                    };
+                    if side(k) || side(k - 1) {
+                        total += 1;
+                        arrived += exact::reaches(exact::trace_ray_exact(&scene, s, from, F::U32, dir, a, b), k) as u64;
+                    }
+                }
+            }
+            let contact = contact_shadowed(&scene, [x, y], &t);
+            let weight = match (contact || total == 0, majority) {
+                (true, _) => 0,
+                (false, true) => 255 * (2 * arrived > total) as u8,
+                (false, false) => ((510 * arrived + total) / (2 * total)) as u8,
+            };
+            out.insert(([x, y], si), (arrived, total, weight));
+        }
+    }
+    out
+}
+
+/// Under `--visibility ratio|majority` the cells' weights equal the oracle's, ray count for ray
+/// count; the beams, cycles and lit sets are those of the default (target) visibility.
+fn check_ratio<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) -> Result<u32, TestCaseError> {
+    use cell_core::visibility::Visibility;
+    let base = light::<F>(g, src16, LightConfig { visibility: Visibility::Target, ..cfg });
+    let l = light::<F>(g, src16, cfg);
+    let counts = |l: &Lighting| l.reports.iter().map(|r| r.counts.clone()).collect::<Vec<_>>();
+    prop_assert_eq!(counts(&base), counts(&l), "counting rays changed the machine");
+    prop_assert_eq!(visible_lit(&base), visible_lit(&l));
+    let want = ratio_oracle::<F>(g, src16, cfg.rays, cfg.visibility == Visibility::Majority);
+    let weights = l.weights.as_ref().expect("the cells counted");
+    prop_assert_eq!(weights.len(), src16.len());
+    let mut fractional = 0;
+    for y in 0..g.n {
+        for x in 0..g.n {
+            for (si, per_source) in weights.iter().enumerate() {
+                let got = per_source[(y * g.n + x) as usize];
+                let w = want.get(&([x as i64, y as i64], si)).map_or(0, |o| o.2);
+                prop_assert_eq!(
+                    got,
+                    w,
+                    "column ({}, {}) source {}: oracle {:?}",
+                    x,
+                    y,
+                    si,
+                    want.get(&([x as i64, y as i64], si))
+                );
+                fractional += (got != 0 && got != 255) as u32;
+            }
+        }
+    }
+    Ok(fractional)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// The lit-ray ratio against the oracle that enumerates every ray of each target voxel and
+    /// walks it alone (`ratio_oracle`), for both ray origins, f = 0–2, every policy, FIFO
+    /// size, merging, skip and timing: the count is the rays', not the beams'.
+    #[test]
+    fn lit_ray_ratio_matches_per_ray_counts(
+        n in 5u32..=9,
+        raw_tris in prop::collection::vec(prop::array::uniform3(prop::array::uniform3(0i64..=20)), 1..6),
+        raw_src in prop::collection::vec([0i64..=1000, 0..=1000, 0..=1000], 1..3),
+        light_origin in any::<bool>(),
+        majority in any::<bool>(),
+        f in prop::sample::select(vec![0u32, 1, 2]),
+        cfg in config_of(vec![LitRule::Exact]),
+    ) {
+        use cell_core::visibility::Visibility;
+        let visibility = if majority { Visibility::Majority } else { Visibility::Ratio };
+        let (g, src16, cfg) = exact_case(n, &raw_tris, &raw_src, light_origin, LightConfig { visibility, ..cfg });
+        cell_core::with_frac_bits!(f, F => check_ratio::<F>(&g, &src16, cfg)).unwrap()?;
+    }
+}
+
+/// A floor partly in the shadow of a slab's slanted straight edge, lit from above the slab at
+/// f = 2: the shadow edge's pixels get weights strictly between 0 and 255 (the ratio is not the target ray's
+/// all-or-nothing), each equal to the oracle's.
+#[test]
+fn a_shadow_edge_gets_fractional_weights() {
+    use cell_core::visibility::Visibility;
+    let n = 9u32;
+    let m = Q * n as i64;
+    let at = |x: i64, y: i64, z: i64| [x * m / 90, y * m / 90, z * m / 90];
+    // The floor at z ≈ 7.5 voxels, a slab over half of it at z ≈ 4.3 whose edge runs along y
+    // at a slant, so that it cuts the columns' target voxels at many offsets.
+    let tris = [
+        [at(2, 2, 75), at(88, 2, 75), at(88, 88, 75)],
+        [at(2, 2, 75), at(88, 88, 75), at(2, 88, 75)],
+        [at(0, 0, 43), at(36, 0, 43), at(44, 90, 43)],
+        [at(0, 0, 43), at(44, 90, 43), at(0, 90, 43)],
+    ];
+    let g = grid_with(n, &tris);
+    // The light over the slab: the edge's shadow falls on the visible floor beyond it.
+    let src16 = [[16 + 3, 16 * 4 + 3, 8]];
+    let cfg = LightConfig { visibility: Visibility::Ratio, rule: LitRule::Exact, ..host_sim::config::plane_rule() };
+    let fractional = check_ratio::<cell_core::beam::frac::U2>(&g, &src16, cfg).unwrap();
+    assert!(fractional >= 3, "only {fractional} fractional weights along the shadow edge");
 }

@@ -339,6 +339,7 @@ fn run_f<F: FracBits>(
         link_faults: None,
         rule: light.rule,
         phases: Default::default(),
+        weights: None,
     };
     Ok(AsyncRun { grid, lighting, stats: ex.stats, early: ex.early })
 }

@@ -11,6 +11,8 @@ use cell_core::light::Port;
 use cell_core::occluder::{Column, ColumnOccluders, SeenEntry, SeenTable, SourceViews, Triangle};
 use cell_core::receiver::{crosses_any, target, Target};
 use cell_core::units::{Coord, Depth};
+use cell_core::visibility::TargetVoxel;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::machine::grid::pieces::{par_map, prefetch};
 use crate::machine::grid::triangles::ColumnTriangles;
@@ -36,6 +38,12 @@ pub struct SourceOccluders<'a> {
     /// Per direction, then per distinct triangle ([`ColumnTriangles::distinct`]), its plane
     /// (`cell_core::occluder::SeenTable`'s layout).
     seen: Vec<SeenEntry>,
+    /// Per column, its target voxel, where it counts its candidate rays (empty: the cells do
+    /// not count them, `cell_core::visibility::Visibility::Target`).
+    voxels: Vec<Option<TargetVoxel>>,
+    /// Per column, the candidate rays its target voxel received (the cells' counts; cells step
+    /// in parallel, each adding only to its own).
+    arrived: Vec<AtomicU64>,
 }
 
 impl<'a> SourceOccluders<'a> {
@@ -56,7 +64,38 @@ impl<'a> SourceOccluders<'a> {
         let (views, m) = (SourceViews::new(source, far), distinct.len());
         let seen = par_map(6 * m, &|j| views.entry(&distinct[j % m], Direction::ALL[j / m]));
         let target_z = targets.iter().map(|t| t.as_ref().map_or(-1, |t| t.z as i32)).collect();
-        SourceOccluders { n, triangles: tris, targets, target_z, seen }
+        SourceOccluders { n, triangles: tris, targets, target_z, seen, voxels: Vec::new(), arrived: Vec::new() }
+    }
+
+    /// The same occluders with every column's target voxel, for cells that count the
+    /// candidate rays reaching it (`cell_core::visibility`): computed from the target ray and
+    /// the visible surface, as a cell does once per source.
+    pub fn counting_rays<F: FracBits, const D: usize>(
+        mut self,
+        grid: &Grid<D>,
+        source: &Source,
+        far: FarDistance<F>,
+    ) -> Self {
+        let (n, tris) = (grid.n, &grid.triangles);
+        let voxels = par_map(grid.cells.len(), &|i| {
+            let (c, t) = (&grid.cells[i], self.targets[i].as_ref()?);
+            let shadowed = t.in_contact_shadow(tris.column(i as u32 % n, i as u32 / n));
+            TargetVoxel::new(t, (c.x as i32, c.y as i32), c.visible.as_ref()?, source, far, shadowed)
+        });
+        self.arrived = voxels.iter().map(|_| AtomicU64::new(0)).collect();
+        self.voxels = voxels;
+        self
+    }
+
+    /// The candidate rays each column's target voxel received (row-major; empty unless
+    /// [`SourceOccluders::counting_rays`]).
+    pub fn arrived_rays(&self) -> Vec<u64> {
+        self.arrived.iter().map(|a| a.load(Ordering::Relaxed)).collect()
+    }
+
+    /// Every column's target voxel (row-major; empty unless [`SourceOccluders::counting_rays`]).
+    pub fn target_voxels(&self) -> &[Option<TargetVoxel>] {
+        &self.voxels
     }
 
     /// The planes of the triangles `ids` (a column's).
@@ -91,6 +130,16 @@ impl ColumnOccluders for SourceOccluders<'_> {
         Some(self.table(self.triangles.ids(x as u32, y as u32)))
     }
 
+    fn target_voxel(&self, x: Coord, y: Coord) -> Option<&TargetVoxel> {
+        self.voxels.get(y as usize * self.n as usize + x as usize)?.as_ref()
+    }
+
+    fn arrived(&self, x: Coord, y: Coord, rays: u64) {
+        if let Some(a) = self.arrived.get(y as usize * self.n as usize + x as usize) {
+            a.fetch_add(rays, Ordering::Relaxed);
+        }
+    }
+
     fn column(&self, x: Coord, y: Coord, z: Depth) -> Column<'_> {
         let (triangles, ids, near) = self.triangles.column_parts(x as u32, y as u32);
         let i = y as usize * self.n as usize + x as usize;
@@ -100,6 +149,7 @@ impl ColumnOccluders for SourceOccluders<'_> {
             triangles,
             seen: Some(self.table(ids)),
             target: if here { self.targets.get(i).and_then(Option::as_ref) } else { None },
+            voxel: if here { self.voxels.get(i).and_then(Option::as_ref) } else { None },
             near: Some(near),
         }
     }

@@ -70,11 +70,32 @@ pub enum Seen<'a> {
     /// The plane rule's: the surface the column's centre line meets ([`cell_core::visible`]),
     /// lit by the sources `mask(x, y)` gives for column (x, y).
     Surface(Box<dyn Fn(u32, u32) -> SourceMask + 'a>),
+    /// The visible surface under the lit-ray ratio ([`cell_core::visibility`]): each light
+    /// weighed by the weight (0 ..= 255) `weights(x, y)` gives it for column (x, y).
+    Weighted(Box<dyn Fn(u32, u32) -> Vec<u8> + 'a>),
 }
 
-/// What the image of a diffusion reads, by its lit rule.
+/// The lights of a pixel each weighed by its weight (0 ..= 255; a cell scales the light's
+/// intensity by `w/255`), and the mask of those with a weight.
+pub fn weigh_lights(lights: &[PointLight], weights: &[u8]) -> (SourceMask, Vec<PointLight>) {
+    let mask = weights.iter().take(32).enumerate().fold(0, |m, (s, &w)| m | ((w > 0) as SourceMask) << s);
+    let scaled = lights
+        .iter()
+        .enumerate()
+        .map(|(s, l)| {
+            let w = weights.get(s).copied().unwrap_or(0) as f32 / 255.0;
+            PointLight { color: l.color.map(|c| c * w), ..*l }
+        })
+        .collect();
+    (mask, scaled)
+}
+
+/// What the image of a diffusion reads, by its lit rule (and, when the cells counted rays,
+/// their weights).
 pub fn seen(lighting: &crate::machine::lighting::diffuse::Lighting) -> Seen<'_> {
-    if lighting.rule.shades_visible_surface() {
+    if lighting.weights.is_some() {
+        Seen::Weighted(Box::new(|x, y| lighting.pixel_weights(x, y).unwrap_or_default()))
+    } else if lighting.rule.shades_visible_surface() {
         Seen::Surface(Box::new(|x, y| lighting.visible_mask(x, y)))
     } else {
         Seen::FirstVoxel(Box::new(|x, y, z| lighting.mask(x, y, z)))
@@ -221,6 +242,20 @@ pub fn shade_grid_ambient(
     for (i, c) in scene.grid.cells.iter().enumerate() {
         let (x, y) = (c.x as u32, c.y as u32);
         params.ambient = ambient.at(i);
+        // The pixel's lights: weighed by its cell's weights, or as they are.
+        let weighed = match seen {
+            Seen::Weighted(w) => Some(weigh_lights(lights, &w(x, y))),
+            _ => None,
+        };
+        let (lights, ref_lights) = match &weighed {
+            Some((_, l)) => (&l[..], std::borrow::Cow::Owned(self::ref_lights(l))),
+            None => (lights, std::borrow::Cow::Borrowed(&ref_lights[..])),
+        };
+        let surface_mask = |x: u32, y: u32| match (seen, &weighed) {
+            (Seen::Surface(mask), _) => mask(x, y),
+            (_, Some((m, _))) => *m,
+            _ => 0,
+        };
         // The pixel, the point and normal it was shaded at, and its material.
         let shaded = match seen {
             Seen::FirstVoxel(mask) => pixel(c.x, c.y, &c.store, |z| mask(x, y, z), &mats, lights, &params).map(|px| {
@@ -228,7 +263,8 @@ pub fn shade_grid_ambient(
                 let (p, v) = scene.eye.shading_point([c.x as f32, c.y as f32, px.z as f32]);
                 (px, p, v, Normals::One(shading_normal_toward(d.normal, mode, v)), d.material)
             }),
-            Seen::Surface(mask) => c.visible.as_ref().map(|s| {
+            Seen::Surface(_) | Seen::Weighted(_) => c.visible.as_ref().map(|s| {
+                let mask = surface_mask;
                 let (p, v) = scene.eye.shading_point([c.x as f32, c.y as f32, s.depth()]);
                 match smooth.and_then(|g| Some((g.mode, g.records[i].as_ref()?))) {
                     Some((m, r)) => {

@@ -31,6 +31,7 @@ use cell_core::light::{
 use cell_core::lit::LitRule;
 use cell_core::occluder::ColumnOccluders;
 use cell_core::units::Coord;
+use cell_core::visibility::Visibility;
 
 use cell_core::link::PerfectLink;
 
@@ -126,6 +127,10 @@ pub struct LightConfig {
     /// §4.4.3). A source that ran until then is not checked for conservation. `None`: run
     /// to quiescence.
     pub stop_at: Option<u64>,
+    /// How a pixel's visibility of a light is decided ([`Visibility`], exact occluders only):
+    /// its target ray (the default), or the share of its target voxel's rays that arrive,
+    /// counted by the cells (same beams, cycles and messages; other pixels).
+    pub visibility: Visibility,
 }
 
 impl LightConfig {
@@ -374,6 +379,10 @@ pub struct Lighting {
     pub rule: LitRule,
     /// Host time per phase of the loop (not simulated).
     pub phases: PhaseSeconds,
+    /// Per source (diffusion order), per column (row-major), the weight of the light for its
+    /// pixel (0 ..= 255, [`Visibility::weight`]) when the cells counted their target voxels'
+    /// rays; `None` under [`Visibility::Target`].
+    pub weights: Option<Vec<Vec<u8>>>,
 }
 
 impl Lighting {
@@ -385,6 +394,13 @@ impl Lighting {
     /// Sources that lit the visible surface of column (x, y) (the plane rule).
     pub fn visible_mask(&self, x: u32, y: u32) -> SourceMask {
         self.cells[(y * self.n + x) as usize].visible_lit
+    }
+
+    /// The weight of each source for the pixel of column (x, y) (0 ..= 255), when the cells
+    /// counted rays ([`Lighting::weights`]).
+    pub fn pixel_weights(&self, x: u32, y: u32) -> Option<Vec<u8>> {
+        let i = (y * self.n + x) as usize;
+        self.weights.as_ref().map(|w| w.iter().map(|s| s.get(i).copied().unwrap_or(0)).collect())
     }
 
     /// Every lit voxel with its mask, in (y, x, z) order.
@@ -672,9 +688,17 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
         // The summary's occupied blocks, the same for every source: what each source's
         // frustum shortcut is filled from (not for a radiosity shot's few rays).
         let blocks = self.frustum.filter(|_| self.shot.is_none()).map(|s| (s, s.occupied_blocks()));
+        let mut weights =
+            (cfg.visibility.counts_rays() && cfg.rule.needs_triangles()).then(|| vec![Vec::new(); self.sources.len()]);
         for (si, src) in self.sources.iter().enumerate().filter(|(si, _)| self.share.takes(*si)) {
             let mut lap = Lap::start();
-            let occluders = cfg.rule.needs_triangles().then(|| SourceOccluders::new(self.grid, src, self.far));
+            let occluders = cfg.rule.needs_triangles().then(|| {
+                let o = SourceOccluders::new(self.grid, src, self.far);
+                match cfg.visibility.counts_rays() {
+                    true => o.counting_rays(self.grid, src, self.far),
+                    false => o,
+                }
+            });
             let mut env = self.env(src, si, &order, occluders.as_ref().map(|o| o as &dyn ColumnOccluders));
             // The host's table of the frustum test's commonest answer (same answers, faster).
             let shortcut = blocks.as_ref().and_then(|(s, b)| Shortcut::new(s.test(), src, self.far, b));
@@ -708,6 +732,9 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
             lap = Lap::start();
             rep.position = src.pos.map(|p| p.to_num::<f64>());
             add_cell_counts(&mut rep, cells, &before);
+            if let Some(w) = weights.as_mut() {
+                w[si] = pixel_weights(cfg.visibility, cells.len(), occluders.as_ref());
+            }
             if let Some(o) = &occluders {
                 // The contact exchange ran before the beams left.
                 rep.counts.cycles += CONTACT_EXCHANGE_CYCLES;
@@ -721,7 +748,7 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
         }
         let link_faults = fault_counts(links.all());
         let lit = lit_columns(&cells);
-        Ok((Lighting { n: grid.n, cells: lit, reports, visited, link_faults, rule: cfg.rule, phases }, cells))
+        Ok((Lighting { n: grid.n, cells: lit, reports, visited, link_faults, rule: cfg.rule, phases, weights }, cells))
     }
 
     /// The lighting environment of source `si`.
@@ -779,6 +806,20 @@ fn add_cell_counts<F: FracBits>(rep: &mut SourceReport, cells: &[HostLightCell<F
         }
     }
     rep.counts.lower_bound = rep.counts.lb_distance.max(rep.counts.lb_cell_load);
+}
+
+/// Each column's weight for the source just diffused: what its cell makes of the candidate
+/// rays its target voxel received under `visibility`; 0 without a target.
+fn pixel_weights(visibility: Visibility, columns: usize, occluders: Option<&SourceOccluders<'_>>) -> Vec<u8> {
+    let (voxels, arrived) = occluders.map_or((&[][..], Vec::new()), |o| (o.target_voxels(), o.arrived_rays()));
+    (0..columns)
+        .map(|i| {
+            voxels
+                .get(i)
+                .and_then(Option::as_ref)
+                .map_or(0, |tv| visibility.weight(arrived[i], tv.total, tv.contact_shadow))
+        })
+        .collect()
 }
 
 /// Every ray emitted was absorbed, left the grid or was skipped.

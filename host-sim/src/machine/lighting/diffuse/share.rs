@@ -37,9 +37,10 @@ impl Share {
     /// Whether a run under `cfg` can be split by sources with the same result: not when its
     /// sources share more than the lit stores and counters — faulty links (each injector's
     /// random state runs on from source to source), a snapshot (`stop_at`: beams still in
-    /// flight when the next source starts), the visited voxels, or a cell trace (`tapped`).
+    /// flight when the next source starts), the visited voxels, a cell trace (`tapped`), or
+    /// the pixels' weights of a run that counts rays (parts do not carry them).
     pub fn spreads(cfg: &LightConfig, tapped: bool) -> bool {
-        cfg.faults.is_none() && cfg.stop_at.is_none() && !cfg.record_visits && !tapped
+        cfg.faults.is_none() && cfg.stop_at.is_none() && !cfg.record_visits && !tapped && !cfg.visibility.counts_rays()
     }
 }
 
@@ -131,7 +132,7 @@ pub fn merge_parts(parts: Vec<Lighting>) -> Result<Lighting> {
             LitColumn { x: at.x, y: at.y, lit, visible_lit, counters, queued: at.queued }
         })
         .collect();
-    Ok(Lighting { n, cells, reports, visited: None, link_faults: None, rule, phases })
+    Ok(Lighting { n, cells, reports, visited: None, link_faults: None, rule, phases, weights: None })
 }
 
 /// Two cells' counters added (the peaks: the larger; [`merge_parts`] sets them).
@@ -264,7 +265,7 @@ pub fn decode_part(bytes: &[u8]) -> Result<Lighting> {
     if r.at != bytes.len() {
         bail!("{} bytes left over after a lighting part", bytes.len() - r.at);
     }
-    Ok(Lighting { n, cells, reports, visited: None, link_faults: None, rule, phases })
+    Ok(Lighting { n, cells, reports, visited: None, link_faults: None, rule, phases, weights: None })
 }
 
 fn counters_to(w: &mut Writer, c: &LightCounters) {
