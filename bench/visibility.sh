@@ -8,8 +8,8 @@
 # surface, what `ratio` and `majority` approximate; `render --visibility ratio --reference`
 # writes it). Writes bench-out/visibility.csv and bench-out/visibility.md (the table of
 # BENCHMARKS.md "Pixels lit by a share of their rays" with its header lines, also printed); with
-# PICTURES=1 also docs/visibility-cornell-128.png (f = 2: target, ratio, footprint reference, the
-# floor under the blocks ×3). PSNRs over every pixel, as `render` computes them, with Pillow and
+# PICTURES=1 also docs/visibility-teapot-256.png (teapot-floor, n = 256, f = 2: target, ratio,
+# footprint reference; the spout's shadow ×2). PSNRs over every pixel, as `render` computes them, with Pillow and
 # NumPy through bench/venv.sh. SCENES, NS and FS choose the runs; about 10 minutes on 2 cores
 # with the defaults.
 set -euo pipefail
@@ -71,17 +71,17 @@ PY
 if [ "${PICTURES:-0}" = 1 ]; then
   "$PY" - <<'PY'
 from PIL import Image
-o = "bench-out/vis-cornell-128-f2"
+o = "bench-out/vis-teapot-floor-256-f2"
 paths = [f"{o}-target.png", f"{o}-ratio.png", f"{o}-ratio.reference.png"]
-box = (16, 56, 116, 126)  # the floor under the blocks at n = 128 (image rows top down), shown ×3
-k = 3
+box = (12, 120, 140, 248)  # the spout's shadow on the floor (image rows top down), shown ×2
+k = 2
 ims = [Image.open(p).convert("RGB").crop(box) for p in paths]
 ims = [i.resize((k * i.width, k * i.height), Image.NEAREST) for i in ims]
 cw, ch = ims[0].size
 out = Image.new("RGB", (3 * cw + 8, ch), (255, 255, 255))
 for x, i in enumerate(ims):
     out.paste(i, (x * (cw + 4), 0))
-out.save("docs/visibility-cornell-128.png", optimize=True)
+out.save("docs/visibility-teapot-256.png", optimize=True)
 PY
-  ls -l docs/visibility-cornell-128.png
+  ls -l docs/visibility-teapot-256.png
 fi

@@ -253,7 +253,9 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         f.per_ray = visit.per_ray();
         // The lit-ray ratio: the candidates this beam brings to the column's target voxel
         // ([`crate::visibility`]); those of a rectangle the step keeps are taken back below.
+        #[cfg(feature = "lit-ray-ratio")]
         let counted = column.and_then(|c| c.voxel).filter(|tv| tv.receives(b));
+        #[cfg(feature = "lit-ray-ratio")]
         if let Some(tv) = counted {
             f.arrived += tv.count::<_, EXACT_SEGMENTS>(&visit, u, v);
         }
@@ -314,6 +316,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         self.peel::<_, EXACT_SEGMENTS>(m, &mut visit, &revisit, stay, carry, env, f);
         // The kept rest is counted by the step that takes it (the visit holds for it: peeling
         // took it again on what it keeps).
+        #[cfg(feature = "lit-ray-ratio")]
         if let (Some(tv), Some(rest)) = (counted, f.keep) {
             f.arrived -= tv.count::<_, EXACT_SEGMENTS>(&visit, lattice(rest.beam.u()), lattice(rest.beam.v()));
         }

@@ -279,7 +279,7 @@ struct Fate<'s, F: FracBits> {
     #[cfg(feature = "exact-occluders")]
     per_ray: bool,
     /// Candidate rays brought to the column's target voxel ([`crate::visibility`]).
-    #[cfg(feature = "exact-occluders")]
+    #[cfg(feature = "lit-ray-ratio")]
     arrived: u64,
 }
 
@@ -314,7 +314,7 @@ impl<'s, F: FracBits> Fate<'s, F> {
             after_outside: false,
             #[cfg(feature = "exact-occluders")]
             per_ray: false,
-            #[cfg(feature = "exact-occluders")]
+            #[cfg(feature = "lit-ray-ratio")]
             arrived: 0,
         }
     }
@@ -335,7 +335,10 @@ impl<'s, F: FracBits> Fate<'s, F> {
         #[cfg(feature = "exact-occluders")]
         {
             self.per_ray = false;
-            self.arrived = 0;
+            #[cfg(feature = "lit-ray-ratio")]
+            {
+                self.arrived = 0;
+            }
         }
     }
 }
@@ -784,6 +787,7 @@ impl<F: FracBits, const FA: usize, const OB: usize, const L: usize> LightCell<F,
         #[cfg(feature = "exact-occluders")]
         {
             self.counters.per_ray_visits += fate.per_ray as u32;
+            #[cfg(feature = "lit-ray-ratio")]
             if fate.arrived > 0 {
                 if let Some(o) = env.occluders {
                     o.arrived(self.x, self.y, fate.arrived);

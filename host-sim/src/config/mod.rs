@@ -557,6 +557,24 @@ mod tests {
         assert!(RunConfig::resolve(Preset::Render, &zero, Needs::default()).is_err());
     }
 
+    /// `--visibility ratio|majority` is described and written; `target` (every preset's) is
+    /// not; a rule without exact occluders refuses it.
+    #[test]
+    fn visibility_is_described_only_when_counting() {
+        for v in [Visibility::Ratio, Visibility::Majority] {
+            let o = Overrides { visibility: Some(v), ..Overrides::default() };
+            let r = RunConfig::resolve(Preset::Render, &o, Needs::default()).unwrap();
+            assert!(r.describe().ends_with(&format!(", visibility by lit-ray {}", v.name())), "{}", r.describe());
+            assert_eq!(serde_json::to_value(r.summary()).unwrap()["visibility"], v.name());
+            let plane = Overrides { rule: Some(LitRule::Plane), ..o };
+            assert!(RunConfig::resolve(Preset::Render, &plane, Needs::default()).is_err());
+        }
+        for p in Preset::ALL {
+            assert_eq!(p.light().visibility, Visibility::Target, "{p}");
+            assert!(serde_json::to_value(p.config().summary()).unwrap().get("visibility").is_none());
+        }
+    }
+
     /// The description names the preset and the decisive settings.
     #[test]
     fn the_description_says_what_ran() {
