@@ -126,7 +126,7 @@ pub fn run_diffusion(
             return Err(Finished.into());
         }
         eprintln!(
-            "note: this run's sources share more than their lit marks (link faults or a snapshot): rank 0 diffuses them all"
+            "note: this run's sources share more than their lit marks (link faults, a snapshot, or the lit-ray ratio's weights): rank 0 diffuses them all"
         );
         return run::run_diffusion(mesh, scene, lights, cfg, progress);
     }

@@ -669,3 +669,33 @@ fn area_light_one_is_the_point_light_to_the_byte() {
     assert_eq!(two_json["light"]["sources"].as_array().unwrap().len(), 4);
     assert!(two_line.ends_with("area lights sampled 2 × 2"), "{two_line}");
 }
+
+/// `render --visibility ratio`: the beam skips (which drop only beams no pixel's voxel needs)
+/// leave its image unchanged to the byte; the machine's counts are the target run's; the
+/// weights change pixels (the option is not a no-op), and the run line names it.
+#[test]
+fn lit_ray_ratio_is_exact_under_the_skips() {
+    let dir = std::env::temp_dir().join(format!("rc2-cli-ratio-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |name: &str, extra: &[&str]| {
+        let (png, json) = (dir.join(format!("{name}.png")), dir.join(format!("{name}.json")));
+        let mut args = vec!["render", "teapot-floor", "--n", "64", "--frac-bits", "1", "--quiet"];
+        args.extend(extra);
+        args.extend(["--out", png.to_str().unwrap(), "--stats", json.to_str().unwrap()]);
+        let (code, err) = host_sim(&args);
+        assert_eq!(code, 0, "{args:?}: {err}");
+        let stats: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        (std::fs::read(&png).unwrap(), stats)
+    };
+    let (target, t) = run("target", &[]);
+    let (ratio, r) = run("ratio", &["--visibility", "ratio"]);
+    let off = ["--skip-hidden", "false", "--skip-receding", "false", "--skip-dead-directions", "false"];
+    let (unskipped, _) = run("unskipped", &[&["--visibility", "ratio"][..], &off[..]].concat());
+    assert_eq!(ratio, unskipped, "the skips changed a weight");
+    assert_ne!(ratio, target, "the ratio changed no pixel");
+    for key in ["cycles", "beams_processed", "messages", "rays_absorbed"] {
+        assert_eq!(t["light"][key], r["light"][key], "{key}");
+    }
+    assert_eq!(r["run"]["visibility"], "ratio");
+    assert!(t["run"].get("visibility").is_none());
+}
