@@ -705,7 +705,7 @@ fn check_ratio<F: FracBits>(g: &G, src16: &[[i64; 3]], cfg: LightConfig) -> Resu
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(24))]
+    #![proptest_config(ProptestConfig::with_cases(96))]
 
     /// The lit-ray ratio against the oracle that enumerates every ray of each target voxel and
     /// walks it alone (`ratio_oracle`), for both ray origins, f = 0–2, every policy, FIFO
