@@ -10,8 +10,8 @@
 # BENCHMARKS.md "Pixels lit by a share of their rays" with its header lines, also printed); with
 # PICTURES=1 also docs/visibility-teapot-256.png (teapot-floor, n = 256, f = 2: target, ratio,
 # footprint reference; the spout's shadow ×2). PSNRs over every pixel, as `render` computes them, with Pillow and
-# NumPy through bench/venv.sh. SCENES, NS and FS choose the runs; about 10 minutes on 2 cores
-# with the defaults.
+# NumPy through bench/venv.sh. SCENES, NS and FS choose the runs (about 10 minutes on 2 cores
+# with the defaults); TAG=T names the outputs bench-out/visibility-T.{csv,md} instead.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SCENES=${SCENES:-"cornell teapot-floor bureau1"}
@@ -22,7 +22,8 @@ cargo build --release -q -p host-sim
 B=${CARGO_TARGET_DIR:-target}/release/host-sim
 . bench/venv.sh
 PY=$(bench_python pillow numpy)  # "import pillow" fails, so pip checks it each time (quick)
-CSV=bench-out/visibility.csv
+OUT=bench-out/visibility${TAG:+-$TAG}
+CSV=$OUT.csv
 echo "scene,n,f,visibility,psnr_point_db,psnr_footprint_db,point_vs_footprint_db,light_cycles,beams,messages,light_seconds" > "$CSV"
 for scene in $SCENES; do
   for n in $NS; do
@@ -55,7 +56,7 @@ PY
 done
 . bench/lib.sh
 {
-  bench_header "SCENES=\"$SCENES\" NS=\"$NS\" FS=\"$FS\" bash bench/visibility.sh"
+  bench_header "SCENES=\"$SCENES\" NS=\"$NS\" FS=\"$FS\"${TAG:+ TAG=$TAG} bash bench/visibility.sh"
   echo
   python3 - "$CSV" <<'PY'
 import csv, sys
@@ -67,7 +68,7 @@ for r in rows:
     print(f"| {r['scene']} | {r['n']} | {r['f']} | {r['visibility']} | {r['psnr_point_db']} | {r['psnr_footprint_db']} | "
           f"{r['point_vs_footprint_db']} | {g(r['light_cycles'])} | {g(r['beams'])} | {g(r['messages'])} | {r['light_seconds']} |")
 PY
-} | tee bench-out/visibility.md
+} | tee "$OUT.md"
 if [ "${PICTURES:-0}" = 1 ]; then
   "$PY" - <<'PY'
 from PIL import Image
