@@ -240,6 +240,38 @@ pub struct RadiosityOpts {
     /// merged to cell (0, 0) along the rows and column 0.
     #[arg(long, value_enum, value_name = "STRATEGY", requires = "shots_by")]
     pub update: Option<UpdateArg>,
+    /// Shots under way at once (the radiosity thesis's "several emissions at once", ch. 5):
+    /// each carries its shooter's unshot radiosity as it was when chosen, and what a patch
+    /// receives while its own shot is under way stays unshot; the shots land in the order they
+    /// started. 1: the one-shot-at-a-time supervisor [default: 1].
+    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub in_flight: Option<u32>,
+    /// With --in-flight K > 1: how the shooters are chosen [default: table]. `table`: a central
+    /// table of unshot power (Feda's): whenever a shot lands the patch with the most unshot
+    /// power not under way starts, so K shots are always under way. `rounds`: the K patches
+    /// with the most unshot power shoot together, and the next K are chosen once all have
+    /// landed (Thomin's).
+    #[arg(long, value_enum, value_name = "CHOICE", requires = "in_flight")]
+    pub shooter_choice: Option<ShooterChoiceArg>,
+}
+
+/// `--shooter-choice`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ShooterChoiceArg {
+    /// A central table of unshot power: a new shooter as each shot lands.
+    Table,
+    /// Rounds of the K largest.
+    Rounds,
+}
+
+impl From<ShooterChoiceArg> for crate::machine::shooting::shots::ShooterChoice {
+    fn from(a: ShooterChoiceArg) -> Self {
+        use crate::machine::shooting::shots::ShooterChoice;
+        match a {
+            ShooterChoiceArg::Table => ShooterChoice::Table,
+            ShooterChoiceArg::Rounds => ShooterChoice::Rounds,
+        }
+    }
 }
 
 /// `--shots-by`.
@@ -309,6 +341,8 @@ impl RadiosityOpts {
             (self.shots_by.is_some(), "--shots-by"),
             (self.resolution.is_some(), "--resolution"),
             (self.update.is_some(), "--update"),
+            (self.in_flight.is_some(), "--in-flight"),
+            (self.shooter_choice.is_some(), "--shooter-choice"),
         ]
         .into_iter()
         .find_map(|(given, flag)| given.then_some(flag))
@@ -327,6 +361,8 @@ impl From<&RadiosityOpts> for RadiositySettings {
             shots_by: a.shots_by.map_or(d.shots_by, Into::into),
             resolution: a.resolution.or(d.resolution),
             update: a.update.map_or(d.update, Into::into),
+            in_flight: a.in_flight.map_or(d.in_flight, |k| k as usize),
+            choice: a.shooter_choice.map_or(d.choice, Into::into),
         }
     }
 }

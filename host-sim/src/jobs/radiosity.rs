@@ -11,7 +11,7 @@ use anyhow::{anyhow, bail, Result};
 
 use crate::machine::loading::loaded_scene::{load_scene, LoadedScene};
 use crate::machine::shooting::proxels::{ProxelConfig, SurfaceKind, Update};
-use crate::machine::shooting::shots::{solve, solve_by_proxels, GridSolution, RadiosityConfig, ShotLog};
+use crate::machine::shooting::shots::{solve, solve_by_proxels, GridSolution, RadiosityConfig, ShooterChoice, ShotLog};
 use crate::precompute::LoadConfig;
 use crate::report::convergence::{plot_residuals, Series};
 use crate::report::files::{create, write_json};
@@ -45,6 +45,10 @@ pub struct RadiositySettings {
     pub resolution: Option<u32>,
     /// With a projection: the update the shots' cycles count (`--update`).
     pub update: Update,
+    /// Shots under way at once (`--in-flight`; 1: one at a time).
+    pub in_flight: usize,
+    /// How their shooters are chosen (`--shooter-choice`).
+    pub choice: ShooterChoice,
 }
 
 /// How the machine computes a shot's form factors (`--shots-by`).
@@ -86,6 +90,8 @@ impl Default for RadiositySettings {
             shots_by: ShotsBy::Beams,
             resolution: None,
             update: Update::default(),
+            in_flight: 1,
+            choice: ShooterChoice::Table,
         }
     }
 }
@@ -96,6 +102,8 @@ impl RadiositySettings {
     pub fn machine(&self) -> RadiosityConfig {
         let mut cfg = RadiosityConfig::new(crate::config::plane_rule(), self.residual, self.shots);
         cfg.offset = self.offset;
+        cfg.in_flight = self.in_flight;
+        cfg.choice = self.choice;
         cfg
     }
 
@@ -198,6 +206,22 @@ pub struct RadiosityStats {
     /// With `--shots-by proxels-*`: what the cells projected and what it cost.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub proxels: Option<ProxelStats>,
+    /// With `--in-flight K > 1`: the shots under way at once, how they were chosen, and the
+    /// solution's time in shot durations (each shot one unit, K under way).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub in_flight: Option<InFlightStats>,
+}
+
+/// Several shots under way at once (`--in-flight`).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct InFlightStats {
+    /// K.
+    pub shots_in_flight: usize,
+    /// `table` or `rounds`.
+    pub shooter_choice: &'static str,
+    /// The solution's span in shot durations, each shot taking one and K running at once:
+    /// ⌈shots / K⌉ (`table` keeps K under way; a round of `rounds` is K shots but at the end).
+    pub shot_times: usize,
 }
 
 /// A solution shot by projection: the surface, and its phases' costs per shot.
@@ -610,6 +634,11 @@ pub fn summarise(
         wall_seconds,
         reference,
         proxels: proxel_stats(settings, scene.grid.n, s),
+        in_flight: (settings.in_flight > 1).then(|| InFlightStats {
+            shots_in_flight: settings.in_flight,
+            shooter_choice: settings.choice.name(),
+            shot_times: s.shots.len().div_ceil(settings.in_flight),
+        }),
     }
 }
 

@@ -224,6 +224,9 @@ fn bad_arguments_fail_clearly() {
         ),
         (&["render", "--n", "16", "--visibility", "ratio", "--radiosity"], "not done with --radiosity"),
         (&["light", "--n", "16", "--visibility", "ratio"], "a render option"),
+        // Shots in flight: at least one; a choice only with several.
+        (&["radiosity", "--n", "16", "--in-flight", "0"], "--in-flight"),
+        (&["radiosity", "--n", "16", "--shooter-choice", "rounds"], "required arguments were not provided"),
         (&["no-such-command"], "no-such-command"),
     ];
     for (args, expect) in cases {

@@ -57,6 +57,36 @@ pub struct RadiosityConfig {
     pub stop_fraction: f64,
     /// Stop after this many shots at most.
     pub max_shots: usize,
+    /// Shots in flight at once (≥ 1; 1: the one-shot-at-a-time supervisor), chosen by
+    /// `choice` (the radiosity thesis's "several emissions at once", ch. 5).
+    pub in_flight: usize,
+    /// How the shooters of several shots in flight are chosen.
+    pub choice: ShooterChoice,
+}
+
+/// How the supervisor chooses the shooters when several shots are in flight (radiosity thesis
+/// ch. 5, the parallel versions it reviews). A shot's power is the shooter's unshot radiosity
+/// when it is chosen; what the patch receives while its shot is in flight stays unshot.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ShooterChoice {
+    /// A central table of unshot power (Feda's): whenever a shot lands, the patch with the
+    /// most unshot power not in flight is shot next; `in_flight` shots are always under way.
+    #[default]
+    Table,
+    /// Rounds (Thomin's): the `in_flight` patches with the most unshot power are shot
+    /// together, and the next round is chosen once all of them have landed.
+    Rounds,
+}
+
+impl ShooterChoice {
+    /// Its `--shooter-choice` name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ShooterChoice::Table => "table",
+            ShooterChoice::Rounds => "rounds",
+        }
+    }
 }
 
 impl RadiosityConfig {
@@ -73,7 +103,14 @@ impl RadiosityConfig {
             faults: None,
             ..light
         };
-        RadiosityConfig { light, offset: DEFAULT_OFFSET, stop_fraction, max_shots }
+        RadiosityConfig {
+            light,
+            offset: DEFAULT_OFFSET,
+            stop_fraction,
+            max_shots,
+            in_flight: 1,
+            choice: ShooterChoice::Table,
+        }
     }
 }
 
@@ -503,6 +540,9 @@ fn check_settings(patches: &[Patch], cfg: &RadiosityConfig) -> Result<()> {
     if !(cfg.offset.is_finite() && cfg.offset >= 0.0) {
         bail!("radiosity: the source offset must be a finite number of voxels ≥ 0, got {}", cfg.offset);
     }
+    if cfg.in_flight == 0 {
+        bail!("radiosity: --in-flight 0: at least one shot must be in flight");
+    }
     Ok(())
 }
 
@@ -527,27 +567,89 @@ fn progressive(
         unmapped_voxels: 0,
         received_overflows: 0,
     };
+    if cfg.in_flight > 1 {
+        return in_flight(patches, cfg, s, shoot, progress);
+    }
     while s.residual > cfg.stop_fraction {
         if s.shots.len() >= cfg.max_shots {
             return Ok(s);
         }
         let i = select(patches, &s.unshot);
         let shot = shoot(i)?;
-        apply(patches, &mut s, i, shot);
+        let u = s.unshot[i];
+        apply(patches, &mut s, i, shot, u);
         progress(s.shots.len(), s.residual);
     }
     s.stop = GridStop::Converged;
     Ok(s)
 }
 
-/// The supervisor's update after patch i's shot: receiver j gets `ΔH_j = U_i F_ij A_i / A_j`
-/// with `F_ij` = its quanta over the quanta emitted, adds `ρ_j ΔH_j` to its radiosity and its
-/// unshot radiosity; `U_i = 0`. Until its first shot the unshot radiosity of i holds its
-/// emission `E_i` (it only grows from `E_i`); what `U_i − E_i` brings j on that shot, and all
-/// of `U_i` on later ones, is indirect irradiance.
-fn apply(patches: &[Patch], s: &mut GridSolution, i: usize, shot: Shot) {
+/// The `k` patches with the most unshot power, not in `busy`, that have some (largest first,
+/// the lowest index among equals: [`select`]'s order).
+fn select_top(patches: &[Patch], unshot: &[[f64; 3]], busy: &[usize], k: usize) -> Vec<usize> {
+    let mut by_power: Vec<(usize, f64)> = patches
+        .iter()
+        .zip(unshot)
+        .enumerate()
+        .map(|(i, (p, u))| (i, power(*u, p.area)))
+        .filter(|&(i, w)| w > 0.0 && !busy.contains(&i))
+        .collect();
+    by_power.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+    by_power.into_iter().take(k).map(|(i, _)| i).collect()
+}
+
+/// The supervisor with `cfg.in_flight` shots under way ([`ShooterChoice`]): each shot carries
+/// the unshot radiosity its shooter had when chosen, and lands (is applied) in the order the
+/// shots started. A shot's form factors do not depend on the powers, so the shots are computed
+/// when they land. Once the residual is reached the shots under way still land; no new one
+/// starts. The budget counts shots started.
+fn in_flight(
+    patches: &[Patch],
+    cfg: &RadiosityConfig,
+    mut s: GridSolution,
+    shoot: &mut dyn FnMut(usize) -> Result<Shot>,
+    progress: &mut dyn FnMut(usize, f64),
+) -> Result<GridSolution> {
+    let k = cfg.in_flight;
+    // (shooter, its unshot radiosity when chosen), in start order.
+    let mut under_way: std::collections::VecDeque<(usize, [f64; 3])> = Default::default();
+    let mut started = 0;
+    loop {
+        let open = s.residual > cfg.stop_fraction && started < cfg.max_shots;
+        let start = match cfg.choice {
+            ShooterChoice::Table => open && under_way.len() < k,
+            ShooterChoice::Rounds => open && under_way.is_empty(),
+        };
+        if start {
+            let busy: Vec<usize> = under_way.iter().map(|w| w.0).collect();
+            let room = match cfg.choice {
+                ShooterChoice::Table => k - under_way.len(),
+                ShooterChoice::Rounds => k,
+            };
+            let picks = select_top(patches, &s.unshot, &busy, room.min(cfg.max_shots - started));
+            started += picks.len();
+            under_way.extend(picks.into_iter().map(|i| (i, s.unshot[i])));
+        }
+        let Some((i, u)) = under_way.pop_front() else { break };
+        let shot = shoot(i)?;
+        apply(patches, &mut s, i, shot, u);
+        progress(s.shots.len(), s.residual);
+    }
+    if s.residual <= cfg.stop_fraction {
+        s.stop = GridStop::Converged;
+    }
+    Ok(s)
+}
+
+/// The supervisor's update after patch i's shot of unshot radiosity `u`: receiver j gets
+/// `ΔH_j = U_i F_ij A_i / A_j` with `F_ij` = its quanta over the quanta emitted, adds `ρ_j ΔH_j`
+/// to its radiosity and its unshot radiosity; `U_i` loses `u` (all of it, 0, when `u` is its
+/// current unshot radiosity; with shots in flight, what it received since it was chosen stays).
+/// Until its first shot the unshot radiosity of i holds its emission `E_i` (it only grows from
+/// `E_i`); what `U_i − E_i` brings j on that shot, and all of `U_i` on later ones, is indirect
+/// irradiance.
+fn apply(patches: &[Patch], s: &mut GridSolution, i: usize, shot: Shot, u: [f64; 3]) {
     let Shot { totals, mut log, .. } = shot;
-    let u = s.unshot[i];
     let first = s.shots.iter().all(|x| x.patch != i);
     let reflected: [f64; 3] =
         std::array::from_fn(|c| if first { (u[c] - patches[i].emission[c]).max(0.0) } else { u[c] });
@@ -571,7 +673,9 @@ fn apply(patches: &[Patch], s: &mut GridSolution, i: usize, shot: Shot) {
             s.indirect[j][c] += reflected[c] * t;
         }
     }
-    s.unshot[i] = [0.0; 3];
+    for (c, uc) in u.iter().enumerate() {
+        s.unshot[i][c] -= uc;
+    }
     let unshot: f64 = patches.iter().zip(&s.unshot).map(|(p, u)| power(*u, p.area)).sum();
     s.residual = unshot / s.emitted_power;
     log.residual_after = s.residual;
@@ -579,4 +683,111 @@ fn apply(patches: &[Patch], s: &mut GridSolution, i: usize, shot: Shot) {
     log.cost.supervisor_ops = if log.proxel.is_some() { 0 } else { patches.len() as u64 + totals.len() as u64 };
     s.received_overflows += log.overflows;
     s.shots.push(log);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::patches::Patch;
+    use parry3d_f64::math::Vector;
+
+    /// Four patches, patch 0 the emitter, and the share of a shot's quanta each other patch
+    /// receives (rows sum below 1: some leaves).
+    const AREAS: [f64; 4] = [1.0, 2.0, 1.5, 3.0];
+    const RHO: [f64; 4] = [0.5, 0.8, 0.6, 0.7];
+    const F: [[f64; 4]; 4] =
+        [[0.0, 0.3, 0.2, 0.4], [0.15, 0.0, 0.25, 0.3], [0.1, 0.3, 0.0, 0.4], [0.12, 0.2, 0.2, 0.0]];
+    const QUANTA: i64 = 1_000_000_000;
+
+    fn patches() -> Vec<Patch> {
+        (0..4)
+            .map(|i| Patch {
+                polygon: Vec::new(),
+                triangles: Vec::new(),
+                area: AREAS[i],
+                normal: Vector::new(0.0, 0.0, 1.0),
+                centroid: Vector::new(i as f64, 0.0, 0.0),
+                reflectance: [RHO[i]; 3],
+                emission: if i == 0 { [1.0, 0.5, 0.25] } else { [0.0; 3] },
+                face: i,
+                piece: i,
+            })
+            .collect()
+    }
+
+    fn shot(i: usize) -> Result<Shot> {
+        let totals = (0..4).filter(|&j| j != i).map(|j| (j as PatchId, (F[i][j] * QUANTA as f64) as i64)).collect();
+        Ok(Shot { totals, log: ShotLog { patch: i, emitted: QUANTA, ..Default::default() }, source: None })
+    }
+
+    /// The solution the shots converge to, by Jacobi iteration of
+    /// `B_j = E_j + ρ_j Σ_i B_i F_ij A_i / A_j` (the quanta rounded as the shots round them).
+    fn fixed_point() -> Vec<[f64; 3]> {
+        let p = patches();
+        let f = |i: usize, j: usize| (F[i][j] * QUANTA as f64) as i64 as f64 / QUANTA as f64;
+        let mut b: Vec<[f64; 3]> = p.iter().map(|q| q.emission).collect();
+        for _ in 0..2000 {
+            b = (0..4)
+                .map(|j| {
+                    std::array::from_fn(|c| {
+                        let gathered: f64 =
+                            (0..4).filter(|&i| i != j).map(|i| b[i][c] * f(i, j) * AREAS[i] / AREAS[j]).sum();
+                        p[j].emission[c] + RHO[j] * gathered
+                    })
+                })
+                .collect();
+        }
+        b
+    }
+
+    /// One shot at a time, Feda's table and Thomin's rounds with 3 shots under way converge to
+    /// the same radiosity (the linear system's, by an independent iteration), and the residual
+    /// never grows; a round shoots distinct patches.
+    #[test]
+    fn shots_in_flight_converge_to_the_same_radiosity() {
+        let want = fixed_point();
+        let p = patches();
+        for (k, choice) in [(1, ShooterChoice::Table), (3, ShooterChoice::Table), (3, ShooterChoice::Rounds)] {
+            let cfg = RadiosityConfig {
+                in_flight: k,
+                choice,
+                ..RadiosityConfig::new(crate::config::plane_rule(), 1e-12, 10_000)
+            };
+            let mut residuals = Vec::new();
+            let s = progressive(&p, &cfg, &mut shot, &mut |_, r| residuals.push(r)).unwrap();
+            assert_eq!(s.stop, GridStop::Converged, "{k} {choice:?}");
+            assert!(residuals.windows(2).all(|w| w[1] <= w[0]), "{k} {choice:?}: the residual grew");
+            for (j, (got, w)) in s.radiosity.iter().zip(&want).enumerate() {
+                for c in 0..3 {
+                    assert!(
+                        (got[c] - w[c]).abs() <= 1e-9 * w[c].max(1e-3),
+                        "{k} {choice:?} patch {j}: {got:?} vs {w:?}"
+                    );
+                }
+            }
+            if choice == ShooterChoice::Rounds {
+                // The first round is the emitter alone (no other patch has power yet); the second,
+                // the three patches it lit, each once.
+                let order: Vec<usize> = s.shots.iter().map(|x| x.patch).collect();
+                let mut second = order[1..4].to_vec();
+                second.sort();
+                assert_eq!((order[0], second), (0, vec![1, 2, 3]), "{order:?}");
+            }
+        }
+    }
+
+    /// With 3 under way from a table, the first shots are the emitter (alone with power), then
+    /// the three patches it lit, largest unshot power first, before the emitter shoots again.
+    #[test]
+    fn the_table_keeps_the_largest_shooters_under_way() {
+        let p = patches();
+        let cfg = RadiosityConfig { in_flight: 3, ..RadiosityConfig::new(crate::config::plane_rule(), 0.0, 4) };
+        let s = progressive(&p, &cfg, &mut shot, &mut |_, _| {}).unwrap();
+        let order: Vec<usize> = s.shots.iter().map(|x| x.patch).collect();
+        // After the emitter's shot patch j holds ρ_j F_0j A_0 / A_j, power ρ_j F_0j A_0.
+        let mut lit: Vec<usize> = vec![1, 2, 3];
+        lit.sort_by(|&a, &b| (RHO[b] * F[0][b]).total_cmp(&(RHO[a] * F[0][a])));
+        assert_eq!(order, [vec![0], lit].concat());
+        assert_eq!(s.stop, GridStop::ShotBudget);
+    }
 }
