@@ -490,7 +490,7 @@ pub const ALL_CANDIDATES: u64 = u64::MAX;
 /// `tri`'s plane between layers k − 1 and k + 1, for a beam at layer k ≥ 2 carrying no notch:
 /// `(lo, hi)`, inclusive (empty when lo > hi). At any other z of the column such a beam's visit
 /// finds the triangle uncrossed ([`ExactVisit`]), so a host may leave it out
-/// ([`ColumnOccluders::near`]); the window depends on neither the source nor the far distance.
+/// ([`Column::near`]); the window depends on neither the source nor the far distance.
 ///
 /// Why: a beam at voxel V of layer k holds only rays that lie in V at layer k (the split sends
 /// each ray to the voxel it occupies, merges join beams of one voxel), so at layer k's centre

@@ -301,7 +301,7 @@ fn rays_in_voxel(q: i64, o: i64, nn: i128, tk: i128) -> (i128, i128) {
 }
 
 /// The lattice rectangle (inclusive) of `dir`'s rays whose voxel at layer `k` is `q`:
-/// [`rays_in_voxel`] along each transverse axis; `None` when it is empty or the layer lies at or
+/// `rays_in_voxel` along each transverse axis; `None` when it is empty or the layer lies at or
 /// behind the rays' origin.
 pub fn voxel_rays<F: FracBits>(
     q: [i64; 3],
