@@ -743,6 +743,12 @@ pub fn print_summary(s: &RadiosityStats) {
         "  cycles {} (per shot: {phases}), messages {} ({:.0} per shot)",
         s.cycles, s.messages, s.messages_per_shot
     );
+    if let Some(f) = &s.in_flight {
+        eprintln!(
+            "  {} shots in flight, shooters by {}: a span of {} shot durations",
+            f.shots_in_flight, f.shooter_choice, f.shot_times
+        );
+    }
     eprintln!(
         "  bytes per cell {} (loading {}, lighting cell {}, radiosity {}), zero-area faces skipped {}, unmapped voxels {}, accumulator overflows {}",
         s.bytes_per_cell,
