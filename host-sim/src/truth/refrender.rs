@@ -322,7 +322,8 @@ struct RefScene<'a> {
 
 /// How the reference weighs a light by a pixel's footprint (the machine's lit-ray ratio,
 /// `cell_core::visibility`): `samples` × `samples` points of the pixel's square, each carried
-/// along the primary ray through it to the plane of the surface the pixel's centre sees.
+/// along the primary ray through it; those that meet the facet the pixel's centre sees count
+/// (`RefScene::footprint_weights`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RefFootprint {
     /// Points per side of the pixel.

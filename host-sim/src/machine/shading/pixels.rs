@@ -251,7 +251,8 @@ pub fn shade_grid_ambient(
             Some((_, l)) => (&l[..], std::borrow::Cow::Owned(self::ref_lights(l))),
             None => (lights, std::borrow::Cow::Borrowed(&ref_lights[..])),
         };
-        let surface_mask = |x: u32, y: u32| match (seen, &weighed) {
+        // The lights that reached the visible surface (its cell's mask, or those it weighs).
+        let reached = || match (seen, &weighed) {
             (Seen::Surface(mask), _) => mask(x, y),
             (_, Some((m, _))) => *m,
             _ => 0,
@@ -264,15 +265,14 @@ pub fn shade_grid_ambient(
                 (px, p, v, Normals::One(shading_normal_toward(d.normal, mode, v)), d.material)
             }),
             Seen::Surface(_) | Seen::Weighted(_) => c.visible.as_ref().map(|s| {
-                let mask = surface_mask;
                 let (p, v) = scene.eye.shading_point([c.x as f32, c.y as f32, s.depth()]);
                 match smooth.and_then(|g| Some((g.mode, g.records[i].as_ref()?))) {
                     Some((m, r)) => {
-                        let px = smooth_pixel(c.x, c.y, s, r, m, mask(x, y), &mats, lights, &params);
+                        let px = smooth_pixel(c.x, c.y, s, r, m, reached(), &mats, lights, &params);
                         (px, p, v, Normals::Smooth(m, r, s.normal), s.material)
                     }
                     None => {
-                        let px = surface_pixel(c.x, c.y, s, mask(x, y), &mats, lights, &params);
+                        let px = surface_pixel(c.x, c.y, s, reached(), &mats, lights, &params);
                         (px, p, v, Normals::One(shading_normal_toward(s.normal, mode, v)), s.material)
                     }
                 }
