@@ -99,6 +99,7 @@ fn record_f<F: FracBits>(job: &TraceJob<'_>) -> Result<Vec<CellTrace>> {
                 &job.light,
                 Share::ALL,
                 Some(&mut tap),
+                None,
                 &mut |_, _| {},
             )?;
             Lit::Beams(lighting, cells)

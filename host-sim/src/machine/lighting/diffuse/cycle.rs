@@ -5,7 +5,7 @@
 
 use anyhow::{bail, Result};
 use cell_core::beam::{Beam, Direction, FarDistance, FracBits, Source};
-use cell_core::light::{Activity, ActivityDelta, BeamMsg, LightEnv, OccupiedBox, Port, Step};
+use cell_core::light::{ActivityDelta, BeamMsg, LightEnv, OccupiedBox, Port, Step};
 use cell_core::units::Coord;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering::Relaxed};
 
@@ -15,6 +15,8 @@ use crate::machine::grid::pieces::{merge_sorted, par_map, prefetch, prefetch_end
 use crate::machine::grid::Grid;
 use crate::machine::links::tap::Tap;
 use crate::machine::links::{self, lossless, sure, CellInbox, HostLink, Took, BACK};
+
+use super::tiles::{Edge, Halo};
 
 /// Active cells per piece of work handed to a thread (below it, splitting costs more than it
 /// saves).
@@ -105,13 +107,13 @@ fn scratch_for<F: FracBits>(scratch: &mut Vec<PieceResult<F>>, len: usize) -> &m
 
 /// A message offered on a link in the link phase: receiver, arbitration key, sender, port, and a
 /// copy of the message at the front of the sender's output buffer.
-#[derive(Clone, Copy)]
-struct Offer<F: FracBits> {
-    to: u32,
-    key: u32,
-    from: u32,
-    port: u8,
-    msg: BeamMsg<F>,
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Offer<F: FracBits> {
+    pub(super) to: u32,
+    pub(super) key: u32,
+    pub(super) from: u32,
+    pub(super) port: u8,
+    pub(super) msg: BeamMsg<F>,
 }
 
 /// The offers of `lists` (list p: the offers on port p, in increasing receiver order) in link
@@ -206,7 +208,7 @@ fn by_receiver<'a, T, F: FracBits, L>(
 
 /// Messages a sender's links delivered in one cycle: a 4-bit count per port (port p in bits
 /// 4p ..= 4p + 3; a link carries at most [`Timing::link_rate`] ≤ `OB_CAP` < 16 per cycle).
-type Taken = AtomicU32;
+pub(super) type Taken = AtomicU32;
 
 /// One message taken on port `p`, as a [`Taken`] increment.
 const fn taken_one(p: u8) -> u32 {
@@ -272,10 +274,13 @@ pub(super) fn diffuse_one<F: FracBits, const D: usize, L: HostLink<F>>(
     cfg: &LightConfig,
     dead: Option<OccupiedBox>,
     rec: Recording<'_>,
+    tile: Option<&mut dyn Halo>,
     phases: &mut PhaseSeconds,
     progress: &mut dyn FnMut(u64),
 ) -> Result<SourceReport> {
-    let mut run = Run::new(grid, cells, links, src, si, env, cfg, dead, rec);
+    // The seam borrowed for as long as the run's other borrows (`&mut` is invariant).
+    let tile = tile.map(|h| h as &mut dyn Halo);
+    let mut run = Run::new(grid, cells, links, src, si, env, cfg, dead, rec, tile);
     with_team(|team| {
         let mut lap = Lap::start();
         while run.running() && cfg.stop_at.is_none_or(|t| run.cycle < t) {
@@ -285,7 +290,9 @@ pub(super) fn diffuse_one<F: FracBits, const D: usize, L: HostLink<F>>(
             lap.lap(&mut phases.step);
             moved |= run.gather_steps(pieces);
             lap.lap(&mut phases.gather);
+            run.cross_offers()?;
             moved |= run.links(team);
+            run.cross_answers()?;
             lap.lap(&mut phases.links);
             run.pop(team);
             lap.lap(&mut phases.pop);
@@ -298,7 +305,7 @@ pub(super) fn diffuse_one<F: FracBits, const D: usize, L: HostLink<F>>(
             }
         }
         progress(run.cycle);
-        Ok(run.finish())
+        run.finish()
     })
 }
 
@@ -347,7 +354,14 @@ struct Run<'a, 'e, F: FracBits, const D: usize, L> {
     /// The source's voxel and its cell.
     sv: [i32; 3],
     s_idx: usize,
-    activity: Activity,
+    /// Beams in flight in the whole grid at the end of the last cycle (the machine's global
+    /// activity counter, [`cell_core::light::Activity`]), and this cycle's change so far in this tile.
+    in_flight: u64,
+    flow: i64,
+    /// Cells whose deferred pops left them idle this cycle (see `defer_pops`).
+    drained: u64,
+    /// The other tiles of a grid cut into tiles ([`Edge`]); `None`: the whole grid is here.
+    edge: Option<Edge<'a>>,
     rep: SourceReport,
     /// The initial beams the emitter has not handed over yet.
     pending: std::vec::IntoIter<Beam<F>>,
@@ -443,21 +457,30 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         cfg: &LightConfig,
         dead: Option<OccupiedBox>,
         rec: Recording<'a>,
+        tile: Option<&'a mut dyn Halo>,
     ) -> Self {
         let (n, len, stepping) = (grid.n as usize, cells.len(), cfg.stepping);
         let sv = src.voxel();
         let s_idx = sv[1] as usize * n + sv[0] as usize;
         let mut rep = SourceReport { source: si, ..Default::default() };
-        let initial = initial_beams(src, env.far, dead, shot, cfg.timing.emission.order(), &mut rep);
-        let activity = Activity::new();
-        activity.add(initial.len() as u64);
+        let mut initial = initial_beams(src, env.far, dead, shot, cfg.timing.emission.order(), &mut rep);
+        // Every tile counts the initial beams in flight; the source cell's tile emits them.
+        let in_flight = initial.len() as u64;
+        let edge = tile.map(|h| Edge::new(h, grid.n));
+        let emitter = edge.as_ref().is_none_or(|e| e.owns(s_idx as u32));
+        if !emitter {
+            initial.clear();
+            rep.counts.rays_emitted = 0;
+            rep.counts.rays_skipped = 0;
+        }
         let mut pending = initial.into_iter();
         let next_initial = pending.next();
         let active_stepping = stepping == Stepping::Active;
         let in_active: Vec<AtomicBool> = flags(active_stepping, len);
-        if active_stepping {
+        if active_stepping && emitter {
             in_active[s_idx].store(true, Relaxed);
         }
+        let mine = edge.as_ref().map_or(0..len as u32, Edge::cells);
         let lossless = lossless::<F, L>();
         let may_sleep = active_stepping && rec.tap.is_none() && lossless && env.hold > 0;
         Run {
@@ -471,12 +494,15 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
             si,
             sv,
             s_idx,
-            activity,
+            in_flight,
+            flow: 0,
+            drained: 0,
+            edge,
             rep,
             pending,
             next_initial,
-            all: if active_stepping { Vec::new() } else { (0..len as u32).collect() },
-            active: vec![s_idx as u32],
+            all: if active_stepping { Vec::new() } else { mine.collect() },
+            active: if emitter { vec![s_idx as u32] } else { Vec::new() },
             in_active,
             taken_ports: flags(true, len),
             unacked_ports: flags(!lossless, len),
@@ -501,7 +527,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
 
     /// Beams are in flight (or messages wait for their acknowledgement).
     fn running(&self) -> bool {
-        !self.activity.is_quiescent() || self.unacked
+        self.in_flight > 0 || self.unacked
     }
 
     /// 1. The source emitter hands the next initial beam to the source cell if its FIFO has
@@ -528,11 +554,13 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         if let Some(r) = self.tap.as_deref_mut().and_then(|t| t.get(s_idx)) {
             r.inject(&msg);
         }
-        if self.cells[s_idx].accept(msg, self.env.merge, &self.activity).is_ok() {
+        let delta = ActivityDelta::new();
+        let taken = self.cells[s_idx].accept(msg, self.env.merge, &delta).is_ok();
+        self.flow += delta.get();
+        if taken {
             self.next_initial = self.pending.next();
-            return true;
         }
-        false
+        taken
     }
 
     /// 2. Compute: every visited cell steps on its own state and its own dexels, in parallel
@@ -574,10 +602,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
     fn gather_steps(&mut self, count: usize) -> bool {
         self.offers.iter_mut().for_each(Vec::clear);
         let done = &self.scratch[..count];
-        let drained: u64 = done.iter().map(|r| r.drained).sum();
-        if let Some(b) = self.pending_busy.take() {
-            self.rep.counts.peak_active_cells = self.rep.counts.peak_active_cells.max(b - drained);
-        }
+        self.drained = done.iter().map(|r| r.drained).sum();
         let (cycle, ring, depth) = (self.cycle, self.sleepers.alarms.len(), self.grid.depth as usize);
         let mut moved = false;
         for PieceResult { delta, any, seen, steps, offers: o, quiet, sleep, .. } in done.iter() {
@@ -597,7 +622,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
                     self.sleepers.count += 1;
                 }
             }
-            self.activity.apply(*delta);
+            self.flow += *delta;
             moved |= *any;
             if let Some(t) = self.tap.as_deref_mut() {
                 for &(i, step) in steps {
@@ -643,7 +668,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         let mut moved = false;
         for r in &self.scratch[..count] {
             self.sleepers.count -= r.roused;
-            self.activity.apply(r.delta);
+            self.flow += r.delta;
             self.rep.counts.messages += r.taken;
             moved |= r.any;
             self.woken.extend_from_slice(&r.woke);
@@ -739,15 +764,31 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
 
     /// The end of a cycle: the busy count (settled next cycle under deferred pops), whether
     /// acknowledgements are awaited, and the stall detector.
+    /// Over a grid cut into tiles, every tile settles the machine-wide figures: the beams in
+    /// flight, the busy and drained cells, progress and sleepers are sums over the tiles.
     fn settle(&mut self, busy_now: u64, moved: bool) -> Result<()> {
+        let mut t = [self.flow, busy_now as i64, self.drained as i64, i64::from(moved), self.sleepers.count as i64];
+        if let Some(e) = self.edge.as_mut() {
+            e.sum(&mut t)?;
+        }
+        let [flow, busy_now, drained, moved, sleeping] = t;
+        let (busy_now, drained) = (busy_now as u64, drained as u64);
+        self.in_flight = self.in_flight.saturating_add_signed(flow);
+        self.flow = 0;
+        self.drained = 0;
+        let peak = &mut self.rep.counts.peak_active_cells;
+        // The busy count of the last cycle, less the cells its deferred pops left idle.
+        if let Some(b) = self.pending_busy.take() {
+            *peak = (*peak).max(b - drained);
+        }
         if self.defer_pops {
             self.pending_busy = Some(busy_now);
         } else {
-            self.rep.counts.peak_active_cells = self.rep.counts.peak_active_cells.max(busy_now);
+            *peak = (*peak).max(busy_now);
         }
         self.unacked = !self.lossless && busy_now > 0;
         // A sleeping cell's wait ends by itself: not a stall.
-        self.stalled = if moved || self.sleepers.count > 0 { 0 } else { self.stalled + 1 };
+        self.stalled = if moved != 0 || sleeping > 0 { 0 } else { self.stalled + 1 };
         if self.stalled >= self.stall_limit {
             let blocked: Vec<String> = self
                 .cells
@@ -762,7 +803,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
                 self.cycle,
                 self.si,
                 self.stalled,
-                self.activity.get(),
+                self.in_flight,
                 self.stall_limit,
                 blocked.join("; ")
             );
@@ -770,8 +811,9 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         Ok(())
     }
 
-    /// The last cycle's deferred pops and busy count; the cycle count and the busiest link.
-    fn finish(mut self) -> SourceReport {
+    /// The last cycle's deferred pops and busy count; the cycle count and the busiest link
+    /// (over a grid cut into tiles, the whole grid's: every tile ends in the same cycle).
+    fn finish(mut self) -> Result<SourceReport> {
         if self.defer_pops {
             let mut drained = 0;
             for &i in &self.active {
@@ -780,8 +822,12 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
                     drained += 1;
                 }
             }
+            let mut t = [drained];
+            if let Some(e) = self.edge.as_mut() {
+                e.sum(&mut t)?;
+            }
             if let Some(b) = self.pending_busy {
-                self.rep.counts.peak_active_cells = self.rep.counts.peak_active_cells.max(b - drained);
+                self.rep.counts.peak_active_cells = self.rep.counts.peak_active_cells.max(b - t[0] as u64);
             }
         }
         debug_assert!(
@@ -790,13 +836,36 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         );
         self.rep.counts.cycles = self.cycle;
         let n = self.grid.n as usize;
-        if let Some((i, load)) = busiest_link(n, &self.link_load) {
+        let mut busiest = busiest_link(n, &self.link_load);
+        if let Some(e) = self.edge.as_mut() {
+            busiest = e.busiest(busiest)?;
+        }
+        if let Some((i, load)) = busiest {
             let (x, y) = ((i / 8) % n, (i / 8) / n);
             self.rep.counts.peak_link_load = load as u64;
             self.rep.counts.peak_link_distance =
                 (x.abs_diff(self.sv[0] as usize)).max(y.abs_diff(self.sv[1] as usize)) as u32;
         }
-        self.rep
+        Ok(self.rep)
+    }
+
+    /// Over a grid cut into tiles, after the compute phase: the offers to receivers in the
+    /// tiles above and below go there, and theirs to this tile's receivers come in.
+    fn cross_offers(&mut self) -> Result<()> {
+        match self.edge.as_mut() {
+            Some(e) => e.offers(&mut self.offers, self.env.far),
+            None => Ok(()),
+        }
+    }
+
+    /// Over a grid cut into tiles, after the link phase: what this tile's receivers took of
+    /// the other tiles' senders (and, over links that acknowledge later, left unacknowledged)
+    /// goes back to them, and theirs comes in, before any sender pops.
+    fn cross_answers(&mut self) -> Result<()> {
+        match self.edge.as_mut() {
+            Some(e) => e.answers(&self.taken_ports, &self.unacked_ports, self.lossless),
+            None => Ok(()),
+        }
     }
 }
 

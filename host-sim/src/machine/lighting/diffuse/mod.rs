@@ -48,6 +48,7 @@ mod oracle;
 mod share;
 mod shortcut;
 mod summary;
+mod tiles;
 
 use cycle::diffuse_one;
 pub(crate) use cycle::initial_beams;
@@ -55,6 +56,7 @@ pub use oracle::OracleSkip;
 pub use share::{decode_part, encode_part, merge_parts, Share};
 use shortcut::Shortcut;
 pub use summary::{occupancy_summary, occupied_box, FrustumBlocks, Summary};
+pub use tiles::{diffuse_in_tiles, diffuse_tile, merge_tiles, Halo, Tile};
 
 /// Default of [`LightConfig::stall_cycles`]: a fault-free machine that cannot move for one
 /// cycle is deadlocked; under link faults a few cycles of bad luck are normal.
@@ -485,7 +487,7 @@ fn diffuse_at<const D: usize>(
     tap: Option<&mut Tap>,
     progress: &mut dyn FnMut(usize, u64),
 ) -> Result<Lighting> {
-    with_f!(cfg.frac_bits, F => diffuse_cells::<F, D>(grid, sources, cfg, share, tap, progress).map(|(l, _)| l))
+    with_f!(cfg.frac_bits, F => diffuse_cells::<F, D>(grid, sources, cfg, share, tap, None, progress).map(|(l, _)| l))
 }
 
 /// [`diffuse_tapped`] under f = `F`, also returning the cells themselves (what a cell trace's
@@ -501,6 +503,7 @@ pub(crate) fn diffuse_cells<F: FracBits, const D: usize>(
     cfg: &LightConfig,
     share: Share,
     tap: Option<&mut Tap>,
+    tile: Option<&mut dyn Halo>,
     progress: &mut dyn FnMut(usize, u64),
 ) -> Result<(Lighting, Vec<HostLightCell<F>>)> {
     if cfg.frac_bits != F::U32 {
@@ -519,14 +522,16 @@ pub(crate) fn diffuse_cells<F: FracBits, const D: usize>(
     let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref(), shot: None, share };
     let wire = cfg.faults.map(|faults| Wire { faults, far: far.get() });
     match (&wire, tap) {
-        (None, None) => run.diffuse(cells, GridLinks::new(n, |_| PerfectLink), None, progress),
+        (None, None) => run.diffuse(cells, GridLinks::new(n, |_| PerfectLink), None, tile, progress),
         (Some(w), None) => {
-            run.diffuse(cells, GridLinks::new(n, |id| FaultInjector::new(PerfectLink, w, id)), None, progress)
+            run.diffuse(cells, GridLinks::new(n, |id| FaultInjector::new(PerfectLink, w, id)), None, tile, progress)
         }
-        (None, Some(t)) => run.diffuse(cells, GridLinks::new(n, |id| Tracer::new(PerfectLink, id)), Some(t), progress),
+        (None, Some(t)) => {
+            run.diffuse(cells, GridLinks::new(n, |id| Tracer::new(PerfectLink, id)), Some(t), tile, progress)
+        }
         (Some(w), Some(t)) => {
             let links = GridLinks::new(n, |id| Tracer::new(FaultInjector::new(PerfectLink, w, id), id));
-            run.diffuse(cells, links, Some(t), progress)
+            run.diffuse(cells, links, Some(t), tile, progress)
         }
     }
 }
@@ -569,7 +574,7 @@ pub(crate) fn diffuse_shot<F: FracBits, const D: usize>(
     let frustum = frustum_summary(grid, cfg, false)?;
     let shot = Some(Shot { initial, rays });
     let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref(), shot, share: Share::ALL };
-    run.diffuse(idle_cells(grid.n), GridLinks::new(grid.n, |_| PerfectLink), None, &mut progress).map(|(l, _)| l)
+    run.diffuse(idle_cells(grid.n), GridLinks::new(grid.n, |_| PerfectLink), None, None, &mut progress).map(|(l, _)| l)
 }
 
 /// What a radiosity shot changes in a diffusion ([`diffuse_shot`]).
@@ -677,6 +682,7 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
         mut cells: Vec<HostLightCell<F>>,
         mut links: GridLinks<L>,
         mut tap: Option<&mut Tap>,
+        mut tile: Option<&mut dyn Halo>,
         progress: &mut dyn FnMut(usize, u64),
     ) -> Result<(Lighting, Vec<HostLightCell<F>>)> {
         let (grid, cfg) = (self.grid, self.cfg);
@@ -725,13 +731,18 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
             let (links, cells) = (links.slots(), &mut cells[..]);
             let initial = self.shot.map(|s| s.initial);
             lap.lap(&mut phases.setup);
+            let edge = tile.as_deref_mut().map(|h| h as &mut dyn Halo);
             let mut rep =
-                diffuse_one(grid, cells, links, (src, initial), si, &env, cfg, dead, rec, &mut phases, &mut |c| {
-                    progress(si, c)
+                diffuse_one(grid, cells, links, (src, initial), si, &env, cfg, dead, rec, edge, &mut phases, {
+                    &mut |c| progress(si, c)
                 })?;
             lap = Lap::start();
             rep.position = src.pos.map(|p| p.to_num::<f64>());
             add_cell_counts(&mut rep, cells, &before);
+            if let Some(h) = tile.as_deref_mut() {
+                // Each tile counted its own cells and links: the whole grid's report.
+                rep = tiles::whole_report(h, rep)?;
+            }
             if let Some(w) = weights.as_mut() {
                 w[si] = pixel_weights(cfg.visibility, cells.len(), occluders.as_ref());
             }

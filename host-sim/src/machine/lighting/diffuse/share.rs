@@ -13,6 +13,8 @@ use cell_core::light::{LightCounters, LitRun, LitRuns, SourceMask};
 use cell_core::lit::LitRule;
 use cell_core::units::Depth;
 
+use crate::machine::links::faults::FaultCounts;
+
 use super::{DiffusionCounts, LightConfig, Lighting, LitColumn, PhaseSeconds, SourceReport};
 use crate::machine::grid::capacity::LIT_CAP;
 
@@ -168,7 +170,7 @@ fn add_counters(a: &LightCounters, b: &LightCounters) -> LightCounters {
 }
 
 /// Host seconds of two parts, phase by phase.
-fn add_phases(a: &PhaseSeconds, b: &PhaseSeconds) -> PhaseSeconds {
+pub(super) fn add_phases(a: &PhaseSeconds, b: &PhaseSeconds) -> PhaseSeconds {
     let PhaseSeconds { setup, emit, step, gather, links, pop, next, tally } = *b;
     PhaseSeconds {
         setup: a.setup + setup,
@@ -183,14 +185,15 @@ fn add_phases(a: &PhaseSeconds, b: &PhaseSeconds) -> PhaseSeconds {
 }
 
 /// The first bytes of an encoded part, with its format's version.
-const MAGIC: &[u8; 8] = b"rc2part1";
+const MAGIC: &[u8; 8] = b"rc2part2";
 
 /// A part as bytes for another process ([`decode_part`] reads them back): the lit stores,
-/// visible masks, counters and queued beams of every cell, the reports and the host seconds.
-/// Fails for a part that is not split by sources (visited voxels, faulty links).
+/// visible masks, counters and queued beams of its cells (every cell, or a tile's), the
+/// reports, what its faulty links did and the host seconds. Fails for a part with visited
+/// voxels or pixel weights (not carried).
 pub fn encode_part(l: &Lighting) -> Result<Vec<u8>> {
-    if l.visited.is_some() || l.link_faults.is_some() {
-        bail!("a lighting run with visited voxels or faulty links is not split by sources");
+    if l.visited.is_some() || l.weights.is_some() {
+        bail!("a lighting part with visited voxels or pixel weights is not carried between processes");
     }
     let mut w = Writer(Vec::with_capacity(64 + l.cells.len() * 96));
     w.0.extend_from_slice(MAGIC);
@@ -218,7 +221,28 @@ pub fn encode_part(l: &Lighting) -> Result<Vec<u8>> {
     for (_, s) in l.phases.named() {
         w.f64(s);
     }
+    w.u8(u8::from(l.link_faults.is_some()));
+    if let Some(f) = &l.link_faults {
+        for v in fault_fields(f) {
+            w.u64(v);
+        }
+    }
     Ok(w.0)
+}
+
+/// The fields of a fault count, in a fixed order.
+fn fault_fields(f: &FaultCounts) -> [u64; 9] {
+    [
+        f.data_frames,
+        f.retransmissions,
+        f.data_corrupted,
+        f.data_dropped,
+        f.data_delayed,
+        f.delay_cycles,
+        f.acks_lost,
+        f.crc_rejected,
+        f.duplicates,
+    ]
 }
 
 /// The part [`encode_part`] wrote, or an error naming what is wrong with the bytes.
@@ -262,10 +286,33 @@ pub fn decode_part(bytes: &[u8]) -> Result<Lighting> {
     }
     let [setup, emit, step, gather, links, pop, next, tally] = s;
     let phases = PhaseSeconds { setup, emit, step, gather, links, pop, next, tally };
+    let link_faults = match r.u8()? {
+        0 => None,
+        1 => {
+            let mut v = [0u64; 9];
+            for x in &mut v {
+                *x = r.u64()?;
+            }
+            let [data_frames, retransmissions, data_corrupted, data_dropped, data_delayed, delay_cycles, acks_lost, crc_rejected, duplicates] =
+                v;
+            Some(FaultCounts {
+                data_frames,
+                retransmissions,
+                data_corrupted,
+                data_dropped,
+                data_delayed,
+                delay_cycles,
+                acks_lost,
+                crc_rejected,
+                duplicates,
+            })
+        }
+        k => bail!("a lighting part's fault flag is {k}, not 0 or 1"),
+    };
     if r.at != bytes.len() {
         bail!("{} bytes left over after a lighting part", bytes.len() - r.at);
     }
-    Ok(Lighting { n, cells, reports, visited: None, link_faults: None, rule, phases, weights: None })
+    Ok(Lighting { n, cells, reports, visited: None, link_faults, rule, phases, weights: None })
 }
 
 fn counters_to(w: &mut Writer, c: &LightCounters) {
@@ -313,7 +360,7 @@ fn counters_from(r: &mut Reader) -> Result<LightCounters> {
     })
 }
 
-fn report_to(w: &mut Writer, s: &SourceReport) {
+pub(super) fn report_to(w: &mut Writer, s: &SourceReport) {
     let SourceReport { source, position, busiest_cell, counts } = s;
     let DiffusionCounts {
         cycles,
@@ -365,7 +412,7 @@ fn report_to(w: &mut Writer, s: &SourceReport) {
     w.u32(peak_link_distance);
 }
 
-fn report_from(r: &mut Reader) -> Result<SourceReport> {
+pub(super) fn report_from(r: &mut Reader) -> Result<SourceReport> {
     let source = r.u64()? as usize;
     let position = [r.f64()?, r.f64()?, r.f64()?];
     let busiest_cell = [r.u32()?, r.u32()?];
@@ -402,37 +449,51 @@ fn report_from(r: &mut Reader) -> Result<SourceReport> {
 }
 
 /// Little-endian writer.
-struct Writer(Vec<u8>);
+pub(super) struct Writer(pub(super) Vec<u8>);
+
+impl cell_core::bytes::ByteSink for Writer {
+    fn put(&mut self, bytes: &[u8]) -> Result<(), cell_core::bytes::EncodeError> {
+        self.0.extend_from_slice(bytes);
+        Ok(())
+    }
+}
 
 impl Writer {
-    fn u8(&mut self, v: u8) {
+    pub(super) fn u8(&mut self, v: u8) {
         self.0.push(v);
     }
-    fn u16(&mut self, v: u16) {
+    pub(super) fn u16(&mut self, v: u16) {
         self.0.extend_from_slice(&v.to_le_bytes());
     }
-    fn u32(&mut self, v: u32) {
+    pub(super) fn u32(&mut self, v: u32) {
         self.0.extend_from_slice(&v.to_le_bytes());
     }
-    fn u64(&mut self, v: u64) {
+    pub(super) fn u64(&mut self, v: u64) {
         self.0.extend_from_slice(&v.to_le_bytes());
     }
-    fn u128(&mut self, v: u128) {
+    pub(super) fn u128(&mut self, v: u128) {
         self.0.extend_from_slice(&v.to_le_bytes());
     }
-    fn f64(&mut self, v: f64) {
+    pub(super) fn f64(&mut self, v: f64) {
         self.u64(v.to_bits());
     }
 }
 
 /// Little-endian reader that fails on truncated input.
-struct Reader<'a> {
+pub(super) struct Reader<'a> {
     b: &'a [u8],
     at: usize,
 }
 
 impl<'a> Reader<'a> {
-    fn take(&mut self, k: usize) -> Result<&'a [u8]> {
+    pub(super) fn new(b: &'a [u8]) -> Self {
+        Reader { b, at: 0 }
+    }
+    /// Bytes not read yet.
+    pub(super) fn left(&self) -> usize {
+        self.b.len() - self.at
+    }
+    pub(super) fn take(&mut self, k: usize) -> Result<&'a [u8]> {
         let end = self.at.checked_add(k).filter(|&e| e <= self.b.len());
         let end = end.with_context(|| format!("a lighting part is truncated at byte {}", self.at))?;
         let s = &self.b[self.at..end];
@@ -444,16 +505,16 @@ impl<'a> Reader<'a> {
         a.copy_from_slice(self.take(K)?);
         Ok(a)
     }
-    fn u8(&mut self) -> Result<u8> {
+    pub(super) fn u8(&mut self) -> Result<u8> {
         Ok(self.array::<1>()?[0])
     }
-    fn u16(&mut self) -> Result<u16> {
+    pub(super) fn u16(&mut self) -> Result<u16> {
         Ok(u16::from_le_bytes(self.array()?))
     }
-    fn u32(&mut self) -> Result<u32> {
+    pub(super) fn u32(&mut self) -> Result<u32> {
         Ok(u32::from_le_bytes(self.array()?))
     }
-    fn u64(&mut self) -> Result<u64> {
+    pub(super) fn u64(&mut self) -> Result<u64> {
         Ok(u64::from_le_bytes(self.array()?))
     }
     fn u128(&mut self) -> Result<u128> {
@@ -474,16 +535,17 @@ impl<'a> Reader<'a> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::config::{plane_rule, Preset};
     use crate::machine::lighting::diffuse::{diffuse, diffuse_share};
     use crate::machine::loading::loaded_scene::{load_scene, resolve_lights};
     use crate::precompute::LoadConfig;
 
-    /// Two runs' lit stores, visible masks, counters and reports, cell by cell.
-    fn assert_same(a: &Lighting, b: &Lighting, what: &str) {
+    /// Two runs' lit stores, visible masks, counters, reports and link faults, cell by cell.
+    pub(in crate::machine::lighting::diffuse) fn assert_same(a: &Lighting, b: &Lighting, what: &str) {
         assert_eq!(a.reports, b.reports, "{what}: reports");
+        assert_eq!(a.link_faults, b.link_faults, "{what}: link faults");
         assert_eq!(a.cells.len(), b.cells.len());
         for (x, y) in a.cells.iter().zip(&b.cells) {
             assert_eq!((x.x, x.y), (y.x, y.y), "{what}");
