@@ -1,7 +1,8 @@
 //! `--features mpi` (docs/MPI.md): `mpirun -np K host-sim render|light …` gives the
 //! one-process run's files byte for byte — PNG, lit voxels, statistics without their host
-//! timings — and summary lines (but the wall times), for K = 1, 2, 3, 4 ranks; a rank that
-//! dies ends the run with an error, never a hang.
+//! timings — and summary lines (but the wall times), for K = 1, 2, 3, 4 ranks sharing the
+//! sources and 1, 2, 3, 4, 9 ranks sharing the grid as tiles; a rank that dies ends the run
+//! with an error, never a hang.
 //!
 //! Compiled only with the feature (`cargo test -p host-sim --features mpi --test mpi`); needs
 //! Open MPI's `mpirun` (Debian: openmpi-bin libopenmpi-dev).
@@ -91,9 +92,10 @@ fn untimed(path: &Path) -> serde_json::Value {
     v
 }
 
-/// The summary without its wall times.
+/// The summary without its wall times (and without the line saying how the ranks shared the
+/// run, which one process does not print).
 fn summary(stderr: &str) -> Vec<String> {
-    stderr.lines().filter(|l| !l.contains("wall")).map(str::to_string).collect()
+    stderr.lines().filter(|l| !l.contains("wall") && !l.starts_with("ranks: ")).map(str::to_string).collect()
 }
 
 fn bytes(p: &Path) -> Vec<u8> {
@@ -183,14 +185,33 @@ fn refined_and_reflected_renders_alike_on_2_ranks() {
     same_as_one_process("mirror", &["render", "cornell-mirror", "--n", "32", "--reflections", "2"], &png, &[2]);
 }
 
+/// The grid cut into bands of rows, one per rank (`--spread tiles`), the messages across the
+/// bands' edges carried between ranks every cycle: the Cornell box through its camera,
+/// teapot-floor and bureau1 alike on 1, 2, 4 and 9 ranks (bands of 3 or 4 rows), and `light`'s
+/// lit voxels over faulty links (each link with its receiver's rank).
+#[test]
+fn tiles_render_alike_on_1_2_4_9_ranks() {
+    let png = [("--out", "image.png")];
+    for scene in ["cornell", "teapot-floor", "bureau1"] {
+        let args = ["--spread", "tiles", "render", scene, "--n", "32"];
+        same_as_one_process(&format!("tiles-{scene}"), &args, &png, &[1, 2, 4, 9]);
+    }
+    let mut faults = vec!["--spread", "tiles", "light", "cornell", "--n", "24"];
+    faults.extend(["--link-faults", "corrupt=0.01,drop=0.01,delay=0.02,seed=7"]);
+    faults.extend(&FIVE_LIGHTS[..4]);
+    same_as_one_process("tiles-faults", &faults, &[("--lit-out", "lit.csv")], &[3]);
+}
+
 /// What is not spread runs on rank 0 alone, with the same result: classic shadow rays, and a
-/// diffusion over faulty links (each link's faults run on from source to source).
+/// diffusion over faulty links split by sources (each link's faults run on from source to
+/// source; `--spread auto` cuts it into tiles instead, above).
 #[test]
 fn what_is_not_spread_runs_on_rank_0_alike() {
     let mut classic = vec!["render", "cornell", "--n", "32", "--lighting", "classic"];
     classic.extend(FIVE_LIGHTS);
     same_as_one_process("classic", &classic, &[("--out", "image.png")], &[2]);
-    let mut faults = vec!["light", "cornell", "--n", "16", "--link-faults", "corrupt=0.01,drop=0.01,seed=7"];
+    let mut faults = vec!["--spread", "sources", "light", "cornell", "--n", "16"];
+    faults.extend(["--link-faults", "corrupt=0.01,drop=0.01,seed=7"]);
     faults.extend(&FIVE_LIGHTS[..4]);
     let dir = scratch("faults");
     let (one, two) = (dir.join("one.csv"), dir.join("two.csv"));
@@ -264,14 +285,21 @@ fn ranks_of(mpirun: u32) -> Vec<(u32, String)> {
     out
 }
 
-/// A rank killed (SIGKILL) in the middle of a long diffusion: mpirun ends the run with an error
-/// instead of leaving rank 0 waiting for its part.
+/// A rank killed (SIGKILL) in the middle of a long diffusion, its sources or its tile: mpirun
+/// ends the run with an error instead of leaving rank 0 waiting for its part, or the other
+/// tiles for its messages.
 #[test]
 fn a_killed_rank_ends_the_run_with_an_error() {
-    let dir = scratch("killed");
+    for spread in ["sources", "tiles"] {
+        killed_rank(spread);
+    }
+}
+
+fn killed_rank(spread: &str) {
+    let dir = scratch(&format!("killed-{spread}"));
     let mut c = mpirun(2);
     // The full lit store of the classroom's 26 lights: minutes of work, killed after a second.
-    c.args(["light", "classe", "--n", "64", "--quiet", "--lit-out"]).arg(dir.join("lit.csv"));
+    c.args(["--spread", spread, "light", "classe", "--n", "64", "--quiet", "--lit-out"]).arg(dir.join("lit.csv"));
     let desc = format!("{c:?}");
     let child = c.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("mpirun");
     let id = child.id();

@@ -12,7 +12,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use crate::jobs;
 use crate::precompute::LoadConfig;
 use crate::scene::camera::{Camera, Projection, ViewChoice};
-use value_args::{ContourArg, EngineArg, FrustumBlocksArg, OracleSkipArg, ThicknessArg, VisibilityArg};
+use value_args::{ContourArg, EngineArg, FrustumBlocksArg, OracleSkipArg, SpreadArg, ThicknessArg, VisibilityArg};
 
 /// RC² cellular ray-tracing machine — host simulator.
 ///
@@ -27,6 +27,14 @@ pub struct Cli {
     /// Host threads simulating the grid (default: all cores). Results do not depend on it.
     #[arg(long, global = true, value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
+    /// Under `mpirun` (a build with the `mpi` feature, docs/MPI.md): how the ranks share the
+    /// lighting run of `render` and `light`. `sources`: each rank diffuses its share of the
+    /// light sources on its own copy of the grid; `tiles`: the grid is cut into bands of rows,
+    /// one per rank, and the messages that cross a band's edge go between the ranks every
+    /// cycle; `auto`: sources when there are at least as many as ranks, tiles otherwise.
+    /// Images, lit sets and counts are the same either way; one process ignores it.
+    #[arg(long, global = true, value_enum, default_value_t = SpreadArg::Auto)]
+    pub spread: SpreadArg,
 }
 
 /// Subcommands.
@@ -979,6 +987,7 @@ pub fn run(cli: Cli) -> Result<()> {
         .num_threads(cli.threads.map_or(0, |t| t as usize))
         .build()
         .context("--threads")?;
+    crate::dist::set_spread(cli.spread.into());
     pool.install(|| dispatch(cli.command))
 }
 

@@ -120,6 +120,30 @@ impl From<VisibilityArg> for cell_core::visibility::Visibility {
     }
 }
 
+/// How the ranks of an MPI run share a lighting run (`--spread`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SpreadArg {
+    /// Sources when there are at least as many as ranks (and they can be split), tiles
+    /// otherwise.
+    Auto,
+    /// Each rank diffuses its share of the light sources on its own copy of the grid.
+    Sources,
+    /// The grid cut into bands of rows, one per rank; the messages that cross a band's edge go
+    /// between the ranks every cycle.
+    Tiles,
+}
+
+impl From<SpreadArg> for crate::dist::Spread {
+    fn from(a: SpreadArg) -> Self {
+        use crate::dist::Spread;
+        match a {
+            SpreadArg::Auto => Spread::Auto,
+            SpreadArg::Sources => Spread::Sources,
+            SpreadArg::Tiles => Spread::Tiles,
+        }
+    }
+}
+
 impl From<FrustumBlocksArg> for FrustumBlocks {
     fn from(a: FrustumBlocksArg) -> Self {
         match a {

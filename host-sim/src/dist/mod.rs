@@ -1,10 +1,12 @@
 //! Past one process (docs/MPI.md): with the `mpi` feature and `mpirun -np K host-sim …`, the
-//! lighting run's sources are spread over the K ranks. Each rank loads the same scene
-//! (deterministic), diffuses the sources s with s % K = rank on its own copy of the grid
-//! ([`Share`]), and rank 0 gathers the parts, merges them
-//! ([`crate::machine::lighting::diffuse::merge_parts`]) and carries on alone: shading, files,
-//! summary. The result is the one-process run's, byte for byte (the parts share nothing but
-//! what adds up). The other ranks stop once their part is sent ([`Finished`]).
+//! lighting run is shared by the K ranks ([`Spread`]). Each rank loads the same scene
+//! (deterministic), then either diffuses the sources s with s % K = rank on its own copy of the
+//! grid ([`Share`]) or steps band `rank` of the grid's rows, the messages across the bands'
+//! edges going between ranks every cycle (`crate::machine::lighting::diffuse::Tile`, through
+//! `ranks::MpiHalo`); rank 0 gathers the parts, merges them
+//! ([`crate::machine::lighting::diffuse::merge_parts`], `merge_tiles`) and carries on alone:
+//! shading, files, summary. The result is the one-process run's, byte for byte. The other
+//! ranks stop once their part is sent ([`Finished`]).
 //!
 //! Without the feature (the default build), or run without `mpirun`, this is one process:
 //! [`run_diffusion`] is the machine's own. Nothing of MPI leaves this folder; the machine
@@ -14,7 +16,7 @@ use std::time::Instant;
 
 use anyhow::Result;
 
-use crate::machine::lighting::diffuse::{LightConfig, Lighting, Share};
+use crate::machine::lighting::diffuse::{Halo, LightConfig, Lighting, Share};
 use crate::machine::lighting::run::{self, LightStats};
 use crate::machine::loading::loaded_scene::LoadedScene;
 use crate::scene::Mesh;
@@ -106,10 +108,58 @@ pub fn fail(e: &anyhow::Error) -> std::process::ExitCode {
     std::process::ExitCode::FAILURE
 }
 
-/// The lighting run of every source ([`run::run_diffusion`]), its sources spread over the ranks
-/// when there are several: rank 0 returns the whole run, the other ranks [`Finished`] once
-/// their part is sent. A run whose sources cannot be split ([`Share::spreads`]) runs on rank 0
-/// alone.
+/// How the ranks of an MPI run share a lighting run (`--spread`). The result is the same
+/// whichever is chosen (docs/MPI.md).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Spread {
+    /// Sources when there are at least as many as ranks and they can be split, else tiles.
+    #[default]
+    Auto,
+    /// Each rank diffuses its share of the sources on its own copy of the grid.
+    Sources,
+    /// The grid cut into bands of rows, one per rank, the messages that cross a band's edge
+    /// carried between ranks every cycle.
+    Tiles,
+}
+
+/// The run's choice (`--spread`), set once by the CLI.
+static SPREAD: std::sync::OnceLock<Spread> = std::sync::OnceLock::new();
+
+/// Choose how the ranks share lighting runs (the first call stands).
+pub fn set_spread(s: Spread) {
+    let _ = SPREAD.set(s);
+}
+
+/// What this run's ranks do with a lighting run of `lights` sources under `cfg`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Mode {
+    Sources,
+    Tiles,
+    /// Rank 0 alone, with the reason.
+    Alone(&'static str),
+}
+
+fn mode(spread: Spread, lights: usize, ranks: usize, n: u32, cfg: &LightConfig) -> Mode {
+    let sources_ok = Share::spreads(cfg, false);
+    let tiles_ok = !cfg.record_visits && !cfg.visibility.counts_rays() && ranks <= n as usize;
+    match spread {
+        Spread::Sources if sources_ok => Mode::Sources,
+        Spread::Sources => Mode::Alone(
+            "this run's sources share more than their lit marks (link faults, a snapshot, or the lit-ray ratio's weights)",
+        ),
+        Spread::Tiles if tiles_ok => Mode::Tiles,
+        Spread::Tiles => Mode::Alone("this run cannot be cut into tiles (the lit-ray ratio's weights, or more ranks than rows)"),
+        Spread::Auto if sources_ok && lights >= ranks => Mode::Sources,
+        Spread::Auto if tiles_ok => Mode::Tiles,
+        Spread::Auto if sources_ok => Mode::Sources,
+        Spread::Auto => Mode::Alone("this run can be neither split by sources nor cut into tiles (the lit-ray ratio's weights)"),
+    }
+}
+
+/// The lighting run of every source ([`run::run_diffusion`]), shared by the ranks when there
+/// are several (`--spread`: by sources, or by tiles of the grid): rank 0 returns the whole run,
+/// the other ranks [`Finished`] once their part is sent. A run that can be shared neither way
+/// runs on rank 0 alone.
 pub fn run_diffusion(
     mesh: &Mesh,
     scene: &LoadedScene,
@@ -121,20 +171,54 @@ pub fn run_diffusion(
     if size == 1 {
         return run::run_diffusion(mesh, scene, lights, cfg, progress);
     }
-    if !Share::spreads(cfg, false) {
-        if rank > 0 {
-            return Err(Finished.into());
-        }
-        eprintln!(
-            "note: this run's sources share more than their lit marks (link faults, a snapshot, or the lit-ray ratio's weights): rank 0 diffuses them all"
-        );
-        return run::run_diffusion(mesh, scene, lights, cfg, progress);
-    }
     let t0 = Instant::now();
-    let part = run::diffuse_part(scene, lights, cfg, Share { index: rank, of: size }, &mut progress)?;
-    let Some(parts) = gather(part)? else { return Err(Finished.into()) };
-    let lighting = crate::machine::lighting::diffuse::merge_parts(parts)?;
+    let spread = SPREAD.get().copied().unwrap_or_default();
+    let mode = mode(spread, lights.len(), size, scene.grid.n, cfg);
+    if rank == 0 {
+        // What ran (not part of the summary, which is the one-process run's).
+        let n = scene.grid.n;
+        match mode {
+            Mode::Sources => eprintln!("ranks: {size}, each diffusing its share of the {} sources", lights.len()),
+            Mode::Tiles => eprintln!(
+                "ranks: {size}, each stepping a band of {}..{} of the grid's {n} rows",
+                n / size as u32,
+                n.div_ceil(size as u32)
+            ),
+            Mode::Alone(_) => {}
+        }
+    }
+    let lighting = match mode {
+        Mode::Alone(why) => {
+            if rank > 0 {
+                return Err(Finished.into());
+            }
+            eprintln!("note: {why}: rank 0 diffuses them all");
+            return run::run_diffusion(mesh, scene, lights, cfg, progress);
+        }
+        Mode::Sources => {
+            let part = run::diffuse_part(scene, lights, cfg, Share { index: rank, of: size }, &mut progress)?;
+            let Some(parts) = gather(part)? else { return Err(Finished.into()) };
+            crate::machine::lighting::diffuse::merge_parts(parts)?
+        }
+        Mode::Tiles => {
+            let part = run::diffuse_tile_part(scene, lights, cfg, &mut *halo()?, &mut progress)?;
+            let Some(parts) = gather(part)? else { return Err(Finished.into()) };
+            crate::machine::lighting::diffuse::merge_tiles(parts)?
+        }
+    };
     run::summarise(mesh, scene, cfg, lighting, t0.elapsed().as_secs_f64())
+}
+
+/// This rank's tile of the grid and its seam to the others.
+#[cfg(feature = "mpi")]
+fn halo() -> Result<Box<dyn Halo>> {
+    Ok(Box::new(ranks::MpiHalo::new()))
+}
+
+/// One process has no other tiles (never called: one process runs the grid whole).
+#[cfg(not(feature = "mpi"))]
+fn halo() -> Result<Box<dyn Halo>> {
+    anyhow::bail!("tiles over ranks need the `mpi` feature")
 }
 
 /// Every rank's part on rank 0, in rank order (`None` on the other ranks, once sent).

@@ -1,9 +1,11 @@
 //! The MPI side of [`super`] (rsmpi over the system's MPI): starting, the ranks' places,
-//! gathering the lighting parts on rank 0, aborting every rank.
+//! gathering the lighting parts on rank 0, the tiles' seam ([`MpiHalo`]), aborting every
+//! rank.
 
 use std::sync::OnceLock;
 
 use anyhow::{bail, Context, Result};
+use mpi::collective::SystemOperation;
 use mpi::datatype::PartitionMut;
 use mpi::environment::Threading;
 use mpi::request::{Request, Scope};
@@ -13,7 +15,7 @@ use mpi::Count;
 
 pub use mpi::environment::Universe;
 
-use crate::machine::lighting::diffuse::{decode_part, encode_part, Lighting};
+use crate::machine::lighting::diffuse::{decode_part, encode_part, Halo, Lighting, Tile};
 
 /// (rank, ranks), once MPI is started.
 static PLACE: OnceLock<(usize, usize)> = OnceLock::new();
@@ -121,5 +123,78 @@ fn settle<'a, D: ?Sized, S: Scope<'a>>(mut req: Request<'a, D, S>) {
                 std::thread::sleep(std::time::Duration::from_millis(1));
             }
         }
+    }
+}
+
+/// The tiles of one grid over the ranks ([`Halo`]): rank r steps band r of the rows, the
+/// offers and answers across its edges go to ranks r − 1 and r + 1 once per cycle
+/// (non-blocking sends, blocking receives), the machine-wide sums are an `MPI_Allreduce`.
+pub struct MpiHalo {
+    world: SimpleCommunicator,
+    tile: Tile,
+}
+
+impl MpiHalo {
+    /// This rank's tile of a grid cut into as many bands as there are ranks.
+    pub fn new() -> Self {
+        let world = SimpleCommunicator::world();
+        let tile = Tile { index: world.rank() as usize, of: world.size() as usize };
+        MpiHalo { world, tile }
+    }
+}
+
+/// The tag of the messages between neighbouring tiles (a cycle's offers, then its answers:
+/// messages between two ranks with one tag arrive in the order sent).
+const TAG_EDGE: mpi::Tag = 55;
+
+impl Halo for MpiHalo {
+    fn tile(&self) -> Tile {
+        self.tile
+    }
+
+    fn swap(&mut self, up: &[u8], down: &[u8]) -> Result<(Vec<u8>, Vec<u8>)> {
+        let (i, k) = (self.tile.index as i32, self.tile.of as i32);
+        let world = &self.world;
+        Ok(mpi::request::scope(|scope| {
+            let sent_up = (i > 0).then(|| world.process_at_rank(i - 1).immediate_send_with_tag(scope, up, TAG_EDGE));
+            let sent_down =
+                (i + 1 < k).then(|| world.process_at_rank(i + 1).immediate_send_with_tag(scope, down, TAG_EDGE));
+            let above =
+                if i > 0 { world.process_at_rank(i - 1).receive_vec_with_tag::<u8>(TAG_EDGE).0 } else { Vec::new() };
+            let below = if i + 1 < k {
+                world.process_at_rank(i + 1).receive_vec_with_tag::<u8>(TAG_EDGE).0
+            } else {
+                Vec::new()
+            };
+            for r in [sent_up, sent_down].into_iter().flatten() {
+                r.wait();
+            }
+            (above, below)
+        }))
+    }
+
+    fn gather(&mut self, mine: &[u8]) -> Result<Vec<Vec<u8>>> {
+        let size = self.tile.of;
+        let len = Count::try_from(mine.len()).context("a tile's bytes exceed one MPI message")?;
+        let mut counts = vec![0 as Count; size];
+        self.world.all_gather_into(&len, &mut counts[..]);
+        let mut displs = Vec::with_capacity(size);
+        let mut total: i64 = 0;
+        for c in &counts {
+            displs.push(Count::try_from(total).context("the tiles' bytes together exceed one MPI message")?);
+            total += i64::from(*c);
+        }
+        let mut buf = vec![0u8; usize::try_from(total).context("tiles' bytes")?];
+        {
+            let mut into = PartitionMut::new(&mut buf[..], &counts[..], &displs[..]);
+            self.world.all_gather_varcount_into(mine, &mut into);
+        }
+        Ok((0..size).map(|r| buf[displs[r] as usize..][..counts[r] as usize].to_vec()).collect())
+    }
+
+    fn sum(&mut self, v: &mut [i64]) -> Result<()> {
+        let mine = v.to_vec();
+        self.world.all_reduce_into(&mine[..], v, SystemOperation::sum());
+        Ok(())
     }
 }

@@ -3,11 +3,12 @@
 use std::time::Instant;
 
 use anyhow::{bail, Result};
+use cell_core::beam::Source;
 use cell_core::light::Policy;
 
 use crate::machine::lighting::diffuse::{
-    diffuse_share, light_cell_bytes, unsupported_frac_bits, DiffusionCounts, LightConfig, Lighting, PhaseSeconds,
-    Share, SourceReport,
+    diffuse_share, diffuse_tile, light_cell_bytes, unsupported_frac_bits, DiffusionCounts, Halo, LightConfig, Lighting,
+    PhaseSeconds, Share, SourceReport,
 };
 use crate::machine::loading::loaded_scene::LoadedScene;
 
@@ -131,10 +132,29 @@ pub fn diffuse_part(
     share: Share,
     progress: &mut dyn FnMut(usize, u64),
 ) -> Result<Lighting> {
+    let sources = sources_of(scene, lights, cfg)?;
+    diffuse_share(&scene.grid, &sources, cfg, share, progress)
+}
+
+/// One tile's part of a lighting run of every source over a grid cut into tiles
+/// ([`crate::machine::lighting::diffuse::diffuse_tile`], through `halo`): a part for
+/// [`crate::machine::lighting::diffuse::merge_tiles`].
+pub fn diffuse_tile_part(
+    scene: &LoadedScene,
+    lights: &[[f64; 3]],
+    cfg: &LightConfig,
+    halo: &mut dyn Halo,
+    progress: &mut dyn FnMut(usize, u64),
+) -> Result<Lighting> {
+    let sources = sources_of(scene, lights, cfg)?;
+    diffuse_tile(&scene.grid, &sources, cfg, halo, progress)
+}
+
+/// The run's sources, once its f is checked.
+fn sources_of(scene: &LoadedScene, lights: &[[f64; 3]], cfg: &LightConfig) -> Result<Vec<Source>> {
     light_cell_bytes(cfg.frac_bits).ok_or_else(|| unsupported_frac_bits(cfg.frac_bits))?;
     let n = scene.grid.n;
-    let sources = lights.iter().enumerate().map(|(i, p)| cfg.source(i, *p, n)).collect::<Result<Vec<_>>>()?;
-    diffuse_share(&scene.grid, &sources, cfg, share, progress)
+    lights.iter().enumerate().map(|(i, p)| cfg.source(i, *p, n)).collect()
 }
 
 /// The checks and statistics of a lighting run of every source (`wall`: its wall time): the
