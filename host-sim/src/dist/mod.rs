@@ -201,9 +201,18 @@ pub fn run_diffusion(
             crate::machine::lighting::diffuse::merge_parts(parts)?
         }
         Mode::Tiles => {
-            let part = run::diffuse_tile_part(scene, lights, cfg, &mut *halo()?, &mut progress)?;
+            let mut halo = halo()?;
+            let part = run::diffuse_tile_part(scene, lights, cfg, &mut *halo, &mut progress)?;
+            let traffic = halo.traffic();
             let Some(parts) = gather(part)? else { return Err(Finished.into()) };
-            crate::machine::lighting::diffuse::merge_tiles(parts)?
+            let lighting = crate::machine::lighting::diffuse::merge_tiles(parts)?;
+            let cycles = traffic.swaps / 2;
+            eprintln!(
+                "ranks: rank 0 sent its neighbour {} B across its tile's edge in {cycles} cycles ({:.0} B a cycle)",
+                traffic.bytes,
+                traffic.bytes as f64 / cycles.max(1) as f64
+            );
+            lighting
         }
     };
     run::summarise(mesh, scene, cfg, lighting, t0.elapsed().as_secs_f64())

@@ -15,7 +15,7 @@ use mpi::Count;
 
 pub use mpi::environment::Universe;
 
-use crate::machine::lighting::diffuse::{decode_part, encode_part, Halo, Lighting, Tile};
+use crate::machine::lighting::diffuse::{decode_part, encode_part, Halo, Lighting, Tile, Traffic};
 
 /// (rank, ranks), once MPI is started.
 static PLACE: OnceLock<(usize, usize)> = OnceLock::new();
@@ -84,13 +84,8 @@ pub fn gather(part: Lighting) -> Result<Option<Vec<Lighting>>> {
     // Rank 0 keeps its own part and sends itself nothing.
     let mut counts = vec![0 as Count; size];
     mpi::request::scope(|scope| settle(root.immediate_gather_into_root(scope, &(0 as Count), &mut counts[..])));
-    let mut displs = Vec::with_capacity(size);
-    let mut total: i64 = 0;
-    for c in &counts {
-        displs.push(Count::try_from(total).context("the lighting parts together exceed one MPI message")?);
-        total += i64::from(*c);
-    }
-    let mut buf = vec![0u8; usize::try_from(total).context("lighting parts")?];
+    let (displs, total) = offsets(&counts).context("the lighting parts")?;
+    let mut buf = vec![0u8; total];
     {
         let mut into = PartitionMut::new(&mut buf[..], &counts[..], &displs[..]);
         let empty: &[u8] = &[];
@@ -103,6 +98,18 @@ pub fn gather(part: Lighting) -> Result<Option<Vec<Lighting>>> {
         parts.push(decode_part(&buf[at..at + len]).with_context(|| format!("rank {r}'s lighting part"))?);
     }
     Ok(Some(parts))
+}
+
+/// Where each rank's bytes start in a gathered buffer, and the buffer's length; an error when
+/// they do not fit one MPI message.
+fn offsets(counts: &[Count]) -> Result<(Vec<Count>, usize)> {
+    let mut displs = Vec::with_capacity(counts.len());
+    let mut total: i64 = 0;
+    for c in counts {
+        displs.push(Count::try_from(total).context("together more than one MPI message holds")?);
+        total += i64::from(*c);
+    }
+    Ok((displs, usize::try_from(total)?))
 }
 
 /// Wait until every rank is here (a barrier, tested every millisecond: [`settle`]).
@@ -132,6 +139,7 @@ fn settle<'a, D: ?Sized, S: Scope<'a>>(mut req: Request<'a, D, S>) {
 pub struct MpiHalo {
     world: SimpleCommunicator,
     tile: Tile,
+    traffic: Traffic,
 }
 
 impl MpiHalo {
@@ -139,7 +147,7 @@ impl MpiHalo {
     pub fn new() -> Self {
         let world = SimpleCommunicator::world();
         let tile = Tile { index: world.rank() as usize, of: world.size() as usize };
-        MpiHalo { world, tile }
+        MpiHalo { world, tile, traffic: Traffic::default() }
     }
 }
 
@@ -152,8 +160,13 @@ impl Halo for MpiHalo {
         self.tile
     }
 
+    fn traffic(&self) -> Traffic {
+        self.traffic
+    }
+
     fn swap(&mut self, up: &[u8], down: &[u8]) -> Result<(Vec<u8>, Vec<u8>)> {
         let (i, k) = (self.tile.index as i32, self.tile.of as i32);
+        self.traffic.add(if i > 0 { up.len() } else { 0 }, if i + 1 < k { down.len() } else { 0 });
         let world = &self.world;
         Ok(mpi::request::scope(|scope| {
             let sent_up = (i > 0).then(|| world.process_at_rank(i - 1).immediate_send_with_tag(scope, up, TAG_EDGE));
@@ -178,13 +191,8 @@ impl Halo for MpiHalo {
         let len = Count::try_from(mine.len()).context("a tile's bytes exceed one MPI message")?;
         let mut counts = vec![0 as Count; size];
         self.world.all_gather_into(&len, &mut counts[..]);
-        let mut displs = Vec::with_capacity(size);
-        let mut total: i64 = 0;
-        for c in &counts {
-            displs.push(Count::try_from(total).context("the tiles' bytes together exceed one MPI message")?);
-            total += i64::from(*c);
-        }
-        let mut buf = vec![0u8; usize::try_from(total).context("tiles' bytes")?];
+        let (displs, total) = offsets(&counts).context("the tiles' bytes")?;
+        let mut buf = vec![0u8; total];
         {
             let mut into = PartitionMut::new(&mut buf[..], &counts[..], &displs[..]);
             self.world.all_gather_varcount_into(mine, &mut into);

@@ -56,7 +56,7 @@ pub use oracle::OracleSkip;
 pub use share::{decode_part, encode_part, merge_parts, Share};
 use shortcut::Shortcut;
 pub use summary::{occupancy_summary, occupied_box, FrustumBlocks, Summary};
-pub use tiles::{diffuse_in_tiles, diffuse_tile, merge_tiles, Halo, Tile};
+pub use tiles::{diffuse_in_tiles, diffuse_tile, merge_tiles, Halo, Tile, Traffic};
 
 /// Default of [`LightConfig::stall_cycles`]: a fault-free machine that cannot move for one
 /// cycle is deadlocked; under link faults a few cycles of bad luck are normal.

@@ -97,6 +97,10 @@ pub trait Halo {
     /// Every tile's `mine`, in tile order, on every tile.
     fn gather(&mut self, mine: &[u8]) -> Result<Vec<Vec<u8>>>;
 
+    /// What this tile has sent so far: bytes to the tiles above and below ([`Halo::swap`]),
+    /// and how many swaps (two a cycle).
+    fn traffic(&self) -> Traffic;
+
     /// Each value summed over the tiles, on every tile.
     fn sum(&mut self, v: &mut [i64]) -> Result<()> {
         let mine: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
@@ -111,6 +115,23 @@ pub trait Halo {
             }
         }
         Ok(())
+    }
+}
+
+/// What a tile sent its neighbours ([`Halo::traffic`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Traffic {
+    /// Bytes sent to the tiles above and below.
+    pub bytes: u64,
+    /// Swaps (two a cycle: offers, then answers).
+    pub swaps: u64,
+}
+
+impl Traffic {
+    /// One swap of `up` and `down` bytes more.
+    pub fn add(&mut self, up: usize, down: usize) {
+        self.bytes += (up + down) as u64;
+        self.swaps += 1;
     }
 }
 
@@ -398,6 +419,7 @@ impl std::error::Error for Ended {}
 /// and the others' receives fail instead of waiting).
 pub struct ThreadHalo {
     tile: Tile,
+    traffic: Traffic,
     to: Vec<Option<Sender<Vec<u8>>>>,
     from: Vec<Option<Receiver<Vec<u8>>>>,
 }
@@ -408,6 +430,7 @@ impl ThreadHalo {
         let mut halos: Vec<ThreadHalo> = (0..of)
             .map(|index| ThreadHalo {
                 tile: Tile { index, of },
+                traffic: Traffic::default(),
                 to: (0..of).map(|_| None).collect(),
                 from: (0..of).map(|_| None).collect(),
             })
@@ -440,8 +463,13 @@ impl Halo for ThreadHalo {
         self.tile
     }
 
+    fn traffic(&self) -> Traffic {
+        self.traffic
+    }
+
     fn swap(&mut self, up: &[u8], down: &[u8]) -> Result<(Vec<u8>, Vec<u8>)> {
         let Tile { index: i, of } = self.tile;
+        self.traffic.add(if i > 0 { up.len() } else { 0 }, if i + 1 < of { down.len() } else { 0 });
         if i > 0 {
             self.send(i - 1, up)?;
         }
