@@ -16,7 +16,7 @@ use std::time::Instant;
 
 use anyhow::Result;
 
-use crate::machine::lighting::diffuse::{Halo, LightConfig, Lighting, Share};
+use crate::machine::lighting::diffuse::{Halo, LightConfig, Lighting, Share, Tile};
 use crate::machine::lighting::run::{self, LightStats};
 use crate::machine::loading::loaded_scene::LoadedScene;
 use crate::scene::Mesh;
@@ -207,10 +207,21 @@ pub fn run_diffusion(
             let Some(parts) = gather(part)? else { return Err(Finished.into()) };
             let lighting = crate::machine::lighting::diffuse::merge_tiles(parts)?;
             let cycles = traffic.swaps / 2;
+            // Each band's share of the beams processed: every cycle waits for the busiest band.
+            let n = scene.grid.n;
+            let per_band: Vec<u64> = (0..size)
+                .map(|index| {
+                    let rows = Tile { index, of: size }.rows(n);
+                    lighting.cells.iter().filter(|c| rows.contains(&(c.y as u32))).map(|c| c.counters.processed).sum()
+                })
+                .collect();
+            let total = per_band.iter().sum::<u64>().max(1) as f64;
+            let shares: Vec<String> = per_band.iter().map(|b| format!("{:.0} %", 100.0 * *b as f64 / total)).collect();
             eprintln!(
-                "ranks: rank 0 sent its neighbour {} B across its tile's edge in {cycles} cycles ({:.0} B a cycle)",
+                "ranks: rank 0 sent its neighbour {} B across its tile's edge in {cycles} cycles ({:.0} B a cycle); beams processed by band: {}",
                 traffic.bytes,
-                traffic.bytes as f64 / cycles.max(1) as f64
+                traffic.bytes as f64 / cycles.max(1) as f64,
+                shares.join(", ")
             );
             lighting
         }
