@@ -16,7 +16,7 @@ use std::time::Instant;
 
 use anyhow::Result;
 
-use crate::machine::lighting::diffuse::{Halo, LightConfig, Lighting, Share, Tile};
+use crate::machine::lighting::diffuse::{Halo, LightConfig, Lighting, Share, Tile, Traffic};
 use crate::machine::lighting::run::{self, LightStats};
 use crate::machine::loading::loaded_scene::LoadedScene;
 use crate::scene::Mesh;
@@ -203,30 +203,38 @@ pub fn run_diffusion(
         Mode::Tiles => {
             let mut halo = halo()?;
             let part = run::diffuse_tile_part(scene, lights, cfg, &mut *halo, &mut progress)?;
-            let traffic = halo.traffic();
+            // Every rank's traffic, for rank 0's account of the run.
+            let traffic = halo.gather(&halo.traffic().to_bytes())?;
             let Some(parts) = gather(part)? else { return Err(Finished.into()) };
             let lighting = crate::machine::lighting::diffuse::merge_tiles(parts)?;
-            let cycles = traffic.swaps / 2;
-            // Each band's share of the beams processed: every cycle waits for the busiest band.
-            let n = scene.grid.n;
-            let per_band: Vec<u64> = (0..size)
-                .map(|index| {
-                    let rows = Tile { index, of: size }.rows(n);
-                    lighting.cells.iter().filter(|c| rows.contains(&(c.y as u32))).map(|c| c.counters.processed).sum()
-                })
-                .collect();
-            let total = per_band.iter().sum::<u64>().max(1) as f64;
-            let shares: Vec<String> = per_band.iter().map(|b| format!("{:.0} %", 100.0 * *b as f64 / total)).collect();
-            eprintln!(
-                "ranks: rank 0 sent its neighbour {} B across its tile's edge in {cycles} cycles ({:.0} B a cycle); beams processed by band: {}",
-                traffic.bytes,
-                traffic.bytes as f64 / cycles.max(1) as f64,
-                shares.join(", ")
-            );
+            let traffic = traffic.iter().map(|b| Traffic::from_bytes(b)).collect::<Result<Vec<_>>>()?;
+            eprintln!("{}", tiles_account(&lighting, &traffic, scene.grid.n));
             lighting
         }
     };
     run::summarise(mesh, scene, cfg, lighting, t0.elapsed().as_secs_f64())
+}
+
+/// What each rank of a tiled run did: the bytes it sent across its tile's edges a cycle, the
+/// host seconds it spent in the seam (sending, and waiting for the others: every cycle waits
+/// for the busiest band), and each band's share of the beams processed.
+fn tiles_account(lighting: &Lighting, traffic: &[Traffic], n: u32) -> String {
+    let size = traffic.len();
+    let per_band: Vec<u64> = (0..size)
+        .map(|index| {
+            let rows = Tile { index, of: size }.rows(n);
+            lighting.cells.iter().filter(|c| rows.contains(&(c.y as u32))).map(|c| c.counters.processed).sum()
+        })
+        .collect();
+    let total = per_band.iter().sum::<u64>().max(1) as f64;
+    let list = |f: &dyn Fn(usize) -> String| (0..size).map(f).collect::<Vec<_>>().join(", ");
+    let cycles = traffic.first().map_or(0, |t| t.swaps / 2).max(1) as f64;
+    format!(
+        "ranks: by rank, bytes sent across the tile's edges a cycle: {}; seconds in the seam (sending and waiting): {}; share of the beams processed: {}",
+        list(&|r| format!("{:.0}", traffic[r].bytes as f64 / cycles)),
+        list(&|r| format!("{:.2}", traffic[r].seconds)),
+        list(&|r| format!("{:.0} %", 100.0 * per_band[r] as f64 / total)),
+    )
 }
 
 /// This rank's tile of the grid and its seam to the others.

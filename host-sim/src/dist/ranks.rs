@@ -3,6 +3,7 @@
 //! rank.
 
 use std::sync::OnceLock;
+use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use mpi::collective::SystemOperation;
@@ -167,8 +168,8 @@ impl Halo for MpiHalo {
     fn swap(&mut self, up: &[u8], down: &[u8]) -> Result<(Vec<u8>, Vec<u8>)> {
         let (i, k) = (self.tile.index as i32, self.tile.of as i32);
         self.traffic.add(if i > 0 { up.len() } else { 0 }, if i + 1 < k { down.len() } else { 0 });
-        let world = &self.world;
-        Ok(mpi::request::scope(|scope| {
+        let (world, t0) = (&self.world, Instant::now());
+        let got = mpi::request::scope(|scope| {
             let sent_up = (i > 0).then(|| world.process_at_rank(i - 1).immediate_send_with_tag(scope, up, TAG_EDGE));
             let sent_down =
                 (i + 1 < k).then(|| world.process_at_rank(i + 1).immediate_send_with_tag(scope, down, TAG_EDGE));
@@ -183,11 +184,13 @@ impl Halo for MpiHalo {
                 r.wait();
             }
             (above, below)
-        }))
+        });
+        self.traffic.seconds += t0.elapsed().as_secs_f64();
+        Ok(got)
     }
 
     fn gather(&mut self, mine: &[u8]) -> Result<Vec<Vec<u8>>> {
-        let size = self.tile.of;
+        let (size, t0) = (self.tile.of, Instant::now());
         let len = Count::try_from(mine.len()).context("a tile's bytes exceed one MPI message")?;
         let mut counts = vec![0 as Count; size];
         self.world.all_gather_into(&len, &mut counts[..]);
@@ -197,12 +200,14 @@ impl Halo for MpiHalo {
             let mut into = PartitionMut::new(&mut buf[..], &counts[..], &displs[..]);
             self.world.all_gather_varcount_into(mine, &mut into);
         }
+        self.traffic.seconds += t0.elapsed().as_secs_f64();
         Ok((0..size).map(|r| buf[displs[r] as usize..][..counts[r] as usize].to_vec()).collect())
     }
 
     fn sum(&mut self, v: &mut [i64]) -> Result<()> {
-        let mine = v.to_vec();
+        let (mine, t0) = (v.to_vec(), Instant::now());
         self.world.all_reduce_into(&mine[..], v, SystemOperation::sum());
+        self.traffic.seconds += t0.elapsed().as_secs_f64();
         Ok(())
     }
 }

@@ -118,13 +118,15 @@ pub trait Halo {
     }
 }
 
-/// What a tile sent its neighbours ([`Halo::traffic`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// What a tile sent its neighbours, and how long it waited for the others ([`Halo::traffic`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Traffic {
     /// Bytes sent to the tiles above and below.
     pub bytes: u64,
     /// Swaps (two a cycle: offers, then answers).
     pub swaps: u64,
+    /// Host seconds spent in the seam's calls (sending, and waiting for the other tiles).
+    pub seconds: f64,
 }
 
 impl Traffic {
@@ -132,6 +134,18 @@ impl Traffic {
     pub fn add(&mut self, up: usize, down: usize) {
         self.bytes += (up + down) as u64;
         self.swaps += 1;
+    }
+
+    /// As bytes for another tile ([`Traffic::from_bytes`]).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        [self.bytes, self.swaps, self.seconds.to_bits()].iter().flat_map(|v| v.to_le_bytes()).collect()
+    }
+
+    /// What [`Traffic::to_bytes`] wrote.
+    pub fn from_bytes(b: &[u8]) -> Result<Traffic> {
+        let mut r = Reader::new(b);
+        let (bytes, swaps, seconds) = (r.u64()?, r.u64()?, f64::from_bits(r.u64()?));
+        Ok(Traffic { bytes, swaps, seconds })
     }
 }
 
