@@ -196,6 +196,9 @@ fn tiles_render_alike_on_1_2_4_9_ranks() {
         let args = ["--spread", "tiles", "render", scene, "--n", "32"];
         same_as_one_process(&format!("tiles-{scene}"), &args, &png, &[1, 2, 4, 9]);
     }
+    // Bands of 5, 15 and 12 rows where the user cuts them.
+    let cut = ["--spread", "tiles", "--tile-rows", "5,20", "render", "cornell", "--n", "32"];
+    same_as_one_process("tiles-cut", &cut, &png, &[3]);
     let mut faults = vec!["--spread", "tiles", "light", "cornell", "--n", "24"];
     faults.extend(["--link-faults", "corrupt=0.01,drop=0.01,delay=0.02,seed=7"]);
     faults.extend(&FIVE_LIGHTS[..4]);
@@ -342,4 +345,14 @@ fn a_bad_input_under_mpirun_is_one_clear_error() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{err}");
     assert!(err.contains("error (rank 0 of 2): scene 'no-such-scene' is neither a file nor a built-in scene"), "{err}");
+    // Tile cuts that do not give one band per rank, or lie outside the grid.
+    for (rows, says) in [("5", "give 2 rows"), ("5,40", "must increase strictly within")] {
+        let mut c = mpirun(3);
+        c.args(["--spread", "tiles", "--tile-rows", rows, "render", "cornell", "--n", "32", "--out"]);
+        c.arg(std::env::temp_dir().join("rc2-mpi-never.png"));
+        let out = run_within(c, Duration::from_secs(60));
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "--tile-rows {rows}: {err}");
+        assert!(err.contains("error (rank 0 of 3)") && err.contains(says), "--tile-rows {rows}: {err}");
+    }
 }

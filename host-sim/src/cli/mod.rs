@@ -35,6 +35,13 @@ pub struct Cli {
     /// Images, lit sets and counts are the same either way; one process ignores it.
     #[arg(long, global = true, value_enum, default_value_t = SpreadArg::Auto)]
     pub spread: SpreadArg,
+    /// With tiles over K ranks: the K − 1 rows above which the grid is cut into bands,
+    /// increasing, comma-separated (e.g. `--tile-rows 300` for 2 ranks at n = 512), instead
+    /// of bands of equal height. Every cycle waits for the busiest band: rank 0's last line
+    /// gives each band's share of the beams, to balance the next run's cuts. The result is the
+    /// same wherever the grid is cut.
+    #[arg(long, global = true, value_name = "ROW,ROW…", value_delimiter = ',')]
+    pub tile_rows: Option<Vec<u32>>,
 }
 
 /// Subcommands.
@@ -987,7 +994,7 @@ pub fn run(cli: Cli) -> Result<()> {
         .num_threads(cli.threads.map_or(0, |t| t as usize))
         .build()
         .context("--threads")?;
-    crate::dist::set_spread(cli.spread.into());
+    crate::dist::set_spread(cli.spread.into(), cli.tile_rows.clone());
     pool.install(|| dispatch(cli.command))
 }
 

@@ -122,12 +122,30 @@ pub enum Spread {
     Tiles,
 }
 
-/// The run's choice (`--spread`), set once by the CLI.
-static SPREAD: std::sync::OnceLock<Spread> = std::sync::OnceLock::new();
+/// The run's choice (`--spread`, and `--tile-rows`: where the tiles' bands are cut), set once
+/// by the CLI.
+static SPREAD: std::sync::OnceLock<(Spread, Option<Vec<u32>>)> = std::sync::OnceLock::new();
 
-/// Choose how the ranks share lighting runs (the first call stands).
-pub fn set_spread(s: Spread) {
-    let _ = SPREAD.set(s);
+/// Choose how the ranks share lighting runs and, for tiles, the rows above which the bands are
+/// cut (`None`: bands of equal height). The first call stands.
+pub fn set_spread(s: Spread, tile_rows: Option<Vec<u32>>) {
+    let _ = SPREAD.set((s, tile_rows));
+}
+
+/// The bands of an n × n grid for `ranks` ranks: cut above `cuts` (one fewer than the ranks),
+/// or of equal height.
+fn bands(n: u32, ranks: usize, cuts: Option<&[u32]>) -> Result<Vec<Tile>> {
+    match cuts {
+        Some(c) if c.len() + 1 != ranks => {
+            anyhow::bail!(
+                "--tile-rows {c:?} cuts the grid into {} bands for {ranks} ranks: give {} rows",
+                c.len() + 1,
+                ranks - 1
+            )
+        }
+        Some(c) => Tile::bands(n, c),
+        None => Tile::bands(n, &Tile::even_cuts(ranks, n)?),
+    }
 }
 
 /// What this run's ranks do with a lighting run of `lights` sources under `cfg`.
@@ -139,9 +157,10 @@ enum Mode {
     Alone(&'static str),
 }
 
-fn mode(spread: Spread, lights: usize, ranks: usize, n: u32, cfg: &LightConfig) -> Mode {
+/// `cuttable`: the grid can be cut into a band per rank.
+fn mode(spread: Spread, lights: usize, ranks: usize, cuttable: bool, cfg: &LightConfig) -> Mode {
     let sources_ok = Share::spreads(cfg, false);
-    let tiles_ok = !cfg.record_visits && !cfg.visibility.counts_rays() && ranks <= n as usize;
+    let tiles_ok = !cfg.record_visits && !cfg.visibility.counts_rays() && cuttable;
     match spread {
         Spread::Sources if sources_ok => Mode::Sources,
         Spread::Sources => Mode::Alone(
@@ -172,19 +191,23 @@ pub fn run_diffusion(
         return run::run_diffusion(mesh, scene, lights, cfg, progress);
     }
     let t0 = Instant::now();
-    let spread = SPREAD.get().copied().unwrap_or_default();
-    let mode = mode(spread, lights.len(), size, scene.grid.n, cfg);
+    let (spread, cuts) = SPREAD.get().cloned().unwrap_or_default();
+    let n = scene.grid.n;
+    let tiles = bands(n, size, cuts.as_deref());
+    if cuts.is_some() {
+        // Rows the user gave that do not cut this grid into a band per rank: a bad input.
+        tiles.as_ref().map_err(|e| anyhow::anyhow!("{e:#}"))?;
+    }
+    let mode = mode(spread, lights.len(), size, tiles.is_ok(), cfg);
     if rank == 0 {
         // What ran (not part of the summary, which is the one-process run's).
-        let n = scene.grid.n;
-        match mode {
-            Mode::Sources => eprintln!("ranks: {size}, each diffusing its share of the {} sources", lights.len()),
-            Mode::Tiles => eprintln!(
-                "ranks: {size}, each stepping a band of {}..{} of the grid's {n} rows",
-                n / size as u32,
-                n.div_ceil(size as u32)
-            ),
-            Mode::Alone(_) => {}
+        match (mode, &tiles) {
+            (Mode::Sources, _) => eprintln!("ranks: {size}, each diffusing its share of the {} sources", lights.len()),
+            (Mode::Tiles, Ok(t)) => {
+                let rows: Vec<String> = t.iter().map(|t| format!("{}..{}", t.rows.start, t.rows.end)).collect();
+                eprintln!("ranks: {size}, each stepping a band of the grid's {n} rows: {}", rows.join(", "));
+            }
+            _ => {}
         }
     }
     let lighting = match mode {
@@ -201,14 +224,14 @@ pub fn run_diffusion(
             crate::machine::lighting::diffuse::merge_parts(parts)?
         }
         Mode::Tiles => {
-            let mut halo = halo()?;
+            let mut halo = halo(tiles?.swap_remove(rank))?;
             let part = run::diffuse_tile_part(scene, lights, cfg, &mut *halo, &mut progress)?;
             // Every rank's traffic, for rank 0's account of the run.
             let traffic = halo.gather(&halo.traffic().to_bytes())?;
             let Some(parts) = gather(part)? else { return Err(Finished.into()) };
             let lighting = crate::machine::lighting::diffuse::merge_tiles(parts)?;
             let traffic = traffic.iter().map(|b| Traffic::from_bytes(b)).collect::<Result<Vec<_>>>()?;
-            eprintln!("{}", tiles_account(&lighting, &traffic, scene.grid.n));
+            eprintln!("{}", tiles_account(&lighting, &traffic, &bands(n, size, cuts.as_deref())?));
             lighting
         }
     };
@@ -218,13 +241,11 @@ pub fn run_diffusion(
 /// What each rank of a tiled run did: the bytes it sent across its tile's edges a cycle, the
 /// host seconds it spent in the seam (sending, and waiting for the others: every cycle waits
 /// for the busiest band), and each band's share of the beams processed.
-fn tiles_account(lighting: &Lighting, traffic: &[Traffic], n: u32) -> String {
+fn tiles_account(lighting: &Lighting, traffic: &[Traffic], tiles: &[Tile]) -> String {
     let size = traffic.len();
-    let per_band: Vec<u64> = (0..size)
-        .map(|index| {
-            let rows = Tile { index, of: size }.rows(n);
-            lighting.cells.iter().filter(|c| rows.contains(&(c.y as u32))).map(|c| c.counters.processed).sum()
-        })
+    let per_band: Vec<u64> = tiles
+        .iter()
+        .map(|t| lighting.cells.iter().filter(|c| t.rows.contains(&(c.y as u32))).map(|c| c.counters.processed).sum())
         .collect();
     let total = per_band.iter().sum::<u64>().max(1) as f64;
     let list = |f: &dyn Fn(usize) -> String| (0..size).map(f).collect::<Vec<_>>().join(", ");
@@ -239,13 +260,13 @@ fn tiles_account(lighting: &Lighting, traffic: &[Traffic], n: u32) -> String {
 
 /// This rank's tile of the grid and its seam to the others.
 #[cfg(feature = "mpi")]
-fn halo() -> Result<Box<dyn Halo>> {
-    Ok(Box::new(ranks::MpiHalo::new()))
+fn halo(tile: Tile) -> Result<Box<dyn Halo>> {
+    Ok(Box::new(ranks::MpiHalo::new(tile)))
 }
 
 /// One process has no other tiles (never called: one process runs the grid whole).
 #[cfg(not(feature = "mpi"))]
-fn halo() -> Result<Box<dyn Halo>> {
+fn halo(_: Tile) -> Result<Box<dyn Halo>> {
     anyhow::bail!("tiles over ranks need the `mpi` feature")
 }
 
@@ -259,4 +280,37 @@ fn gather(part: Lighting) -> Result<Option<Vec<Lighting>>> {
 #[cfg(not(feature = "mpi"))]
 fn gather(part: Lighting) -> Result<Option<Vec<Lighting>>> {
     Ok(Some(vec![part]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Preset;
+    use cell_core::visibility::Visibility;
+
+    /// `auto` splits by sources when each rank gets one, by tiles otherwise; an explicit choice
+    /// stands where the run allows it, and rank 0 works alone where neither does.
+    #[test]
+    fn the_spread_follows_the_run() {
+        let render = Preset::Render.light();
+        let faults = LightConfig { faults: Some("drop=0.01".parse().unwrap()), ..render };
+        let ratio = LightConfig { visibility: Visibility::Ratio, ..render };
+        assert_eq!(mode(Spread::Auto, 26, 2, true, &render), Mode::Sources);
+        assert_eq!(mode(Spread::Auto, 1, 2, true, &render), Mode::Tiles);
+        assert_eq!(mode(Spread::Auto, 1, 200, false, &render), Mode::Sources, "more ranks than rows");
+        assert_eq!(mode(Spread::Auto, 26, 2, true, &faults), Mode::Tiles, "faults run on from source to source");
+        assert_eq!(mode(Spread::Sources, 1, 2, true, &render), Mode::Sources);
+        assert_eq!(mode(Spread::Tiles, 26, 2, true, &render), Mode::Tiles);
+        assert!(matches!(mode(Spread::Sources, 26, 2, true, &faults), Mode::Alone(_)));
+        assert!(matches!(mode(Spread::Tiles, 1, 200, false, &render), Mode::Alone(_)));
+        for s in [Spread::Auto, Spread::Sources, Spread::Tiles] {
+            assert!(matches!(mode(s, 3, 2, true, &ratio), Mode::Alone(_)), "{s:?}: pixel weights travel in no part");
+        }
+        // Even bands, or the user's cuts (one per rank boundary).
+        let rows = |t: Vec<Tile>| t.into_iter().map(|t| t.rows).collect::<Vec<_>>();
+        assert_eq!(rows(bands(10, 3, None).unwrap()), [0..3, 3..6, 6..10]);
+        assert_eq!(rows(bands(10, 2, Some(&[7])).unwrap()), [0..7, 7..10]);
+        assert!(bands(10, 3, Some(&[7])).unwrap_err().to_string().contains("give 2 rows"));
+        assert!(bands(4, 5, None).is_err());
+    }
 }

@@ -144,11 +144,9 @@ pub struct MpiHalo {
 }
 
 impl MpiHalo {
-    /// This rank's tile of a grid cut into as many bands as there are ranks.
-    pub fn new() -> Self {
-        let world = SimpleCommunicator::world();
-        let tile = Tile { index: world.rank() as usize, of: world.size() as usize };
-        MpiHalo { world, tile, traffic: Traffic::default() }
+    /// The seam of this rank's `tile` (band `rank` of as many as there are ranks).
+    pub fn new(tile: Tile) -> Self {
+        MpiHalo { world: SimpleCommunicator::world(), tile, traffic: Traffic::default() }
     }
 }
 
@@ -158,7 +156,7 @@ const TAG_EDGE: mpi::Tag = 55;
 
 impl Halo for MpiHalo {
     fn tile(&self) -> Tile {
-        self.tile
+        self.tile.clone()
     }
 
     fn traffic(&self) -> Traffic {

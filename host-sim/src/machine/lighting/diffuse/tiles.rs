@@ -46,38 +46,43 @@ use crate::machine::grid::capacity::DEFAULT_DEXELS;
 use crate::machine::grid::LightGrid;
 use crate::machine::links::faults::FaultCounts;
 
-/// A tile of an n × n grid: band `index` of `of` bands of whole rows, rows
-/// ⌊index·n/of⌋ .. ⌊(index+1)·n/of⌋ (bands of equal height but for one row).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// A tile of an n × n grid: band `index` of `of` bands of whole rows, from the top (row 0).
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Tile {
-    /// This band, 0 .. `of`, from the top (row 0).
+    /// This band, 0 .. `of`.
     pub index: usize,
-    /// How many bands (at least 1, at most n).
+    /// How many bands.
     pub of: usize,
+    /// Its rows.
+    pub rows: Range<u32>,
 }
 
 impl Tile {
-    /// The whole grid.
-    pub const WHOLE: Tile = Tile { index: 0, of: 1 };
+    /// The bands of an n × n grid cut above each row of `cuts` (increasing, within 1 .. n):
+    /// `cuts.len() + 1` bands of at least one row each.
+    pub fn bands(n: u32, cuts: &[u32]) -> Result<Vec<Tile>> {
+        if cuts.windows(2).any(|w| w[0] >= w[1]) || cuts.iter().any(|&c| c == 0 || c >= n) {
+            bail!(
+                "tile cuts {cuts:?} must increase strictly within 1 ..= {} (bands of at least one row each)",
+                n.saturating_sub(1)
+            );
+        }
+        let ends: Vec<u32> = std::iter::once(0).chain(cuts.iter().copied()).chain([n]).collect();
+        let of = ends.len() - 1;
+        Ok(ends.windows(2).enumerate().map(|(index, w)| Tile { index, of, rows: w[0]..w[1] }).collect())
+    }
 
-    /// Its rows in an n × n grid.
-    pub fn rows(&self, n: u32) -> Range<u32> {
-        let (i, k, n) = (self.index as u64, self.of.max(1) as u64, n as u64);
-        (i * n / k) as u32..((i + 1) * n / k) as u32
+    /// The cuts of `of` bands of equal height (but for one row): above rows ⌊i·n/of⌋.
+    pub fn even_cuts(of: usize, n: u32) -> Result<Vec<u32>> {
+        if of == 0 || of > n as usize {
+            bail!("{of} tiles of whole rows do not fit an {n} × {n} grid (1 ..= {n})");
+        }
+        Ok((1..of as u64).map(|i| (i * n as u64 / of as u64) as u32).collect())
     }
 
     /// Its cells (row-major indices) in an n × n grid.
     pub fn cells(&self, n: u32) -> Range<u32> {
-        let r = self.rows(n);
-        r.start * n..r.end * n
-    }
-
-    /// Whether a grid of side `n` can be cut into `of` bands of at least one row each.
-    pub fn check(of: usize, n: u32) -> Result<()> {
-        if of == 0 || of > n as usize {
-            bail!("{of} tiles of whole rows do not fit an {n} × {n} grid (1 ..= {n})");
-        }
-        Ok(())
+        self.rows.start * n..self.rows.end * n
     }
 }
 
@@ -372,16 +377,16 @@ pub fn diffuse_tile(
     progress: &mut dyn FnMut(usize, u64),
 ) -> Result<Lighting> {
     let tile = halo.tile();
-    Tile::check(tile.of, grid.n)?;
+    if tile.rows.is_empty() || tile.rows.end > grid.n {
+        bail!("tile {} holds rows {:?}, not a band of the {} rows", tile.index, tile.rows, grid.n);
+    }
     check_tiled(cfg)?;
-    let n = grid.n;
     let edge: &mut dyn Halo = &mut *halo;
     let mut part = super::with_f!(cfg.frac_bits, F => {
         super::diffuse_cells::<F, DEFAULT_DEXELS>(grid, sources, cfg, super::Share::ALL, None, Some(edge), progress)
             .map(|(l, _)| l)
     })?;
-    let rows = tile.rows(n);
-    part.cells.retain(|c| rows.contains(&(c.y as u32)));
+    part.cells.retain(|c| tile.rows.contains(&(c.y as u32)));
     Ok(part)
 }
 
@@ -394,15 +399,20 @@ pub fn merge_tiles(parts: Vec<Lighting>) -> Result<Lighting> {
     let of = parts.len();
     let mut phases = PhaseSeconds::default();
     let mut link_faults: Option<FaultCounts> = None;
-    let mut cells = Vec::with_capacity((n * n) as usize);
+    let mut cells: Vec<super::LitColumn> = Vec::with_capacity((n * n) as usize);
     let reports = first.reports.clone();
+    let row_major = |k: usize| (k / n as usize, k % n as usize);
     for (index, p) in parts.into_iter().enumerate() {
-        let rows = Tile { index, of }.rows(n);
         if p.n != n || p.rule != rule || p.reports != reports {
             bail!("the tiles' lighting parts are of different runs (tile {index})");
         }
-        if p.cells.len() != (rows.len() as u32 * n) as usize || p.cells.iter().any(|c| !rows.contains(&(c.y as u32))) {
-            bail!("tile {index}'s lighting part holds other cells than its rows {rows:?}");
+        // Whole rows, row-major, from where the tile above ended.
+        let at = cells.len();
+        if p.cells.is_empty()
+            || p.cells.len() % n as usize != 0
+            || p.cells.iter().enumerate().any(|(k, c)| (c.y as usize, c.x as usize) != row_major(at + k))
+        {
+            bail!("tile {index}'s lighting part does not hold the whole rows below the tile above's");
         }
         cells.extend(p.cells);
         phases = super::share::add_phases(&phases, &p.phases);
@@ -439,11 +449,13 @@ pub struct ThreadHalo {
 }
 
 impl ThreadHalo {
-    /// The seams of `of` tiles, one per tile, in tile order.
-    pub fn tiles(of: usize) -> Vec<ThreadHalo> {
-        let mut halos: Vec<ThreadHalo> = (0..of)
-            .map(|index| ThreadHalo {
-                tile: Tile { index, of },
+    /// The seams of `tiles` (every tile of a grid, in tile order), one per tile.
+    pub fn tiles(tiles: Vec<Tile>) -> Vec<ThreadHalo> {
+        let of = tiles.len();
+        let mut halos: Vec<ThreadHalo> = tiles
+            .into_iter()
+            .map(|tile| ThreadHalo {
+                tile,
                 traffic: Traffic::default(),
                 to: (0..of).map(|_| None).collect(),
                 from: (0..of).map(|_| None).collect(),
@@ -474,7 +486,7 @@ impl ThreadHalo {
 
 impl Halo for ThreadHalo {
     fn tile(&self) -> Tile {
-        self.tile
+        self.tile.clone()
     }
 
     fn traffic(&self) -> Traffic {
@@ -482,7 +494,7 @@ impl Halo for ThreadHalo {
     }
 
     fn swap(&mut self, up: &[u8], down: &[u8]) -> Result<(Vec<u8>, Vec<u8>)> {
-        let Tile { index: i, of } = self.tile;
+        let (i, of) = (self.tile.index, self.tile.of);
         self.traffic.add(if i > 0 { up.len() } else { 0 }, if i + 1 < of { down.len() } else { 0 });
         if i > 0 {
             self.send(i - 1, up)?;
@@ -496,7 +508,7 @@ impl Halo for ThreadHalo {
     }
 
     fn gather(&mut self, mine: &[u8]) -> Result<Vec<Vec<u8>>> {
-        let Tile { index: i, of } = self.tile;
+        let (i, of) = (self.tile.index, self.tile.of);
         for j in (0..of).filter(|&j| j != i) {
             self.send(j, mine)?;
         }
@@ -504,13 +516,14 @@ impl Halo for ThreadHalo {
     }
 }
 
-/// The diffusion of `sources` over `grid` cut into `of` tiles, each on a thread of its own
-/// (one cycle-loop thread each, whatever `--threads`), through [`ThreadHalo`]s: the whole
-/// run, as [`super::diffuse`] gives it in one piece.
-pub fn diffuse_in_tiles(grid: &LightGrid, sources: &[Source], cfg: &LightConfig, of: usize) -> Result<Lighting> {
-    Tile::check(of, grid.n)?;
+/// The diffusion of `sources` over `grid` cut into tiles above the rows `cuts`
+/// ([`Tile::bands`]), each on a thread of its own (one cycle-loop thread each, whatever
+/// `--threads`), through [`ThreadHalo`]s: the whole run, as [`super::diffuse`] gives it in one
+/// piece.
+pub fn diffuse_in_tiles(grid: &LightGrid, sources: &[Source], cfg: &LightConfig, cuts: &[u32]) -> Result<Lighting> {
+    let tiles = Tile::bands(grid.n, cuts)?;
     let parts: Vec<Result<Lighting>> = std::thread::scope(|s| {
-        let runs: Vec<_> = ThreadHalo::tiles(of)
+        let runs: Vec<_> = ThreadHalo::tiles(tiles)
             .into_iter()
             .map(|mut halo| {
                 s.spawn(move || {
@@ -539,27 +552,36 @@ mod tests {
     use crate::machine::loading::loaded_scene::{load_scene, resolve_lights};
     use crate::precompute::LoadConfig;
 
-    /// Bands cover the rows once, in order, each at least one row high.
+    /// Bands cover the rows once, in order, each at least one row high; cuts that are not
+    /// increasing within the grid are refused.
     #[test]
     fn tiles_cut_the_rows_into_bands() {
         for n in [1u32, 2, 7, 24, 64] {
             for of in 1..=n as usize {
+                let bands = Tile::bands(n, &Tile::even_cuts(of, n).unwrap()).unwrap();
+                assert_eq!(bands.len(), of);
                 let mut next = 0;
-                for index in 0..of {
-                    let r = Tile { index, of }.rows(n);
-                    assert_eq!(r.start, next, "n {n}, {of} tiles");
-                    assert!(r.end > r.start);
-                    next = r.end;
+                for (index, t) in bands.iter().enumerate() {
+                    assert_eq!((t.index, t.of, t.rows.start), (index, of, next), "n {n}, {of} tiles");
+                    assert!(t.rows.end > t.rows.start);
+                    assert!(t.rows.len().abs_diff(n as usize / of) <= 1, "even bands");
+                    next = t.rows.end;
                 }
                 assert_eq!(next, n);
             }
-            assert!(Tile::check(n as usize + 1, n).is_err());
-            assert!(Tile::check(0, n).is_err());
+            assert!(Tile::even_cuts(n as usize + 1, n).is_err());
+            assert!(Tile::even_cuts(0, n).is_err());
+            assert!(Tile::bands(n, &[n]).is_err());
+            assert!(Tile::bands(n, &[0]).is_err());
         }
+        assert!(Tile::bands(8, &[3, 3]).is_err());
+        assert!(Tile::bands(8, &[5, 3]).is_err());
+        let rows: Vec<_> = Tile::bands(8, &[1, 7]).unwrap().into_iter().map(|t| t.rows).collect();
+        assert_eq!(rows, [0..1, 1..7, 7..8]);
     }
 
-    /// The Cornell box lit by two sources, in one piece and cut into 2, 3, 5 and 24 bands (one
-    /// row each): every cell's lit store, visible mask and counters, every report and the
+    /// The Cornell box lit by two sources, in one piece and cut into 2, 3, 5 and 24 even bands
+    /// (one row each) and into uneven ones (a band of one row beside one of 23): every cell's lit store, visible mask and counters, every report and the
     /// link faults the same, under each preset and lit rule, the sibling wait (sleeping cells),
     /// every cell stepped, faulty links (acknowledged later), several messages per link and
     /// cycle, and a snapshot stopped mid-run; the parts carried as bytes between tiles.
@@ -592,9 +614,10 @@ mod tests {
             let whole = diffuse(&scene.grid, &sources, &cfg, |_, _| {}).unwrap();
             assert!(whole.lit_voxels().count() > 0 || cfg.lit_visible_only, "{name}: something is lit");
             assert!(whole.reports.iter().all(|r| r.counts.messages > 0), "{name}: beams crossed links");
-            for of in [1, 2, 3, 5, 24] {
-                let tiled = diffuse_in_tiles(&scene.grid, &sources, &cfg, of).unwrap();
-                assert_same(&whole, &tiled, &format!("{name}, {of} tiles"));
+            let even = [1, 2, 3, 5, 24].map(|of| Tile::even_cuts(of, n).unwrap());
+            for cuts in even.iter().map(Vec::as_slice).chain([&[1][..], &[23], &[1, 2, 20]]) {
+                let tiled = diffuse_in_tiles(&scene.grid, &sources, &cfg, cuts).unwrap();
+                assert_same(&whole, &tiled, &format!("{name}, tiles cut at {cuts:?}"));
             }
         }
     }
@@ -611,7 +634,7 @@ mod tests {
         let sources = [cfg.source(0, lights[0], n).unwrap()];
         let (grid, srcs, c) = (&scene.grid, &sources[..], &cfg);
         let parts: Vec<Lighting> = std::thread::scope(|s| {
-            let runs: Vec<_> = ThreadHalo::tiles(2)
+            let runs: Vec<_> = ThreadHalo::tiles(Tile::bands(n, &[7]).unwrap())
                 .into_iter()
                 .map(|mut h| s.spawn(move || diffuse_tile(grid, srcs, c, &mut h, &mut |_, _| {}).unwrap()))
                 .collect();
@@ -623,14 +646,14 @@ mod tests {
         assert_same(&whole, &merge_tiles(carried).unwrap(), "carried parts");
         let mut swapped: Vec<Lighting> = parts.iter().map(|p| decode_part(&encode_part(p).unwrap()).unwrap()).collect();
         swapped.reverse();
-        assert!(merge_tiles(swapped).err().expect("refused").to_string().contains("other cells"));
+        assert!(merge_tiles(swapped).err().expect("refused").to_string().contains("whole rows"));
         let one: Vec<Lighting> = parts.iter().take(1).map(|p| decode_part(&encode_part(p).unwrap()).unwrap()).collect();
         assert!(merge_tiles(one).is_err(), "half a grid");
         assert!(merge_tiles(Vec::new()).is_err());
     }
 
-    /// A run cut into more tiles than rows, or one that counts rays or records visits, is
-    /// refused; a stall is reported by every tile (the same error), never a hang.
+    /// A run cut into bands that are not the grid's, or one that counts rays or records visits,
+    /// is refused; a stall is reported by every tile (the same error), never a hang.
     #[test]
     fn tiled_runs_refuse_what_they_cannot_do_and_stop_together() {
         let n = 8;
@@ -638,20 +661,13 @@ mod tests {
         let scene = load_scene(&mesh, &LoadConfig::watertight(n)).unwrap();
         let cfg = plane_rule();
         let sources = [cfg.source(0, [3.0, 6.0, 3.0], n).unwrap()];
-        assert!(diffuse_in_tiles(&scene.grid, &sources, &cfg, 9)
-            .err()
-            .expect("refused")
-            .to_string()
-            .contains("do not fit"));
-        let visits = LightConfig { record_visits: true, ..cfg };
-        assert!(diffuse_in_tiles(&scene.grid, &sources, &visits, 2)
-            .err()
-            .expect("refused")
-            .to_string()
-            .contains("visited"));
+        let cut =
+            |cuts: &[u32], c: &LightConfig| diffuse_in_tiles(&scene.grid, &sources, c, cuts).err().expect("refused");
+        assert!(cut(&[4, 9], &cfg).to_string().contains("within"));
+        assert!(cut(&[4], &LightConfig { record_visits: true, ..cfg }).to_string().contains("visited"));
         // Every link dead: nothing moves, and every tile stops with the stall report.
         let dead = LightConfig { faults: Some("drop=1".parse().unwrap()), stall_cycles: 5, ..cfg };
-        let err = diffuse_in_tiles(&scene.grid, &sources, &dead, 4).err().expect("refused").to_string();
+        let err = cut(&[2, 4, 6], &dead).to_string();
         assert!(err.contains("stall at cycle"), "{err}");
     }
 }
