@@ -480,16 +480,17 @@ pub fn solve(
     cfg: &RadiosityConfig,
     mut progress: impl FnMut(usize, f64),
 ) -> Result<GridSolution> {
-    solve_dyn(grid, fit, source_face, patches, cfg, &mut progress)
+    solve_farmed(grid, fit, source_face, patches, cfg, None, &mut progress)
 }
 
-/// [`solve`] compiled once, whatever the caller's progress closure.
-fn solve_dyn(
+/// [`solve`], the shots in flight computed by `farm` (`None`: here, each when it lands).
+pub fn solve_farmed(
     grid: &LightGrid,
     fit: &Fit,
     source_face: &[u32],
     patches: &[Patch],
     cfg: &RadiosityConfig,
+    farm: Option<&mut dyn ShotFarm>,
     progress: &mut dyn FnMut(usize, f64),
 ) -> Result<GridSolution> {
     check_settings(patches, cfg)?;
@@ -502,7 +503,7 @@ fn solve_dyn(
             crate::machine::grid::capacity::PATCH_RUNS_CAP
         );
     }
-    let mut s = progressive(patches, cfg, &mut |i| shoot(grid, fit, &map, patches, i, cfg), progress)?;
+    let mut s = progressive(patches, cfg, &mut |i| shoot(grid, fit, &map, patches, i, cfg), farm, progress)?;
     s.map_overflows = map.overflows;
     s.unmapped_voxels = map.unmapped;
     Ok(s)
@@ -520,7 +521,7 @@ pub fn solve_by_proxels(
 ) -> Result<GridSolution> {
     check_settings(patches, cfg)?;
     let mut grid = ProxelGrid::new(n, patches, proxels)?;
-    progressive(patches, cfg, &mut |i| grid.shoot(patches, i).map(|shot| proxel_shot(i, shot)), progress)
+    progressive(patches, cfg, &mut |i| grid.shoot(patches, i).map(|shot| proxel_shot(i, shot)), None, progress)
 }
 
 /// A proxel shot of patch `i` as the supervisor logs it: what its front-facing patches
@@ -552,6 +553,7 @@ fn progressive(
     patches: &[Patch],
     cfg: &RadiosityConfig,
     shoot: &mut dyn FnMut(usize) -> Result<Shot>,
+    farm: Option<&mut dyn ShotFarm>,
     progress: &mut dyn FnMut(usize, f64),
 ) -> Result<GridSolution> {
     let emitted_power = check_patches(patches)?;
@@ -568,7 +570,7 @@ fn progressive(
         received_overflows: 0,
     };
     if cfg.in_flight > 1 {
-        return in_flight(patches, cfg, s, shoot, progress);
+        return in_flight(patches, cfg, s, shoot, farm, progress);
     }
     while s.residual > cfg.stop_fraction {
         if s.shots.len() >= cfg.max_shots {
@@ -602,17 +604,19 @@ fn select_top(patches: &[Patch], unshot: &[[f64; 3]], busy: &[usize], k: usize) 
 /// the unshot radiosity its shooter had when chosen, and lands (is applied) in the order the
 /// shots started. A shot's form factors do not depend on the powers, so the shots are computed
 /// when they land. Once the residual is reached the shots under way still land; no new one
-/// starts. The budget counts shots started.
+/// starts. The budget counts shots started. With a `farm`, the shots under way that are not
+/// computed yet are computed together (spread over processes) when the first of them lands.
 fn in_flight(
     patches: &[Patch],
     cfg: &RadiosityConfig,
     mut s: GridSolution,
     shoot: &mut dyn FnMut(usize) -> Result<Shot>,
+    mut farm: Option<&mut dyn ShotFarm>,
     progress: &mut dyn FnMut(usize, f64),
 ) -> Result<GridSolution> {
     let k = cfg.in_flight;
-    // (shooter, its unshot radiosity when chosen), in start order.
-    let mut under_way: std::collections::VecDeque<(usize, [f64; 3])> = Default::default();
+    // (shooter, its unshot radiosity when chosen, its shot once computed), in start order.
+    let mut under_way: std::collections::VecDeque<(usize, [f64; 3], Option<Shot>)> = Default::default();
     let mut started = 0;
     loop {
         let open = s.residual > cfg.stop_fraction && started < cfg.max_shots;
@@ -628,10 +632,20 @@ fn in_flight(
             };
             let picks = select_top(patches, &s.unshot, &busy, room.min(cfg.max_shots - started));
             started += picks.len();
-            under_way.extend(picks.into_iter().map(|i| (i, s.unshot[i])));
+            under_way.extend(picks.into_iter().map(|i| (i, s.unshot[i], None)));
         }
-        let Some((i, u)) = under_way.pop_front() else { break };
-        let shot = shoot(i)?;
+        if let Some(f) = farm.as_deref_mut().filter(|_| under_way.front().is_some_and(|w| w.2.is_none())) {
+            let pending: Vec<usize> = under_way.iter().filter(|w| w.2.is_none()).map(|w| w.0).collect();
+            let mut shots = f.shoot_all(&pending, shoot)?.into_iter();
+            for w in under_way.iter_mut().filter(|w| w.2.is_none()) {
+                w.2 = Some(shots.next().ok_or_else(|| anyhow::anyhow!("radiosity: a farm returned too few shots"))?);
+            }
+        }
+        let Some((i, u, ready)) = under_way.pop_front() else { break };
+        let shot = match ready {
+            Some(shot) => shot,
+            None => shoot(i)?,
+        };
         apply(patches, &mut s, i, shot, u);
         progress(s.shots.len(), s.residual);
     }
@@ -639,6 +653,110 @@ fn in_flight(
         s.stop = GridStop::Converged;
     }
     Ok(s)
+}
+
+/// Where the shots in flight are computed when a run spreads them (the radiosity thesis's
+/// "several emissions at once" on several processors, ch. 5): the MPI ranks' farm in
+/// `crate::dist`, or [`Here`]. A shot depends on its shooter alone (not on the powers), so when
+/// and where it is computed changes nothing.
+pub trait ShotFarm {
+    /// The shots of the shooters `picks`, in their order; `shoot` computes one in this process.
+    fn shoot_all(&mut self, picks: &[usize], shoot: &mut dyn FnMut(usize) -> Result<Shot>) -> Result<Vec<Shot>>;
+}
+
+/// Every shot in this process, one after another (what a farm of one is).
+pub struct Here;
+
+impl ShotFarm for Here {
+    fn shoot_all(&mut self, picks: &[usize], shoot: &mut dyn FnMut(usize) -> Result<Shot>) -> Result<Vec<Shot>> {
+        picks.iter().map(|&i| shoot(i)).collect()
+    }
+}
+
+/// A beam shot as bytes for another process ([`shot_from_bytes`]): its reduced totals and its
+/// log (its source, which the supervisor does not read, is not carried). Proxel shots are not
+/// carried.
+pub fn shot_to_bytes(shot: &Shot) -> Result<Vec<u8>> {
+    let l = &shot.log;
+    if l.proxel.is_some() {
+        bail!("radiosity: a proxel shot is not carried between processes");
+    }
+    let mut b = Vec::new();
+    b.extend((shot.totals.len() as u64).to_le_bytes());
+    for &(j, q) in &shot.totals {
+        b.extend(j.to_le_bytes());
+        b.extend(q.to_le_bytes());
+    }
+    b.extend((l.patch as u64).to_le_bytes());
+    b.extend(l.unshot_power.to_bits().to_le_bytes());
+    b.extend(l.residual_after.to_bits().to_le_bytes());
+    for v in [l.emitted, l.received, l.lost, l.left, l.negative, l.own] {
+        b.extend(v.to_le_bytes());
+    }
+    b.push(u8::from(l.outside));
+    let c = &l.cost;
+    for v in
+        [l.overflows, c.broadcast_cycles, c.broadcast_messages, c.reduce_cycles, c.reduce_messages, c.supervisor_ops]
+    {
+        b.extend(v.to_le_bytes());
+    }
+    b.extend(crate::machine::lighting::diffuse::counts_to_bytes(&c.diffusion));
+    Ok(b)
+}
+
+/// The shot [`shot_to_bytes`] wrote (its source `None`), and the bytes after it.
+pub fn shot_from_bytes(b: &[u8]) -> Result<(Shot, &[u8])> {
+    let mut at = 0usize;
+    let mut take = |k: usize| -> Result<&[u8]> {
+        let s =
+            b.get(at..at + k).ok_or_else(|| anyhow::anyhow!("radiosity: a carried shot is truncated at byte {at}"))?;
+        at += k;
+        Ok(s)
+    };
+    let mut u64_ = || -> Result<u64> { Ok(u64::from_le_bytes(take(8)?.try_into()?)) };
+    let count = u64_()? as usize;
+    drop(u64_);
+    if count > b.len() / 10 {
+        bail!("radiosity: a carried shot announces {count} totals");
+    }
+    let mut totals = Vec::with_capacity(count);
+    for _ in 0..count {
+        let j = PatchId::from_le_bytes(take(2)?.try_into()?);
+        totals.push((j, i64::from_le_bytes(take(8)?.try_into()?)));
+    }
+    let mut u = || -> Result<u64> { Ok(u64::from_le_bytes(take(8)?.try_into()?)) };
+    let patch = u()? as usize;
+    let (unshot_power, residual_after) = (f64::from_bits(u()?), f64::from_bits(u()?));
+    let [emitted, received, lost, left, negative, own] = [u()?, u()?, u()?, u()?, u()?, u()?].map(|v| v as i64);
+    drop(u);
+    let outside = match take(1)?[0] {
+        0 => false,
+        1 => true,
+        k => bail!("radiosity: a carried shot's outside flag is {k}"),
+    };
+    let mut u = || -> Result<u64> { Ok(u64::from_le_bytes(take(8)?.try_into()?)) };
+    let [overflows, broadcast_cycles, broadcast_messages, reduce_cycles, reduce_messages, supervisor_ops] =
+        [u()?, u()?, u()?, u()?, u()?, u()?];
+    drop(u);
+    let (diffusion, rest) = crate::machine::lighting::diffuse::counts_from_bytes(&b[at..])?;
+    let cost =
+        ShotCost { diffusion, broadcast_cycles, broadcast_messages, reduce_cycles, reduce_messages, supervisor_ops };
+    let log = ShotLog {
+        patch,
+        unshot_power,
+        residual_after,
+        emitted,
+        received,
+        lost,
+        left,
+        negative,
+        own,
+        outside,
+        overflows,
+        cost,
+        proxel: None,
+    };
+    Ok((Shot { totals, log, source: None }, rest))
 }
 
 /// The supervisor's update after patch i's shot of unshot radiosity `u`: receiver j gets

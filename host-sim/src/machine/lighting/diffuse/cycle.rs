@@ -16,6 +16,7 @@ use crate::machine::grid::Grid;
 use crate::machine::links::tap::Tap;
 use crate::machine::links::{self, lossless, sure, CellInbox, HostLink, Took, BACK};
 
+use super::offer::{Offer, Taken};
 use super::tiles::{Edge, Halo};
 
 /// Active cells per piece of work handed to a thread (below it, splitting costs more than it
@@ -103,17 +104,6 @@ fn scratch_for<F: FracBits>(scratch: &mut Vec<PieceResult<F>>, len: usize) -> &m
     let s = &mut scratch[..len];
     s.iter_mut().for_each(PieceResult::clear);
     s
-}
-
-/// A message offered on a link in the link phase: receiver, arbitration key, sender, port, and a
-/// copy of the message at the front of the sender's output buffer.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct Offer<F: FracBits> {
-    pub(super) to: u32,
-    pub(super) key: u32,
-    pub(super) from: u32,
-    pub(super) port: u8,
-    pub(super) msg: BeamMsg<F>,
 }
 
 /// The offers of `lists` (list p: the offers on port p, in increasing receiver order) in link
@@ -205,10 +195,6 @@ fn by_receiver<'a, T, F: FracBits, L>(
     }
     out
 }
-
-/// Messages a sender's links delivered in one cycle: a 4-bit count per port (port p in bits
-/// 4p ..= 4p + 3; a link carries at most [`Timing::link_rate`] ≤ `OB_CAP` < 16 per cycle).
-pub(super) type Taken = AtomicU32;
 
 /// One message taken on port `p`, as a [`Taken`] increment.
 const fn taken_one(p: u8) -> u32 {

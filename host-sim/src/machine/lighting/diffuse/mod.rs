@@ -44,6 +44,7 @@ use crate::machine::links::tap::{Tap, Tracer};
 use crate::machine::links::{GridLinks, HostLink};
 
 mod cycle;
+mod offer;
 mod oracle;
 mod share;
 mod shortcut;
@@ -53,7 +54,7 @@ mod tiles;
 use cycle::diffuse_one;
 pub(crate) use cycle::initial_beams;
 pub use oracle::OracleSkip;
-pub use share::{decode_part, encode_part, merge_parts, Share};
+pub use share::{counts_from_bytes, counts_to_bytes, decode_part, encode_part, merge_parts, Share};
 use shortcut::Shortcut;
 pub use summary::{occupancy_summary, occupied_box, FrustumBlocks, Summary};
 pub use tiles::{diffuse_in_tiles, diffuse_tile, merge_tiles, Halo, Tile, Traffic};

@@ -448,6 +448,20 @@ pub(super) fn report_from(r: &mut Reader) -> Result<SourceReport> {
     Ok(SourceReport { source, position, busiest_cell, counts })
 }
 
+/// A diffusion's counters as bytes for another process ([`counts_from_bytes`] reads them).
+pub fn counts_to_bytes(c: &DiffusionCounts) -> Vec<u8> {
+    let mut w = Writer(Vec::new());
+    report_to(&mut w, &SourceReport { counts: c.clone(), ..Default::default() });
+    w.0
+}
+
+/// The counters [`counts_to_bytes`] wrote, and the bytes after them.
+pub fn counts_from_bytes(b: &[u8]) -> Result<(DiffusionCounts, &[u8])> {
+    let mut r = Reader::new(b);
+    let counts = report_from(&mut r)?.counts;
+    Ok((counts, &b[r.at..]))
+}
+
 /// Little-endian writer.
 pub(super) struct Writer(pub(super) Vec<u8>);
 

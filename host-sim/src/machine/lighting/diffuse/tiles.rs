@@ -39,7 +39,7 @@ use anyhow::{anyhow, bail, Context, Result};
 use cell_core::beam::{FarDistance, FracBits, Source};
 use cell_core::wire::{get_beam, put_beam};
 
-use super::cycle::{Offer, Taken};
+use super::offer::{Offer, Taken};
 use super::share::{report_from, report_to, Reader, Writer};
 use super::{DiffusionCounts, LightConfig, Lighting, PhaseSeconds, SourceReport};
 use crate::machine::grid::capacity::DEFAULT_DEXELS;
