@@ -93,9 +93,19 @@ fn untimed(path: &Path) -> serde_json::Value {
 }
 
 /// The summary without its wall times (and without the line saying how the ranks shared the
-/// run, which one process does not print).
+/// run, which one process does not print, and the files' names).
 fn summary(stderr: &str) -> Vec<String> {
-    stderr.lines().filter(|l| !l.contains("wall") && !l.starts_with("ranks: ")).map(str::to_string).collect()
+    // A line that ends with its seconds (`…, 0.3 s`) loses them; lines naming the files
+    // written (whose names differ by run) go.
+    let untimed = |l: &str| match l.rsplit_once(", ") {
+        Some((head, t)) if t.strip_suffix(" s").is_some_and(|v| v.parse::<f64>().is_ok()) => head.to_string(),
+        _ => l.to_string(),
+    };
+    stderr
+        .lines()
+        .filter(|l| !l.contains("wall") && !l.starts_with("ranks: ") && !l.trim_start().starts_with("wrote "))
+        .map(untimed)
+        .collect()
 }
 
 fn bytes(p: &Path) -> Vec<u8> {
@@ -203,6 +213,19 @@ fn tiles_render_alike_on_1_2_4_9_ranks() {
     faults.extend(["--link-faults", "corrupt=0.01,drop=0.01,delay=0.02,seed=7"]);
     faults.extend(&FIVE_LIGHTS[..4]);
     same_as_one_process("tiles-faults", &faults, &[("--lit-out", "lit.csv")], &[3]);
+}
+
+/// Radiosity with several shots in flight, the shots of each batch spread over the ranks
+/// (every rank runs the supervisor): the patches, the shots and the residual plot of one
+/// process, under Feda's table and Thomin's rounds.
+#[test]
+fn shots_in_flight_spread_alike_on_2_and_3_ranks() {
+    let files = [("--patches-csv", "patches.csv"), ("--shots-csv", "shots.csv"), ("--residual-plot", "residual.png")];
+    for choice in ["table", "rounds"] {
+        let args =
+            ["radiosity", "cornell", "--n", "32", "--residual", "0.05", "--in-flight", "4", "--shooter-choice", choice];
+        same_as_one_process(&format!("shots-{choice}"), &args, &files, &[2, 3]);
+    }
 }
 
 /// What is not spread runs on rank 0 alone, with the same result: classic shadow rays, and a

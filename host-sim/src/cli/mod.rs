@@ -1005,7 +1005,7 @@ pub fn run(cli: Cli) -> Result<()> {
 /// every other command, rank 0 works alone.
 fn dispatch(command: Command) -> Result<()> {
     let helper = crate::dist::helper();
-    if helper && !matches!(command, Command::Render(_) | Command::Light(_)) {
+    if helper && !matches!(command, Command::Render(_) | Command::Light(_) | Command::Radiosity(_)) {
         return Ok(());
     }
     match command {
@@ -1035,7 +1035,18 @@ fn dispatch(command: Command) -> Result<()> {
         Command::Bench(a) => jobs::bench::run(&(&a).into()),
         Command::Audit(a) => jobs::audit::run(&(&a).into()),
         Command::Trace(a) => jobs::trace::run(&(&a).try_into()?),
-        Command::Radiosity(a) => jobs::radiosity::run(&(&a).into()),
+        Command::Radiosity(a) => {
+            let o: jobs::radiosity::RadiosityOptions = (&a).into();
+            if helper {
+                // A helper rank computes its share of the shots in flight (beam shots, more
+                // than one under way), quietly; rank 0 alone runs the rest, and the reference.
+                if o.solve.in_flight <= 1 || o.solve.shots_by != jobs::radiosity::ShotsBy::Beams {
+                    return Ok(());
+                }
+                return jobs::radiosity::run(&jobs::radiosity::RadiosityOptions { quiet: true, reference: false, ..o });
+            }
+            jobs::radiosity::run(&o)
+        }
         Command::Scenes => {
             jobs::scenes::list();
             Ok(())

@@ -258,6 +258,17 @@ fn tiles_account(lighting: &Lighting, traffic: &[Traffic], tiles: &[Tile]) -> St
     )
 }
 
+/// Where a radiosity run's shots in flight are computed: spread over the ranks when there
+/// are several (every rank runs the supervisor, each computes its share of the shots under way),
+/// `None` in one process.
+pub fn shot_farm() -> Option<Box<dyn crate::machine::shooting::shots::ShotFarm>> {
+    #[cfg(feature = "mpi")]
+    if place().1 > 1 {
+        return Some(Box::new(ranks::MpiFarm::new()));
+    }
+    None
+}
+
 /// This rank's tile of the grid and its seam to the others.
 #[cfg(feature = "mpi")]
 fn halo(tile: Tile) -> Result<Box<dyn Halo>> {

@@ -17,6 +17,7 @@ use mpi::Count;
 pub use mpi::environment::Universe;
 
 use crate::machine::lighting::diffuse::{decode_part, encode_part, Halo, Lighting, Tile, Traffic};
+use crate::machine::shooting::shots::{shot_from_bytes, shot_to_bytes, Shot, ShotFarm};
 
 /// (rank, ranks), once MPI is started.
 static PLACE: OnceLock<(usize, usize)> = OnceLock::new();
@@ -188,18 +189,10 @@ impl Halo for MpiHalo {
     }
 
     fn gather(&mut self, mine: &[u8]) -> Result<Vec<Vec<u8>>> {
-        let (size, t0) = (self.tile.of, Instant::now());
-        let len = Count::try_from(mine.len()).context("a tile's bytes exceed one MPI message")?;
-        let mut counts = vec![0 as Count; size];
-        self.world.all_gather_into(&len, &mut counts[..]);
-        let (displs, total) = offsets(&counts).context("the tiles' bytes")?;
-        let mut buf = vec![0u8; total];
-        {
-            let mut into = PartitionMut::new(&mut buf[..], &counts[..], &displs[..]);
-            self.world.all_gather_varcount_into(mine, &mut into);
-        }
+        let t0 = Instant::now();
+        let all = all_gather(&self.world, mine);
         self.traffic.seconds += t0.elapsed().as_secs_f64();
-        Ok((0..size).map(|r| buf[displs[r] as usize..][..counts[r] as usize].to_vec()).collect())
+        all
     }
 
     fn sum(&mut self, v: &mut [i64]) -> Result<()> {
@@ -207,5 +200,60 @@ impl Halo for MpiHalo {
         self.world.all_reduce_into(&mine[..], v, SystemOperation::sum());
         self.traffic.seconds += t0.elapsed().as_secs_f64();
         Ok(())
+    }
+}
+
+/// Every rank's `mine`, in rank order, on every rank (`MPI_Allgather` of the lengths, then
+/// `MPI_Allgatherv` of the bytes).
+fn all_gather(world: &SimpleCommunicator, mine: &[u8]) -> Result<Vec<Vec<u8>>> {
+    let size = world.size() as usize;
+    let len = Count::try_from(mine.len()).context("a rank's bytes exceed one MPI message")?;
+    let mut counts = vec![0 as Count; size];
+    world.all_gather_into(&len, &mut counts[..]);
+    let (displs, total) = offsets(&counts).context("the ranks' bytes")?;
+    let mut buf = vec![0u8; total];
+    {
+        let mut into = PartitionMut::new(&mut buf[..], &counts[..], &displs[..]);
+        world.all_gather_varcount_into(mine, &mut into);
+    }
+    Ok((0..size).map(|r| buf[displs[r] as usize..][..counts[r] as usize].to_vec()).collect())
+}
+
+/// Radiosity shots in flight spread over the ranks ([`ShotFarm`]): of the shots handed over
+/// together, rank r computes those at positions p with p mod K = r, and every rank gets every
+/// shot (`MPI_Allgatherv`), so that every rank's supervisor applies the same shots in the same
+/// order and chooses the same next ones.
+pub struct MpiFarm {
+    world: SimpleCommunicator,
+}
+
+impl MpiFarm {
+    /// The farm of every rank of the run.
+    pub fn new() -> Self {
+        MpiFarm { world: SimpleCommunicator::world() }
+    }
+}
+
+impl ShotFarm for MpiFarm {
+    fn shoot_all(&mut self, picks: &[usize], shoot: &mut dyn FnMut(usize) -> Result<Shot>) -> Result<Vec<Shot>> {
+        let (rank, size) = (self.world.rank() as usize, self.world.size() as usize);
+        let mut mine = Vec::new();
+        for (at, &i) in picks.iter().enumerate().filter(|(at, _)| at % size == rank) {
+            let bytes = shot_to_bytes(&shoot(i)?).with_context(|| format!("shot {at} of patch {i}"))?;
+            mine.extend(bytes);
+        }
+        let all = all_gather(&self.world, &mine)?;
+        let mut rest: Vec<&[u8]> = all.iter().map(Vec::as_slice).collect();
+        let mut shots = Vec::with_capacity(picks.len());
+        for at in 0..picks.len() {
+            let (shot, after) =
+                shot_from_bytes(rest[at % size]).with_context(|| format!("rank {}'s shot", at % size))?;
+            if shot.log.patch != picks[at] {
+                bail!("rank {} sent the shot of patch {} where patch {} was due", at % size, shot.log.patch, picks[at]);
+            }
+            rest[at % size] = after;
+            shots.push(shot);
+        }
+        Ok(shots)
     }
 }

@@ -11,7 +11,9 @@ use anyhow::{anyhow, bail, Result};
 
 use crate::machine::loading::loaded_scene::{load_scene, LoadedScene};
 use crate::machine::shooting::proxels::{ProxelConfig, SurfaceKind, Update};
-use crate::machine::shooting::shots::{solve, solve_by_proxels, GridSolution, RadiosityConfig, ShooterChoice, ShotLog};
+use crate::machine::shooting::shots::{
+    solve_by_proxels, solve_farmed, GridSolution, RadiosityConfig, ShooterChoice, ShotFarm, ShotLog,
+};
 use crate::precompute::LoadConfig;
 use crate::report::convergence::{plot_residuals, Series};
 use crate::report::files::{create, write_json};
@@ -356,6 +358,10 @@ pub fn run(o: &RadiosityOptions) -> Result<()> {
     let p = o.solve.patches(&mesh, scene.fit.voxel)?;
     let t0 = Instant::now();
     let s = solve_with_bar(&scene, &p, &o.solve, o.quiet)?;
+    if crate::dist::helper() {
+        // This rank computed its share of the shots in flight; rank 0 writes the results.
+        return Err(crate::dist::Finished.into());
+    }
     let wall = t0.elapsed().as_secs_f64();
     let truth = o.truth_error.then_some(o.truth_cache.as_deref());
     let compared = o.reference.then(|| compare(&p, &s, &o.solve, o.reference_self_error, truth)).transpose()?;
@@ -419,8 +425,11 @@ pub fn solve_with_bar(
         pb.set_position(k as u64);
         pb.set_message(format!("residual {r:.4}"));
     };
+    // Under mpirun, several shots in flight are spread over the ranks (docs/MPI.md).
+    let mut farm = (cfg.in_flight > 1).then(crate::dist::shot_farm).flatten();
+    let farm = farm.as_deref_mut().map(|f| f as &mut dyn ShotFarm);
     let s = match settings.proxels(scene.grid.n) {
-        None => solve(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &cfg, bar),
+        None => solve_farmed(&scene.grid, &scene.fit, &scene.source_face, &p.patches, &cfg, farm, &mut bar),
         Some(proxels) => solve_by_proxels(scene.grid.n, &p.patches, &cfg, proxels, &mut bar),
     };
     pb.finish_and_clear();

@@ -704,41 +704,48 @@ pub fn shot_to_bytes(shot: &Shot) -> Result<Vec<u8>> {
     Ok(b)
 }
 
+/// A reader of a carried shot's bytes.
+struct ShotReader<'a> {
+    b: &'a [u8],
+    at: usize,
+}
+
+impl<'a> ShotReader<'a> {
+    fn take(&mut self, k: usize) -> Result<&'a [u8]> {
+        let s = self.b.get(self.at..self.at + k);
+        let s = s.ok_or_else(|| anyhow::anyhow!("radiosity: a carried shot is truncated at byte {}", self.at))?;
+        self.at += k;
+        Ok(s)
+    }
+    fn u64(&mut self) -> Result<u64> {
+        Ok(u64::from_le_bytes(self.take(8)?.try_into()?))
+    }
+}
+
 /// The shot [`shot_to_bytes`] wrote (its source `None`), and the bytes after it.
 pub fn shot_from_bytes(b: &[u8]) -> Result<(Shot, &[u8])> {
-    let mut at = 0usize;
-    let mut take = |k: usize| -> Result<&[u8]> {
-        let s =
-            b.get(at..at + k).ok_or_else(|| anyhow::anyhow!("radiosity: a carried shot is truncated at byte {at}"))?;
-        at += k;
-        Ok(s)
-    };
-    let mut u64_ = || -> Result<u64> { Ok(u64::from_le_bytes(take(8)?.try_into()?)) };
-    let count = u64_()? as usize;
-    drop(u64_);
+    let mut r = ShotReader { b, at: 0 };
+    let count = r.u64()? as usize;
     if count > b.len() / 10 {
         bail!("radiosity: a carried shot announces {count} totals");
     }
     let mut totals = Vec::with_capacity(count);
     for _ in 0..count {
-        let j = PatchId::from_le_bytes(take(2)?.try_into()?);
-        totals.push((j, i64::from_le_bytes(take(8)?.try_into()?)));
+        let j = PatchId::from_le_bytes(r.take(2)?.try_into()?);
+        totals.push((j, r.u64()? as i64));
     }
-    let mut u = || -> Result<u64> { Ok(u64::from_le_bytes(take(8)?.try_into()?)) };
-    let patch = u()? as usize;
-    let (unshot_power, residual_after) = (f64::from_bits(u()?), f64::from_bits(u()?));
-    let [emitted, received, lost, left, negative, own] = [u()?, u()?, u()?, u()?, u()?, u()?].map(|v| v as i64);
-    drop(u);
-    let outside = match take(1)?[0] {
+    let patch = r.u64()? as usize;
+    let (unshot_power, residual_after) = (f64::from_bits(r.u64()?), f64::from_bits(r.u64()?));
+    let [emitted, received, lost, left, negative, own] =
+        [r.u64()?, r.u64()?, r.u64()?, r.u64()?, r.u64()?, r.u64()?].map(|v| v as i64);
+    let outside = match r.take(1)?[0] {
         0 => false,
         1 => true,
         k => bail!("radiosity: a carried shot's outside flag is {k}"),
     };
-    let mut u = || -> Result<u64> { Ok(u64::from_le_bytes(take(8)?.try_into()?)) };
     let [overflows, broadcast_cycles, broadcast_messages, reduce_cycles, reduce_messages, supervisor_ops] =
-        [u()?, u()?, u()?, u()?, u()?, u()?];
-    drop(u);
-    let (diffusion, rest) = crate::machine::lighting::diffuse::counts_from_bytes(&b[at..])?;
+        [r.u64()?, r.u64()?, r.u64()?, r.u64()?, r.u64()?, r.u64()?];
+    let (diffusion, rest) = crate::machine::lighting::diffuse::counts_from_bytes(&b[r.at..])?;
     let cost =
         ShotCost { diffusion, broadcast_cycles, broadcast_messages, reduce_cycles, reduce_messages, supervisor_ops };
     let log = ShotLog {
@@ -872,7 +879,7 @@ mod tests {
                 ..RadiosityConfig::new(crate::config::plane_rule(), 1e-12, 10_000)
             };
             let mut residuals = Vec::new();
-            let s = progressive(&p, &cfg, &mut shot, &mut |_, r| residuals.push(r)).unwrap();
+            let s = progressive(&p, &cfg, &mut shot, None, &mut |_, r| residuals.push(r)).unwrap();
             assert_eq!(s.stop, GridStop::Converged, "{k} {choice:?}");
             assert!(residuals.windows(2).all(|w| w[1] <= w[0]), "{k} {choice:?}: the residual grew");
             for (j, (got, w)) in s.radiosity.iter().zip(&want).enumerate() {
@@ -900,12 +907,60 @@ mod tests {
     fn the_table_keeps_the_largest_shooters_under_way() {
         let p = patches();
         let cfg = RadiosityConfig { in_flight: 3, ..RadiosityConfig::new(crate::config::plane_rule(), 0.0, 4) };
-        let s = progressive(&p, &cfg, &mut shot, &mut |_, _| {}).unwrap();
+        let s = progressive(&p, &cfg, &mut shot, None, &mut |_, _| {}).unwrap();
         let order: Vec<usize> = s.shots.iter().map(|x| x.patch).collect();
         // After the emitter's shot patch j holds ρ_j F_0j A_0 / A_j, power ρ_j F_0j A_0.
         let mut lit: Vec<usize> = vec![1, 2, 3];
         lit.sort_by(|&a, &b| (RHO[b] * F[0][b]).total_cmp(&(RHO[a] * F[0][a])));
         assert_eq!(order, [vec![0], lit].concat());
         assert_eq!(s.stop, GridStop::ShotBudget);
+    }
+
+    /// A farm that computes the shots it is handed here, each carried through its bytes, and
+    /// records how many it was handed at once.
+    struct Carried(Vec<usize>);
+
+    impl ShotFarm for Carried {
+        fn shoot_all(&mut self, picks: &[usize], shoot: &mut dyn FnMut(usize) -> Result<Shot>) -> Result<Vec<Shot>> {
+            self.0.push(picks.len());
+            let shots = Here.shoot_all(picks, shoot)?;
+            shots
+                .iter()
+                .map(|s| {
+                    let bytes = shot_to_bytes(s)?;
+                    let (back, rest) = shot_from_bytes(&bytes)?;
+                    assert!(rest.is_empty());
+                    Ok(back)
+                })
+                .collect()
+        }
+    }
+
+    /// Shots computed ahead, together, by a farm (and carried as bytes) give the supervisor
+    /// exactly what it gets shooting each when it lands: the same radiosity, bit for bit, and
+    /// the same shot logs; the farm is handed the shots under way several at a time.
+    #[test]
+    fn a_farm_changes_no_shot() {
+        let p = patches();
+        for choice in [ShooterChoice::Table, ShooterChoice::Rounds] {
+            let cfg = RadiosityConfig {
+                in_flight: 3,
+                choice,
+                ..RadiosityConfig::new(crate::config::plane_rule(), 1e-6, 500)
+            };
+            let alone = progressive(&p, &cfg, &mut shot, None, &mut |_, _| {}).unwrap();
+            let mut farm = Carried(Vec::new());
+            let farmed = progressive(&p, &cfg, &mut shot, Some(&mut farm), &mut |_, _| {}).unwrap();
+            assert_eq!(farmed.radiosity, alone.radiosity, "{choice:?}");
+            assert_eq!(farmed.unshot, alone.unshot, "{choice:?}");
+            assert_eq!(farmed.shots, alone.shots, "{choice:?}");
+            assert!(farm.0.contains(&3), "{choice:?}: batches {:?}", farm.0);
+            assert_eq!(farm.0.iter().sum::<usize>(), alone.shots.len(), "{choice:?}: every shot computed once");
+        }
+        // Bytes that are not a shot are refused.
+        let bytes = shot_to_bytes(&shot(1).unwrap()).unwrap();
+        for cut in [0, 7, bytes.len() / 2, bytes.len() - 1] {
+            assert!(shot_from_bytes(&bytes[..cut]).is_err(), "cut at {cut}");
+        }
     }
 }
