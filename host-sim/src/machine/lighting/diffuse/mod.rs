@@ -57,7 +57,7 @@ pub use oracle::OracleSkip;
 pub use share::{counts_from_bytes, counts_to_bytes, decode_part, encode_part, merge_parts, Share};
 use shortcut::Shortcut;
 pub use summary::{occupancy_summary, occupied_box, FrustumBlocks, Summary};
-pub use tiles::{diffuse_in_tiles, diffuse_tile, merge_tiles, Halo, Tile, Traffic};
+pub use tiles::{diffuse_in_tiles, diffuse_tile, merge_tiles, Halo, ThreadHalo, Tile, Traffic};
 
 /// Default of [`LightConfig::stall_cycles`]: a fault-free machine that cannot move for one
 /// cycle is deadlocked; under link faults a few cycles of bad luck are normal.
