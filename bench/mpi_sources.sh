@@ -12,15 +12,7 @@ N=${N:-256}
 RUNS=${RUNS:-3}
 OUT=bench-out/mpi
 mkdir -p "$OUT"
-# Two builds of one target folder: keep each binary under its own name.
-if [[ ${SKIP_BUILD:-0} != 1 ]]; then
-  cargo build --release -q -p host-sim
-  cp target/release/host-sim "$OUT/host-sim-plain"
-  cargo build --release -q -p host-sim --features mpi
-  cp target/release/host-sim "$OUT/host-sim-mpi"
-fi
-# mpirun refuses root without these (CI's machine runs as root).
-export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+mpi_binaries "$OUT"
 ARGS="render $SCENE --n $N --quiet"
 # Open MPI binds each rank to one core by default (np <= 2): a rank then sees one core and runs
 # one thread. The --bind-to none rows let each rank's threads use every core.

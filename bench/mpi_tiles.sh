@@ -13,13 +13,7 @@ NS=${NS:-256 512}
 RUNS=${RUNS:-3}
 OUT=bench-out/mpi
 mkdir -p "$OUT"
-if [[ ${SKIP_BUILD:-0} != 1 ]]; then
-  cargo build --release -q -p host-sim
-  cp target/release/host-sim "$OUT/host-sim-plain"
-  cargo build --release -q -p host-sim --features mpi
-  cp target/release/host-sim "$OUT/host-sim-mpi"
-fi
-export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+mpi_binaries "$OUT"
 # Each process's peak RSS into a file of its own (the ranks' outputs interleave).
 cat > "$OUT/timed.sh" <<'SH'
 #!/bin/sh

@@ -166,7 +166,7 @@ impl Halo for MpiHalo {
 
     fn swap(&mut self, up: &[u8], down: &[u8]) -> Result<(Vec<u8>, Vec<u8>)> {
         let (i, k) = (self.tile.index as i32, self.tile.of as i32);
-        self.traffic.add(if i > 0 { up.len() } else { 0 }, if i + 1 < k { down.len() } else { 0 });
+        self.traffic.add(&self.tile, up.len(), down.len());
         let (world, t0) = (&self.world, Instant::now());
         let got = mpi::request::scope(|scope| {
             let sent_up = (i > 0).then(|| world.process_at_rank(i - 1).immediate_send_with_tag(scope, up, TAG_EDGE));

@@ -135,8 +135,11 @@ pub struct Traffic {
 }
 
 impl Traffic {
-    /// One swap of `up` and `down` bytes more.
-    pub fn add(&mut self, up: usize, down: usize) {
+    /// One swap more by `tile`: `up` bytes to the tile above and `down` to the tile below,
+    /// each counted where that tile exists.
+    pub fn add(&mut self, tile: &Tile, up: usize, down: usize) {
+        let up = if tile.index > 0 { up } else { 0 };
+        let down = if tile.index + 1 < tile.of { down } else { 0 };
         self.bytes += (up + down) as u64;
         self.swaps += 1;
     }
@@ -495,7 +498,7 @@ impl Halo for ThreadHalo {
 
     fn swap(&mut self, up: &[u8], down: &[u8]) -> Result<(Vec<u8>, Vec<u8>)> {
         let (i, of) = (self.tile.index, self.tile.of);
-        self.traffic.add(if i > 0 { up.len() } else { 0 }, if i + 1 < of { down.len() } else { 0 });
+        self.traffic.add(&self.tile, up.len(), down.len());
         if i > 0 {
             self.send(i - 1, up)?;
         }
