@@ -204,9 +204,13 @@ impl TeamState {
             }
             idle = 0;
             // Announce before reading the job: the caller does not end a phase while a helper
-            // that may have read it is inside.
-            self.inside.fetch_add(1, Ordering::AcqRel);
-            let job = self.job.load(Ordering::Acquire);
+            // that may have read it is inside. Both this pair and the caller's retirement
+            // (null the job, then read `inside`) are sequentially consistent: with release and
+            // acquire alone each side may miss the other's write (a store buffer on x86-64
+            // holds the caller's null while its load of `inside` reads 0), and a helper would
+            // run a retired job.
+            self.inside.fetch_add(1, Ordering::SeqCst);
+            let job = self.job.load(Ordering::SeqCst);
             if !job.is_null() {
                 // SAFETY: a non-null `job` points to the `Job` of a phase `Team::each` has
                 // published and not yet retired: it retires it (nulls the pointer, then waits
@@ -254,8 +258,9 @@ impl Team<'_> {
             wait(spins);
         }
         // Retire: no helper reads the job once it is null, and those that read it are counted.
-        st.job.store(std::ptr::null_mut(), Ordering::Release);
-        while st.inside.load(Ordering::Acquire) != 0 {
+        // Sequentially consistent, against the helpers' announce-then-load (see `help`).
+        st.job.store(std::ptr::null_mut(), Ordering::SeqCst);
+        while st.inside.load(Ordering::SeqCst) != 0 {
             spins = spins.saturating_add(1);
             wait(spins);
         }
@@ -352,6 +357,27 @@ mod tests {
                 });
             });
         }
+    }
+
+    /// Many phases of two items, each phase's work borrowing fresh heap memory freed as soon as
+    /// the phase returns, with more threads than items: a helper that ran a retired phase (the
+    /// caller's retirement and a helper's announce missing each other) would count into freed
+    /// memory, so that a phase's items are not each counted once.
+    #[test]
+    fn retired_phases_are_never_run() {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap();
+        pool.install(|| {
+            with_team(|team| {
+                for phase in 0..20_000u32 {
+                    let counts: Vec<AtomicUsize> = (0..2).map(|_| AtomicUsize::new(0)).collect();
+                    team.each(vec![0usize, 1], |i| {
+                        counts[i].fetch_add(1, Ordering::Relaxed);
+                    });
+                    let got: Vec<usize> = counts.iter().map(|c| c.load(Ordering::Relaxed)).collect();
+                    assert_eq!(got, [1, 1], "phase {phase}");
+                }
+            });
+        });
     }
 
     /// A job's lanes cut its items into contiguous runs, one per thread, of sizes differing by
