@@ -403,7 +403,11 @@ impl<const N: usize> TriangleStore<N> {
 /// and its target ray for the source being diffused ([`crate::receiver::target`], computed
 /// once per source from the column's visible surface). A firmware cell answers for itself from
 /// its [`TriangleStore`]; a host holds all columns at once.
-pub trait ColumnOccluders: core::fmt::Debug + Sync {
+///
+/// Not `Debug` itself: a supertrait would put its `fmt` in every vtable, and with it the
+/// formatting machinery in a firmware image; `dyn ColumnOccluders` has a short `Debug` of its
+/// own (below) for the host's `LightEnv`.
+pub trait ColumnOccluders: Sync {
     /// The triangles column (x, y) keeps.
     fn triangles(&self, x: crate::units::Coord, y: crate::units::Coord) -> &[Triangle];
     /// Column (x, y)'s target ray for the current source (`None`: no ray lights its pixel).
@@ -438,6 +442,12 @@ pub trait ColumnOccluders: core::fmt::Debug + Sync {
     /// A hint that column (x, y) is visited soon (a host holding every column may start loading
     /// its data); no effect on any result.
     fn prefetch(&self, _x: crate::units::Coord, _y: crate::units::Coord) {}
+}
+
+impl core::fmt::Debug for dyn ColumnOccluders + '_ {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("ColumnOccluders")
+    }
 }
 
 /// One column as the exact visit reads it ([`ColumnOccluders::column`]).

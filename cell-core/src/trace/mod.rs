@@ -665,21 +665,30 @@ impl<'a, F: FracBits> Parser<'a, F> {
             kind::REFUSED => Event::Refused,
             kind::TAKE => rays::get_take(&mut r)?,
             kind::PHASE_END => Event::PhaseEnd,
-            kind::TRIANGLE => {
-                let mut v = [[0i32; 3]; 3];
-                for c in v.iter_mut().flatten() {
-                    *c = r.i32()?;
-                }
-                Event::Triangle(Triangle::new(v).ok_or(DecodeError::BadValue("triangle vertex beyond the bit budget"))?)
-            }
-            kind::NEIGHBOUR_CONTACT => match r.u8()? {
-                b @ (0 | 1) => Event::NeighbourContact(b == 1),
-                _ => return Err(DecodeError::BadValue("a neighbour contact answer is 0 or 1").into()),
-            },
+            kind::TRIANGLE => Event::Triangle(get_triangle(&mut r)?),
+            kind::NEIGHBOUR_CONTACT => Event::NeighbourContact(get_neighbour_contact(&mut r)?),
             k => return Err(DecodeError::UnknownKind(k).into()),
         };
         r.finish()?;
         Ok(ev)
+    }
+}
+
+/// A triangle record's payload ([`kind::TRIANGLE`]): nine `i32` vertex coordinates, refused
+/// beyond the bit budget of [`Triangle::new`].
+pub fn get_triangle(r: &mut Reader<'_>) -> Result<Triangle, DecodeError> {
+    let mut v = [[0i32; 3]; 3];
+    for c in v.iter_mut().flatten() {
+        *c = r.i32()?;
+    }
+    Triangle::new(v).ok_or(DecodeError::BadValue("triangle vertex beyond the bit budget"))
+}
+
+/// A neighbour-contact record's payload ([`kind::NEIGHBOUR_CONTACT`]): 0 or 1.
+pub fn get_neighbour_contact(r: &mut Reader<'_>) -> Result<bool, DecodeError> {
+    match r.u8()? {
+        b @ (0 | 1) => Ok(b == 1),
+        _ => Err(DecodeError::BadValue("a neighbour contact answer is 0 or 1")),
     }
 }
 
@@ -869,7 +878,7 @@ pub struct Replayer<
     pub shadow_lit: Option<(SourceMask, LitRule)>,
     /// Under exact occluders, the column's triangles and target ray for the current source.
     #[cfg(feature = "exact-occluders")]
-    column: ReplayColumn,
+    column: TraceColumn,
     setup: Option<LightSetup>,
     shade: Option<ShadeSetup>,
     depth: u32,
@@ -920,7 +929,7 @@ impl<
             rays: Rays::Idle,
             shadow_lit: None,
             #[cfg(feature = "exact-occluders")]
-            column: ReplayColumn::new(),
+            column: TraceColumn::new(),
             setup: None,
             shade: None,
             depth: 0,
@@ -1097,12 +1106,7 @@ impl<
             return Err(bad.into());
         }
         #[cfg(feature = "exact-occluders")]
-        {
-            let t = self.column.target.filter(|_| self.column.awaiting).ok_or(bad)?;
-            self.column.target = Some(t.with_neighbour_answers(shadowed));
-            self.column.awaiting = false;
-            Ok(())
-        }
+        return self.column.answer(shadowed);
         #[cfg(not(feature = "exact-occluders"))]
         {
             let _ = shadowed;
@@ -1121,7 +1125,7 @@ impl<
             return Err(DecodeError::BadValue("a triangle outside exact occluders").into());
         }
         #[cfg(feature = "exact-occluders")]
-        return self.column.triangles.push(t).then_some(()).ok_or(ReplayError::CapacityMismatch);
+        return self.column.push(t);
         #[cfg(not(feature = "exact-occluders"))]
         {
             let _ = t;
@@ -1183,13 +1187,20 @@ impl<
     }
 }
 
-/// The column's exact occluders as a replayed cell holds them ([`crate::occluder`]): the
-/// triangles its trace hands it after each light record, and the target ray it computes from
-/// its own visible surface when the record arrives ([`crate::receiver::target`], as the host's
-/// cells do).
+/// The column's exact occluders as a cell driven by host records holds them
+/// ([`crate::occluder`]): the triangles the host hands it after each light record
+/// ([`Event::Triangle`]), the target ray it computes from its own visible surface when the
+/// record arrives ([`crate::receiver::target`], as the host's cells do), and its neighbours'
+/// contact answer ([`Event::NeighbourContact`]). The replayer keeps one; so does the
+/// production cell image, which gets the same records over its host link.
+///
+/// **Invariant: while [`TraceColumn::awaiting`] is true (a target with a contact segment whose
+/// neighbours have not answered) the cell must not step its light: its target ray is not
+/// final.** The store holds at most [`crate::cell::TRIANGLE_CAP`] triangles; one more is
+/// refused ([`ReplayError::CapacityMismatch`]), never dropped silently.
 #[cfg(feature = "exact-occluders")]
 #[derive(Debug)]
-struct ReplayColumn {
+pub struct TraceColumn {
     triangles: crate::occluder::TriangleStore<{ crate::cell::TRIANGLE_CAP }>,
     target: Option<crate::receiver::Target>,
     /// The target has a contact segment and its neighbours have not answered yet.
@@ -1197,9 +1208,17 @@ struct ReplayColumn {
 }
 
 #[cfg(feature = "exact-occluders")]
-impl ReplayColumn {
-    const fn new() -> Self {
-        ReplayColumn { triangles: crate::occluder::TriangleStore::new(), target: None, awaiting: false }
+impl Default for TraceColumn {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+#[cfg(feature = "exact-occluders")]
+impl TraceColumn {
+    /// No triangles, no target.
+    pub const fn new() -> Self {
+        TraceColumn { triangles: crate::occluder::TriangleStore::new(), target: None, awaiting: false }
     }
 
     fn clear(&mut self) {
@@ -1210,7 +1229,7 @@ impl ReplayColumn {
 
     /// A source's diffusion starts: no triangles yet, and the target ray of `cell`'s visible
     /// surface under exact occluders.
-    fn start<F: FracBits, const D: usize>(&mut self, cell: &Cell<D>, s: &LightSetup) -> Result<(), ReplayError> {
+    pub fn start<F: FracBits, const D: usize>(&mut self, cell: &Cell<D>, s: &LightSetup) -> Result<(), ReplayError> {
         self.clear();
         if s.rule.needs_triangles() {
             let far = FarDistance::new(s.far).ok_or(ReplayError::BadFar)?;
@@ -1222,10 +1241,34 @@ impl ReplayColumn {
         }
         Ok(())
     }
+
+    /// Whether the target waits for its neighbours' contact answer (see the invariant).
+    pub fn awaiting(&self) -> bool {
+        self.awaiting
+    }
+
+    /// The column's target ray for the current source, if its visible surface has one.
+    pub fn target(&self) -> Option<&crate::receiver::Target> {
+        self.target.as_ref()
+    }
+
+    /// One more triangle for the current source, refused past the store's capacity.
+    pub fn push(&mut self, t: Triangle) -> Result<(), ReplayError> {
+        self.triangles.push(t).then_some(()).ok_or(ReplayError::CapacityMismatch)
+    }
+
+    /// The neighbours' answers to the column's contact query, OR-ed: once, while awaiting.
+    pub fn answer(&mut self, shadowed: bool) -> Result<(), ReplayError> {
+        let bad = DecodeError::BadValue("a neighbour contact answer without a target's contact segment");
+        let t = self.target.filter(|_| self.awaiting).ok_or(bad)?;
+        self.target = Some(t.with_neighbour_answers(shadowed));
+        self.awaiting = false;
+        Ok(())
+    }
 }
 
 #[cfg(feature = "exact-occluders")]
-impl crate::occluder::ColumnOccluders for ReplayColumn {
+impl crate::occluder::ColumnOccluders for TraceColumn {
     fn triangles(&self, _x: Coord, _y: Coord) -> &[Triangle] {
         self.triangles.triangles()
     }

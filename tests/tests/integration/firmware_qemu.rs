@@ -11,7 +11,7 @@
 //! re-encoded changed values (valid frames, different digest).
 //!
 //! The production images are built, audited and booted too: the default cell (every phase and
-//! option `host-sim render` uses by default, held to 60 KiB of flash: the 32 KiB aimed at is
+//! option `host-sim render` uses by default, held to 66 KiB of flash: the 32 KiB aimed at is
 //! not reached) and the thesis's cell (held to 16 KiB); see [`CellImage`].
 //!
 //! When `qemu-system-arm` or the `thumbv7em-none-eabihf` target is missing: under CI (the
@@ -81,7 +81,7 @@ impl CellImage {
     }
 
     /// Its flash budget (`host-sim audit`'s `budget_of`): 16 KiB for the thesis's cell; for
-    /// the default cell 60 KiB, what it reached (59 252 B) plus a small margin, **not** the
+    /// the default cell 66 KiB, what it reached (66 836 B) plus a small margin, **not** the
     /// 32 KiB aimed at (docs/FIRMWARE.md, "Flash budget", says where the bytes go).
     fn budget(self) -> u64 {
         match self {
@@ -150,8 +150,11 @@ fn check_production_image(elf: &Path, image: CellImage) {
 
 /// The host's side of a smoke run of the production image: the records that make cell (3, 5)
 /// of a 16 × 16 × 32 grid, a light setup (the thesis's rule and policy), the same setup with
-/// a flipped byte and an initial beam of the source in this cell; and, apart, a shading record.
-fn production_image_input() -> (Vec<u8>, Vec<u8>) {
+/// a flipped byte and an initial beam of the source in this cell; apart, a shading record;
+/// and, for the default cell, an exact-occluder source (the default lit rule): its light
+/// record, one triangle more than the column holds (`TRIANGLE_CAP`, crossing the column
+/// above the source) and the source's initial beam.
+fn production_image_input() -> (Vec<u8>, Vec<u8>, Vec<u8>) {
     use cell_core::beam::{Beam, Direction, FarDistance, Source, SourceId};
     use cell_core::light::{BeamMsg, Policy};
     use cell_core::lit::LitRule;
@@ -196,7 +199,16 @@ fn production_image_input() -> (Vec<u8>, Vec<u8>) {
     let mut buf = [0u8; 64];
     let n = Message::Beam(BeamMsg::new(beam, 10)).emit(0, &mut buf).unwrap();
     input.extend(&buf[..n]);
-    (input, frame(Event::Shade(shade)))
+    let mut exact = frame(Event::Light(LightSetup { rule: LitRule::Exact, ..setup }));
+    // Sheets at z = 12 voxels over the whole grid (vertices in sixteenths of a voxel), each a
+    // sixteenth of a voxel above the last.
+    for k in 0..=cell_core::cell::TRIANGLE_CAP as i32 {
+        let z = 12 * 16 + k;
+        let t = cell_core::triangle::Triangle::new([[0, 0, z], [512, 0, z], [0, 512, z]]).unwrap();
+        exact.extend(frame(Event::Triangle(t)));
+    }
+    exact.extend(&buf[..n]);
+    (input, frame(Event::Shade(shade)), exact)
 }
 
 /// Boot the production image with its host link (UART0) on QEMU's stdio and the port links
@@ -208,6 +220,16 @@ fn production_image_input() -> (Vec<u8>, Vec<u8>) {
 /// the beam off the FIFO (a `memmove`) is what hard-faulted the image while its
 /// `__aeabi_memmove` called itself (`firmware/src/bin/cell/mem.rs`), and a single report could
 /// come before it.
+///
+/// The default cell then gets the exact-occluder source, a shading record, and a shading
+/// record again: the triangle past the column's capacity is one more bad frame (refused, not
+/// dropped), and the beam is judged against the column's triangles — the exact visit, whose
+/// frames come on top of the beam's fate: the stack went deeper than in the thesis-rule run.
+///
+/// Every report ends its counters with the deepest the stack has gone (the image paints its
+/// free RAM at boot, `firmware/src/stack.rs`). It is at least the nine frame buffers the cell
+/// keeps on its stack, and with the image's statics (none: `.data` and `.bss` are empty) it
+/// fits the RAM of `memory.x`. The peaks are printed: docs/FIRMWARE.md's RAM figures.
 fn run_production_image(elf: &Path, image: CellImage) {
     let mut child = Command::new(QEMU)
         .args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-display", "none", "-monitor", "none"])
@@ -235,10 +257,15 @@ fn run_production_image(elf: &Path, image: CellImage) {
             return;
         }
     });
-    let (records, shade) = production_image_input();
+    let (records, shade, exact) = production_image_input();
     let deadline = Instant::now() + QEMU_TIMEOUT;
     let mut reports = Vec::new();
-    for input in [[records, shade.clone()].concat(), shade] {
+    let mut inputs = vec![[records, shade.clone()].concat(), shade.clone()];
+    if image == CellImage::Default {
+        inputs.extend([[exact, shade.clone()].concat(), shade]);
+    }
+    let want = inputs.len();
+    for input in inputs {
         host_link.write_all(&input).unwrap();
         host_link.flush().unwrap();
         match rx.recv_timeout(deadline.saturating_duration_since(Instant::now())) {
@@ -249,15 +276,22 @@ fn run_production_image(elf: &Path, image: CellImage) {
     let _ = child.kill();
     let _ = child.wait();
     drop(host_link);
-    assert_eq!(reports.len(), 2, "the production image sent {} of its 2 reports before QEMU stopped", reports.len());
+    assert_eq!(
+        reports.len(),
+        want,
+        "the production image sent {} of its {want} reports before QEMU stopped",
+        reports.len()
+    );
     // Without the shading feature (the thesis's cell) the second report counts one more bad
     // frame: the image does not decode a `Shade` record's payload, so after answering it counts
-    // the record as bad. The default cell shades: the record is good.
-    let bad = match image {
-        CellImage::Default => [1, 1],
-        CellImage::Thesis => [1, 2],
+    // the record as bad. The default cell shades: the record is good; its exact-occluder
+    // source's triangle past the column's capacity is one more.
+    let bad: &[u32] = match image {
+        CellImage::Default => &[1, 1, 2, 2],
+        CellImage::Thesis => &[1, 2],
     };
-    for (report, bad) in reports.iter().zip(bad) {
+    let mut peaks = Vec::new();
+    for (report, &bad) in reports.iter().zip(bad) {
         let (raw, used) = cell_core::wire::read_frame(report).expect("the report's frame and CRC");
         assert_eq!((raw.kind, used), (0x50, report.len()));
         let p = raw.payload;
@@ -271,7 +305,19 @@ fn run_production_image(elf: &Path, image: CellImage) {
             [0, 0, 0, 0, bad],
             "dexel overflows, lost voxels, lit overflows, refused beams, bad frames"
         );
-        assert_eq!((p[34], p.len()), (0, 35), "no lit run in an empty column");
+        peaks.push(u32_at(34) as usize);
+        assert_eq!((p[38], p.len()), (0, 39), "no lit run in an empty column");
+    }
+    println!("{image:?} cell: stack peaks {peaks:?} B, report by report");
+    let buffers = 9 * cell_core::wire::MAX_FRAME;
+    let ram = host_sim::jobs::audit::ram_budget(host_sim::jobs::audit::MEMORY_X).expect("memory.x's RAM length");
+    for (i, &peak) in peaks.iter().enumerate() {
+        assert!(peak >= buffers, "report {i}: a stack peak of {peak} B, under the {buffers} B of frame buffers");
+        assert!(peak <= ram, "report {i}: a stack peak of {peak} B, over memory.x's {ram} B of RAM");
+        assert!(i == 0 || peak >= peaks[i - 1], "the peak never falls: {peaks:?}");
+    }
+    if image == CellImage::Default {
+        assert!(peaks[3] > peaks[1], "the exact visit adds frames to the beam's fate: {peaks:?}");
     }
 }
 

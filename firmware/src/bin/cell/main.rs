@@ -2,7 +2,7 @@
 //! no replay harness, no formatting, no logging. Two images come from this source
 //! (docs/FIRMWARE.md, "Flash budget"): the **default cell**, the crate's plain
 //! `cargo build --release` (its default features: every phase and option `host-sim render`
-//! uses by default; 59 252 B of flash, held to 60 KiB), and the **thesis's cell**,
+//! uses by default; 66 836 B of flash, held to 66 KiB), and the **thesis's cell**,
 //! `cargo build --profile thesis --bin cell --no-default-features` (the thesis's lit rule and
 //! policy, held to the 16 KiB a cell of the thesis's machine could afford). `host-sim audit`
 //! reads their ELFs and says what each part of the cell costs in flash.
@@ -37,6 +37,8 @@ mod board;
 mod cmsdk;
 mod features;
 mod mem;
+#[path = "../../stack.rs"]
+mod stack;
 #[path = "../../vectors.rs"]
 mod vectors;
 
@@ -63,8 +65,9 @@ use board::{FrameWire, ReadyIn, ReadyOut, Uart};
 pub const KIND_REPORT: u8 = 0x50;
 /// Longest host record: a `Shade` record with the most lights and materials.
 const HOST_FRAME: usize = HEADER + 12 + 2 + MAX_LIGHTS * 24 + 1 + MAX_MATERIALS * 52 + TRAILER;
-/// Longest report: 26 bytes of pixel and counters, 8 bytes per lit run.
-const REPORT_FRAME: usize = HEADER + 26 + 1 + LIT_CAP * 8 + TRAILER;
+/// Longest report: the cell (4 bytes), its pixel (10), five counters and the stack peak (24),
+/// the run count (1) and 8 bytes per lit run.
+const REPORT_FRAME: usize = HEADER + 4 + 10 + 24 + 1 + LIT_CAP * 8 + TRAILER;
 
 /// The cell's capacities: those of host-sim's cell (`cell_core::cell`), so that the host's
 /// `Header` record matches.
@@ -106,6 +109,10 @@ struct Node {
     /// machine's activity count (§4.4.4).
     activity: ActivityDelta,
     setup: Option<LightSetup>,
+    /// Under exact occluders: the column's triangles, target ray and contact answer for the
+    /// current source (host records, as a trace hands them to the replayer).
+    #[cfg(feature = "exact-occluders")]
+    column: trace::TraceColumn,
     depth: u32,
     /// Frames that did not decode (CRC, length, values), or that came out of order.
     bad_frames: u32,
@@ -120,6 +127,8 @@ impl Node {
             light: LightCell::new(0, 0),
             activity: ActivityDelta::new(),
             setup: None,
+            #[cfg(feature = "exact-occluders")]
+            column: trace::TraceColumn::new(),
             depth: 0,
             bad_frames: 0,
             refused: 0,
@@ -185,8 +194,21 @@ impl Node {
                 FarDistance::<U0>::new(s.far).ok_or(ReplayError::BadFar)?;
                 self.light.counters.max_layer = 0;
                 self.light.counters.peak_fifo = 0;
+                #[cfg(feature = "exact-occluders")]
+                self.column.start::<U0, DEFAULT_DEXELS>(&self.cell, &s)?;
                 self.setup = Some(s);
             }
+            // Under exact occluders, after the light record: the column's triangles, then its
+            // neighbours' contact answer if its target has a contact segment.
+            #[cfg(feature = "exact-occluders")]
+            kind::TRIANGLE => {
+                if !self.setup.is_some_and(|s| s.rule.needs_triangles()) {
+                    return Err(DecodeError::BadValue("a triangle outside exact occluders").into());
+                }
+                self.column.push(trace::get_triangle(&mut r)?)?;
+            }
+            #[cfg(feature = "exact-occluders")]
+            kind::NEIGHBOUR_CONTACT => self.column.answer(trace::get_neighbour_contact(&mut r)?)?,
             kind::SHADE => {
                 #[cfg(feature = "shading")]
                 let pixel = self.shade(trace::get_shade_setup(&mut r)?);
@@ -210,8 +232,19 @@ impl Node {
         cell_pixel(rule, &self.cell, reached, self.light.visible_lit, &s.materials, &s.lights, &s.params)
     }
 
+    /// Whether the light cell may step: a source is set up and, under exact occluders, its
+    /// target ray is final (the neighbours' contact answer is in).
+    fn lighting(&self) -> Option<LightSetup> {
+        #[cfg(feature = "exact-occluders")]
+        if self.column.awaiting() {
+            return None;
+        }
+        self.setup.map(features::fixed_options)
+    }
+
     /// The report to the host: cell, pixel (flag, rgb, light mask, depth), counters
-    /// (dexel overflows, lost voxels, lit-run overflows, refused beams, bad frames), lit runs.
+    /// (dexel overflows, lost voxels, lit-run overflows, refused beams, bad frames), the
+    /// deepest the stack has gone so far (bytes, [`stack::peak`]), lit runs.
     fn report(&self, pixel: Option<cell_core::shade::Pixel>, host: Uart) {
         let mut buf = [0u8; REPORT_FRAME];
         let (store, lit) = (&self.cell.store, &self.light.lit);
@@ -226,6 +259,7 @@ impl Node {
             for c in [store.overflows(), store.lost_voxels(), lit.overflows(), self.refused, self.bad_frames] {
                 w.u32(c)?;
             }
+            w.u32(stack::peak() as u32)?;
             w.u8(lit.runs().len() as u8)?;
             for r in lit.runs() {
                 w.u16(r.lo)?;
@@ -310,6 +344,8 @@ impl Receiver {
 
 #[entry]
 fn main() -> ! {
+    // Before anything lives on the stack below this frame: every report says how deep it went.
+    stack::paint();
     let mut links: Links =
         core::array::from_fn(|i| HalLink { ready: ReadyIn::port(Port::ALL[i]), spi: FrameWire(Uart::link(i + 1)) });
     let mut recv = Receiver {
@@ -325,8 +361,13 @@ fn main() -> ! {
     loop {
         recv.host(&mut node);
         recv.ports(&mut node, &mut links);
-        if let Some(setup) = node.setup.map(features::fixed_options) {
-            if let Ok(env) = features::env(&setup, &order) {
+        if let Some(setup) = node.lighting() {
+            #[allow(unused_mut)]
+            if let Ok(mut env) = features::env(&setup, &order) {
+                #[cfg(feature = "exact-occluders")]
+                if setup.rule.needs_triangles() {
+                    env.occluders = Some(&node.column);
+                }
                 node.light.step(&node.cell, &env, &node.activity);
             }
         }

@@ -32,9 +32,11 @@ pub const FLASH_BUDGET: u64 = 16 * 1024;
 
 /// The budget the default cell's image is held to (`firmware/src/bin/cell` with the firmware's
 /// default features: every phase and option `host-sim render` uses by default). The goal is
-/// 32 KiB; the image is 59 252 B (docs/FIRMWARE.md, "Flash budget", says where the bytes go and
-/// what the floor is), so the budget is what it reached plus a small margin: growth fails.
-pub const DEFAULT_CELL_FLASH_BUDGET: u64 = 60 * 1024;
+/// 32 KiB; the image is 66 836 B since its host link takes the column's triangles and its
+/// light steps under them (before, with no occluders ever passed, the compiler left most of the
+/// exact visit out: 59 252 B), so the budget is what it reached plus a small margin: growth
+/// fails (docs/FIRMWARE.md, "Flash budget", says where the bytes go and what the floor is).
+pub const DEFAULT_CELL_FLASH_BUDGET: u64 = 66 * 1024;
 
 /// The budget of the image at `path`: [`DEFAULT_CELL_FLASH_BUDGET`] for an image named `cell`
 /// outside a `thesis` profile directory (the default cell, `cargo build --release`), else
