@@ -876,6 +876,10 @@ pub struct AuditArgs {
     /// FIFO size used for the lighting run.
     #[arg(long, default_value_t = 16)]
     pub fa: usize,
+    /// A point light at grid-normalised coordinates X,Y,Z in 0..1 (repeatable; replaces the
+    /// scene's own lights): the peaks are those of the cells lit from these.
+    #[arg(long = "light", value_parser = parse_triple)]
+    pub lights: Vec<[f64; 3]>,
     /// Write the audit as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,

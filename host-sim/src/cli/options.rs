@@ -207,6 +207,7 @@ impl From<&AuditArgs> for AuditOptions {
             view: a.load.camera.choice(),
             load: a.load.config(Preset::Render.load()),
             fa: a.fa,
+            lights: a.lights.clone(),
             json: a.json.clone(),
             csv: a.csv.clone(),
             elfs: a.elf.clone(),

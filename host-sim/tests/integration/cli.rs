@@ -256,6 +256,23 @@ fn audit_reports_sizes_and_the_budget() {
         get("static_cell") + get("bytes_row_packet") + get("static_light_cell"),
         "the static total is the sum of its parts"
     );
+    // The Cornell box keeps at most a few triangles in a column: none left out.
+    assert!(get("used_triangles") >= 1 && get("used_triangles") <= 64);
+    assert_eq!(get("triangle_overflows"), 0);
+    // Lit from a light of the user's: the geometry's peaks are the scene's, the light's own
+    // (FIFO, lit runs) within their capacities; a light outside the grid is refused.
+    let lit = dir.join("audit-lit.json");
+    let (code, err) =
+        host_sim(&["audit", "cornell", "--n", "32", "--light", "0.2,0.9,0.1", "--json", lit.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let b: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&lit).unwrap()).unwrap();
+    for k in ["used_dexels", "used_triangles", "triangle_overflows", "static_total"] {
+        assert_eq!(a[k], b[k], "{k} does not depend on the light");
+    }
+    assert!(b["used_fifo"].as_u64().unwrap() <= get("capacity_fifo"));
+    let (code, err) = host_sim(&["audit", "cornell", "--n", "16", "--light", "1.5,0.5,0.5"]);
+    assert_ne!(code, 0);
+    assert!(err.contains("outside"), "{err}");
     // A firmware image that is not there, or not an ELF: a clear error, no table, no panic.
     let missing = dir.join("no-such-image");
     let (code, err) = host_sim(&["audit", "cornell", "--n", "16", "--elf", missing.to_str().unwrap()]);

@@ -16,7 +16,7 @@ use cell_core::beam::frac::U0;
 use cell_core::cell::{Cell, DEFAULT_DEXELS};
 use cell_core::dexel::{Dexel, DexelStore};
 use cell_core::facet::{PipelinePacket, RowPacket};
-use cell_core::light::{BeamMsg, LitRun, LitRuns, OutBuffers, Policy};
+use cell_core::light::{BeamMsg, LitRun, LitRuns, OutBuffers};
 use cell_core::trace::{LightSetup, ShadeSetup};
 use cell_core::wire::{BEAM_PAYLOAD, HEADER, MAX_FRAME, ROW_PAYLOAD_BASE, TRAILER};
 
@@ -98,6 +98,9 @@ pub struct Audit {
     pub used_triangles: usize,
     /// See `used_triangles`.
     pub used_triangles_cell: [u32; 2],
+    /// Triangles left out of full columns: columns that met more than `TRIANGLE_CAP` (light
+    /// passes where they stand); 0 when every column keeps all its triangles.
+    pub triangle_overflows: u64,
     /// What a cell holds for one source's diffusion (the light setup; its frustum summary
     /// is the 8-block one) and, while it shades, the shading inputs (lights and materials).
     pub bytes_light_setup: usize,
@@ -180,14 +183,17 @@ struct Peaks {
     fifo: (usize, [u32; 2]),
     lit_runs: (usize, [u32; 2]),
     triangles: (usize, [u32; 2]),
+    /// Triangles left out of full columns (more than `TRIANGLE_CAP` met one).
+    triangle_overflows: u64,
 }
 
-/// Load and light a scene, and find the peaks of its cells.
-fn peaks(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig) -> Result<Peaks> {
+/// Load and light a scene (from `lights`, or its own lights if none), and find the peaks of
+/// its cells.
+fn peaks(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig, lights: &[[f64; 3]]) -> Result<Peaks> {
     let loaded = load_scene(mesh, cfg)?;
-    let lights = resolve_lights(mesh, &loaded, &[])?;
+    let lights = resolve_lights(mesh, &loaded, lights)?;
     let (lighting, _) = run_diffusion(mesh, &loaded, &lights, light, |_, _| {})?;
-    let mut p = Peaks::default();
+    let mut p = Peaks { triangle_overflows: loaded.grid.triangles.overflows(), ..Peaks::default() };
     let raise = |slot: &mut (usize, [u32; 2]), v: usize, x: u16, y: u16| {
         if v > slot.0 {
             *slot = (v, [x as u32, y as u32]);
@@ -204,10 +210,16 @@ fn peaks(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig) -> Result<Peaks> {
     Ok(p)
 }
 
-/// Load and light a scene with the default lighting settings, measure its cells, and read
-/// the firmware images `elfs`.
-pub fn audit(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig, elfs: &[PathBuf]) -> Result<Audit> {
-    let p = peaks(mesh, cfg, light)?;
+/// Load and light a scene under `light` (from `lights`, or its own lights if none), measure
+/// its cells, and read the firmware images `elfs`.
+pub fn audit(
+    mesh: &Mesh,
+    cfg: &LoadConfig,
+    light: &LightConfig,
+    lights: &[[f64; 3]],
+    elfs: &[PathBuf],
+) -> Result<Audit> {
+    let p = peaks(mesh, cfg, light, lights)?;
     type Light = crate::machine::grid::capacity::HostLightCell<U0>;
     let (b_dexel, b_msg, b_run) = (size_of::<Dexel>(), size_of::<BeamMsg<U0>>(), size_of::<LitRun>());
     let static_cell = size_of::<Cell<DEFAULT_DEXELS>>();
@@ -238,6 +250,7 @@ pub fn audit(mesh: &Mesh, cfg: &LoadConfig, light: &LightConfig, elfs: &[PathBuf
         triangle_store: size_of::<cell_core::occluder::TriangleStore<TRIANGLE_CAP>>(),
         used_triangles: p.triangles.0,
         used_triangles_cell: p.triangles.1,
+        triangle_overflows: p.triangle_overflows,
         bytes_light_setup: size_of::<LightSetup>(),
         bytes_shade_setup: size_of::<ShadeSetup>(),
         capacity_dexels: DEFAULT_DEXELS,
@@ -291,6 +304,12 @@ fn print_ram(a: &Audit) {
         "with exact occluders (--lit-rule exact, the default with diffusion), add the column's triangle store: {} B ({TRIANGLE_CAP} × 36 B); this scene keeps at most {} triangles in a column, cell {:?}",
         a.triangle_store, a.used_triangles, a.used_triangles_cell
     );
+    if a.triangle_overflows > 0 {
+        println!(
+            "  {} triangle(s) left out of full columns: some column meets more than {TRIANGLE_CAP}",
+            a.triangle_overflows
+        );
+    }
     println!(
         "per phase, besides the stores: the light setup {} B (lighting), the shading inputs {} B (shading, on the stack)",
         a.bytes_light_setup, a.bytes_shade_setup
@@ -384,6 +403,8 @@ pub struct AuditOptions {
     pub load: LoadConfig,
     /// FIFO size of the lighting run.
     pub fa: usize,
+    /// The `--light` lights (none: the scene's own).
+    pub lights: Vec<[f64; 3]>,
     /// Write the audit as JSON here.
     pub json: Option<PathBuf>,
     /// Write the flash tables as CSV here.
@@ -392,24 +413,20 @@ pub struct AuditOptions {
     pub elfs: Vec<PathBuf>,
 }
 
-/// Run the `audit` job: a load + light run (wavefront policy with merging), the cell's sizes,
-/// the firmware images' flash by module; printed and optionally written as JSON and CSV.
+/// Run the `audit` job: a load + light run (`render`'s lighting configuration), the cell's
+/// sizes, the firmware images' flash by module; printed and optionally written as JSON and CSV.
 pub fn run(o: &AuditOptions) -> Result<()> {
     o.load.validate()?;
     let mesh = crate::scene::camera::apply(crate::scene::load(&o.scene)?, &o.view, o.load.n)?;
-    let lcfg = LightConfig {
-        fa: o.fa,
-        policy: Policy::Wavefront,
-        merge: true,
-        record_visits: false,
-        ..crate::config::plane_rule()
-    };
+    // The cell `render` runs by default (exact occluders, rays from the light, the radial
+    // policy, the visible-only lit store, the skips): the one the default firmware image is.
+    let lcfg = LightConfig { fa: o.fa, ..crate::config::Preset::Render.light() };
     let elfs = if o.elfs.is_empty() {
         FIRMWARE_ELFS.iter().map(PathBuf::from).filter(|p| p.exists()).collect()
     } else {
         o.elfs.clone()
     };
-    let a = audit(&mesh, &o.load, &lcfg, &elfs)?;
+    let a = audit(&mesh, &o.load, &lcfg, &o.lights, &elfs)?;
     print(&a);
     if let Some(p) = &o.json {
         crate::report::files::write_json(p, &a)?;
