@@ -215,6 +215,30 @@ fn tiles_render_alike_on_1_2_4_9_ranks() {
     same_as_one_process("tiles-faults", &faults, &[("--lit-out", "lit.csv")], &[3]);
 }
 
+/// The lit-ray ratio (`--visibility ratio`, each pixel weighed by the share of its target
+/// voxel's rays that arrive): the pixel weights travel with the parts, split by sources (five
+/// lights, 2 ranks) and cut into tiles (one light, 3 ranks), the PNG and statistics of one
+/// process.
+#[test]
+fn counted_rays_render_alike_split_by_sources_and_by_tiles() {
+    let png = [("--out", "image.png")];
+    let mut sources = vec!["--spread", "sources", "render", "cornell", "--n", "32", "--visibility", "ratio"];
+    sources.extend(FIVE_LIGHTS);
+    same_as_one_process("ratio-sources", &sources, &png, &[2]);
+    let tiles = ["--spread", "tiles", "render", "teapot-floor", "--n", "32", "--visibility", "ratio"];
+    same_as_one_process("ratio-tiles", &tiles, &png, &[3]);
+    // Spread, not run on rank 0 alone (which would give the same image).
+    let dir = scratch("ratio-spread");
+    for (args, ranks, what) in [(&sources[..], 2, "each diffusing its share"), (&tiles[..], 3, "each stepping a band")]
+    {
+        let mut c = mpirun(ranks);
+        c.args(args).arg("--out").arg(dir.join("image.png"));
+        let err = ok(c);
+        assert!(err.contains(what) && !err.contains("rank 0 diffuses them all"), "{err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Radiosity with several shots in flight, the shots of each batch spread over the ranks
 /// (every rank runs the supervisor): the patches, the shots and the residual plot of one
 /// process, under Feda's table and Thomin's rounds.

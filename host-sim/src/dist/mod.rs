@@ -160,18 +160,18 @@ enum Mode {
 /// `cuttable`: the grid can be cut into a band per rank.
 fn mode(spread: Spread, lights: usize, ranks: usize, cuttable: bool, cfg: &LightConfig) -> Mode {
     let sources_ok = Share::spreads(cfg, false);
-    let tiles_ok = !cfg.record_visits && !cfg.visibility.counts_rays() && cuttable;
+    let tiles_ok = !cfg.record_visits && cuttable;
     match spread {
         Spread::Sources if sources_ok => Mode::Sources,
-        Spread::Sources => Mode::Alone(
-            "this run's sources share more than their lit marks (link faults, a snapshot, or the lit-ray ratio's weights)",
-        ),
+        Spread::Sources => {
+            Mode::Alone("this run's sources share more than their lit marks (link faults, a snapshot, visited voxels)")
+        }
         Spread::Tiles if tiles_ok => Mode::Tiles,
-        Spread::Tiles => Mode::Alone("this run cannot be cut into tiles (the lit-ray ratio's weights, or more ranks than rows)"),
+        Spread::Tiles => Mode::Alone("this run cannot be cut into tiles (visited voxels, or more ranks than rows)"),
         Spread::Auto if sources_ok && lights >= ranks => Mode::Sources,
         Spread::Auto if tiles_ok => Mode::Tiles,
         Spread::Auto if sources_ok => Mode::Sources,
-        Spread::Auto => Mode::Alone("this run can be neither split by sources nor cut into tiles (the lit-ray ratio's weights)"),
+        Spread::Auto => Mode::Alone("this run can be neither split by sources nor cut into tiles (visited voxels)"),
     }
 }
 
@@ -314,8 +314,12 @@ mod tests {
         assert_eq!(mode(Spread::Tiles, 26, 2, true, &render), Mode::Tiles);
         assert!(matches!(mode(Spread::Sources, 26, 2, true, &faults), Mode::Alone(_)));
         assert!(matches!(mode(Spread::Tiles, 1, 200, false, &render), Mode::Alone(_)));
+        // The lit-ray ratio's weights travel with the parts, either way.
+        assert_eq!(mode(Spread::Auto, 3, 2, true, &ratio), Mode::Sources);
+        assert_eq!(mode(Spread::Tiles, 3, 2, true, &ratio), Mode::Tiles);
+        let visits = LightConfig { record_visits: true, ..render };
         for s in [Spread::Auto, Spread::Sources, Spread::Tiles] {
-            assert!(matches!(mode(s, 3, 2, true, &ratio), Mode::Alone(_)), "{s:?}: pixel weights travel in no part");
+            assert!(matches!(mode(s, 3, 2, true, &visits), Mode::Alone(_)), "{s:?}: visited voxels travel in no part");
         }
         // Even bands, or the user's cuts (one per rank boundary).
         let rows = |t: Vec<Tile>| t.into_iter().map(|t| t.rows).collect::<Vec<_>>();

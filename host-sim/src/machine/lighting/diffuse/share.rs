@@ -39,10 +39,11 @@ impl Share {
     /// Whether a run under `cfg` can be split by sources with the same result: not when its
     /// sources share more than the lit stores and counters — faulty links (each injector's
     /// random state runs on from source to source), a snapshot (`stop_at`: beams still in
-    /// flight when the next source starts), the visited voxels, a cell trace (`tapped`), or
-    /// the pixels' weights of a run that counts rays (parts do not carry them).
+    /// flight when the next source starts), the visited voxels or a cell trace (`tapped`). A
+    /// run that counts rays spreads: each source's pixel weights come from the share that
+    /// diffused it.
     pub fn spreads(cfg: &LightConfig, tapped: bool) -> bool {
-        cfg.faults.is_none() && cfg.stop_at.is_none() && !cfg.record_visits && !tapped && !cfg.visibility.counts_rays()
+        cfg.faults.is_none() && cfg.stop_at.is_none() && !cfg.record_visits && !tapped
     }
 }
 
@@ -80,7 +81,7 @@ fn lit_store(voxels: &mut [(Depth, SourceMask)]) -> (LitRuns<LIT_CAP>, u32) {
 /// on the same grid, sources and configuration; in any order, each source in one part only):
 /// lit stores united, counters added, the reports in source order. The cells' per-source peaks
 /// (`peak_fifo`, `max_layer`) and queued beams are those of the part that ran the last source,
-/// as in one run.
+/// as in one run; each source's pixel weights (a run that counts rays) those of its part.
 pub fn merge_parts(parts: Vec<Lighting>) -> Result<Lighting> {
     let Some(first) = parts.first() else { bail!("no lighting part to merge") };
     let (n, rule, len) = (first.n, first.rule, first.cells.len());
@@ -114,6 +115,7 @@ pub fn merge_parts(parts: Vec<Lighting>) -> Result<Lighting> {
     for p in &parts {
         phases = add_phases(&phases, &p.phases);
     }
+    let weights = merge_weights(&parts, &reports)?;
     let mut voxels = Vec::new();
     let cells = (0..len)
         .map(|i| {
@@ -134,7 +136,34 @@ pub fn merge_parts(parts: Vec<Lighting>) -> Result<Lighting> {
             LitColumn { x: at.x, y: at.y, lit, visible_lit, counters, queued: at.queued }
         })
         .collect();
-    Ok(Lighting { n, cells, reports, visited: None, link_faults: None, rule, phases, weights: None })
+    Ok(Lighting { n, cells, reports, visited: None, link_faults: None, rule, phases, weights })
+}
+
+/// Each source's pixel weights from the one part that diffused it (a part holds a weight
+/// vector for each of the run's sources, empty for those of other shares); `None` when no
+/// part counted rays.
+fn merge_weights(parts: &[Lighting], reports: &[SourceReport]) -> Result<Option<Vec<Vec<u8>>>> {
+    if parts.iter().all(|p| p.weights.is_none()) {
+        return Ok(None);
+    }
+    let Some(lists) = parts.iter().map(|p| p.weights.as_ref()).collect::<Option<Vec<_>>>() else {
+        bail!("some lighting parts carry pixel weights and some do not");
+    };
+    let sources = lists.iter().map(|w| w.len()).max().unwrap_or(0);
+    let mut out = vec![Vec::new(); sources];
+    for (s, slot) in out.iter_mut().enumerate() {
+        let mut given = lists.iter().filter_map(|w| w.get(s)).filter(|w| !w.is_empty());
+        if let Some(w) = given.next() {
+            *slot = w.clone();
+        }
+        if given.next().is_some() {
+            bail!("source {s}'s pixel weights come from two lighting parts");
+        }
+        if slot.is_empty() && reports.iter().any(|r| r.source == s) {
+            bail!("source {s} was diffused but no lighting part carries its pixel weights");
+        }
+    }
+    Ok(Some(out))
 }
 
 /// Two cells' counters added (the peaks: the larger; [`merge_parts`] sets them).
@@ -185,15 +214,15 @@ pub(super) fn add_phases(a: &PhaseSeconds, b: &PhaseSeconds) -> PhaseSeconds {
 }
 
 /// The first bytes of an encoded part, with its format's version.
-const MAGIC: &[u8; 8] = b"rc2part2";
+const MAGIC: &[u8; 8] = b"rc2part3";
 
 /// A part as bytes for another process ([`decode_part`] reads them back): the lit stores,
 /// visible masks, counters and queued beams of its cells (every cell, or a tile's), the
-/// reports, what its faulty links did and the host seconds. Fails for a part with visited
-/// voxels or pixel weights (not carried).
+/// reports, what its faulty links did, the host seconds and the pixel weights of a run that
+/// counts rays. Fails for a part with visited voxels (not carried).
 pub fn encode_part(l: &Lighting) -> Result<Vec<u8>> {
-    if l.visited.is_some() || l.weights.is_some() {
-        bail!("a lighting part with visited voxels or pixel weights is not carried between processes");
+    if l.visited.is_some() {
+        bail!("a lighting part with visited voxels is not carried between processes");
     }
     let mut w = Writer(Vec::with_capacity(64 + l.cells.len() * 96));
     w.0.extend_from_slice(MAGIC);
@@ -225,6 +254,14 @@ pub fn encode_part(l: &Lighting) -> Result<Vec<u8>> {
     if let Some(f) = &l.link_faults {
         for v in fault_fields(f) {
             w.u64(v);
+        }
+    }
+    w.u8(u8::from(l.weights.is_some()));
+    if let Some(ws) = &l.weights {
+        w.u64(ws.len() as u64);
+        for s in ws {
+            w.u64(s.len() as u64);
+            w.0.extend_from_slice(s);
         }
     }
     Ok(w.0)
@@ -309,10 +346,23 @@ pub fn decode_part(bytes: &[u8]) -> Result<Lighting> {
         }
         k => bail!("a lighting part's fault flag is {k}, not 0 or 1"),
     };
+    let weights = match r.u8()? {
+        0 => None,
+        1 => {
+            let sources = r.len(8)?;
+            let mut ws = Vec::with_capacity(sources);
+            for _ in 0..sources {
+                let len = r.len(1)?;
+                ws.push(r.take(len)?.to_vec());
+            }
+            Some(ws)
+        }
+        k => bail!("a lighting part's weights flag is {k}, not 0 or 1"),
+    };
     if r.at != bytes.len() {
         bail!("{} bytes left over after a lighting part", bytes.len() - r.at);
     }
-    Ok(Lighting { n, cells, reports, visited: None, link_faults, rule, phases, weights: None })
+    Ok(Lighting { n, cells, reports, visited: None, link_faults, rule, phases, weights })
 }
 
 fn counters_to(w: &mut Writer, c: &LightCounters) {
@@ -555,11 +605,14 @@ pub(super) mod tests {
     use crate::machine::lighting::diffuse::{diffuse, diffuse_share};
     use crate::machine::loading::loaded_scene::{load_scene, resolve_lights};
     use crate::precompute::LoadConfig;
+    use cell_core::visibility::Visibility;
 
-    /// Two runs' lit stores, visible masks, counters, reports and link faults, cell by cell.
+    /// Two runs' lit stores, visible masks, counters, reports, link faults and pixel weights,
+    /// cell by cell.
     pub(in crate::machine::lighting::diffuse) fn assert_same(a: &Lighting, b: &Lighting, what: &str) {
         assert_eq!(a.reports, b.reports, "{what}: reports");
         assert_eq!(a.link_faults, b.link_faults, "{what}: link faults");
+        assert_eq!(a.weights, b.weights, "{what}: pixel weights");
         assert_eq!(a.cells.len(), b.cells.len());
         for (x, y) in a.cells.iter().zip(&b.cells) {
             assert_eq!((x.x, x.y), (y.x, y.y), "{what}");
@@ -572,7 +625,7 @@ pub(super) mod tests {
 
     /// Cornell lit by five sources: the run of every source in one go and the parts of 2, 3
     /// and 5 shares (encoded, decoded, merged in reverse order) agree cell by cell, under each
-    /// lit rule and preset, the sibling wait included.
+    /// lit rule and preset, the sibling wait and the lit-ray ratio's counted rays included.
     #[test]
     fn shares_merge_into_the_whole_run() {
         let n = 24;
@@ -586,11 +639,16 @@ pub(super) mod tests {
             ("light", Preset::Light.light()),
             ("thesis", Preset::Thesis.light()),
             ("hold", LightConfig { hold: 3, ..plane_rule() }),
+            ("ratio", LightConfig { visibility: Visibility::Ratio, ..Preset::Render.light() }),
         ];
         for (name, cfg) in configs {
             let sources: Vec<_> = lights.iter().enumerate().map(|(i, p)| cfg.source(i, *p, n).unwrap()).collect();
             let whole = diffuse(&scene.grid, &sources, &cfg, |_, _| {}).unwrap();
-            assert!(whole.lit_voxels().count() > 0, "{name}: something is lit");
+            assert!(whole.lit_voxels().count() > 0 || cfg.lit_visible_only, "{name}: something is lit");
+            if let Some(w) = &whole.weights {
+                let (full, part) = (w.iter().flatten().any(|&x| x == 255), w.iter().flatten().any(|&x| x % 255 != 0));
+                assert!(full && part, "{name}: some pixels fully and some partly lit");
+            }
             for of in [2, 3, 5] {
                 let mut parts: Vec<Lighting> = (0..of)
                     .map(|index| {

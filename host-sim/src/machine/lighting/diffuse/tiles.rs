@@ -358,20 +358,19 @@ pub(super) fn whole_report(halo: &mut dyn Halo, mine: SourceReport) -> Result<So
 }
 
 /// What a run cut into tiles cannot do (yet): the settings that make its tiles share more
-/// than their edges' messages and the machine-wide sums.
+/// than their edges' messages and the machine-wide sums. (A run that counts rays is cut: a
+/// column's arrivals are counted by its own cell, so each tile's weights are its rows'.)
 fn check_tiled(cfg: &LightConfig) -> Result<()> {
     if cfg.record_visits {
         bail!("a lighting run cut into tiles does not record visited voxels");
     }
-    if cfg.visibility.counts_rays() {
-        bail!("a lighting run cut into tiles does not count rays for --visibility ratio|majority yet");
-    }
     Ok(())
 }
 
-/// This tile's part of the diffusion of `sources` over `grid`: its cells' lighting (the
-/// other cells are left out of the part), the whole grid's reports (the same on every tile),
-/// what its links' fault injectors did. [`merge_tiles`] puts the parts of every tile together.
+/// This tile's part of the diffusion of `sources` over `grid`: its cells' lighting and, in a
+/// run that counts rays, its columns' pixel weights (the other cells are left out of the
+/// part), the whole grid's reports (the same on every tile), what its links' fault injectors
+/// did. [`merge_tiles`] puts the parts of every tile together.
 pub fn diffuse_tile(
     grid: &LightGrid,
     sources: &[Source],
@@ -390,6 +389,10 @@ pub fn diffuse_tile(
             .map(|(l, _)| l)
     })?;
     part.cells.retain(|c| tile.rows.contains(&(c.y as u32)));
+    let band = tile.rows.start as usize * grid.n as usize..tile.rows.end as usize * grid.n as usize;
+    for w in part.weights.iter_mut().flatten() {
+        *w = w.get(band.clone()).map(<[u8]>::to_vec).unwrap_or_default();
+    }
     Ok(part)
 }
 
@@ -404,10 +407,19 @@ pub fn merge_tiles(parts: Vec<Lighting>) -> Result<Lighting> {
     let mut link_faults: Option<FaultCounts> = None;
     let mut cells: Vec<super::LitColumn> = Vec::with_capacity((n * n) as usize);
     let reports = first.reports.clone();
+    // Each source's pixel weights, band after band (a run that counts rays).
+    let mut weights: Option<Vec<Vec<u8>>> = first.weights.as_ref().map(|w| vec![Vec::new(); w.len()]);
     let row_major = |k: usize| (k / n as usize, k % n as usize);
     for (index, p) in parts.into_iter().enumerate() {
         if p.n != n || p.rule != rule || p.reports != reports {
             bail!("the tiles' lighting parts are of different runs (tile {index})");
+        }
+        match (weights.as_mut(), &p.weights) {
+            (None, None) => {}
+            (Some(all), Some(w)) if all.len() == w.len() && w.iter().all(|s| s.len() == p.cells.len()) => {
+                all.iter_mut().zip(w).for_each(|(a, s)| a.extend_from_slice(s));
+            }
+            _ => bail!("tile {index}'s pixel weights are not its band's, one list per source"),
         }
         // Whole rows, row-major, from where the tile above ended.
         let at = cells.len();
@@ -426,7 +438,7 @@ pub fn merge_tiles(parts: Vec<Lighting>) -> Result<Lighting> {
     if cells.len() != (n * n) as usize {
         bail!("{of} tiles' parts hold {} cells of an {n} × {n} grid", cells.len());
     }
-    Ok(Lighting { n, cells, reports, visited: None, link_faults, rule, phases, weights: None })
+    Ok(Lighting { n, cells, reports, visited: None, link_faults, rule, phases, weights })
 }
 
 /// The error of a tile whose neighbour ended first (with an error of its own).
@@ -554,6 +566,7 @@ mod tests {
     use crate::machine::links::faults::LinkFaults;
     use crate::machine::loading::loaded_scene::{load_scene, resolve_lights};
     use crate::precompute::LoadConfig;
+    use cell_core::visibility::Visibility;
 
     /// Bands cover the rows once, in order, each at least one row high; cuts that are not
     /// increasing within the grid are refused.
@@ -587,7 +600,8 @@ mod tests {
     /// (one row each) and into uneven ones (a band of one row beside one of 23): every cell's lit store, visible mask and counters, every report and the
     /// link faults the same, under each preset and lit rule, the sibling wait (sleeping cells),
     /// every cell stepped, faulty links (acknowledged later), several messages per link and
-    /// cycle, and a snapshot stopped mid-run; the parts carried as bytes between tiles.
+    /// cycle, a snapshot stopped mid-run and the lit-ray ratio's counted rays (each column's
+    /// pixel weights); the parts carried as bytes between tiles.
     #[test]
     fn tiles_give_the_one_piece_run() {
         let n = 24;
@@ -611,6 +625,7 @@ mod tests {
                 },
             ),
             ("snapshot", LightConfig { stop_at: Some(40), ..plane_rule() }),
+            ("ratio", LightConfig { visibility: Visibility::Ratio, ..Preset::Render.light() }),
         ];
         for (name, cfg) in configs {
             let sources: Vec<_> = lights.iter().enumerate().map(|(i, p)| cfg.source(i, *p, n).unwrap()).collect();
@@ -625,24 +640,37 @@ mod tests {
         }
     }
 
-    /// A part travels as bytes: decoded, it is the same part; tiles' parts that do not fit
-    /// together are refused.
+    /// A part travels as bytes: decoded, it is the same part (its link faults, its band's
+    /// pixel weights); tiles' parts that do not fit together are refused.
     #[test]
     fn tile_parts_travel_and_mismatches_are_refused() {
         let n = 16;
         let mesh = crate::scene::load("cornell").unwrap();
         let scene = load_scene(&mesh, &LoadConfig::watertight(n)).unwrap();
-        let cfg = LightConfig { faults: Some("drop=0.05,seed=3".parse().unwrap()), ..Preset::Render.light() };
         let lights = resolve_lights(&mesh, &scene, &[[0.5, 0.9, 0.5]]).unwrap();
+        let tiled = |cfg: &LightConfig| -> Vec<Lighting> {
+            let sources = [cfg.source(0, lights[0], n).unwrap()];
+            let (grid, srcs) = (&scene.grid, &sources[..]);
+            std::thread::scope(|s| {
+                let runs: Vec<_> = ThreadHalo::tiles(Tile::bands(n, &[7]).unwrap())
+                    .into_iter()
+                    .map(|mut h| s.spawn(move || diffuse_tile(grid, srcs, cfg, &mut h, &mut |_, _| {}).unwrap()))
+                    .collect();
+                runs.into_iter().map(|r| r.join().unwrap()).collect()
+            })
+        };
+        let ratio = LightConfig { visibility: Visibility::Ratio, ..Preset::Render.light() };
+        let parts = tiled(&ratio);
+        assert_eq!(
+            parts.iter().map(|p| p.weights.as_ref().map(|w| w[0].len())).collect::<Vec<_>>(),
+            [Some(7 * 16), Some(9 * 16)]
+        );
+        let carried: Vec<Lighting> = parts.iter().map(|p| decode_part(&encode_part(p).unwrap()).unwrap()).collect();
+        let whole = diffuse(&scene.grid, &[ratio.source(0, lights[0], n).unwrap()], &ratio, |_, _| {}).unwrap();
+        assert_same(&whole, &merge_tiles(carried).unwrap(), "carried parts, counted rays");
+        let cfg = LightConfig { faults: Some("drop=0.05,seed=3".parse().unwrap()), ..Preset::Render.light() };
         let sources = [cfg.source(0, lights[0], n).unwrap()];
-        let (grid, srcs, c) = (&scene.grid, &sources[..], &cfg);
-        let parts: Vec<Lighting> = std::thread::scope(|s| {
-            let runs: Vec<_> = ThreadHalo::tiles(Tile::bands(n, &[7]).unwrap())
-                .into_iter()
-                .map(|mut h| s.spawn(move || diffuse_tile(grid, srcs, c, &mut h, &mut |_, _| {}).unwrap()))
-                .collect();
-            runs.into_iter().map(|r| r.join().unwrap()).collect()
-        });
+        let parts = tiled(&cfg);
         let carried: Vec<Lighting> = parts.iter().map(|p| decode_part(&encode_part(p).unwrap()).unwrap()).collect();
         assert!(carried[0].link_faults.is_some());
         let whole = diffuse(&scene.grid, &sources, &cfg, |_, _| {}).unwrap();
@@ -655,8 +683,7 @@ mod tests {
         assert!(merge_tiles(Vec::new()).is_err());
     }
 
-    /// A run cut into bands that are not the grid's, or one that counts rays or records visits,
-    /// is refused; a stall is reported by every tile (the same error), never a hang.
+    /// A run cut into bands that are not the grid's, or one that records visits, is refused; a stall is reported by every tile (the same error), never a hang.
     #[test]
     fn tiled_runs_refuse_what_they_cannot_do_and_stop_together() {
         let n = 8;
