@@ -2,7 +2,9 @@
 //! (`_stack_end`, cortex-m-rt's linker script) and the stack pointer is painted with a pattern;
 //! after the replays the lowest word that no longer holds it marks the deepest the stack
 //! reached. The replay image keeps its cell in a static (about 19 KB), so its stack has what
-//! is left of the 64 KiB of `memory.x`; this says how much of that it used.
+//! is left of the 64 KiB of `memory.x`; this says how much of that it used. The production
+//! images (`src/bin/cell`) keep everything on the stack and report the peak with every
+//! report frame.
 
 use core::ptr::{addr_of, read_volatile, write_volatile};
 

@@ -12,9 +12,12 @@
 //!
 //! * **Host link**: the host's records, in the trace record format of `cell_core::trace`
 //!   (the same bytes a trace holds): `Header` (which cell this is, and the capacities the host
-//!   expects: a mismatch is refused), `Light` (a source's diffusion starts), `Shade` (shade the
+//!   expects: a mismatch is refused), `Light` (a source's diffusion starts), under exact
+//!   occluders the column's `Triangle`s and its neighbours' `NeighbourContact` answer (the
+//!   cell computes its target ray itself, `cell_core::trace::TraceColumn`), `Shade` (shade the
 //!   pixel and report), and beam frames (`KIND_BEAM`: the source emitter's initial beams).
-//!   The cell answers a `Shade` with a report frame ([`KIND_REPORT`]).
+//!   The cell answers a `Shade` with a report frame ([`KIND_REPORT`]), which ends its counters
+//!   with the deepest its stack has gone (the free RAM is painted at boot, `stack.rs`).
 //! * **Port links**: row packets (loading, §3.9: from the west, forwarded east while cells
 //!   further east need them) and beams (lighting, §4.4) from the eight neighbours.
 //! * **Ready lines**: while the FIFO has room, the cell raises its line to one neighbour at a
