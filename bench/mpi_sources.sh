@@ -4,6 +4,8 @@
 # RUNS interleaved runs of each (default 3), the median wall time; every image compared byte
 # for byte with the plain binary's. Needs Open MPI (openmpi-bin libopenmpi-dev libclang-dev).
 #   SCENE=classe N=256 RUNS=3 bash bench/mpi_sources.sh   (SKIP_BUILD=1: reuse bench-out/mpi's binaries)
+#   ROWS="plain np2t1free": only these rows (names below; plain always runs first, the
+#   reference image)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . bench/lib.sh
@@ -25,9 +27,12 @@ cmds=(
   "mpirun --oversubscribe -np 2 $OUT/host-sim-mpi --threads 1 $ARGS"
   "mpirun --oversubscribe -np 2 --bind-to none $OUT/host-sim-mpi --threads 1 $ARGS"
 )
+ASKED=${ROWS:-}
+ROWS=${ROWS:-${names[*]}}
 declare -A times
 for run in $(seq "$RUNS"); do
   for i in "${!names[@]}"; do
+    if [[ $i -gt 0 && " $ROWS " != *" ${names[$i]} "* ]]; then continue; fi
     t0=$(date +%s.%N)
     ${cmds[$i]} --out "$OUT/${names[$i]}.png" 2> "$OUT/${names[$i]}.log"
     t1=$(date +%s.%N)
@@ -35,7 +40,7 @@ for run in $(seq "$RUNS"); do
     cmp -s "$OUT/plain.png" "$OUT/${names[$i]}.png" || { echo "${names[$i]}: image differs from the plain binary's" >&2; exit 1; }
   done
 done
-bench_header "SCENE=$SCENE N=$N RUNS=$RUNS bash bench/mpi_sources.sh"
+bench_header "SCENE=$SCENE N=$N RUNS=$RUNS${ASKED:+ ROWS=\"$ASKED\"} bash bench/mpi_sources.sh"
 lights=$(grep -o '[0-9]* light(s)' "$OUT/plain.log" | head -1)
 echo "* scene: $SCENE at n = $N, $lights; every image byte-identical to the plain binary's"
 echo
@@ -43,6 +48,7 @@ echo "| command | wall s (runs) | median s | vs plain |"
 echo "|---|---|---|---|"
 plain_median=$(echo "${times[plain]}" | tr ' ' '\n' | grep . | sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}')
 for i in "${!names[@]}"; do
+  if [[ -z ${times[${names[$i]}]:-} ]]; then continue; fi
   ts=$(echo "${times[${names[$i]}]}" | tr ' ' '\n' | grep . | sort -g)
   median=$(echo "$ts" | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}')
   list=$(echo "${times[${names[$i]}]}" | awk '{for (i = 1; i <= NF; i++) printf "%s%.1f", (i > 1 ? ", " : ""), $i}')
