@@ -1247,11 +1247,6 @@ impl TraceColumn {
         self.awaiting
     }
 
-    /// The column's target ray for the current source, if its visible surface has one.
-    pub fn target(&self) -> Option<&crate::receiver::Target> {
-        self.target.as_ref()
-    }
-
     /// One more triangle for the current source, refused past the store's capacity.
     pub fn push(&mut self, t: Triangle) -> Result<(), ReplayError> {
         self.triangles.push(t).then_some(()).ok_or(ReplayError::CapacityMismatch)
