@@ -215,6 +215,31 @@ fn tiles_render_alike_on_1_2_4_9_ranks() {
     same_as_one_process("tiles-faults", &faults, &[("--lit-out", "lit.csv")], &[3]);
 }
 
+/// A tile holds its band's lighting cells only: under a memory limit the whole grid's lighting
+/// cells exceed, one process refuses the run, and two ranks of tiles each fit their band and
+/// render the one-process image.
+#[test]
+fn a_tile_needs_memory_for_its_band_only() {
+    let dir = scratch("band-memory");
+    let args = ["render", "--n", "64", "--quiet"];
+    // 64² lighting cells of 3 848 bytes are 15.0 MiB, a band of 32 rows 7.5 MiB; the loading
+    // cells (64² of 1 880 bytes) 7.3 MiB.
+    let limit = ("RC2_MEMORY_LIMIT_MIB", "11");
+    let mut one = plain();
+    one.args(args).arg("--out").arg(dir.join("one.png"));
+    ok(one);
+    let mut whole = plain();
+    whole.env(limit.0, limit.1).args(args).arg("--out").arg(dir.join("refused.png"));
+    let out = run_within(whole, Duration::from_secs(300));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("the grid of lighting cells needs"), "{err}");
+    let mut tiles = mpirun(2);
+    tiles.env(limit.0, limit.1).args(["--spread", "tiles"]).args(args).arg("--out").arg(dir.join("np2.png"));
+    ok(tiles);
+    assert!(bytes(&dir.join("one.png")) == bytes(&dir.join("np2.png")), "the image of two bands differs");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// The lit-ray ratio (`--visibility ratio`, each pixel weighed by the share of its target
 /// voxel's rays that arrive): the pixel weights travel with the parts, split by sources (five
 /// lights, 2 ranks) and cut into tiles (one light, 3 ranks), the PNG and statistics of one

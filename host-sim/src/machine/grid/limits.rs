@@ -25,15 +25,26 @@ pub fn memory_limit_bytes() -> u64 {
 /// Refuse a grid of `n × n` cells of `bytes_per_cell` bytes each (`what` names it) when it
 /// does not fit [`memory_limit_bytes`].
 pub fn check_grid_memory(what: &str, n: u32, bytes_per_cell: usize) -> Result<()> {
-    let need = (n as u64).pow(2).saturating_mul(bytes_per_cell as u64);
+    check_cells_memory(what, n, (n as u64).pow(2), bytes_per_cell)
+}
+
+/// Refuse `cells` cells of `bytes_per_cell` bytes each of an `n × n` grid (all of them, or the
+/// band a tile of the grid holds; `what` names them) when they do not fit
+/// [`memory_limit_bytes`].
+pub fn check_cells_memory(what: &str, n: u32, cells: u64, bytes_per_cell: usize) -> Result<()> {
+    let need = cells.saturating_mul(bytes_per_cell as u64);
     let limit = memory_limit_bytes();
     if need > limit {
-        let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+        let size = |b: u64| match b >= 1 << 30 {
+            true => format!("{:.1} GiB", b as f64 / (1u64 << 30) as f64),
+            false => format!("{:.1} MiB", b as f64 / (1u64 << 20) as f64),
+        };
+        let count = if cells == (n as u64).pow(2) { format!("{n}² cells") } else { format!("{cells} cells of {n}²") };
         bail!(
-            "--n {n}: the {what} needs {:.1} GiB ({n}² cells × {bytes_per_cell} bytes), more than the {:.1} GiB \
-             of memory available; use a smaller --n",
-            gib(need),
-            gib(limit)
+            "--n {n}: the {what} needs {} ({count} × {bytes_per_cell} bytes), more than the {} of memory \
+             available; use a smaller --n",
+            size(need),
+            size(limit)
         );
     }
     Ok(())

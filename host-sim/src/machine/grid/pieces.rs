@@ -18,11 +18,17 @@ fn piece_len(len: usize, min: usize) -> usize {
     min.max(len.div_ceil(8 * rayon::current_num_threads())).max(1)
 }
 
-/// Cut `cells` at the strictly increasing indices `idx` into pieces of about the same number of
-/// indices: `(cells of the piece, index of its first cell, the indices in it)`.
-pub fn tiles<'a, T>(mut cells: &'a mut [T], idx: &'a [u32], min: usize) -> Vec<(&'a mut [T], usize, &'a [u32])> {
+/// Cut `cells`, the cells from index `origin` on, at the strictly increasing indices `idx`
+/// (each `origin` or more) into pieces of about the same number of indices: `(cells of the
+/// piece, index of its first cell, the indices in it)`.
+pub fn tiles<'a, T>(
+    mut cells: &'a mut [T],
+    origin: usize,
+    idx: &'a [u32],
+    min: usize,
+) -> Vec<(&'a mut [T], usize, &'a [u32])> {
     let mut out = Vec::new();
-    let mut base = 0usize;
+    let mut base = origin;
     for chunk in idx.chunks(piece_len(idx.len(), min)) {
         let end = chunk[chunk.len() - 1] as usize + 1;
         let (head, tail) = std::mem::take(&mut cells).split_at_mut(end - base);
@@ -403,14 +409,18 @@ mod tests {
     fn pieces_cover_every_index_once_with_its_own_cell() {
         let mut cells: Vec<u32> = (0..1000).collect();
         let idx: Vec<u32> = (0..1000).filter(|i| i % 7 == 3 || i % 11 == 0).collect();
-        let mut seen = Vec::new();
-        for (tile, base, ix) in tiles(&mut cells, &idx, 5) {
-            for &i in ix {
-                assert_eq!(tile[i as usize - base], i);
-                seen.push(i);
+        // The whole array, and the cells from 300 on (a band held alone).
+        for origin in [0usize, 300] {
+            let want: Vec<u32> = idx.iter().copied().filter(|&i| i as usize >= origin).collect();
+            let mut seen = Vec::new();
+            for (tile, base, ix) in tiles(&mut cells[origin..], origin, &want, 5) {
+                for &i in ix {
+                    assert_eq!(tile[i as usize - base], i);
+                    seen.push(i);
+                }
             }
+            assert_eq!(seen, want);
         }
-        assert_eq!(seen, idx);
     }
 
     proptest::proptest! {

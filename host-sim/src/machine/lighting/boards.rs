@@ -306,7 +306,7 @@ fn run_f<F: FracBits>(
     if sources.len() >= u16::MAX as usize || cfg.max_delay == 0 || cfg.max_pause == 0 {
         bail!("too many sources, or a zero delay or pause bound");
     }
-    let far = check_light_run::<F>(n, sources, light)?;
+    let far = check_light_run::<F>(n, n as u64 * n as u64, sources, light)?;
     let mut ex = Executor::<F>::new(&prepared.packets, n, sources.len(), cfg)?;
     let mut grid = LightGrid::new(n, n);
     ex.schedule(0, |ex, b| ex.step_loading(b, &mut grid), |_, _, _| {})?;

@@ -136,10 +136,15 @@ pub struct GridLinks<L> {
 
 impl<L> GridLinks<L> {
     /// The links of an n × n grid, `make` building each.
-    pub fn new(n: u32, mut make: impl FnMut(LinkId) -> L) -> Self {
-        let cells = n as usize * n as usize;
-        let mut links = Vec::with_capacity(cells * 8);
-        for to in 0..cells as u32 {
+    pub fn new(n: u32, make: impl FnMut(LinkId) -> L) -> Self {
+        Self::into_cells(n, 0..n * n, make)
+    }
+
+    /// The links into cells `cells` (row-major indices) of an n × n grid, `make` building each:
+    /// what a tile of the grid holds. Link `slot(to, port) − 8 · cells.start` leads into `to`.
+    pub fn into_cells(n: u32, cells: std::ops::Range<u32>, mut make: impl FnMut(LinkId) -> L) -> Self {
+        let mut links = Vec::with_capacity(cells.len() * 8);
+        for to in cells {
             let (x, y) = ((to % n) as i64, (to / n) as i64);
             for back in Port::ALL {
                 let (dx, dy) = back.delta();
@@ -188,5 +193,8 @@ mod tests {
         }
         // Directed links: 2 · 2 · n(n − 1) along the axes, 4 · (n − 1)² along the diagonals.
         assert_eq!(g.slots().iter().filter(|id| id.from != u32::MAX).count(), 2 * 2 * 5 * 4 + 4 * 4 * 4);
+        // A band's links are the whole grid's into its cells, in the same order.
+        let band = GridLinks::into_cells(n, 10..20, |id| id);
+        assert_eq!(band.all(), &g.all()[80..160]);
     }
 }

@@ -164,18 +164,20 @@ fn whole<F: FracBits>(offers: &mut [Vec<Offer<F>>; 8]) -> [&mut [Offer<F>]; 8] {
 /// port, and their links (by receiving end, [`GridLinks`]).
 type LinkPiece<'a, T, F, L> = (&'a mut [T], usize, [&'a mut [Offer<F>]; 8], &'a mut [L]);
 
-/// Cut `cells`, their links (8 per cell, by receiving end) and the per-port offer lists
-/// together at the receiver indices `cuts` (increasing), pieces without offers left out. Every
-/// offer of a receiver lands in the piece that owns the receiver and its links.
+/// Cut `cells` (the cells from index `origin` on), their links (8 per cell, by receiving end)
+/// and the per-port offer lists (to those cells only) together at the receiver indices `cuts`
+/// (increasing), pieces without offers left out. Every offer of a receiver lands in the piece
+/// that owns the receiver and its links.
 fn by_receiver<'a, T, F: FracBits, L>(
     mut cells: &'a mut [T],
+    origin: usize,
     mut links: &'a mut [L],
     offers: &'a mut [Vec<Offer<F>>; 8],
     cuts: &[u32],
 ) -> Vec<LinkPiece<'a, T, F, L>> {
     let mut rest = whole(offers);
     let mut out = Vec::with_capacity(cuts.len() + 1);
-    let (mut base, total) = (0usize, cells.len());
+    let (mut base, total) = (origin, origin + cells.len());
     for end in cuts.iter().map(|&c| c as usize).chain([total]) {
         let end = end.clamp(base, total);
         let lists: [&'a mut [Offer<F>]; 8] = std::array::from_fn(|p| {
@@ -329,8 +331,11 @@ pub(crate) fn initial_beams<F: FracBits>(
 /// orders them.
 struct Run<'a, 'e, F: FracBits, const D: usize, L> {
     grid: &'a Grid<D>,
+    /// The cells this run steps: the whole grid, or a tile's band alone (from cell `origin`).
     cells: &'a mut [HostLightCell<F>],
-    /// The grid's links, by receiving end ([`GridLinks`]).
+    /// The index of `cells[0]` in the grid: 0, or the first cell of the tile's band.
+    origin: usize,
+    /// Their links, by receiving end ([`GridLinks`]).
     links: &'a mut [L],
     env: &'a LightEnv<'e, F>,
     stepping: Stepping,
@@ -445,7 +450,9 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         rec: Recording<'a>,
         tile: Option<&'a mut dyn Halo>,
     ) -> Self {
-        let (n, len, stepping) = (grid.n as usize, cells.len(), cfg.stepping);
+        let (n, stepping) = (grid.n as usize, cfg.stepping);
+        // Per-cell flags are the whole grid's: indexed by cell, as offers and answers are.
+        let len = n * n;
         let sv = src.voxel();
         let s_idx = sv[1] as usize * n + sv[0] as usize;
         let mut rep = SourceReport { source: si, ..Default::default() };
@@ -467,11 +474,19 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
             in_active[s_idx].store(true, Relaxed);
         }
         let mine = edge.as_ref().map_or(0..len as u32, Edge::cells);
+        assert!(
+            cells.len() == mine.len() && links.len() == 8 * cells.len(),
+            "a run's cells and links are its tile's ({} cells, {} links for cells {mine:?})",
+            cells.len(),
+            links.len()
+        );
+        let origin = mine.start as usize;
         let lossless = lossless::<F, L>();
         let may_sleep = active_stepping && rec.tap.is_none() && lossless && env.hold > 0;
         Run {
             grid,
             cells,
+            origin,
             links,
             env,
             stepping,
@@ -533,7 +548,8 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
     fn emit_one(&mut self) -> bool {
         let Some(b) = self.next_initial else { return false };
         let s_idx = self.s_idx;
-        if !self.cells[s_idx].can_accept_initial(self.env.fa, self.env.source) {
+        let s = s_idx - self.origin;
+        if !self.cells[s].can_accept_initial(self.env.fa, self.env.source) {
             return false;
         }
         let msg = BeamMsg::new(b, self.sv[2] as u16);
@@ -541,7 +557,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
             r.inject(&msg);
         }
         let delta = ActivityDelta::new();
-        let taken = self.cells[s_idx].accept(msg, self.env.merge, &delta).is_ok();
+        let taken = self.cells[s].accept(msg, self.env.merge, &delta).is_ok();
         self.flow += delta.get();
         if taken {
             self.next_initial = self.pending.next();
@@ -572,7 +588,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
             reads_dexels: !self.env.rule.needs_triangles() || !self.env.lit_visible_only,
         };
         let visit = if self.stepping == Stepping::AllCells { &self.all } else { &self.active };
-        let pieces = tiles(self.cells, visit, PIECE);
+        let pieces = tiles(self.cells, self.origin, visit, PIECE);
         self.cuts.clear();
         self.cuts.extend(pieces.iter().skip(1).map(|&(_, base, _)| base as u32));
         let count = pieces.len();
@@ -647,7 +663,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
             asleep: &self.sleepers.asleep,
             link_load: &self.link_load,
         };
-        let groups = by_receiver(self.cells, self.links, &mut self.offers, &self.cuts);
+        let groups = by_receiver(self.cells, self.origin, self.links, &mut self.offers, &self.cuts);
         let count = groups.len();
         let pulled = scratch_for(&mut self.scratch, count);
         team.each(groups.into_iter().zip(pulled.iter_mut()).collect(), |(piece, r)| k.pull_piece(piece, r));
@@ -673,15 +689,17 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
     fn pop(&mut self, team: &Team<'_>) {
         let (taken, unacked, in_active) = (&self.taken_ports, &self.unacked_ports, &self.in_active);
         if self.defer_pops {
-            let c = &mut self.cells[self.s_idx];
-            if pop_taken(c, self.s_idx, taken) {
-                in_active[self.s_idx].store(c.busy(), Relaxed);
+            // The emitting cell: this tile's (a tile that does not hold it emits nothing).
+            if let Some(c) = self.s_idx.checked_sub(self.origin).and_then(|s| self.cells.get_mut(s)) {
+                if pop_taken(c, self.s_idx, taken) {
+                    in_active[self.s_idx].store(c.busy(), Relaxed);
+                }
             }
             return;
         }
         let (lossless, stepping) = (self.lossless, self.stepping);
         let visit = if stepping == Stepping::AllCells { &self.all } else { &self.active };
-        team.each(tiles(self.cells, visit, PIECE), |(tile, base, idx)| {
+        team.each(tiles(self.cells, self.origin, visit, PIECE), |(tile, base, idx)| {
             for (k, &i) in idx.iter().enumerate() {
                 if let Some(&j) = idx.get(k + AHEAD) {
                     prefetch_cell(&tile[j as usize - base], 0);
@@ -707,7 +725,8 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
                 let chunks: Vec<&[HostLightCell<F>]> = self.cells.chunks(64 * PIECE).collect();
                 let per_chunk = par_map(chunks.len(), &|k| chunks[k].iter().filter(|c| c.busy()).count() as u64);
                 let busy: u64 = per_chunk.iter().sum();
-                busy + u64::from(self.next_initial.is_some() && !self.cells[self.s_idx].busy())
+                // Initial beams are left only where the tile holds the source cell.
+                busy + u64::from(self.next_initial.is_some() && !self.cells[self.s_idx - self.origin].busy())
             }
         }
     }
@@ -723,7 +742,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         let due = std::mem::take(&mut self.sleepers.alarms[(cycle as usize) % ring]);
         for (q, c0) in due {
             if self.sleepers.asleep[q as usize].load(Relaxed) == c0 {
-                self.cells[q as usize].skip_held((cycle - 1 - c0) as u16);
+                self.cells[q as usize - self.origin].skip_held((cycle - 1 - c0) as u16);
                 self.sleepers.asleep[q as usize].store(AWAKE, Relaxed);
                 self.sleepers.count -= 1;
                 let was = self.in_active[q as usize].swap(true, Relaxed);
@@ -733,14 +752,14 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         }
         let in_active = &self.in_active;
         self.active.retain(|&i| in_active[i as usize].load(Relaxed));
-        debug_assert!(self.woken.iter().all(|&j| self.cells[j as usize].busy()));
+        debug_assert!(self.woken.iter().all(|&j| self.cells[j as usize - self.origin].busy()));
         self.woken.sort_unstable();
         merge_sorted(&mut self.active, &self.woken, &mut self.merged);
         self.woken.clear();
         debug_assert!(self
             .active
             .iter()
-            .all(|&i| self.cells[i as usize].busy() || self.taken_ports[i as usize].load(Relaxed) != 0));
+            .all(|&i| self.cells[i as usize - self.origin].busy() || self.taken_ports[i as usize].load(Relaxed) != 0));
         if self.next_initial.is_some() && !self.in_active[self.s_idx].swap(true, Relaxed) {
             self.active.push(self.s_idx as u32);
             self.active.sort_unstable();
@@ -803,7 +822,7 @@ impl<'a, 'e, F: FracBits, const D: usize, L: HostLink<F>> Run<'a, 'e, F, D, L> {
         if self.defer_pops {
             let mut drained = 0;
             for &i in &self.active {
-                let c = &mut self.cells[i as usize];
+                let c = &mut self.cells[i as usize - self.origin];
                 if pop_taken(c, i as usize, &self.taken_ports) && !c.busy() {
                     drained += 1;
                 }
@@ -1117,20 +1136,26 @@ mod tests {
                 .collect();
             prop_assert_eq!(&got, &expect);
 
-            let mut cells: Vec<u32> = (0..n * n).collect();
-            let mut links: Vec<u32> = (0..n * n * 8).collect();
-            let cuts: Vec<u32> = cut_picks.into_iter().collect();
-            let mut seen = Vec::new();
-            for (tile, base, piece, tile_links) in by_receiver(&mut cells, &mut links, &mut lists, &cuts) {
-                prop_assert_eq!(tile_links.len(), tile.len() * 8);
-                prop_assert_eq!(tile_links.first().copied(), tile.first().map(|&c| c * 8));
-                for o in piece.iter().flat_map(|l| l.iter()) {
-                    prop_assert_eq!(tile[o.to as usize - base], o.to);
-                    seen.push((o.to, o.key, o.from, o.port));
+            // The whole grid, and the band of rows n/2.. held alone (its receivers' offers only).
+            for origin in [0, n / 2 * n] {
+                let mut cells: Vec<u32> = (origin..n * n).collect();
+                let mut links: Vec<u32> = (origin * 8..n * n * 8).collect();
+                let mut band = lists.clone();
+                band.iter_mut().for_each(|l| l.retain(|o| o.to >= origin));
+                let cuts: Vec<u32> = cut_picks.iter().copied().filter(|&c| c > origin).collect();
+                let mut seen = Vec::new();
+                for (tile, base, piece, tile_links) in by_receiver(&mut cells, origin as usize, &mut links, &mut band, &cuts) {
+                    prop_assert_eq!(tile_links.len(), tile.len() * 8);
+                    prop_assert_eq!(tile_links.first().copied(), tile.first().map(|&c| c * 8));
+                    for o in piece.iter().flat_map(|l| l.iter()) {
+                        prop_assert_eq!(tile[o.to as usize - base], o.to);
+                        seen.push((o.to, o.key, o.from, o.port));
+                    }
                 }
+                seen.sort_unstable();
+                let want: Vec<_> = expect.iter().copied().filter(|e| e.0 >= origin).collect();
+                prop_assert_eq!(seen, want);
             }
-            seen.sort_unstable();
-            prop_assert_eq!(seen, expect);
         }
     }
 }

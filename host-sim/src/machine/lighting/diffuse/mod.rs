@@ -510,9 +510,11 @@ pub(crate) fn diffuse_cells<F: FracBits, const D: usize>(
     if cfg.frac_bits != F::U32 {
         bail!("a run configured for f = {} was started with the cells of f = {}", cfg.frac_bits, F::U32);
     }
-    let far = check_light_run::<F>(grid.n, sources, cfg)?;
     let n = grid.n;
-    let cells = idle_cells(n);
+    // A tile holds its band's cells and links only.
+    let band = tile.as_ref().map_or(0..n * n, |h| h.tile().cells(n));
+    let far = check_light_run::<F>(n, band.len() as u64, sources, cfg)?;
+    let cells = idle_cells(n, band.clone());
     let occupied = occupied_box(grid, cfg.rule);
     let frustum = frustum_summary(grid, cfg, tap.is_some())?;
     check_recording(cfg, tap.is_some())?;
@@ -523,29 +525,27 @@ pub(crate) fn diffuse_cells<F: FracBits, const D: usize>(
     let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref(), shot: None, share };
     let wire = cfg.faults.map(|faults| Wire { faults, far: far.get() });
     match (&wire, tap) {
-        (None, None) => run.diffuse(cells, GridLinks::new(n, |_| PerfectLink), None, tile, progress),
+        (None, None) => run.diffuse(cells, GridLinks::into_cells(n, band, |_| PerfectLink), None, tile, progress),
         (Some(w), None) => {
-            run.diffuse(cells, GridLinks::new(n, |id| FaultInjector::new(PerfectLink, w, id)), None, tile, progress)
+            let links = GridLinks::into_cells(n, band, |id| FaultInjector::new(PerfectLink, w, id));
+            run.diffuse(cells, links, None, tile, progress)
         }
         (None, Some(t)) => {
-            run.diffuse(cells, GridLinks::new(n, |id| Tracer::new(PerfectLink, id)), Some(t), tile, progress)
+            let links = GridLinks::into_cells(n, band, |id| Tracer::new(PerfectLink, id));
+            run.diffuse(cells, links, Some(t), tile, progress)
         }
         (Some(w), Some(t)) => {
-            let links = GridLinks::new(n, |id| Tracer::new(FaultInjector::new(PerfectLink, w, id), id));
+            let links = GridLinks::into_cells(n, band, |id| Tracer::new(FaultInjector::new(PerfectLink, w, id), id));
             run.diffuse(cells, links, Some(t), tile, progress)
         }
     }
 }
 
-/// n × n idle lighting cells, row-major.
-fn idle_cells<F: FracBits>(n: u32) -> Vec<HostLightCell<F>> {
-    let mut cells: Vec<HostLightCell<F>> = Vec::with_capacity((n * n) as usize);
-    for y in 0..n {
-        for x in 0..n {
-            cells.push(LightCell::new(x as u16, y as u16));
-        }
-    }
-    cells
+/// The idle lighting cells `cells` (row-major indices) of an n × n grid.
+fn idle_cells<F: FracBits>(n: u32, cells: std::ops::Range<u32>) -> Vec<HostLightCell<F>> {
+    let mut out: Vec<HostLightCell<F>> = Vec::with_capacity(cells.len());
+    out.extend(cells.map(|i| LightCell::new((i % n) as u16, (i / n) as u16)));
+    out
 }
 
 /// One radiosity shot (radiosity thesis §3.4; `machine::shooting::shots` drives it): the diffusion of
@@ -570,12 +570,13 @@ pub(crate) fn diffuse_shot<F: FracBits, const D: usize>(
         );
     }
     let sources = std::slice::from_ref(source);
-    let far = check_light_run::<F>(grid.n, sources, cfg)?;
+    let far = check_light_run::<F>(grid.n, grid.n as u64 * grid.n as u64, sources, cfg)?;
     let occupied = occupied_box(grid, cfg.rule);
     let frustum = frustum_summary(grid, cfg, false)?;
     let shot = Some(Shot { initial, rays });
     let run = AllSources { grid, sources, cfg, far, occupied, frustum: frustum.as_ref(), shot, share: Share::ALL };
-    run.diffuse(idle_cells(grid.n), GridLinks::new(grid.n, |_| PerfectLink), None, None, &mut progress).map(|(l, _)| l)
+    let (n, cells) = (grid.n, idle_cells(grid.n, 0..grid.n * grid.n));
+    run.diffuse(cells, GridLinks::new(n, |_| PerfectLink), None, None, &mut progress).map(|(l, _)| l)
 }
 
 /// What a radiosity shot changes in a diffusion ([`diffuse_shot`]).
@@ -585,9 +586,14 @@ struct Shot<'a, F: FracBits> {
     rays: &'a dyn RaySink<F>,
 }
 
-/// The far distance of an n × n grid, once the run's sources, FIFO limit and memory are
-/// checked.
-pub(crate) fn check_light_run<F: FracBits>(n: u32, sources: &[Source], cfg: &LightConfig) -> Result<FarDistance<F>> {
+/// The far distance of an n × n grid, once the run's sources, FIFO limit and memory (for
+/// `cells` lighting cells: the grid's, or a tile's band) are checked.
+pub(crate) fn check_light_run<F: FracBits>(
+    n: u32,
+    cells: u64,
+    sources: &[Source],
+    cfg: &LightConfig,
+) -> Result<FarDistance<F>> {
     if sources.len() > cell_core::light::MAX_SOURCES {
         bail!("{} light sources: at most {} are supported", sources.len(), cell_core::light::MAX_SOURCES);
     }
@@ -615,9 +621,10 @@ pub(crate) fn check_light_run<F: FracBits>(n: u32, sources: &[Source], cfg: &Lig
             FarDistance::<F>::MAX
         )
     })?;
-    crate::machine::grid::limits::check_grid_memory(
+    crate::machine::grid::limits::check_cells_memory(
         "grid of lighting cells",
         n,
+        cells,
         std::mem::size_of::<HostLightCell<F>>(),
     )?;
     Ok(far)
@@ -687,6 +694,9 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
         progress: &mut dyn FnMut(usize, u64),
     ) -> Result<(Lighting, Vec<HostLightCell<F>>)> {
         let (grid, cfg) = (self.grid, self.cfg);
+        // The columns of `cells`: the whole grid's, or a tile's band.
+        let origin = cells.first().map_or(0, |c| c.y as usize * grid.n as usize + c.x as usize);
+        let columns = origin..origin + cells.len();
         let order = SplitOrder::default();
         let traced = self.frustum.and_then(Summary::traceable);
         let mut reports = Vec::new();
@@ -745,7 +755,7 @@ impl<'a, F: FracBits, const D: usize> AllSources<'a, F, D> {
                 rep = tiles::whole_report(h, rep)?;
             }
             if let Some(w) = weights.as_mut() {
-                w[si] = pixel_weights(cfg.visibility, cells.len(), occluders.as_ref());
+                w[si] = pixel_weights(cfg.visibility, columns.clone(), occluders.as_ref());
             }
             if let Some(o) = &occluders {
                 // The contact exchange ran before the beams left.
@@ -820,11 +830,16 @@ fn add_cell_counts<F: FracBits>(rep: &mut SourceReport, cells: &[HostLightCell<F
     rep.counts.lower_bound = rep.counts.lb_distance.max(rep.counts.lb_cell_load);
 }
 
-/// Each column's weight for the source just diffused: what its cell makes of the candidate
-/// rays its target voxel received under `visibility`; 0 without a target.
-fn pixel_weights(visibility: Visibility, columns: usize, occluders: Option<&SourceOccluders<'_>>) -> Vec<u8> {
+/// The weight of each column of `columns` (row-major indices) for the source just diffused:
+/// what its cell makes of the candidate rays its target voxel received under `visibility`; 0
+/// without a target.
+fn pixel_weights(
+    visibility: Visibility,
+    columns: std::ops::Range<usize>,
+    occluders: Option<&SourceOccluders<'_>>,
+) -> Vec<u8> {
     let (voxels, arrived) = occluders.map_or((&[][..], Vec::new()), |o| (o.target_voxels(), o.arrived_rays()));
-    (0..columns)
+    columns
         .map(|i| {
             voxels
                 .get(i)
@@ -872,15 +887,15 @@ mod tests {
     fn light_runs_refuse_bad_sources() {
         let cfg = crate::config::plane_rule();
         let at = |p: [f64; 3]| Source::new(SourceId(0), p.map(SourceCoord::from_num));
-        assert!(check_light_run::<U0>(8, &[at([7.0, 7.0, 7.0])], &cfg).is_ok());
+        assert!(check_light_run::<U0>(8, 64, &[at([7.0, 7.0, 7.0])], &cfg).is_ok());
         for outside in [[7.5, 0.0, 0.0], [0.0, -0.5625, 0.0], [0.0, 0.0, -1.0]] {
-            let err = check_light_run::<U0>(8, &[at(outside)], &cfg).unwrap_err().to_string();
+            let err = check_light_run::<U0>(8, 64, &[at(outside)], &cfg).unwrap_err().to_string();
             assert!(err.contains("outside the 8 × 8 grid"), "{outside:?}: {err}");
         }
         let light = at([3.5, 3.0, 3.0]).with_origin(cell_core::beam::Origin::Light);
         let small = LightConfig { fa: cell_core::light::MIN_FA_FROM_LIGHT - 1, ..cfg };
-        assert!(check_light_run::<U0>(8, &[light], &small).unwrap_err().to_string().contains("too small"));
+        assert!(check_light_run::<U0>(8, 64, &[light], &small).unwrap_err().to_string().contains("too small"));
         let enough = LightConfig { fa: cell_core::light::MIN_FA_FROM_LIGHT, ..cfg };
-        assert!(check_light_run::<U0>(8, &[light], &enough).is_ok());
+        assert!(check_light_run::<U0>(8, 64, &[light], &enough).is_ok());
     }
 }

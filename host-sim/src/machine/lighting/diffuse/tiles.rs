@@ -21,10 +21,11 @@
 //!    counter: quiescence), busy cells, progress — are sums over the tiles ([`Halo::sum`]),
 //!    so that every tile ends in the same cycle, or stops with the same stall report.
 //!
-//! Invariant: the cells a tile steps are its own; the other cells of its copy of the grid stay
-//! idle (nothing is delivered to them), so a tile's counters and lit stores are exactly its
-//! cells' share of the one-process run's, and a source's report is the tiles' reports put
-//! together ([`whole_report`]).
+//! Invariant: a tile holds and steps its band's lighting cells and the links into them, and
+//! nothing else of the lighting state (the scene's grid of dexels, read only, is whole on every
+//! tile), so a tile's counters and lit stores are exactly its cells' share of the one-process
+//! run's, and a source's report is the tiles' reports put together ([`whole_report`]). The
+//! per-cell flags of the cycle loop (a few bytes a cell) stay indexed by the whole grid.
 //!
 //! Here: the tile, the seam ([`Halo`]), a part's tile of cells ([`diffuse_tile`]), the parts
 //! put together ([`merge_tiles`]), and tiles on threads of one process
@@ -368,8 +369,8 @@ fn check_tiled(cfg: &LightConfig) -> Result<()> {
 }
 
 /// This tile's part of the diffusion of `sources` over `grid`: its cells' lighting and, in a
-/// run that counts rays, its columns' pixel weights (the other cells are left out of the
-/// part), the whole grid's reports (the same on every tile), what its links' fault injectors
+/// run that counts rays, its columns' pixel weights (the tile held no other cells), the whole
+/// grid's reports (the same on every tile), what its links' fault injectors
 /// did. [`merge_tiles`] puts the parts of every tile together.
 pub fn diffuse_tile(
     grid: &LightGrid,
@@ -384,16 +385,11 @@ pub fn diffuse_tile(
     }
     check_tiled(cfg)?;
     let edge: &mut dyn Halo = &mut *halo;
-    let mut part = super::with_f!(cfg.frac_bits, F => {
+    // The tile holds its band's cells alone: its part is theirs (cells and weights).
+    super::with_f!(cfg.frac_bits, F => {
         super::diffuse_cells::<F, DEFAULT_DEXELS>(grid, sources, cfg, super::Share::ALL, None, Some(edge), progress)
             .map(|(l, _)| l)
-    })?;
-    part.cells.retain(|c| tile.rows.contains(&(c.y as u32)));
-    let band = tile.rows.start as usize * grid.n as usize..tile.rows.end as usize * grid.n as usize;
-    for w in part.weights.iter_mut().flatten() {
-        *w = w.get(band.clone()).map(<[u8]>::to_vec).unwrap_or_default();
-    }
-    Ok(part)
+    })
 }
 
 /// The whole run from every tile's part ([`diffuse_tile`], in tile order): the cells of each
