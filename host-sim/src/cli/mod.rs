@@ -37,9 +37,10 @@ pub struct Cli {
     pub spread: SpreadArg,
     /// With tiles over K ranks: the K − 1 rows above which the grid is cut into bands,
     /// increasing, comma-separated (e.g. `--tile-rows 300` for 2 ranks at n = 512), instead
-    /// of bands of equal height. Every cycle waits for the busiest band: rank 0's last line
-    /// gives each band's share of the beams, to balance the next run's cuts. The result is the
-    /// same wherever the grid is cut.
+    /// of bands of equal height. Every cycle waits for the busiest band: rank 0's last lines
+    /// give each band's share of the beams and the cuts that would have balanced them, to
+    /// pass here on the next run of the same scene. The result is the same wherever the grid
+    /// is cut.
     #[arg(long, global = true, value_name = "ROW,ROW…", value_delimiter = ',')]
     pub tile_rows: Option<Vec<u32>>,
 }

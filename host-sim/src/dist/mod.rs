@@ -250,12 +250,36 @@ fn tiles_account(lighting: &Lighting, traffic: &[Traffic], tiles: &[Tile]) -> St
     let total = per_band.iter().sum::<u64>().max(1) as f64;
     let list = |f: &dyn Fn(usize) -> String| (0..size).map(f).collect::<Vec<_>>().join(", ");
     let cycles = traffic.first().map_or(0, |t| t.swaps / 2).max(1) as f64;
-    format!(
+    let account = format!(
         "ranks: by rank, bytes sent across the tile's edges a cycle: {}; seconds in the seam (sending and waiting): {}; share of the beams processed: {}",
         list(&|r| format!("{:.0}", traffic[r].bytes as f64 / cycles)),
         list(&|r| format!("{:.2}", traffic[r].seconds)),
         list(&|r| format!("{:.0} %", 100.0 * per_band[r] as f64 / total)),
-    )
+    );
+    format!("{account}\n{}", balance_hint(lighting, size, per_band.iter().max().copied().unwrap_or(0) as f64 / total))
+}
+
+/// The cuts that would have balanced this run's beams over `size` bands (for the next run of
+/// the same scene), against `largest`, the largest band's share in this run.
+fn balance_hint(lighting: &Lighting, size: usize, largest: f64) -> String {
+    let mut per_row = vec![0u64; lighting.n as usize];
+    for c in &lighting.cells {
+        per_row[c.y as usize] += c.counters.processed;
+    }
+    let total = per_row.iter().sum::<u64>().max(1) as f64;
+    match Tile::balanced_cuts(&per_row, size) {
+        Ok(cuts) => {
+            let best = Tile::band_loads(&per_row, &cuts).into_iter().max().unwrap_or(0);
+            let rows: Vec<String> = cuts.iter().map(u32::to_string).collect();
+            format!(
+                "ranks: bands balancing this run's beams: --tile-rows {} (largest share {:.0} %; this run's {:.0} %)",
+                rows.join(","),
+                100.0 * best as f64 / total,
+                100.0 * largest
+            )
+        }
+        Err(e) => format!("ranks: no balanced bands: {e:#}"),
+    }
 }
 
 /// Where a radiosity run's shots in flight are computed: spread over the ranks when there

@@ -81,6 +81,58 @@ impl Tile {
         Ok((1..of as u64).map(|i| (i * n as u64 / of as u64) as u32).collect())
     }
 
+    /// The cuts of `of` bands (one row at least each) whose largest share of `work` (per row, from
+    /// the top) is the smallest any cut into `of` bands achieves: every cycle waits for the busiest
+    /// band, so this balances a run whose work per row was measured (by beams processed). Among
+    /// equal cuts, each band reaches as far down as that least largest band allows.
+    pub fn balanced_cuts(work: &[u64], of: usize) -> Result<Vec<u32>> {
+        let n = work.len();
+        if of == 0 || of > n {
+            bail!("{of} bands of whole rows do not fit {n} rows (1 ..= {n})");
+        }
+        // The least largest band: the smallest load L at which a greedy cut from the top (a band
+        // grows while it stays within L) needs at most `of` bands.
+        let bands_within = |limit: u64| {
+            let (mut bands, mut load) = (1usize, 0u64);
+            for &w in work {
+                if load + w > limit {
+                    bands += 1;
+                    load = 0;
+                }
+                load += w;
+            }
+            bands
+        };
+        let (mut lo, mut hi) = (work.iter().copied().max().unwrap_or(0), work.iter().sum::<u64>());
+        while lo < hi {
+            let mid = lo + (hi - lo) / 2;
+            if bands_within(mid) <= of {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        // The same greedy cut at that load, also cutting where the rows left are just enough for
+        // the bands left (which only lightens bands).
+        let mut cuts = Vec::with_capacity(of - 1);
+        let mut load = 0u64;
+        for (row, &w) in work.iter().enumerate() {
+            let left = of - 1 - cuts.len();
+            if row > 0 && left > 0 && (load + w > lo || n - row == left) {
+                cuts.push(row as u32);
+                load = 0;
+            }
+            load += w;
+        }
+        Ok(cuts)
+    }
+
+    /// Each band's sum of `work` (per row, from the top) under `cuts`.
+    pub fn band_loads(work: &[u64], cuts: &[u32]) -> Vec<u64> {
+        let ends: Vec<usize> = std::iter::once(0).chain(cuts.iter().map(|&c| c as usize)).chain([work.len()]).collect();
+        ends.windows(2).map(|w| work[w[0]..w[1]].iter().sum()).collect()
+    }
+
     /// Its cells (row-major indices) in an n × n grid.
     pub fn cells(&self, n: u32) -> Range<u32> {
         self.rows.start * n..self.rows.end * n
@@ -590,6 +642,44 @@ mod tests {
         assert!(Tile::bands(8, &[5, 3]).is_err());
         let rows: Vec<_> = Tile::bands(8, &[1, 7]).unwrap().into_iter().map(|t| t.rows).collect();
         assert_eq!(rows, [0..1, 1..7, 7..8]);
+    }
+
+    /// The largest band's work under `cuts` (rows from the top), summed here.
+    fn largest_band(work: &[u64], cuts: &[u32]) -> u64 {
+        let mut bands = vec![0u64; cuts.len() + 1];
+        for (row, &w) in work.iter().enumerate() {
+            bands[cuts.iter().filter(|&&c| c as usize <= row).count()] += w;
+        }
+        assert_eq!(Tile::band_loads(work, cuts), bands);
+        bands.into_iter().max().unwrap()
+    }
+
+    proptest::proptest! {
+        /// Balanced cuts are cuts (`of` bands of one row at least) and their largest band is the
+        /// least over every way of cutting the rows into `of` bands (all of them tried).
+        #[test]
+        fn balanced_cuts_give_the_least_largest_band(
+            work in proptest::collection::vec(proptest::prop_oneof![proptest::strategy::Just(0u64), 0u64..50], 1..11),
+            of in 1usize..11,
+        ) {
+            let n = work.len();
+            if of > n {
+                proptest::prop_assert!(Tile::balanced_cuts(&work, of).is_err());
+                return Ok(());
+            }
+            let cuts = Tile::balanced_cuts(&work, of).unwrap();
+            proptest::prop_assert!(Tile::bands(n as u32, &cuts).is_ok_and(|b| b.len() == of), "{cuts:?}");
+            // Every choice of of − 1 cuts among rows 1 .. n.
+            let best = (0u32..1 << (n - 1))
+                .filter(|m| m.count_ones() as usize == of - 1)
+                .map(|m| {
+                    let c: Vec<u32> = (1..n as u32).filter(|r| m >> (r - 1) & 1 == 1).collect();
+                    largest_band(&work, &c)
+                })
+                .min()
+                .unwrap();
+            proptest::prop_assert_eq!(largest_band(&work, &cuts), best, "cuts {:?}", cuts);
+        }
     }
 
     /// The Cornell box lit by two sources, in one piece and cut into 2, 3, 5 and 24 even bands
