@@ -7,7 +7,7 @@
 //! |---|---|---|
 //! | `0x40` | [`Event::Header`] | magic `RC2T` u32, version u8, x u16, y u16, depth u32, frac bits u8, dexel capacity u16, FIFO capacity u16, output buffer u8, lit runs u16 |
 //! | `0x41` | [`Event::Row`] | a row packet arriving from the west (loading, §3.9) |
-//! | `0x42` | [`Event::Light`] | a source's diffusion starts: source id u16, position 3×i32 (1/16 voxel), n u32, depth u32, D u32, policy u8, FIFO limit u16, merge u8, source bit u32, skip u8 (+ occupied box lo, hi 6×u16 when 1); from version 3: sibling wait u16, frustum u8 (+ the summary's 8 × 8 block rows, 64 × u8 bit masks over z, when 1), lit rule u8 (low nibble: 0 thesis, 1 plane, 2 exact occluders; from version 6 the high nibble is the rays' origin: 0 the source voxel, 1 the light) |
+//! | `0x42` | [`Event::Light`] | a source's diffusion starts: source id u16, position 3×i32 (1/16 voxel), n u32, depth u32, D u32, policy u8, FIFO limit u16, merge u8, source bit u32, skip u8 (+ occupied box lo, hi 6×u16 when 1); from version 3: sibling wait u16, frustum u8 (+ the summary's 8 × 8 block rows, 64 × u8 bit masks over z, when 1), lit rule u8 (low nibble: 0 thesis, 1 plane, 2 exact occluders; from version 6 bits 4–6 are the rays' origin: 0 the source voxel, 1 the light; bit 7 the visible-only lit store, `render`'s: only the pixel's target voxel is marked — 0 in every trace written before it was carried) |
 //! | `0x43` | [`Event::Inject`] | the source emitter hands this cell an initial beam |
 //! | `0x44` | [`Event::Recv`] | link `port` delivers a beam (or, in a ray phase, a ray): port u8 + the link frame as on the wire (its own CRC) |
 //! | `0x45` | [`Event::Step`] | `count` u32 compute cycles |
@@ -169,6 +169,9 @@ pub struct LightSetup {
     pub frustum: Option<FrustumSummary>,
     /// The lit rule.
     pub rule: LitRule,
+    /// The visible-only lit store ([`LightEnv::lit_visible_only`], `render`'s): only the
+    /// pixel's target voxel is marked lit, not every occupied voxel its own ray reaches.
+    pub lit_visible_only: bool,
 }
 
 impl LightSetup {
@@ -198,7 +201,7 @@ impl LightSetup {
     /// let (policy, rule) = (Policy::Thesis, LitRule::Thesis);
     /// let setup = LightSetup {
     ///     source, n: 16, depth: 16, far: 31, policy, fa: 16, merge: true, source_bit: 1,
-    ///     skip: None, hold: 0, frustum, rule,
+    ///     skip: None, hold: 0, frustum, rule, lit_visible_only: false,
     /// };
     /// let order = SplitOrder::default();
     /// let with = setup.env::<U0>(&order).unwrap();
@@ -226,7 +229,7 @@ impl LightSetup {
             merge: self.merge,
             skip: self.skip,
             bounds: SubBeamBounds::new(self.n, self.depth, self.skip, &self.source),
-            lit_visible_only: false,
+            lit_visible_only: self.lit_visible_only,
             hold: self.hold,
             frustum: None,
             rays: None,
@@ -440,7 +443,7 @@ fn put_light_setup(w: &mut SliceWriter<'_>, s: &LightSetup) -> Result<(), Encode
         #[cfg(feature = "rays-from-light")]
         Origin::Light => 1,
     };
-    w.u8(rule | origin << 4)
+    w.u8(rule | origin << 4 | (s.lit_visible_only as u8) << 7)
 }
 
 /// Write a shading record's payload (the layout is in the module's table).
@@ -574,11 +577,13 @@ pub fn get_light_setup(
         hold: r.u16()?,
         frustum: None,
         rule: LitRule::Thesis,
+        lit_visible_only: false,
     };
     s.frustum = frustum(r, s.n, s.depth)?;
     let code = r.u8()?;
     s.rule = LitRule::from_code(code & 0x0f).ok_or(DecodeError::BadValue("lit rule"))?;
-    s.source.origin = match code >> 4 {
+    s.lit_visible_only = code >> 7 != 0;
+    s.source.origin = match code >> 4 & 0x7 {
         0 => Origin::SourceVoxel,
         #[cfg(feature = "rays-from-light")]
         1 => Origin::Light,

@@ -448,9 +448,10 @@ fn a_beam_is_routed_along_x_then_y_to_the_board_of_its_cell() {
     }
 }
 
-/// The case's light setups, one per source (what the firmware's glue reads off the host link).
-fn light_setups(c: &Case) -> Vec<LightSetup> {
-    c.light_records().iter().map(|r| light_setup(r).expect("the case's light setup")).collect()
+/// The case's light setups, one per source (what the firmware's glue reads off the host link);
+/// `visible_only`: under `render`'s visible-only lit store.
+fn light_setups(c: &Case, visible_only: bool) -> Vec<LightSetup> {
+    c.records(visible_only).iter().map(|r| light_setup(r).expect("the case's light setup")).collect()
 }
 
 /// Every source's lighting environment, for a board.
@@ -472,7 +473,7 @@ fn some_beam(setup: &LightSetup) -> BeamMsg<U0> {
 #[test]
 fn a_beam_for_a_diagonal_board_is_forwarded_by_the_side_neighbour() {
     let c = the_case();
-    let setups = light_setups(c);
+    let setups = light_setups(c, false);
     let setup = &setups[0];
     let order = SplitOrder::default();
     // Board 1 holds cells x 4 … 7, y 0 … 3; board 0 sends it (on its link W) a beam for cell
@@ -507,10 +508,16 @@ struct TileRun {
 
 /// The QEMU test's run on in-memory links: configure every board, hand board 0 the facets,
 /// start the ring, poll every board in turn until three declarations (or `passes` run out),
-/// then query every board. `schedule(pass, net, boards)` runs before each pass.
-fn tile_run(counters: bool, passes: usize, mut schedule: impl FnMut(usize, &mut Net, &[TileBoard])) -> TileRun {
+/// then query every board. `schedule(pass, net, boards)` runs before each pass; `visible_only`:
+/// the light records ask for `render`'s visible-only lit store.
+fn tile_run(
+    counters: bool,
+    visible_only: bool,
+    passes: usize,
+    mut schedule: impl FnMut(usize, &mut Net, &[TileBoard]),
+) -> TileRun {
     let c = the_case();
-    let setups = light_setups(c);
+    let setups = light_setups(c, visible_only);
     let order = SplitOrder::default();
     let mut net = Net::new();
     let mut boards: Vec<TileBoard> = (0..SIDE * SIDE)
@@ -597,7 +604,7 @@ fn tile_run(counters: bool, passes: usize, mut schedule: impl FnMut(usize, &mut 
 #[test]
 fn in_memory_boards_load_and_light_the_cells_as_host_sim_does() {
     let c = the_case();
-    let r = tile_run(true, 200_000, |_, _, _| {});
+    let r = tile_run(true, false, 200_000, |_, _, _| {});
     assert_eq!(r.declarations.iter().map(|d| d.0).collect::<Vec<_>>(), phases(c));
     for &(p, in_flight, active) in &r.declarations {
         assert_eq!((in_flight, active), (0, 0), "phase {p} declared with work left");
@@ -621,6 +628,19 @@ fn in_memory_boards_load_and_light_the_cells_as_host_sim_does() {
     }
 }
 
+/// `render`'s own cell on the boards: light records asking for the visible-only lit store give
+/// every cell host-sim's lit marks under that store (only each pixel's target voxel), which are
+/// not the full store's, and the same pixels.
+#[test]
+fn in_memory_boards_keep_render_s_visible_only_lit_store() {
+    let c = the_case();
+    let r = tile_run(true, true, 200_000, |_, _, _| {});
+    assert_eq!(r.declarations.iter().map(|d| d.0).collect::<Vec<_>>(), phases(c));
+    assert!(r.busy.is_empty(), "cells still busy or overflowed: {:?}", r.busy);
+    assert_eq!(&r.cells, c.expected(true), "every cell's dexels, visible-only lit marks and pixel are host-sim's");
+    assert_ne!(&r.cells, c.expected(false), "the visible-only store is not the full one");
+}
+
 /// The QEMU late-wire run's schedule, made explicit: the source's board (2) sends board 3 its
 /// beams on wire 2 → 3, against the ring, and that wire (a delay line here: it takes every
 /// frame) holds them from the lighting phase on until every board has been passive for 2000
@@ -629,7 +649,7 @@ fn tile_late_wire(counters: bool) -> (TileRun, bool) {
     assert_eq!(the_case().source_board(), 2, "the light is on board 2");
     let mut quiet = 0;
     let released = std::cell::Cell::new(false);
-    let r = tile_run(counters, 200_000, |_, net, boards| {
+    let r = tile_run(counters, false, 200_000, |_, net, boards| {
         let w = net.wire(2, 3);
         w.buffered = true;
         let lighting = boards[2].node().phase() >= 1;

@@ -176,6 +176,7 @@ fn production_image_input() -> (Vec<u8>, Vec<u8>, Vec<u8>) {
         hold: 0,
         frustum: None,
         rule,
+        lit_visible_only: false,
     };
     let shade = ShadeSetup {
         params: ShadeParams { ambient: [0.1; 3], normal_mode: NormalMode::Facet, eye: cell_core::shade::Eye::Grid },

@@ -9,7 +9,9 @@
 //! by a side neighbour, and the boards detect the end of each phase themselves (Safra's ring).
 //!
 //! The oracle is host-sim's simulation of the same machine (`machine::lighting::boards`, B = 4,
-//! [`boards_light`]): every cell's dexels (span and facet) and lit voxels, and its pixel
+//! [`boards_light`]): every cell's dexels (span and facet) and lit voxels (on clean links under
+//! `render`'s visible-only lit store, the light records saying so; in the other runs under the
+//! full store, every lit voxel), and its pixel
 //! (`machine::shading::pixels::shade_grid` of a run under `render`'s visible-only lit store; the boards
 //! shade with `cell_core::shade::cell_pixel` and the inputs `host-sim trace` records) must be
 //! the boards'. The lit set does
@@ -91,6 +93,9 @@ pub(crate) struct Case {
     /// inputs, each column's triangles, each target's contact answer.
     host_frames: Vec<Vec<HostFrame>>,
     pub(crate) cells: BTreeMap<(u16, u16), CellView>,
+    /// The same cells under `render`'s visible-only lit store: only each pixel's target voxel
+    /// is marked (host-sim's boards under it).
+    pub(crate) visible: BTreeMap<(u16, u16), CellView>,
     /// Voxels of the box's walls, floor and ceiling that the light reaches in the empty box and
     /// not with its blocks: the blocks' shadows.
     shadowed: usize,
@@ -168,14 +173,22 @@ fn case() -> Case {
     let render = LightConfig { lit_visible_only: true, ..light };
     let rv = run(&prepared, N, &sources, &render, &tiles).unwrap();
     assert_eq!(rv.early, None);
+    let mut visible = cells.clone();
+    for v in visible.values_mut() {
+        v.1.clear();
+    }
+    for ([x, y, z], mask) in rv.lighting.lit_voxels() {
+        visible.get_mut(&(x as u16, y as u16)).unwrap().1.push((z, mask));
+    }
     let depth = loaded.grid.depth;
     let scene = LoadedScene { grid: rv.grid, ..loaded };
     let img = shade_grid(&mesh, &scene, &point_lights(&lights), &rv.lighting, NormalMode::Facet);
     for ((x, y), view) in cells.iter_mut() {
         let i = *y as usize * N as usize + *x as usize;
         view.2 = img.covered[i].then_some(img.rgb[i]);
+        visible.get_mut(&(*x, *y)).unwrap().2 = view.2;
     }
-    Case { packets: packets.clone(), sources, light, skip, depth, host_frames, cells, shadowed }
+    Case { packets: packets.clone(), sources, light, skip, depth, host_frames, cells, visible, shadowed }
 }
 
 /// Per board, the frames that load its cells after the light setups, as `host-sim trace`
@@ -223,8 +236,9 @@ fn load_frames(grid: &Grid<DEFAULT_DEXELS>, sources: &[Source], shade: &ShadeSet
 }
 
 impl Case {
-    /// The light records every board gets, one per source in order.
-    pub(crate) fn light_records(&self) -> Vec<Vec<u8>> {
+    /// The light records, one per source in order; `visible_only`: under `render`'s visible-only
+    /// lit store.
+    pub(crate) fn records(&self, visible_only: bool) -> Vec<Vec<u8>> {
         let l = &self.light;
         let records = self.sources.iter().enumerate().map(|(i, &source)| {
             let setup = LightSetup {
@@ -240,6 +254,7 @@ impl Case {
                 hold: 0,
                 frustum: None,
                 rule: l.rule,
+                lit_visible_only: visible_only,
             };
             let mut buf = [0u8; 256];
             let n = write_event::<U0>(&Event::Light(setup), &mut buf).unwrap();
@@ -253,6 +268,16 @@ impl Case {
         &self.host_frames[b]
     }
 
+    /// Every cell as the boards must report it: under the full lit store, or (`visible_only`)
+    /// `render`'s.
+    pub(crate) fn expected(&self, visible_only: bool) -> &BTreeMap<(u16, u16), CellView> {
+        if visible_only {
+            &self.visible
+        } else {
+            &self.cells
+        }
+    }
+
     /// Sources in the run.
     pub(crate) fn sources(&self) -> usize {
         self.sources.len()
@@ -264,9 +289,9 @@ impl Case {
         board_of(sv[0] as u32, sv[1] as u32)
     }
 
-    /// Lit voxels in all.
-    fn lit(&self) -> usize {
-        self.cells.values().map(|c| c.1.len()).sum()
+    /// Lit voxels in all (under the full lit store, or `render`'s visible-only one).
+    fn lit(&self, visible_only: bool) -> usize {
+        self.expected(visible_only).values().map(|c| c.1.len()).sum()
     }
 
     /// Occupied voxels in all.
@@ -347,6 +372,8 @@ pub(crate) fn parse_cell(p: &[u8]) -> ((u16, u16), CellView, [u32; 4]) {
 /// What a run gave: every cell's view, every board's state, when each phase was declared
 /// (from the start), wall time, bytes relayed and faults injected.
 struct TileRun {
+    /// Whether the boards ran `render`'s visible-only lit store.
+    visible_only: bool,
     cells: BTreeMap<(u16, u16), CellView>,
     states: Vec<BoardState>,
     declared: Vec<Duration>,
@@ -374,9 +401,9 @@ pub(crate) fn tile_config(b: usize, depth: u32, sources: usize) -> Vec<u8> {
 /// Configure the boards (each gets the light setup; the source's board makes its initial
 /// beams from it), hand board 0 the facets, start the ring, wait for the three declarations (loading, lighting, the empty phase that
 /// tells every board of the lighting's), then read every board's report.
-fn run_tiles(c: &Case, faults: Faults, slow: Option<Slow>) -> TileRun {
+fn run_tiles(c: &Case, faults: Faults, slow: Option<Slow>, visible_only: bool) -> TileRun {
     let mut g = boot(board_elf(Path::new(env!("CARGO_TARGET_TMPDIR"))), faults, slow, TIMEOUT);
-    let records = c.light_records();
+    let records = c.records(visible_only);
     for b in 0..SIDE * SIDE {
         g.send(b, KIND_TILE_CONFIG, &tile_config(b, c.depth, c.sources()));
         for r in &records {
@@ -412,7 +439,7 @@ fn run_tiles(c: &Case, faults: Faults, slow: Option<Slow>) -> TileRun {
     g.settle();
     let wall = g.t0.elapsed();
     let (bytes, injected) = g.grid.stop_relays();
-    TileRun { cells, states, declared, wall, bytes, injected, logs: g.grid.logs() }
+    TileRun { visible_only, cells, states, declared, wall, bytes, injected, logs: g.grid.logs() }
 }
 
 /// Ask every board for its report: its cells, then its state.
@@ -463,7 +490,7 @@ fn check(c: &Case, r: &TileRun, what: &str) {
 /// position 0: declared each) and reported — the log decoded from its defmt frames.
 fn check_run(c: &Case, r: &TileRun, what: &str) {
     assert_eq!(r.cells.len(), (N * N) as usize, "{what}: every cell reported");
-    for (xy, (dexels, lit, pixel)) in &c.cells {
+    for (xy, (dexels, lit, pixel)) in c.expected(r.visible_only) {
         let got = &r.cells[xy];
         assert_eq!(&got.0, dexels, "{what}: dexels of cell {xy:?}");
         assert_eq!(&got.1, lit, "{what}: lit voxels of cell {xy:?}");
@@ -508,7 +535,7 @@ fn report(c: &Case, r: &TileRun, what: &str) {
          peak arrived beams {}, peak work {}, peak stack {} B",
         r.cells.len(),
         c.occupied(),
-        c.lit(),
+        c.lit(r.visible_only),
         c.shadowed,
         c.cells.values().filter(|v| v.2.is_some()).count(),
         r.declared,
@@ -530,7 +557,12 @@ pub(crate) fn the_case() -> &'static Case {
     static CASE: std::sync::OnceLock<Case> = std::sync::OnceLock::new();
     CASE.get_or_init(|| {
         let c = case();
-        assert!(c.lit() > 50 && c.shadowed > 0, "a lit scene with shadows: {} lit, {} shadowed", c.lit(), c.shadowed);
+        let lit = c.lit(false);
+        assert!(lit > 50 && c.shadowed > 0, "a lit scene with shadows: {lit} lit, {} shadowed", c.shadowed);
+        // The two stores differ (hidden voxels are lit), and the visible one marks pixels only.
+        let visible = c.lit(true);
+        assert!(visible > 0 && visible < lit, "{visible} visible lit voxels of {lit}");
+        assert!(c.visible.values().all(|v| v.1.len() <= c.sources()), "at most a target voxel per column and source");
         for i in 0..c.sources() {
             let by = c.cells.values().flat_map(|v| &v.1).filter(|(_, mask)| mask >> i & 1 != 0).count();
             assert!(by > 0, "source {i} lights no voxel");
@@ -544,9 +576,11 @@ pub(crate) fn boards_load_and_light_their_tiles_as_host_sim_does() {
         return;
     }
     let c = the_case();
-    let r = run_tiles(c, CLEAN, None);
-    report(c, &r, "clean links");
-    check(c, &r, "clean links");
+    // `render`'s own cell: its visible-only lit store (the other runs keep the full store, so
+    // that every lit voxel is compared).
+    let r = run_tiles(c, CLEAN, None, true);
+    report(c, &r, "clean links, visible-only lit store");
+    check(c, &r, "clean links, visible-only lit store");
     assert_eq!(r.injected, 0);
 }
 
@@ -556,7 +590,7 @@ pub(crate) fn boards_light_the_same_voxels_over_faulty_links() {
     }
     let c = the_case();
     // About one byte in 250 corrupted and one in 250 dropped, as the link exercise's fault run.
-    let r = run_tiles(c, Faults { corrupt: 40, drop: 40, seed: 0x711E_5EED }, None);
+    let r = run_tiles(c, Faults { corrupt: 40, drop: 40, seed: 0x711E_5EED }, None, false);
     report(c, &r, "faulty links");
     check(c, &r, "faulty links");
     let sum = |f: fn(&BoardState) -> u32| r.states.iter().map(f).sum::<u32>();
@@ -574,7 +608,7 @@ pub(crate) fn a_slow_board_never_makes_the_ring_declare_early() {
     // while the others are passive.
     let slow = c.source_board();
     let what = format!("slow board {slow} (the source's)");
-    let r = run_tiles(c, CLEAN, Some(Slow::Board(slow, Duration::from_millis(100))));
+    let r = run_tiles(c, CLEAN, Some(Slow::Board(slow, Duration::from_millis(100))), false);
     report(c, &r, &what);
     check(c, &r, &what);
 }
@@ -593,7 +627,7 @@ pub(crate) fn a_late_wire_against_the_ring_never_makes_it_declare_early() {
     // board 3 seeing beams after the declaration; the slow-board run above does not.)
     assert_eq!(c.source_board(), 2, "the light is on board 2");
     let slow = Slow::Wire { from: 2, to: 3, delay: Duration::from_millis(300) };
-    let r = run_tiles(c, CLEAN, Some(slow));
+    let r = run_tiles(c, CLEAN, Some(slow), false);
     report(c, &r, "wire 2 → 3 late");
     check(c, &r, "wire 2 → 3 late");
 }

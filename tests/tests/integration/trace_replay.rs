@@ -120,6 +120,40 @@ fn every_cell_replays_under_exact_occluders_with_rays_from_the_light() {
     check_traces::<U2>(&traces, "cornell n=16 exact f=2");
 }
 
+/// `render`'s visible-only lit store runs in the cell too: the light record carries it (bit 7
+/// of its lit-rule byte), and every cell replays to the grid's digest under it, which differs
+/// from the full store's wherever a hidden voxel is lit.
+#[test]
+fn every_cell_replays_under_render_s_visible_only_lit_store() {
+    let exact = LightConfig {
+        rule: LitRule::Exact,
+        rays: Origin::Light,
+        record_visits: false,
+        ..host_sim::config::plane_rule()
+    };
+    let cornell = host_sim::scene::load("cornell").unwrap();
+    let cells = || (0..16).flat_map(|y| (0..16).map(move |x| [x, y])).collect();
+    let visible = LightConfig { lit_visible_only: true, ..exact };
+    let traces = record(&trace_job(&cornell, LoadConfig::watertight(16), visible, cells())).unwrap();
+    check_traces::<U0>(&traces, "cornell n=16 exact, visible-only lit store");
+    let full = record(&trace_job(&cornell, LoadConfig::watertight(16), exact, cells())).unwrap();
+    let differ = traces.iter().zip(&full).filter(|(v, f)| v.digest != f.digest).count();
+    assert!(differ > 0, "the visible-only store changed no cell's digest: the test could not tell the stores apart");
+    let carried = |t: &CellTrace| {
+        Parser::<U0>::new(&t.bytes)
+            .filter_map(|e| match e {
+                Ok(Event::Light(s)) => Some(s.lit_visible_only),
+                _ => None,
+            })
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(
+        (carried(&traces[0]), carried(&full[0])),
+        (vec![true], vec![false]),
+        "the light records say which store"
+    );
+}
+
 fn triangle_records(bytes: &[u8]) -> usize {
     Parser::<U0>::new(bytes).filter(|e| matches!(e, Ok(Event::Triangle(_)))).count()
 }
@@ -392,7 +426,7 @@ fn peak_link_load_equals_the_busiest_link_in_the_traces() {
     assert!(c.peak_link_distance >= best.1);
 }
 
-/// A light record round-trips: the sibling wait, the lit rule, and the frustum summary rebuilt
+/// A light record round-trips: the sibling wait, the lit rule, the lit store, and the frustum summary rebuilt
 /// from its 64 block rows equals the summary the grid built from every dexel (the summary is a
 /// function of its occupied blocks), for scenes whose blocks do and do not divide n.
 #[test]
@@ -419,6 +453,7 @@ fn light_records_carry_the_wait_and_the_summary() {
             hold: 7,
             frustum: Some(summary),
             rule: if n % 2 == 0 { cell_core::lit::LitRule::Plane } else { cell_core::lit::LitRule::Thesis },
+            lit_visible_only: n == 21,
         };
         let header =
             Header { x: 1, y: 2, depth: loaded.grid.depth, frac_bits: 0, dexels: 64, fifo: 64, out: 3, lit: 64 };

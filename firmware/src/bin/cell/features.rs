@@ -30,7 +30,10 @@ pub fn check(s: LightSetup) -> Result<LightSetup, ReplayError> {
     let ok = (cfg!(feature = "plane-rule") || s.rule == LitRule::Thesis)
         && (cfg!(feature = "policies") || s.policy == Policy::Thesis)
         && (cfg!(feature = "hold") || s.hold == 0)
-        && (cfg!(feature = "skip") || s.skip.is_none());
+        && (cfg!(feature = "skip") || s.skip.is_none())
+        // The visible-only lit store keeps what the pixel reads: a cell that does not shade
+        // keeps the full store (`light`'s).
+        && (cfg!(feature = "shading") || !s.lit_visible_only);
     if ok {
         Ok(s)
     } else {
@@ -66,6 +69,9 @@ pub fn fixed_options(mut s: LightSetup) -> LightSetup {
     }
     if !cfg!(feature = "skip") {
         s.skip = None;
+    }
+    if !cfg!(feature = "shading") {
+        s.lit_visible_only = false;
     }
     s
 }

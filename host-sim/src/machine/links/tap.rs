@@ -213,6 +213,7 @@ impl Tap {
             hold: env.hold,
             frustum: frustum.copied(),
             rule: env.rule,
+            lit_visible_only: env.lit_visible_only,
         };
         self.all::<F>(&Event::Light(s));
         // Exact occluders (the only rule given occluders): each cell's own triangles follow (its

@@ -517,7 +517,7 @@ pub(crate) fn diffuse_cells<F: FracBits, const D: usize>(
     let cells = idle_cells(n, band.clone());
     let occupied = occupied_box(grid, cfg.rule);
     let frustum = frustum_summary(grid, cfg, tap.is_some())?;
-    check_recording(cfg, tap.is_some())?;
+    check_recording(cfg)?;
     cfg.timing.check(cfg.fa, cfg.faults.is_none() && tap.is_none())?;
     if share != Share::ALL && !Share::spreads(cfg, tap.is_some()) {
         bail!("this lighting run's sources share more than the lit stores (link faults, a snapshot, visited voxels or a cell trace): it cannot be split");
@@ -646,18 +646,15 @@ fn frustum_summary<const D: usize>(grid: &Grid<D>, cfg: &LightConfig, tapped: bo
     Ok(frustum)
 }
 
-/// Refuse link delays the stall detector would take for stalls, and traces of a partial lit
-/// store.
-fn check_recording(cfg: &LightConfig, tapped: bool) -> Result<()> {
+/// Refuse link delays the stall detector would take for stalls. (A trace's light record
+/// carries the lit store, visible-only or full: both are traced.)
+fn check_recording(cfg: &LightConfig) -> Result<()> {
     if let Some(f) = cfg.faults.filter(|f| f.delay_ppm > 0 && f.delay_cycles as u64 >= cfg.stall_cycles.max(1)) {
         bail!(
             "--link-faults delay-cycles={} must be below --stall-cycles {}: a frame held on the wire is not progress",
             f.delay_cycles,
             cfg.stall_cycles
         );
-    }
-    if cfg.lit_visible_only && tapped {
-        bail!("a cell trace records the whole lit store: record without --lit-visible-only");
     }
     Ok(())
 }
