@@ -38,6 +38,8 @@
 //! * [`shade`] — Phong/Blinn shading of the visible voxel with `micromath` (§1.1, §5.2).
 //! * [`smooth`] — smooth shading (feature `smooth-normals`): vertex normals in the packets,
 //!   interpolated at the visible point (Phong) or the colours they shade (Gouraud) (§1.3.2).
+//! * [`subpixel`] — s × s samples per pixel: visible surfaces at sub-pixel points, their lights
+//!   from the neighbours that show their facets, the pixel their mean (§1.2.5.2).
 //! * [`termination`] — distributed termination detection: Safra's token ring with message
 //!   counters over the boards' links (§4.4.4 without a central counter).
 #![no_std]
@@ -69,6 +71,7 @@ pub mod shade;
 pub mod shadow;
 #[cfg(feature = "smooth-normals")]
 pub mod smooth;
+pub mod subpixel;
 pub mod termination;
 pub mod trace;
 pub mod triangle;

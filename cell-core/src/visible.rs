@@ -148,12 +148,18 @@ pub fn hit(p: &RowPacket, depth: u32) -> Option<(i64, i64)> {
 /// The record for the packet's facet if its centre line meets it (see [`hit`]).
 pub fn surface_of(p: &RowPacket, depth: u32) -> Option<VisibleSurface> {
     let (num, den) = hit(p, depth)?;
+    Some(record_at(p, num, den))
+}
+
+/// The record of the packet's facet at depth z\* = num/den (den > 0) of its current column: its
+/// plane oriented toward the viewer, with the offset at the centre of voxel `z_v = ⌊z*⌋`.
+pub fn record_at(p: &RowPacket, num: i64, den: i64) -> VisibleSurface {
     let z_v = num.div_euclid(den);
     let e = p.column_plane().value(z_v);
     let plane = p.tag.plane.dexel_plane(e);
     // E grows along c·z: c > 0 means the facet's outward side is +z, away from the viewer.
     let plane = if p.c > 0 { plane.flipped() } else { plane };
-    Some(VisibleSurface {
+    VisibleSurface {
         num,
         den,
         facet: p.tag.facet,
@@ -161,7 +167,7 @@ pub fn surface_of(p: &RowPacket, depth: u32) -> Option<VisibleSurface> {
         normal: p.tag.normal,
         plane,
         z_v: z_v as i32,
-    })
+    }
 }
 
 /// Keep the nearer of `current` and `candidate`.

@@ -665,6 +665,24 @@ impl NormalArg {
     }
 }
 
+/// How a sample takes its lights (`render --sample-lights`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SampleLightsArg {
+    /// The lit states of the four cells around the sample, weighed bilinearly.
+    Bilinear,
+    /// The lit state of the nearest cell that shows the sample's facet.
+    Nearest,
+}
+
+impl From<SampleLightsArg> for cell_core::subpixel::SampleLights {
+    fn from(a: SampleLightsArg) -> Self {
+        match a {
+            SampleLightsArg::Bilinear => cell_core::subpixel::SampleLights::Bilinear,
+            SampleLightsArg::Nearest => cell_core::subpixel::SampleLights::Nearest,
+        }
+    }
+}
+
 /// Options of `render`.
 #[derive(Args, Debug)]
 pub struct RenderArgs {
@@ -678,6 +696,20 @@ pub struct RenderArgs {
     /// normals interpolated over each triangle: gouraud or phong).
     #[arg(long, value_enum, default_value_t = NormalArg::Facet)]
     pub normals: NormalArg,
+    /// Samples per pixel side (1 to 4): each cell also finds the surface at S × S points of its
+    /// pixel's square during loading, lights each from itself or from the neighbour that shows
+    /// the same facet, and shows the mean of their colours (anti-aliased silhouettes and
+    /// creases; lighting unchanged; needs the plane or exact lit rule, target visibility, facet
+    /// or face normals, no reflections or radiosity). With --reference the reference averages
+    /// the same S × S points (docs/LIGHTING.md, "Samples per pixel").
+    #[arg(long, default_value_t = 1)]
+    pub samples: u32,
+    /// With --samples: how a sample takes its lights from the cells around it. bilinear: the
+    /// lit states of the four cells whose centres surround it, weighed by its position among
+    /// them (over those that show its facet or its plane), so that shadow edges fall off across
+    /// a pixel; nearest: those of the nearest cell that shows its facet.
+    #[arg(long, value_enum, default_value_t = SampleLightsArg::Bilinear)]
+    pub sample_lights: SampleLightsArg,
     /// Reflection options.
     #[command(flatten)]
     pub reflect: crate::cli::phase_args::ReflectOpts,

@@ -106,6 +106,8 @@ impl TryFrom<&RenderArgs> for RenderOptions {
             view: a.load.camera.choice(),
             normals: a.normals.into(),
             smooth: a.normals.smooth(),
+            samples: a.samples,
+            sample_lights: a.sample_lights.into(),
             reflections: reflecting.then(|| a.reflect.config(fa, &a.light.classic.config(fa, rule))),
             light,
             out: a.out.clone(),

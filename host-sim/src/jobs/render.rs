@@ -30,6 +30,7 @@ use crate::machine::rays::mirror::{reflect, ReflectConfig, ReflectCounts, ShadeE
 use crate::machine::shading::pixels::{
     point_lights, ref_lights, seen, shade_grid_ambient, weighted_lights, Ambient, Image, Seen, AMBIENT,
 };
+use crate::machine::shading::samples::{sample_grid, shade_samples, SampleGrid, SampleStats};
 use crate::machine::shading::smooth_surface::{smooth_grid, SmoothGrid, SmoothScene, SmoothStats};
 use crate::machine::shooting::indirect::Display;
 use crate::report::files::write_json;
@@ -81,6 +82,9 @@ pub struct RenderStats {
     /// (absent otherwise, so that a facet render's statistics are unchanged).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub smooth: Option<SmoothStats>,
+    /// With `--samples S` (S > 1): what the samples cost and found (absent otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub samples: Option<SampleStats>,
     /// Wall time: load, light, shade, reference.
     pub load_seconds: f64,
     /// Lighting wall time.
@@ -120,6 +124,9 @@ pub struct RenderConfig {
     /// Smooth shading from the vertex normals (the input's [`RenderInput::smooth`] records);
     /// `None`: `normals` alone.
     pub smooth: Option<Smooth>,
+    /// Samples per pixel side (1: the centre line alone; the input's [`RenderInput::samples`]
+    /// records otherwise); the reference averages the same points.
+    pub samples: u32,
     /// How the lit state is computed.
     pub lighting: RenderLighting,
 }
@@ -127,7 +134,7 @@ pub struct RenderConfig {
 impl RenderConfig {
     /// Diffusion lighting with `light`, shading with `normals`.
     pub fn diffusion(light: LightConfig, normals: NormalMode) -> RenderConfig {
-        RenderConfig { light, normals, smooth: None, lighting: RenderLighting::Diffusion }
+        RenderConfig { light, normals, smooth: None, samples: 1, lighting: RenderLighting::Diffusion }
     }
 }
 
@@ -155,6 +162,8 @@ pub struct RenderInput<'a> {
     pub indirect: Option<&'a [[f32; 3]]>,
     /// Smooth shading: the cells' records ([`crate::machine::shading::smooth_surface`]).
     pub smooth: Option<&'a SmoothGrid>,
+    /// Samples per pixel: the cells' sample records ([`crate::machine::shading::samples`]).
+    pub samples: Option<&'a SampleGrid>,
 }
 
 impl<'a> RenderInput<'a> {
@@ -170,6 +179,7 @@ impl<'a> RenderInput<'a> {
             reference_seconds: 0.0,
             indirect: None,
             smooth: None,
+            samples: None,
         }
     }
 
@@ -219,6 +229,9 @@ pub fn reference_image_lit(
         RenderLighting::Diffusion | RenderLighting::Classic(_) | RenderLighting::Refined(_) => RefReflect::NONE,
     };
     let (fit, n, ambient) = (&scene.fit, scene.grid.n, [AMBIENT as f64; 3]);
+    if cfg.samples > 1 {
+        return crate::truth::refrender::render_reference_samples(mesh, fit, n, &rl, ambient, cfg.samples);
+    }
     match cfg.light.visibility {
         Visibility::Target => crate::truth::refrender::render_reference_reflect(mesh, fit, n, &rl, ambient, &refl),
         v => {
@@ -394,7 +407,13 @@ fn shade(
     let lights = input.point_lights();
     let constant = Ambient::Constant([AMBIENT; 3]);
     let ambient = input.indirect.map_or(constant, Ambient::Indirect);
-    let image = shade_grid_ambient(input.mesh, input.scene, &lights, seen, cfg.normals, &ambient, input.smooth);
+    let (image, sample_stats) = match (input.samples, seen) {
+        (Some(g), Seen::Surface(mask)) => {
+            let (img, st) = shade_samples(input.mesh, input.scene, &lights, mask, cfg.normals, g);
+            (img, Some(st))
+        }
+        _ => (shade_grid_ambient(input.mesh, input.scene, &lights, seen, cfg.normals, &ambient, input.smooth), None),
+    };
     let direct_only = input
         .indirect
         .map(|_| shade_grid_ambient(input.mesh, input.scene, &lights, seen, cfg.normals, &constant, input.smooth));
@@ -402,7 +421,9 @@ fn shade(
     let cmp = input.reference.map(|r| crate::truth::compare::compare(&image.rgb, &image.covered, &image.lit, r));
     // With smooth shading a loading cell also holds the packet's vertex normals and its record.
     let smooth_bytes = input.smooth.map_or(0, |g| g.stats.bytes_per_packet + g.stats.bytes_per_cell);
-    let load_cell = crate::config::loading_cell_bytes() + smooth_bytes;
+    // With samples, the packet's y slopes, the sample records and the neighbours' messages.
+    let sample_bytes = sample_stats.as_ref().map_or(0, |g| g.bytes_per_packet + g.bytes_per_cell);
+    let load_cell = crate::config::loading_cell_bytes() + smooth_bytes + sample_bytes;
     let stores = crate::config::extra_cell_bytes(&cfg.light);
     let stats = RenderStats {
         run: None,
@@ -414,7 +435,8 @@ fn shade(
             (None, NormalMode::Face) => "face".into(),
         },
         smooth: input.smooth.map(|g| g.stats.clone()),
-        shade_cycles: input.lights.len().max(1) as u64,
+        shade_cycles: input.lights.len().max(1) as u64 + sample_stats.as_ref().map_or(0, |g| g.exchange_cycles),
+        samples: sample_stats,
         covered_pixels: image.covered.iter().filter(|&&c| c).count() as u64,
         lit_pixels: image.lit.iter().filter(|&&l| l != 0).count() as u64,
         bytes_per_cell_load: load_cell,
@@ -458,6 +480,10 @@ pub struct RenderOptions {
     pub normals: NormalMode,
     /// Smooth shading from vertex normals (with `normals` = facet).
     pub smooth: Option<Smooth>,
+    /// Samples per pixel side (`--samples`; 1: the centre line alone).
+    pub samples: u32,
+    /// How a sample takes its lights (`--sample-lights`).
+    pub sample_lights: cell_core::subpixel::SampleLights,
     /// The reflection phase (needs diffusion lighting); `None`: no reflections.
     pub reflections: Option<ReflectConfig>,
     /// Indirect light by radiosity on the grid; `None`: direct light only.
@@ -535,14 +561,37 @@ impl RenderOptions {
                 bail!("--normals gouraud|phong: smooth shading is not done with --reflections or --radiosity yet");
             }
         }
-        Ok(RenderConfig { light, normals: self.normals, smooth: self.smooth, lighting })
+        self.check_samples(&light)?;
+        Ok(RenderConfig { light, normals: self.normals, smooth: self.smooth, samples: self.samples, lighting })
+    }
+
+    /// `--samples`: S in range, and only where a sample's surface and lights are known: the
+    /// visible surface (plane or exact rule), the target ray's all-or-nothing lights, flat
+    /// normals, no reflections or radiosity.
+    fn check_samples(&self, light: &LightConfig) -> Result<()> {
+        crate::machine::shading::samples::check_samples(self.samples, self.light.load().n)?;
+        if self.samples == 1 {
+            return Ok(());
+        }
+        let rule = self.light.classic.as_ref().map_or(light.rule, |c| c.rule);
+        let other = [
+            (!rule.shades_visible_surface(), "--lit-rule thesis (it shows a voxel, not a point of a facet)"),
+            (light.visibility.counts_rays(), "--visibility ratio|majority"),
+            (self.smooth.is_some(), "--normals gouraud|phong"),
+            (self.reflections.is_some(), "--reflections"),
+            (self.radiosity.is_some(), "--radiosity"),
+        ];
+        if let Some((_, what)) = other.iter().find(|o| o.0) {
+            bail!("--samples {}: not done with {what} yet (run one or the other)", self.samples);
+        }
+        Ok(())
     }
 }
 
 /// Run the `render` job.
 pub fn run(o: &RenderOptions) -> Result<()> {
     let cfg = o.config()?;
-    let (mesh, loaded, load_seconds, smooth) = load_phase(o)?;
+    let (mesh, loaded, load_seconds, smooth, samples) = load_phase(o)?;
     let sources = resolve_sources(&mesh, &loaded, &o.light.sampling())?;
     let lights = &sources.positions;
     let radiosity = radiosity_phase(o, &mesh, &loaded, lights, cfg.light.rule)?;
@@ -558,6 +607,7 @@ pub fn run(o: &RenderOptions) -> Result<()> {
         reference_seconds: t1.elapsed().as_secs_f64(),
         indirect: radiosity.as_ref().map(|r| &r.shown.cells[..]),
         smooth: smooth.as_ref().map(|(_, g)| g),
+        samples: samples.as_ref(),
         ..lit
     };
     let pb = progress::bar(o.quiet, "light 1");
@@ -581,8 +631,8 @@ type SmoothPhase = Option<(SmoothScene, SmoothGrid)>;
 
 /// Load phase: the scene through the chosen view (with smooth shading, its polygons of unequal
 /// corner normals cut into triangles), loaded on the grid; the load's wall time; the smooth
-/// records.
-fn load_phase(o: &RenderOptions) -> Result<(Mesh, LoadedScene, f64, SmoothPhase)> {
+/// records; with samples, the sample records.
+fn load_phase(o: &RenderOptions) -> Result<(Mesh, LoadedScene, f64, SmoothPhase, Option<SampleGrid>)> {
     // Reflected rays are traced in the grid's own view: with reflections the default view is
     // the fitted one.
     let view = match o.view {
@@ -611,8 +661,12 @@ fn load_phase(o: &RenderOptions) -> Result<(Mesh, LoadedScene, f64, SmoothPhase)
         }
         None => None,
     };
+    let samples = match o.samples {
+        1 => None,
+        s => Some(sample_grid(&mesh, &loaded, o.light.load(), s, o.sample_lights)?),
+    };
     pb.finish_and_clear();
-    Ok((mesh, loaded, t0.elapsed().as_secs_f64(), smooth))
+    Ok((mesh, loaded, t0.elapsed().as_secs_f64(), smooth, samples))
 }
 
 /// The radiosity phase's results ([`render_radiosity`]): the solutions and what the cells show.
@@ -764,6 +818,13 @@ fn print_summary(o: &RenderOptions, r: &Rendered, written: &[String]) {
         eprintln!(
             "  smooth shading ({}): vertex normals {}, {} polygons cut into triangles, +{} bytes/packet, +{} bytes/cell",
             sm.mode, sm.normals_from, sm.polygons_cut, sm.bytes_per_packet, sm.bytes_per_cell
+        );
+    }
+    if let Some(g) = &s.samples {
+        eprintln!(
+            "  samples: {}×{} per pixel, lights {}, {} pixels mixed ({} samples on another surface than the centre's); +{} bytes/packet, +{} bytes/cell, +{} row steps in loading, {} messages and {} cycle to the neighbours",
+            g.samples_per_side, g.samples_per_side, g.lights, g.mixed_pixels, g.foreign_samples, g.bytes_per_packet, g.bytes_per_cell,
+            g.load_extra_row_steps, g.exchange_messages, g.exchange_cycles
         );
     }
     eprintln!(

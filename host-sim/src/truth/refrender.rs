@@ -318,6 +318,9 @@ struct RefScene<'a> {
     /// Weigh each light by the share of the pixel's footprint that sees it
     /// ([`render_reference_footprint`]); `None`: the pixel's point decides.
     footprint: Option<RefFootprint>,
+    /// Points per pixel side whose colours are averaged (1: the centre's alone;
+    /// [`render_reference_samples`]).
+    samples: u32,
 }
 
 /// How the reference weighs a light by a pixel's footprint (the machine's lit-ray ratio,
@@ -511,6 +514,46 @@ impl RefScene<'_> {
     }
 }
 
+/// The reference with `s` × `s` points per pixel (the machine's `--samples`): each point's
+/// primary ray shaded at its own hit with its own shadow rays, the pixel the mean of their
+/// colours (clamped to [0, 1]; a ray that meets nothing is black), gamma-encoded once. The
+/// coverage, lit masks and facets stay the centre ray's.
+pub fn render_reference_samples(
+    mesh: &Mesh,
+    fit: &Fit,
+    n: u32,
+    lights: &[RefLight],
+    ambient: [f64; 3],
+    s: u32,
+) -> Result<RefImage> {
+    if s == 0 {
+        bail!("refrender: at least one sample per pixel side");
+    }
+    let mut scene = RefScene::new(mesh, fit, n, lights, RefAmbient::Constant(ambient), &RefReflect::NONE)?;
+    scene.samples = s;
+    Ok(scene.image(n, lights.len() as u32))
+}
+
+impl RefScene<'_> {
+    /// The mean colour of pixel (x, y)'s `s` × `s` points (see [`render_reference_samples`]).
+    fn mean_of_samples(&self, x: u32, y: u32, n: u32, s: u32) -> [u8; 3] {
+        let mut sum = [0.0; 3];
+        for k in 0..s * s {
+            let (i, j) = ((k % s) as f64, (k / s) as f64);
+            let (o, d) = self.primary(x as f64 + (i + 0.5) / s as f64, y as f64 + (j + 0.5) / s as f64, n);
+            let Some((t, facet, normal)) = self.reference.first_hit(o.to_array(), d.to_array(), self.primary_t, &[])
+            else {
+                continue;
+            };
+            let (c, _) = self.colour(o + t * d, Vector::from(normal), facet, -d, 1, 1.0);
+            for ch in 0..3 {
+                sum[ch] += c[ch].clamp(0.0, 1.0);
+            }
+        }
+        sum.map(|c| encode_gamma(c / (s * s) as f64))
+    }
+}
+
 /// [`render_reference`] with mirror reflections (see [`RefReflect`]).
 pub fn render_reference_reflect(
     mesh: &Mesh,
@@ -613,6 +656,7 @@ impl<'a> RefScene<'a> {
             max_t: 2.0 * primary_t,
             reflect: *reflect,
             footprint: None,
+            samples: 1,
         })
     }
 
@@ -690,6 +734,11 @@ impl<'a> RefScene<'a> {
         let (origin, dir) = self.primary(x as f64 + 0.5, y as f64 + 0.5, img.n);
         let Some((t, facet, normal)) = self.reference.first_hit(origin.to_array(), dir.to_array(), self.primary_t, &[])
         else {
+            // Uncovered at its centre; its other points may meet a surface.
+            if self.samples > 1 {
+                let i = img.index(x, y);
+                img.rgb[i] = self.mean_of_samples(x, y, img.n, self.samples);
+            }
             return;
         };
         let p = origin + t * dir;
@@ -707,7 +756,10 @@ impl<'a> RefScene<'a> {
             }
         };
         let i = y as usize * img.n as usize + x as usize;
-        img.rgb[i] = c.map(encode_gamma);
+        img.rgb[i] = match self.samples {
+            1 => c.map(encode_gamma),
+            s => self.mean_of_samples(x, y, img.n, s),
+        };
         img.covered[i] = true;
         img.lit[i] = mask;
         img.facet[i] = facet;

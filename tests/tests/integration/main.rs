@@ -30,6 +30,7 @@ mod rays;
 mod reflections;
 mod render;
 mod routing;
+mod samples;
 mod shadows;
 mod smooth;
 mod topology;

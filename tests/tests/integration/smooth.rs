@@ -154,13 +154,7 @@ fn columns(tri: &[[i64; 3]], n: u32, rng: &mut Rng, inside: usize) -> Vec<(u32, 
 #[test]
 fn interpolated_normals_match_f64_barycentrics_at_the_bit_budget() {
     let n = MAX_N;
-    let m = Q * n as i64 - 1;
-    let facets: [[[i64; 3]; 3]; 4] = [
-        [[0, 0, 0], [m, 0, m], [0, m, m]],
-        [[m, m, 0], [0, m, m], [m, 0, m]],
-        [[0, 0, m], [m, m, 0], [m, 0, 0]],
-        [[0, 0, 0], [m, 1, 0], [0, m, m]],
-    ];
+    let facets = crate::common::budget_facets(n);
     let mut rng = Rng(0x5eed_0054);
     let mut checked = 0;
     for tri in &facets {

@@ -126,12 +126,7 @@ impl<const D: usize> Grid<D> {
             let b = p.bbox;
             for y in b.y_min as i64..=b.y_max as i64 {
                 for x in b.x_min as i64..=b.x_max as i64 {
-                    let plane = p.a * x + p.b * y;
-                    rp.t = p.t - plane;
-                    rp.u = p.u - plane;
-                    for (re, pe) in rp.edges.iter_mut().zip(p.edges.iter()) {
-                        re.g = pe.g + pe.a as i64 * x + pe.b as i64 * y;
-                    }
+                    row_packet_at(p, &mut rp, x, y);
                     let cell = &mut self.cells[y as usize * n + x as usize];
                     if let Some(span) = row_span(&rp, self.depth) {
                         cell.store.insert_on(span, p.tag, &rp.column_plane());
@@ -143,5 +138,16 @@ impl<const D: usize> Grid<D> {
                 progress(i as u64);
             }
         }
+    }
+}
+
+/// Set `rp` (`p.to_row()`) to the row packet column (x, y) holds, by multiplication: what the
+/// wave's steps down and east give there (`T − B·y − A·x`, …).
+pub fn row_packet_at(p: &PipelinePacket, rp: &mut RowPacket, x: i64, y: i64) {
+    let plane = p.a * x + p.b * y;
+    rp.t = p.t - plane;
+    rp.u = p.u - plane;
+    for (re, pe) in rp.edges.iter_mut().zip(p.edges.iter()) {
+        re.g = pe.g + pe.a as i64 * x + pe.b as i64 * y;
     }
 }

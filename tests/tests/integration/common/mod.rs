@@ -133,3 +133,16 @@ pub fn packets_of(
         })
         .collect()
 }
+
+/// Facets at the loading arithmetic's limits on an n-grid (lattice span `m = Q·n − 1`): vertices
+/// on the lattice's corners, planes across the whole grid, a needle one lattice step wide (the
+/// largest coefficients and edge values of `cell_core::voxelize`'s bit budget).
+pub fn budget_facets(n: u32) -> [[[i64; 3]; 3]; 4] {
+    let m = host_sim::precompute::Q * n as i64 - 1;
+    [
+        [[0, 0, 0], [m, 0, m], [0, m, m]],
+        [[m, m, 0], [0, m, m], [m, 0, m]],
+        [[0, 0, m], [m, m, 0], [m, 0, 0]],
+        [[0, 0, 0], [m, 1, 0], [0, m, m]],
+    ]
+}
