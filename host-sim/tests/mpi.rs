@@ -185,7 +185,8 @@ fn light_finds_the_same_lit_voxels_on_3_ranks() {
 }
 
 /// The diffusion spread, then rank 0's own phases on the merged lit sets: the shadow-edge
-/// refinement (five lights) and mirror reflections (the full lit store).
+/// refinement (five lights), mirror reflections (the full lit store) and 2 × 2 samples per
+/// pixel (their lights from the merged lit masks).
 #[test]
 fn refined_and_reflected_renders_alike_on_2_ranks() {
     let png = [("--out", "image.png")];
@@ -193,6 +194,7 @@ fn refined_and_reflected_renders_alike_on_2_ranks() {
     refined.extend(FIVE_LIGHTS);
     same_as_one_process("refined", &refined, &png, &[2]);
     same_as_one_process("mirror", &["render", "cornell-mirror", "--n", "32", "--reflections", "2"], &png, &[2]);
+    same_as_one_process("samples", &["render", "cornell", "--n", "32", "--samples", "2"], &png, &[2]);
 }
 
 /// The grid cut into bands of rows, one per rank (`--spread tiles`), the messages across the
