@@ -234,33 +234,37 @@ pub fn surface_at(
 }
 
 /// What a cell tells its neighbours after lighting: the facet its centre line shows, its normal
-/// code, and the lights that reached it (10 bytes on a link).
+/// code, and its lights `L`: the lit mask of the lights that reached it (before the facing
+/// test), or under the lit-ray ratio each light's weight ([`crate::visibility`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct Shown {
+pub struct Shown<L = SourceMask> {
     /// The facet.
     pub facet: FacetId,
     /// Its normal code.
     pub normal: NormalCode,
-    /// The lights that reached the surface (before the facing test).
-    pub reached: SourceMask,
+    /// Its lights.
+    pub reached: L,
 }
 
 impl Shown {
-    /// Bytes of the message.
+    /// Bytes of the message with a lit mask: the facet (4), the normal code (2) and the mask (4);
+    /// with weights, 6 and one byte per light.
     pub const BYTES: usize = 10;
+    /// Bytes of the facet and normal code.
+    pub const HEADER_BYTES: usize = 6;
 }
 
 /// The lights that reach sample `at`, showing `surface`, of a cell that shows `own` and whose
 /// neighbours (in [`NEIGHBOURS`] order) show `around` (see the module doc).
-pub fn sample_reached(
-    own: Option<Shown>,
-    around: &[Option<Shown>; 8],
+pub fn sample_reached<L: Copy + Default>(
+    own: Option<Shown<L>>,
+    around: &[Option<Shown<L>>; 8],
     surface: &VisibleSurface,
     at: Sample,
-) -> SourceMask {
+) -> L {
     let cells = core::iter::once(((0, 0), own)).chain(NEIGHBOURS.iter().copied().zip(around.iter().copied()));
     // Rank: same facet 0, same normal code 1, any other 2; then the distance; first wins ties.
-    let mut best: Option<((u8, i64), SourceMask)> = None;
+    let mut best: Option<((u8, i64), L)> = None;
     for (d, shown) in cells {
         let Some(s) = shown else { continue };
         let rank = if s.facet == surface.facet {
@@ -275,7 +279,7 @@ pub fn sample_reached(
             best = Some((key, s.reached));
         }
     }
-    best.map_or(0, |(_, m)| m)
+    best.map_or(L::default(), |(_, m)| m)
 }
 
 /// The linear colour of sample `at` of column (x, y) showing `surface`, lit by the lights of
@@ -314,16 +318,16 @@ pub enum SampleLights {
 }
 
 /// The lights of sample `at` (showing `surface`, of a cell showing `own` among neighbours
-/// `around`) as up to four lit masks with weights summing to 1 (see [`SampleLights`]).
-pub fn sample_lights(
-    own: Option<Shown>,
-    around: &[Option<Shown>; 8],
+/// `around`) as up to four cells' lights with weights summing to 1 (see [`SampleLights`]).
+pub fn sample_lights<L: Copy + Default>(
+    own: Option<Shown<L>>,
+    around: &[Option<Shown<L>>; 8],
     surface: &VisibleSurface,
     at: Sample,
     how: SampleLights,
-) -> Vec<(SourceMask, f32), 4> {
+) -> Vec<(L, f32), 4> {
     let mut out = Vec::new();
-    let nearest = |out: &mut Vec<(SourceMask, f32), 4>| {
+    let nearest = |out: &mut Vec<(L, f32), 4>| {
         let _ = out.push((sample_reached(own, around, surface, at), 1.0));
     };
     if how == SampleLights::Nearest {
@@ -427,7 +431,7 @@ mod tests {
         // Facet 3 of facet 2's normal: a coplanar facet's lights; of no one's: the nearest cell's.
         assert_eq!(sample_reached(own, &around, &surface(3, -1.0), east), 0b10);
         assert_eq!(sample_reached(own, &around, &surface(3, 0.5), east), 0b1);
-        assert_eq!(sample_reached(None, &[None; 8], &surface(3, 0.5), east), 0);
+        assert_eq!(sample_reached::<SourceMask>(None, &[None; 8], &surface(3, 0.5), east), 0);
     }
 
     #[test]
@@ -460,7 +464,7 @@ mod tests {
         let w = sample_lights(shown(1, 1.0, 1), &around, &surface, at, SampleLights::Bilinear);
         assert!((lit(&w) - 12.0 / 13.0).abs() < 1e-6, "{w:?}");
         // No corner shows its plane: the nearest rule.
-        let w = sample_lights(None, &[None; 8], &surface, at, SampleLights::Bilinear);
+        let w = sample_lights::<SourceMask>(None, &[None; 8], &surface, at, SampleLights::Bilinear);
         assert_eq!(&w[..], &[(0, 1.0)]);
         assert_eq!(&sample_lights(shown(1, 1.0, 1), &around, &surface, at, SampleLights::Nearest)[..], &[(1, 1.0)]);
     }

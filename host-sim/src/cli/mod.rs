@@ -699,8 +699,8 @@ pub struct RenderArgs {
     /// Samples per pixel side (1 to 4): each cell also finds the surface at S × S points of its
     /// pixel's square during loading, lights each from itself or from the neighbour that shows
     /// the same facet, and shows the mean of their colours (anti-aliased silhouettes and
-    /// creases; lighting unchanged; needs the plane or exact lit rule, target visibility, facet
-    /// or face normals, no reflections or radiosity). With --reference the reference averages
+    /// creases; lighting unchanged; needs the plane or exact lit rule, facet or face normals, no
+    /// reflections or radiosity). With --reference the reference averages
     /// the same S × S points (docs/LIGHTING.md, "Samples per pixel").
     #[arg(long, default_value_t = 1)]
     pub samples: u32,

@@ -30,7 +30,7 @@ use crate::machine::rays::mirror::{reflect, ReflectConfig, ReflectCounts, ShadeE
 use crate::machine::shading::pixels::{
     point_lights, ref_lights, seen, shade_grid_ambient, weighted_lights, Ambient, Image, Seen, AMBIENT,
 };
-use crate::machine::shading::samples::{sample_grid, shade_samples, SampleGrid, SampleStats};
+use crate::machine::shading::samples::{sample_grid, shade_samples, CentreLights, SampleGrid, SampleStats};
 use crate::machine::shading::smooth_surface::{smooth_grid, SmoothGrid, SmoothScene, SmoothStats};
 use crate::machine::shooting::indirect::Display;
 use crate::report::files::write_json;
@@ -407,9 +407,14 @@ fn shade(
     let lights = input.point_lights();
     let constant = Ambient::Constant([AMBIENT; 3]);
     let ambient = input.indirect.map_or(constant, Ambient::Indirect);
-    let (image, sample_stats) = match (input.samples, seen) {
-        (Some(g), Seen::Surface(mask)) => {
-            let (img, st) = shade_samples(input.mesh, input.scene, &lights, mask, cfg.normals, g);
+    let centre = match seen {
+        Seen::Surface(mask) => Some(CentreLights::Masks(mask)),
+        Seen::Weighted(w) => Some(CentreLights::Weights(w)),
+        Seen::FirstVoxel(_) => None,
+    };
+    let (image, sample_stats) = match (input.samples, centre) {
+        (Some(g), Some(centre)) => {
+            let (img, st) = shade_samples(input.mesh, input.scene, &lights, &centre, cfg.normals, g);
             (img, Some(st))
         }
         _ => (shade_grid_ambient(input.mesh, input.scene, &lights, seen, cfg.normals, &ambient, input.smooth), None),
@@ -566,8 +571,7 @@ impl RenderOptions {
     }
 
     /// `--samples`: S in range, and only where a sample's surface and lights are known: the
-    /// visible surface (plane or exact rule), the target ray's all-or-nothing lights, flat
-    /// normals, no reflections or radiosity.
+    /// visible surface (plane or exact rule), flat normals, no reflections or radiosity.
     fn check_samples(&self, light: &LightConfig) -> Result<()> {
         crate::machine::shading::samples::check_samples(self.samples, self.light.load().n)?;
         if self.samples == 1 {
@@ -576,7 +580,6 @@ impl RenderOptions {
         let rule = self.light.classic.as_ref().map_or(light.rule, |c| c.rule);
         let other = [
             (!rule.shades_visible_surface(), "--lit-rule thesis (it shows a voxel, not a point of a facet)"),
-            (light.visibility.counts_rays(), "--visibility ratio|majority"),
             (self.smooth.is_some(), "--normals gouraud|phong"),
             (self.reflections.is_some(), "--reflections"),
             (self.radiosity.is_some(), "--radiosity"),

@@ -224,12 +224,11 @@ fn bad_arguments_fail_clearly() {
         ),
         (&["render", "--n", "16", "--visibility", "ratio", "--radiosity"], "not done with --radiosity"),
         (&["light", "--n", "16", "--visibility", "ratio"], "a render option"),
-        // Samples per pixel: 1 to 4, on the visible surface, lit all-or-nothing, flat normals.
+        // Samples per pixel: 1 to 4, on the visible surface, flat normals.
         (&["render", "--n", "16", "--samples", "0"], "between 1 and 4"),
         (&["render", "--n", "16", "--samples", "5"], "between 1 and 4"),
         (&["render", "--n", "16385", "--samples", "2"], "up to n = 16384"),
         (&["render", "--n", "16", "--samples", "2", "--lit-rule", "thesis"], "not done with --lit-rule thesis"),
-        (&["render", "--n", "16", "--samples", "2", "--visibility", "ratio"], "not done with --visibility"),
         (&["render", "--n", "16", "--samples", "2", "--normals", "phong"], "not done with --normals"),
         (&["render", "--n", "16", "--samples", "2", "--reflections", "1"], "not done with --reflections"),
         (&["render", "--n", "16", "--samples", "2", "--radiosity"], "not done with --radiosity"),

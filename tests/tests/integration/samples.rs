@@ -206,6 +206,16 @@ fn the_centre_sample_is_the_centre_lines_hit() {
 /// Render `scene` through its default view at n with S × S samples (the render's default
 /// diffusion).
 fn render_sampled(scene: &str, n: u32, s: u32) -> host_sim::jobs::render::Rendered {
+    render_sampled_with(scene, n, s, cell_core::visibility::Visibility::Target)
+}
+
+/// [`render_sampled`] with the pixels' lights decided by `visibility`.
+fn render_sampled_with(
+    scene: &str,
+    n: u32,
+    s: u32,
+    visibility: cell_core::visibility::Visibility,
+) -> host_sim::jobs::render::Rendered {
     use host_sim::jobs::render::{render, RenderConfig, RenderInput};
     let mesh = host_sim::scene::camera::apply(
         host_sim::scene::load(scene).unwrap(),
@@ -219,10 +229,9 @@ fn render_sampled(scene: &str, n: u32, s: u32) -> host_sim::jobs::render::Render
     let grid = (s > 1).then(|| {
         host_sim::machine::shading::samples::sample_grid(&mesh, &loaded, &load, s, Default::default()).unwrap()
     });
-    let cfg = RenderConfig {
-        samples: s,
-        ..RenderConfig::diffusion(host_sim::config::Preset::Render.light(), cell_core::shade::NormalMode::Facet)
-    };
+    let light =
+        host_sim::machine::lighting::diffuse::LightConfig { visibility, ..host_sim::config::Preset::Render.light() };
+    let cfg = RenderConfig { samples: s, ..RenderConfig::diffusion(light, cell_core::shade::NormalMode::Facet) };
     let input = RenderInput { samples: grid.as_ref(), ..RenderInput::new(&mesh, &loaded, &lights) };
     render(&input, &cfg, |_, _| {}).unwrap()
 }
@@ -274,4 +283,20 @@ fn samples_bring_the_image_nearer_the_supersampled_reference() {
             assert!(got > base, "{scene}: {s} × {s} samples {got:.2} dB, one {base:.2} dB");
         }
     }
+}
+
+/// Under the lit-ray ratio the samples borrow their neighbours' weights: the image comes nearer
+/// the 4 × 4 reference with 2 × 2 samples than with one, the lighting the same.
+#[test]
+fn samples_borrow_the_lit_ray_ratio() {
+    let (n, ratio) = (48, cell_core::visibility::Visibility::Ratio);
+    let truth = reference_sampled("cornell", n, 4);
+    let all = vec![true; (n * n) as usize];
+    let psnr = |r: &host_sim::jobs::render::Rendered| host_sim::truth::compare::psnr(&r.image.rgb, &truth.rgb, &all);
+    let (one, two) = (render_sampled_with("cornell", n, 1, ratio), render_sampled_with("cornell", n, 2, ratio));
+    assert_eq!(two.stats.light.totals.beams_processed, one.stats.light.totals.beams_processed);
+    assert_eq!(two.image.lit, one.image.lit);
+    let st = two.stats.samples.as_ref().expect("sample statistics");
+    assert_eq!(st.exchange_bytes_per_message, 6 + 1, "facet, normal code and one weight");
+    assert!(psnr(&two) > psnr(&one), "2 × 2 {:.2} dB, one {:.2} dB", psnr(&two), psnr(&one));
 }

@@ -21,7 +21,7 @@ use cell_core::subpixel::{
 };
 use cell_core::visible::VisibleSurface;
 
-use super::pixels::{cell_material, eye_lights, ref_lights, Image, AMBIENT};
+use super::pixels::{cell_material, eye_lights, ref_lights, weigh_lights, Image, AMBIENT};
 use crate::machine::loading::loaded_scene::LoadedScene;
 use crate::machine::loading::wave::row_packet_at;
 use crate::precompute::LoadConfig;
@@ -141,15 +141,48 @@ pub fn sample_grid(
     Ok(SampleGrid { s, lights, surfaces, stats })
 }
 
-/// Shade every cell as the mean of its samples (see the module doc), the lights that reached
-/// column (x, y)'s visible surface given by `reached(x, y)`. The image's coverage and lit
-/// masks are the centre line's (as without samples: the lit state is unchanged); its colours
-/// the samples' mean. Also the grid's statistics with the exchange and the foreign samples.
+/// The lights the cells' centres hold after lighting, which they lend their neighbours' samples.
+pub enum CentreLights<'a> {
+    /// The lit mask of column (x, y)'s visible surface.
+    Masks(&'a dyn Fn(u32, u32) -> SourceMask),
+    /// Each light's weight (0 ..= 255) at column (x, y): the lit-ray ratio
+    /// ([`cell_core::visibility`]).
+    Weights(&'a dyn Fn(u32, u32) -> Vec<u8>),
+}
+
+impl CentreLights<'_> {
+    /// Column (x, y)'s lights as weights (a mask's lights 255, the others 0).
+    fn weights(&self, x: u32, y: u32) -> [u8; 32] {
+        match self {
+            CentreLights::Masks(m) => {
+                let m = m(x, y);
+                std::array::from_fn(|s| if m >> s & 1 == 1 { 255 } else { 0 })
+            }
+            CentreLights::Weights(w) => {
+                let w = w(x, y);
+                std::array::from_fn(|s| w.get(s).copied().unwrap_or(0))
+            }
+        }
+    }
+
+    /// Bytes of a cell's message to its neighbours with `lights` lights.
+    fn message_bytes(&self, lights: usize) -> usize {
+        match self {
+            CentreLights::Masks(_) => Shown::BYTES,
+            CentreLights::Weights(_) => Shown::HEADER_BYTES + lights,
+        }
+    }
+}
+
+/// Shade every cell as the mean of its samples (see the module doc), the lights of column
+/// (x, y)'s visible surface given by `centre`. The image's coverage and lit masks are the
+/// centre line's (as without samples: the lit state is unchanged); its colours the samples'
+/// mean. Also the grid's statistics with the exchange and the foreign samples.
 pub fn shade_samples(
     mesh: &Mesh,
     scene: &LoadedScene,
     lights: &[PointLight],
-    reached: &dyn Fn(u32, u32) -> SourceMask,
+    centre: &CentreLights<'_>,
     mode: NormalMode,
     grid: &SampleGrid,
 ) -> (Image, SampleStats) {
@@ -158,7 +191,6 @@ pub fn shade_samples(
     let materials = &mesh.materials;
     let mats: Vec<_> = materials.iter().map(cell_material).collect();
     let lights = &eye_lights(&scene.eye, lights)[..];
-    let ref_lights = ref_lights(lights);
     let npix = n as usize * n as usize;
     let mut img = Image {
         n,
@@ -169,13 +201,13 @@ pub fn shade_samples(
         shading_mean_err_levels: 0.0,
     };
     // What each cell tells its neighbours.
-    let shown: Vec<Option<Shown>> = scene
+    let shown: Vec<Option<Shown<[u8; 32]>>> = scene
         .grid
         .cells
         .iter()
         .map(|c| {
             let v = c.visible.as_ref()?;
-            Some(Shown { facet: v.facet, normal: v.normal, reached: reached(c.x as u32, c.y as u32) })
+            Some(Shown { facet: v.facet, normal: v.normal, reached: centre.weights(c.x as u32, c.y as u32) })
         })
         .collect();
     let inside = |x: i64, y: i64| (0..n as i64).contains(&x) && (0..n as i64).contains(&y);
@@ -216,14 +248,16 @@ pub fn shade_samples(
             let (p, v) = scene.eye.shading_point([px, py, surface.depth()]);
             let nrm = cell_core::shade::shading_normal_toward(surface.normal, mode, v);
             let m = &materials[(surface.material as usize).min(materials.len() - 1)];
-            for (mask, w) in sample_lights(own, &around, surface, smp, grid.lights) {
-                let (c, lit) = sample_colour((x, y), smp, surface, mask, &mats, lights, &params);
+            for (weights, w) in sample_lights(own, &around, surface, smp, grid.lights) {
+                // The lender's lights, each scaled by its weight (a mask's by 1 or 0).
+                let (mask, scaled) = weigh_lights(lights, &weights[..lights.len().min(32)]);
+                let (c, lit) = sample_colour((x, y), smp, surface, mask, &mats, &scaled, &params);
                 let e = crate::truth::refrender::shade_linear_view_f64(
                     p.map(f64::from),
                     nrm.map(f64::from),
                     v.map(f64::from),
                     m,
-                    &ref_lights,
+                    &ref_lights(&scaled),
                     lit,
                     [AMBIENT as f64; 3],
                 );
@@ -245,8 +279,9 @@ pub fn shade_samples(
             err_count += 1;
         }
         img.rgb[i] = rgb;
-        if let Some(v) = c.visible.as_ref() {
-            let px = cell_core::shade::surface_pixel(c.x, c.y, v, reached(x, y), &mats, lights, &params);
+        if let (Some(v), Some(o)) = (c.visible.as_ref(), own) {
+            let (mask, scaled) = weigh_lights(lights, &o.reached[..lights.len().min(32)]);
+            let px = cell_core::shade::surface_pixel(c.x, c.y, v, mask, &mats, &scaled, &params);
             img.covered[i] = true;
             img.lit[i] = px.lit;
         }
@@ -254,6 +289,7 @@ pub fn shade_samples(
     img.shading_mean_err_levels = err_sum as f64 / err_count.max(1) as f64;
     let stats = SampleStats {
         exchange_messages: messages,
+        exchange_bytes_per_message: centre.message_bytes(lights.len()),
         foreign_samples: foreign,
         mixed_pixels: mixed,
         ..grid.stats.clone()
