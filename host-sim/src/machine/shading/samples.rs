@@ -174,6 +174,89 @@ impl CentreLights<'_> {
     }
 }
 
+/// What shading a cell's samples reads besides the cell: the scene's materials (the cells'
+/// and the f64 formula's), the lights in the shading space and the shading parameters.
+struct ShadeCtx<'a> {
+    materials: &'a [crate::scene::Material],
+    mats: Vec<cell_core::shade::Material>,
+    lights: &'a [PointLight],
+    params: ShadeParams,
+    lender: SampleLights,
+}
+
+/// One cell's samples shaded: the pixel, the same in f64, and how many samples show another
+/// surface than the centre's.
+struct CellSamples {
+    rgb: [u8; 3],
+    f64_rgb: [u8; 3],
+    foreign: u64,
+}
+
+impl ShadeCtx<'_> {
+    /// The mean of column (x, y)'s samples `records` (at `samples`), lit by the lights the cell
+    /// (`own`) and its neighbours (`around`) lend them.
+    fn cell(
+        &self,
+        (x, y): (u32, u32),
+        samples: &[Sample],
+        records: &[Option<VisibleSurface>],
+        own: Option<Shown<[u8; 32]>>,
+        around: &[Option<Shown<[u8; 32]>>; 8],
+    ) -> CellSamples {
+        let (mut cell, mut exact, mut foreign) = (Vec::with_capacity(samples.len()), Vec::new(), 0);
+        for (&smp, rec) in samples.iter().zip(records) {
+            let Some(surface) = rec else {
+                foreign += own.is_some() as u64;
+                cell.push(None);
+                exact.push(None);
+                continue;
+            };
+            foreign += own.is_none_or(|o| o.facet != surface.facet) as u64;
+            let (c, e) = self.sample(x, y, smp, surface, own, around);
+            cell.push(Some(c));
+            exact.push(Some(e));
+        }
+        CellSamples { rgb: mean_pixel(cell), f64_rgb: mean_f64(&exact), foreign }
+    }
+
+    /// Sample `smp`'s linear colour, in the cell's arithmetic and in f64 from the same inputs:
+    /// the sum over its lenders of their lights' colour, weighed.
+    fn sample(
+        &self,
+        x: u32,
+        y: u32,
+        smp: Sample,
+        surface: &VisibleSurface,
+        own: Option<Shown<[u8; 32]>>,
+        around: &[Option<Shown<[u8; 32]>>; 8],
+    ) -> ([f32; 3], [f64; 3]) {
+        let [px, py] = smp.point(x, y);
+        let (p, v) = self.params.eye.shading_point([px, py, surface.depth()]);
+        let nrm = cell_core::shade::shading_normal_toward(surface.normal, self.params.normal_mode, v);
+        let m = &self.materials[(surface.material as usize).min(self.materials.len() - 1)];
+        let (mut colour, mut colour_f64) = ([0.0f32; 3], [0.0f64; 3]);
+        for (weights, w) in sample_lights(own, around, surface, smp, self.lender) {
+            // The lender's lights, each scaled by its weight (a mask's by 1 or 0).
+            let (mask, scaled) = weigh_lights(self.lights, &weights[..self.lights.len().min(32)]);
+            let (c, lit) = sample_colour((x, y), smp, surface, mask, &self.mats, &scaled, &self.params);
+            let e = crate::truth::refrender::shade_linear_view_f64(
+                p.map(f64::from),
+                nrm.map(f64::from),
+                v.map(f64::from),
+                m,
+                &ref_lights(&scaled),
+                lit,
+                [AMBIENT as f64; 3],
+            );
+            for k in 0..3 {
+                colour[k] += w * c[k];
+                colour_f64[k] += w as f64 * e[k];
+            }
+        }
+        (colour, colour_f64)
+    }
+}
+
 /// Shade every cell as the mean of its samples (see the module doc), the lights of column
 /// (x, y)'s visible surface given by `centre`. The image's coverage and lit masks are the
 /// centre line's (as without samples: the lit state is unchanged); its colours the samples'
@@ -187,10 +270,13 @@ pub fn shade_samples(
     grid: &SampleGrid,
 ) -> (Image, SampleStats) {
     let n = scene.grid.n;
-    let params = ShadeParams { ambient: [AMBIENT; 3], normal_mode: mode, eye: scene.eye };
-    let materials = &mesh.materials;
-    let mats: Vec<_> = materials.iter().map(cell_material).collect();
-    let lights = &eye_lights(&scene.eye, lights)[..];
+    let ctx = ShadeCtx {
+        materials: &mesh.materials,
+        mats: mesh.materials.iter().map(cell_material).collect(),
+        lights: &eye_lights(&scene.eye, lights),
+        params: ShadeParams { ambient: [AMBIENT; 3], normal_mode: mode, eye: scene.eye },
+        lender: grid.lights,
+    };
     let npix = n as usize * n as usize;
     let mut img = Image {
         n,
@@ -210,86 +296,40 @@ pub fn shade_samples(
             Some(Shown { facet: v.facet, normal: v.normal, reached: centre.weights(c.x as u32, c.y as u32) })
         })
         .collect();
-    let inside = |x: i64, y: i64| (0..n as i64).contains(&x) && (0..n as i64).contains(&y);
-    let at = |x: i64, y: i64| inside(x, y).then(|| shown[(y * n as i64 + x) as usize]).flatten();
+    let inside = |(x, y): (i64, i64)| (0..n as i64).contains(&x) && (0..n as i64).contains(&y);
     let samples: Vec<Sample> = Sample::all(grid.s).collect();
     let per = samples.len();
-    let (mut err_sum, mut err_count) = (0u64, 0u64);
-    let (mut foreign, mut mixed, mut messages) = (0u64, 0u64, 0u64);
+    let (mut err_sum, mut foreign, mut mixed, mut messages) = (0u64, 0u64, 0u64, 0u64);
     for (i, c) in scene.grid.cells.iter().enumerate() {
         let (x, y) = (c.x as u32, c.y as u32);
-        let own = shown[i];
         let next = |(dx, dy): (i32, i32)| (x as i64 + dx as i64, y as i64 + dy as i64);
-        let around = NEIGHBOURS.map(|d| {
-            let (ax, ay) = next(d);
-            at(ax, ay)
-        });
+        let around =
+            NEIGHBOURS.map(|d| inside(next(d)).then(|| shown[(next(d).1 * n as i64 + next(d).0) as usize]).flatten());
+        let own = shown[i];
         if own.is_some() {
-            messages += NEIGHBOURS.iter().filter(|&&d| inside(next(d).0, next(d).1)).count() as u64;
+            messages += NEIGHBOURS.iter().filter(|&&d| inside(next(d))).count() as u64;
         }
-        let records = &grid.surfaces[i * per..(i + 1) * per];
-        let mut cell = Vec::with_capacity(per);
-        let mut exact = Vec::with_capacity(per);
-        let mut any_foreign = false;
-        for (&smp, rec) in samples.iter().zip(records) {
-            let Some(surface) = rec else {
-                any_foreign |= own.is_some();
-                foreign += own.is_some() as u64;
-                cell.push(None);
-                exact.push(None);
-                continue;
-            };
-            let is_foreign = own.is_none_or(|o| o.facet != surface.facet);
-            any_foreign |= is_foreign;
-            foreign += is_foreign as u64;
-            let (mut colour, mut colour_f64) = ([0.0f32; 3], [0.0f64; 3]);
-            // The same inputs through the f64 formula.
-            let [px, py] = smp.point(x, y);
-            let (p, v) = scene.eye.shading_point([px, py, surface.depth()]);
-            let nrm = cell_core::shade::shading_normal_toward(surface.normal, mode, v);
-            let m = &materials[(surface.material as usize).min(materials.len() - 1)];
-            for (weights, w) in sample_lights(own, &around, surface, smp, grid.lights) {
-                // The lender's lights, each scaled by its weight (a mask's by 1 or 0).
-                let (mask, scaled) = weigh_lights(lights, &weights[..lights.len().min(32)]);
-                let (c, lit) = sample_colour((x, y), smp, surface, mask, &mats, &scaled, &params);
-                let e = crate::truth::refrender::shade_linear_view_f64(
-                    p.map(f64::from),
-                    nrm.map(f64::from),
-                    v.map(f64::from),
-                    m,
-                    &ref_lights(&scaled),
-                    lit,
-                    [AMBIENT as f64; 3],
-                );
-                for k in 0..3 {
-                    colour[k] += w * c[k];
-                    colour_f64[k] += w as f64 * e[k];
-                }
-            }
-            cell.push(Some(colour));
-            exact.push(Some(colour_f64));
-        }
-        mixed += any_foreign as u64;
-        let rgb = mean_pixel(cell);
-        let f64_rgb = mean_f64(&exact);
+        let r = ctx.cell((x, y), &samples, &grid.surfaces[i * per..(i + 1) * per], own, &around);
         for k in 0..3 {
-            let e = rgb[k].abs_diff(f64_rgb[k]);
+            let e = r.rgb[k].abs_diff(r.f64_rgb[k]);
             img.shading_max_err_levels = img.shading_max_err_levels.max(e);
             err_sum += e as u64;
-            err_count += 1;
         }
-        img.rgb[i] = rgb;
+        (foreign, mixed) = (foreign + r.foreign, mixed + (r.foreign > 0) as u64);
+        img.rgb[i] = r.rgb;
         if let (Some(v), Some(o)) = (c.visible.as_ref(), own) {
-            let (mask, scaled) = weigh_lights(lights, &o.reached[..lights.len().min(32)]);
-            let px = cell_core::shade::surface_pixel(c.x, c.y, v, mask, &mats, &scaled, &params);
+            let (mask, scaled) = weigh_lights(ctx.lights, &o.reached[..ctx.lights.len().min(32)]);
+            let px = cell_core::shade::surface_pixel(c.x, c.y, v, mask, &ctx.mats, &scaled, &ctx.params);
             img.covered[i] = true;
             img.lit[i] = px.lit;
         }
     }
-    img.shading_mean_err_levels = err_sum as f64 / err_count.max(1) as f64;
+    img.shading_mean_err_levels = err_sum as f64 / (3 * npix).max(1) as f64;
+    let message = centre.message_bytes(ctx.lights.len());
     let stats = SampleStats {
+        bytes_per_cell: per * std::mem::size_of::<VisibleSurface>() + NEIGHBOURS.len() * message,
         exchange_messages: messages,
-        exchange_bytes_per_message: centre.message_bytes(lights.len()),
+        exchange_bytes_per_message: message,
         foreign_samples: foreign,
         mixed_pixels: mixed,
         ..grid.stats.clone()
