@@ -44,7 +44,8 @@
 //! ([`crate::receiver`]). A sample on that facet takes the cell's lights. A sample on another
 //! facet (the pixel straddles a silhouette or a crease) takes those of the neighbour that shows
 //! that facet nearest the sample: after lighting, each cell tells its 8 neighbours what its
-//! centre shows and which lights reached it ([`Shown`], one message per link); a sample looks
+//! centre shows and which lights reached it (its lit mask, or its lights' weights under the
+//! lit-ray ratio: [`Shown`], one message per link); a sample looks
 //! for its own facet, then for a facet of its normal code (the same plane cut into several
 //! facets), then takes the nearest cell's (a facet no centre line meets: a thin wire).
 //! Distances are squared, in units of 1/(2s) voxel; ties go to the cell itself, then to the
