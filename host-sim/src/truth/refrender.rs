@@ -537,21 +537,28 @@ pub fn render_reference_samples(
 impl RefScene<'_> {
     /// The mean colour of pixel (x, y)'s `s` × `s` points (see [`render_reference_samples`]).
     fn mean_of_samples(&self, x: u32, y: u32, n: u32, s: u32) -> [u8; 3] {
-        let mut sum = [0.0; 3];
-        for k in 0..s * s {
-            let (i, j) = ((k % s) as f64, (k / s) as f64);
-            let (o, d) = self.primary(x as f64 + (i + 0.5) / s as f64, y as f64 + (j + 0.5) / s as f64, n);
-            let Some((t, facet, normal)) = self.reference.first_hit(o.to_array(), d.to_array(), self.primary_t, &[])
-            else {
-                continue;
-            };
-            let (c, _) = self.colour(o + t * d, Vector::from(normal), facet, -d, 1, 1.0);
-            for ch in 0..3 {
-                sum[ch] += c[ch].clamp(0.0, 1.0);
-            }
-        }
-        sum.map(|c| encode_gamma(c / (s * s) as f64))
+        let colours: Vec<Option<[f64; 3]>> = (0..s * s)
+            .map(|k| {
+                let (i, j) = ((k % s) as f64, (k / s) as f64);
+                let (o, d) = self.primary(x as f64 + (i + 0.5) / s as f64, y as f64 + (j + 0.5) / s as f64, n);
+                let (t, facet, normal) = self.reference.first_hit(o.to_array(), d.to_array(), self.primary_t, &[])?;
+                Some(self.colour(o + t * d, Vector::from(normal), facet, -d, 1, 1.0).0)
+            })
+            .collect();
+        mean_colour(&colours)
     }
+}
+
+/// The pixel of several samples' linear colours (`None`: a sample that meets nothing, black):
+/// each clamped to [0, 1], their mean gamma-encoded once ([`encode_gamma`]).
+pub fn mean_colour(colours: &[Option<[f64; 3]>]) -> [u8; 3] {
+    let mut sum = [0.0; 3];
+    for c in colours.iter().flatten() {
+        for k in 0..3 {
+            sum[k] += c[k].clamp(0.0, 1.0);
+        }
+    }
+    sum.map(|c| encode_gamma(c / colours.len().max(1) as f64))
 }
 
 /// [`render_reference`] with mirror reflections (see [`RefReflect`]).

@@ -16,18 +16,7 @@ use cell_core::dexel::FacetTag;
 use cell_core::subpixel::{hit_at, RowSlopes, Sample, SampleHit, MAX_SAMPLED_N, MAX_SAMPLES};
 use host_sim::machine::shading::smooth_surface::row_at;
 use host_sim::precompute::{facet_packet, LoadConfig, Q};
-
-/// A tiny deterministic generator (xorshift64*), uniform in [0, 1).
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
+use host_sim::rng::Rng;
 
 /// What the oracle says of a sample's line and a triangle.
 #[derive(Debug, PartialEq)]
@@ -138,8 +127,7 @@ fn sample_hits_match_exact_lattice_geometry_on_small_facets() {
     let n = 24;
     let mut inside = [0; MAX_SAMPLES as usize];
     for _ in 0..80 {
-        let tri: [[i64; 3]; 3] =
-            std::array::from_fn(|_| std::array::from_fn(|_| (rng.next() * (Q * 24) as f64) as i64));
+        let tri: [[i64; 3]; 3] = std::array::from_fn(|_| std::array::from_fn(|_| (rng.f() * (Q * 24) as f64) as i64));
         let cols = box_columns(&tri, n);
         for s in 1..=MAX_SAMPLES {
             inside[s as usize - 1] += check(n, &tri, s, &cols);
@@ -159,9 +147,9 @@ fn sample_hits_are_exact_at_the_bit_budget() {
     for tri in &facets {
         // Columns at the corners, along the diagonals and at random.
         let mut cols = vec![(0, 0), (n - 1, 0), (0, n - 1), (n - 1, n - 1), (n / 2, n / 2)];
-        cols.extend((0..40).map(|_| ((rng.next() * n as f64) as u32, (rng.next() * n as f64) as u32)));
+        cols.extend((0..40).map(|_| ((rng.f() * n as f64) as u32, (rng.f() * n as f64) as u32)));
         cols.extend((0..20).map(|_| {
-            let t = (rng.next() * n as f64) as u32;
+            let t = (rng.f() * n as f64) as u32;
             (t, n - 1 - t)
         }));
         for s in 1..=MAX_SAMPLES {
@@ -178,8 +166,7 @@ fn the_centre_sample_is_the_centre_lines_hit() {
     let n = 32;
     let mut met = 0;
     for _ in 0..60 {
-        let tri: [[i64; 3]; 3] =
-            std::array::from_fn(|_| std::array::from_fn(|_| (rng.next() * (Q * 32) as f64) as i64));
+        let tri: [[i64; 3]; 3] = std::array::from_fn(|_| std::array::from_fn(|_| (rng.f() * (Q * 32) as f64) as i64));
         let Ok(pkt) = facet_packet(&tri, FacetTag::default(), &LoadConfig::watertight(n)).unwrap() else { continue };
         let slopes = RowSlopes::of(&pkt);
         for (x, y) in box_columns(&tri, n) {

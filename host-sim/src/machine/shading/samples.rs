@@ -216,7 +216,7 @@ impl ShadeCtx<'_> {
             cell.push(Some(c));
             exact.push(Some(e));
         }
-        CellSamples { rgb: mean_pixel(cell), f64_rgb: mean_f64(&exact), foreign }
+        CellSamples { rgb: mean_pixel(cell), f64_rgb: crate::truth::refrender::mean_colour(&exact), foreign }
     }
 
     /// Sample `smp`'s linear colour, in the cell's arithmetic and in f64 from the same inputs:
@@ -335,15 +335,4 @@ pub fn shade_samples(
         ..grid.stats.clone()
     };
     (img, stats)
-}
-
-/// [`mean_pixel`] in f64: the samples' colours clamped, averaged, gamma-encoded.
-pub fn mean_f64(colours: &[Option<[f64; 3]>]) -> [u8; 3] {
-    let mut sum = [0.0; 3];
-    for c in colours.iter().flatten() {
-        for k in 0..3 {
-            sum[k] += c[k].clamp(0.0, 1.0);
-        }
-    }
-    sum.map(|c| crate::truth::refrender::encode_gamma(c / colours.len().max(1) as f64))
 }
